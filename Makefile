@@ -1,0 +1,41 @@
+# One command sets everything up and runs: `make test` (the test suite) or `make reproduce`
+# (regenerates results/). Both are idempotent: system packages are installed only if missing,
+# .venv is created once and re-synced when pyproject.toml changes.
+
+PYTHON   ?= python3
+VENV     := .venv
+PY       := $(VENV)/bin/python
+APT_PKGS := gfortran libsundials-dev pkg-config cmake
+STAMP    := $(VENV)/.installed
+
+.PHONY: setup system-packages test reproduce bench clean
+
+setup: $(STAMP)
+
+system-packages:
+	@missing=""; for p in $(APT_PKGS); do \
+	  dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q "install ok installed" || missing="$$missing $$p"; \
+	done; \
+	if [ -n "$$missing" ]; then \
+	  echo "installing system packages:$$missing"; \
+	  if [ "$$(id -u)" -ne 0 ]; then SUDO=sudo; else SUDO=; fi; \
+	  $$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq $$missing; \
+	fi
+
+$(STAMP): pyproject.toml | system-packages
+	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade pip==26.3 setuptools==84.2.1 wheel==0.48.0
+	$(PY) -m pip install -q -e .
+	touch $@
+
+test: setup
+	$(PY) -m pytest
+
+reproduce: setup
+	$(VENV)/bin/rsfbench reproduce --out results
+
+bench: setup
+	$(PY) -m pytest benchmarks --benchmark-only --benchmark-json=results/benchmark.json
+
+clean:
+	rm -rf $(VENV) build *.egg-info

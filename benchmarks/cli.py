@@ -1,0 +1,164 @@
+"""``rsfbench``: the command line of the harness.
+
+    rsfbench simulate --preset W2 --law aging --json
+    rsfbench windows --out results          # W1–W4 limit cycles, both laws, CSV + Markdown
+    rsfbench integrators                    # the registry
+    rsfbench reproduce --out results        # what `make reproduce` runs
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+from benchmarks import metrics
+from benchmarks.timing import warm_up
+from integrators import REGISTRY, algorithm_class, solve
+from problems import PRESET_NAMES, preset
+
+__all__ = ["main"]
+
+
+def _algorithm(name: str, **options):
+    return algorithm_class(name)(**options)
+
+
+def _jsonable(x):
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    if isinstance(x, dict):
+        return {k: _jsonable(v) for k, v in x.items()}
+    if isinstance(x, list):
+        return [_jsonable(v) for v in x]
+    return x
+
+
+def simulate_summary(sol) -> dict:
+    """The JSON summary of one run (the keys ``rsfbench simulate --json`` promises)."""
+    lc = metrics.summarize(sol)
+    p = sol.problem
+    return _jsonable({
+        "problem": p.name, "law": p.law.name, "b": p.law.b, "lc_m": p.law.lc, "t_end": p.t_end,
+        "integrator": sol.algorithm.name, "options": sol.algorithm.options(),
+        "retcode": sol.retcode.value, "message": sol.message,
+        "wall_s": sol.stats.wall_s, "steps": sol.stats.steps, "nfev": sol.stats.nfev,
+        "njev": sol.stats.njev, "n_events": len(sol.events),
+        "limit_cycle": lc.as_dict(),
+    })
+
+
+def _print_summary(s: dict) -> None:
+    lc = s["limit_cycle"]
+    print(f"{s['problem']}  (b = {s['b']:.5g}, Lc = {s['lc_m'] * 1e6:.4g} µm, {s['t_end']:g} s)")
+    print(f"  integrator  {s['integrator']}   {s['retcode']}  {s['message']}".rstrip())
+    print(f"  cost        {s['steps']} steps, {s['nfev']} rhs evaluations, {s['wall_s']:.4g} s wall")
+    print(f"  events      {s['n_events']}   classification: {lc['classification']}")
+    if lc["period"]:
+        print(f"  limit cycle (period {lc['period']}, converged from event {lc['cycles_to_converge']}):")
+        print(f"    recurrence interval  {lc['recurrence_s']:.6g} s")
+        print(f"    friction drop        {lc['friction_drop']:.6g}")
+        print(f"    slip per event       {lc['slip_m'] * 1e3:.6g} mm")
+        print(f"    peak slip rate       {lc['peak_velocity_m_s']:.6g} m/s")
+
+
+def cmd_simulate(args) -> int:
+    problem = preset(args.preset, law=args.law, b=args.b, lc=args.lc, t_end=args.t_end)
+    algorithm = _algorithm(args.integrator)
+    warm_up(problem, algorithm)     # so that wall_s excludes numba compilation
+    sol = solve(problem, algorithm, max_points=200_000 if args.plot else 20_000,
+                progress=args.progress)
+    summary = simulate_summary(sol)
+    if args.plot:
+        from benchmarks.plots import plot_solution
+        plot_solution(sol, args.plot)
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    else:
+        _print_summary(summary)
+        if args.plot:
+            print(f"  figure      {args.plot}")
+    return 0 if sol.success else 1
+
+
+def cmd_integrators(args) -> int:
+    rows = [{"name": name, "family": cls.family, "order": cls.order, "adaptive": cls.adaptive,
+             "library": cls.library, "version": cls.library_version()}
+            for name, cls in sorted(REGISTRY.items())]
+    if args.json:
+        print(json.dumps(rows, indent=2))
+        return 0
+    print(f"{'name':<14} {'order':>5}  {'adaptive':<8} {'family':<32} library")
+    for r in rows:
+        print(f"{r['name']:<14} {r['order']:>5}  {str(r['adaptive']):<8} {r['family']:<32} "
+              f"{r['library']} ({r['version']})")
+    return 0
+
+
+def cmd_windows(args) -> int:
+    from benchmarks.windows import windows_table, write_windows
+    table = windows_table(laws=args.law, integrator=_algorithm(args.integrator),
+                          t_end=args.t_end, progress=not args.json)
+    if args.out:
+        write_windows(table, Path(args.out))
+    if args.json:
+        print(table.to_json(orient="records", indent=2))
+    else:
+        print(table.to_string(index=False))
+    return 0
+
+
+def cmd_reproduce(args) -> int:
+    from benchmarks.reproduce import reproduce
+    reproduce(Path(args.out))
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="rsfbench", description=__doc__.split("\n\n")[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    s = sub.add_parser("simulate", help="run one preset and summarise its limit cycle")
+    s.add_argument("--preset", required=True, choices=PRESET_NAMES,
+                   type=lambda x: "paper-example" if x.lower() == "paper-example" else x.upper())
+    s.add_argument("--law", choices=("slip", "aging"), default="slip")
+    s.add_argument("--b", type=float, help="evolution parameter b (default: the preset's)")
+    s.add_argument("--lc", type=float, metavar="LC_METRES", help="critical slip distance Lc in m")
+    s.add_argument("--t-end", type=float, help="simulated time in s (default: the preset's)")
+    s.add_argument("--integrator", default="ETD2", help="registry name (see `rsfbench integrators`)")
+    s.add_argument("--json", action="store_true", help="print one JSON object")
+    s.add_argument("--plot", metavar="FILE.png", help="draw v(t), μ(t) and the phase portrait")
+    s.add_argument("--progress", action="store_true", help="show a progress bar")
+    s.set_defaults(func=cmd_simulate)
+
+    i = sub.add_parser("integrators", help="list the registry")
+    i.add_argument("--json", action="store_true")
+    i.set_defaults(func=cmd_integrators)
+
+    w = sub.add_parser("windows", help="limit cycles of W1–W4 against the observed means")
+    w.add_argument("--law", nargs="+", choices=("slip", "aging"), default=["slip", "aging"])
+    w.add_argument("--integrator", default="ETD2")
+    w.add_argument("--t-end", type=float, default=None)
+    w.add_argument("--out", help="directory for windows.csv and windows.md")
+    w.add_argument("--json", action="store_true")
+    w.set_defaults(func=cmd_windows)
+
+    r = sub.add_parser("reproduce", help="regenerate results/ (what `make reproduce` runs)")
+    r.add_argument("--out", default="results")
+    r.set_defaults(func=cmd_reproduce)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except ValueError as exc:   # bad parameters: say which, no traceback
+        print(f"rsfbench: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

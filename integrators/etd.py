@@ -1,0 +1,160 @@
+"""The paper's exponential time differencing (ETD) integrators: ETD1, ETD2 and the iterated form.
+
+Urata et al. (2017), Appendices 1–2 (slip law Eqs. 33–53, aging law Eqs. 63–69); the iteration
+follows Noda & Lapusta (2010). Fixed rule for the step, not error-controlled (Eq. 53):
+
+    Δτ = min(Δτmax, Δτcnst · vmax / v)
+
+with the paper's Δτmax = 0.01, Δτcnst = 1e−5, vmax = 0.05 m/s as defaults. The slip per step is
+then at most Δτcnst·vmax/v0 critical distances. The compiled loop is in
+:mod:`integrators.etd_kernel`; this module holds the options and drives the loop in chunks.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from integrators import etd_kernel as K
+from integrators.registry import Algorithm, register
+from integrators.solution import RawRun, ReturnCode, Stats
+from problems._validate import check_positive
+from problems.loading import event_thresholds
+
+__all__ = ["ETD1", "ETD2", "ETDIterated"]
+
+_CHUNK_STEPS = 100_000        # steps between returns to Python (progress, budgets)
+_EVENT_BUFFER = 4_096
+_SAVE_BUFFER_MAX = 65_536
+
+
+@dataclass(frozen=True)
+class _ETD(Algorithm):
+    """Options shared by the ETD family: the step rule of Eq. 53 and a step budget."""
+
+    dtau_max: float = 0.01
+    dtau_cnst: float = 1e-5
+    v_max: float = 0.05
+    max_steps: int = 200_000_000
+
+    family: ClassVar[str] = "exponential time differencing"
+    adaptive: ClassVar[bool] = False
+    library: ClassVar[str] = "rsfbench (numba)"
+    n_iter: ClassVar[int] = 1
+
+    def __post_init__(self) -> None:
+        check_positive("dtau_max", self.dtau_max)
+        check_positive("dtau_cnst", self.dtau_cnst)
+        check_positive("v_max", self.v_max)
+        if int(self.max_steps) != self.max_steps or self.max_steps < 1:
+            raise ValueError(f"max_steps must be a positive integer, got {self.max_steps!r}")
+
+    @classmethod
+    def library_version(cls) -> str:
+        import numba
+        return f"numba {numba.__version__}"
+
+    def iterations(self) -> int:
+        return self.n_iter
+
+    def run(self, problem, output, budget, progress) -> RawRun:
+        nd = problem.nondimensional()
+        v0 = problem.law.v0
+        w_start, w_end = (v / v0 for v in event_thresholds(problem.loading))
+        p = np.array([nd.law_code, nd.beta, nd.c, nd.d, nd.e_slow, nd.e_fast, nd.tau_fast,
+                      nd.tau_end, w_start, w_end, float(problem.loading.two_speed)])
+        save_dtau = output.interval(problem.t_end) / nd.time_scale
+        o = np.array([self.dtau_max, self.dtau_cnst, self.v_max / v0, self.iterations(), save_dtau])
+        st = K.initial_loop_state(nd.x0, save_dtau)
+        n_save = min(_SAVE_BUFFER_MAX, int(math.ceil(nd.tau_end / save_dtau)) + 2)
+        save_buf, ev_buf = np.empty((n_save, 4)), np.empty((_EVENT_BUFFER, K.E_SIZE))
+        saved, events = [np.concatenate(([0.0], nd.x0))[None, :]], []
+        retcode, message = ReturnCode.SUCCESS, ""
+        while True:
+            chunk = int(min(_CHUNK_STEPS, self.max_steps - st[K.S_STEPS]))
+            status = K.etd_advance(st, p, o, save_buf, ev_buf, max(chunk, 0))
+            saved.append(save_buf[: int(st[K.S_NSAVED])].copy())
+            events.append(ev_buf[: int(st[K.S_NEVENTS])].copy())
+            st[K.S_NSAVED] = st[K.S_NEVENTS] = 0
+            if progress:
+                progress(st[K.S_TAU] * nd.time_scale)
+            if status == K.DONE:
+                break
+            if status == K.NONFINITE:
+                retcode = ReturnCode.NON_FINITE
+                message = (f"a step from t = {st[K.S_TAU] * nd.time_scale:.9g} s produced a "
+                           "non-finite value")
+                break
+            if st[K.S_STEPS] >= self.max_steps:
+                retcode, message = ReturnCode.MAX_STEPS, f"step budget of {self.max_steps} used up"
+                break
+            if budget.exceeded():
+                retcode = ReturnCode.WALL_TIME
+                message = f"wall-time budget of {budget.wall_s} s used up"
+                break
+        traj = np.concatenate(saved)
+        if traj[-1, 0] < st[K.S_TAU]:
+            traj = np.vstack([traj, [st[K.S_TAU], st[K.S_H], st[K.S_ETA], st[K.S_PSI]]])
+        steps = int(st[K.S_STEPS])
+        stats = Stats(nfev=int(st[K.S_EVALS]), steps=steps, rejected=int(st[K.S_REDONE]))
+        return RawRun(t=traj[:, 0] * nd.time_scale,
+                      y=np.column_stack(problem.dimensional_state(traj[:, 1], traj[:, 2], traj[:, 3])),
+                      events=_events_si(problem, nd, np.concatenate(events)),
+                      stats=stats, retcode=retcode, message=message)
+
+
+def _events_si(problem, nd, ev: np.ndarray) -> np.ndarray:
+    """Event records of the kernel (nondimensional) in the columns of ``EVENT_COLUMNS``."""
+    ts, f0, kl, lc = nd.time_scale, problem.f0, nd.force_h, problem.law.lc
+    return np.column_stack([
+        ev[:, K.E_TAU_START] * ts, ev[:, K.E_TAU_END] * ts,
+        f0 + kl * ev[:, K.E_HMAX], f0 + kl * ev[:, K.E_HMIN],
+        problem.law.v0 * ev[:, K.E_WPEAK], ev[:, K.E_TAU_PEAK] * ts,
+        lc * ev[:, K.E_SLIP_START], lc * ev[:, K.E_SLIP_END],
+    ])
+
+
+@register
+@dataclass(frozen=True)
+class ETD1(_ETD):
+    """First-order ETD: one step with coefficients frozen at its start (the starred values,
+    Eqs. 33–41). Order 1, fixed step rule (Eq. 53)."""
+
+    name: ClassVar[str] = "ETD1"
+    order: ClassVar[int] = 1
+    n_iter: ClassVar[int] = 0
+
+
+@register
+@dataclass(frozen=True)
+class ETD2(_ETD):
+    """The paper's second-order ETD: half a step with the coefficients at the start, half with
+    them re-evaluated at the first-order end values (Eqs. 42–52). Order 2, fixed step rule."""
+
+    name: ClassVar[str] = "ETD2"
+    order: ClassVar[int] = 2
+    n_iter: ClassVar[int] = 1
+
+
+@register
+@dataclass(frozen=True)
+class ETDIterated(_ETD):
+    """Iterated ETD (Noda & Lapusta 2010): the second half-step re-evaluated ``n_iterations``
+    times at the newest end-of-step estimate. ``n_iterations`` = 1 is ETD2. Order 2 (iterating
+    does not raise the order of the frozen-coefficient half steps, it reduces the constant)."""
+
+    n_iterations: int = 2
+
+    name: ClassVar[str] = "ETDIterated"
+    order: ClassVar[int] = 2
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if int(self.n_iterations) != self.n_iterations or self.n_iterations < 1:
+            raise ValueError(f"n_iterations must be an integer >= 1, got {self.n_iterations!r}")
+
+    def iterations(self) -> int:
+        return int(self.n_iterations)

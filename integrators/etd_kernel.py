@@ -1,0 +1,242 @@
+"""Compiled loop of the paper's exponential time differencing (ETD) schemes (Appendices 1–2).
+
+Everything here is a numba ``@njit`` function on plain floats and arrays, nondimensional
+(SPEC §2): x = (h, η, Ψ), w = v/v0 from the friction-law constraint, τ = v0 t/Lc.
+
+The loop is resumable: its whole state lives in the float array ``st`` (layout ``S_*`` below),
+so the Python side can run it in chunks, empty the output buffers when they fill, report
+progress and enforce budgets, without the output growing with the run length.
+
+Event detection (SPEC §4) happens inside the loop: an event starts when w crosses 10·E_slow
+upwards and ends when w ≤ E_slow; both crossing times are located by linear interpolation of
+ln w within the step (second-order accurate). Under two-speed loading the step that crosses the
+event end is redone to end at the located time, so that the loading switches at a step boundary
+and the scheme keeps its order.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+# --- layout of the loop state ``st`` -------------------------------------------------------
+S_TAU, S_H, S_ETA, S_PSI = 0, 1, 2, 3
+S_LOAD = 4            # load-point displacement / Lc since the start
+S_FAST_UNTIL = 5      # τ until which the fast loading speed applies
+S_IN_EVENT = 6
+S_HMAX = 7            # max h since the end of the last event (spring force before the event)
+S_HMIN = 8            # min h during the current event
+S_WPEAK = 9
+S_TAU_START = 10
+S_SLIP_START = 11
+S_NEXT_SAVE = 12
+S_STEPS = 13
+S_EVALS = 14
+S_REDONE = 15         # steps redone to land on an event end
+S_NSAVED = 16
+S_NEVENTS = 17
+S_TAU_PEAK = 18
+S_SIZE = 19
+
+# --- layout of the parameters ``p`` --------------------------------------------------------
+P_LAW, P_BETA, P_C, P_D, P_E_SLOW, P_E_FAST, P_TAU_FAST, P_TAU_END = 0, 1, 2, 3, 4, 5, 6, 7
+P_W_START, P_W_END, P_TWO_SPEED = 8, 9, 10
+P_SIZE = 11
+
+# --- layout of the options ``o`` -----------------------------------------------------------
+O_DTAU_MAX, O_DTAU_CNST, O_W_MAX, O_N_ITER, O_SAVE_DTAU = 0, 1, 2, 3, 4
+O_SIZE = 5
+
+# --- event record columns ------------------------------------------------------------------
+E_TAU_START, E_TAU_END, E_HMAX, E_HMIN, E_WPEAK, E_SLIP_START, E_SLIP_END, E_TAU_PEAK = range(8)
+E_SIZE = 8
+
+# --- return codes of :func:`etd_advance` ---------------------------------------------------
+DONE, BUFFER_FULL, CHUNK_END, NONFINITE = 0, 1, 2, -1
+
+
+@njit(cache=True)
+def log_slip_rate(law, beta, eta, psi):
+    """ln w from the friction-law constraint (Eq. 32 slip law, Eq. 62 aging law)."""
+    if law == 0:
+        return eta - beta * psi
+    return eta - beta * math.log(psi)
+
+
+@njit(cache=True)
+def coefficients(law, beta, c, d, h, eta, psi):
+    """Frozen coefficients at (h, η, Ψ): w, ηss, D/w (rate of η), Ψss, w (rate of Ψ).
+
+    Eqs. 36–40 (slip law) and 63–65 (aging law).
+    """
+    lnw = log_slip_rate(law, beta, eta, psi)
+    w = math.exp(lnw)
+    if law == 0:
+        eta_ss = (c * h - beta * w * w * (lnw + psi)) / d
+        psi_ss = -lnw
+    else:
+        eta_ss = (c * h + beta * w / psi - beta * w * w) / d
+        psi_ss = 1.0 / w
+    return w, eta_ss, d / w, psi_ss, w
+
+
+@njit(cache=True)
+def _relax(y0, y_ss, rate, s):
+    # exact solution of y' = −rate (y − y_ss) over s; −expm1 keeps accuracy when rate·s is tiny
+    return y0 - (y0 - y_ss) * (-math.expm1(-rate * s))
+
+
+@njit(cache=True)
+def etd_step(law, beta, c, d, e, h0, eta0, psi0, s, n_iter):
+    """One ETD step of length s: first order for ``n_iter`` = 0 (Eqs. 33–41), the paper's
+    second-order scheme for 1 (Eqs. 42–52), further re-evaluations for more."""
+    w0, ess0, re0, pss0, rp0 = coefficients(law, beta, c, d, h0, eta0, psi0)
+    h1 = h0 + (e - w0) * s
+    eta1 = _relax(eta0, ess0, re0, s)
+    psi1 = _relax(psi0, pss0, rp0, s)
+    if n_iter > 0:
+        half = 0.5 * s
+        h_half = h0 + (e - w0) * half
+        eta_half = _relax(eta0, ess0, re0, half)
+        psi_half = _relax(psi0, pss0, rp0, half)
+        for _ in range(n_iter):
+            w1, ess1, re1, pss1, rp1 = coefficients(law, beta, c, d, h1, eta1, psi1)
+            h1 = h_half + (e - w1) * half
+            eta1 = _relax(eta_half, ess1, re1, half)
+            psi1 = _relax(psi_half, pss1, rp1, half)
+    return h1, eta1, psi1
+
+
+@njit(cache=True)
+def _crossing(lnw0, lnw1, ln_threshold):
+    """Fraction of the step at which ln w crosses the threshold (linear interpolation)."""
+    if lnw1 == lnw0:
+        return 1.0
+    f = (ln_threshold - lnw0) / (lnw1 - lnw0)
+    return min(1.0, max(0.0, f))
+
+
+@njit(cache=True)
+def etd_advance(st, p, o, save_buf, ev_buf, max_steps):
+    """Advance the ETD loop from state ``st`` for at most ``max_steps`` steps.
+
+    Writes saved points (τ, h, η, Ψ) to ``save_buf`` and completed events to ``ev_buf`` starting
+    at the counts in ``st``. Returns DONE at τ_end, BUFFER_FULL when an output buffer is full,
+    CHUNK_END after ``max_steps`` steps, NONFINITE if a step produced a non-finite value (``st``
+    then still holds the last finite state).
+    """
+    law = int(p[P_LAW])
+    beta, c, d = p[P_BETA], p[P_C], p[P_D]
+    e_slow, e_fast, tau_fast, tau_end = p[P_E_SLOW], p[P_E_FAST], p[P_TAU_FAST], p[P_TAU_END]
+    ln_w_start, ln_w_end = math.log(p[P_W_START]), math.log(p[P_W_END])
+    two_speed = p[P_TWO_SPEED] > 0.5
+    dtau_max, dtau_cnst, w_max = o[O_DTAU_MAX], o[O_DTAU_CNST], o[O_W_MAX]
+    n_iter = int(o[O_N_ITER])
+    save_dtau = o[O_SAVE_DTAU]
+    evals_per_step = 1 + n_iter
+    tiny = 1e-12 * tau_end
+
+    tau, h, eta, psi = st[S_TAU], st[S_H], st[S_ETA], st[S_PSI]
+    n_save, n_ev = int(st[S_NSAVED]), int(st[S_NEVENTS])
+    for _ in range(max_steps):
+        if tau >= tau_end - tiny:
+            break
+        if n_save >= save_buf.shape[0] or n_ev >= ev_buf.shape[0]:
+            _store(st, tau, h, eta, psi, n_save, n_ev)
+            return BUFFER_FULL
+        lnw = log_slip_rate(law, beta, eta, psi)
+        w = math.exp(lnw)
+        fast = two_speed and st[S_FAST_UNTIL] - tau > tiny
+        e = e_fast if fast else e_slow
+        s = min(dtau_max, dtau_cnst * w_max / w)          # Eq. 53
+        if fast:
+            s = min(s, st[S_FAST_UNTIL] - tau)
+        s = min(s, tau_end - tau)
+        h1, eta1, psi1 = etd_step(law, beta, c, d, e, h, eta, psi, s, n_iter)
+        st[S_STEPS] += 1
+        st[S_EVALS] += evals_per_step
+        lnw1 = log_slip_rate(law, beta, eta1, psi1)
+        if not (math.isfinite(h1) and math.isfinite(eta1) and math.isfinite(psi1)
+                and math.isfinite(lnw1)):
+            _store(st, tau, h, eta, psi, n_save, n_ev)
+            return NONFINITE
+        w1 = math.exp(lnw1)
+        if st[S_IN_EVENT] < 0.5:
+            if lnw1 > ln_w_start:
+                f = _crossing(lnw, lnw1, ln_w_start)
+                st[S_IN_EVENT] = 1.0
+                st[S_TAU_START] = tau + f * s
+                st[S_SLIP_START] = st[S_LOAD] + f * e * s - (h + f * (h1 - h))
+                st[S_HMIN] = h1
+                st[S_WPEAK] = w1
+                st[S_TAU_PEAK] = tau + s
+            elif h1 > st[S_HMAX]:
+                st[S_HMAX] = h1
+        elif lnw1 <= ln_w_end:
+            f = _crossing(lnw, lnw1, ln_w_end)
+            if two_speed and f < 1.0:
+                # land on the event end so that the loading switches at a step boundary
+                s = f * s
+                h1, eta1, psi1 = etd_step(law, beta, c, d, e, h, eta, psi, s, n_iter)
+                st[S_STEPS] += 1
+                st[S_EVALS] += evals_per_step
+                st[S_REDONE] += 1
+                f = 1.0
+            tau_end_ev = tau + f * s
+            h_end = h + f * (h1 - h)
+            ev_buf[n_ev, E_TAU_START] = st[S_TAU_START]
+            ev_buf[n_ev, E_TAU_END] = tau_end_ev
+            ev_buf[n_ev, E_HMAX] = st[S_HMAX]
+            ev_buf[n_ev, E_HMIN] = min(st[S_HMIN], h_end)
+            ev_buf[n_ev, E_WPEAK] = st[S_WPEAK]
+            ev_buf[n_ev, E_SLIP_START] = st[S_SLIP_START]
+            ev_buf[n_ev, E_SLIP_END] = st[S_LOAD] + f * e * s - h_end
+            ev_buf[n_ev, E_TAU_PEAK] = st[S_TAU_PEAK]
+            n_ev += 1
+            st[S_IN_EVENT] = 0.0
+            st[S_HMAX] = h1
+            if two_speed:
+                st[S_FAST_UNTIL] = tau_end_ev + tau_fast
+        else:
+            if h1 < st[S_HMIN]:
+                st[S_HMIN] = h1
+            if w1 > st[S_WPEAK]:
+                st[S_WPEAK] = w1
+                st[S_TAU_PEAK] = tau + s
+        st[S_LOAD] += e * s
+        tau += s
+        h, eta, psi = h1, eta1, psi1
+        if tau >= st[S_NEXT_SAVE]:
+            save_buf[n_save, 0] = tau
+            save_buf[n_save, 1] = h
+            save_buf[n_save, 2] = eta
+            save_buf[n_save, 3] = psi
+            n_save += 1
+            while st[S_NEXT_SAVE] <= tau:
+                st[S_NEXT_SAVE] += save_dtau
+    _store(st, tau, h, eta, psi, n_save, n_ev)
+    if tau >= tau_end - tiny:
+        return DONE
+    return CHUNK_END
+
+
+@njit(cache=True)
+def _store(st, tau, h, eta, psi, n_save, n_ev):
+    st[S_TAU] = tau
+    st[S_H] = h
+    st[S_ETA] = eta
+    st[S_PSI] = psi
+    st[S_NSAVED] = n_save
+    st[S_NEVENTS] = n_ev
+
+
+def initial_loop_state(x0: np.ndarray, save_dtau: float) -> np.ndarray:
+    """The loop state at τ = 0 for initial (h, η, Ψ)."""
+    st = np.zeros(S_SIZE)
+    st[S_H], st[S_ETA], st[S_PSI] = x0
+    st[S_FAST_UNTIL] = -np.inf
+    st[S_HMAX] = x0[0]
+    st[S_NEXT_SAVE] = save_dtau
+    return st

@@ -1,0 +1,59 @@
+"""The one registry of integrators, and the base class every algorithm derives from.
+
+Tests, benchmarks and the CLI iterate over :data:`REGISTRY`; adding an algorithm class with
+:func:`register` enrolls it everywhere. Optional backends register only when their library
+imports.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import ClassVar
+
+__all__ = ["Algorithm", "REGISTRY", "register", "algorithm_class"]
+
+
+@dataclasses.dataclass(frozen=True)
+class Algorithm:
+    """Options of an integration method, never state. Subclasses are frozen dataclasses.
+
+    Class attributes describe the method: ``family``, ``order``, ``adaptive``, ``library``.
+    """
+
+    name: ClassVar[str] = ""
+    family: ClassVar[str] = ""
+    order: ClassVar[int] = 0
+    adaptive: ClassVar[bool] = False
+    library: ClassVar[str] = ""
+
+    @classmethod
+    def library_version(cls) -> str:
+        return ""
+
+    def run(self, problem, output, budget, progress):
+        """Integrate ``problem``; return an :class:`integrators.solution.RawRun`."""
+        raise NotImplementedError
+
+    def options(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+REGISTRY: dict[str, type[Algorithm]] = {}
+
+
+def register(cls: type[Algorithm]) -> type[Algorithm]:
+    """Class decorator: enter ``cls`` in :data:`REGISTRY` under ``cls.name``."""
+    if not cls.name:
+        raise ValueError(f"{cls.__qualname__} has no name")
+    if cls.name in REGISTRY:
+        raise ValueError(f"integrator name {cls.name!r} registered twice")
+    REGISTRY[cls.name] = cls
+    return cls
+
+
+def algorithm_class(name: str) -> type[Algorithm]:
+    """Registry lookup, case-insensitive, with the known names in the error."""
+    for key, cls in REGISTRY.items():
+        if key.lower() == name.lower():
+            return cls
+    raise ValueError(f"unknown integrator {name!r}; known: {', '.join(sorted(REGISTRY))}")

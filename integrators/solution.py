@@ -1,0 +1,121 @@
+"""What every solve returns: trajectory, events, counters and a return code."""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+__all__ = ["ReturnCode", "Stats", "Solution", "EVENT_COLUMNS", "Output", "RawRun"]
+
+#: columns of :attr:`Solution.events`, one row per completed event, SI units.
+#: ``slip_*`` is the slip since the start of the run; ``fs_max_before`` is the largest spring
+#: force since the previous event ended, ``fs_min`` the smallest during the event.
+EVENT_COLUMNS = ("t_start", "t_end", "fs_max_before", "fs_min", "v_peak", "t_peak",
+                 "slip_start", "slip_end")
+
+
+class ReturnCode(enum.Enum):
+    """Outcome of a solve. Only ``SUCCESS`` reached ``t_end``."""
+
+    SUCCESS = "Success"
+    MAX_STEPS = "MaxSteps"            # the step budget ran out
+    WALL_TIME = "WallTime"            # the wall-time budget ran out
+    NON_FINITE = "NonFinite"          # a step produced NaN or inf
+    STEP_UNDERFLOW = "StepUnderflow"  # the step size fell below what the library allows
+    FAILURE = "Failure"               # any other library failure (its message is kept)
+
+    @property
+    def success(self) -> bool:
+        return self is ReturnCode.SUCCESS
+
+
+@dataclass
+class Stats:
+    """Cost counters, summed over restarts. ``nfev`` counts right-hand-side evaluations (for ETD:
+    evaluations of the frozen coefficients, which cost the same as one right-hand side)."""
+
+    nfev: int = 0
+    njev: int = 0
+    steps: int = 0
+    rejected: int = 0
+    wall_s: float = 0.0
+
+    def as_dict(self) -> dict:
+        return {"nfev": self.nfev, "njev": self.njev, "steps": self.steps,
+                "rejected": self.rejected, "wall_s": self.wall_s}
+
+
+@dataclass(frozen=True)
+class Output:
+    """What to save of the trajectory: every ``save_every`` seconds, or else ``max_points`` in all.
+
+    Events are always recorded exactly, whatever the decimation.
+    """
+
+    save_every: float | None = None
+    max_points: int = 20_000
+
+    def interval(self, t_end: float) -> float:
+        if self.save_every is not None:
+            if not self.save_every > 0:
+                raise ValueError(f"save_every must be positive, got {self.save_every!r}")
+            return float(self.save_every)
+        if self.max_points < 2:
+            raise ValueError(f"max_points must be at least 2, got {self.max_points!r}")
+        return t_end / (self.max_points - 1)
+
+
+@dataclass
+class RawRun:
+    """What a backend hands back to :func:`integrators.solve`: SI arrays, counters, outcome."""
+
+    t: np.ndarray
+    y: np.ndarray              # shape (len(t), 3): columns v (m/s), Fs (N), θ
+    events: np.ndarray         # shape (n, len(EVENT_COLUMNS))
+    stats: Stats
+    retcode: ReturnCode
+    message: str = ""
+
+
+@dataclass
+class Solution:
+    """The result of :func:`integrators.solve`.
+
+    Trajectory arrays are 1-D over saved times ``t`` (s): slip rate ``v`` (m/s), spring force
+    ``fs`` (N), friction ``ft`` (N) and state ``theta`` (newtons for the slip law, seconds for
+    the aging law). ``events`` is a DataFrame with :data:`EVENT_COLUMNS`.
+    """
+
+    problem: object
+    algorithm: object
+    t: np.ndarray
+    v: np.ndarray
+    fs: np.ndarray
+    ft: np.ndarray
+    theta: np.ndarray
+    events: pd.DataFrame
+    stats: Stats
+    retcode: ReturnCode
+    message: str = ""
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def success(self) -> bool:
+        return self.retcode.success
+
+    @property
+    def t_reached(self) -> float:
+        return float(self.t[-1]) if len(self.t) else 0.0
+
+    @property
+    def mu(self) -> np.ndarray:
+        """Friction coefficient shown in plots, μ = Fs/Fn."""
+        return self.fs / self.problem.normal_force
+
+    def __repr__(self) -> str:
+        return (f"Solution({type(self.algorithm).__name__} on {self.problem.name or 'problem'}: "
+                f"{self.retcode.value}, t={self.t_reached:.6g} s, {len(self.events)} events, "
+                f"{self.stats.steps} steps, {self.stats.nfev} rhs, {self.stats.wall_s:.3g} s)")

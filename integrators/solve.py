@@ -1,0 +1,82 @@
+"""``solve(problem, algorithm) -> Solution``: the one entry point.
+
+Common checks, timing, budgets and failure handling live here once; each backend only maps the
+problem onto its method (``Algorithm.run``).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from integrators.registry import Algorithm
+from integrators.solution import EVENT_COLUMNS, Output, RawRun, ReturnCode, Solution, Stats
+from problems.slider import SpringSlider
+
+__all__ = ["solve", "Budget"]
+
+
+@dataclass
+class Budget:
+    """Wall-time budget of one solve (``None``: unlimited), checked by the backends as they go."""
+
+    wall_s: float | None = None
+    start: float = 0.0
+
+    def exceeded(self) -> bool:
+        return self.wall_s is not None and time.perf_counter() - self.start > self.wall_s
+
+
+def solve(problem: SpringSlider, algorithm: Algorithm, *, save_every: float | None = None,
+          max_points: int = 20_000, wall_budget: float | None = None,
+          progress: bool = False) -> Solution:
+    """Integrate ``problem`` with ``algorithm`` from t = 0 to ``problem.t_end``.
+
+    The trajectory is saved every ``save_every`` seconds, or else at ``max_points`` points in
+    all; events are recorded exactly either way. ``wall_budget`` (s) stops a run that takes
+    longer (retcode ``WallTime``); ``progress`` shows a progress bar. A numerical failure comes
+    back as a Solution with a failure retcode; misuse (bad arguments) raises ``ValueError``.
+    """
+    if not isinstance(problem, SpringSlider):
+        raise ValueError(f"problem must be a SpringSlider, got {type(problem).__name__}")
+    if not isinstance(algorithm, Algorithm):
+        raise ValueError(f"algorithm must be an Algorithm instance, got {algorithm!r}")
+    if wall_budget is not None and not wall_budget > 0:
+        raise ValueError(f"wall_budget must be positive, got {wall_budget!r}")
+    output = Output(save_every=save_every, max_points=max_points)
+    output.interval(problem.t_end)          # validates the decimation now, not mid-run
+    budget = Budget(wall_s=wall_budget, start=time.perf_counter())
+    bar = _progress_bar(problem, algorithm) if progress else None
+    try:
+        raw = algorithm.run(problem, output, budget, bar.update_to if bar else None)
+    except Exception as exc:  # a library failure is a result, not a crash of the caller
+        raw = RawRun(t=np.empty(0), y=np.empty((0, 3)), events=np.empty((0, len(EVENT_COLUMNS))),
+                     stats=Stats(), retcode=ReturnCode.FAILURE,
+                     message=f"{type(exc).__name__}: {exc}")
+    finally:
+        if bar:
+            bar.close()
+    raw.stats.wall_s = time.perf_counter() - budget.start
+    return _solution(problem, algorithm, raw)
+
+
+def _solution(problem: SpringSlider, algorithm: Algorithm, raw: RawRun) -> Solution:
+    v, fs, theta = (raw.y[:, i] for i in range(3))
+    ft = problem.friction(v, theta) if len(v) else np.empty(0)
+    events = pd.DataFrame(raw.events, columns=list(EVENT_COLUMNS))
+    return Solution(problem=problem, algorithm=algorithm, t=raw.t, v=v, fs=fs, ft=ft, theta=theta,
+                    events=events, stats=raw.stats, retcode=raw.retcode, message=raw.message)
+
+
+def _progress_bar(problem: SpringSlider, algorithm: Algorithm):
+    from tqdm.auto import tqdm
+
+    class _Bar(tqdm):
+        def update_to(self, t: float) -> None:
+            self.update(min(t, problem.t_end) - self.n)
+
+    return _Bar(total=problem.t_end, unit="s(sim)", desc=f"{algorithm.name} {problem.name}",
+                bar_format="{l_bar}{bar}| {n:.3g}/{total:.3g} s simulated [{elapsed}<{remaining}]")

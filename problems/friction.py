@@ -1,0 +1,141 @@
+"""Rate-and-state friction laws: the slip (Ruina) law and the aging (Dieterich) law.
+
+Both laws share the direct effect ``A ln(v/v0)`` and differ in the state variable θ and its
+evolution (Urata et al. 2017, Eqs. 6–9; SPEC §1):
+
+* slip law, θ in newtons:   Ft = F0 + A ln(v/v0) + θ,             dθ/dt = −(v/Lc)(θ + B ln(v/v0))
+* aging law, θ in seconds:  Ft = F0 + A ln(v/v0) + B ln(v0 θ/Lc),  dθ/dt = 1 − v θ/Lc
+
+with A = a·Fn and B = b·Fn. A law object holds (a, b, Lc, v0) only; the normal force Fn and the
+reference friction F0 belong to the spring-slider and are passed in.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from problems._validate import check_non_negative, check_positive
+
+__all__ = ["FrictionLaw", "SlipLaw", "AgingLaw", "LAWS", "law_from_name"]
+
+
+@dataclass(frozen=True)
+class FrictionLaw:
+    """Common parameters of a rate-and-state law: a, b (dimensionless), Lc (m), v0 (m/s)."""
+
+    a: float
+    b: float
+    lc: float
+    v0: float = 1e-5
+
+    #: short name used by the CLI and in result tables
+    name: ClassVar[str] = ""
+    #: integer code read by the compiled kernels (0 = slip law, 1 = aging law)
+    code: ClassVar[int] = -1
+
+    def __post_init__(self) -> None:
+        check_positive("a", self.a)
+        check_non_negative("b", self.b)
+        check_positive("lc", self.lc)
+        check_positive("v0", self.v0)
+
+    # --- the law itself -------------------------------------------------------------------
+    def steady_state(self, v: float, fn: float) -> float:
+        """State θss at steady sliding with slip rate ``v``."""
+        raise NotImplementedError
+
+    def state_rate(self, v, theta, fn: float):
+        """dθ/dt of the law."""
+        raise NotImplementedError
+
+    def state_term(self, theta, fn: float):
+        """The state's contribution to friction, Ft − F0 − A ln(v/v0), in newtons."""
+        raise NotImplementedError
+
+    def friction(self, v, theta, fn: float, f0: float):
+        """Friction force Ft (N) at slip rate ``v`` and state ``theta``."""
+        return f0 + self.a * fn * np.log(v / self.v0) + self.state_term(theta, fn)
+
+    def slip_rate(self, ft, theta, fn: float, f0: float):
+        """The slip rate tied to friction ``ft`` and state ``theta`` (the law's constraint)."""
+        return self.v0 * np.exp((ft - f0 - self.state_term(theta, fn)) / (self.a * fn))
+
+    def steady_friction(self, v, fn: float, f0: float):
+        """Ft,ss = F0 + (A − B) ln(v/v0), the same for both laws."""
+        return f0 + (self.a - self.b) * fn * np.log(v / self.v0)
+
+    # --- the nondimensional state Ψ of SPEC §2 --------------------------------------------
+    def psi(self, theta, fn: float):
+        """Nondimensional state Ψ from θ (slip law Ψ = θ/B, aging law Ψ = v0 θ/Lc)."""
+        raise NotImplementedError
+
+    def theta(self, psi, fn: float):
+        """θ from the nondimensional state Ψ (inverse of :meth:`psi`)."""
+        raise NotImplementedError
+
+
+@dataclass(frozen=True)
+class SlipLaw(FrictionLaw):
+    """Slip (Ruina) law; the state θ is a force in newtons (Eqs. 6–7)."""
+
+    name: ClassVar[str] = "slip"
+    code: ClassVar[int] = 0
+
+    def steady_state(self, v: float, fn: float) -> float:
+        return -self.b * fn * math.log(v / self.v0)
+
+    def state_rate(self, v, theta, fn: float):
+        return -(v / self.lc) * (theta + self.b * fn * np.log(v / self.v0))
+
+    def state_term(self, theta, fn: float):
+        return theta
+
+    def psi(self, theta, fn: float):
+        if self.b == 0:
+            # Ψ = θ/B is undefined; with B = 0 the state only decays, so only θ = 0 maps.
+            if np.any(np.asarray(theta) != 0):
+                raise ValueError("slip law with b = 0 needs theta = 0 (Ψ = θ/B is undefined)")
+            return np.zeros_like(np.asarray(theta, dtype=float))[()]
+        return theta / (self.b * fn)
+
+    def theta(self, psi, fn: float):
+        return psi * (self.b * fn)
+
+
+@dataclass(frozen=True)
+class AgingLaw(FrictionLaw):
+    """Aging (Dieterich) law; the state θ is a time in seconds (Eqs. 8–9)."""
+
+    name: ClassVar[str] = "aging"
+    code: ClassVar[int] = 1
+
+    def steady_state(self, v: float, fn: float) -> float:
+        return self.lc / v
+
+    def state_rate(self, v, theta, fn: float):
+        return 1.0 - v * theta / self.lc
+
+    def state_term(self, theta, fn: float):
+        return self.b * fn * np.log(self.v0 * theta / self.lc)
+
+    def psi(self, theta, fn: float):
+        return self.v0 * theta / self.lc
+
+    def theta(self, psi, fn: float):
+        return psi * self.lc / self.v0
+
+
+LAWS: dict[str, type[FrictionLaw]] = {"slip": SlipLaw, "aging": AgingLaw}
+
+
+def law_from_name(name: str, **params) -> FrictionLaw:
+    """Build a law by its short name (``"slip"`` or ``"aging"``)."""
+    try:
+        cls = LAWS[name.lower()]
+    except KeyError:
+        raise ValueError(f"law must be one of {sorted(LAWS)}, got {name!r}") from None
+    return cls(**params)

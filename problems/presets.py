@@ -1,0 +1,131 @@
+"""Problems from Urata et al. (2017): the Appendix 1.4 speed-up example and windows W1–W4.
+
+Parameters (SPEC §5): m = 1.1e3 kg, a = 0.008, v0 = 1e−5 m/s, Fn = 1.33 MPa × 1.5 m × 0.5 m.
+Stiffness and the two-speed loading are Tables 2–3; the slip-law best fits are Sect. 4.1.
+
+The aging-law best fits are published only as a figure. They are pinned down by two published
+numbers per window: the normalized stiffness κ = k Lc/(Fn (b − a)) of Table 3 and the nucleation
+length Lb = G Lc/((1 − ν) b σn) of the Discussion (0.31, 0.48, 2.8, 0.36 m; G = 39.3 GPa,
+ν = 0.31). Solving the two for (b, Lc) gives :func:`aging_best_fit`.
+
+Every run starts from steady sliding at the slow loading speed with the slip rate raised by
+``INITIAL_PERTURBATION`` (the paper does not state its initial conditions; the limit cycle does not
+depend on them).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from problems.friction import law_from_name
+from problems.loading import ConstantLoading, TwoSpeedLoading
+from problems.slider import SpringSlider, steady_initial_state
+
+__all__ = ["MASS", "A", "V0", "NORMAL_STRESS", "NORMAL_FORCE", "WINDOWS", "Window",
+           "paper_example", "window", "aging_best_fit", "preset", "PRESET_NAMES",
+           "SHEAR_MODULUS", "POISSON_RATIO"]
+
+MASS = 1.1e3                       # kg (Table 4)
+A = 0.008                          # direct effect (Table 4)
+V0 = 1e-5                          # m/s (Table 4)
+NORMAL_STRESS = 1.33e6             # Pa
+NORMAL_FORCE = NORMAL_STRESS * 1.5 * 0.5   # N, on the 1.5 m × 0.5 m fault
+SHEAR_MODULUS = 39.3e9             # Pa, Indian metagabbro (Discussion)
+POISSON_RATIO = 0.31
+MU0 = 0.6                          # F0/Fn; only shifts the friction level
+INITIAL_PERTURBATION = 1.1         # initial v = 1.1 × steady sliding speed
+WINDOW_T_END = 40.0                # s, default simulated time of a window (~10–90 cycles)
+
+
+@dataclass(frozen=True)
+class Window:
+    """One time window of the experiments (Tables 2–3, Sect. 4, SPEC §5)."""
+
+    name: str
+    experiment: str
+    stiffness: float        # N/m
+    vls: float              # m/s
+    vlf: float              # m/s
+    df: float               # s
+    slip_b: float           # slip-law best fit
+    slip_lc: float          # m
+    kappa_slip: float       # Table 3
+    kappa_aging: float      # Table 3
+    nucleation_length: float  # m, aging law (Discussion)
+    observed_recurrence: float  # s, mean ΔT
+    observed_drop: float        # mean Δμ
+    observed_slip: float        # m per event
+    observed_peak_velocity: float  # m/s, approximate
+    nominal_vl: float           # m/s
+
+
+WINDOWS: dict[str, Window] = {w.name: w for w in (
+    Window("W1", "LB01-127 short disp.", 1.42e8, 0.0753e-3, 0.9622e-3, 0.039, 0.0085, 0.09e-6,
+           2.6e-2, 2.4e-2, 0.31, 1.5, 0.022, 0.14e-3, 0.02, 0.1e-3),
+    Window("W2", "LB01-127 long disp.", 1.48e8, 0.0750e-3, 1.9717e-3, 0.042, 0.0094, 0.3e-6,
+           3.2e-2, 1.6e-2, 0.48, 3.1, 0.046, 0.32e-3, 0.04, 0.1e-3),
+    Window("W3", "LB01-134 slow vL", 1.48e8, 0.0740e-3, 2.3608e-3, 0.036, 0.0098, 0.9e-6,
+           7.4e-2, 7.4e-2, 2.8, 3.6, 0.052, 0.35e-3, 0.04, 0.1e-3),
+    Window("W4", "LB01-142 fast vL", 1.48e8, 0.7356e-3, 3.3027e-3, 0.046, 0.0103, 0.1e-6,
+           6.5e-3, 7.7e-3, 0.36, 0.44, 0.060, 0.39e-3, 0.05, 1.0e-3),
+)}
+
+
+def aging_best_fit(w: Window) -> tuple[float, float]:
+    """(b, Lc) of the aging-law best fit, solved from Table 3's κ and the nucleation length Lb.
+
+    Lc/b = Lb (1 − ν) σn / G and Lc/(b − a) = κ Fn / k give b = r2 a/(r2 − r1), Lc = r1 b.
+    """
+    r1 = w.nucleation_length * (1.0 - POISSON_RATIO) * NORMAL_STRESS / SHEAR_MODULUS
+    r2 = w.kappa_aging * NORMAL_FORCE / w.stiffness
+    b = r2 * A / (r2 - r1)
+    return b, r1 * b
+
+
+def _slider(law, loading, stiffness: float, t_end: float, name: str) -> SpringSlider:
+    v = loading.v_slow
+    initial = steady_initial_state(law, NORMAL_FORCE, MU0, v, v=INITIAL_PERTURBATION * v)
+    return SpringSlider(mass=MASS, stiffness=stiffness, normal_force=NORMAL_FORCE, law=law,
+                        loading=loading, initial=initial, t_end=t_end, mu0=MU0, name=name)
+
+
+def paper_example(law: str = "slip", b: float = 0.0092, lc: float = 0.5e-6,
+                  t_end: float = 20.0, vl: float = 0.1e-3,
+                  stiffness: float | None = None) -> SpringSlider:
+    """The speed-up example of Appendix 1.4: constant vL = 0.1 mm/s, b = 0.0092, Lc = 0.5 µm, 20 s.
+
+    The paper does not state k for it; the default is W2's 1.48e8 N/m (the stiffness of the
+    LB01-127 experiment it was drawn from, and that of W2–W4).
+    """
+    k = WINDOWS["W2"].stiffness if stiffness is None else stiffness
+    friction = law_from_name(law, a=A, b=b, lc=lc, v0=V0)
+    return _slider(friction, ConstantLoading(vl), k, t_end, f"paper-example/{law}")
+
+
+def window(name: str, law: str = "slip", b: float | None = None, lc: float | None = None,
+           t_end: float = WINDOW_T_END) -> SpringSlider:
+    """Window ``W1``..``W4`` with its stiffness, two-speed loading and the law's best fit.
+
+    ``b`` and ``lc`` override the best fit.
+    """
+    try:
+        w = WINDOWS[name.upper()]
+    except KeyError:
+        raise ValueError(f"window must be one of {sorted(WINDOWS)}, got {name!r}") from None
+    b_fit, lc_fit = (w.slip_b, w.slip_lc) if law.lower() == "slip" else aging_best_fit(w)
+    friction = law_from_name(law, a=A, b=b_fit if b is None else b, lc=lc_fit if lc is None else lc,
+                             v0=V0)
+    return _slider(friction, TwoSpeedLoading(w.vls, w.vlf, w.df), w.stiffness, t_end,
+                   f"{w.name}/{law.lower()}")
+
+
+PRESET_NAMES = ("paper-example", "W1", "W2", "W3", "W4")
+
+
+def preset(name: str, law: str = "slip", b: float | None = None, lc: float | None = None,
+           t_end: float | None = None) -> SpringSlider:
+    """A preset by its CLI name: ``paper-example`` or ``W1``..``W4``; ``None`` keeps the default."""
+    kw = {k: v for k, v in dict(b=b, lc=lc, t_end=t_end).items() if v is not None}
+    if name.lower() == "paper-example":
+        return paper_example(law=law, **kw)
+    return window(name, law=law, **kw)

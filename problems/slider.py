@@ -1,0 +1,183 @@
+"""The one-degree-of-freedom spring-slider with mass under rate-and-state friction (SPEC §1–2).
+
+    m dv/dt  = Fs − Ft(v, θ)          dFs/dt = k (vL(t) − v)          dθ/dt = law
+
+A :class:`SpringSlider` is data: parameters, loading, initial state and end time, validated at
+construction. Variants are made with :func:`dataclasses.replace` or :meth:`SpringSlider.with_law`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import NamedTuple, Union
+
+import numpy as np
+
+from problems._validate import check_finite, check_positive
+from problems.friction import AgingLaw, FrictionLaw, SlipLaw
+from problems.loading import ConstantLoading, TwoSpeedLoading
+
+__all__ = ["InitialState", "SpringSlider", "Nondimensional", "steady_initial_state"]
+
+Loading = Union[ConstantLoading, TwoSpeedLoading]
+
+
+@dataclass(frozen=True)
+class InitialState:
+    """Initial slip rate ``v`` (m/s), state ``theta`` (the law's units) and spring force ``fs`` (N)."""
+
+    v: float
+    theta: float
+    fs: float
+
+    def __post_init__(self) -> None:
+        check_finite("initial theta", self.theta)
+        check_finite("initial fs", self.fs)
+        check_positive("initial slip rate v", self.v)
+
+
+def steady_initial_state(law: FrictionLaw, fn: float, mu0: float, v_ss: float,
+                         v: float | None = None) -> InitialState:
+    """Steady sliding at ``v_ss`` (state and spring force at their steady values), optionally
+    started at another slip rate ``v`` to perturb it."""
+    f0 = mu0 * fn
+    return InitialState(v=v_ss if v is None else v, theta=law.steady_state(v_ss, fn),
+                        fs=float(law.steady_friction(v_ss, fn, f0)))
+
+
+class Nondimensional(NamedTuple):
+    """The nondimensional problem of SPEC §2: w = v/v0, τ = v0 t/Lc, h, η, Ψ.
+
+    ``x0`` is the initial (h, η, Ψ); ``e_slow``/``e_fast`` are vL/v0 of the two loading speeds,
+    ``tau_fast`` the duration of fast loading, ``tau_end`` the end of the run, all in τ.
+    """
+
+    law_code: int
+    beta: float
+    c: float
+    d: float
+    e_slow: float
+    e_fast: float
+    tau_fast: float
+    tau_end: float
+    x0: np.ndarray
+    time_scale: float     # seconds per unit of τ: Lc/v0
+    force_h: float        # newtons per unit of h: k Lc
+    force_eta: float      # newtons per unit of η: A = a Fn
+
+
+@dataclass(frozen=True)
+class SpringSlider:
+    """Spring-slider with mass: ``mass`` (kg), ``stiffness`` k (N/m), ``normal_force`` Fn (N),
+    a friction ``law``, a ``loading`` protocol, an ``initial`` state and the end time ``t_end`` (s).
+
+    ``mu0`` = F0/Fn is the reference friction coefficient at v0; it only shifts the friction level
+    (Urata et al. 2017, Sect. 4.1).
+    """
+
+    mass: float
+    stiffness: float
+    normal_force: float
+    law: FrictionLaw
+    loading: Loading
+    initial: InitialState
+    t_end: float
+    mu0: float = 0.6
+    name: str = ""
+
+    def __post_init__(self) -> None:
+        check_positive("mass", self.mass)
+        check_positive("stiffness", self.stiffness)
+        check_positive("normal_force", self.normal_force)
+        check_positive("t_end", self.t_end)
+        check_finite("mu0", self.mu0)
+        if not isinstance(self.law, (SlipLaw, AgingLaw)):
+            raise ValueError(f"law must be a SlipLaw or AgingLaw, got {self.law!r}")
+        if not isinstance(self.loading, (ConstantLoading, TwoSpeedLoading)):
+            raise ValueError(f"loading must be ConstantLoading or TwoSpeedLoading, got {self.loading!r}")
+        if not isinstance(self.initial, InitialState):
+            raise ValueError(f"initial must be an InitialState, got {self.initial!r}")
+        if isinstance(self.law, AgingLaw) and self.initial.theta <= 0:
+            raise ValueError(f"initial theta must be positive for the aging law, got {self.initial.theta!r}")
+
+    # --- derived quantities ---------------------------------------------------------------
+    @property
+    def f0(self) -> float:
+        """Reference friction F0 = μ0 Fn (N)."""
+        return self.mu0 * self.normal_force
+
+    @property
+    def kappa(self) -> float:
+        """Normalized stiffness κ = k/kc with kc = Fn (b − a)/Lc (the paper's Table 3)."""
+        law = self.law
+        return self.stiffness * law.lc / (self.normal_force * (law.b - law.a))
+
+    def with_law(self, **changes) -> "SpringSlider":
+        """A copy with friction-law parameters replaced, e.g. ``p.with_law(b=0.0094, lc=3e-7)``.
+
+        The initial state is kept in physical units.
+        """
+        return dataclasses.replace(self, law=dataclasses.replace(self.law, **changes))
+
+    # --- the dimensional system (SPEC §1) -------------------------------------------------
+    def friction(self, v, theta):
+        """Friction force Ft (N)."""
+        return self.law.friction(v, theta, self.normal_force, self.f0)
+
+    def rhs(self, t: float, y, vl: float | None = None) -> np.ndarray:
+        """d/dt of y = (v, Fs, θ), with load-point velocity ``vl`` (default: the slow speed)."""
+        v, fs, theta = y
+        vl = self.loading.v_slow if vl is None else vl
+        ft = self.friction(v, theta)
+        return np.array([(fs - ft) / self.mass,
+                         self.stiffness * (vl - v),
+                         self.law.state_rate(v, theta, self.normal_force)])
+
+    # --- the nondimensional system (SPEC §2) ----------------------------------------------
+    def nondimensional(self) -> Nondimensional:
+        """Nondimensional parameters and initial state of SPEC §2."""
+        law, fn = self.law, self.normal_force
+        A = law.a * fn
+        m, k, lc, v0 = self.mass, self.stiffness, law.lc, law.v0
+        ts = lc / v0
+        ini = self.initial
+        x0 = np.array([(ini.fs - self.f0) / (k * lc),
+                       (self.friction(ini.v, ini.theta) - self.f0) / A,
+                       law.psi(ini.theta, fn)], dtype=float)
+        return Nondimensional(
+            law_code=law.code, beta=law.b / law.a,
+            c=k * lc * lc / (m * v0 * v0), d=A * lc / (m * v0 * v0),
+            e_slow=self.loading.v_slow / v0, e_fast=self.loading.v_fast / v0,
+            tau_fast=self.loading.fast_duration / ts, tau_end=self.t_end / ts,
+            x0=x0, time_scale=ts, force_h=k * lc, force_eta=A)
+
+    def rhs_nondimensional(self, tau: float, x, e: float | None = None) -> np.ndarray:
+        """d/dτ of x = (h, η, Ψ) (Eqs. 25–27 slip law, 25, 60, 61 aging law), at E = ``e``."""
+        nd = self.nondimensional()
+        e = nd.e_slow if e is None else e
+        h, eta, psi = x
+        beta, c, d = nd.beta, nd.c, nd.d
+        if nd.law_code == SlipLaw.code:
+            w = math.exp(eta - beta * psi)
+            deta = (c * h - d * eta) / w - beta * w * (math.log(w) + psi)
+            dpsi = -w * (math.log(w) + psi)
+        else:
+            w = math.exp(eta - beta * math.log(psi))
+            deta = (c * h - d * eta) / w - beta * w + beta / psi
+            dpsi = 1.0 - w * psi
+        return np.array([e - w, deta, dpsi])
+
+    def slip_rate_from_nondimensional(self, eta, psi):
+        """w → v: the friction-law constraint w = exp(η − βΨ) or exp(η − β ln Ψ), in m/s."""
+        beta = self.law.b / self.law.a
+        if self.law.code == SlipLaw.code:
+            return self.law.v0 * np.exp(eta - beta * psi)
+        return self.law.v0 * np.exp(eta - beta * np.log(psi))
+
+    def dimensional_state(self, h, eta, psi):
+        """(v, Fs, θ) in SI units from the nondimensional (h, η, Ψ)."""
+        k, lc = self.stiffness, self.law.lc
+        return (self.slip_rate_from_nondimensional(eta, psi), self.f0 + k * lc * np.asarray(h),
+                self.law.theta(np.asarray(psi), self.normal_force))
