@@ -17,12 +17,15 @@ __all__ = ["Algorithm", "REGISTRY", "register", "algorithm_class"]
 class Algorithm:
     """Options of an integration method, never state. Subclasses are frozen dataclasses.
 
-    Class attributes describe the method: ``family``, ``order``, ``adaptive``, ``library``.
+    Class attributes describe the method: ``family``, ``order`` (classical order, in the
+    non-stiff limit), ``stiff_order`` (observed order on the stiff stick–slip problem, where it
+    differs: order reduction), ``adaptive``, ``library``.
     """
 
     name: ClassVar[str] = ""
     family: ClassVar[str] = ""
     order: ClassVar[int] = 0
+    stiff_order: ClassVar[int | None] = None     # None: same as ``order``
     adaptive: ClassVar[bool] = False
     library: ClassVar[str] = ""
 

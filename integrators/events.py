@@ -1,0 +1,84 @@
+"""Event semantics shared by every adaptive backend (SPEC §4), on the ODE form z = (h, u, s).
+
+Root functions located by the backend's own root finding:
+
+* ``START``: u − ln(10·E_slow), crossing upward: an event starts;
+* ``END``:   u − ln(E_slow), crossing downward: it ends (under two-speed loading the integration
+  stops here and restarts with the fast loading speed);
+* ``H_EXTREMUM``: u − ln E (h' = E − w = 0): the spring force is extremal — its maximum before
+  an event and its minimum during one;
+* ``PEAK``: C h − D η (u' = 0), crossing downward: the peak slip rate.
+
+:class:`EventRecorder` turns the located roots, fed in time order, into the rows of
+``EVENT_COLUMNS`` (nondimensional until :meth:`EventRecorder.table` converts them).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = ["START", "END", "H_EXTREMUM", "PEAK", "root_functions", "EventRecorder"]
+
+START, END, H_EXTREMUM, PEAK = range(4)
+#: direction of a crossing that counts: +1 upward, −1 downward, 0 both
+DIRECTIONS = (1, -1, 0, -1)
+
+
+def root_functions(nd, e: float, z: np.ndarray) -> np.ndarray:
+    """Values of the four root functions at state z under loading E = ``e``."""
+    h, u, s = z
+    eta = u + nd.beta * s
+    return np.array([u - math.log(10.0 * nd.e_slow), u - math.log(nd.e_slow), u - math.log(e),
+                     nd.c * h - nd.d * eta])
+
+
+class EventRecorder:
+    """Builds the events table from located roots and observed states (nondimensional)."""
+
+    def __init__(self, h0: float):
+        self.h0 = h0
+        self.in_event = False
+        self.h_max = h0
+        self.rows: list[list[float]] = []
+        self._start = self._slip_start = self._h_min = self._w_peak = self._tau_peak = math.nan
+
+    def observe(self, h: float) -> None:
+        """A state the backend passed through (segment ends): keeps the extrema honest."""
+        if self.in_event:
+            self._h_min = min(self._h_min, h)
+        else:
+            self.h_max = max(self.h_max, h)
+
+    def root(self, kind: int, tau: float, z: np.ndarray, load: float) -> bool:
+        """Process a located root of ``kind`` at τ with state z and load-point displacement
+        ``load`` (in Lc). Returns True when an event has just ended."""
+        h, u = float(z[0]), float(z[1])
+        slip = load - (h - self.h0)
+        if kind == START and not self.in_event:
+            self.in_event = True
+            self._start, self._slip_start = tau, slip
+            self._h_min, self._w_peak, self._tau_peak = h, math.exp(u), tau
+        elif kind == PEAK and self.in_event:
+            if math.exp(u) > self._w_peak:
+                self._w_peak, self._tau_peak = math.exp(u), tau
+        elif kind == H_EXTREMUM:
+            self.observe(h)
+        elif kind == END and self.in_event:
+            self._h_min = min(self._h_min, h)
+            self.rows.append([self._start, tau, self.h_max, self._h_min, self._w_peak,
+                              self._tau_peak, self._slip_start, slip])
+            self.in_event = False
+            self.h_max = h
+            return True
+        return False
+
+    def table(self, problem, nd) -> np.ndarray:
+        """The rows in SI units, columns of ``EVENT_COLUMNS``."""
+        ev = np.array(self.rows, dtype=float).reshape(-1, 8)
+        ts, lc = nd.time_scale, problem.law.lc
+        return np.column_stack([
+            ev[:, 0] * ts, ev[:, 1] * ts, problem.f0 + nd.force_h * ev[:, 2],
+            problem.f0 + nd.force_h * ev[:, 3], problem.law.v0 * ev[:, 4], ev[:, 5] * ts,
+            lc * ev[:, 6], lc * ev[:, 7]])

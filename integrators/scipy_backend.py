@@ -1,0 +1,113 @@
+"""scipy's adaptive integrators (``scipy.integrate`` OdeSolver classes) on the shared ODE form.
+
+RK45 (Dormand–Prince 5(4)), DOP853, Radau (implicit Runge–Kutta, order 5), BDF (orders 1–5) and
+LSODA (Adams/BDF switching). Implicit methods get the analytic Jacobian. Events are located by
+root finding on each method's dense output (:mod:`integrators.adaptive`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+import scipy
+from scipy import integrate
+
+from integrators.adaptive import run_stepper
+from integrators.registry import Algorithm, register
+from problems._validate import check_positive
+
+__all__ = ["ScipyRK45", "ScipyDOP853", "ScipyRadau", "ScipyBDF", "ScipyLSODA"]
+
+
+@dataclass(frozen=True)
+class _Scipy(Algorithm):
+    """Options: ``rtol`` and ``atol`` (required: no default accuracy), the step budget
+    ``max_steps``, and ``rhs`` = ``"numba"`` or ``"python"`` (the right-hand-side tier).
+
+    ``atol`` applies to the ODE state (h, ln w, Ψ or ln Ψ), all O(1–100).
+    """
+
+    rtol: float = None
+    atol: float = None
+    max_steps: int = 50_000_000
+    rhs: str = "numba"
+
+    library: ClassVar[str] = "scipy"
+    adaptive: ClassVar[bool] = True
+    method: ClassVar[type] = None
+    uses_jacobian: ClassVar[bool] = False
+
+    def __post_init__(self) -> None:
+        if self.rtol is None or self.atol is None:
+            raise ValueError(f"{self.name} needs explicit rtol and atol (no default accuracy), "
+                             f"got rtol={self.rtol!r}, atol={self.atol!r}")
+        check_positive("rtol", self.rtol)
+        check_positive("atol", self.atol)
+        if self.rhs not in ("numba", "python"):
+            raise ValueError(f"rhs must be 'numba' or 'python', got {self.rhs!r}")
+        if int(self.max_steps) != self.max_steps or self.max_steps < 1:
+            raise ValueError(f"max_steps must be a positive integer, got {self.max_steps!r}")
+
+    @classmethod
+    def library_version(cls) -> str:
+        return f"scipy {scipy.__version__}"
+
+    def run(self, problem, output, budget, progress):
+        def make(fun, jac, t0, y0, t_bound):
+            kw = {"jac": jac} if self.uses_jacobian else {}
+            return self.method(fun, t0, y0, t_bound, rtol=self.rtol, atol=self.atol, **kw)
+        return run_stepper(problem, make, self.rhs, self.max_steps, output, budget, progress)
+
+
+@register
+@dataclass(frozen=True)
+class ScipyRK45(_Scipy):
+    """Explicit Runge–Kutta 5(4), Dormand–Prince, adaptive. Order 5."""
+    name: ClassVar[str] = "scipy-RK45"
+    family: ClassVar[str] = "explicit Runge-Kutta"
+    order: ClassVar[int] = 5
+    method: ClassVar[type] = integrate.RK45
+
+
+@register
+@dataclass(frozen=True)
+class ScipyDOP853(_Scipy):
+    """Explicit Runge–Kutta 8(5,3), Dormand–Prince, adaptive. Order 8."""
+    name: ClassVar[str] = "scipy-DOP853"
+    family: ClassVar[str] = "explicit Runge-Kutta"
+    order: ClassVar[int] = 8
+    method: ClassVar[type] = integrate.DOP853
+
+
+@register
+@dataclass(frozen=True)
+class ScipyRadau(_Scipy):
+    """Implicit Runge–Kutta Radau IIA, 3 stages, adaptive, analytic Jacobian. Order 5."""
+    name: ClassVar[str] = "scipy-Radau"
+    family: ClassVar[str] = "implicit Runge-Kutta"
+    order: ClassVar[int] = 5
+    method: ClassVar[type] = integrate.Radau
+    uses_jacobian: ClassVar[bool] = True
+
+
+@register
+@dataclass(frozen=True)
+class ScipyBDF(_Scipy):
+    """Variable-order BDF (NDF), orders 1–5, adaptive, analytic Jacobian."""
+    name: ClassVar[str] = "scipy-BDF"
+    family: ClassVar[str] = "BDF"
+    order: ClassVar[int] = 5
+    method: ClassVar[type] = integrate.BDF
+    uses_jacobian: ClassVar[bool] = True
+
+
+@register
+@dataclass(frozen=True)
+class ScipyLSODA(_Scipy):
+    """ODEPACK LSODA: Adams/BDF switching on stiffness, adaptive, analytic Jacobian."""
+    name: ClassVar[str] = "scipy-LSODA"
+    family: ClassVar[str] = "Adams/BDF (LSODA)"
+    order: ClassVar[int] = 12
+    method: ClassVar[type] = integrate.LSODA
+    uses_jacobian: ClassVar[bool] = True
