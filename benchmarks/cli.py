@@ -40,6 +40,8 @@ def simulate_summary(sol) -> dict:
     """The JSON summary of one run (the keys ``rsfbench simulate --json`` promises)."""
     lc = metrics.summarize(sol)
     p = sol.problem
+    per_event = metrics.event_metrics(sol.events, p.normal_force)
+    last = per_event.iloc[-1].to_dict() if len(per_event) else {}
     return _jsonable({
         "problem": p.name, "law": p.law.name, "b": p.law.b, "lc_m": p.law.lc, "t_end": p.t_end,
         "integrator": sol.algorithm.name, "options": sol.algorithm.options(),
@@ -47,6 +49,7 @@ def simulate_summary(sol) -> dict:
         "wall_s": sol.stats.wall_s, "steps": sol.stats.steps, "nfev": sol.stats.nfev,
         "njev": sol.stats.njev, "n_events": len(sol.events),
         "limit_cycle": lc.as_dict(),
+        "last_event": {k: float(v) for k, v in last.items()},
     })
 
 
@@ -62,6 +65,11 @@ def _print_summary(s: dict) -> None:
         print(f"    friction drop        {lc['friction_drop']:.6g}")
         print(f"    slip per event       {lc['slip_m'] * 1e3:.6g} mm")
         print(f"    peak slip rate       {lc['peak_velocity_m_s']:.6g} m/s")
+    elif s["last_event"]:
+        e = s["last_event"]
+        print(f"  last event  at t = {e['t_start']:.6g} s: recurrence {e['recurrence_s']:.6g} s, "
+              f"friction drop {e['friction_drop']:.6g}, slip {e['slip_m'] * 1e3:.6g} mm, "
+              f"peak {e['peak_velocity_m_s']:.6g} m/s (run longer for the limit cycle)")
 
 
 def cmd_simulate(args) -> int:
