@@ -31,7 +31,13 @@ def plot_solution(solution, path, title: str | None = None) -> None:
     ax_mu.set_xlabel("time t (s)")
     ax_mu.set_ylabel(r"$\mu = F_s/F_n$")
 
-    ax_ph.semilogx(solution.v, (solution.ft - p.f0) / p.normal_force, lw=0.6, color="C2")
+    friction = (solution.ft - p.f0) / p.normal_force
+    ax_ph.semilogx(solution.v, friction, lw=0.5, color="0.7", label="whole run")
+    starts = solution.events["t_start"].to_numpy()
+    if len(starts) >= 2:    # the last complete cycle, start to start
+        cycle = (solution.t >= starts[-2]) & (solution.t <= starts[-1])
+        ax_ph.semilogx(solution.v[cycle], friction[cycle], lw=1.2, color="C2", label="last cycle")
+    ax_ph.legend(loc="lower left", fontsize=8)
     ax_ph.set_xlabel("slip rate v (m/s)")
     ax_ph.set_ylabel(r"$(F_t - F_0)/F_n$")
     ax_ph.set_title("friction against slip rate", fontsize=10)
