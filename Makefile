@@ -8,7 +8,7 @@ PY       := $(VENV)/bin/python
 APT_PKGS := gfortran libsundials-dev pkg-config cmake
 STAMP    := $(VENV)/.installed
 
-.PHONY: setup system-packages test reproduce bench clean
+.PHONY: setup system-packages test reproduce clean
 
 setup: $(STAMP)
 
@@ -33,9 +33,6 @@ test: setup
 
 reproduce: setup
 	$(VENV)/bin/rsfbench reproduce --out results
-
-bench: setup
-	$(PY) -m pytest benchmarks --benchmark-only --benchmark-json=results/benchmark.json
 
 clean:
 	rm -rf $(VENV) build *.egg-info
