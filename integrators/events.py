@@ -19,7 +19,8 @@ import math
 
 import numpy as np
 
-__all__ = ["START", "END", "H_EXTREMUM", "PEAK", "root_functions", "EventRecorder"]
+__all__ = ["START", "END", "H_EXTREMUM", "PEAK", "DIRECTIONS", "root_functions",
+           "root_derivatives", "EventRecorder"]
 
 START, END, H_EXTREMUM, PEAK = range(4)
 #: direction of a crossing that counts: +1 upward, −1 downward, 0 both
@@ -32,6 +33,15 @@ def root_functions(nd, e: float, z: np.ndarray) -> np.ndarray:
     eta = u + nd.beta * s
     return np.array([u - math.log(10.0 * nd.e_slow), u - math.log(nd.e_slow), u - math.log(e),
                      nd.c * h - nd.d * eta])
+
+
+def root_derivatives(nd, e: float, z: np.ndarray) -> np.ndarray:
+    """d/dτ of the four root functions at z: the crossing direction where one is zero."""
+    h, u, s = z
+    w = math.exp(u)
+    du = (nd.c * h - nd.d * (u + nd.beta * s)) / w
+    ds = -w * (u + s) if nd.law_code == 0 else math.exp(-s) - w
+    return np.array([du, du, du, nd.c * (e - w) - nd.d * (du + nd.beta * ds)])
 
 
 class EventRecorder:

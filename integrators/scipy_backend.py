@@ -2,7 +2,8 @@
 
 RK45 (Dormand–Prince 5(4)), DOP853, Radau (implicit Runge–Kutta, order 5), BDF (orders 1–5) and
 LSODA (Adams/BDF switching). Implicit methods get the analytic Jacobian. Events are located by
-root finding on each method's dense output (:mod:`integrators.adaptive`).
+Brent root finding on each method's dense output, as ``solve_ivp`` does for its events
+(:mod:`integrators.dense_roots`); the step loop is ours so that budgets and restarts are too.
 """
 
 from __future__ import annotations
@@ -13,9 +14,12 @@ from typing import ClassVar
 import scipy
 from scipy import integrate
 
-from integrators.adaptive import run_stepper
+from integrators.dense_roots import DenseStepper
 from integrators.registry import Algorithm, register
+from integrators.segments import Advance, run_segments
+from integrators.solution import ReturnCode, Stats
 from problems._validate import check_positive
+from problems.formulations import OdeForm
 
 __all__ = ["ScipyRK45", "ScipyDOP853", "ScipyRadau", "ScipyBDF", "ScipyLSODA"]
 
@@ -54,10 +58,34 @@ class _Scipy(Algorithm):
         return f"scipy {scipy.__version__}"
 
     def run(self, problem, output, budget, progress):
-        def make(fun, jac, t0, y0, t_bound):
-            kw = {"jac": jac} if self.uses_jacobian else {}
-            return self.method(fun, t0, y0, t_bound, rtol=self.rtol, atol=self.atol, **kw)
-        return run_stepper(problem, make, self.rhs, self.max_steps, output, budget, progress)
+        stepper = _ScipyStepper(self, problem.nondimensional(), Stats())
+        raw = run_segments(problem, stepper, output, budget, progress)
+        stepper.finish()
+        return raw
+
+
+class _ScipyStepper(DenseStepper):
+    """scipy ``OdeSolver`` under the segment protocol, with the step budget."""
+
+    def __init__(self, algorithm: _Scipy, nd, stats):
+        super().__init__(nd, stats)
+        self.algorithm = algorithm
+
+    def _new_solver(self, tau0, z0, e, t_bound):
+        a = self.algorithm
+        form = OdeForm(self.nd, e, a.rhs)
+        kw = {"jac": form.jac} if a.uses_jacobian else {}
+        return a.method(form.f, tau0, z0, t_bound, rtol=a.rtol, atol=a.atol, **kw)
+
+    def _count(self, solver):
+        self.stats.nfev += solver.nfev
+        self.stats.njev += getattr(solver, "njev", 0) or 0
+
+    def advance(self, t_out):
+        if self.stats.steps >= self.algorithm.max_steps:
+            return Advance(self._cursor, self._z_cursor, retcode=ReturnCode.MAX_STEPS,
+                           message=f"step budget of {self.algorithm.max_steps} used up")
+        return super().advance(t_out)
 
 
 @register

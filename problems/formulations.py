@@ -23,7 +23,8 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["ode_rhs", "ode_jacobian", "OdeForm", "to_ode_state", "from_ode_state"]
+__all__ = ["ode_rhs", "ode_jacobian", "OdeForm", "to_ode_state", "from_ode_state", "dae_residual",
+           "dae_jacobian", "dae_initial", "DaeForm", "DAE_DIFFERENTIAL"]
 
 
 @njit(cache=True)
@@ -96,3 +97,94 @@ class OdeForm:
         else:
             ode_jacobian.py_func(*self.args, z, out)
         return out
+
+
+# --- the DAE form (IDA and other DAE solvers) -----------------------------------------------
+#
+# y = (h, u, s, η): the ODE state plus the friction η = (Ft − F0)/A as a differential variable,
+# with the slip rate u = ln w demoted to an algebraic variable tied by the friction law:
+#
+#     0 = h' − (E − e^u)
+#     0 = u − (η − β s)                               (the constraint; ∂/∂u = 1: index 1)
+#     0 = s' − f_s(u, s)
+#     0 = η' − [(C h − D η) e^(−u) + β f_s(u, s)]     (Eq. 26/60 with ln w = u)
+#
+# so that v, Ft and θ are tied exactly as in SPEC §1. ``DAE_DIFFERENTIAL`` marks the
+# differential components (IDA's ``id`` vector).
+
+DAE_DIFFERENTIAL = np.array([1.0, 0.0, 1.0, 1.0])
+
+
+@njit(cache=True)
+def _state_rate(law, u, s, w):
+    if law == 0:
+        return -w * (u + s)
+    return math.exp(-s) - w
+
+
+@njit(cache=True)
+def dae_residual(law, beta, c, d, e, y, yp, out):
+    """Write F(y, y') of the DAE form into ``out`` (length 4)."""
+    h, u, s, eta = y[0], y[1], y[2], y[3]
+    w = math.exp(u)
+    fs = _state_rate(law, u, s, w)
+    out[0] = yp[0] - (e - w)
+    out[1] = u - (eta - beta * s)
+    out[2] = yp[2] - fs
+    out[3] = yp[3] - ((c * h - d * eta) / w + beta * fs)
+
+
+@njit(cache=True)
+def dae_jacobian(law, beta, c, d, e, y, cj, jac):
+    """Write ∂F/∂y + cj ∂F/∂y' into the 4×4 ``jac`` (IDA's iteration matrix)."""
+    h, u, s, eta = y[0], y[1], y[2], y[3]
+    w = math.exp(u)
+    if law == 0:
+        dfs_du, dfs_ds = -w * (u + s) - w, -w
+    else:
+        dfs_du, dfs_ds = -w, -math.exp(-s)
+    feta = (c * h - d * eta) / w
+    for i in range(4):
+        for j in range(4):
+            jac[i, j] = 0.0
+    jac[0, 0] = cj
+    jac[0, 1] = w
+    jac[1, 1] = 1.0
+    jac[1, 2] = beta
+    jac[1, 3] = -1.0
+    jac[2, 1] = -dfs_du
+    jac[2, 2] = cj - dfs_ds
+    jac[3, 0] = -c / w
+    jac[3, 1] = feta - beta * dfs_du
+    jac[3, 2] = -beta * dfs_ds
+    jac[3, 3] = cj + d / w
+
+
+def dae_initial(nd, e: float, z0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Consistent (y0, y'0) of the DAE form from the ODE state z0 = (h, u, s)."""
+    h, u, s = z0
+    eta = u + nd.beta * s
+    y0 = np.array([h, u, s, eta])
+    f = np.empty(3)
+    ode_rhs(nd.law_code, nd.beta, nd.c, nd.d, e, z0, f)
+    # η' = u' + β s' along the constraint; u' is the ODE's
+    yp0 = np.array([f[0], f[1], f[2], f[1] + nd.beta * f[2]])
+    return y0, yp0
+
+
+class DaeForm:
+    """Python callables of the DAE form at loading E = ``e``, in the ``rhs_tier`` of
+    :class:`OdeForm` (``"numba"`` or ``"python"``)."""
+
+    def __init__(self, nd, e: float, rhs_tier: str = "numba"):
+        if rhs_tier not in ("numba", "python"):
+            raise ValueError(f"rhs_tier must be 'numba' or 'python', got {rhs_tier!r}")
+        self.args = (nd.law_code, nd.beta, nd.c, nd.d, e)
+        self._res = dae_residual if rhs_tier == "numba" else dae_residual.py_func
+        self._jac = dae_jacobian if rhs_tier == "numba" else dae_jacobian.py_func
+
+    def residual(self, tau, y, yp, out):
+        self._res(*self.args, y, yp, out)
+
+    def jacobian(self, tau, y, cj, out):
+        self._jac(*self.args, y, cj, out)

@@ -1,0 +1,127 @@
+"""One driver for every adaptive backend: segments, restarts, events, decimation, counters.
+
+A backend supplies a :class:`SegmentSolver`, a thin adapter over its library:
+
+* ``start(tau0, z0, e, t_bound)`` — (re)initialise at τ0, state z0 = (h, u, s) of the shared ODE
+  form, loading E = ``e``, never integrating past ``t_bound``;
+* ``advance(t_out)`` — integrate towards ``t_out`` (≤ t_bound) and return an :class:`Advance`:
+  either at ``t_out`` or earlier, at the first root of the four root functions of
+  :mod:`integrators.events`, located by the library's own root finding;
+* ``stats`` — a :class:`Stats` whose counters the adapter keeps summed over restarts.
+
+The driver owns what is common: the loading state (two-speed switch at an event end, back to slow
+after ``df``), the :class:`EventRecorder`, the save grid, progress and budgets, and the
+conversion to a :class:`RawRun`. So every backend has the same event semantics and counters.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+from integrators.events import DIRECTIONS, EventRecorder, root_derivatives
+from integrators.solution import RawRun, ReturnCode, Stats
+from problems.formulations import from_ode_state, to_ode_state
+
+__all__ = ["Advance", "SegmentSolver", "run_segments", "directional_roots"]
+
+
+@dataclass
+class Advance:
+    """Where ``advance`` stopped: τ, state z = (h, u, s), the indices of the root functions
+    found there (empty when ``t_out`` was reached) and the outcome."""
+
+    tau: float
+    z: np.ndarray
+    roots: list[int] = field(default_factory=list)
+    retcode: ReturnCode = ReturnCode.SUCCESS
+    message: str = ""
+
+
+class SegmentSolver(Protocol):
+    stats: Stats
+
+    def start(self, tau0: float, z0: np.ndarray, e: float, t_bound: float) -> None: ...
+
+    def advance(self, t_out: float) -> Advance: ...
+
+
+def directional_roots(nd, e: float, z: np.ndarray, found, signs=None) -> list[int]:
+    """Keep the roots crossed in the direction that counts (``events.DIRECTIONS``).
+
+    ``signs`` are the crossing directions if the library reports them (SUNDIALS' root info);
+    otherwise they are taken from the time derivatives of the root functions at z.
+    """
+    if signs is None:
+        d = root_derivatives(nd, e, z)
+        signs = [np.sign(d[k]) for k in found]
+    return [k for k, sgn in zip(found, signs) if DIRECTIONS[k] == 0 or DIRECTIONS[k] == sgn]
+
+
+def run_segments(problem, solver: SegmentSolver, output, budget, progress,
+                 check_every: int = 50) -> RawRun:
+    """Integrate ``problem`` to t_end with ``solver``; see the module docstring."""
+    nd = problem.nondimensional()
+    two_speed = problem.loading.two_speed
+    save_dtau = output.interval(problem.t_end) / nd.time_scale
+    z = to_ode_state(nd.law_code, nd.beta, nd.x0)
+    tau, load, fast_until = 0.0, 0.0, -math.inf
+    rec = EventRecorder(nd.x0[0])
+    saved_t, saved_z = [0.0], [z.copy()]
+    next_save = save_dtau
+    retcode, message = ReturnCode.SUCCESS, ""
+    tiny = 1e-12 * nd.tau_end
+    calls = 0
+    while tau < nd.tau_end - tiny and retcode is ReturnCode.SUCCESS:
+        fast = two_speed and fast_until - tau > tiny
+        e = nd.e_fast if fast else nd.e_slow
+        t_bound = min(nd.tau_end, fast_until) if fast else nd.tau_end
+        solver.start(tau, z, e, t_bound)
+        tau0_seg, load0_seg = tau, load
+        while True:
+            adv = solver.advance(min(next_save, t_bound))
+            calls += 1
+            if adv.retcode is not ReturnCode.SUCCESS:
+                retcode, message = adv.retcode, adv.message
+                break
+            tau, z = adv.tau, np.array(adv.z, dtype=float)
+            if not np.all(np.isfinite(z)):
+                retcode = ReturnCode.NON_FINITE
+                message = f"non-finite state at t = {tau * nd.time_scale:.9g} s"
+                break
+            load = load0_seg + e * (tau - tau0_seg)
+            ended = False
+            for k in sorted(adv.roots):
+                ended = rec.root(k, tau, z, load) or ended
+            rec.observe(float(z[0]))
+            if tau >= next_save - tiny:
+                saved_t.append(tau)
+                saved_z.append(z.copy())
+                while next_save <= tau + tiny:
+                    next_save += save_dtau
+            if calls % check_every == 0:
+                if progress:
+                    progress(tau * nd.time_scale)
+                if budget.exceeded():
+                    retcode = ReturnCode.WALL_TIME
+                    message = (f"wall-time budget of {budget.wall_s} s used up at "
+                               f"t = {tau * nd.time_scale:.6g} s of {problem.t_end:g} s")
+                    break
+            if ended and two_speed:
+                fast_until = tau + nd.tau_fast
+                break
+            if tau >= t_bound - tiny:
+                break
+    if progress:
+        progress(tau * nd.time_scale)
+    if saved_t[-1] < tau:
+        saved_t.append(tau)
+        saved_z.append(z)
+    h, eta, psi = from_ode_state(nd.law_code, nd.beta, np.array(saved_z))
+    return RawRun(t=np.array(saved_t) * nd.time_scale,
+                  y=np.column_stack(problem.dimensional_state(h, eta, psi)),
+                  events=rec.table(problem, nd), stats=solver.stats, retcode=retcode,
+                  message=message)
