@@ -16,14 +16,10 @@ from pathlib import Path
 
 from benchmarks import metrics
 from benchmarks.timing import warm_up
-from integrators import REGISTRY, algorithm_class, solve
+from integrators import REGISTRY, make_algorithm, solve
 from problems import PRESET_NAMES, preset
 
 __all__ = ["main"]
-
-
-def _algorithm(name: str, **options):
-    return algorithm_class(name)(**options)
 
 
 def _jsonable(x):
@@ -74,10 +70,10 @@ def _print_summary(s: dict) -> None:
 
 def cmd_simulate(args) -> int:
     problem = preset(args.preset, law=args.law, b=args.b, lc=args.lc, t_end=args.t_end)
-    algorithm = _algorithm(args.integrator)
+    algorithm = make_algorithm(args.integrator, rtol=args.rtol, atol=args.atol, rhs=args.rhs)
     warm_up(problem, algorithm)     # so that wall_s excludes numba compilation
     sol = solve(problem, algorithm, max_points=200_000 if args.plot else 20_000,
-                progress=args.progress)
+                progress=args.progress, wall_budget=args.wall_budget)
     summary = simulate_summary(sol)
     if args.plot:
         from benchmarks.plots import plot_solution
@@ -92,22 +88,27 @@ def cmd_simulate(args) -> int:
 
 
 def cmd_integrators(args) -> int:
-    rows = [{"name": name, "family": cls.family, "order": cls.order, "adaptive": cls.adaptive,
-             "library": cls.library, "version": cls.library_version()}
-            for name, cls in sorted(REGISTRY.items())]
+    rows = [{"name": name, "family": cls.family, "order": cls.order,
+             "stiff_order": cls.stiff_order or cls.order, "adaptive": cls.adaptive,
+             "stiff": cls.stiff, "library": cls.library, "version": cls.library_version()}
+            for name, cls in sorted(REGISTRY.items(), key=lambda kv: kv[0].lower())]
     if args.json:
         print(json.dumps(rows, indent=2))
-        return 0
-    print(f"{'name':<14} {'order':>5}  {'adaptive':<8} {'family':<32} library")
-    for r in rows:
-        print(f"{r['name']:<14} {r['order']:>5}  {str(r['adaptive']):<8} {r['family']:<32} "
-              f"{r['library']} ({r['version']})")
+    elif args.markdown:
+        import pandas as pd
+        from benchmarks.report import markdown_table
+        print(markdown_table(pd.DataFrame(rows)), end="")
+    else:
+        print(f"{'name':<22} {'order':>5}  {'adaptive':<8} {'family':<32} library")
+        for r in rows:
+            print(f"{r['name']:<22} {r['order']:>5}  {str(r['adaptive']):<8} {r['family']:<32} "
+                  f"{r['library']} ({r['version']})")
     return 0
 
 
 def cmd_windows(args) -> int:
     from benchmarks.windows import windows_table, write_windows
-    table = windows_table(laws=args.law, integrator=_algorithm(args.integrator),
+    table = windows_table(laws=args.law, integrator=make_algorithm(args.integrator),
                           t_end=args.t_end, progress=not args.json)
     if args.out:
         write_windows(table, Path(args.out))
@@ -136,6 +137,11 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--lc", type=float, metavar="LC_METRES", help="critical slip distance Lc in m")
     s.add_argument("--t-end", type=float, help="simulated time in s (default: the preset's)")
     s.add_argument("--integrator", default="ETD2", help="registry name (see `rsfbench integrators`)")
+    s.add_argument("--rtol", type=float, help="relative tolerance (adaptive integrators: required)")
+    s.add_argument("--atol", type=float, help="absolute tolerance (adaptive integrators: required)")
+    s.add_argument("--rhs", choices=("python", "numba"),
+                   help="right-hand-side tier of adaptive integrators (default numba)")
+    s.add_argument("--wall-budget", type=float, metavar="S", help="stop after S seconds of wall time")
     s.add_argument("--json", action="store_true", help="print one JSON object")
     s.add_argument("--plot", metavar="FILE.png", help="draw v(t), μ(t) and the phase portrait")
     s.add_argument("--progress", action="store_true", help="show a progress bar")
@@ -143,6 +149,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     i = sub.add_parser("integrators", help="list the registry")
     i.add_argument("--json", action="store_true")
+    i.add_argument("--markdown", action="store_true", help="a Markdown table (for the README)")
     i.set_defaults(func=cmd_integrators)
 
     w = sub.add_parser("windows", help="limit cycles of W1–W4 against the observed means")

@@ -10,7 +10,7 @@ from __future__ import annotations
 import dataclasses
 from typing import ClassVar
 
-__all__ = ["Algorithm", "REGISTRY", "register", "algorithm_class"]
+__all__ = ["Algorithm", "REGISTRY", "register", "algorithm_class", "make_algorithm"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -27,6 +27,7 @@ class Algorithm:
     order: ClassVar[int] = 0
     stiff_order: ClassVar[int | None] = None     # None: same as ``order``
     adaptive: ClassVar[bool] = False
+    stiff: ClassVar[bool] = True
     library: ClassVar[str] = ""
 
     @classmethod
@@ -39,6 +40,26 @@ class Algorithm:
 
     def options(self) -> dict:
         return dataclasses.asdict(self)
+
+
+def make_algorithm(name: str, rtol: float | None = None, atol: float | None = None,
+                   rhs: str | None = None, **options) -> Algorithm:
+    """Build a registry entry from CLI-style options, with a clear error for options the method
+    does not take (a fixed-step method has no tolerances, an adaptive one needs both)."""
+    cls = algorithm_class(name)
+    given = dict(options)
+    if cls.adaptive:
+        given.update({k: v for k, v in (("rtol", rtol), ("atol", atol), ("rhs", rhs)) if v is not None})
+    elif rtol is not None or atol is not None:
+        raise ValueError(f"{cls.name} is not adaptive and takes no rtol/atol; "
+                         "set its step options instead")
+    elif rhs is not None and rhs != "numba":
+        raise ValueError(f"{cls.name} is compiled with numba; rhs={rhs!r} does not apply")
+    names = {f.name for f in dataclasses.fields(cls)}
+    unknown = sorted(set(given) - names)
+    if unknown:
+        raise ValueError(f"{cls.name} has no option(s) {unknown}; it takes {sorted(names)}")
+    return cls(**given)
 
 
 REGISTRY: dict[str, type[Algorithm]] = {}

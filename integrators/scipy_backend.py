@@ -95,6 +95,7 @@ class ScipyRK45(_Scipy):
     name: ClassVar[str] = "scipy-RK45"
     family: ClassVar[str] = "explicit Runge-Kutta"
     order: ClassVar[int] = 5
+    stiff: ClassVar[bool] = False
     method: ClassVar[type] = integrate.RK45
 
 
@@ -105,6 +106,7 @@ class ScipyDOP853(_Scipy):
     name: ClassVar[str] = "scipy-DOP853"
     family: ClassVar[str] = "explicit Runge-Kutta"
     order: ClassVar[int] = 8
+    stiff: ClassVar[bool] = False
     method: ClassVar[type] = integrate.DOP853
 
 

@@ -27,24 +27,24 @@ __all__ = ["ode_rhs", "ode_jacobian", "OdeForm", "to_ode_state", "from_ode_state
            "dae_jacobian", "dae_initial", "DaeForm", "DAE_DIFFERENTIAL"]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def ode_rhs(law, beta, c, d, e, z, out):
     """Write dz/dτ into ``out`` (law 0 = slip, 1 = aging)."""
     h, u, s = z[0], z[1], z[2]
-    w = math.exp(u)
+    w = np.exp(u)
     out[0] = e - w
     out[1] = (c * h - d * (u + beta * s)) / w
     if law == 0:
         out[2] = -w * (u + s)
     else:
-        out[2] = math.exp(-s) - w
+        out[2] = np.exp(-s) - w
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def ode_jacobian(law, beta, c, d, e, z, jac):
     """Write ∂(dz/dτ)/∂z into the 3×3 ``jac``."""
     h, u, s = z[0], z[1], z[2]
-    w = math.exp(u)
+    w = np.exp(u)
     inv_w = 1.0 / w
     fu = (c * h - d * (u + beta * s)) * inv_w
     jac[0, 0], jac[0, 1], jac[0, 2] = 0.0, -w, 0.0
@@ -52,7 +52,7 @@ def ode_jacobian(law, beta, c, d, e, z, jac):
     if law == 0:
         jac[2, 0], jac[2, 1], jac[2, 2] = 0.0, -w * (u + s) - w, -w
     else:
-        jac[2, 0], jac[2, 1], jac[2, 2] = 0.0, -w, -math.exp(-s)
+        jac[2, 0], jac[2, 1], jac[2, 2] = 0.0, -w, -np.exp(-s)
 
 
 def to_ode_state(law_code: int, beta: float, x) -> np.ndarray:
@@ -60,7 +60,7 @@ def to_ode_state(law_code: int, beta: float, x) -> np.ndarray:
     h, eta, psi = x
     if law_code == 0:
         return np.array([h, eta - beta * psi, psi])
-    return np.array([h, eta - beta * math.log(psi), math.log(psi)])
+    return np.array([h, eta - beta * np.log(psi), np.log(psi)])
 
 
 def from_ode_state(law_code: int, beta: float, z: np.ndarray):
@@ -115,18 +115,18 @@ class OdeForm:
 DAE_DIFFERENTIAL = np.array([1.0, 0.0, 1.0, 1.0])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _state_rate(law, u, s, w):
     if law == 0:
         return -w * (u + s)
-    return math.exp(-s) - w
+    return np.exp(-s) - w
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def dae_residual(law, beta, c, d, e, y, yp, out):
     """Write F(y, y') of the DAE form into ``out`` (length 4)."""
     h, u, s, eta = y[0], y[1], y[2], y[3]
-    w = math.exp(u)
+    w = np.exp(u)
     fs = _state_rate(law, u, s, w)
     out[0] = yp[0] - (e - w)
     out[1] = u - (eta - beta * s)
@@ -134,15 +134,15 @@ def dae_residual(law, beta, c, d, e, y, yp, out):
     out[3] = yp[3] - ((c * h - d * eta) / w + beta * fs)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def dae_jacobian(law, beta, c, d, e, y, cj, jac):
     """Write ∂F/∂y + cj ∂F/∂y' into the 4×4 ``jac`` (IDA's iteration matrix)."""
     h, u, s, eta = y[0], y[1], y[2], y[3]
-    w = math.exp(u)
+    w = np.exp(u)
     if law == 0:
         dfs_du, dfs_ds = -w * (u + s) - w, -w
     else:
-        dfs_du, dfs_ds = -w, -math.exp(-s)
+        dfs_du, dfs_ds = -w, -np.exp(-s)
     feta = (c * h - d * eta) / w
     for i in range(4):
         for j in range(4):

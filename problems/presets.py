@@ -8,9 +8,12 @@ numbers per window: the normalized stiffness κ = k Lc/(Fn (b − a)) of Table 3
 length Lb = G Lc/((1 − ν) b σn) of the Discussion (0.31, 0.48, 2.8, 0.36 m; G = 39.3 GPa,
 ν = 0.31). Solving the two for (b, Lc) gives :func:`aging_best_fit`.
 
-Every run starts from steady sliding at the slow loading speed with the slip rate raised by
-``INITIAL_PERTURBATION`` (the paper does not state its initial conditions; the limit cycle does not
-depend on them).
+The paper does not state its initial conditions (the limit cycle does not depend on them). Every
+run starts sliding at the slow loading speed, with the state of steady sliding at a speed
+``INITIAL_PERTURBATION`` times slower (a slightly healed fault) and the spring force equal to
+friction. Starting in force balance puts the start on the slow manifold: a jump in slip rate
+instead would open with a fast inertial layer (time scale m v/A) that fixed-step schemes cannot
+resolve and that shifts the phase of the first events.
 """
 
 from __future__ import annotations
@@ -19,7 +22,7 @@ from dataclasses import dataclass
 
 from problems.friction import law_from_name
 from problems.loading import ConstantLoading, TwoSpeedLoading
-from problems.slider import SpringSlider, steady_initial_state
+from problems.slider import SpringSlider, balanced_initial_state
 
 __all__ = ["MASS", "A", "V0", "NORMAL_STRESS", "NORMAL_FORCE", "WINDOWS", "Window",
            "paper_example", "window", "aging_best_fit", "preset", "PRESET_NAMES",
@@ -33,7 +36,7 @@ NORMAL_FORCE = NORMAL_STRESS * 1.5 * 0.5   # N, on the 1.5 m × 0.5 m fault
 SHEAR_MODULUS = 39.3e9             # Pa, Indian metagabbro (Discussion)
 POISSON_RATIO = 0.31
 MU0 = 0.6                          # F0/Fn; only shifts the friction level
-INITIAL_PERTURBATION = 1.1         # initial v = 1.1 × steady sliding speed
+INITIAL_PERTURBATION = 1.1         # initial state: steady state of v_slow / 1.1
 WINDOW_T_END = 40.0                # s, default simulated time of a window (~10–90 cycles)
 
 
@@ -84,7 +87,8 @@ def aging_best_fit(w: Window) -> tuple[float, float]:
 
 def _slider(law, loading, stiffness: float, t_end: float, name: str) -> SpringSlider:
     v = loading.v_slow
-    initial = steady_initial_state(law, NORMAL_FORCE, MU0, v, v=INITIAL_PERTURBATION * v)
+    theta = law.steady_state(v / INITIAL_PERTURBATION, NORMAL_FORCE)
+    initial = balanced_initial_state(law, NORMAL_FORCE, MU0, v, theta)
     return SpringSlider(mass=MASS, stiffness=stiffness, normal_force=NORMAL_FORCE, law=law,
                         loading=loading, initial=initial, t_end=t_end, mu0=MU0, name=name)
 

@@ -19,7 +19,8 @@ from problems._validate import check_finite, check_positive
 from problems.friction import AgingLaw, FrictionLaw, SlipLaw
 from problems.loading import ConstantLoading, TwoSpeedLoading
 
-__all__ = ["InitialState", "SpringSlider", "Nondimensional", "steady_initial_state"]
+__all__ = ["InitialState", "SpringSlider", "Nondimensional", "steady_initial_state",
+           "balanced_initial_state"]
 
 Loading = Union[ConstantLoading, TwoSpeedLoading]
 
@@ -45,6 +46,13 @@ def steady_initial_state(law: FrictionLaw, fn: float, mu0: float, v_ss: float,
     f0 = mu0 * fn
     return InitialState(v=v_ss if v is None else v, theta=law.steady_state(v_ss, fn),
                         fs=float(law.steady_friction(v_ss, fn, f0)))
+
+
+def balanced_initial_state(law: FrictionLaw, fn: float, mu0: float, v: float,
+                           theta: float) -> InitialState:
+    """Slip rate ``v`` and state ``theta`` with the spring force equal to friction (Fs = Ft, so
+    dv/dt = 0): a start on the slow manifold, with no fast initial layer."""
+    return InitialState(v=v, theta=theta, fs=float(law.friction(v, theta, fn, mu0 * fn)))
 
 
 class Nondimensional(NamedTuple):

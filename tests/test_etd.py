@@ -33,11 +33,11 @@ def test_order_when_the_fast_mode_is_resolved(make):
     p = dataclasses.replace(base, mass=base.mass * 1e4)
     radau = _final_state(p, I.ScipyRadau(rtol=1e-12, atol=1e-12))
     fine = _final_state(p, _scaled(I.ETD2, 1 / 256))
-    # the two references agree to ~3e-9, 0.5 % of the smallest ladder error (ETD2 at 1/16: 6e-7)
-    assert abs(fine[1] - radau[1]) < 1e-8
     ladder = np.array(LADDER) / 2     # ETD1 is still pre-asymptotic at the paper's steps
-    errors = np.array([abs(_final_state(p, _scaled(make, f))[1] - radau[1]) for f in ladder])
-    errors_fine = np.array([abs(_final_state(p, _scaled(make, f))[1] - fine[1]) for f in ladder])
+    results = np.array([_final_state(p, _scaled(make, f))[1] for f in ladder])
+    errors, errors_fine = np.abs(results - radau[1]), np.abs(results - fine[1])
+    # the two references agree far below the smallest error they are used to measure
+    assert abs(fine[1] - radau[1]) < 0.05 * errors.min()
     declared = make().order
     assert observed_order(ladder, errors) == pytest.approx(declared, abs=0.15)
     assert observed_order(ladder, errors_fine) == pytest.approx(declared, abs=0.15)
