@@ -16,7 +16,7 @@ from pathlib import Path
 
 from benchmarks import metrics
 from benchmarks.timing import warm_up
-from integrators import REGISTRY, make_algorithm, solve
+from integrators import REGISTRY, algorithm_class, make_algorithm, solve
 from problems import PRESET_NAMES, preset
 
 __all__ = ["main"]
@@ -30,6 +30,11 @@ def _jsonable(x):
     if isinstance(x, list):
         return [_jsonable(v) for v in x]
     return x
+
+
+def algorithm_name(name: str) -> str:
+    """The registry's spelling of ``name`` (lookups are case-insensitive)."""
+    return algorithm_class(name).name
 
 
 def simulate_summary(sol) -> dict:
@@ -119,6 +124,26 @@ def cmd_windows(args) -> int:
     return 0
 
 
+def cmd_compare(args) -> int:
+    from benchmarks.compare import compare_integrators
+    from benchmarks.report import markdown_table
+    problem = preset(args.preset, law=args.law, t_end=args.t_end)
+    names = None if not args.integrators else [algorithm_name(n) for n in args.integrators]
+    table = compare_integrators(problem, args.rtol, args.atol, names=names,
+                                wall_budget=args.wall_budget, progress=not args.json)
+    if args.out:
+        table.to_csv(args.out, index=False)
+    if args.json:
+        print(table.to_json(orient="records", indent=2))
+    else:
+        shown = table.drop(columns=["library", "message"]).assign(
+            wall_s=table.wall_s.map("{:.4g}".format),
+            recurrence_s=table.recurrence_s.map(lambda x: f"{x:.8g}" if x == x and x is not None else ""),
+            friction_drop=table.friction_drop.map(lambda x: f"{x:.7g}" if x == x and x is not None else ""))
+        print(markdown_table(shown), end="")
+    return 0
+
+
 def cmd_reproduce(args) -> int:
     from benchmarks.reproduce import reproduce
     reproduce(Path(args.out))
@@ -159,6 +184,20 @@ def build_parser() -> argparse.ArgumentParser:
     w.add_argument("--out", help="directory for windows.csv and windows.md")
     w.add_argument("--json", action="store_true")
     w.set_defaults(func=cmd_windows)
+
+    c = sub.add_parser("compare", help="every integrator on one preset, side by side")
+    c.add_argument("--preset", default="paper-example", choices=PRESET_NAMES,
+                   type=lambda x: "paper-example" if x.lower() == "paper-example" else x.upper())
+    c.add_argument("--law", choices=("slip", "aging"), default="slip")
+    c.add_argument("--t-end", type=float)
+    c.add_argument("--rtol", type=float, required=True)
+    c.add_argument("--atol", type=float, required=True)
+    c.add_argument("--integrators", nargs="+", help="registry names (default: all)")
+    c.add_argument("--wall-budget", type=float, default=120.0, metavar="S",
+                   help="per-solve wall-time budget (default 120 s)")
+    c.add_argument("--out", metavar="FILE.csv")
+    c.add_argument("--json", action="store_true")
+    c.set_defaults(func=cmd_compare)
 
     r = sub.add_parser("reproduce", help="regenerate results/ (what `make reproduce` runs)")
     r.add_argument("--out", default="results")

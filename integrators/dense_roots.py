@@ -82,8 +82,14 @@ class DenseStepper:
             return None
         roots = []
         for k in changed:
-            t_root = brentq(lambda t: self._g_at(t)[k], self._cursor, t_end,
-                            xtol=1e-14 * max(1.0, abs(t_end)), rtol=_EPS)
+            g_a = self._g_at(self._cursor)[k]
+            if g_a == 0.0 or np.sign(g_a) == np.sign(g_end[k]):
+                # the step's interpolant at its start differs from the previous state by
+                # round-off (LSODA's does): the crossing is at the start of the bracket
+                t_root = self._cursor
+            else:
+                t_root = brentq(lambda t: self._g_at(t)[k], self._cursor, t_end,
+                                xtol=1e-14 * max(1.0, abs(t_end)), rtol=_EPS)
             roots.append((t_root, k))
         t_root = min(r[0] for r in roots)
         at_root = [k for t, k in roots if t == t_root]

@@ -49,10 +49,10 @@ def test_solves_a_short_stick_slip_problem(name, law, first_events):
     assert list(sol.events.columns) == list(EVENT_COLUMNS)
     ref = first_events[law]
     assert len(sol.events) == len(ref)
-    # event starts to ~ the requested tolerance; at the paper's fixed steps the first-order ETD1
-    # is ~3 % off and the second-order schemes ~4e-4
+    # event starts to ~ the requested tolerance (1e-7: scipy BDF is 7e-6 off, SUNDIALS CVODE
+    # 1.6e-5); at the paper's fixed steps the first-order ETD1 is ~3 % off, the others ~4e-4
     fixed = 5e-2 if cls.order == 1 else 1e-3
-    np.testing.assert_allclose(sol.events.t_start, ref, rtol=1e-5 if cls.adaptive else fixed)
+    np.testing.assert_allclose(sol.events.t_start, ref, rtol=5e-5 if cls.adaptive else fixed)
     s = sol.stats
     assert s.nfev > 0 and s.steps > 0 and s.wall_s > 0
     if cls.adaptive and cls.stiff and name != "scipy-LSODA":   # LSODA may never go stiff here
@@ -102,4 +102,6 @@ def test_python_and_numba_rhs_tiers_agree(name):
         return
     a, b = I.solve(p, _make(cls, rhs="numba")), I.solve(p, python)
     assert a.success and b.success
-    np.testing.assert_allclose(a.events.t_start, b.events.t_start, rtol=1e-9)
+    # the tiers compute the same function; numba's exp and libm's differ in the last bit in
+    # ~7 % of evaluations, which an adaptive method amplifies to ~1e-9 (Adams: 4e-9)
+    np.testing.assert_allclose(a.events.t_start, b.events.t_start, rtol=1e-7)

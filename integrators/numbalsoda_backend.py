@@ -1,0 +1,545 @@
+"""numbalsoda's LSODA (Adams/BDF switching) on the shared ODE form, with a compiled right-hand side.
+
+What numbalsoda 0.3.4 offers, and what it does not: one function, ``lsoda(funcptr, u0, t_eval,
+data, rtol, atol, mxstep) -> (usol, success)``, which integrates through the times ``t_eval`` and
+returns the state at each. The right-hand side is a C function pointer (a numba ``cfunc`` with
+``lsoda_sig``: ``f(t, u*, du*, data*)``), so a plain Python function cannot be used: the
+``rhs="python"`` tier is rejected. There is no root finding, no dense output, no stepping
+interface, no Jacobian argument (LSODA forms its own by finite differences), no choice of method
+and no statistics (no nfev, no step count, not even the reason of a failure: LSODA prints it
+on stderr).
+
+One compiled cfunc, ``_rhs``, serves every problem: it calls :func:`problems.formulations.ode_rhs`
+with the friction law, β, C, D and the loading E read from the ``data`` array (a restart at a new
+loading only writes E), and keeps the counters there, so they are counted, not reported by LSODA:
+
+* ``nfev``: right-hand-side calls, the finite-difference Jacobian columns included;
+* ``steps``: step *attempts*, the calls whose t differs from the previous call's (every attempt,
+  accepted or rejected, evaluates f at its own new abscissa; LSODA's start-up evaluation counts as
+  one): an upper bound of LSODA's accepted steps; ``rejected`` is not available (0);
+* ``njev``: finite-difference Jacobians, recognised by their pattern: calls at the t of the call
+  before, each with that call's state moved in one component; the first column counts one.
+
+The cfunc also stops LSODA when it must (the step budget ``max_steps`` on attempts, and the two
+cases below) by returning inf, which fails LSODA at once (NaN would not: its norms skip NaN and it
+carries on); LSODA then prints a line or two on stderr.
+
+Events, located to the integration tolerance, not to a grid: LSODA integrates in blocks, one
+``lsoda`` call each, through a grid that contains the driver's output times and has at least 16
+points per half period π/√C of the mass-spring oscillation, the fastest oscillation of the slider
+(crossings closer together than that spacing can be missed). A sign change, in a direction that
+counts, of a root function between two grid points triggers one more ``lsoda`` call from the left
+point through the interval at 1024 sub-points (LSODA's own interpolation to each), which brackets
+every such crossing in it; in its bracket each crossing is placed by the root functions on the
+cubic Hermite interpolant of z (z and dz/dτ at both ends; the root functions are linear in z).
+At 1/(16·1024) of a half period, the interpolation error is ~(1e−4)^4 of the state's own time
+scale: the located time carries the integration error only. Cost: one cold LSODA start over one
+grid interval per interval with crossings (~1–2 per event; a few per cent of all attempts).
+
+Where blocks end, and why. A cold LSODA start in the stick phase sometimes (a few per cent of
+starts, more the deeper the stick) never leaves Adams: its stiffness test needs a corrector that
+took two iterations, and there every step converges in one, at the stability limit h ~ w/D, i.e.
+1e4–1e5 attempts per grid interval instead of ~1. So a block runs to the end of the segment and is
+ended by the cfunc only where a cold start is safe: when the slip rate enters an event
+(u > ln(10 E_slow)), and under two-speed loading three grid intervals after an event ends (the
+driver restarts there, so integrating further would be thrown away); at most ``_BLOCK_MAX``
+points. The cold starts that remain in the stick phase (the driver's restarts, the sub-point
+calls) are guarded: a call that takes ``_GUARD_ATTEMPTS`` attempts without advancing one grid
+interval, in a stiff state (D/w above 100 per grid interval) where ln w moves by less than
+``_GUARD_DU``, is stopped and restarted from its last good point with a shorter first output
+interval (another initial step, another start); the last try runs unguarded.
+
+numbalsoda is imported at the first solve, not with this module: its import compiles its own
+``solve_ivp`` driver (~9 s).
+
+Reference: Petzold (1983), Automatic selection of methods for solving stiff and nonstiff systems
+of ODEs, SIAM J. Sci. Stat. Comput. 4, 136–148; Hindmarsh (1983), ODEPACK; numbalsoda:
+N. Wogan, https://github.com/Nicholaswogan/numbalsoda (LSODA.cpp, a C++ port of LSODA).
+"""
+
+from __future__ import annotations
+
+import functools
+import importlib.metadata
+import importlib.util
+import math
+from collections import deque
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+from numba import carray, cfunc, njit
+from scipy.optimize import brentq
+
+from integrators.events import DIRECTIONS, H_EXTREMUM, root_functions
+from integrators.registry import Algorithm, register
+from integrators.segments import Advance, run_segments
+from integrators.solution import ReturnCode, Stats
+from problems._validate import check_positive
+from problems.formulations import ode_rhs
+
+__all__ = ["NumbaLSODA"]
+
+# registration needs numbalsoda installed; it is imported at the first solve (_library)
+if importlib.util.find_spec("numbalsoda") is None:
+    raise ImportError("No module named 'numbalsoda'")
+_VERSION = importlib.metadata.version("numbalsoda")
+
+# The data array handed to the cfunc: the parameters of ode_rhs, the counters, and what decides
+# when the cfunc stops LSODA (_KILL says why: 1 stuck start, 2 step budget, 3 end of block).
+(_LAW, _BETA, _C, _D, _E,                       # ode_rhs parameters
+ _NFEV, _ATTEMPTS, _T_LAST, _LIMIT,             # counters and the step budget
+ _NJEV, _YB0, _YB1, _YB2,                       # Jacobians, and the state they perturb
+ _GUARD_N, _GUARD_DT, _GUARD_COUNT, _GUARD_T,   # stuck-start guard...
+ _GUARD_U, _U_STIFF,                            # ...below this ln w
+ _BLOCK, _U_ONSET, _U_END, _T_ARM, _ARMED,      # block ends: entering an event...
+ _TWO_SPEED, _IN_EVENT, _END_DT, _END_KILL_T,   # ...and after an event's end (two-speed)
+ _KILL, _KILL_T) = range(30)
+_DATA_LEN = 30
+_STUCK, _BUDGET, _BLOCK_END = 1.0, 2.0, 3.0
+_KILL_VALUE = np.inf
+
+_BLOCK_MAX = 65536                   # grid points per lsoda call at most (memory)
+_POINTS_PER_HALF_PERIOD = 16
+_N_SUB = 1024                        # sub-points of an interval with a sign change
+_MXSTEP = 1_000_000                  # LSODA's per-interval limit; the budget is the cfunc's
+_GUARD_ATTEMPTS = 300
+_GUARD_DU = 0.01
+_FIRST_FRACTIONS = (1e-2, 1e-4, 1e-6, 1e-8, 1e-10)
+_TINY = 1e-300
+
+
+@njit(cache=True)
+def _watch(t, u, data):
+    """At each new step attempt (trial time t, trial ln w = u): should LSODA be stopped?"""
+    if data[_ATTEMPTS] > data[_LIMIT]:
+        return _BUDGET
+    if data[_GUARD_N] > 0.0:
+        data[_GUARD_COUNT] += 1.0
+        if data[_GUARD_COUNT] >= data[_GUARD_N]:
+            # stuck: tiny steps in a stiff state where nothing happens (a fast transient
+            # legitimately takes many steps, but it moves)
+            if (t - data[_GUARD_T] < data[_GUARD_DT] and u < data[_U_STIFF]
+                    and abs(u - data[_GUARD_U]) < _GUARD_DU):
+                return _STUCK
+            data[_GUARD_COUNT] = 0.0
+            data[_GUARD_T] = t
+            data[_GUARD_U] = u
+    if data[_BLOCK] > 0.0:
+        if t >= data[_T_ARM]:
+            if u < data[_U_ONSET]:
+                data[_ARMED] = 1.0
+            elif data[_ARMED] > 0.0:
+                return _BLOCK_END
+        if data[_TWO_SPEED] > 0.0:
+            if u > data[_U_ONSET]:
+                data[_IN_EVENT] = 1.0
+            elif data[_IN_EVENT] > 0.0 and u < data[_U_END] and data[_END_KILL_T] == np.inf:
+                data[_END_KILL_T] = t + data[_END_DT]
+            if t > data[_END_KILL_T]:
+                return _BLOCK_END
+    return 0.0
+
+
+@njit(cache=True)
+def _rebase(z, data):
+    data[_YB0] = z[0]
+    data[_YB1] = z[1]
+    data[_YB2] = z[2]
+
+
+def _rhs(t, u, du, p):
+    """The right-hand side handed to LSODA, compiled as a cfunc with ``lsoda_sig``."""
+    data = carray(p, (_DATA_LEN,))
+    z = carray(u, (3,))
+    out = carray(du, (3,))
+    if t != data[_T_LAST]:                  # a new abscissa: a new step attempt
+        data[_ATTEMPTS] += 1.0
+        data[_T_LAST] = t
+        if data[_KILL] == 0.0:
+            why = _watch(t, z[1], data)
+            if why != 0.0:
+                data[_KILL] = why
+                data[_KILL_T] = t
+        _rebase(z, data)
+    else:
+        # LSODA's finite-difference Jacobian: at the t of the call before, one column per
+        # call, each the state of that call with one component perturbed (then restored)
+        moved = (z[0] != data[_YB0]) + (z[1] != data[_YB1]) + (z[2] != data[_YB2])
+        if moved == 1:
+            if z[0] != data[_YB0]:
+                data[_NJEV] += 1.0
+        else:
+            _rebase(z, data)
+    data[_NFEV] += 1.0
+    if data[_KILL] != 0.0:
+        out[0] = _KILL_VALUE
+        out[1] = _KILL_VALUE
+        out[2] = _KILL_VALUE
+        return
+    ode_rhs(int(data[_LAW]), data[_BETA], data[_C], data[_D], data[_E], z, out)
+
+
+@functools.cache
+def _library():
+    """numbalsoda's signature and C entry point, and ours built on them: the address of the
+    compiled ``_rhs`` and ``run``, numbalsoda's ``lsoda`` with the output pre-filled with NaN
+    (after a failure the rows it did not reach stay NaN; ``lsoda`` leaves them uninitialised,
+    so this tells how far it got)."""
+    from numbalsoda import lsoda_sig
+    from numbalsoda.driver import lsoda_wrapper
+
+    rhs = cfunc(lsoda_sig, cache=True)(_rhs)
+
+    @njit
+    def run(funcptr, u0, t_eval, data, rtol, atol, mxstep):
+        neq, nt = u0.shape[0], t_eval.shape[0]
+        usol = np.full((nt, neq), np.nan)
+        success = np.array(999, np.int32)
+        lsoda_wrapper(funcptr, neq, u0.ctypes.data, data.ctypes.data, nt, t_eval.ctypes.data,
+                      usol.ctypes.data, rtol, atol, mxstep, success.ctypes.data)
+        ok = True
+        if success != 1:
+            ok = False
+        return usol, ok
+
+    return rhs.address, run
+
+
+class _Abort(Exception):
+    """An lsoda call failed where no state can be returned but the current one."""
+
+    def __init__(self, advance: Advance):
+        super().__init__(advance.message)
+        self.advance = advance
+
+
+@register
+@dataclass(frozen=True)
+class NumbaLSODA(Algorithm):
+    """LSODA (Petzold 1983) from numbalsoda: Adams (orders 1–12) / BDF (orders 1–5) switching on
+    detected stiffness, adaptive, finite-difference Jacobian.
+
+    Needs ``rtol`` and ``atol`` (required: no default accuracy; ``atol`` applies to every
+    component of (h, ln w, Ψ or ln Ψ)), ``max_steps`` (step attempts, whole solve) and the
+    compiled right-hand side (``rhs="numba"`` only). Events by sign changes on a grid and Brent
+    refinement with re-integration (module docstring). Reference: Petzold (1983), SIAM J. Sci.
+    Stat. Comput. 4, 136–148; Hindmarsh (1983), ODEPACK.
+    """
+
+    rtol: float = None
+    atol: float = None
+    max_steps: int = 50_000_000
+    rhs: str = "numba"
+
+    name: ClassVar[str] = "numbalsoda-LSODA"
+    family: ClassVar[str] = "Adams/BDF (LSODA)"
+    order: ClassVar[int] = 12
+    adaptive: ClassVar[bool] = True
+    library: ClassVar[str] = "numbalsoda"
+
+    def __post_init__(self) -> None:
+        if self.rtol is None or self.atol is None:
+            raise ValueError(f"{self.name} needs explicit rtol and atol (no default accuracy), "
+                             f"got rtol={self.rtol!r}, atol={self.atol!r}")
+        check_positive("rtol", self.rtol)
+        check_positive("atol", self.atol)
+        if self.rhs == "python":
+            raise ValueError(f"{self.name} cannot use rhs='python': numbalsoda calls the "
+                             "right-hand side from C through a function pointer (a numba cfunc), "
+                             "which a Python function cannot provide; use rhs='numba'")
+        if self.rhs != "numba":
+            raise ValueError(f"rhs must be 'numba' (numbalsoda takes only compiled right-hand "
+                             f"sides), got {self.rhs!r}")
+        if int(self.max_steps) != self.max_steps or self.max_steps < 1:
+            raise ValueError(f"max_steps must be a positive integer, got {self.max_steps!r}")
+
+    @classmethod
+    def library_version(cls) -> str:
+        return f"numbalsoda {_VERSION} (C++ port of ODEPACK LSODA)"
+
+    def run(self, problem, output, budget, progress):
+        return run_segments(problem, _LsodaStepper(self, problem.nondimensional()), output,
+                            budget, progress)
+
+
+class _LsodaStepper:
+    """The segment protocol over block-wise ``lsoda`` calls (see the module docstring).
+
+    The buffer ``_T``/``_Y``/``_G`` (grid times, states, root-function values) holds the current
+    block; grid points up to index ``_k`` have been handed out or scanned; ``_cross`` lists the
+    intervals (T[i], T[i+1]] with a crossing that counts; ``_queue`` the located roots of the
+    last scanned interval not yet reported.
+    """
+
+    def __init__(self, algorithm: NumbaLSODA, nd):
+        self.algorithm = algorithm
+        self.nd = nd
+        self.stats = Stats()
+        d = self._data = np.zeros(_DATA_LEN)
+        d[[_LAW, _BETA, _C, _D]] = nd.law_code, nd.beta, nd.c, nd.d
+        d[_T_LAST] = np.nan
+        d[_LIMIT] = float(algorithm.max_steps)
+        d[_U_ONSET], d[_U_END] = math.log(10.0 * nd.e_slow), math.log(nd.e_slow)
+        d[_TWO_SPEED] = float(nd.tau_fast > 0.0 and nd.e_fast != nd.e_slow)
+        self._funcptr, self._lsoda = _library()
+        self._dcap = math.pi / math.sqrt(nd.c) / _POINTS_PER_HALF_PERIOD
+        self._dt_out = 0.0            # spacing of the driver's output times, learned
+        self._last_request = None
+        self._last_root = None        # (tau, z, [(kind, sign after crossing)], e)
+
+    # --- the protocol ---------------------------------------------------------------------------
+
+    def start(self, tau0, z0, e, t_bound):
+        self._e = float(e)
+        self._data[_E] = self._e
+        z0 = np.array(z0, dtype=float)
+        g0 = self._g(z0[None, :])[0]
+        last = self._last_root
+        if last is not None and last[0] == tau0 and np.array_equal(last[1], z0):
+            # restarting at a root just reported: keep its sign after the crossing, so that the
+            # new scan does not find the same crossing again
+            for kind, sign in last[2]:
+                if (kind != H_EXTREMUM or last[3] == self._e) and g0[kind] * sign <= 0.0:
+                    g0[kind] = sign * _TINY
+        self._T, self._Y, self._G = np.array([float(tau0)]), z0[None, :], g0[None, :]
+        self._cross = np.empty(0, dtype=int)
+        self._k = 0
+        self._queue = deque()
+        self._t, self._z = float(tau0), z0
+        self._t_bound = float(t_bound)
+        self._dg = self._dcap         # grid spacing of the buffer
+        self._failure = None          # an Advance to return once the buffer is used up
+
+    def advance(self, t_out):
+        t_out = float(t_out)
+        if self._last_request is not None and t_out > self._last_request:
+            self._dt_out = max(self._dt_out, t_out - self._last_request)
+        self._last_request = t_out
+        try:
+            while True:
+                if self._queue:
+                    t, z, kinds, signs = self._queue[0]
+                    if t <= t_out:
+                        self._queue.popleft()
+                        self._t, self._z = t, z
+                        self._last_root = (t, z, list(zip(kinds, signs)), self._e)
+                        return Advance(t, z, roots=kinds)
+                    return self._value_at(t_out)
+                # skip the intervals without crossings, up to t_out or the next crossing
+                k, last = self._k, len(self._T) - 1
+                pos = int(np.searchsorted(self._cross, k))
+                nxt = int(self._cross[pos]) if pos < len(self._cross) else last
+                j = int(np.searchsorted(self._T, t_out - self._match()))
+                if j <= nxt:
+                    self._k = max(k, j)
+                    return self._value_at(t_out)
+                if nxt == last:
+                    self._k = last
+                    if self._failure is not None:
+                        return self._failure
+                    self._extend(t_out)
+                    continue
+                self._scan(nxt)
+                self._k = nxt + 1
+        except _Abort as abort:
+            return abort.advance
+
+    # --- lsoda calls ----------------------------------------------------------------------------
+
+    def _run(self, z0, t_eval, guard: bool, block: bool):
+        """One lsoda call; counters updated. Returns (usol, ok); ``_data[_KILL]`` tells whether
+        and why the cfunc stopped it."""
+        a = self.algorithm
+        d = self._data
+        d[_KILL], d[_KILL_T] = 0.0, np.inf
+        # a call shorter than one grid interval is not guarded: stuck, it costs no more than
+        # the restarts would
+        d[_GUARD_N] = (_GUARD_ATTEMPTS if guard and t_eval[-1] - t_eval[0] > 0.5 * self._dg
+                       else 0.0)
+        d[_GUARD_DT], d[_GUARD_COUNT], d[_GUARD_T], d[_GUARD_U] = self._dg, 0.0, t_eval[0], z0[1]
+        # stiff: the stiff eigenvalue ~ D/w is over 100 per grid interval (w < D·dg/100); only
+        # there can Adams be stuck at its stability limit, and only there is BDF so cheap
+        d[_U_STIFF] = math.log(self.nd.d * self._dg / 100.0)
+        d[_BLOCK], d[_T_ARM], d[_ARMED] = float(block), t_eval[0] + 4.0 * self._dg, 0.0
+        d[_IN_EVENT], d[_END_DT], d[_END_KILL_T] = 0.0, 3.0 * self._dg, np.inf
+        usol, ok = self._lsoda(self._funcptr, np.ascontiguousarray(z0, dtype=float),
+                               np.ascontiguousarray(t_eval, dtype=float), d, a.rtol, a.atol,
+                               _MXSTEP)
+        self.stats.nfev = int(d[_NFEV])
+        self.stats.njev = int(d[_NJEV])
+        self.stats.steps = int(d[_ATTEMPTS])
+        return usol, ok
+
+    def _integrate(self, z0, t_eval, block: bool = False):
+        """lsoda from z0 through t_eval, a stuck cold start restarted (module docstring).
+        Returns (usol, ok); rows not reached (failure, budget, end of block) are NaN."""
+        t_eval = np.asarray(t_eval, dtype=float)
+        out = np.full((len(t_eval), 3), np.nan)
+        out[0] = z0
+        i, variant, ok = 0, 0, True
+        while i < len(t_eval) - 1:
+            te = t_eval[i:]
+            guard = variant <= len(_FIRST_FRACTIONS)      # the last try runs unguarded
+            extra = 0 < variant <= len(_FIRST_FRACTIONS)
+            if extra:
+                te = np.insert(te, 1, te[0] + _FIRST_FRACTIONS[variant - 1] * (te[1] - te[0]))
+            usol, ok = self._run(out[i], te, guard, block)
+            if extra:
+                usol = np.delete(usol, 1, axis=0)
+            # the rows LSODA reached before the cfunc stopped it (it writes none after)
+            good = np.all(np.isfinite(usol), axis=1) & (t_eval[i:] < self._data[_KILL_T])
+            good[0] = True
+            n = len(good) if good.all() else int(np.argmin(good))
+            out[i:i + n] = usol[:n]
+            out[i + n:] = np.nan
+            if self._data[_KILL] != _STUCK:
+                break
+            variant = variant + 1 if n == 1 else 1
+            i += n - 1
+        return out, ok
+
+    def _failed(self, t_from: float, t_to: float, z, ok: bool) -> Advance:
+        a = self.algorithm
+        if self._data[_KILL] == _BUDGET or self.stats.steps >= a.max_steps:
+            return Advance(t_from, z, retcode=ReturnCode.MAX_STEPS,
+                           message=f"step budget of {a.max_steps} used up "
+                                   f"between tau = {t_from:.9g} and {t_to:.9g}")
+        if ok:
+            return Advance(t_from, z, retcode=ReturnCode.NON_FINITE,
+                           message=f"non-finite state between tau = {t_from:.9g} and {t_to:.9g}")
+        return Advance(t_from, z, retcode=ReturnCode.FAILURE,
+                       message=f"LSODA failed between tau = {t_from:.9g} and {t_to:.9g} "
+                               "(numbalsoda returns only success=False; LSODA printed its "
+                               "reason on stderr)")
+
+    def _state_at(self, t0: float, z0, t: float) -> np.ndarray:
+        """Re-integrate from (t0, z0) to t."""
+        if t == t0:
+            return np.array(z0)
+        usol, ok = self._integrate(z0, [t0, t])
+        if not np.all(np.isfinite(usol[-1])):
+            raise _Abort(self._failed(t0, t, np.array(z0), ok))
+        return usol[-1]
+
+    # --- grid, scan, root location --------------------------------------------------------------
+
+    def _g(self, zs: np.ndarray) -> np.ndarray:
+        """events.root_functions at the rows of zs, shape (n, 4)."""
+        return root_functions(self.nd, self._e, zs.T).T
+
+    @staticmethod
+    def _crossings(g0: np.ndarray, g1: np.ndarray) -> np.ndarray:
+        """Whether each root function crosses zero from g0 to g1 in a direction that counts
+        (the convention of dense_roots: exactly zero is the far side)."""
+        up = (g0 < 0.0) & (g1 >= 0.0)
+        down = (g0 > 0.0) & (g1 <= 0.0)
+        direction = np.array(DIRECTIONS)
+        return (up & (direction >= 0)) | (down & (direction <= 0))
+
+    def _match(self) -> float:
+        """Times closer than this are the same grid point (the driver accumulates its output
+        times, so they differ from ours in the last bits)."""
+        return 1e-7 * self._dg
+
+    def _value_at(self, t: float) -> Advance:
+        """The state at t inside the buffer: a grid point, or re-integrated from the one before."""
+        T, Y = self._T, self._Y
+        i = int(np.searchsorted(T, t))
+        for j in (i - 1, i):
+            if 0 <= j < len(T) and abs(T[j] - t) <= self._match():
+                f = np.empty(3)
+                ode_rhs(self.nd.law_code, self.nd.beta, self.nd.c, self.nd.d, self._e, Y[j], f)
+                z = Y[j] + f * (t - T[j])      # first-order shift by a few ulps of t
+                break
+        else:
+            j = max(i - 1, 0)
+            z = self._state_at(T[j], Y[j], t)
+        self._t, self._z = t, z
+        return Advance(t, z)
+
+    def _extend(self, t_req: float) -> None:
+        """Integrate the next block from the buffer's last point, through a grid containing the
+        driver's output times (spaced ``_dt_out``, learned) subdivided to at most ``_dcap``; a
+        failure is kept in ``_failure`` for when it is reached."""
+        a = self.algorithm
+        if self.stats.steps >= a.max_steps:
+            raise _Abort(Advance(self._t, self._z, retcode=ReturnCode.MAX_STEPS,
+                                 message=f"step budget of {a.max_steps} used up at "
+                                         f"tau = {self._t:.9g}"))
+        start, z_start = self._T[-1], self._Y[-1]
+        dout = self._dt_out if self._dt_out > 0.0 else t_req - start
+        self._dg = dg = dout / max(1, math.ceil(dout / self._dcap - 1e-9))
+        match = self._match()
+        j0 = math.ceil((start + match - t_req) / dg)
+        n_max = min(_BLOCK_MAX, int((self._t_bound - start) / dg) + 2)
+        pts = t_req + dg * np.arange(j0, j0 + n_max)
+        pts = pts[(pts > start + match) & (pts < self._t_bound - match)]
+        if len(pts) < n_max:
+            pts = np.append(pts, self._t_bound)
+        t_eval = np.concatenate(([start], pts))
+        usol, ok = self._integrate(z_start, t_eval, block=True)
+        good = np.all(np.isfinite(usol), axis=1)
+        n = len(t_eval) if good.all() else int(np.argmin(good))
+        if n == 1 and self._data[_KILL] == _BLOCK_END:     # ended before its first point
+            usol, ok = self._integrate(z_start, t_eval[:2])
+            n = 2 if np.all(np.isfinite(usol[1])) else 1
+        if n < len(t_eval) and self._data[_KILL] != _BLOCK_END:
+            self._failure = self._failed(t_eval[n - 1], t_eval[n], usol[n - 1], ok)
+        if n == 1:
+            raise _Abort(self._failure or self._failed(start, t_eval[1], z_start, ok))
+        self._T, self._Y = t_eval[:n], usol[:n]
+        self._G = g = np.vstack([self._G[self._k][None, :], self._g(usol[1:n])])
+        self._cross = np.flatnonzero(self._crossings(g[:-1], g[1:]).any(axis=1))
+        self._k = 0
+
+    def _scan(self, k: int) -> None:
+        """Locate the crossings that count in (T[k], T[k+1]] and queue them in time order: one
+        lsoda call through the interval at ``_N_SUB`` sub-points brackets them, cubic Hermite
+        interpolation between the two sub-points of each bracket places them."""
+        ta, tb = self._T[k], self._T[k + 1]
+        ts = np.linspace(ta, tb, _N_SUB + 1)
+        usol, ok = self._integrate(self._Y[k], ts)
+        if not np.all(np.isfinite(usol[:-1])):
+            raise _Abort(self._failed(ta, tb, self._Y[k], ok))
+        usol[-1] = self._Y[k + 1]            # the block's value at T[k+1] is the one we keep
+        gs = self._g(usol)
+        gs[0], gs[-1] = self._G[k], self._G[k + 1]
+        roots = []
+        for j, kind in zip(*np.nonzero(self._crossings(gs[:-1], gs[1:]))):
+            a, b = gs[j, kind], gs[j + 1, kind]
+            t, z = self._locate(kind, ts[j], usol[j], ts[j + 1], usol[j + 1])
+            roots.append((t, int(kind), 1 if b > a else -1, z))
+        roots.sort(key=lambda r: r[0])
+        for t, kind, sign, z in roots:
+            if self._queue and t - self._queue[-1][0] <= 1e-14 * max(1.0, abs(t)):
+                self._queue[-1][2].append(kind)      # END and H_EXTREMUM coincide at E_slow
+                self._queue[-1][3].append(sign)
+            else:
+                self._queue.append((t, z, [kind], [sign]))
+
+    def _locate(self, kind, ta, za, tb, zb):
+        """The root of g_kind on the cubic Hermite interpolant of z between two sub-points
+        (z and f = dz/dτ at both ends). The root functions are linear in z, so g is a cubic in
+        t; at 1/(32·16) of a half period apart its error is far below the tolerance."""
+        nd, e = self.nd, self._e
+        fa, fb = np.empty(3), np.empty(3)
+        ode_rhs(nd.law_code, nd.beta, nd.c, nd.d, e, za, fa)
+        ode_rhs(nd.law_code, nd.beta, nd.c, nd.d, e, zb, fb)
+        self._data[_NFEV] += 2.0
+        self.stats.nfev = int(self._data[_NFEV])
+        dt = tb - ta
+
+        def z_at(x):
+            x2, x3 = x * x, x * x * x
+            return ((2 * x3 - 3 * x2 + 1) * za + (x3 - 2 * x2 + x) * dt * fa
+                    + (-2 * x3 + 3 * x2) * zb + (x3 - x2) * dt * fb)
+
+        def g_at(x):
+            return self._g(z_at(x)[None, :])[0, kind]
+
+        ga, gb = g_at(0.0), g_at(1.0)
+        if ga * gb > 0.0:          # a root exactly at an end (signs carried over a restart)
+            return (ta, np.array(za)) if abs(ga) <= abs(gb) else (tb, np.array(zb))
+        x = brentq(g_at, 0.0, 1.0, xtol=1e-15, rtol=4 * np.finfo(float).eps)
+        return ta + x * dt, z_at(x)

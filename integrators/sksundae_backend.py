@@ -1,0 +1,396 @@
+"""SUNDIALS CVODE (BDF) and IDA through scikit-sundae, on the shared ODE and DAE forms.
+
+CVODE integrates the ODE form z = (h, u, s) of :mod:`problems.formulations` with Newton iteration
+on the analytic dense Jacobian (``ode_jacobian``); IDA integrates the index-1 DAE form
+y = (h, u, s, η) with the analytic iteration matrix (``dae_jacobian``), u marked algebraic
+(``DAE_DIFFERENTIAL``) and consistent (y0, y'0) from ``dae_initial`` at every (re)start.
+
+Events use SUNDIALS' own root finding (``eventsfn``, ``num_events = 4``) on the four root
+functions of :mod:`integrators.events` (for IDA on y[:3]), with their counting directions handed
+to ``CVodeSetRootDirection``/``IDASetRootDirection`` (``eventsfn.direction``), so SUNDIALS reports
+only crossings that count; the crossing signs come back from its root info (``i_events``).
+
+Stepping: scikit-sundae's ``step(t, "onestep", tstop=t_bound)`` (CV_ONE_STEP/IDA_ONE_STEP: one
+internal step per call, never past the segment's end). The step taking a segment past ``t_out``
+is followed by "draining" calls that return every further root inside that step (no new step is
+taken while roots remain); the value at ``t_out`` is then SUNDIALS' own interpolant, asked for by
+``step(t_out, "normal")`` while SUNDIALS' last returned time is the step's end, and one more
+one-step call, which only returns the step's end again, restores that state. Why so: when the
+last returned time lies after ``t_out`` (a root beyond ``t_out``, or a previous interpolation),
+SUNDIALS searches the interval back to ``t_out`` for roots and reports the crossing it has
+already reported, backwards. Max-steps-1 normal mode (what the scikits-odes backend does) is not
+an option here: scikit-sundae prints every SUNDIALS error, so each step would print a message.
+
+Two details: an exact zero of a root function is counted as positive (C h − D η cancels to a few
+ulps, and two exact zeros 1e−12 apart make SUNDIALS stop with "Root found at and very near t");
+scikit-sundae's log of roots on the events function is emptied before every call (it is turned
+into arrays at every call and would make each call cost more as the run goes on).
+
+Counters, summed over segments: ``nfev`` (CVODE right-hand-side evaluations; IDA residual
+evaluations) and ``njev`` from scikit-sundae's results (``CVodeGetNumRhsEvals``,
+``CVodeGetNumJacEvals`` and the IDA ones). scikit-sundae exposes no step counter, so ``steps``
+counts the one-step calls that evaluated the right-hand side (each is exactly one accepted
+internal step; root reports and interpolations evaluate none); rejected steps are not available.
+
+Reference: Hindmarsh et al. (2005), SUNDIALS: Suite of nonlinear and differential/algebraic
+equation solvers, ACM TOMS 31, 363–396; Gardner et al. (2022), Enabling new flexibility in the
+SUNDIALS suite, ACM TOMS, doi:10.1145/3539801; scikit-sundae (National Laboratory of the Rockies),
+https://github.com/NatLabRockies/scikit-sundae.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+import sksundae
+
+from integrators.events import DIRECTIONS
+from integrators.registry import Algorithm, register
+from integrators.segments import Advance, directional_roots, run_segments
+from integrators.solution import ReturnCode, Stats
+from problems._validate import check_positive
+from problems.formulations import (DAE_DIFFERENTIAL, dae_initial, dae_jacobian, dae_residual,
+                                   ode_jacobian, ode_rhs)
+
+__all__ = ["SundaeCVODE", "SundaeIDA"]
+
+# SUNDIALS return flags, the same in CVODE and IDA for these
+_SUCCESS, _TSTOP, _ROOT, _WARNING = 0, 1, 2, 99
+_TOO_MUCH_WORK = -1
+# failures after repeated error-test or corrector-convergence failures: h has collapsed
+_UNDERFLOW = {-3, -4}
+# a crash of a plain-Python callback (python tier); SUNDIALS then retries with a smaller step
+_PY_MATH_ERRORS = (OverflowError, ZeroDivisionError, ValueError)
+_TINY = 1e-300
+
+
+@dataclass(frozen=True)
+class _Sundae(Algorithm):
+    """Options: ``rtol`` and ``atol`` (required: no default accuracy), the step budget
+    ``max_steps`` (accepted steps, whole solve) and ``rhs`` = ``"numba"`` or ``"python"`` (the
+    tier of the right-hand side, residual and Jacobian callbacks).
+
+    ``atol`` applies to every component of the state (h, ln w, Ψ or ln Ψ; IDA also η).
+    """
+
+    rtol: float = None
+    atol: float = None
+    max_steps: int = 50_000_000
+    rhs: str = "numba"
+
+    library: ClassVar[str] = "scikit-sundae"
+    adaptive: ClassVar[bool] = True
+
+    def __post_init__(self) -> None:
+        if self.rtol is None or self.atol is None:
+            raise ValueError(f"{self.name} needs explicit rtol and atol (no default accuracy), "
+                             f"got rtol={self.rtol!r}, atol={self.atol!r}")
+        check_positive("rtol", self.rtol)
+        check_positive("atol", self.atol)
+        if self.rhs not in ("numba", "python"):
+            raise ValueError(f"rhs must be 'numba' or 'python', got {self.rhs!r}")
+        if int(self.max_steps) != self.max_steps or self.max_steps < 1:
+            raise ValueError(f"max_steps must be a positive integer, got {self.max_steps!r}")
+
+    @classmethod
+    def library_version(cls) -> str:
+        return f"SUNDIALS {sksundae.SUNDIALS_VERSION} via scikit-sundae {sksundae.__version__}"
+
+    def run(self, problem, output, budget, progress):
+        stepper = self._stepper(self, problem.nondimensional())
+        try:
+            return run_segments(problem, stepper, output, budget, progress)
+        finally:
+            stepper.finish()
+
+
+class _OneStepper:
+    """The segment protocol over a scikit-sundae solver in one-step mode (see the module
+    docstring); subclasses build the solver and its callbacks."""
+
+    def __init__(self, algorithm: _Sundae, nd):
+        self.algorithm = algorithm
+        self.nd = nd
+        self.stats = Stats()
+        self._solver = None
+        self._base = (0, 0)            # nfev, njev of the finished segments
+        self._tier = algorithm.rhs
+
+    # --- callbacks ------------------------------------------------------------------------------
+
+    def _set_loading(self, e: float) -> None:
+        nd = self.nd
+        self._e = e
+        self._args = (nd.law_code, nd.beta, nd.c, nd.d, e)
+        # the constants of events.root_functions, hoisted out of the callback
+        self._g_const = (math.log(10.0 * nd.e_slow), math.log(nd.e_slow), math.log(e),
+                         nd.c, nd.d, nd.beta)
+
+    def _roots_into(self, y, g) -> None:
+        """events.root_functions on y[:3], written into g (same expressions), an exact zero
+        counted as positive.
+
+        Why: C h − D η cancels to a few ulps of C h (~1e−11), so near a flat maximum of w it
+        can be exactly 0.0 at two times 1e−12 apart; SUNDIALS then stops with "Root found at
+        and very near t" (flag −22). No function is ever exactly zero this way.
+        """
+        l10, l1, le, c, d, beta = self._g_const
+        u = y[1]
+        g[0] = u - l10
+        g[1] = u - l1
+        g[2] = u - le
+        g[3] = c * y[0] - d * (u + beta * y[2])
+        for k in range(4):
+            if g[k] == 0.0:
+                g[k] = _TINY
+
+    def _with_directions(self, fn):
+        """The events callback with the attributes scikit-sundae reads."""
+        fn.direction = list(DIRECTIONS)
+        fn.terminal = [True] * len(DIRECTIONS)   # step() stops at every root anyway
+        return fn
+
+    # --- the protocol ---------------------------------------------------------------------------
+
+    def start(self, tau0, z0, e, t_bound):
+        self._close_segment()
+        self._set_loading(e)
+        self._t_bound = float(t_bound)
+        self._t, self._z = float(tau0), np.array(z0, dtype=float)
+        self._tn, self._zn, self._h = self._t, self._z, 0.0    # end of the last internal step
+        self._queue = deque()          # roots inside the last step, not yet reported
+        self._nfev = self._njev = 0
+        self._failure = None
+        try:
+            if self._solver is None:
+                self._solver = self._make_solver()
+            self._init(self._t, self._z)
+        except Exception as exc:   # scikit-sundae raises for what SUNDIALS reports at set-up
+            self._failure = f"{type(exc).__name__}: {exc}"
+
+    def advance(self, t_out):
+        if self._failure is not None:
+            return Advance(self._t, self._z, retcode=ReturnCode.FAILURE, message=self._failure)
+        try:
+            return self._advance(float(t_out))
+        except Exception as exc:   # a callback raised, or SUNDIALS refused an input
+            return Advance(self._t, self._z, retcode=ReturnCode.FAILURE,
+                           message=f"{type(exc).__name__}: {exc}")
+
+    def finish(self):
+        self._close_segment()
+        self._solver = None
+
+    # --- internals ------------------------------------------------------------------------------
+
+    def _roundoff(self) -> float:
+        # above SUNDIALS' own 100·uround·(|tn| + |h|), below which it treats times as equal
+        return 1e3 * np.finfo(float).eps * (abs(self._tn) + abs(self._h))
+
+    def _advance(self, t_out: float) -> Advance:
+        a = self.algorithm
+        while True:
+            if self._queue:
+                t, z, roots = self._queue[0]
+                if t <= t_out + self._roundoff():
+                    self._queue.popleft()
+                    self._t, self._z = t, z
+                    return Advance(t, z, roots=roots)
+                return self._interpolate(t_out)
+            if self._tn >= t_out:
+                return self._interpolate(t_out)
+            if self.stats.steps >= a.max_steps:
+                return Advance(self._t, self._z, retcode=ReturnCode.MAX_STEPS,
+                               message=f"step budget of {a.max_steps} used up at "
+                                       f"tau = {self._t:.9g}")
+            failed = self._one_step()
+            if failed is not None:
+                return failed
+
+    def _call(self, t, method, tstop=None):
+        """One scikit-sundae ``step``; keeps the counters current."""
+        # scikit-sundae logs every root on the events function and turns the whole log into
+        # arrays at every call: emptied here, so a call costs the same in the 1000th cycle
+        for log in ("_i", "_t", "_y", "_yp"):
+            getattr(self._eventsfn, log, []).clear()
+        res = self._solver.step(t, method=method, tstop=tstop)
+        self._nfev, self._njev = int(res.nfev), int(res.njev)
+        self.stats.nfev = self._base[0] + self._nfev
+        self.stats.njev = self._base[1] + self._njev
+        return res
+
+    def _one_step(self) -> Advance | None:
+        """Take one internal step, then collect every root inside it; None on success."""
+        tn_old = self._tn
+        while True:
+            before = self._nfev
+            res = self._call(self._t_bound, "onestep", tstop=self._t_bound)
+            flag = int(res.status)
+            if flag < 0:
+                return self._failed(flag, res)
+            if self._nfev > before:            # a new internal step (only the first call)
+                self.stats.steps += 1
+            t, z = float(res.t), np.array(res.y[:3], dtype=float)
+            if flag == _ROOT:
+                signs = [int(x) for x in np.asarray(res.i_events)[-1]]
+                found = [k for k, sgn in enumerate(signs) if sgn != 0]
+                roots = directional_roots(self.nd, self._e, z, found,
+                                          [signs[k] for k in found])
+                if roots:
+                    self._queue.append((t, z, roots))
+                continue                           # drain: more roots in this step?
+            if flag not in (_SUCCESS, _TSTOP, _WARNING):
+                return Advance(t, z, retcode=ReturnCode.FAILURE,
+                               message=f"unexpected SUNDIALS flag {flag}: {res.message}")
+            if not np.all(np.isfinite(z)):
+                return Advance(t, z, retcode=ReturnCode.NON_FINITE,
+                               message=f"non-finite state at tau = {t:.9g}")
+            if t > tn_old:
+                self._h = t - tn_old
+            self._tn, self._zn = t, z
+            return None
+
+    def _interpolate(self, t_out: float) -> Advance:
+        """The state at t_out ≤ tn from SUNDIALS' interpolant, then back to 'tn returned'."""
+        if self._tn - t_out <= self._roundoff():
+            self._t, self._z = self._tn, self._zn
+            return Advance(self._tn, self._zn)
+        res = self._call(t_out, "normal")
+        flag = int(res.status)
+        if flag < 0:
+            return self._failed(flag, res)
+        t, z = float(res.t), np.array(res.y[:3], dtype=float)
+        # SUNDIALS' last returned time is t_out now: one one-step call returns tn again (no
+        # step, no root: the interval tn..tn is empty), so that the next call searches forward
+        before, tn = self._nfev, self._tn
+        res = self._call(self._t_bound, "onestep", tstop=self._t_bound)
+        if int(res.status) < 0:
+            return self._failed(int(res.status), res)
+        if self._nfev != before or float(res.t) != tn or int(res.status) == _ROOT:
+            return Advance(t, z, retcode=ReturnCode.FAILURE,
+                           message=f"SUNDIALS did not return to tn = {tn:.17g} after "
+                                   f"interpolating at {t_out:.17g} (flag {res.status}, "
+                                   f"t = {float(res.t):.17g})")
+        self._t, self._z = t, z
+        return Advance(t, z)
+
+    def _failed(self, flag: int, res) -> Advance:
+        if flag in _UNDERFLOW:
+            code = ReturnCode.STEP_UNDERFLOW
+        elif flag == _TOO_MUCH_WORK:
+            code = ReturnCode.MAX_STEPS
+        else:
+            code = ReturnCode.FAILURE
+        t = float(res.t) if res.t is not None else self._t
+        message = f"{self._name} flag {flag} at tau = {t:.9g}: {res.message}"
+        return Advance(self._t, self._z, retcode=code, message=message)
+
+    def _close_segment(self):
+        if self._solver is not None:
+            self._base = (self.stats.nfev, self.stats.njev)
+        self._nfev = self._njev = 0
+
+
+class _CvodeStepper(_OneStepper):
+    _name = "CVODE"
+
+    def _make_solver(self):
+        numba = self._tier == "numba"
+        f, jac = (ode_rhs, ode_jacobian) if numba else (ode_rhs.py_func, ode_jacobian.py_func)
+
+        def rhsfn(t, y, yp):
+            try:
+                f(*self._args, y, yp)
+            except _PY_MATH_ERRORS:
+                yp[:] = np.nan
+
+        def jacfn(t, y, yp, jj):
+            try:
+                jac(*self._args, y, jj)
+            except _PY_MATH_ERRORS:
+                jj[:, :] = np.nan
+
+        def eventsfn(t, y, g):
+            self._roots_into(y, g)
+
+        self._eventsfn = self._with_directions(eventsfn)
+        a = self.algorithm
+        return sksundae.cvode.CVODE(rhsfn, method="BDF", rtol=a.rtol, atol=a.atol,
+                                    linsolver="dense", jacfn=jacfn, eventsfn=self._eventsfn,
+                                    num_events=len(DIRECTIONS))
+
+    def _init(self, tau0, z0):
+        self._solver.init_step(tau0, z0)
+
+
+class _IdaStepper(_OneStepper):
+    _name = "IDA"
+
+    def _make_solver(self):
+        numba = self._tier == "numba"
+        res, jac = (dae_residual, dae_jacobian) if numba else (dae_residual.py_func,
+                                                               dae_jacobian.py_func)
+
+        def resfn(t, y, yp, out):
+            try:
+                res(*self._args, y, yp, out)
+            except _PY_MATH_ERRORS:
+                out[:] = np.nan
+
+        def jacfn(t, y, yp, rr, cj, jj):
+            try:
+                jac(*self._args, y, cj, jj)
+            except _PY_MATH_ERRORS:
+                jj[:, :] = np.nan
+
+        def eventsfn(t, y, yp, g):
+            self._roots_into(y, g)
+
+        self._eventsfn = self._with_directions(eventsfn)
+        a = self.algorithm
+        algebraic = [int(i) for i in np.flatnonzero(DAE_DIFFERENTIAL == 0.0)]
+        return sksundae.ida.IDA(resfn, rtol=a.rtol, atol=a.atol, linsolver="dense",
+                                algebraic_idx=algebraic, jacfn=jacfn, eventsfn=self._eventsfn,
+                                num_events=len(DIRECTIONS))
+
+    def _init(self, tau0, z0):
+        y0, yp0 = dae_initial(self.nd, self._e, z0)
+        self._solver.init_step(tau0, y0, yp0)
+
+
+@register
+@dataclass(frozen=True)
+class SundaeCVODE(_Sundae):
+    """SUNDIALS CVODE, variable-order variable-step BDF (orders 1–5), on the ODE form.
+
+    Adaptive. Newton iteration with the dense analytic Jacobian (``ode_jacobian``); SUNDIALS' root
+    finding with root directions for the events; scikit-sundae's one-step interface. Needs
+    ``rtol`` and ``atol``. Reference: Hindmarsh et al. (2005), ACM TOMS 31, 363–396.
+    """
+
+    name: ClassVar[str] = "sundae-CVODE"
+    family: ClassVar[str] = "BDF"
+    order: ClassVar[int] = 5
+    _stepper: ClassVar[type] = _CvodeStepper
+
+
+@register
+@dataclass(frozen=True)
+class SundaeIDA(_Sundae):
+    """SUNDIALS IDA, variable-order variable-step BDF (orders 1–5), on the index-1 DAE form.
+
+    Adaptive. y = (h, u, s, η) with u algebraic (``DAE_DIFFERENTIAL``), Newton iteration on the
+    analytic iteration matrix ∂F/∂y + cj ∂F/∂y' (``dae_jacobian``), consistent initial values
+    from ``dae_initial`` at every restart; root functions on y[:3] with their directions. Needs
+    ``rtol`` and ``atol``. Reference: Hindmarsh et al. (2005), ACM TOMS 31, 363–396; Brenan,
+    Campbell & Petzold (1996), Numerical Solution of Initial-Value Problems in DAEs, SIAM.
+    """
+
+    name: ClassVar[str] = "sundae-IDA"
+    family: ClassVar[str] = "BDF (DAE)"
+    order: ClassVar[int] = 5
+    _stepper: ClassVar[type] = _IdaStepper
