@@ -65,10 +65,9 @@ from assimulo.problem import Explicit_Problem, Implicit_Problem
 from assimulo.solvers.sundials import get_sundials_version
 
 from integrators.events import root_functions
-from integrators.registry import Algorithm, register
+from integrators.registry import AdaptiveAlgorithm, register
 from integrators.segments import Advance, directional_roots, run_segments
 from integrators.solution import ReturnCode, Stats
-from problems._validate import check_positive
 from problems.formulations import DAE_DIFFERENTIAL, DaeForm, OdeForm, dae_initial
 
 __all__ = ["AssimuloCVode", "AssimuloIDA", "AssimuloRadau5ODE", "AssimuloLSODAR",
@@ -80,35 +79,18 @@ _QUIET = 50
 
 
 @dataclass(frozen=True)
-class _Assimulo(Algorithm):
+class _Assimulo(AdaptiveAlgorithm):
     """Options: ``rtol`` and ``atol`` (required: no default accuracy), the step budget
     ``max_steps`` (accepted steps, whole solve), ``rhs`` = ``"numba"`` or ``"python"``.
 
     ``atol`` applies to every component of the state (h, ln w, Ψ or ln Ψ; IDA also η).
     """
 
-    rtol: float = None
-    atol: float = None
-    max_steps: int = 50_000_000
-    rhs: str = "numba"
-
     library: ClassVar[str] = "assimulo"
-    adaptive: ClassVar[bool] = True
     solver: ClassVar[str] = ""                 # class name in assimulo.solvers
     dae: ClassVar[bool] = False
     uses_jacobian: ClassVar[bool] = True
     root_directions: ClassVar[bool] = True     # does the event info carry the direction?
-
-    def __post_init__(self) -> None:
-        if self.rtol is None or self.atol is None:
-            raise ValueError(f"{self.name} needs explicit rtol and atol (no default accuracy), "
-                             f"got rtol={self.rtol!r}, atol={self.atol!r}")
-        check_positive("rtol", self.rtol)
-        check_positive("atol", self.atol)
-        if self.rhs not in ("numba", "python"):
-            raise ValueError(f"rhs must be 'numba' or 'python', got {self.rhs!r}")
-        if int(self.max_steps) != self.max_steps or self.max_steps < 1:
-            raise ValueError(f"max_steps must be a positive integer, got {self.max_steps!r}")
 
     @classmethod
     def library_version(cls) -> str:

@@ -25,9 +25,10 @@ class DenseStepper:
     object with ``step()``, ``status``, ``t``, ``t_old``, ``y`` and ``dense_output()``, and
     ``_count(solver)`` adding its counters to ``self.stats``."""
 
-    def __init__(self, nd, stats):
+    def __init__(self, nd, stats, budget=None):
         self.nd = nd
         self.stats = stats
+        self.budget = budget        # checked inside long advances, not only between them
         self._solver = None
 
     def start(self, tau0, z0, e, t_bound):
@@ -64,6 +65,10 @@ class DenseStepper:
                 return Advance(self._cursor, self._z_cursor)
             message = s.step()
             self.stats.steps += 1
+            if self.budget is not None and self.stats.steps % 100 == 0 and self.budget.exceeded():
+                return Advance(s.t, s.y, retcode=ReturnCode.WALL_TIME,
+                               message=f"wall-time budget of {self.budget.wall_s} s used up at "
+                                       f"t = {s.t * self.nd.time_scale:.6g} s")
             if s.status == "failed":
                 code = (ReturnCode.STEP_UNDERFLOW if "step size" in str(message).lower()
                         else ReturnCode.FAILURE)

@@ -72,10 +72,9 @@ from numba import carray, cfunc, njit
 from scipy.optimize import brentq
 
 from integrators.events import DIRECTIONS, H_EXTREMUM, root_functions
-from integrators.registry import Algorithm, register
+from integrators.registry import AdaptiveAlgorithm, register
 from integrators.segments import Advance, run_segments
 from integrators.solution import ReturnCode, Stats
-from problems._validate import check_positive
 from problems.formulations import ode_rhs
 
 __all__ = ["NumbaLSODA"]
@@ -216,7 +215,7 @@ class _Abort(Exception):
 
 @register
 @dataclass(frozen=True)
-class NumbaLSODA(Algorithm):
+class NumbaLSODA(AdaptiveAlgorithm):
     """LSODA (Petzold 1983) from numbalsoda: Adams (orders 1–12) / BDF (orders 1–5) switching on
     detected stiffness, adaptive, finite-difference Jacobian.
 
@@ -227,32 +226,14 @@ class NumbaLSODA(Algorithm):
     Stat. Comput. 4, 136–148; Hindmarsh (1983), ODEPACK.
     """
 
-    rtol: float = None
-    atol: float = None
-    max_steps: int = 50_000_000
-    rhs: str = "numba"
-
     name: ClassVar[str] = "numbalsoda-LSODA"
     family: ClassVar[str] = "Adams/BDF (LSODA)"
     order: ClassVar[int] = 12
-    adaptive: ClassVar[bool] = True
     library: ClassVar[str] = "numbalsoda"
-
-    def __post_init__(self) -> None:
-        if self.rtol is None or self.atol is None:
-            raise ValueError(f"{self.name} needs explicit rtol and atol (no default accuracy), "
-                             f"got rtol={self.rtol!r}, atol={self.atol!r}")
-        check_positive("rtol", self.rtol)
-        check_positive("atol", self.atol)
-        if self.rhs == "python":
-            raise ValueError(f"{self.name} cannot use rhs='python': numbalsoda calls the "
-                             "right-hand side from C through a function pointer (a numba cfunc), "
-                             "which a Python function cannot provide; use rhs='numba'")
-        if self.rhs != "numba":
-            raise ValueError(f"rhs must be 'numba' (numbalsoda takes only compiled right-hand "
-                             f"sides), got {self.rhs!r}")
-        if int(self.max_steps) != self.max_steps or self.max_steps < 1:
-            raise ValueError(f"max_steps must be a positive integer, got {self.max_steps!r}")
+    rhs_tiers: ClassVar[tuple[str, ...]] = ("numba",)
+    rhs_tiers_reason: ClassVar[str] = (
+        "numbalsoda calls the right-hand side from C through a function pointer, a numba "
+        "cfunc, which a Python function cannot provide")
 
     @classmethod
     def library_version(cls) -> str:

@@ -10,7 +10,9 @@ from __future__ import annotations
 import dataclasses
 from typing import ClassVar
 
-__all__ = ["Algorithm", "REGISTRY", "register", "algorithm_class", "make_algorithm"]
+from problems._validate import check_positive
+
+__all__ = ["Algorithm", "AdaptiveAlgorithm", "REGISTRY", "register", "algorithm_class", "make_algorithm"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -40,6 +42,40 @@ class Algorithm:
 
     def options(self) -> dict:
         return dataclasses.asdict(self)
+
+
+@dataclasses.dataclass(frozen=True)
+class AdaptiveAlgorithm(Algorithm):
+    """Options every adaptive method takes: ``rtol`` and ``atol`` (required: there is no default
+    accuracy), the step budget ``max_steps`` (accepted steps over the whole solve, summed over
+    restarts) and ``rhs``, the tier of the right-hand side: ``"numba"`` (compiled) or
+    ``"python"`` (plain numpy, what a user would write).
+
+    ``atol`` applies to every component of the shared state (h, ln w, Ψ or ln Ψ; O(1–100)).
+    """
+
+    rtol: float = None
+    atol: float = None
+    max_steps: int = 50_000_000
+    rhs: str = "numba"
+
+    adaptive: ClassVar[bool] = True
+    #: the right-hand-side tiers the library can call, and why if not both
+    rhs_tiers: ClassVar[tuple[str, ...]] = ("numba", "python")
+    rhs_tiers_reason: ClassVar[str] = ""
+
+    def __post_init__(self) -> None:
+        if self.rtol is None or self.atol is None:
+            raise ValueError(f"{self.name} needs explicit rtol and atol (no default accuracy), "
+                             f"got rtol={self.rtol!r}, atol={self.atol!r}")
+        check_positive("rtol", self.rtol)
+        check_positive("atol", self.atol)
+        if self.rhs not in self.rhs_tiers:
+            why = f" ({self.rhs_tiers_reason})" if self.rhs_tiers_reason else ""
+            raise ValueError(f"rhs must be one of {self.rhs_tiers} for {self.name}, "
+                             f"got {self.rhs!r}{why}")
+        if int(self.max_steps) != self.max_steps or self.max_steps < 1:
+            raise ValueError(f"max_steps must be a positive integer, got {self.max_steps!r}")
 
 
 def make_algorithm(name: str, rtol: float | None = None, atol: float | None = None,

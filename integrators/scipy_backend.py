@@ -15,50 +15,32 @@ import scipy
 from scipy import integrate
 
 from integrators.dense_roots import DenseStepper
-from integrators.registry import Algorithm, register
+from integrators.registry import AdaptiveAlgorithm, register
 from integrators.segments import Advance, run_segments
 from integrators.solution import ReturnCode, Stats
-from problems._validate import check_positive
 from problems.formulations import OdeForm
 
 __all__ = ["ScipyRK45", "ScipyDOP853", "ScipyRadau", "ScipyBDF", "ScipyLSODA"]
 
 
 @dataclass(frozen=True)
-class _Scipy(Algorithm):
+class _Scipy(AdaptiveAlgorithm):
     """Options: ``rtol`` and ``atol`` (required: no default accuracy), the step budget
     ``max_steps``, and ``rhs`` = ``"numba"`` or ``"python"`` (the right-hand-side tier).
 
     ``atol`` applies to the ODE state (h, ln w, Ψ or ln Ψ), all O(1–100).
     """
 
-    rtol: float = None
-    atol: float = None
-    max_steps: int = 50_000_000
-    rhs: str = "numba"
-
     library: ClassVar[str] = "scipy"
-    adaptive: ClassVar[bool] = True
     method: ClassVar[type] = None
     uses_jacobian: ClassVar[bool] = False
-
-    def __post_init__(self) -> None:
-        if self.rtol is None or self.atol is None:
-            raise ValueError(f"{self.name} needs explicit rtol and atol (no default accuracy), "
-                             f"got rtol={self.rtol!r}, atol={self.atol!r}")
-        check_positive("rtol", self.rtol)
-        check_positive("atol", self.atol)
-        if self.rhs not in ("numba", "python"):
-            raise ValueError(f"rhs must be 'numba' or 'python', got {self.rhs!r}")
-        if int(self.max_steps) != self.max_steps or self.max_steps < 1:
-            raise ValueError(f"max_steps must be a positive integer, got {self.max_steps!r}")
 
     @classmethod
     def library_version(cls) -> str:
         return f"scipy {scipy.__version__}"
 
     def run(self, problem, output, budget, progress):
-        stepper = _ScipyStepper(self, problem.nondimensional(), Stats())
+        stepper = _ScipyStepper(self, problem.nondimensional(), Stats(), budget)
         raw = run_segments(problem, stepper, output, budget, progress)
         stepper.finish()
         return raw
@@ -67,8 +49,8 @@ class _Scipy(Algorithm):
 class _ScipyStepper(DenseStepper):
     """scipy ``OdeSolver`` under the segment protocol, with the step budget."""
 
-    def __init__(self, algorithm: _Scipy, nd, stats):
-        super().__init__(nd, stats)
+    def __init__(self, algorithm: _Scipy, nd, stats, budget):
+        super().__init__(nd, stats, budget)
         self.algorithm = algorithm
 
     def _new_solver(self, tau0, z0, e, t_bound):

@@ -28,6 +28,8 @@ from problems.formulations import from_ode_state, to_ode_state
 
 __all__ = ["Advance", "SegmentSolver", "run_segments", "directional_roots"]
 
+_BUDGET_STOPS = (ReturnCode.WALL_TIME, ReturnCode.MAX_STEPS)
+
 
 @dataclass
 class Advance:
@@ -86,6 +88,8 @@ def run_segments(problem, solver: SegmentSolver, output, budget, progress,
             calls += 1
             if adv.retcode is not ReturnCode.SUCCESS:
                 retcode, message = adv.retcode, adv.message
+                if adv.retcode in _BUDGET_STOPS and np.all(np.isfinite(adv.z)):
+                    tau, z = adv.tau, np.array(adv.z, dtype=float)   # a valid state: keep it
                 break
             tau, z = adv.tau, np.array(adv.z, dtype=float)
             if not np.all(np.isfinite(z)):

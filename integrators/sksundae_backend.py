@@ -49,10 +49,9 @@ import numpy as np
 import sksundae
 
 from integrators.events import DIRECTIONS
-from integrators.registry import Algorithm, register
+from integrators.registry import AdaptiveAlgorithm, register
 from integrators.segments import Advance, directional_roots, run_segments
 from integrators.solution import ReturnCode, Stats
-from problems._validate import check_positive
 from problems.formulations import (DAE_DIFFERENTIAL, dae_initial, dae_jacobian, dae_residual,
                                    ode_jacobian, ode_rhs)
 
@@ -69,7 +68,7 @@ _TINY = 1e-300
 
 
 @dataclass(frozen=True)
-class _Sundae(Algorithm):
+class _Sundae(AdaptiveAlgorithm):
     """Options: ``rtol`` and ``atol`` (required: no default accuracy), the step budget
     ``max_steps`` (accepted steps, whole solve) and ``rhs`` = ``"numba"`` or ``"python"`` (the
     tier of the right-hand side, residual and Jacobian callbacks).
@@ -77,24 +76,7 @@ class _Sundae(Algorithm):
     ``atol`` applies to every component of the state (h, ln w, Ψ or ln Ψ; IDA also η).
     """
 
-    rtol: float = None
-    atol: float = None
-    max_steps: int = 50_000_000
-    rhs: str = "numba"
-
     library: ClassVar[str] = "scikit-sundae"
-    adaptive: ClassVar[bool] = True
-
-    def __post_init__(self) -> None:
-        if self.rtol is None or self.atol is None:
-            raise ValueError(f"{self.name} needs explicit rtol and atol (no default accuracy), "
-                             f"got rtol={self.rtol!r}, atol={self.atol!r}")
-        check_positive("rtol", self.rtol)
-        check_positive("atol", self.atol)
-        if self.rhs not in ("numba", "python"):
-            raise ValueError(f"rhs must be 'numba' or 'python', got {self.rhs!r}")
-        if int(self.max_steps) != self.max_steps or self.max_steps < 1:
-            raise ValueError(f"max_steps must be a positive integer, got {self.max_steps!r}")
 
     @classmethod
     def library_version(cls) -> str:

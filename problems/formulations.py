@@ -18,7 +18,6 @@ floats, so compiled integrators can call them; :class:`OdeForm` wraps them for P
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 from numba import njit
