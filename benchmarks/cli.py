@@ -14,6 +14,8 @@ import math
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from benchmarks import metrics
 from benchmarks.timing import warm_up
 from integrators import REGISTRY, algorithm_class, make_algorithm, solve
@@ -23,6 +25,8 @@ __all__ = ["main"]
 
 
 def _jsonable(x):
+    if isinstance(x, np.generic):
+        x = x.item()
     if isinstance(x, float) and not math.isfinite(x):
         return None
     if isinstance(x, dict):
@@ -68,7 +72,8 @@ def _print_summary(s: dict) -> None:
         print(f"    peak slip rate       {lc['peak_velocity_m_s']:.6g} m/s")
     elif s["last_event"]:
         e = s["last_event"]
-        print(f"  last event  at t = {e['t_start']:.6g} s: recurrence {e['recurrence_s']:.6g} s, "
+        recurrence = "n/a" if e["recurrence_s"] is None else f"{e['recurrence_s']:.6g} s"
+        print(f"  last event  at t = {e['t_start']:.6g} s: recurrence {recurrence}, "
               f"friction drop {e['friction_drop']:.6g}, slip {e['slip_m'] * 1e3:.6g} mm, "
               f"peak {e['peak_velocity_m_s']:.6g} m/s (run longer for the limit cycle)")
 

@@ -60,8 +60,8 @@ class _ScipyStepper(DenseStepper):
         return a.method(form.f, tau0, z0, t_bound, rtol=a.rtol, atol=a.atol, **kw)
 
     def _count(self, solver):
-        self.stats.nfev += solver.nfev
-        self.stats.njev += getattr(solver, "njev", 0) or 0
+        self.stats.nfev += int(solver.nfev)
+        self.stats.njev += int(getattr(solver, "njev", 0) or 0)     # LSODA's is a numpy int32
 
     def advance(self, t_out):
         if self.stats.steps >= self.algorithm.max_steps:

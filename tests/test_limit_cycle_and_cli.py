@@ -94,3 +94,25 @@ def test_console_script_is_installed():
                          check=True).stdout
     names = {row["name"] for row in json.loads(out)}
     assert {"ETD1", "ETD2", "ETDIterated", "scipy-Radau"} <= names
+
+
+@pytest.mark.parametrize("name", sorted(I.REGISTRY))
+def test_cli_simulate_every_integrator(name, capsys):
+    cls = I.REGISTRY[name]
+    args = ["simulate", "--preset", "W2", "--t-end", "0.05", "--integrator", name.lower(), "--json"]
+    if cls.adaptive:
+        args += ["--rtol", "1e-6", "--atol", "1e-6", "--rhs", cls.rhs_tiers[-1]]
+    assert main(args) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["integrator"] == name and out["retcode"] == "Success"
+    assert out["n_events"] == 1 and out["nfev"] > 0
+    if cls.adaptive:
+        assert out["options"]["rtol"] == 1e-6 and out["options"]["rhs"] == cls.rhs_tiers[-1]
+
+
+def test_cli_integrators_lists_library_versions(capsys):
+    assert main(["integrators", "--json"]) == 0
+    rows = json.loads(capsys.readouterr().out)
+    assert {r["name"] for r in rows} == set(I.REGISTRY)
+    for r in rows:
+        assert r["library"] and r["version"] and r["family"] and r["order"] >= 1
