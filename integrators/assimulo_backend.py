@@ -66,7 +66,7 @@ from assimulo.solvers.sundials import get_sundials_version
 
 from integrators.events import root_functions
 from integrators.registry import AdaptiveAlgorithm, register
-from integrators.segments import Advance, directional_roots, run_segments
+from integrators.segments import Advance, directional_roots
 from integrators.solution import ReturnCode, Stats
 from problems.formulations import DAE_DIFFERENTIAL, DaeForm, OdeForm, dae_initial
 
@@ -96,12 +96,8 @@ class _Assimulo(AdaptiveAlgorithm):
     def library_version(cls) -> str:
         return f"assimulo {_VERSION}"
 
-    def run(self, problem, output, budget, progress):
-        stepper = _AssimuloStepper(self, problem.nondimensional(), Stats(), budget)
-        try:
-            return run_segments(problem, stepper, output, budget, progress)
-        finally:
-            stepper.finish()
+    def make_stepper(self, nd, budget):
+        return _AssimuloStepper(self, nd, Stats(), budget)
 
     def make_solver(self, nd, e, tau0, z0, link, steps_left: int):
         """The assimulo solver of one segment, its problem calling back into ``link``."""

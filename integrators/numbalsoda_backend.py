@@ -73,7 +73,7 @@ from scipy.optimize import brentq
 
 from integrators.events import DIRECTIONS, H_EXTREMUM, root_functions
 from integrators.registry import AdaptiveAlgorithm, register
-from integrators.segments import Advance, run_segments
+from integrators.segments import Advance
 from integrators.solution import ReturnCode, Stats
 from problems.formulations import ode_rhs
 
@@ -239,9 +239,8 @@ class NumbaLSODA(AdaptiveAlgorithm):
     def library_version(cls) -> str:
         return f"numbalsoda {_VERSION} (C++ port of ODEPACK LSODA)"
 
-    def run(self, problem, output, budget, progress):
-        return run_segments(problem, _LsodaStepper(self, problem.nondimensional()), output,
-                            budget, progress)
+    def make_stepper(self, nd, budget):
+        return _LsodaStepper(self, nd)
 
 
 class _LsodaStepper:

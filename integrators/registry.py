@@ -77,6 +77,20 @@ class AdaptiveAlgorithm(Algorithm):
         if int(self.max_steps) != self.max_steps or self.max_steps < 1:
             raise ValueError(f"max_steps must be a positive integer, got {self.max_steps!r}")
 
+    def make_stepper(self, nd, budget):
+        """The backend's adapter to the segment protocol (:mod:`integrators.segments`)."""
+        raise NotImplementedError
+
+    def run(self, problem, output, budget, progress):
+        from integrators.segments import run_segments
+        stepper = self.make_stepper(problem.nondimensional(), budget)
+        try:
+            return run_segments(problem, stepper, output, budget, progress)
+        finally:   # adapters that hold a library solver fold its counters in and release it
+            finish = getattr(stepper, "finish", None)
+            if finish is not None:
+                finish()
+
 
 def make_algorithm(name: str, rtol: float | None = None, atol: float | None = None,
                    rhs: str | None = None, **options) -> Algorithm:

@@ -66,7 +66,7 @@ from scikits.odes import dae, ode
 from scikits_odes_sundials import cvode as _cvode_module
 
 from integrators.registry import AdaptiveAlgorithm, register
-from integrators.segments import Advance, directional_roots, run_segments
+from integrators.segments import Advance, directional_roots
 from integrators.solution import ReturnCode, Stats
 from problems.formulations import (DAE_DIFFERENTIAL, dae_initial, dae_jacobian, dae_residual,
                                    ode_jacobian, ode_rhs)
@@ -132,12 +132,8 @@ class _Odes(AdaptiveAlgorithm):
     def library_version(cls) -> str:
         return f"SUNDIALS {_SUNDIALS_VERSION} via scikits-odes {_VERSION}"
 
-    def run(self, problem, output, budget, progress):
-        stepper = self._stepper(self, problem.nondimensional())
-        try:
-            return run_segments(problem, stepper, output, budget, progress)
-        finally:
-            stepper.finish()
+    def make_stepper(self, nd, budget):
+        return self._stepper(self, nd)
 
 
 class _Stepper:

@@ -16,7 +16,7 @@ from scipy import integrate
 
 from integrators.dense_roots import DenseStepper
 from integrators.registry import AdaptiveAlgorithm, register
-from integrators.segments import Advance, run_segments
+from integrators.segments import Advance
 from integrators.solution import ReturnCode, Stats
 from problems.formulations import OdeForm
 
@@ -39,11 +39,8 @@ class _Scipy(AdaptiveAlgorithm):
     def library_version(cls) -> str:
         return f"scipy {scipy.__version__}"
 
-    def run(self, problem, output, budget, progress):
-        stepper = _ScipyStepper(self, problem.nondimensional(), Stats(), budget)
-        raw = run_segments(problem, stepper, output, budget, progress)
-        stepper.finish()
-        return raw
+    def make_stepper(self, nd, budget):
+        return _ScipyStepper(self, nd, Stats(), budget)
 
 
 class _ScipyStepper(DenseStepper):

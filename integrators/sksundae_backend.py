@@ -50,7 +50,7 @@ import sksundae
 
 from integrators.events import DIRECTIONS
 from integrators.registry import AdaptiveAlgorithm, register
-from integrators.segments import Advance, directional_roots, run_segments
+from integrators.segments import Advance, directional_roots
 from integrators.solution import ReturnCode, Stats
 from problems.formulations import (DAE_DIFFERENTIAL, dae_initial, dae_jacobian, dae_residual,
                                    ode_jacobian, ode_rhs)
@@ -82,12 +82,8 @@ class _Sundae(AdaptiveAlgorithm):
     def library_version(cls) -> str:
         return f"SUNDIALS {sksundae.SUNDIALS_VERSION} via scikit-sundae {sksundae.__version__}"
 
-    def run(self, problem, output, budget, progress):
-        stepper = self._stepper(self, problem.nondimensional())
-        try:
-            return run_segments(problem, stepper, output, budget, progress)
-        finally:
-            stepper.finish()
+    def make_stepper(self, nd, budget):
+        return self._stepper(self, nd)
 
 
 class _OneStepper:
