@@ -80,11 +80,7 @@ _QUIET = 50
 
 @dataclass(frozen=True)
 class _Assimulo(AdaptiveAlgorithm):
-    """Options: ``rtol`` and ``atol`` (required: no default accuracy), the step budget
-    ``max_steps`` (accepted steps, whole solve), ``rhs`` = ``"numba"`` or ``"python"``.
-
-    ``atol`` applies to every component of the state (h, ln w, Ψ or ln Ψ; IDA also η).
-    """
+    """Options of every assimulo backend: those of :class:`AdaptiveAlgorithm`."""
 
     library: ClassVar[str] = "assimulo"
     solver: ClassVar[str] = ""                 # class name in assimulo.solvers

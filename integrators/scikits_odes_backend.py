@@ -118,12 +118,7 @@ def _result_lists(solver) -> list:
 
 @dataclass(frozen=True)
 class _Odes(AdaptiveAlgorithm):
-    """Options: ``rtol`` and ``atol`` (required: no default accuracy), the step budget
-    ``max_steps`` (accepted steps, whole solve) and ``rhs`` = ``"numba"`` or ``"python"`` (the
-    tier of the right-hand side, residual and Jacobian callbacks).
-
-    ``atol`` applies to every component of the state (h, ln w, Ψ or ln Ψ; IDA also η).
-    """
+    """Options of every scikits-odes backend: those of :class:`AdaptiveAlgorithm`."""
 
     library: ClassVar[str] = "scikits-odes"
     lmm: ClassVar[str] = "BDF"          # CVODE's linear multistep method
@@ -150,6 +145,10 @@ class _Stepper:
         self._seg_steps = 0          # accepted steps of the current segment
         self._njev = 0
         self._tier = algorithm.rhs
+        # the tier's callables, chosen once: compiled, or the same code as plain Python
+        pick = (lambda f: f) if self._tier == "numba" else (lambda f: f.py_func)
+        self._ode_rhs, self._ode_jac = pick(ode_rhs), pick(ode_jacobian)
+        self._dae_res, self._dae_jac = pick(dae_residual), pick(dae_jacobian)
         self._root_lists = []
         self._live = False           # has the current segment's init_step succeeded?
 
@@ -258,25 +257,19 @@ class _CvodeStepper(_Stepper):
     _MXSTEP = 500                        # SUNDIALS' default steps per call
 
     def _rhs(self, t, y, ydot):
-        if self._tier == "numba":
-            ode_rhs(*self._args, y, ydot)
-        else:
-            try:
-                ode_rhs.py_func(*self._args, y, ydot)
-            except (OverflowError, ZeroDivisionError, ValueError):
-                return 1
+        try:
+            self._ode_rhs(*self._args, y, ydot)
+        except (OverflowError, ZeroDivisionError, ValueError):   # a plain-Python tier's crash
+            return 1
         # a recoverable failure: CVODE retries with a smaller step
         return 0 if math.isfinite(ydot[0] + ydot[1] + ydot[2]) else 1
 
     def _jac(self, t, y, fy, J):
         self._njev += 1
-        if self._tier == "numba":
-            ode_jacobian(*self._args, y, J)
-        else:
-            try:
-                ode_jacobian.py_func(*self._args, y, J)
-            except (OverflowError, ZeroDivisionError, ValueError):
-                return 1
+        try:
+            self._ode_jac(*self._args, y, J)
+        except (OverflowError, ZeroDivisionError, ValueError):   # a plain-Python tier's crash
+            return 1
         return 0
 
     def _rootfn(self, t, y, g):
@@ -322,24 +315,18 @@ class _IdaStepper(_Stepper):
 
     def _res(self, t, y, yp, out):
         self._nres += 1
-        if self._tier == "numba":
-            dae_residual(*self._args, y, yp, out)
-        else:
-            try:
-                dae_residual.py_func(*self._args, y, yp, out)
-            except (OverflowError, ZeroDivisionError, ValueError):
-                return 1
+        try:
+            self._dae_res(*self._args, y, yp, out)
+        except (OverflowError, ZeroDivisionError, ValueError):   # a plain-Python tier's crash
+            return 1
         return 0 if math.isfinite(out[0] + out[1] + out[2] + out[3]) else 1
 
     def _jac(self, t, y, yp, res, cj, J):
         self._njev += 1
-        if self._tier == "numba":
-            dae_jacobian(*self._args, y, cj, J)
-        else:
-            try:
-                dae_jacobian.py_func(*self._args, y, cj, J)
-            except (OverflowError, ZeroDivisionError, ValueError):
-                return 1
+        try:
+            self._dae_jac(*self._args, y, cj, J)
+        except (OverflowError, ZeroDivisionError, ValueError):   # a plain-Python tier's crash
+            return 1
         return 0
 
     def _rootfn(self, t, y, yp, g):

@@ -25,11 +25,7 @@ __all__ = ["ScipyRK45", "ScipyDOP853", "ScipyRadau", "ScipyBDF", "ScipyLSODA"]
 
 @dataclass(frozen=True)
 class _Scipy(AdaptiveAlgorithm):
-    """Options: ``rtol`` and ``atol`` (required: no default accuracy), the step budget
-    ``max_steps``, and ``rhs`` = ``"numba"`` or ``"python"`` (the right-hand-side tier).
-
-    ``atol`` applies to the ODE state (h, ln w, Ψ or ln Ψ), all O(1–100).
-    """
+    """Options of every scipy backend: those of :class:`AdaptiveAlgorithm`."""
 
     library: ClassVar[str] = "scipy"
     method: ClassVar[type] = None

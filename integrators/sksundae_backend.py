@@ -69,12 +69,7 @@ _TINY = 1e-300
 
 @dataclass(frozen=True)
 class _Sundae(AdaptiveAlgorithm):
-    """Options: ``rtol`` and ``atol`` (required: no default accuracy), the step budget
-    ``max_steps`` (accepted steps, whole solve) and ``rhs`` = ``"numba"`` or ``"python"`` (the
-    tier of the right-hand side, residual and Jacobian callbacks).
-
-    ``atol`` applies to every component of the state (h, ln w, Ψ or ln Ψ; IDA also η).
-    """
+    """Options of every scikit-sundae backend: those of :class:`AdaptiveAlgorithm`."""
 
     library: ClassVar[str] = "scikit-sundae"
 
