@@ -8,7 +8,7 @@ PY       := $(VENV)/bin/python
 APT_PKGS := gfortran libsundials-dev pkg-config cmake
 STAMP    := $(VENV)/.installed
 
-.PHONY: setup system-packages test reproduce clean
+.PHONY: setup system-packages test reproduce bench clean
 
 setup: $(STAMP)
 
@@ -33,6 +33,11 @@ test: setup
 
 reproduce: setup
 	$(VENV)/bin/rsfbench reproduce --out results
+
+# the pytest-benchmark suite (benchmarks/test_*.py): timings at matched accuracy, as JSON
+bench: setup
+	$(PY) -m pytest benchmarks --benchmark-json results/benchmarks.json \
+	  --benchmark-columns=min,median,rounds --benchmark-sort=min
 
 clean:
 	rm -rf $(VENV) build *.egg-info

@@ -3,37 +3,27 @@
     rsfbench simulate --preset W2 --law aging --json
     rsfbench windows --out results          # W1–W4 limit cycles, both laws, CSV + Markdown
     rsfbench integrators                    # the registry
+    rsfbench work-precision --study quick   # every integrator over a ladder of settings
+    rsfbench convergence --json             # observed orders of the fixed-step methods
+    rsfbench speedup --json                 # the paper's 1/10,000 claim, three ways
     rsfbench reproduce --out results        # what `make reproduce` runs
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
-import math
 import sys
 from pathlib import Path
 
-import numpy as np
-
 from benchmarks import metrics
+from benchmarks.report import jsonable as _jsonable
 from benchmarks.timing import warm_up
 from integrators import REGISTRY, algorithm_class, make_algorithm, solve
 from problems import PRESET_NAMES, preset
 
 __all__ = ["main"]
-
-
-def _jsonable(x):
-    if isinstance(x, np.generic):
-        x = x.item()
-    if isinstance(x, float) and not math.isfinite(x):
-        return None
-    if isinstance(x, dict):
-        return {k: _jsonable(v) for k, v in x.items()}
-    if isinstance(x, list):
-        return [_jsonable(v) for v in x]
-    return x
 
 
 def algorithm_name(name: str) -> str:
@@ -99,7 +89,7 @@ def cmd_simulate(args) -> int:
 
 def cmd_integrators(args) -> int:
     rows = [{"name": name, "family": cls.family, "order": cls.order,
-             "stiff_order": cls.stiff_order or cls.order, "adaptive": cls.adaptive,
+             "stiff_order": cls.order if cls.stiff_order is None else cls.stiff_order, "adaptive": cls.adaptive,
              "stiff": cls.stiff, "library": cls.library, "version": cls.library_version()}
             for name, cls in sorted(REGISTRY.items(), key=lambda kv: kv[0].lower())]
     if args.json:
@@ -149,9 +139,79 @@ def cmd_compare(args) -> int:
     return 0
 
 
+def _study_problem(spec: str):
+    """``W2``, ``W2:aging`` or ``paper-example`` → the preset problem."""
+    name, _, law = spec.partition(":")
+    name = "paper-example" if name.lower() == "paper-example" else name.upper()
+    return preset(name, law=law or "slip")
+
+
+def cmd_work_precision(args) -> int:
+    from benchmarks.report import ERROR_LEVELS, write_work_precision
+    from benchmarks.work_precision import FULL, QUICK, best_at_levels, study_problems, work_precision
+    ladder = FULL if args.study == "full" else QUICK
+    if args.wall_budget is not None:
+        ladder = dataclasses.replace(ladder, wall_budget=args.wall_budget)
+    problems = ([_study_problem(x) for x in args.problems] if args.problems
+                else study_problems(args.study))
+    names = None if not args.integrators else [algorithm_name(n) for n in args.integrators]
+    df = work_precision(problems, ladder, names=names, tiers=tuple(args.tiers),
+                        progress=not args.no_progress)
+    paths = write_work_precision(df, Path(args.out), args.name or args.study, error=args.error)
+    pareto = best_at_levels(df, ERROR_LEVELS, args.error)
+    if args.json:
+        from benchmarks.work_precision import recommend
+        print(json.dumps(_jsonable({
+            "csv": str(paths["csv"]), "error": args.error,
+            "recommendation": recommend(df, ERROR_LEVELS, args.error).to_dict(orient="records"),
+            "pareto": pareto.to_dict(orient="records")}), indent=2))
+    else:
+        print(paths["pareto_md"].read_text())
+        print("written: " + ", ".join(str(p) for p in paths.values()))
+    return 0
+
+
+def cmd_convergence(args) -> int:
+    from benchmarks.convergence import convergence_study, convergence_summary, write_convergence
+    problem = _study_problem(args.problem)
+    if args.t_end:
+        problem = dataclasses.replace(problem, t_end=args.t_end)
+    names = None if not args.integrators else [algorithm_name(n) for n in args.integrators]
+    table, orders = convergence_study(problem, names=names, progress=not args.json)
+    summary = (write_convergence(problem, table, orders, args.out) if args.out
+               else convergence_summary(problem, table, orders))
+    if args.json:
+        print(json.dumps(_jsonable(summary), indent=2))
+    else:
+        print(table[["integrator", "dtau_cnst", "steps", "wall_s", "err_recurrence", "err_drop",
+                     "fitted"]].to_string(index=False))
+        for name, order in orders.items():
+            print(f"{name}: observed order {order:.3f} (declared {REGISTRY[name].order}, on this "
+                  f"stiff problem {REGISTRY[name].stiff_order}); finest error "
+                  f"{summary['finest_error'][name]:.3g}")
+    return 0
+
+
+def cmd_speedup(args) -> int:
+    from benchmarks.speedup import DEFAULT_SCIPY_BUDGET, speedup, speedup_markdown, write_speedup
+    problem = preset("paper-example", t_end=args.t_end)
+    budget = None if args.full else (args.scipy_budget or DEFAULT_SCIPY_BUDGET)
+    implicit = None if not args.implicit else [algorithm_name(n) for n in args.implicit]
+    summary, table = speedup(problem, rk_tol=args.rk_tol, scipy_budget=budget,
+                             compiled_budget=args.compiled_budget, implicit=implicit,
+                             progress=not args.json)
+    if args.out:
+        write_speedup(summary, table, args.out)
+    if args.json:
+        print(json.dumps(_jsonable(summary), indent=2))
+    else:
+        print(speedup_markdown(summary, table))
+    return 0
+
+
 def cmd_reproduce(args) -> int:
     from benchmarks.reproduce import reproduce
-    reproduce(Path(args.out))
+    reproduce(Path(args.out), scipy_budget=args.scipy_budget)
     return 0
 
 
@@ -204,8 +264,54 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--json", action="store_true")
     c.set_defaults(func=cmd_compare)
 
+    wp = sub.add_parser("work-precision", help="every integrator over a ladder of settings")
+    wp.add_argument("--study", choices=("quick", "full"), default="quick",
+                    help="quick: paper example + W2 aging, budget 10 s/run; full: paper example "
+                         "and W1–W4 under both laws, budget 120 s/run")
+    wp.add_argument("--problems", nargs="+", metavar="PRESET[:LAW]",
+                    help="instead of the study's problems, e.g. paper-example W2:aging")
+    wp.add_argument("--t-end", type=float, help="simulated time of every problem (default: each "
+                    "preset's own)")
+    wp.add_argument("--integrators", nargs="+", help="registry names (default: all)")
+    wp.add_argument("--tiers", nargs="+", choices=("numba", "python"), default=["numba", "python"])
+    wp.add_argument("--wall-budget", type=float, metavar="S", help="per-run wall-time budget")
+    wp.add_argument("--error", default="err_recurrence",
+                    choices=("err_recurrence", "err_drop", "err_slip", "err_peak_velocity",
+                             "err_event_time", "err_trajectory"),
+                    help="the error of the Pareto summary and the plots")
+    wp.add_argument("--out", default="results")
+    wp.add_argument("--name", help="file stem (default: the study's name)")
+    wp.add_argument("--json", action="store_true", help="print the summary as JSON")
+    wp.add_argument("--no-progress", action="store_true")
+    wp.set_defaults(func=cmd_work_precision)
+
+    cv = sub.add_parser("convergence", help="observed order of the fixed-step (ETD) methods")
+    cv.add_argument("--problem", default="paper-example", metavar="PRESET[:LAW]")
+    cv.add_argument("--t-end", type=float)
+    cv.add_argument("--integrators", nargs="+", help="fixed-step registry names (default: all)")
+    cv.add_argument("--out", help="directory for the CSV, JSON and plot")
+    cv.add_argument("--json", action="store_true")
+    cv.set_defaults(func=cmd_convergence)
+
+    sp = sub.add_parser("speedup", help="the paper's 1/10,000 claim: ETD2 against RK45 three ways")
+    sp.add_argument("--rk-tol", type=float, default=1e-6,
+                    help="rtol = atol of both RK45 runs (default 1e-6)")
+    sp.add_argument("--scipy-budget", type=float, metavar="S",
+                    help="wall budget of scipy's RK45 (default 600 s; the full run takes ~40 min)")
+    sp.add_argument("--full", action="store_true", help="run scipy's RK45 to the end, no budget")
+    sp.add_argument("--compiled-budget", type=float, metavar="S",
+                    help="wall budget of the compiled RK45 (default: none)")
+    sp.add_argument("--t-end", type=float, help="simulated time (default: the paper's 20 s)")
+    sp.add_argument("--implicit", nargs="+", metavar="NAME",
+                    help="the implicit methods to search (default: every stiff adaptive one)")
+    sp.add_argument("--out", help="directory for speedup.json, .csv and .md")
+    sp.add_argument("--json", action="store_true")
+    sp.set_defaults(func=cmd_speedup)
+
     r = sub.add_parser("reproduce", help="regenerate results/ (what `make reproduce` runs)")
     r.add_argument("--out", default="results")
+    r.add_argument("--scipy-budget", type=float, metavar="S",
+                   help="wall budget of scipy's RK45 in the speed-up step (default 600 s)")
     r.set_defaults(func=cmd_reproduce)
     return parser
 

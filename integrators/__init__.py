@@ -4,6 +4,7 @@ from integrators.registry import REGISTRY, Algorithm, algorithm_class, make_algo
 from integrators.solution import EVENT_COLUMNS, ReturnCode, Solution, Stats
 from integrators.solve import solve
 from integrators.etd import ETD1, ETD2, ETDIterated  # noqa: E402  (registers the ETD family)
+from integrators.cash_karp import CashKarp45  # noqa: E402  (Press et al.'s adaptive RK, numba)
 from integrators.scipy_backend import (ScipyBDF, ScipyDOP853, ScipyLSODA, ScipyRadau,  # noqa: E402
                                       ScipyRK45)
 
@@ -26,5 +27,5 @@ def _load_optional() -> None:
 _load_optional()
 
 __all__ = ["REGISTRY", "Algorithm", "algorithm_class", "make_algorithm", "register", "EVENT_COLUMNS", "ReturnCode",
-           "Solution", "Stats", "UNAVAILABLE", "solve", "ETD1", "ETD2", "ETDIterated", "ScipyBDF", "ScipyDOP853",
-           "ScipyLSODA", "ScipyRadau", "ScipyRK45"]
+           "Solution", "Stats", "UNAVAILABLE", "solve", "ETD1", "ETD2", "ETDIterated", "CashKarp45",
+           "ScipyBDF", "ScipyDOP853", "ScipyLSODA", "ScipyRadau", "ScipyRK45"]

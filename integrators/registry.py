@@ -21,7 +21,7 @@ class Algorithm:
 
     Class attributes describe the method: ``family``, ``order`` (classical order, in the
     non-stiff limit), ``stiff_order`` (observed order on the stiff stick–slip problem, where it
-    differs: order reduction), ``adaptive``, ``library``.
+    differs: order reduction; 0 when the error meets a step-independent floor there), ``adaptive``, ``library``.
     """
 
     name: ClassVar[str] = ""

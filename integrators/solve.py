@@ -51,7 +51,10 @@ def solve(problem: SpringSlider, algorithm: Algorithm, *, save_every: float | No
     budget = Budget(wall_s=wall_budget, start=time.perf_counter())
     bar = _progress_bar(problem, algorithm) if progress else None
     try:
-        raw = algorithm.run(problem, output, budget, bar.update_to if bar else None)
+        # trial steps of adaptive methods overflow exp(ln v) before being rejected: expected,
+        # and a run that ends non-finite is a retcode anyway
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            raw = algorithm.run(problem, output, budget, bar.update_to if bar else None)
     except Exception as exc:  # a library failure is a result, not a crash of the caller
         raw = RawRun(t=np.empty(0), y=np.empty((0, 3)), events=np.empty((0, len(EVENT_COLUMNS))),
                      stats=Stats(), retcode=ReturnCode.FAILURE,

@@ -1,0 +1,202 @@
+"""Work-precision study: every integrator of the registry over a ladder of precision settings.
+
+The analogue of DiffEqDevTools' ``WorkPrecisionSet``. For each study problem the reference comes
+from :func:`benchmarks.reference.reference` (two solvers that agree); then each integrator runs
+at each setting of its ladder — rtol = atol for adaptive methods, Δτcnst for ETD (with Δτmax
+scaled by the same factor: in the stick phase Δτmax is the binding limit) — once per right-hand-
+side tier it offers. A point records the achieved errors (:mod:`benchmarks.errors`), the wall
+time (warm-up first; the minimum over ``repeats`` runs when a run is shorter than
+``repeat_below`` seconds, a single timing otherwise), the counters and the retcode.
+
+A point that fails or runs out of its wall budget is a row with that retcode and NaN errors;
+the tighter settings of that (integrator, tier) are then not run (retcode ``Skipped``), since
+they would only cost more.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+from tqdm.auto import tqdm
+
+from benchmarks.errors import ERROR_COLUMNS, errors
+from benchmarks.provenance import provenance
+from benchmarks.reference import reference
+from benchmarks.timing import warm_up
+from integrators import REGISTRY, solve
+from problems import paper_example, window
+
+__all__ = ["Ladder", "FULL", "QUICK", "study_problems", "settings", "measure", "work_precision",
+           "WP_COLUMNS", "SKIPPED", "reliable_error", "best_at_levels", "recommend"]
+
+SKIPPED = "Skipped"
+#: the columns every work-precision CSV has (then the errors, then provenance)
+WP_COLUMNS = ("problem", "law", "integrator", "rhs_tier", "setting_name", "setting", "options",
+              "retcode", "message", "t_reached_s", "wall_s", "timings", "nfev", "njev", "steps",
+              "rejected", "n_events") + ERROR_COLUMNS + ("reference_agreement", "library",
+                                                         "library_version")
+_BUDGET_STOPS = ("WallTime", "MaxSteps")
+
+
+@dataclass(frozen=True)
+class Ladder:
+    """The precision settings of a study and how long a point may take."""
+
+    tolerances: tuple[float, ...]        # rtol = atol of adaptive methods, loosest first
+    etd_factors: tuple[float, ...]       # factors on the paper's Δτcnst = 1e−5, Δτmax = 0.01
+    wall_budget: float                   # s per solve
+    repeats: int = 3
+    repeat_below: float = 1.0            # s: runs shorter than this are timed ``repeats`` times
+
+
+FULL = Ladder(tolerances=tuple(10.0 ** -k for k in range(3, 12)),
+              etd_factors=(8, 4, 2, 1, 0.5, 0.25, 0.125, 1 / 16, 1 / 32, 1 / 64),
+              wall_budget=120.0)
+QUICK = Ladder(tolerances=tuple(10.0 ** -k for k in range(3, 11)),
+               etd_factors=(4, 2, 1, 0.5, 0.25, 0.125, 1 / 16),
+               wall_budget=10.0)
+
+
+def study_problems(which: str = "full"):
+    """``full``: the paper example and W1–W4 under both laws (the issue's study set);
+    ``quick``: the paper example and W2 under the aging law."""
+    if which == "quick":
+        return [paper_example(), window("W2", "aging")]
+    if which == "full":
+        return [paper_example()] + [window(w, law) for law in ("slip", "aging")
+                                    for w in ("W1", "W2", "W3", "W4")]
+    raise ValueError(f"study must be 'quick' or 'full', got {which!r}")
+
+
+def settings(cls, ladder: Ladder, tier: str):
+    """``(setting_name, setting, algorithm)`` for each rung of ``cls``'s ladder, loosest first."""
+    if cls.adaptive:
+        return [("rtol=atol", tol, cls(rtol=tol, atol=tol, rhs=tier)) for tol in ladder.tolerances]
+    defaults = cls()
+    return [("dtau_cnst", defaults.dtau_cnst * f,
+             cls(dtau_cnst=defaults.dtau_cnst * f, dtau_max=defaults.dtau_max * f))
+            for f in ladder.etd_factors]
+
+
+def tiers_of(cls, tiers) -> list[str]:
+    """The right-hand-side tiers ``cls`` offers among ``tiers`` (fixed-step ETD: numba)."""
+    offered = cls.rhs_tiers if cls.adaptive else ("numba",)
+    return [t for t in tiers if t in offered]
+
+
+def measure(problem, algorithm, ref, ladder: Ladder) -> dict:
+    """One point: warm up, time (min over repeats for short runs), errors, counters."""
+    warm_up(problem, algorithm)
+    save = dict(save_every=problem.t_end / (len(ref.grid_t) - 1))
+    sol = solve(problem, algorithm, wall_budget=ladder.wall_budget, **save)
+    timings = [sol.stats.wall_s]
+    while sol.success and min(timings) < ladder.repeat_below and len(timings) < ladder.repeats:
+        timings.append(solve(problem, algorithm, wall_budget=ladder.wall_budget, **save).stats.wall_s)
+    s = sol.stats
+    return {"retcode": sol.retcode.value, "message": sol.message, "t_reached_s": sol.t_reached,
+            "wall_s": min(timings), "timings": len(timings), "nfev": s.nfev, "njev": s.njev,
+            "steps": s.steps, "rejected": s.rejected, "n_events": len(sol.events),
+            **errors(sol, ref)}
+
+
+def work_precision(problems, ladder: Ladder = QUICK, names=None, tiers=("numba", "python"),
+                   progress: bool = True) -> pd.DataFrame:
+    """Run the study; one row per (problem, integrator, tier, setting), columns WP_COLUMNS."""
+    names = sorted(REGISTRY, key=str.lower) if names is None else list(names)
+    jobs = [(p, n, t) for p in problems for n in names for t in tiers_of(REGISTRY[n], tiers)]
+    total = sum(len(settings(REGISTRY[n], ladder, t)) for _, n, t in jobs)
+    meta = provenance()
+    rows = []
+    with tqdm(total=total, desc="work-precision", unit="run", disable=not progress) as bar:
+        refs = {}
+        for problem, name, tier in jobs:
+            if problem not in refs:
+                bar.set_postfix_str(f"reference {problem.name}")
+                refs[problem] = reference(problem)
+            ref, cls = refs[problem], REGISTRY[name]
+            stopped = None
+            for setting_name, setting, algorithm in settings(cls, ladder, tier):
+                bar.set_postfix_str(f"{problem.name} {name} [{tier}] {setting:.3g}")
+                if stopped is None:
+                    point = measure(problem, algorithm, ref, ladder)
+                    if point["retcode"] != "Success":
+                        stopped = setting
+                else:
+                    point = {"retcode": SKIPPED, "message": f"not run: the looser setting "
+                             f"{stopped:g} already failed or ran out of budget",
+                             **dict.fromkeys(ERROR_COLUMNS, math.nan)}
+                rows.append({"problem": problem.name, "law": problem.law.name,
+                             "integrator": name, "rhs_tier": tier,
+                             "setting_name": setting_name, "setting": setting,
+                             "options": json.dumps(algorithm.options()), **point,
+                             "reference_agreement": ref.agreement["max"],
+                             "library": cls.library, "library_version": cls.library_version(),
+                             **meta})
+                bar.update()
+    df = pd.DataFrame(rows)
+    first = [c for c in WP_COLUMNS if c in df.columns]
+    return df[first + [c for c in df.columns if c not in first]]
+
+
+def reliable_error(df: pd.DataFrame, error: str = "err_recurrence") -> pd.Series:
+    """The error a user can count on when choosing a setting: the largest ``error`` at that
+    setting and at every tighter one of the same (problem, integrator, tier). Error is not
+    monotone in the tolerance; this keeps a lucky cancellation at a loose setting from being
+    recommended. Settings that were not run (budget) do not count."""
+    key = ["problem", "integrator", "rhs_tier"]
+    ordered = df.sort_values(key + ["setting"])          # tightest first within each group
+    env = ordered.groupby(key, sort=False)[error].transform(lambda x: x.cummax())
+    return env.reindex(df.index)
+
+
+def best_at_levels(df: pd.DataFrame, levels, error: str = "err_recurrence") -> pd.DataFrame:
+    """Pareto summary per problem: for each error level, the fastest (integrator, tier) with a
+    setting that reaches it reliably (:func:`reliable_error`), its setting and time, and the
+    runner-up with its time ratio."""
+    df = df.assign(**{error: reliable_error(df, error)})
+    ok = df[(df.retcode == "Success") & np.isfinite(df[error])]
+    rows = []
+    for problem, g in ok.groupby("problem", sort=False):
+        for level in levels:
+            hit = g[g[error] <= level].sort_values("wall_s")
+            best = hit.drop_duplicates(["integrator", "rhs_tier"])
+            row = {"problem": problem, "error": error, "level": level}
+            for rank, label in enumerate(("fastest", "runner_up")):
+                if rank < len(best):
+                    b = best.iloc[rank]
+                    row.update({label: b.integrator, f"{label}_tier": b.rhs_tier,
+                                f"{label}_setting": b.setting, f"{label}_wall_s": b.wall_s})
+            if len(best) > 1:
+                row["runner_up_ratio"] = best.iloc[1].wall_s / best.iloc[0].wall_s
+            rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def recommend(df: pd.DataFrame, levels, error: str = "err_recurrence") -> pd.DataFrame:
+    """One setting for the whole problem set, as an inversion over (b, Lc) needs: for each error
+    level, the (integrator, tier, setting) whose worst error over the study problems is within
+    the level at the least total wall time. Only rows that succeeded on every problem count."""
+    n_problems = df.problem.nunique()
+    keys = ["integrator", "rhs_tier", "setting"]
+    ok = df[df.retcode == "Success"]
+    agg = ok.groupby(keys).agg(worst_error=(error, "max"), total_wall_s=("wall_s", "sum"),
+                               n=("problem", "nunique")).reset_index()
+    agg = agg[(agg.n == n_problems) & np.isfinite(agg.worst_error)]
+    rows = []
+    for level in levels:
+        hit = agg[agg.worst_error <= level].sort_values("total_wall_s")
+        if not len(hit):
+            rows.append({"level": level})
+            continue
+        best = hit.iloc[0]
+        others = hit[hit.integrator != best.integrator]
+        rows.append({"level": level, "integrator": best.integrator, "rhs_tier": best.rhs_tier,
+                     "setting": best.setting, "worst_error": best.worst_error,
+                     "total_wall_s": best.total_wall_s,
+                     "next_integrator": others.iloc[0].integrator if len(others) else None,
+                     "next_total_wall_s": others.iloc[0].total_wall_s if len(others) else math.nan})
+    return pd.DataFrame(rows)

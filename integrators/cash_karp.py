@@ -1,0 +1,342 @@
+"""Cash–Karp Runge–Kutta 4(5) with the step control of Numerical Recipes, compiled with numba.
+
+The "adaptive Runge–Kutta (Press et al. 1992)" of the paper's ETD speed-up claim (SPEC §5).
+Explicit, 6 stages, adaptive; the 5th-order solution is carried (local extrapolation, as NR
+does), the error estimate is y5 − y4. Cash & Karp (1990), ACM Trans. Math. Softw. 16, 201–222
+(tableau); Press et al. (1992), Numerical Recipes in C, 2nd ed., §16.2 (``rkck``, ``rkqs``,
+``odeint``: the control):
+
+    errmax = max_i |yerr_i| / (atol + rtol·(|z_i| + |h f_i|))      (f = dz/dτ at the step start)
+    errmax > 1: reject, h ← max(0.9 h errmax^−1/4, h/10)
+    errmax ≤ 1: accept; next h = 0.9 h errmax^−1/5, at most 5 h
+
+NR's test is |yerr_i| ≤ eps·(|z_i| + |h f_i| + TINY); with eps = rtol and atol for the absolute
+floor, atol means what it means in scipy and SUNDIALS. A trial with a non-finite error is rejected with h/10 (NR's FMAX does that with a
+NaN); τ + h == τ is ``StepUnderflow``; a non-finite accepted state ``NonFinite``. First step
+after each ``start``: Hairer's heuristic (Hairer, Nørsett & Wanner, Solving ODEs I, §II.4, as
+scipy's ``select_initial_step``); then h is kept across ``advance`` calls. A step that would pass
+``t_out`` is shortened to land on it; the next one is the step proposed before, if larger.
+
+Cost: explicit, so in the stick phase stability, not accuracy, limits the step (the η relaxation,
+rate D/w, SPEC §2): ~1e−7 in τ, ~6e7 steps for the 20 s paper example. The loop runs in one
+numba function, up to 2^20 accepted steps per Python call (the wall budget is checked between
+calls). nfev = 6·steps + 5·rejected + 2·starts: 5 per attempt, f at each accepted state (the next
+step's first stage and the slope of the interpolant: no extra evaluation), f(z0) and the initial
+step's trial per ``start``. njev = 0.
+
+Events: after each accepted step the kernel evaluates the four root functions of
+:mod:`integrators.events` (linear in z); on a sign change in a direction that counts it places
+the crossings on the step's cubic Hermite interpolant (z, f at both ends) by bisection to the
+last bit, earliest first, with the cursor semantics of :mod:`integrators.dense_roots`. One
+exception: a ``PEAK`` crossing at w ≤ E_slow is not reported (it cannot be an event's peak: an
+event starts at w > 10 E_slow and ends at w ≤ E_slow). At the stability limit the stiff mode is
+not fully damped, and near the minimum of w in the stick phase C h − D η (= w u') jitters about
+zero: 2e4 (rtol 1e−6) to 3e5 (1e−8) such crossings per cycle, each a return to Python that
+would cost more than the integration and change nothing in the events table.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+from numba import njit
+
+from integrators.events import DIRECTIONS, END, H_EXTREMUM, PEAK, root_functions
+from integrators.registry import AdaptiveAlgorithm, register
+from integrators.segments import Advance
+from integrators.solution import ReturnCode, Stats
+from problems.formulations import ode_rhs
+
+__all__ = ["CashKarp45"]
+
+_CHUNK = 1 << 20                # accepted steps per kernel call at most
+REACHED, ROOT, CHUNK, NONFINITE, UNDERFLOW = range(5)
+# st: the last step [TAU_OLD, TAU], the step size H, CURSOR ≤ TAU the last time handed out and
+# T_RET the time returned, counters. Rows of Z: z and f at TAU and at TAU_OLD, the state
+# returned. Rows of G: root-function values at the cursor; roots found there (±1: direction).
+_TAU, _TAU_OLD, _H, _CURSOR, _T_RET, _STEPS, _REJECTED, _NFEV = range(8)
+_Z, _F, _ZO, _FO, _ZR = range(5)
+
+# Cash–Karp tableau (NR rkck): stages B, 5th-order weights C, C − (4th-order weights) as DC
+B21, B31, B32, B41, B42, B43 = 0.2, 3.0 / 40.0, 9.0 / 40.0, 0.3, -0.9, 1.2
+B51, B52, B53, B54 = -11.0 / 54.0, 2.5, -70.0 / 27.0, 35.0 / 27.0
+B61, B62, B63 = 1631.0 / 55296.0, 175.0 / 512.0, 575.0 / 13824.0
+B64, B65 = 44275.0 / 110592.0, 253.0 / 4096.0
+C1, C3, C4, C6 = 37.0 / 378.0, 250.0 / 621.0, 125.0 / 594.0, 512.0 / 1771.0
+DC1, DC3, DC4 = C1 - 2825.0 / 27648.0, C3 - 18575.0 / 48384.0, C4 - 13525.0 / 55296.0
+DC5, DC6 = -277.0 / 14336.0, C6 - 0.25
+SAFETY, PGROW, PSHRNK, ERRCON = 0.9, -0.2, -0.25, 1.89e-4      # ERRCON = (5/SAFETY)^(1/PGROW)
+
+
+@njit(cache=True, error_model="numpy")
+def _roots(p, z, g):
+    """events.root_functions; p[7:10] hold ln(10 E_slow), ln E_slow, ln E."""
+    g[0], g[1], g[2] = z[1] - p[7], z[1] - p[8], z[1] - p[9]
+    g[3] = p[2] * z[0] - p[3] * (z[1] + p[1] * z[2])
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _f(q, h, u, s, zb, fb):
+    """ode_rhs on scalars, so that the stages stay in registers (twice as fast as in arrays);
+    q = (law, β, C, D, E)."""
+    zb[0], zb[1], zb[2] = h, u, s
+    ode_rhs(q[0], q[1], q[2], q[3], q[4], zb, fb)
+    return fb[0], fb[1], fb[2]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _step(p, Z, zb, fb, tau, h, t_out):
+    """One accepted step (NR rkqs) of proposed size h from (tau, Z[_Z], Z[_F]), shortened to land
+    on t_out; its start goes to Z[_ZO], Z[_FO]. Returns (-1, UNDERFLOW or NONFINITE; the new τ;
+    the next h; attempts)."""
+    q, rtol, atol = (int(p[0]), p[1], p[2], p[3], p[4]), p[5], p[6]
+    z0, z1, z2, f0, f1, f2 = Z[_Z, 0], Z[_Z, 1], Z[_Z, 2], Z[_F, 0], Z[_F, 1], Z[_F, 2]
+    hs, last = (t_out - tau, True) if tau + h >= t_out else (h, False)
+    attempts = 0
+    while True:
+        if tau + hs == tau:
+            return UNDERFLOW, tau, hs, attempts
+        attempts += 1
+        a0, a1, a2 = _f(q, z0 + hs * B21 * f0, z1 + hs * B21 * f1, z2 + hs * B21 * f2, zb, fb)
+        b0, b1, b2 = _f(q, z0 + hs * (B31 * f0 + B32 * a0), z1 + hs * (B31 * f1 + B32 * a1),
+                        z2 + hs * (B31 * f2 + B32 * a2), zb, fb)
+        c0, c1, c2 = _f(q, z0 + hs * (B41 * f0 + B42 * a0 + B43 * b0),
+                        z1 + hs * (B41 * f1 + B42 * a1 + B43 * b1),
+                        z2 + hs * (B41 * f2 + B42 * a2 + B43 * b2), zb, fb)
+        d0, d1, d2 = _f(q, z0 + hs * (B51 * f0 + B52 * a0 + B53 * b0 + B54 * c0),
+                        z1 + hs * (B51 * f1 + B52 * a1 + B53 * b1 + B54 * c1),
+                        z2 + hs * (B51 * f2 + B52 * a2 + B53 * b2 + B54 * c2), zb, fb)
+        g0, g1, g2 = _f(q, z0 + hs * (B61 * f0 + B62 * a0 + B63 * b0 + B64 * c0 + B65 * d0),
+                        z1 + hs * (B61 * f1 + B62 * a1 + B63 * b1 + B64 * c1 + B65 * d1),
+                        z2 + hs * (B61 * f2 + B62 * a2 + B63 * b2 + B64 * c2 + B65 * d2), zb, fb)
+        e0 = hs * (DC1 * f0 + DC3 * b0 + DC4 * c0 + DC5 * d0 + DC6 * g0)
+        e1 = hs * (DC1 * f1 + DC3 * b1 + DC4 * c1 + DC5 * d1 + DC6 * g1)
+        e2 = hs * (DC1 * f2 + DC3 * b2 + DC4 * c2 + DC5 * d2 + DC6 * g2)
+        errmax = max(abs(e0) / (atol + rtol * (abs(z0) + abs(hs * f0))),
+                     abs(e1) / (atol + rtol * (abs(z1) + abs(hs * f1))),
+                     abs(e2) / (atol + rtol * (abs(z2) + abs(hs * f2))))
+        if errmax <= 1.0:                               # False for NaN
+            break
+        last = False
+        hs = max(SAFETY * hs * errmax ** PSHRNK, 0.1 * hs) if np.isfinite(errmax) else 0.1 * hs
+    Z[_ZO], Z[_FO] = Z[_Z], Z[_F]
+    Z[_Z, 0] = z0 = z0 + hs * (C1 * f0 + C3 * b0 + C4 * c0 + C6 * g0)
+    Z[_Z, 1] = z1 = z1 + hs * (C1 * f1 + C3 * b1 + C4 * c1 + C6 * g1)
+    Z[_Z, 2] = z2 = z2 + hs * (C1 * f2 + C3 * b2 + C4 * c2 + C6 * g2)
+    Z[_F, 0], Z[_F, 1], Z[_F, 2] = _f(q, z0, z1, z2, zb, fb)
+    h_next = SAFETY * hs * errmax ** PGROW if errmax > ERRCON else 5.0 * hs
+    h_next = max(h_next, h) if last else h_next     # a shortened step says nothing about h
+    finite = True
+    for i in range(3):
+        finite &= np.isfinite(Z[_Z, i]) and np.isfinite(Z[_F, i])
+    return -1 if finite else NONFINITE, t_out if last else tau + hs, h_next, attempts
+
+
+@njit(cache=True, error_model="numpy")
+def _hermite(Z, x, dt, out):
+    """The cubic Hermite interpolant of the step [TAU_OLD, TAU] at the fraction x of it."""
+    x2, x3 = x * x, x * x * x
+    a, b, c, d = 2 * x3 - 3 * x2 + 1, (x3 - 2 * x2 + x) * dt, 3 * x2 - 2 * x3, (x3 - x2) * dt
+    out[:] = a * Z[_ZO] + b * Z[_FO] + c * Z[_Z] + d * Z[_F]
+
+
+@njit(cache=True, error_model="numpy")
+def _scan(st, p, Z, G, dirs, t_end):
+    """The earliest crossing that counts in (CURSOR, t_end] of the last step: True, with it at
+    T_RET, Z[_ZR], G[1]; else False, the cursor moved to t_end. A crossing in a direction that
+    does not count only moves the cursor and its signs (G[0])."""
+    t0, dt = st[_TAU_OLD], st[_TAU] - st[_TAU_OLD]
+    x_end = (t_end - t0) / dt
+    zt, gt, g_end, g_new, x_root = np.empty(3), np.empty(4), np.empty(4), np.empty(4), np.empty(4)
+    z_end = Z[_Z].copy()
+    if t_end < st[_TAU]:
+        _hermite(Z, x_end, dt, z_end)
+    _roots(p, z_end, g_end)
+    while True:
+        x_cur = (st[_CURSOR] - t0) / dt
+        _hermite(Z, x_cur, dt, zt)
+        _roots(p, zt, g_new)
+        for k in range(4):
+            g0, g1, ga, lo, hi = G[0, k], g_end[k], g_new[k], x_cur, x_end
+            if not ((g0 < 0.0 <= g1) or (g0 > 0.0 >= g1)):
+                hi = np.inf
+            elif ga == 0.0 or (ga > 0.0 and g1 > 0.0) or (ga < 0.0 and g1 < 0.0):
+                hi = x_cur            # the interpolant is past it already: at the cursor
+            while lo < hi < np.inf:   # bisection to the last bit; hi keeps the far side's sign
+                mid = 0.5 * (lo + hi)
+                if mid <= lo or mid >= hi:
+                    break
+                _hermite(Z, mid, dt, zt)
+                _roots(p, zt, gt)
+                if gt[k] != 0.0 and (gt[k] > 0.0) == (ga > 0.0):
+                    lo = mid
+                else:
+                    hi = mid
+            x_root[k] = hi
+        best = x_root.min()
+        if best == np.inf:
+            st[_CURSOR] = st[_T_RET] = t_end
+            Z[_ZR], G[0] = z_end, g_end
+            return False
+        t_root = (st[_CURSOR] if best == x_cur else t_end if best == x_end
+                  else min(max(t0 + best * dt, st[_CURSOR]), t_end))
+        if best == x_end:
+            Z[_ZR] = z_end
+        else:
+            _hermite(Z, best, dt, Z[_ZR])
+        _roots(p, Z[_ZR], g_new)
+        G[1] = 0.0
+        for k in range(4):
+            if x_root[k] == best:
+                sign = 1.0 if g_end[k] > G[0, k] else -1.0
+                g_new[k] = sign * max(abs(g_new[k]), 1e-300)     # the sign after the crossing
+                if (dirs[k] == 0 or dirs[k] == sign) and (k != PEAK or g_new[END] > 0.0):
+                    G[1, k] = sign
+        st[_CURSOR], G[0] = t_root, g_new
+        if G[1].any():
+            st[_T_RET] = t_root
+            return True
+
+
+@njit(cache=True, error_model="numpy")
+def _advance(st, p, Z, G, dirs, t_out, n_max):
+    """Scan the last step, then step towards t_out (at most ``n_max`` accepted steps). Returns
+    REACHED or ROOT (at T_RET, Z[_ZR]), CHUNK, NONFINITE or UNDERFLOW."""
+    zb, fb, g = np.empty(3), np.empty(3), np.empty(4)
+    status = -1 if np.isfinite(Z[_F]).all() else NONFINITE
+    n = attempts = 0
+    while status < 0:
+        if st[_CURSOR] < st[_TAU] and _scan(st, p, Z, G, dirs, min(st[_TAU], t_out)):
+            status = ROOT
+        elif st[_CURSOR] >= t_out:
+            if st[_CURSOR] == st[_TAU]:
+                Z[_ZR], st[_T_RET] = Z[_Z], st[_TAU]
+            status = REACHED
+        elif n >= n_max:
+            status = CHUNK
+        else:
+            status, tau, h, tried = _step(p, Z, zb, fb, st[_TAU], st[_H], t_out)
+            attempts += tried
+            if status != UNDERFLOW:           # a step was accepted
+                n += 1
+                st[_TAU_OLD], st[_TAU], st[_H] = st[_TAU], tau, h
+            if status < 0:
+                _roots(p, Z[_Z], g)
+                crossed = False
+                for k in range(4):
+                    crossed |= (((G[0, k] < 0.0 <= g[k] and dirs[k] >= 0)
+                                 or (G[0, k] > 0.0 >= g[k] and dirs[k] <= 0))
+                                and (k != PEAK or G[0, END] > 0.0 or g[END] > 0.0))
+                if not crossed:       # else the scan at the top of the loop places them
+                    st[_CURSOR], G[0] = tau, g
+    st[_STEPS] += n
+    st[_REJECTED] += attempts - n
+    st[_NFEV] += 5 * attempts + n
+    return status
+
+
+@register
+@dataclass(frozen=True)
+class CashKarp45(AdaptiveAlgorithm):
+    """Cash–Karp embedded Runge–Kutta 4(5), explicit, adaptive, with the step control of
+    Numerical Recipes §16.2 (``rkqs``). Order 5: the 5th-order solution is propagated.
+
+    Needs ``rtol`` and ``atol`` (the test is |err_i| ≤ atol + rtol·(|z_i| + |h f_i|): NR's yscal,
+    with atol as the absolute floor) and the compiled right-hand side (``rhs="numba"`` only). ``max_steps``
+    (accepted steps, whole solve) defaults to ETD's 2e8, not 5e7: in the stick phase stability,
+    not accuracy, sets the step: the 20 s paper example takes 6.3e7 steps, and the count barely
+    moves between rtol 1e−3 and 1e−10.
+    Cash & Karp (1990), ACM TOMS 16, 201–222; Press et al. (1992).
+    """
+
+    max_steps: int = 200_000_000
+
+    name: ClassVar[str] = "CashKarp45"
+    family: ClassVar[str] = "explicit Runge–Kutta (Cash–Karp 4(5))"
+    order: ClassVar[int] = 5
+    stiff: ClassVar[bool] = False
+    library: ClassVar[str] = "rsfbench (numba)"
+    rhs_tiers: ClassVar[tuple[str, ...]] = ("numba",)
+    rhs_tiers_reason: ClassVar[str] = (
+        "its step loop is compiled with numba and calls the compiled right-hand side; the "
+        "python-tier explicit RK45 is scipy-RK45")
+
+    @classmethod
+    def library_version(cls) -> str:
+        import numba
+        return f"numba {numba.__version__}"
+
+    def make_stepper(self, nd, budget):
+        return _CashKarpStepper(self, nd, budget)
+
+
+class _CashKarpStepper:
+    """The segment protocol over :func:`_advance`, whose state is all in the arrays below."""
+
+    def __init__(self, algorithm: CashKarp45, nd, budget):
+        self.algorithm, self.nd, self.budget = algorithm, nd, budget
+        self.stats = Stats()
+        self._st, self._Z, self._G = np.zeros(8), np.zeros((5, 3)), np.zeros((2, 4))
+        self._p = np.array([nd.law_code, nd.beta, nd.c, nd.d, 0.0, algorithm.rtol, algorithm.atol,
+                            math.log(10.0 * nd.e_slow), math.log(nd.e_slow), 0.0])
+        self._dirs = np.array(DIRECTIONS, dtype=np.int64)
+        self._last_root = None          # (tau, z, [(kind, sign after crossing)], e)
+
+    def start(self, tau0, z0, e, t_bound):
+        st, Z, G, p, a = self._st, self._Z, self._G, self._p, self.algorithm
+        self._e = p[4] = float(e)
+        p[9] = math.log(self._e)
+        Z[_Z] = z0
+        ode_rhs(int(p[0]), p[1], p[2], p[3], p[4], Z[_Z], Z[_F])
+        # initial step: Hairer, Nørsett & Wanner I, §II.4, on the scale of our error test
+        z, f, f1 = Z[_Z], Z[_F], np.empty(3)
+        scale = a.atol + a.rtol * np.abs(z)
+        d0, d1 = np.max(np.abs(z) / scale), np.max(np.abs(f) / scale)
+        h0 = 0.01 * d0 / d1 if min(d0, d1) >= 1e-5 else 1e-6
+        ode_rhs(int(p[0]), p[1], p[2], p[3], p[4], z + h0 * f, f1)
+        big = max(d1, np.max(np.abs(f1 - f) / scale) / h0)     # inf if the trial overflowed
+        h1 = (0.01 / big) ** 0.2 if big > 1e-15 else max(1e-6, 1e-3 * h0)
+        st[_H] = min(100.0 * h0, h1 if h1 > 0.0 else 1e-3 * h0, t_bound - tau0)
+        st[_TAU] = st[_CURSOR] = tau0
+        st[_NFEV] += 2.0
+        G[0] = root_functions(self.nd, self._e, z)
+        last = self._last_root
+        if last is not None and last[0] == tau0 and np.array_equal(last[1], z):
+            # restarting at a root just reported: keep its sign after the crossing, or the
+            # first step would find the same crossing again
+            for kind, sign in last[2]:
+                if (kind != H_EXTREMUM or last[3] == self._e) and G[0, kind] * sign <= 0.0:
+                    G[0, kind] = sign * 1e-300
+        self.stats.nfev = int(st[_NFEV])
+
+    def _stop(self, code, what):
+        t = self._st[_TAU]
+        return Advance(t, self._Z[_Z].copy(), retcode=code,
+                       message=f"{what} at t = {t * self.nd.time_scale:.6g} s")
+
+    def advance(self, t_out):
+        st, a, s = self._st, self.algorithm, self.stats
+        while True:
+            status = _advance(st, self._p, self._Z, self._G, self._dirs, float(t_out),
+                              min(_CHUNK, a.max_steps - int(st[_STEPS])))
+            s.nfev, s.steps, s.rejected = int(st[_NFEV]), int(st[_STEPS]), int(st[_REJECTED])
+            if status == ROOT:
+                z, kinds = self._Z[_ZR].copy(), [k for k in range(4) if self._G[1, k] != 0.0]
+                self._last_root = (st[_T_RET], z.copy(), [(k, self._G[1, k]) for k in kinds],
+                                   self._e)
+                return Advance(st[_T_RET], z, roots=kinds)
+            if status == NONFINITE:
+                return self._stop(ReturnCode.NON_FINITE, "non-finite state")
+            if status == UNDERFLOW:
+                return self._stop(ReturnCode.STEP_UNDERFLOW, "step size underflow (t + h == t)")
+            # here too, not only every 50 calls as the driver does: one call can be 1e6 steps
+            if self.budget is not None and self.budget.exceeded():
+                return self._stop(ReturnCode.WALL_TIME,
+                                  f"wall-time budget of {self.budget.wall_s} s used up")
+            if status == REACHED:
+                return Advance(st[_T_RET], self._Z[_ZR].copy())
+            if st[_STEPS] >= a.max_steps:
+                return self._stop(ReturnCode.MAX_STEPS, f"step budget of {a.max_steps} used up")

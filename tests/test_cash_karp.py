@@ -1,0 +1,94 @@
+"""Cash–Karp RK45 with Numerical Recipes step control (integrators/cash_karp.py): error scaled by
+the tolerance, events against Radau, the cost counters, the wall budget on the stiff run, and
+the stick-phase jitter kept out of the event roots."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+import integrators as I
+import problems as P
+from integrators import cash_karp
+from integrators.events import PEAK
+
+
+def _heavy_slider():
+    """Paper example with the mass × 1e4 (D ≈ 3.6, as in test_etd): not stiff, no event in 2 s."""
+    base = P.paper_example(t_end=2.0)
+    return dataclasses.replace(base, mass=base.mass * 1e4)
+
+
+def _ln_v_end(problem, algorithm):
+    sol = I.solve(problem, algorithm, max_points=2)
+    assert sol.success, sol.message
+    return float(np.log(sol.v[-1]))
+
+
+def test_error_scales_with_tolerance():
+    """ln v at t_end against scipy Radau at rtol = atol = 1e−12 (its own error is far below the
+    smallest error measured here): within 100·rtol, and 1000× less tolerance buys > 100× less
+    error (measured: 0.015·rtol at 1e−6, 0.05·rtol at 1e−9)."""
+    p = _heavy_slider()
+    ref = _ln_v_end(p, I.ScipyRadau(rtol=1e-12, atol=1e-12))
+    err = {tol: abs(_ln_v_end(p, I.CashKarp45(rtol=tol, atol=tol)) - ref) for tol in (1e-6, 1e-9)}
+    for tol, e in err.items():
+        assert e < 100 * tol, f"rtol {tol}: error {e:.3g}"
+    assert err[1e-9] < err[1e-6] / 100
+
+
+@pytest.mark.parametrize("law", ["slip", "aging"])
+def test_event_times_match_radau(law):
+    """W2, 50 ms: one event with the two-speed restart after it. Its times and peak slip rate
+    against scipy Radau at rtol = atol = 1e−10 (measured at rtol 1e−6: 2–3e−7 relative, t_peak
+    2e−6). Two saved points: every advance lands on its output time, so a dense save grid
+    would shorten the steps below what the tolerance asks for."""
+    p = P.window("W2", law, t_end=0.05)
+    ref = I.solve(p, I.ScipyRadau(rtol=1e-10, atol=1e-10)).events
+    sol = I.solve(p, I.CashKarp45(rtol=1e-6, atol=1e-6), max_points=2)
+    assert sol.success, sol.message
+    assert len(sol.events) == len(ref) == 1
+    for col in ("t_start", "t_end", "t_peak", "v_peak"):
+        np.testing.assert_allclose(sol.events[col], ref[col], rtol=5e-5, err_msg=col)
+
+
+def test_counters(monkeypatch):
+    """nfev = 6·steps + 5·rejected + 2·starts (module docstring), on a constant-loading run (one
+    start) and on W2 with its two-speed restarts (starts counted here)."""
+    sol = I.solve(_heavy_slider(), I.CashKarp45(rtol=1e-8, atol=1e-8), max_points=2)
+    s = sol.stats
+    assert s.steps > 0 and s.rejected > 0 and s.njev == 0
+    assert s.nfev == 6 * s.steps + 5 * s.rejected + 2
+
+    starts = []
+    original = cash_karp._CashKarpStepper.start
+    monkeypatch.setattr(cash_karp._CashKarpStepper, "start",
+                        lambda self, *args: (starts.append(args[0]), original(self, *args))[1])
+    sol = I.solve(P.window("W2", "slip", t_end=0.05), I.CashKarp45(rtol=1e-7, atol=1e-7))
+    s = sol.stats
+    assert sol.success and len(starts) >= 2          # the restart at the event's end
+    assert s.nfev == 6 * s.steps + 5 * s.rejected + 2 * len(starts)
+
+
+def test_wall_budget_stops_the_stiff_run():
+    """The paper example (20 s) needs 6.3e7 steps (~25 s); a 0.2 s budget stops it with a valid
+    state and a message, promptly: at the first output time after it (0.2 s simulated, ~6e5
+    steps), not after the driver's 50 calls (7 s simulated)."""
+    p = P.paper_example()
+    sol = I.solve(p, I.CashKarp45(rtol=1e-6, atol=1e-6), max_points=100, wall_budget=0.2)
+    assert sol.retcode is I.ReturnCode.WALL_TIME
+    assert 0.0 < sol.t_reached < 1.0 and "wall-time budget" in sol.message
+    assert np.all(np.isfinite(sol.v)) and sol.stats.steps > 0
+
+
+def test_stick_phase_jitter_is_not_reported(monkeypatch):
+    """Paper example to 1.5 s (one event and the stick phase after it): at the stability limit
+    C h − D η jitters about zero near the minimum of w; those PEAK crossings (w ≤ E_slow, never an
+    event's peak) are not returned to Python (~2e4 per cycle otherwise, 3e5 at rtol 1e−8)."""
+    roots = []
+    original = cash_karp._CashKarpStepper.advance
+    monkeypatch.setattr(cash_karp._CashKarpStepper, "advance",
+                        lambda self, t_out: (a := original(self, t_out), roots.extend(a.roots))[0])
+    sol = I.solve(P.paper_example(t_end=1.5), I.CashKarp45(rtol=1e-8, atol=1e-8), max_points=2)
+    assert sol.success and len(sol.events) == 1
+    assert roots.count(PEAK) == 1

@@ -1,0 +1,194 @@
+"""The accuracy-and-cost harness on small problems: references (agreement, cache), error
+measures, the work-precision bookkeeping, convergence fits and the study CLIs."""
+
+import dataclasses
+import json
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import integrators as I
+import problems as P
+from benchmarks import reference as R
+from benchmarks.cli import main
+from benchmarks.convergence import observed_order
+from benchmarks.errors import ERROR_COLUMNS, HEADLINE_ERRORS, errors
+from benchmarks.metrics import event_metrics
+from benchmarks.work_precision import (WP_COLUMNS, Ladder, best_at_levels, recommend,
+                                       work_precision)
+
+
+def small_problem():
+    """W4 (slip law) for 1.5 s: three events, ~0.3 s per reference solver."""
+    return P.window("W4", "slip", t_end=1.5)
+
+
+@pytest.fixture(scope="module")
+def cache(tmp_path_factory):
+    return tmp_path_factory.mktemp("references")
+
+
+@pytest.fixture(scope="module")
+def small_ref(cache):
+    return R.reference(small_problem(), cache=cache)
+
+
+def test_reference_solvers_agree_and_the_agreement_is_recorded(small_ref):
+    assert [s["name"] for s in small_ref.solvers] == [n for n, _ in R._solver_pair()]
+    assert small_ref.agreement["max"] <= R.AGREEMENT_RTOL
+    assert set(small_ref.agreement) >= {"recurrence_s", "friction_drop", "slip_m",
+                                        "peak_velocity_m_s", "t_start", "max"}
+    assert small_ref.event_index == len(small_ref.events) - 1 >= 1
+    assert len(small_ref.grid_t) == R.GRID_POINTS and small_ref.grid_t[-1] == 1.5
+
+
+def test_reference_is_cached_by_problem(small_ref, cache):
+    files = list(cache.glob("*.json"))
+    assert len(files) == 1
+    again = R.reference(small_problem(), cache=cache)          # from disk
+    assert again.key == small_ref.key
+    pd.testing.assert_frame_equal(again.events, small_ref.events)
+    np.testing.assert_array_equal(again.grid_mu, small_ref.grid_mu)
+    changed = small_problem().with_law(b=small_problem().law.b * 1.001)
+    assert R._key(changed, R._solver_pair()) != small_ref.key
+
+
+def test_disagreeing_references_are_refused(tmp_path, monkeypatch):
+    # a loose solver against a tight one: they differ by far more than AGREEMENT_RTOL
+    monkeypatch.setattr(R, "REFERENCE_SOLVERS", ((("scipy-BDF", 1e-4), ("scipy-Radau", 1e-10)),))
+    with pytest.raises(R.ReferenceDisagreement, match="disagree"):
+        R.reference(small_problem(), cache=tmp_path)
+    assert not list(tmp_path.glob("*.json"))
+
+
+def test_errors_of_a_run_against_the_reference(small_ref):
+    p = small_problem()
+    sol = I.solve(p, I.ETD2(), save_every=p.t_end / 2000)
+    e = errors(sol, small_ref)
+    assert set(e) == set(ERROR_COLUMNS)
+    got = event_metrics(sol.events, p.normal_force).iloc[small_ref.event_index]
+    want = small_ref.metrics
+    assert e["err_recurrence"] == pytest.approx(abs(got.recurrence_s / want.recurrence_s - 1))
+    assert e["err_slip"] == pytest.approx(abs(got.slip_m / want.slip_m - 1))
+    assert e["err_event_time"] == pytest.approx(abs(got.t_start - want.t_start) / want.recurrence_s)
+    # ETD2 at the paper's steps: ~1e-4–1e-3 on the cycle (its documented first-order error)
+    assert all(1e-7 < e[k] < 1e-2 for k in HEADLINE_ERRORS)
+
+
+def test_error_of_the_reference_itself_is_zero_and_of_a_shifted_copy_is_the_shift(small_ref):
+    p = small_problem()
+    sol = I.solve(p, I.algorithm_class(small_ref.solvers[0]["name"])(rtol=1e-12, atol=1e-12),
+                  save_every=p.t_end / 2000)
+    e = errors(sol, small_ref)
+    assert all(e[k] == 0.0 for k in HEADLINE_ERRORS + ("err_event_time",))
+    assert e["err_trajectory"] < 1e-12
+    # delay every event by 1 ms: the event-time error is exactly that in cycles, the metrics keep
+    shift = 1e-3
+    late = dataclasses.replace(sol, t=sol.t + shift,
+                               events=sol.events.assign(t_start=sol.events.t_start + shift))
+    e = errors(late, small_ref)
+    assert e["err_event_time"] == pytest.approx(shift / small_ref.metrics.recurrence_s, rel=1e-9)
+    assert e["err_recurrence"] == pytest.approx(0.0, abs=1e-12)
+    assert e["err_trajectory"] > 0.01
+
+
+def test_a_failed_or_short_run_has_nan_errors(small_ref):
+    p = small_problem()
+    failed = I.solve(p, I.ETD2(max_steps=10))
+    assert not failed.success and all(math.isnan(v) for v in errors(failed, small_ref).values())
+    short = I.solve(dataclasses.replace(p, t_end=0.3), I.ETD2())    # one event only
+    e = errors(short, small_ref)
+    assert all(math.isnan(e[k]) for k in HEADLINE_ERRORS)
+
+
+def test_work_precision_rows_columns_and_skips(small_ref, cache, monkeypatch):
+    monkeypatch.setenv("RSFBENCH_CACHE", str(cache))
+    ladder = Ladder(tolerances=(1e-4, 1e-7), etd_factors=(1.0, 0.5), wall_budget=1.0, repeats=2)
+    df = work_precision([small_problem()], ladder, names=["ETD2", "scipy-RK45"],
+                        tiers=("numba", "python"), progress=False)
+    assert set(WP_COLUMNS) <= set(df.columns) and {"cpu", "git_commit", "v_numpy"} <= set(df.columns)
+    # ETD2: numba only, 2 rungs; RK45: 2 tiers × 2 rungs
+    assert len(df) == 6 and set(df[df.integrator == "ETD2"].rhs_tier) == {"numba"}
+    etd = df[df.integrator == "ETD2"]
+    assert (etd.retcode == "Success").all() and etd.err_recurrence.iloc[1] < etd.err_recurrence.iloc[0]
+    # explicit RK45 crawls through the stick phase (~1 min here): a WallTime row after 1 s,
+    # then the tighter rung is not run
+    for tier in ("numba", "python"):
+        rk = df[(df.integrator == "scipy-RK45") & (df.rhs_tier == tier)]
+        assert rk.retcode.tolist() == ["WallTime", "Skipped"]
+        assert rk.err_recurrence.isna().all() and rk.t_reached_s.iloc[0] < 1.5
+    assert list(df.setting[df.integrator == "ETD2"]) == [1e-5, 5e-6]
+
+
+def test_pareto_and_recommendation_pick_the_cheapest_that_reaches_each_level():
+    rows = []
+    for problem, scale in (("p1", 1.0), ("p2", 2.0)):
+        for name, setting, err, wall in (("A", 1e-3, 1e-3, 1.0), ("A", 1e-6, 1e-6, 3.0),
+                                         ("B", 1e-3, 1e-4, 2.0), ("B", 1e-6, 1e-7, 10.0)):
+            rows.append({"problem": problem, "integrator": name, "rhs_tier": "numba",
+                         "setting": setting, "retcode": "Success", "err_recurrence": err,
+                         "wall_s": wall * scale})
+    df = pd.DataFrame(rows)
+    pareto = best_at_levels(df, (1e-2, 1e-4, 1e-6), "err_recurrence")
+    p1 = pareto[pareto.problem == "p1"].set_index("level")
+    assert p1.loc[1e-2, "fastest"] == "A" and p1.loc[1e-2, "runner_up_ratio"] == 2.0
+    assert p1.loc[1e-4, "fastest"] == "B" and p1.loc[1e-4, "fastest_setting"] == 1e-3
+    assert p1.loc[1e-6, "fastest"] == "A" and p1.loc[1e-6, "fastest_wall_s"] == 3.0
+    advice = recommend(df, (1e-2, 1e-6, 1e-8)).set_index("level")
+    assert advice.loc[1e-2, "integrator"] == "A" and advice.loc[1e-2, "total_wall_s"] == 3.0
+    assert advice.loc[1e-6, "integrator"] == "A" and advice.loc[1e-6, "next_integrator"] == "B"
+    assert pd.isna(advice.loc[1e-8, "integrator"])
+
+
+def test_observed_order_of_an_exact_power_law():
+    h = np.array([1.0, 0.5, 0.25, 0.125])
+    assert observed_order(h, 3.0 * h ** 2) == pytest.approx(2.0)
+    with pytest.raises(ValueError, match="positive"):
+        observed_order(h, h * 0)
+
+
+def test_convergence_cli_json(cache, monkeypatch, capsys):
+    monkeypatch.setenv("RSFBENCH_CACHE", str(cache))
+    assert main(["convergence", "--problem", "W4", "--t-end", "1.5", "--integrators", "ETD1",
+                 "ETD2", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert set(out["orders"]) == {"ETD1", "ETD2"}
+    # both first order on the stick–slip problem (ETD2 by order reduction, see etd.py)
+    assert out["orders"]["ETD1"] == pytest.approx(1.0, abs=0.2)
+    assert out["orders"]["ETD2"] == pytest.approx(1.0, abs=0.2)
+
+
+def test_work_precision_cli_writes_the_study(cache, monkeypatch, tmp_path, capsys):
+    monkeypatch.setenv("RSFBENCH_CACHE", str(cache))
+    assert main(["work-precision", "--problems", "W4", "--t-end", "1.5", "--integrators", "ETD2",
+                 "odes-CVODE-BDF", "--tiers", "numba", "--out", str(tmp_path), "--name", "t",
+                 "--json", "--no-progress"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    df = pd.read_csv(out["csv"])
+    assert set(WP_COLUMNS) <= set(df.columns)
+    assert set(df.integrator) == {"ETD2", "odes-CVODE-BDF"}
+    assert (tmp_path / "wp_t_pareto.md").exists() and list(tmp_path.glob("wp_t_*.png"))
+    assert out["recommendation"] and out["pareto"]
+
+
+def test_speedup_cli_json_keys_and_a_budget_stop_is_a_lower_bound(cache, monkeypatch, capsys):
+    """Paper example for 2 s (two events). scipy's RK45 gets 2 s of wall time, far too little
+    (it needs ~70 s for this interval): its ratio must be flagged as a lower bound, with the
+    simulated time it reached."""
+    monkeypatch.setenv("RSFBENCH_CACHE", str(cache))
+    assert main(["speedup", "--t-end", "2", "--scipy-budget", "2", "--implicit", "odes-CVODE-BDF",
+                 "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    for key in ("ratio_vs_scipy_rk45", "ratio_vs_compiled_rk45", "ratio_vs_best_implicit",
+                "cycles_agree"):
+        assert key in out
+    assert out["ratio_vs_scipy_rk45_is_lower_bound"] is True
+    assert 0 < out["scipy_rk45_t_reached_s"] < 2.0 and out["scipy_rk45_retcode"] == "WallTime"
+    assert out["ratio_vs_scipy_rk45"] >= 2.0 / out["etd2_wall_s"] * 0.99
+    assert out["compiled_rk45_retcode"] == "Success" and out["ratio_vs_compiled_rk45"] > 1
+    assert out["best_implicit"] == "odes-CVODE-BDF"
+    # the compiled RK45 and ETD2 agree on both events; scipy completed fewer
+    assert out["events_compared"]["CashKarp45"] == 2
+    assert out["cycle_disagreement"]["CashKarp45_vs_ETD2"] < 1e-3
