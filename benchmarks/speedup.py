@@ -91,7 +91,7 @@ def best_implicit(problem, ref, target: float, names=None, progress=None) -> pd.
             if progress:
                 progress(f"{name} {tol:g}")
             if point["retcode"] != "Success":
-                break
+                continue        # a loose-tolerance failure says nothing of the tighter rungs
             if _cycle_error(point) <= target:
                 rows.append({"integrator": name, "tol": tol, "cycle_error": _cycle_error(point),
                              **{k: point[k] for k in ("wall_s", "nfev", "steps", "njev")}})
