@@ -14,6 +14,7 @@ timed run are in ``extra_info``. Not part of ``make test``: timings are not asse
 
 from __future__ import annotations
 
+import functools
 import json
 from pathlib import Path
 
@@ -30,12 +31,20 @@ WP_CSV = Path(__file__).resolve().parents[1] / "results" / "wp_quick.csv"
 PROBLEMS = {p.name: p for p in study_problems("quick")}
 
 
-def _from_study(problem_name: str, name: str):
-    """The loosest setting of the committed study that reached the accuracy, or None."""
+@functools.cache
+def _study() -> pd.DataFrame | None:
+    """The committed quick study, read once, errors counted as its Pareto summary counts them."""
     if not WP_CSV.exists():
         return None
     df = pd.read_csv(WP_CSV)
-    df = df.assign(err_recurrence=reliable_error(df))     # as the Pareto summary counts it
+    return df.assign(err_recurrence=reliable_error(df))
+
+
+def _from_study(problem_name: str, name: str):
+    """The loosest setting of the committed study that reached the accuracy, or None."""
+    df = _study()
+    if df is None:
+        return None
     rows = df[(df.problem == problem_name) & (df.integrator == name) & (df.rhs_tier == "numba")]
     if not len(rows):
         return None
