@@ -6,6 +6,7 @@
     rsfbench work-precision --study quick   # every integrator over a ladder of settings
     rsfbench convergence --json             # observed orders of the fixed-step methods
     rsfbench speedup --json                 # the paper's 1/10,000 claim, three ways
+    rsfbench sweep --preset W2 --b 0.009:0.0098:0.0001 --lc 1e-7:1e-6:9log --json
     rsfbench reproduce --out results        # what `make reproduce` runs
 """
 
@@ -313,6 +314,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--scipy-budget", type=float, metavar="S",
                    help="wall budget of scipy's RK45 in the speed-up step (default 600 s)")
     r.set_defaults(func=cmd_reproduce)
+
+    from benchmarks.cli_sweep import add_parsers
+    add_parsers(sub, PRESET_NAMES)
     return parser
 
 

@@ -21,6 +21,7 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -34,7 +35,8 @@ from integrators import REGISTRY, solve
 from problems import paper_example, window
 
 __all__ = ["Ladder", "FULL", "QUICK", "study_problems", "settings", "measure", "work_precision",
-           "WP_COLUMNS", "SKIPPED", "reliable_error", "best_at_levels", "recommend"]
+           "WP_COLUMNS", "SKIPPED", "reliable_error", "best_at_levels", "recommend",
+           "algorithm_at", "recommended_algorithm", "STUDY_CSV"]
 
 SKIPPED = "Skipped"
 #: the columns every work-precision CSV has (then the errors, then provenance)
@@ -182,8 +184,10 @@ def best_at_levels(df: pd.DataFrame, levels, error: str = "err_recurrence") -> p
 def recommend(df: pd.DataFrame, levels, error: str = "err_recurrence") -> pd.DataFrame:
     """One setting for the whole problem set, as an inversion over (b, Lc) needs: for each error
     level, the (integrator, tier, setting) whose worst error over the study problems is within
-    the level at the least total wall time. Only rows that succeeded on every problem count."""
+    the level at the least total wall time. Only rows that succeeded on every problem count, and
+    a setting counts for a level only if it reaches it reliably (:func:`reliable_error`)."""
     n_problems = df.problem.nunique()
+    df = df.assign(**{error: reliable_error(df, error)})
     keys = ["integrator", "rhs_tier", "setting"]
     ok = df[df.retcode == "Success"]
     agg = ok.groupby(keys).agg(worst_error=(error, "max"), total_wall_s=("wall_s", "sum"),
@@ -203,3 +207,34 @@ def recommend(df: pd.DataFrame, levels, error: str = "err_recurrence") -> pd.Dat
                      "next_integrator": others.iloc[0].integrator if len(others) else None,
                      "next_total_wall_s": others.iloc[0].total_wall_s if len(others) else math.nan})
     return pd.DataFrame(rows)
+
+
+#: the committed quick study, which the sweep reads to choose its default integrator
+STUDY_CSV = Path(__file__).resolve().parents[1] / "results" / "wp_quick.csv"
+
+
+def algorithm_at(integrator: str, rhs_tier: str, setting: float):
+    """The algorithm a study row describes: rtol = atol = ``setting``, or for ETD Δτcnst =
+    ``setting`` with Δτmax scaled by the same factor (as :func:`settings` builds them)."""
+    cls = REGISTRY[integrator]
+    if cls.adaptive:
+        return cls(rtol=setting, atol=setting, rhs=rhs_tier)
+    d = cls()
+    return cls(dtau_cnst=setting, dtau_max=d.dtau_max * setting / d.dtau_cnst)
+
+
+def recommended_algorithm(level: float, csv=STUDY_CSV, error: str = "err_recurrence"):
+    """``(algorithm, reason)``: the study's recommendation for ``level`` (see :func:`recommend`),
+    or ETD2 at the paper's settings when there is no study or it recommends nothing."""
+    from integrators import ETD2
+    path = Path(csv)
+    if not path.exists():
+        return ETD2(), f"no work-precision study at {path}: ETD2 at the paper's settings"
+    advice = recommend(pd.read_csv(path), [level], error).iloc[0]
+    if pd.isna(advice.get("integrator")) or advice.integrator not in REGISTRY:
+        return ETD2(), (f"{path.name} recommends nothing for {error} ≤ {level:g}: ETD2 at the "
+                        f"paper's settings")
+    alg = algorithm_at(advice.integrator, advice.rhs_tier, float(advice.setting))
+    return alg, (f"{path.name}: fastest setting with worst {error} ≤ {level:g} over its problems "
+                 f"(worst {advice.worst_error:.2g}): {advice.integrator} [{advice.rhs_tier}] at "
+                 f"{advice.setting:g}")

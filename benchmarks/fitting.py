@@ -1,0 +1,134 @@
+"""The fitting functions of a (b, Lc) inversion: J1, J2 and J (Urata et al. 2017, Eqs. 10–12).
+
+    J1 = (ΔTsy − ΔT̄)²/σT² + (Δμsy − Δμ̄)²/σμ²           95 % region: J1 ≤ 5.99146 (χ², 2 dof)
+    J2(i) = min over μ0 of Σj (μsy(i, j) − μob(i, j))² / Nj(i)
+    J̄2 = mean of J2(i) over the observed events i
+    J = J1 + (α1/α2) J̄2                                  possible range: J ≤ 2 α1
+
+α1 is the mean J1 over the grid points inside the 95 % region. α2 is the mean J̄2 over the points
+whose J̄2 is below min(J̄2 + σJ), σJ being the standard deviation of J2(i) over the events of
+one simulation. The paper's sentence ("J̄2 less than the minimum value of J̄2 + σJ in all
+simulations") is read here as the minimum over simulations of J̄2 + σJ.
+
+Slip-weakening curves (observed or synthetic) are CSV files with one row per sample and the
+columns ``event_id`` (any label; rows of one event together), ``slip_m`` (slip since the start
+of that event, m) and ``friction`` (shear force over normal force). The synthetic curve of a
+simulation is its last complete event, μ = Fs/Fn against the slip since the event started; it is
+linearly interpolated at the observed slips and held at its end values outside its range (before
+the event the fault is stuck, after it the slip no longer grows).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+__all__ = ["CHI2_95_2DOF", "CURVE_COLUMNS", "j1", "j2_per_event", "JointFit", "joint_fit",
+           "read_curves", "write_curves", "event_curve"]
+
+#: the 95 % quantile of χ² with two degrees of freedom: the paper's J1 threshold
+CHI2_95_2DOF = 5.99146
+CURVE_COLUMNS = ("event_id", "slip_m", "friction")
+
+
+def j1(recurrence_s, friction_drop, obs_recurrence: float, sigma_recurrence: float,
+       obs_drop: float, sigma_drop: float):
+    """Eq. 10 for one point or arrays of points; NaN where a metric is NaN (no stick–slip)."""
+    for name, value in (("sigma_recurrence", sigma_recurrence), ("sigma_drop", sigma_drop)):
+        if not value > 0:
+            raise ValueError(f"{name} must be positive, got {value!r}")
+    dt = (np.asarray(recurrence_s, dtype=float) - obs_recurrence) / sigma_recurrence
+    dm = (np.asarray(friction_drop, dtype=float) - obs_drop) / sigma_drop
+    return dt * dt + dm * dm
+
+
+def j2_per_event(curve_slip: np.ndarray, curve_friction: np.ndarray,
+                 observed: pd.DataFrame) -> np.ndarray:
+    """Eq. 11: J2(i) for each observed event i against one synthetic curve.
+
+    The minimum over the offset μ0 is taken in closed form: it is the variance (over the samples
+    of event i) of the residual μsy − μob. Returns NaN for every event if there is no curve.
+    """
+    groups = [g for _, g in observed.groupby("event_id", sort=False)]
+    if len(curve_slip) < 2:
+        return np.full(len(groups), np.nan)
+    out = np.empty(len(groups))
+    for i, g in enumerate(groups):
+        synthetic = np.interp(g["slip_m"].to_numpy(), curve_slip, curve_friction)
+        residual = synthetic - g["friction"].to_numpy()
+        out[i] = np.mean((residual - residual.mean()) ** 2)
+    return out
+
+
+class JointFit(dict):
+    """Result of :func:`joint_fit`: columns to add to a sweep table, and the weights α1, α2."""
+
+
+def joint_fit(J1: np.ndarray, J2_mean: np.ndarray | None = None,
+              J2_std: np.ndarray | None = None) -> JointFit:
+    """Region, weights, J and the possible range over a grid of points (Eq. 12).
+
+    Without slip-weakening curves (``J2_mean`` None) only the J1 region is returned. Points with
+    NaN J1 (stable sliding, failures) are outside every region.
+    """
+    J1 = np.asarray(J1, dtype=float)
+    in_region = J1 <= CHI2_95_2DOF
+    fit = JointFit(in_region=in_region, alpha1=float(J1[in_region].mean()) if in_region.any()
+                   else np.nan)
+    if J2_mean is None:
+        return fit
+    J2_mean, J2_std = np.asarray(J2_mean, dtype=float), np.asarray(J2_std, dtype=float)
+    finite = np.isfinite(J2_mean) & np.isfinite(J2_std)
+    if not finite.any():
+        fit.update(alpha2=np.nan, J=np.full(J1.shape, np.nan), possible=np.zeros(J1.shape, bool))
+        return fit
+    threshold = np.min((J2_mean + J2_std)[finite])
+    small = finite & (J2_mean < threshold)
+    # with a single best point J̄2 < its own J̄2 + σJ only if σJ > 0; keep that point anyway
+    alpha2 = float(J2_mean[small].mean()) if small.any() else float(np.min(J2_mean[finite]))
+    J = J1 + fit["alpha1"] / alpha2 * J2_mean if alpha2 > 0 else np.full(J1.shape, np.nan)
+    fit.update(alpha2=alpha2, j2_threshold=threshold, J=J, possible=J <= 2.0 * fit["alpha1"])
+    return fit
+
+
+def read_curves(path) -> pd.DataFrame:
+    """Observed slip-weakening curves from a CSV with :data:`CURVE_COLUMNS` (see the module doc)."""
+    df = pd.read_csv(path)
+    missing = [c for c in CURVE_COLUMNS if c not in df.columns]
+    if missing:
+        raise ValueError(f"slip-weakening file {path} lacks the columns {missing}; it needs "
+                         f"{list(CURVE_COLUMNS)}")
+    for c in ("slip_m", "friction"):
+        bad = ~np.isfinite(df[c].to_numpy(dtype=float))
+        if bad.any():
+            raise ValueError(f"slip-weakening file {path}: column {c} is not finite in row "
+                             f"{int(np.argmax(bad)) + 2}")
+    if df.event_id.nunique() < 1 or len(df) < 2:
+        raise ValueError(f"slip-weakening file {path} has no curve")
+    return df[list(CURVE_COLUMNS)]
+
+
+def write_curves(df: pd.DataFrame, path) -> None:
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    df[list(CURVE_COLUMNS)].to_csv(path, index=False)
+
+
+def event_curve(sol, index: int = -1) -> tuple[np.ndarray, np.ndarray]:
+    """Synthetic slip-weakening curve of event ``index`` (default: the last complete one).
+
+    Uses the saved trajectory, so solve with a ``save_every`` that resolves the event. The slip
+    since the event started is Δu = vL·(t − t_start) − ΔFs/k, exact for the spring with the load
+    point at its slow speed (the fast phase of two-speed loading starts when an event ends).
+    Returns empty arrays when the run has no complete event.
+    """
+    if not len(sol.events):
+        return np.empty(0), np.empty(0)
+    ev = sol.events.iloc[index]
+    p = sol.problem
+    inside = (sol.t > ev.t_start) & (sol.t < ev.t_end)
+    t = np.concatenate(([ev.t_start], sol.t[inside], [ev.t_end]))
+    fs = np.interp(t, sol.t, sol.fs)
+    slip = p.loading.v_slow * (t - t[0]) - (fs - fs[0]) / p.stiffness
+    return slip, fs / p.normal_force

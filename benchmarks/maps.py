@@ -1,0 +1,69 @@
+"""Maps of a sweep over (b, log Lc), drawn like Urata et al. (2017) Figs. 8 and 10a.
+
+Colour: the simulated recurrence interval ΔT, friction drop Δμ, J1 and (with slip-weakening
+curves) J. Marks: gray circles, stable sliding; crosses, multiple recurrence; dots, not converged
+(run longer); red x, failed;
+open diamonds, the 95 % region J1 ≤ 5.99 (on the J panel: the possible range J ≤ 2α1); a star,
+the best point; a white plus, a reference point such as the published best fit.
+"""
+
+from __future__ import annotations
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib.colors import LogNorm  # noqa: E402
+
+__all__ = ["plot_sweep"]
+
+_PANELS = (("recurrence_s", "ΔT (s)", False), ("friction_drop", "Δμ", False),
+           ("J1", "J1", True), ("J", "J", True))
+
+
+def plot_sweep(table, path, title: str = "", mark=None, best=None) -> None:
+    """Write the maps of ``table`` (a sweep table) to ``path``. ``mark`` = (b, Lc in m) is drawn
+    as a reference point; ``best`` = (b, Lc) as the star."""
+    panels = [p for p in _PANELS if p[0] in table and table[p[0]].notna().any()]
+    fig, axes = plt.subplots(1, max(len(panels), 1), figsize=(4.2 * max(len(panels), 1), 3.8),
+                             squeeze=False, constrained_layout=True)
+    b = table.b.to_numpy()
+    y = np.log10(table.lc_m.to_numpy() * 1e6)
+    for ax, (col, label, log) in zip(axes[0], panels):
+        z = table[col].to_numpy(dtype=float)
+        ok = np.isfinite(z) & (z > 0 if log else True)
+        norm = LogNorm(vmin=max(np.nanmin(z[ok]), 1e-3), vmax=np.nanmax(z[ok])) if log and ok.any() else None
+        sc = ax.scatter(b[ok], y[ok], c=z[ok], s=_size(b, y), marker="s", norm=norm,
+                        cmap="viridis_r" if log else "viridis", linewidths=0)
+        fig.colorbar(sc, ax=ax, label=label)
+        region = table["possible" if col == "J" else "in_region"].to_numpy(dtype=bool)
+        ax.scatter(b[region], y[region], s=14, marker="D", facecolors="none", edgecolors="w",
+                   linewidths=0.8, label="J ≤ 2α1" if col == "J" else "J1 ≤ 5.99 (95 %)")
+        for cls, style in (("stable sliding", dict(marker="o", c="0.6", s=10)),
+                           ("multiple recurrence", dict(marker="+", c="k", s=18)),
+                           ("not converged", dict(marker=".", c="0.3", s=10)),
+                           ("failed", dict(marker="x", c="r", s=18))):
+            sel = (table.classification == cls).to_numpy()
+            if sel.any():
+                ax.scatter(b[sel], y[sel], label=cls, **style)
+        if best is not None:
+            ax.scatter([best[0]], [np.log10(best[1] * 1e6)], marker="*", s=160, c="gold",
+                       edgecolors="k", label="best", zorder=5)
+        if mark is not None:
+            ax.scatter([mark[0]], [np.log10(mark[1] * 1e6)], marker="P", s=90, c="w",
+                       edgecolors="k", label="published", zorder=5)
+        ax.set_xlabel("b")
+        ax.set_ylabel("log10 Lc (µm)")
+        ax.set_title(label)
+    axes[0][0].legend(fontsize=6, loc="lower right")
+    if title:
+        fig.suptitle(title)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _size(b, y) -> float:
+    """Marker area that roughly tiles the grid."""
+    nb, ny = max(len(np.unique(b)), 1), max(len(np.unique(y)), 1)
+    return max(8.0, 9000.0 / max(nb, ny) ** 2)

@@ -1,0 +1,143 @@
+"""The (b, Lc) sweep: fitting functions on hand-computed inputs, restart after a kill, Dask."""
+
+import json
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from benchmarks.cli_sweep import observations
+from benchmarks.fitting import j1, j2_per_event, joint_fit, read_curves
+from benchmarks.sweep import parse_b, parse_lc, sweep
+from integrators import ETD2, ETDIterated
+
+DATA = Path(__file__).parent / "data"
+# made by the project's simulator: `rsfbench slip-weakening --preset W2 --law slip --t-end 20
+# --events 3 --points 25 --noise 2e-4 --seed 1` (ETD2, the slip-law best fit b = 0.0094,
+# Lc = 0.3 µm), i.e. three events of the limit cycle plus Gaussian noise of std 2e-4 on μ
+CURVES = DATA / "W2_slip_weakening.csv"
+NOISE = 2e-4
+# compared between runs: everything but the wall times
+SAME = ["b", "lc_m", "classification", "period", "n_events", "recurrence_s", "friction_drop",
+        "slip_m", "peak_velocity_m_s", "retcode", "nfev", "steps", "J1"]
+
+
+def test_grid_specs_parse_inclusively_and_reject_bad_input():
+    assert parse_b("0.0090:0.0094:0.0001").tolist() == [0.009, 0.0091, 0.0092, 0.0093, 0.0094]
+    assert np.allclose(parse_lc("1e-7:1e-5:3log"), [1e-7, 1e-6, 1e-5])
+    assert np.allclose(parse_lc("1e-7:3e-7:3"), [1e-7, 2e-7, 3e-7])
+    for bad in ("0.009:0.008:0.0001", "0.009:0.01", "a:b:c", "0.009:0.01:0"):
+        with pytest.raises(ValueError, match="--b"):
+            parse_b(bad)
+    for bad in ("0:1e-6:3log", "1e-6:1e-7:3", "1e-7:1e-6:xlog"):
+        with pytest.raises(ValueError, match="--lc"):
+            parse_lc(bad)
+
+
+def test_j1_by_hand():
+    # ((3.5 − 3)/0.5)² + ((0.04 − 0.05)/0.005)² = 1 + 4
+    assert j1(3.5, 0.04, 3.0, 0.5, 0.05, 0.005) == pytest.approx(5.0)
+    assert np.isnan(j1(np.nan, 0.04, 3.0, 0.5, 0.05, 0.005))
+    with pytest.raises(ValueError, match="sigma_drop"):
+        j1(3.5, 0.04, 3.0, 0.5, 0.05, 0.0)
+
+
+def test_j2_by_hand_removes_the_offset_and_interpolates():
+    slip, mu = np.array([0.0, 1.0]), np.array([0.6, -0.4])        # μsy = 0.6 − s
+    obs = pd.DataFrame({"event_id": [1, 1, 2, 2, 2], "slip_m": [0.25, 0.5, 0.0, 0.5, 2.0],
+                        "friction": [0.5, 0.3, 0.7, 0.2, 0.1]})
+    # event 1: μsy = 0.35, 0.1 → residuals −0.15, −0.20 → variance 0.025² = 6.25e-4
+    # event 2: μsy = 0.6, 0.1, −0.4 (held past the end) → residuals −0.1, −0.1, −0.5
+    #          → mean −0.2333, variance ((0.1333)² · 2 + (0.2667)²)/3 = 0.035556
+    assert j2_per_event(slip, mu, obs) == pytest.approx([6.25e-4, 0.0355556], rel=1e-5)
+    assert np.isnan(j2_per_event(np.empty(0), np.empty(0), obs)).all()
+
+
+def test_joint_fit_weights_and_ranges_by_hand():
+    J1 = np.array([1.0, 3.0, 10.0, np.nan])
+    fit = joint_fit(J1, np.array([0.1, 0.2, 0.3, np.nan]), np.array([0.05, 0.2, 0.01, np.nan]))
+    # α1 = mean J1 over J1 ≤ 5.99 = 2; threshold = min(J̄2 + σJ) = 0.15, so α2 = 0.1
+    assert fit["alpha1"] == 2.0 and fit["alpha2"] == pytest.approx(0.1)
+    assert fit["in_region"].tolist() == [True, True, False, False]
+    assert np.allclose(fit["J"][:3], [3.0, 7.0, 16.0]) and np.isnan(fit["J"][3])
+    assert fit["possible"].tolist() == [True, False, False, False]      # J ≤ 2α1 = 4
+
+
+def test_curve_files_are_checked(tmp_path):
+    bad = tmp_path / "bad.csv"
+    bad.write_text("event,slip_m,friction\n1,0,0.6\n")
+    with pytest.raises(ValueError, match="event_id"):
+        read_curves(bad)
+    assert read_curves(CURVES).event_id.nunique() == 3
+
+
+def _obs(curves=None, window="W2"):
+    return observations(window, curves=curves)
+
+
+def test_sweep_scores_the_synthetic_curves_and_records_failures(tmp_path):
+    b = [-0.001, 0.0092, 0.0094]                      # b < 0 is not a friction law: a failed row
+    lc = [1e-7, 3e-7]
+    res = sweep("W2", "slip", b, lc, ETDIterated(), _obs(read_curves(CURVES)), tmp_path,
+                t_end=20.0, workers=1, progress=False)
+    t = res.table.set_index(["b", "lc_m"])
+    assert (t.loc[-0.001].retcode == "Failure").all()
+    assert t.loc[-0.001].message.str.contains("b").all()
+    assert res.summary["n_failed"] == 2 and res.summary["n_points"] == 6
+    # the curves' own parameters: J2 is the noise variance (25 samples per event, 3 events)
+    gen = t.loc[(0.0094, 3e-7)]
+    assert 0.3 * NOISE ** 2 < gen.J2 < 2 * NOISE ** 2
+    assert t.loc[(0.0092, 3e-7)].J2 > 10 * gen.J2     # a smaller b: a visibly different curve
+    assert gen.in_region and gen.possible
+    written = pd.read_csv(tmp_path / "sweep.csv")
+    for col in ("b", "lc_m", "recurrence_s", "friction_drop", "J1", "J2", "J", "classification",
+                "retcode"):
+        assert col in written
+    assert json.loads((tmp_path / "summary.json").read_text())["best_by"] == "J"
+
+
+def _cli(out, *extra):
+    return [sys.executable, "-m", "benchmarks.cli", "sweep", "--preset", "W4", "--law", "slip",
+            "--b", "0.0101:0.0104:0.0001", "--lc", "1e-7:2e-7:3log", "--t-end", "10",
+            "--integrator", "ETD2", "--workers", "1", "--out", str(out), "--no-progress",
+            "--no-plot", *extra]
+
+
+def test_a_killed_sweep_resumes_to_the_same_table(tmp_path):
+    whole = sweep("W4", "slip", parse_b("0.0101:0.0104:0.0001"), parse_lc("1e-7:2e-7:3log"),
+                  ETD2(), _obs(window="W4"), tmp_path / "whole", t_end=10.0, workers=1, progress=False)
+    out = tmp_path / "killed"
+    proc = subprocess.Popen(_cli(out), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    points = out / "points"
+    deadline = time.time() + 120
+    while time.time() < deadline and len(list(points.glob("*.json"))) < 2:
+        time.sleep(0.01)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    done = len(list(points.glob("*.json")))
+    assert 2 <= done < 12, f"kill landed after {done} of 12 points"
+    again = subprocess.run(_cli(out, "--json"), capture_output=True, text=True, check=True)
+    summary = json.loads(again.stdout)
+    assert summary["n_resumed"] == done and summary["n_run"] == 12 - done
+    resumed = pd.read_csv(out / "sweep.csv")
+    pd.testing.assert_frame_equal(resumed[SAME], whole.table[SAME].reset_index(drop=True),
+                                  check_dtype=False)
+
+
+def test_dask_and_local_pools_give_the_same_table(tmp_path):
+    distributed = pytest.importorskip("distributed")
+    args = ("W2", "slip", [0.0092, 0.0094], [1e-7, 3e-7], ETDIterated(), _obs())
+    serial = sweep(*args, tmp_path / "serial", t_end=20.0, workers=1, progress=False).table
+    pool = sweep(*args, tmp_path / "pool", t_end=20.0, workers=2, progress=False).table
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
+                                  dashboard_address=None) as cluster:
+        res = sweep(*args, tmp_path / "dask", t_end=20.0, scheduler=cluster.scheduler_address,
+                    progress=False)
+    assert res.summary["scheduler"] == cluster.scheduler_address
+    for other in (pool, res.table):
+        pd.testing.assert_frame_equal(other[SAME], serial[SAME])
