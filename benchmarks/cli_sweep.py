@@ -2,6 +2,8 @@
 
     rsfbench sweep --preset W2 --law slip --b 0.0090:0.0098:0.0001 --lc 1e-7:1e-6:9log --json
     rsfbench slip-weakening --preset W2 --law slip --events 3 --out tests/data/W2_slip_weakening.csv
+    rsfbench paper-sweeps --out results     # Sect. 4: W1–W4, both laws, around the best fits
+    rsfbench sweep-scaling --out results    # 21 x 21 on W2: serial, 2 processes, 2 threads
 """
 
 from __future__ import annotations
@@ -128,6 +130,25 @@ def cmd_slip_weakening(args) -> int:
     return 0
 
 
+def cmd_paper_sweeps(args) -> int:
+    from benchmarks.paper_sweeps import paper_sweeps
+    table = paper_sweeps(Path(args.out), windows=args.windows, laws=args.laws,
+                         workers=args.workers, progress=not args.no_progress)
+    print((Path(args.out) / "sweeps.md").read_text())
+    return 0 if len(table) else 1
+
+
+def cmd_sweep_scaling(args) -> int:
+    from benchmarks.paper_sweeps import sweep_scaling
+    summary = sweep_scaling(Path(args.out), n=args.n, t_end=args.t_end,
+                            progress=not args.no_progress)
+    if args.json:
+        print(json.dumps(jsonable(summary), indent=2))
+    else:
+        print((Path(args.out) / "sweep_scaling.md").read_text())
+    return 0
+
+
 def add_parsers(sub, preset_names) -> None:
     s = sub.add_parser("sweep", help="J1/J2/J over a (b, Lc) grid: parallel, resumable")
     s.add_argument("--preset", required=True, choices=preset_names)
@@ -175,3 +196,20 @@ def add_parsers(sub, preset_names) -> None:
     c.add_argument("--seed", type=int, default=0)
     c.add_argument("--out", required=True, metavar="FILE.csv")
     c.set_defaults(func=cmd_slip_weakening)
+
+    p = sub.add_parser("paper-sweeps", help="Sect. 4: J1 sweeps around the published best fits")
+    p.add_argument("--out", default="results")
+    p.add_argument("--windows", nargs="+", default=["W1", "W2", "W3", "W4"],
+                   choices=["W1", "W2", "W3", "W4"])
+    p.add_argument("--laws", nargs="+", default=["slip", "aging"], choices=["slip", "aging"])
+    p.add_argument("--workers", type=int, metavar="N")
+    p.add_argument("--no-progress", action="store_true")
+    p.set_defaults(func=cmd_paper_sweeps)
+
+    g = sub.add_parser("sweep-scaling", help="time a 21 x 21 W2 sweep on 1 and 2 workers")
+    g.add_argument("--out", default="results")
+    g.add_argument("--n", type=int, default=21, help="grid points per axis")
+    g.add_argument("--t-end", type=float, default=40.0)
+    g.add_argument("--json", action="store_true")
+    g.add_argument("--no-progress", action="store_true")
+    g.set_defaults(func=cmd_sweep_scaling)

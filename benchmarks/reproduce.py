@@ -1,10 +1,11 @@
 """What ``make reproduce`` runs: every generated file in ``results/``, from scratch, and
 ``results/REPORT.md`` assembling them.
 
-Steps (about 25 minutes on a 2-core machine, ten of them scipy's RK45 in its wall budget):
+Steps (about 35 minutes on a 2-core machine, ten of them scipy's RK45 in its wall budget):
 integrator table; W1–W4 simulated under both laws (``simulate_<window>_<law>.json`` and the
 windows table); the paper example; the reference solutions and their agreement; the speed-up
-claim; the convergence study; the quick work-precision study; every backend side by side.
+claim; the convergence study; the quick work-precision study; every backend side by side; the
+Section 4 sweeps; the sweep's speed on 1 and 2 workers.
 """
 
 from __future__ import annotations
@@ -106,6 +107,17 @@ def reproduce(out: Path, scipy_budget: float | None = None) -> None:
     (out / "compare_paper_example.md").write_text(_compare_markdown(table))
     report["compare"] = (out / "compare_paper_example.md").read_text()
 
+    _section("Section 4: (b, Lc) sweeps around the published best fits")
+    from benchmarks.paper_sweeps import paper_sweeps, sweep_scaling
+    paper_sweeps(out, study_csv=out / "wp_quick.csv")
+    report["sweeps"] = (out / "sweeps.md").read_text()
+    print(report["sweeps"])
+
+    _section("sweep speed: 21 x 21 on W2, serial and on 2 workers")
+    sweep_scaling(out, study_csv=out / "wp_quick.csv")
+    report["sweep_scaling"] = (out / "sweep_scaling.md").read_text()
+    print(report["sweep_scaling"])
+
     (out / "REPORT.md").write_text(_report_markdown(report))
     print(f"\nwritten: {out / 'REPORT.md'}")
 
@@ -147,6 +159,14 @@ finest points above the reference's uncertainty:
 ## Every integrator on the paper example at rtol = atol = 1e−8 (`compare_paper_example.*`)
 
 {r['compare']}
+## Section 4: (b, Lc) sweeps around the published best fits (`sweeps.*`, `sweeps/`)
+
+{r['sweeps']}
+Maps: `sweeps/<window>_<law>/maps.png`.
+
+## Sweep speed (`sweep_scaling.*`)
+
+{r['sweep_scaling']}
 ## W1–W4 limit cycles, ETD2 at the paper's settings (`windows.*`, `simulate_*.json`)
 
 {r['windows']}

@@ -153,9 +153,10 @@ def reliable_error(df: pd.DataFrame, error: str = "err_recurrence") -> pd.Series
     monotone in the tolerance; this keeps a lucky cancellation at a loose setting from being
     recommended. Settings that were not run (budget) do not count."""
     key = ["problem", "integrator", "rhs_tier"]
-    ordered = df.sort_values(key + ["setting"])          # tightest first within each group
+    flat = df.reset_index(drop=True)                     # positions: any index will do
+    ordered = flat.sort_values(key + ["setting"])        # tightest first within each group
     env = ordered.groupby(key, sort=False)[error].transform(lambda x: x.cummax())
-    return env.reindex(df.index)
+    return pd.Series(env.sort_index().to_numpy(), index=df.index, name=error)
 
 
 def best_at_levels(df: pd.DataFrame, levels, error: str = "err_recurrence") -> pd.DataFrame:

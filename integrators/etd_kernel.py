@@ -57,7 +57,7 @@ E_SIZE = 8
 DONE, BUFFER_FULL, CHUNK_END, NONFINITE = 0, 1, 2, -1
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def log_slip_rate(law, beta, eta, psi):
     """ln w from the friction-law constraint (Eq. 32 slip law, Eq. 62 aging law)."""
     if law == 0:
@@ -65,7 +65,7 @@ def log_slip_rate(law, beta, eta, psi):
     return eta - beta * math.log(psi)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def coefficients(law, beta, c, d, h, eta, psi):
     """Frozen coefficients at (h, η, Ψ): w, ηss, D/w (rate of η), Ψss, w (rate of Ψ).
 
@@ -82,13 +82,13 @@ def coefficients(law, beta, c, d, h, eta, psi):
     return w, eta_ss, d / w, psi_ss, w
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _relax(y0, y_ss, rate, s):
     # exact solution of y' = −rate (y − y_ss) over s; −expm1 keeps accuracy when rate·s is tiny
     return y0 - (y0 - y_ss) * (-math.expm1(-rate * s))
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def etd_step(law, beta, c, d, e, h0, eta0, psi0, s, n_iter):
     """One ETD step of length s: first order for ``n_iter`` = 0 (Eqs. 33–41), the paper's
     second-order scheme for 1 (Eqs. 42–52), further re-evaluations for more."""
@@ -109,7 +109,7 @@ def etd_step(law, beta, c, d, e, h0, eta0, psi0, s, n_iter):
     return h1, eta1, psi1
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _crossing(lnw0, lnw1, ln_threshold):
     """Fraction of the step at which ln w crosses the threshold (linear interpolation)."""
     if lnw1 == lnw0:
@@ -118,7 +118,7 @@ def _crossing(lnw0, lnw1, ln_threshold):
     return min(1.0, max(0.0, f))
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def etd_advance(st, p, o, save_buf, ev_buf, max_steps):
     """Advance the ETD loop from state ``st`` for at most ``max_steps`` steps.
 
@@ -222,7 +222,7 @@ def etd_advance(st, p, o, save_buf, ev_buf, max_steps):
     return CHUNK_END
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def _store(st, tau, h, eta, psi, n_save, n_ev):
     st[S_TAU] = tau
     st[S_H] = h

@@ -140,6 +140,12 @@ def test_pareto_and_recommendation_pick_the_cheapest_that_reaches_each_level():
     assert advice.loc[1e-2, "integrator"] == "A" and advice.loc[1e-2, "total_wall_s"] == 3.0
     assert advice.loc[1e-6, "integrator"] == "A" and advice.loc[1e-6, "next_integrator"] == "B"
     assert pd.isna(advice.loc[1e-8, "integrator"])
+    # a lucky loose setting (error 1e-7 at 1e-3, but 1e-5 at 1e-6) is not recommended for 1e-6
+    lucky = [{"problem": p, "integrator": "C", "rhs_tier": "numba", "setting": s,
+              "retcode": "Success", "err_recurrence": e, "wall_s": 0.1}
+             for p in ("p1", "p2") for s, e in ((1e-3, 1e-7), (1e-6, 1e-5))]
+    advice = recommend(pd.concat([df, pd.DataFrame(lucky)]), (1e-6,)).set_index("level")
+    assert advice.loc[1e-6, "integrator"] == "A"
 
 
 def test_observed_order_of_an_exact_power_law():

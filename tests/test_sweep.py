@@ -141,3 +141,27 @@ def test_dask_and_local_pools_give_the_same_table(tmp_path):
     assert res.summary["scheduler"] == cluster.scheduler_address
     for other in (pool, res.table):
         pd.testing.assert_frame_equal(other[SAME], serial[SAME])
+
+
+def test_cli_sweep_json_has_the_promised_keys(tmp_path, capsys):
+    from benchmarks.cli import main
+    assert main(["sweep", "--preset", "W3", "--b", "0.0097:0.0098:0.0001", "--lc",
+                 "9e-7:9e-7:1", "--t-end", "20", "--workers", "1", "--out", str(tmp_path),
+                 "--json", "--no-progress"]) == 0
+    s = json.loads(capsys.readouterr().out)
+    for key in ("best_b", "best_lc_m", "best_J1", "n_points", "n_failed", "wall_s",
+                "integrator", "integrator_choice"):
+        assert key in s
+    assert s["n_points"] == 2 and s["observations"]["sigma_assumed_10_percent"]
+    assert (tmp_path / "maps.png").stat().st_size > 0
+    table = pd.read_csv(tmp_path / "sweep.csv")
+    assert table.b.tolist() == [0.0097, 0.0098] and (table.lc_m == 9e-7).all()
+
+
+def test_paper_grids_contain_the_published_best_fit():
+    from benchmarks.paper_sweeps import GRID, best_fit, grid_around
+    for law in ("slip", "aging"):
+        b0, lc0 = best_fit("W2", law)
+        b, lc = grid_around(b0, lc0, **GRID[law])
+        assert np.isclose(b, b0, rtol=0, atol=1e-12).any() and lc0 in lc
+        assert np.allclose(np.diff(b), 1e-4)
