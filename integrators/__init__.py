@@ -5,6 +5,8 @@ from integrators.solution import EVENT_COLUMNS, ReturnCode, Solution, Stats
 from integrators.solve import solve
 from integrators.etd import ETD1, ETD2, ETDIterated  # noqa: E402  (registers the ETD family)
 from integrators.cash_karp import CashKarp45  # noqa: E402  (Press et al.'s adaptive RK, numba)
+from integrators.exp_rosenbrock import Exprb32, Exprb43  # noqa: E402  (exponential Rosenbrock, numba)
+from integrators.rosenbrock import Rodas5P, Rosenbrock23  # noqa: E402  (Rosenbrock, numba)
 from integrators.scipy_backend import (ScipyBDF, ScipyDOP853, ScipyLSODA, ScipyRadau,  # noqa: E402
                                       ScipyRK45)
 
@@ -27,5 +29,5 @@ def _load_optional() -> None:
 _load_optional()
 
 __all__ = ["REGISTRY", "Algorithm", "algorithm_class", "make_algorithm", "register", "EVENT_COLUMNS", "ReturnCode",
-           "Solution", "Stats", "UNAVAILABLE", "solve", "ETD1", "ETD2", "ETDIterated", "CashKarp45",
+           "Solution", "Stats", "UNAVAILABLE", "solve", "ETD1", "ETD2", "ETDIterated", "CashKarp45", "Exprb32", "Exprb43", "Rosenbrock23", "Rodas5P",
            "ScipyBDF", "ScipyDOP853", "ScipyLSODA", "ScipyRadau", "ScipyRK45"]
