@@ -37,22 +37,19 @@ would cost more than the integration and change nothing in the events table.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
 from numba import njit
 
-from integrators.events import DIRECTIONS, END, H_EXTREMUM, PEAK, root_functions
-from integrators.registry import AdaptiveAlgorithm, register
-from integrators.segments import Advance
-from integrators.solution import ReturnCode, Stats
+from integrators.events import END, PEAK
+from integrators.kernel_stepper import CompiledAlgorithm, KernelStepper
+from integrators.registry import register
 from problems.formulations import ode_rhs
 
 __all__ = ["CashKarp45"]
 
-_CHUNK = 1 << 20                # accepted steps per kernel call at most
 REACHED, ROOT, CHUNK, NONFINITE, UNDERFLOW = range(5)
 # st: the last step [TAU_OLD, TAU], the step size H, CURSOR ≤ TAU the last time handed out and
 # T_RET the time returned, counters. Rows of Z: z and f at TAU and at TAU_OLD, the state
@@ -240,7 +237,7 @@ def _advance(st, p, Z, G, dirs, t_out, n_max):
 
 @register
 @dataclass(frozen=True)
-class CashKarp45(AdaptiveAlgorithm):
+class CashKarp45(CompiledAlgorithm):
     """Cash–Karp embedded Runge–Kutta 4(5), explicit, adaptive, with the step control of
     Numerical Recipes §16.2 (``rkqs``). Order 5: the 5th-order solution is propagated.
 
@@ -258,85 +255,16 @@ class CashKarp45(AdaptiveAlgorithm):
     family: ClassVar[str] = "explicit Runge–Kutta (Cash–Karp 4(5))"
     order: ClassVar[int] = 5
     stiff: ClassVar[bool] = False
-    library: ClassVar[str] = "rsfbench (numba)"
-    rhs_tiers: ClassVar[tuple[str, ...]] = ("numba",)
     rhs_tiers_reason: ClassVar[str] = (
         "its step loop is compiled with numba and calls the compiled right-hand side; the "
         "python-tier explicit RK45 is scipy-RK45")
-
-    @classmethod
-    def library_version(cls) -> str:
-        import numba
-        return f"numba {numba.__version__}"
 
     def make_stepper(self, nd, budget):
         return _CashKarpStepper(self, nd, budget)
 
 
-class _CashKarpStepper:
-    """The segment protocol over :func:`_advance`, whose state is all in the arrays below."""
+class _CashKarpStepper(KernelStepper):
+    """The segment protocol over :func:`_advance` (:class:`integrators.kernel_stepper.KernelStepper`)."""
 
-    def __init__(self, algorithm: CashKarp45, nd, budget):
-        self.algorithm, self.nd, self.budget = algorithm, nd, budget
-        self.stats = Stats()
-        self._st, self._Z, self._G = np.zeros(8), np.zeros((5, 3)), np.zeros((2, 4))
-        self._p = np.array([nd.law_code, nd.beta, nd.c, nd.d, 0.0, algorithm.rtol, algorithm.atol,
-                            math.log(10.0 * nd.e_slow), math.log(nd.e_slow), 0.0])
-        self._dirs = np.array(DIRECTIONS, dtype=np.int64)
-        self._last_root = None          # (tau, z, [(kind, sign after crossing)], e)
-
-    def start(self, tau0, z0, e, t_bound):
-        st, Z, G, p, a = self._st, self._Z, self._G, self._p, self.algorithm
-        self._e = p[4] = float(e)
-        p[9] = math.log(self._e)
-        Z[_Z] = z0
-        ode_rhs(int(p[0]), p[1], p[2], p[3], p[4], Z[_Z], Z[_F])
-        # initial step: Hairer, Nørsett & Wanner I, §II.4, on the scale of our error test
-        z, f, f1 = Z[_Z], Z[_F], np.empty(3)
-        scale = a.atol + a.rtol * np.abs(z)
-        d0, d1 = np.max(np.abs(z) / scale), np.max(np.abs(f) / scale)
-        h0 = 0.01 * d0 / d1 if min(d0, d1) >= 1e-5 else 1e-6
-        ode_rhs(int(p[0]), p[1], p[2], p[3], p[4], z + h0 * f, f1)
-        big = max(d1, np.max(np.abs(f1 - f) / scale) / h0)     # inf if the trial overflowed
-        h1 = (0.01 / big) ** 0.2 if big > 1e-15 else max(1e-6, 1e-3 * h0)
-        st[_H] = min(100.0 * h0, h1 if h1 > 0.0 else 1e-3 * h0, t_bound - tau0)
-        st[_TAU] = st[_CURSOR] = tau0
-        st[_NFEV] += 2.0
-        G[0] = root_functions(self.nd, self._e, z)
-        last = self._last_root
-        if last is not None and last[0] == tau0 and np.array_equal(last[1], z):
-            # restarting at a root just reported: keep its sign after the crossing, or the
-            # first step would find the same crossing again
-            for kind, sign in last[2]:
-                if (kind != H_EXTREMUM or last[3] == self._e) and G[0, kind] * sign <= 0.0:
-                    G[0, kind] = sign * 1e-300
-        self.stats.nfev = int(st[_NFEV])
-
-    def _stop(self, code, what):
-        t = self._st[_TAU]
-        return Advance(t, self._Z[_Z].copy(), retcode=code,
-                       message=f"{what} at t = {t * self.nd.time_scale:.6g} s")
-
-    def advance(self, t_out):
-        st, a, s = self._st, self.algorithm, self.stats
-        while True:
-            status = _advance(st, self._p, self._Z, self._G, self._dirs, float(t_out),
-                              min(_CHUNK, a.max_steps - int(st[_STEPS])))
-            s.nfev, s.steps, s.rejected = int(st[_NFEV]), int(st[_STEPS]), int(st[_REJECTED])
-            if status == ROOT:
-                z, kinds = self._Z[_ZR].copy(), [k for k in range(4) if self._G[1, k] != 0.0]
-                self._last_root = (st[_T_RET], z.copy(), [(k, self._G[1, k]) for k in kinds],
-                                   self._e)
-                return Advance(st[_T_RET], z, roots=kinds)
-            if status == NONFINITE:
-                return self._stop(ReturnCode.NON_FINITE, "non-finite state")
-            if status == UNDERFLOW:
-                return self._stop(ReturnCode.STEP_UNDERFLOW, "step size underflow (t + h == t)")
-            # here too, not only every 50 calls as the driver does: one call can be 1e6 steps
-            if self.budget is not None and self.budget.exceeded():
-                return self._stop(ReturnCode.WALL_TIME,
-                                  f"wall-time budget of {self.budget.wall_s} s used up")
-            if status == REACHED:
-                return Advance(st[_T_RET], self._Z[_ZR].copy())
-            if st[_STEPS] >= a.max_steps:
-                return self._stop(ReturnCode.MAX_STEPS, f"step budget of {a.max_steps} used up")
+    def kernel(self, t_out, n_max):
+        return _advance(self._st, self._p, self._Z, self._G, self._dirs, t_out, n_max)

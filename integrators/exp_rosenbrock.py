@@ -106,16 +106,14 @@ import numpy as np
 from numba import njit
 
 from integrators.cash_karp import (_CURSOR, _F, _FO, _H, _NFEV, _REJECTED, _STEPS, _T_RET, _TAU,
-                                   _TAU_OLD, _Z, _ZO, _ZR, _CashKarpStepper, _roots, _scan)
+                                   _TAU_OLD, _Z, _ZO, _ZR, _roots, _scan)
 from integrators.events import END, PEAK
-from integrators.registry import AdaptiveAlgorithm, register
-from integrators.segments import Advance
-from integrators.solution import ReturnCode
+from integrators.kernel_stepper import CompiledAlgorithm, KernelStepper
+from integrators.registry import register
 from problems.formulations import ode_jacobian, ode_rhs
 
 __all__ = ["Exprb32", "Exprb43", "phi_functions", "phi_dense"]
 
-_CHUNK = 1 << 20
 REACHED, ROOT, CHUNK, NONFINITE, UNDERFLOW = range(5)
 _NJEV = 8                     # st[0:8] is Cash–Karp's layout; one more counter
 _METHOD = 10                  # p[10]: 0 exprb32, 1 exprb43
@@ -457,54 +455,25 @@ def fixed_steps(p, z0, tau_span, n):
     return Z[_Z].copy()
 
 
-class _ExprbStepper(_CashKarpStepper):
-    """Cash–Karp's segment adapter (``start``, the restart at a reported root) over this module's
-    kernel; ``advance`` is Cash–Karp's with the kernel and the Jacobian counter swapped."""
+class _ExprbStepper(KernelStepper):
+    """The segment protocol over :func:`_advance` (:class:`integrators.kernel_stepper.KernelStepper`):
+    Cash–Karp's layouts with the method code appended to ``p`` and the Jacobian counter in
+    ``st``."""
 
     def __init__(self, algorithm, nd, budget):
-        super().__init__(algorithm, nd, budget)
-        self._st = np.zeros(9)
-        self._p = np.append(self._p, float(algorithm.method_code))
+        super().__init__(algorithm, nd, budget, extra_p=(float(algorithm.method_code),))
 
-    def advance(self, t_out):
-        st, a, s = self._st, self.algorithm, self.stats
-        while True:
-            status = _advance(st, self._p, self._Z, self._G, self._dirs, float(t_out),
-                              min(_CHUNK, a.max_steps - int(st[_STEPS])))
-            s.nfev, s.steps, s.rejected = int(st[_NFEV]), int(st[_STEPS]), int(st[_REJECTED])
-            s.njev = int(st[_NJEV])
-            if status == ROOT:
-                z, kinds = self._Z[_ZR].copy(), [k for k in range(4) if self._G[1, k] != 0.0]
-                self._last_root = (st[_T_RET], z.copy(), [(k, self._G[1, k]) for k in kinds],
-                                   self._e)
-                return Advance(st[_T_RET], z, roots=kinds)
-            if status == NONFINITE:
-                return self._stop(ReturnCode.NON_FINITE, "non-finite state")
-            if status == UNDERFLOW:
-                return self._stop(ReturnCode.STEP_UNDERFLOW, "step size underflow (t + h == t)")
-            if self.budget is not None and self.budget.exceeded():
-                return self._stop(ReturnCode.WALL_TIME,
-                                  f"wall-time budget of {self.budget.wall_s} s used up")
-            if status == REACHED:
-                return Advance(st[_T_RET], self._Z[_ZR].copy())
-            if st[_STEPS] >= a.max_steps:
-                return self._stop(ReturnCode.MAX_STEPS, f"step budget of {a.max_steps} used up")
+    def kernel(self, t_out, n_max):
+        return _advance(self._st, self._p, self._Z, self._G, self._dirs, t_out, n_max)
 
 
-class _Exprb(AdaptiveAlgorithm):
+class _Exprb(CompiledAlgorithm):
     family: ClassVar[str] = "exponential Rosenbrock (exact Jacobian)"
     stiff: ClassVar[bool] = True
-    library: ClassVar[str] = "rsfbench (numba)"
-    rhs_tiers: ClassVar[tuple[str, ...]] = ("numba",)
     rhs_tiers_reason: ClassVar[str] = (
         "its step loop, φ-functions and Jacobian are compiled with numba")
     method_code: ClassVar[int] = 0
     embedded_order: ClassVar[int] = 2
-
-    @classmethod
-    def library_version(cls) -> str:
-        import numba
-        return f"numba {numba.__version__}"
 
     def make_stepper(self, nd, budget):
         return _ExprbStepper(self, nd, budget)

@@ -69,15 +69,12 @@ import numpy as np
 from numba import njit
 
 from integrators.cash_karp import _roots as _roots_ck
-from integrators.events import DIRECTIONS, H_EXTREMUM, root_functions
-from integrators.registry import AdaptiveAlgorithm, register
-from integrators.segments import Advance
-from integrators.solution import ReturnCode, Stats
+from integrators.kernel_stepper import CompiledAlgorithm, KernelStepper
+from integrators.registry import register
 from problems.formulations import ode_jacobian, ode_rhs
 
 __all__ = ["Rosenbrock23", "Rodas5P"]
 
-_CHUNK = 1 << 20                # accepted steps per kernel call at most
 REACHED, ROOT, CHUNK, NONFINITE, UNDERFLOW = range(5)
 R23, RODAS5P = 0, 1             # method codes, p[_METHOD]
 # st: the last step [TAU_OLD, TAU], the step size H, CURSOR ≤ TAU the last time handed out and
@@ -438,22 +435,15 @@ def fixed_steps(p, z0, hs, n):
     return Z[_Z].copy()
 
 
-class _Rosenbrock(AdaptiveAlgorithm):
+class _Rosenbrock(CompiledAlgorithm):
     """What both methods share: options, tiers, the stepper."""
 
     stiff: ClassVar[bool] = True
-    library: ClassVar[str] = "rsfbench (numba)"
-    rhs_tiers: ClassVar[tuple[str, ...]] = ("numba",)
     rhs_tiers_reason: ClassVar[str] = (
         "its step loop is compiled with numba and calls the compiled right-hand side and "
         "Jacobian")
     method_code: ClassVar[int] = R23
     error_order: ClassVar[int] = 3          # the error estimate is O(h^error_order)
-
-    @classmethod
-    def library_version(cls) -> str:
-        import numba
-        return f"numba {numba.__version__}"
 
     def make_stepper(self, nd, budget):
         return _RosenbrockStepper(self, nd, budget)
@@ -489,76 +479,18 @@ class Rodas5P(_Rosenbrock):
     error_order: ClassVar[int] = 5
 
 
-class _RosenbrockStepper:
-    """The segment protocol over :func:`_advance`, whose state is all in the arrays below."""
+class _RosenbrockStepper(KernelStepper):
+    """The segment protocol over :func:`_advance` (:class:`integrators.kernel_stepper.KernelStepper`)."""
+
+    n_st, n_z = 13, 7
 
     def __init__(self, algorithm: _Rosenbrock, nd, budget):
-        self.algorithm, self.nd, self.budget = algorithm, nd, budget
-        self.stats = Stats()
-        self._st, self._Z, self._G = np.zeros(13), np.zeros((7, 3)), np.zeros((2, 4))
-        self._p = np.array([nd.law_code, nd.beta, nd.c, nd.d, 0.0, algorithm.rtol, algorithm.atol,
-                            math.log(10.0 * nd.e_slow), math.log(nd.e_slow), 0.0,
-                            algorithm.method_code])
-        self._dirs = np.array(DIRECTIONS, dtype=np.int64)
-        self._last_root = None          # (tau, z, [(kind, sign after crossing)], e)
+        super().__init__(algorithm, nd, budget, extra_p=(algorithm.method_code,))
+        self.init_exponent = 1.0 / algorithm.error_order
 
-    def start(self, tau0, z0, e, t_bound):
-        st, Z, G, p, a = self._st, self._Z, self._G, self._p, self.algorithm
-        self._e = p[4] = float(e)
-        p[9] = math.log(self._e)
-        Z[_Z] = z0
-        ode_rhs(int(p[0]), p[1], p[2], p[3], p[4], Z[_Z], Z[_F])
-        # initial step: Hairer, Nørsett & Wanner I, §II.4, on the scale of our error test
-        z, f, f1 = Z[_Z], Z[_F], np.empty(3)
-        scale = a.atol + a.rtol * np.abs(z)
-        d0, d1 = np.max(np.abs(z) / scale), np.max(np.abs(f) / scale)
-        h0 = 0.01 * d0 / d1 if min(d0, d1) >= 1e-5 else 1e-6
-        ode_rhs(int(p[0]), p[1], p[2], p[3], p[4], z + h0 * f, f1)
-        big = max(d1, np.max(np.abs(f1 - f) / scale) / h0)     # inf if the trial overflowed
-        h1 = (0.01 / big) ** (1.0 / a.error_order) if big > 1e-15 else max(1e-6, 1e-3 * h0)
-        st[_H] = min(100.0 * h0, h1 if h1 > 0.0 else 1e-3 * h0, t_bound - tau0)
-        st[_TAU] = st[_CURSOR] = tau0
-        st[_NACC] = st[_REJECT] = 0.0
-        st[_NFEV] += 2.0
-        G[0] = root_functions(self.nd, self._e, z)
-        last = self._last_root
-        if last is not None and last[0] == tau0 and np.array_equal(last[1], z):
-            # restarting at a root just reported: keep its sign after the crossing, or the
-            # first step would find the same crossing again
-            for kind, sign in last[2]:
-                if (kind != H_EXTREMUM or last[3] == self._e) and G[0, kind] * sign <= 0.0:
-                    G[0, kind] = sign * 1e-300
-        self._sync()
+    def reset(self):
+        self._st[_NACC] = self._st[_REJECT] = 0.0
 
-    def _sync(self):
-        st, s = self._st, self.stats
-        s.nfev, s.njev, s.steps, s.rejected = (int(st[_NFEV]), int(st[_NJEV]), int(st[_STEPS]),
-                                               int(st[_REJECTED]))
-
-    def _stop(self, code, what):
-        t = self._st[_TAU]
-        return Advance(t, self._Z[_Z].copy(), retcode=code,
-                       message=f"{what} at t = {t * self.nd.time_scale:.6g} s")
-
-    def advance(self, t_out):
-        st, a = self._st, self.algorithm
-        while True:
-            status = _advance(a.method_code, st, self._p, self._Z, self._G, self._dirs,
-                              float(t_out), min(_CHUNK, a.max_steps - int(st[_STEPS])))
-            self._sync()
-            if status == ROOT:
-                z, kinds = self._Z[_ZR].copy(), [k for k in range(4) if self._G[1, k] != 0.0]
-                self._last_root = (st[_T_RET], z.copy(), [(k, self._G[1, k]) for k in kinds],
-                                   self._e)
-                return Advance(st[_T_RET], z, roots=kinds)
-            if status == NONFINITE:
-                return self._stop(ReturnCode.NON_FINITE, "non-finite state")
-            if status == UNDERFLOW:
-                return self._stop(ReturnCode.STEP_UNDERFLOW, "step size underflow (t + h == t)")
-            if self.budget is not None and self.budget.exceeded():
-                return self._stop(ReturnCode.WALL_TIME,
-                                  f"wall-time budget of {self.budget.wall_s} s used up")
-            if status == REACHED:
-                return Advance(st[_T_RET], self._Z[_ZR].copy())
-            if st[_STEPS] >= a.max_steps:
-                return self._stop(ReturnCode.MAX_STEPS, f"step budget of {a.max_steps} used up")
+    def kernel(self, t_out, n_max):
+        return _advance(self.algorithm.method_code, self._st, self._p, self._Z, self._G,
+                        self._dirs, t_out, n_max)
