@@ -6,6 +6,7 @@
     rsfbench work-precision --study quick   # every integrator over a ladder of settings
     rsfbench convergence --json             # observed orders of the fixed-step methods
     rsfbench speedup --json                 # the paper's 1/10,000 claim, three ways
+    rsfbench target --csv results/wp_quick.csv   # own integrators against LSODA and SUNDIALS
     rsfbench sweep --preset W2 --b 0.009:0.0098:0.0001 --lc 1e-7:1e-6:9log --json
     rsfbench reproduce --out results        # what `make reproduce` runs
 """
@@ -210,6 +211,17 @@ def cmd_speedup(args) -> int:
     return 0
 
 
+def cmd_target(args) -> int:
+    from benchmarks.target import write_target
+    table = write_target(args.csv, args.out)
+    if args.json:
+        print(json.dumps(_jsonable(table.to_dict(orient="records")), indent=2))
+    else:
+        name = Path(args.csv).stem.removeprefix("wp_")
+        print((Path(args.out) / f"target_{name}.md").read_text())
+    return 0
+
+
 def cmd_reproduce(args) -> int:
     from benchmarks.reproduce import reproduce
     reproduce(Path(args.out), scipy_budget=args.scipy_budget)
@@ -308,6 +320,13 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--out", help="directory for speedup.json, .csv and .md")
     sp.add_argument("--json", action="store_true")
     sp.set_defaults(func=cmd_speedup)
+
+    t = sub.add_parser("target", help="issue 6's target: own integrators ≥ 2x faster than LSODA "
+                       "and SUNDIALS at each error level, from a work-precision CSV")
+    t.add_argument("--csv", default="results/wp_quick.csv")
+    t.add_argument("--out", default="results")
+    t.add_argument("--json", action="store_true")
+    t.set_defaults(func=cmd_target)
 
     r = sub.add_parser("reproduce", help="regenerate results/ (what `make reproduce` runs)")
     r.add_argument("--out", default="results")

@@ -99,6 +99,9 @@ def reproduce(out: Path, scipy_budget: float | None = None) -> None:
     report["work_precision"] = paths["pareto_md"].read_text()
     report["wp_figures"] = [p.name for k, p in paths.items() if k.startswith("png_")]
     print(report["work_precision"])
+    from benchmarks.target import write_target
+    write_target(paths["csv"], out)
+    report["target"] = (out / "target_quick.md").read_text()
 
     _section(f"every integrator on the paper example, rtol = atol = {COMPARE_RTOL:g}")
     table = compare_integrators(paper_example(), COMPARE_RTOL, COMPARE_RTOL,
@@ -156,6 +159,9 @@ finest points above the reference's uncertainty:
 {r['work_precision']}
 {figures}
 
+## Issue 6's target: own integrators against compiled LSODA and SUNDIALS (`target_quick.*`)
+
+{r['target']}
 ## Every integrator on the paper example at rtol = atol = 1e−8 (`compare_paper_example.*`)
 
 {r['compare']}

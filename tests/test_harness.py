@@ -198,3 +198,20 @@ def test_speedup_cli_json_keys_and_a_budget_stop_is_a_lower_bound(cache, monkeyp
     # the compiled RK45 and ETD2 agree on both events; scipy completed fewer
     assert out["events_compared"]["CashKarp45"] == 2
     assert out["cycle_disagreement"]["CashKarp45_vs_ETD2"] < 1e-3
+
+
+def test_target_table_compares_the_fastest_own_run_with_lsoda_and_sundials():
+    from benchmarks.target import target_table
+    rows = [("Rodas5P", 1e-6, 1e-5, 1.0), ("Rodas5P", 1e-8, 1e-7, 3.0),
+            ("numbalsoda-LSODA", 1e-6, 1e-5, 2.5), ("numbalsoda-LSODA", 1e-8, 1e-7, 5.0),
+            ("odes-CVODE-BDF", 1e-8, 1e-7, 4.0)]
+    df = pd.DataFrame([{"problem": "p", "integrator": n, "rhs_tier": "numba", "setting": s,
+                        "retcode": "Success", "err_recurrence": e, "wall_s": w}
+                       for n, s, e, w in rows])
+    t = target_table(df, levels=(1e-5, 1e-7, 1e-9)).set_index("level")
+    # 1e-5: own 1.0 s, LSODA 2.5 s, SUNDIALS only at 1e-8 (4.0 s) → 2.5× and 4×: met
+    assert t.loc[1e-5, "ratio_lsoda"] == 2.5 and t.loc[1e-5, "ratio_sundials"] == 4.0
+    assert t.loc[1e-5, "met"] == "yes"
+    # 1e-7: own 3.0 s, LSODA 5.0 s → 1.67×: missed
+    assert t.loc[1e-7, "met"] == "no" and t.loc[1e-7, "own"] == "Rodas5P"
+    assert t.loc[1e-9, "met"].startswith("no (own: none)")
