@@ -13,7 +13,8 @@ One compiled cfunc, ``_rhs``, serves every problem: it calls :func:`problems.for
 with the friction law, β, C, D and the loading E read from the ``data`` array (a restart at a new
 loading only writes E), and keeps the counters there, so they are counted, not reported by LSODA:
 
-* ``nfev``: right-hand-side calls, the finite-difference Jacobian columns included;
+* ``nfev``: right-hand-side calls, the finite-difference Jacobian columns included, plus two
+  per sub-interval in which crossings are placed (f at its ends, for the Hermite interpolant);
 * ``steps``: step *attempts*, the calls whose t differs from the previous call's (every attempt,
   accepted or rejected, evaluates f at its own new abscissa; LSODA's start-up evaluation counts as
   one): an upper bound of LSODA's accepted steps; ``rejected`` is not available (0);
@@ -21,20 +22,33 @@ loading only writes E), and keeps the counters there, so they are counted, not r
   before, each with that call's state moved in one component; the first column counts one.
 
 The cfunc also stops LSODA when it must (the step budget ``max_steps`` on attempts, and the two
-cases below) by returning inf, which fails LSODA at once (NaN would not: its norms skip NaN and it
-carries on); LSODA then prints a line or two on stderr.
+cases below) by returning inf from then on. That does not reliably fail LSODA: here it mostly
+carries on (the NaN that inf − inf makes of its error norm passes the test) with NaN states and
+interpolates every remaining output time (~80 ns each: 5 ms for a block of 65536 points stopped
+after 20, and numbalsoda reports success). So the
+cfunc also ends numbalsoda's loop over the output times, through the one check the wrapper makes:
+the output times live in the data array after the parameters, and it sets the one after the
+current output interval to −inf (``_cut``; restored for the next call by copying them in again).
+The rows LSODA wrote after the stop (NaN, or at or after the stop's trial time) are not used.
 
 Events, located to the integration tolerance, not to a grid: LSODA integrates in blocks, one
 ``lsoda`` call each, through a grid that contains the driver's output times and has at least 16
 points per half period π/√C of the mass-spring oscillation, the fastest oscillation of the slider
-(crossings closer together than that spacing can be missed). A sign change, in a direction that
-counts, of a root function between two grid points triggers one more ``lsoda`` call from the left
-point through the interval at 1024 sub-points (LSODA's own interpolation to each), which brackets
-every such crossing in it; in its bracket each crossing is placed by the root functions on the
-cubic Hermite interpolant of z (z and dz/dτ at both ends; the root functions are linear in z).
-At 1/(16·1024) of a half period, the interpolation error is ~(1e−4)^4 of the state's own time
-scale: the located time carries the integration error only. Cost: one cold LSODA start over one
-grid interval per interval with crossings (~1–2 per event; a few per cent of all attempts).
+(crossings closer together than that spacing can be missed). The root functions at every grid
+point of a block, and the intervals with a sign change in a direction that counts, are found by
+one numba kernel (``_block_roots``); Python sees only those intervals. Each triggers one more
+``lsoda`` call from the left point through the interval at 128 sub-points (LSODA's own
+interpolation to each), which brackets every such crossing in it; in its bracket each crossing is
+placed by bisection to the last bit of the root functions on the cubic Hermite interpolant of z
+(z and dz/dτ at both ends; the root functions are linear in z), in numba (``_sub_roots``). The
+interpolation error over 1/(16·128) of a half period is ~(π/2048)^4/384 ≈ 1e−14 of the state's
+scale on that time scale: the located time carries the integration error only. As in CashKarp45
+and the Rosenbrock methods, a ``PEAK`` crossing at w ≤ E_slow is not reported (it cannot be an
+event's peak: an event starts at w > 10 E_slow and ends at w ≤ E_slow; the recorder ignores
+PEAK outside an event). In the stick phase C h − D η = w u' is ~0 and at loose tolerances
+jitters about it: at rtol 1e−3 that was ~20 crossings per cycle, each a re-integration, which
+made the run slower than at rtol 1e−10. An interval with only a PEAK sign change is looked at
+only when w > E_slow at one of its ends.
 
 Where blocks end, and why. A cold LSODA start in the stick phase sometimes (a few per cent of
 starts, more the deeper the stick) never leaves Adams: its stiffness test needs a corrector that
@@ -51,6 +65,27 @@ interval (another initial step, another start); the last try runs unguarded.
 
 numbalsoda is imported at the first solve, not with this module: its import compiles its own
 ``solve_ivp`` driver (~9 s).
+
+Cost (warm, min of 3, ``max_points=2``, rtol = atol; old and new code in one run on a 2-core
+machine under other load, so ±20 %):
+
+=======  ==============================  ==============================
+rtol     paper example (20 s), ms        W2 aging (20 s), ms
+=======  ==============================  ==============================
+1e−3     182 → 11   (err_rec 7.1e−3)     628 → 28   (err_rec 2.4 / 2.7e−2)
+1e−4     213 → 10   (1.3e−3)             567 → 22   (3.8 / 5.6e−3)
+1e−6     138 → 14   (3.3e−5)             724 → 38   (8.2 / 8.9e−5)
+1e−8      81 → 17   (5.6e−7)             388 → 37   (2.5 / 2.5e−6)
+1e−10     74 → 22   (1.8e−8)             274 → 62   (4.2 / 4.7e−8)
+=======  ==============================  ==============================
+
+(before → after the event kernels, the PEAK rule, ``_cut`` and reused buffers; err_rec of
+:mod:`benchmarks.errors` before / after; W2 restarts at every event end, so the O(tol)
+difference in where END is placed moves its errors a little). Step attempts fell by 1–60 %
+(fewer re-integrations; no attempts counted after a stop). About half of what remains is LSODA
+itself (bare ``lsoda`` over the paper example with 37 000 output points, no events: 4 / 7 / 6 /
+15 ms at rtol 1e−3 / 1e−6 / 1e−8 / 1e−10); the rest is ~80 ns per output point and the Python
+side of ~40–100 ``lsoda`` calls (~0.1 ms each: blocks, re-integrations, restarts).
 
 Reference: Petzold (1983), Automatic selection of methods for solving stiff and nonstiff systems
 of ODEs, SIAM J. Sci. Stat. Comput. 4, 136–148; Hindmarsh (1983), ODEPACK; numbalsoda:
@@ -69,9 +104,8 @@ from typing import ClassVar
 
 import numpy as np
 from numba import carray, cfunc, njit
-from scipy.optimize import brentq
 
-from integrators.events import DIRECTIONS, H_EXTREMUM, root_functions
+from integrators.events import DIRECTIONS, END, H_EXTREMUM, PEAK
 from integrators.registry import AdaptiveAlgorithm, register
 from integrators.segments import Advance
 from integrators.solution import ReturnCode, Stats
@@ -85,7 +119,8 @@ if importlib.util.find_spec("numbalsoda") is None:
 _VERSION = importlib.metadata.version("numbalsoda")
 
 # The data array handed to the cfunc: the parameters of ode_rhs, the counters, and what decides
-# when the cfunc stops LSODA (_KILL says why: 1 stuck start, 2 step budget, 3 end of block).
+# when the cfunc stops LSODA (_KILL says why: 1 stuck start, 2 step budget, 3 end of block);
+# after them the call's output times, which the wrapper reads from there too (see _cut).
 (_LAW, _BETA, _C, _D, _E,                       # ode_rhs parameters
  _NFEV, _ATTEMPTS, _T_LAST, _LIMIT,             # counters and the step budget
  _NJEV, _YB0, _YB1, _YB2,                       # Jacobians, and the state they perturb
@@ -93,14 +128,14 @@ _VERSION = importlib.metadata.version("numbalsoda")
  _GUARD_U, _U_STIFF,                            # ...below this ln w
  _BLOCK, _U_ONSET, _U_END, _T_ARM, _ARMED,      # block ends: entering an event...
  _TWO_SPEED, _IN_EVENT, _END_DT, _END_KILL_T,   # ...and after an event's end (two-speed)
- _KILL, _KILL_T) = range(30)
-_DATA_LEN = 30
+ _KILL, _KILL_T, _NT) = range(31)
+_DATA_LEN = 31                       # then the output times of the call (_NT of them)
 _STUCK, _BUDGET, _BLOCK_END = 1.0, 2.0, 3.0
 _KILL_VALUE = np.inf
 
 _BLOCK_MAX = 65536                   # grid points per lsoda call at most (memory)
 _POINTS_PER_HALF_PERIOD = 16
-_N_SUB = 1024                        # sub-points of an interval with a sign change
+_N_SUB = 128                         # sub-points of an interval with a sign change
 _MXSTEP = 1_000_000                  # LSODA's per-interval limit; the budget is the cfunc's
 _GUARD_ATTEMPTS = 300
 _GUARD_DU = 0.01
@@ -141,10 +176,177 @@ def _watch(t, u, data):
 
 
 @njit(cache=True)
+def _cut(buf, t):
+    """Make numbalsoda's wrapper return soon after a stop at the trial time t (LSODA itself
+    does not reliably fail on the cfunc's inf: module docstring). The wrapper returns at the
+    first output time below the one before; LSODA is integrating towards an output time at most
+    the first one at or after t (the step started past the one before), so the one after that is
+    set to −inf. The times are _run's copy in the data array, the caller's are untouched."""
+    nt = int(buf[_NT])
+    lo, hi = 0, nt                      # first index with time ≥ t
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if buf[_DATA_LEN + mid] < t:
+            lo = mid + 1
+        else:
+            hi = mid
+    if lo + 1 < nt:
+        buf[_DATA_LEN + lo + 1] = -np.inf
+
+
+@njit(cache=True)
 def _rebase(z, data):
     data[_YB0] = z[0]
     data[_YB1] = z[1]
     data[_YB2] = z[2]
+
+
+# --- event kernels: root functions on a whole block, bracketing, Hermite bisection -----------
+# q = (law, β, C, D, E, ln 10 E_slow, ln E_slow, ln E): ode_rhs's parameters and the levels of
+# events.root_functions (same operations, so the same values to the bit)
+_DIRS = np.array(DIRECTIONS, dtype=np.float64)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _roots(q, z, g):
+    """events.root_functions at z, into g."""
+    g[0], g[1], g[2] = z[1] - q[5], z[1] - q[6], z[1] - q[7]
+    g[3] = q[2] * z[0] - q[3] * (z[1] + q[1] * z[2])
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _counts(k, a, b, end_a, end_b):
+    """Whether g_k crosses zero from a to b in a direction that counts (the convention of
+    dense_roots: exactly zero is the far side); a PEAK crossing only where w > E_slow at an end
+    of the interval (end_a or end_b > 0: the stick-phase jitter of C h − D η is not a peak)."""
+    if a < 0.0 <= b:
+        ok = _DIRS[k] >= 0.0
+    elif a > 0.0 >= b:
+        ok = _DIRS[k] <= 0.0
+    else:
+        return False
+    return ok and (k != PEAK or end_a > 0.0 or end_b > 0.0)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _block_roots(q, Y, n, g_first, G, cross):
+    """Root functions at the rows 1..n−1 of a block (row 0: ``g_first``, signs carried over a
+    restart) into G; the intervals (i, i+1) with a crossing that counts into ``cross``.
+    Returns how many."""
+    G[0] = g_first
+    m = 0
+    for i in range(1, n):
+        _roots(q, Y[i], G[i])
+        for k in range(4):
+            if _counts(k, G[i - 1, k], G[i, k], G[i - 1, END], G[i, END]):
+                cross[m] = i - 1
+                m += 1
+                break
+    return m
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _hermite(za, fa, zb, fb, x, dt, out):
+    x2, x3 = x * x, x * x * x
+    a, b, c, d = 2 * x3 - 3 * x2 + 1, (x3 - 2 * x2 + x) * dt, 3 * x2 - 2 * x3, (x3 - x2) * dt
+    for i in range(3):
+        out[i] = a * za[i] + b * fa[i] + c * zb[i] + d * fb[i]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _sub_roots(q, ts, Z, g_a, g_b, R):
+    """The crossings that count between the sub-points (ts, Z) of one grid interval, each
+    placed on the cubic Hermite interpolant of its sub-interval (z and f = dz/dτ at both ends;
+    the root functions are linear in z) by bisection to the last bit; the far end keeps the
+    sign after the crossing. The interval's end values of g are ``g_a``, ``g_b`` (signs carried
+    over a restart). Rows of R: (τ, kind, sign, z0, z1, z2). Returns (roots, rhs calls)."""
+    n = ts.shape[0]
+    g0, g1, gt = g_a.copy(), np.empty(4), np.empty(4)
+    fa, fb, zt = np.empty(3), np.empty(3), np.empty(3)
+    law = int(q[0])
+    m, nfev = 0, 0
+    for j in range(n - 1):
+        if j == n - 2:
+            g1[:] = g_b
+        else:
+            _roots(q, Z[j + 1], g1)
+        have_f = False
+        for k in range(4):
+            if not _counts(k, g0[k], g1[k], g0[END], g1[END]):
+                continue
+            dt = ts[j + 1] - ts[j]
+            if not have_f:
+                ode_rhs(law, q[1], q[2], q[3], q[4], Z[j], fa)
+                ode_rhs(law, q[1], q[2], q[3], q[4], Z[j + 1], fb)
+                nfev += 2
+                have_f = True
+            left_pos = g0[k] > 0.0
+            lo, hi = 0.0, 1.0
+            while True:
+                mid = 0.5 * (lo + hi)
+                if mid <= lo or mid >= hi:
+                    break
+                _hermite(Z[j], fa, Z[j + 1], fb, mid, dt, zt)
+                _roots(q, zt, gt)
+                if gt[k] != 0.0 and (gt[k] > 0.0) == left_pos:
+                    lo = mid
+                else:
+                    hi = mid
+            if hi == 1.0:
+                zt[:] = Z[j + 1]
+            else:
+                _hermite(Z[j], fa, Z[j + 1], fb, hi, dt, zt)
+            _roots(q, zt, gt)
+            if k == PEAK and not gt[END] > 0.0:
+                continue                         # at the root w ≤ E_slow: not a peak
+            R[m, 0] = ts[j + 1] if hi == 1.0 else ts[j] + hi * dt
+            R[m, 1] = k
+            R[m, 2] = 1.0 if g1[k] > g0[k] else -1.0
+            R[m, 3:6] = zt
+            m += 1
+        g0[:] = g1
+    return m, nfev
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _reached(usol, t_eval, kill_t):
+    """How many leading rows of the output buffer (of len(t_eval) rows) LSODA reached before
+    it failed or the cfunc stopped it: the wrapper writes none after a failure, and the
+    buffer is NaN where it did not write; rows at or after the kill time are not trusted."""
+    for i in range(1, t_eval.shape[0]):
+        if not (np.isfinite(usol[i, 0]) and np.isfinite(usol[i, 1]) and np.isfinite(usol[i, 2])
+                and t_eval[i] < kill_t):
+            return i
+    return t_eval.shape[0]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _reset(usol):
+    """NaN again in the leading rows the last call wrote (they are contiguous, and once LSODA's
+    state is NaN it stays NaN): the buffer is reset at the cost of what was used, not of its
+    length."""
+    for i in range(usol.shape[0]):
+        if np.isnan(usol[i, 0]) and np.isnan(usol[i, 1]) and np.isnan(usol[i, 2]):
+            return
+        usol[i, 0] = usol[i, 1] = usol[i, 2] = np.nan
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _grid(start, t_req, dg, j0, n_max, match, t_bound, out):
+    """A block's output times into out: start, then t_req + dg·j for j = j0, j0+1, … strictly
+    between start and t_bound (by more than ``match``), then t_bound if the segment ends within
+    n_max points. Returns how many."""
+    out[0] = start
+    n = 1
+    for i in range(n_max):
+        t = t_req + dg * float(j0 + i)
+        if start + match < t < t_bound - match:
+            out[n] = t
+            n += 1
+    if n - 1 < n_max:
+        out[n] = t_bound
+        n += 1
+    return n
 
 
 def _rhs(t, u, du, p):
@@ -160,6 +362,7 @@ def _rhs(t, u, du, p):
             if why != 0.0:
                 data[_KILL] = why
                 data[_KILL_T] = t
+                _cut(carray(p, (_DATA_LEN + int(data[_NT]),)), t)
         _rebase(z, data)
     else:
         # LSODA's finite-difference Jacobian: at the t of the call before, one column per
@@ -182,25 +385,24 @@ def _rhs(t, u, du, p):
 @functools.cache
 def _library():
     """numbalsoda's signature and C entry point, and ours built on them: the address of the
-    compiled ``_rhs`` and ``run``, numbalsoda's ``lsoda`` with the output pre-filled with NaN
-    (after a failure the rows it did not reach stay NaN; ``lsoda`` leaves them uninitialised,
-    so this tells how far it got)."""
+    compiled ``_rhs`` and ``run``, numbalsoda's ``lsoda`` writing into a buffer the caller
+    keeps filled with NaN (after a failure the rows it did not reach stay NaN, which tells how
+    far it got; ``lsoda`` allocates its output uninitialised)."""
     from numbalsoda import lsoda_sig
     from numbalsoda.driver import lsoda_wrapper
 
     rhs = cfunc(lsoda_sig, cache=True)(_rhs)
 
     @njit
-    def run(funcptr, u0, t_eval, data, rtol, atol, mxstep):
+    def run(funcptr, u0, t_eval, data, rtol, atol, mxstep, usol):
         neq, nt = u0.shape[0], t_eval.shape[0]
-        usol = np.full((nt, neq), np.nan)
         success = np.array(999, np.int32)
         lsoda_wrapper(funcptr, neq, u0.ctypes.data, data.ctypes.data, nt, t_eval.ctypes.data,
                       usol.ctypes.data, rtol, atol, mxstep, success.ctypes.data)
         ok = True
         if success != 1:
             ok = False
-        return usol, ok
+        return ok
 
     return rhs.address, run
 
@@ -221,8 +423,9 @@ class NumbaLSODA(AdaptiveAlgorithm):
 
     Needs ``rtol`` and ``atol`` (required: no default accuracy; ``atol`` applies to every
     component of (h, ln w, Ψ or ln Ψ)), ``max_steps`` (step attempts, whole solve) and the
-    compiled right-hand side (``rhs="numba"`` only). Events by sign changes on a grid and Brent
-    refinement with re-integration (module docstring). Reference: Petzold (1983), SIAM J. Sci.
+    compiled right-hand side (``rhs="numba"`` only). Events by sign changes on a grid,
+    re-integration of the interval and bisection on a cubic Hermite interpolant (module
+    docstring). Reference: Petzold (1983), SIAM J. Sci.
     Stat. Comput. 4, 136–148; Hindmarsh (1983), ODEPACK.
     """
 
@@ -256,13 +459,20 @@ class _LsodaStepper:
         self.algorithm = algorithm
         self.nd = nd
         self.stats = Stats()
-        d = self._data = np.zeros(_DATA_LEN)
+        # the data array with room for the output times of a call, and the output buffer
+        # (NaN where the last call did not write); both grow to the longest call
+        self._buf = np.zeros(_DATA_LEN + 1024)
+        self._ubuf = np.full((1024, 3), np.nan)
+        d = self._data = self._buf[:_DATA_LEN]
         d[[_LAW, _BETA, _C, _D]] = nd.law_code, nd.beta, nd.c, nd.d
         d[_T_LAST] = np.nan
         d[_LIMIT] = float(algorithm.max_steps)
         d[_U_ONSET], d[_U_END] = math.log(10.0 * nd.e_slow), math.log(nd.e_slow)
         d[_TWO_SPEED] = float(nd.tau_fast > 0.0 and nd.e_fast != nd.e_slow)
         self._funcptr, self._lsoda = _library()
+        # the parameters of the event kernels (E and ln E are set by start)
+        self._q = np.array([nd.law_code, nd.beta, nd.c, nd.d, 0.0, math.log(10.0 * nd.e_slow),
+                            math.log(nd.e_slow), 0.0])
         self._dcap = math.pi / math.sqrt(nd.c) / _POINTS_PER_HALF_PERIOD
         self._dt_out = 0.0            # spacing of the driver's output times, learned
         self._last_request = None
@@ -272,9 +482,11 @@ class _LsodaStepper:
 
     def start(self, tau0, z0, e, t_bound):
         self._e = float(e)
-        self._data[_E] = self._e
+        self._data[_E] = self._q[4] = self._e
+        self._q[7] = math.log(self._e)
         z0 = np.array(z0, dtype=float)
-        g0 = self._g(z0[None, :])[0]
+        g0 = np.empty(4)
+        _roots(self._q, z0, g0)
         last = self._last_root
         if last is not None and last[0] == tau0 and np.array_equal(last[1], z0):
             # restarting at a root just reported: keep its sign after the crossing, so that the
@@ -328,9 +540,16 @@ class _LsodaStepper:
     # --- lsoda calls ----------------------------------------------------------------------------
 
     def _run(self, z0, t_eval, guard: bool, block: bool):
-        """One lsoda call; counters updated. Returns (usol, ok); ``_data[_KILL]`` tells whether
-        and why the cfunc stopped it."""
+        """One lsoda call; counters updated. Returns (rows, n, ok): the n rows LSODA reached
+        (see ``_reached``); ``_data[_KILL]`` tells whether and why the cfunc stopped it."""
         a = self.algorithm
+        nt = len(t_eval)
+        if nt > len(self._ubuf):
+            size = 1 << (nt - 1).bit_length()
+            buf = np.zeros(_DATA_LEN + size)
+            buf[:_DATA_LEN] = self._data
+            self._buf, self._data = buf, buf[:_DATA_LEN]
+            self._ubuf = np.full((size, 3), np.nan)
         d = self._data
         d[_KILL], d[_KILL_T] = 0.0, np.inf
         # a call shorter than one grid interval is not guarded: stuck, it costs no more than
@@ -343,41 +562,45 @@ class _LsodaStepper:
         d[_U_STIFF] = math.log(self.nd.d * self._dg / 100.0)
         d[_BLOCK], d[_T_ARM], d[_ARMED] = float(block), t_eval[0] + 4.0 * self._dg, 0.0
         d[_IN_EVENT], d[_END_DT], d[_END_KILL_T] = 0.0, 3.0 * self._dg, np.inf
-        usol, ok = self._lsoda(self._funcptr, np.ascontiguousarray(z0, dtype=float),
-                               np.ascontiguousarray(t_eval, dtype=float), d, a.rtol, a.atol,
-                               _MXSTEP)
+        d[_NT] = nt
+        te = self._buf[_DATA_LEN:_DATA_LEN + nt]
+        te[:] = t_eval                      # a copy: _cut may write into it
+        ok = self._lsoda(self._funcptr, np.ascontiguousarray(z0, dtype=float), te, self._buf,
+                         a.rtol, a.atol, _MXSTEP, self._ubuf)
         self.stats.nfev = int(d[_NFEV])
         self.stats.njev = int(d[_NJEV])
         self.stats.steps = int(d[_ATTEMPTS])
-        return usol, ok
+        n = _reached(self._ubuf, t_eval, d[_KILL_T])
+        rows = self._ubuf[:n].copy()
+        _reset(self._ubuf)
+        return rows, n, ok
 
     def _integrate(self, z0, t_eval, block: bool = False):
         """lsoda from z0 through t_eval, a stuck cold start restarted (module docstring).
-        Returns (usol, ok); rows not reached (failure, budget, end of block) are NaN."""
+        Returns (rows, n, ok): the first n points of t_eval were reached (not all: failure,
+        budget, end of block)."""
         t_eval = np.asarray(t_eval, dtype=float)
-        out = np.full((len(t_eval), 3), np.nan)
-        out[0] = z0
-        i, variant, ok = 0, 0, True
+        z = np.ascontiguousarray(z0, dtype=float)
+        pieces, i, variant, ok = [], 0, 0, True
         while i < len(t_eval) - 1:
             te = t_eval[i:]
             guard = variant <= len(_FIRST_FRACTIONS)      # the last try runs unguarded
             extra = 0 < variant <= len(_FIRST_FRACTIONS)
             if extra:
                 te = np.insert(te, 1, te[0] + _FIRST_FRACTIONS[variant - 1] * (te[1] - te[0]))
-            usol, ok = self._run(out[i], te, guard, block)
-            if extra:
-                usol = np.delete(usol, 1, axis=0)
-            # the rows LSODA reached before the cfunc stopped it (it writes none after)
-            good = np.all(np.isfinite(usol), axis=1) & (t_eval[i:] < self._data[_KILL_T])
-            good[0] = True
-            n = len(good) if good.all() else int(np.argmin(good))
-            out[i:i + n] = usol[:n]
-            out[i + n:] = np.nan
+            rows, n, ok = self._run(z, te, guard, block)
+            if extra and n > 1:
+                rows, n = np.delete(rows, 1, axis=0), n - 1
+            pieces.append(rows[1:] if pieces else rows)
             if self._data[_KILL] != _STUCK:
                 break
             variant = variant + 1 if n == 1 else 1
             i += n - 1
-        return out, ok
+            z = rows[n - 1]
+        if not pieces:                           # t_eval of one point
+            return z[None, :].copy(), 1, ok
+        rows = pieces[0] if len(pieces) == 1 else np.concatenate(pieces)
+        return rows, len(rows), ok
 
     def _failed(self, t_from: float, t_to: float, z, ok: bool) -> Advance:
         a = self.algorithm
@@ -397,25 +620,12 @@ class _LsodaStepper:
         """Re-integrate from (t0, z0) to t."""
         if t == t0:
             return np.array(z0)
-        usol, ok = self._integrate(z0, [t0, t])
-        if not np.all(np.isfinite(usol[-1])):
+        usol, n, ok = self._integrate(z0, [t0, t])
+        if n < 2:
             raise _Abort(self._failed(t0, t, np.array(z0), ok))
-        return usol[-1]
+        return usol[1]
 
     # --- grid, scan, root location --------------------------------------------------------------
-
-    def _g(self, zs: np.ndarray) -> np.ndarray:
-        """events.root_functions at the rows of zs, shape (n, 4)."""
-        return root_functions(self.nd, self._e, zs.T).T
-
-    @staticmethod
-    def _crossings(g0: np.ndarray, g1: np.ndarray) -> np.ndarray:
-        """Whether each root function crosses zero from g0 to g1 in a direction that counts
-        (the convention of dense_roots: exactly zero is the far side)."""
-        up = (g0 < 0.0) & (g1 >= 0.0)
-        down = (g0 > 0.0) & (g1 <= 0.0)
-        direction = np.array(DIRECTIONS)
-        return (up & (direction >= 0)) | (down & (direction <= 0))
 
     def _match(self) -> float:
         """Times closer than this are the same grid point (the driver accumulates its output
@@ -453,43 +663,37 @@ class _LsodaStepper:
         match = self._match()
         j0 = math.ceil((start + match - t_req) / dg)
         n_max = min(_BLOCK_MAX, int((self._t_bound - start) / dg) + 2)
-        pts = t_req + dg * np.arange(j0, j0 + n_max)
-        pts = pts[(pts > start + match) & (pts < self._t_bound - match)]
-        if len(pts) < n_max:
-            pts = np.append(pts, self._t_bound)
-        t_eval = np.concatenate(([start], pts))
-        usol, ok = self._integrate(z_start, t_eval, block=True)
-        good = np.all(np.isfinite(usol), axis=1)
-        n = len(t_eval) if good.all() else int(np.argmin(good))
+        t_eval = np.empty(n_max + 2)
+        t_eval = t_eval[:_grid(start, t_req, dg, j0, n_max, match, self._t_bound, t_eval)]
+        usol, n, ok = self._integrate(z_start, t_eval, block=True)
         if n == 1 and self._data[_KILL] == _BLOCK_END:     # ended before its first point
-            usol, ok = self._integrate(z_start, t_eval[:2])
-            n = 2 if np.all(np.isfinite(usol[1])) else 1
+            usol, n, ok = self._integrate(z_start, t_eval[:2])
         if n < len(t_eval) and self._data[_KILL] != _BLOCK_END:
             self._failure = self._failed(t_eval[n - 1], t_eval[n], usol[n - 1], ok)
         if n == 1:
             raise _Abort(self._failure or self._failed(start, t_eval[1], z_start, ok))
-        self._T, self._Y = t_eval[:n], usol[:n]
-        self._G = g = np.vstack([self._G[self._k][None, :], self._g(usol[1:n])])
-        self._cross = np.flatnonzero(self._crossings(g[:-1], g[1:]).any(axis=1))
-        self._k = 0
+        self._T, self._Y = t_eval[:n].copy(), usol
+        G, cross = np.empty((n, 4)), np.empty(n, dtype=np.int64)
+        m = _block_roots(self._q, usol, n, self._G[self._k].copy(), G, cross)
+        self._G, self._cross, self._k = G, cross[:m], 0
 
     def _scan(self, k: int) -> None:
         """Locate the crossings that count in (T[k], T[k+1]] and queue them in time order: one
         lsoda call through the interval at ``_N_SUB`` sub-points brackets them, cubic Hermite
-        interpolation between the two sub-points of each bracket places them."""
+        interpolation between the two sub-points of each bracket places them (``_sub_roots``)."""
         ta, tb = self._T[k], self._T[k + 1]
         ts = np.linspace(ta, tb, _N_SUB + 1)
-        usol, ok = self._integrate(self._Y[k], ts)
-        if not np.all(np.isfinite(usol[:-1])):
+        rows, n, ok = self._integrate(self._Y[k], ts)
+        if n < _N_SUB:
             raise _Abort(self._failed(ta, tb, self._Y[k], ok))
+        usol = np.empty((_N_SUB + 1, 3))
+        usol[:_N_SUB] = rows[:_N_SUB]
         usol[-1] = self._Y[k + 1]            # the block's value at T[k+1] is the one we keep
-        gs = self._g(usol)
-        gs[0], gs[-1] = self._G[k], self._G[k + 1]
-        roots = []
-        for j, kind in zip(*np.nonzero(self._crossings(gs[:-1], gs[1:]))):
-            a, b = gs[j, kind], gs[j + 1, kind]
-            t, z = self._locate(kind, ts[j], usol[j], ts[j + 1], usol[j + 1])
-            roots.append((t, int(kind), 1 if b > a else -1, z))
+        R = np.empty((4 * _N_SUB, 6))
+        m, nfev = _sub_roots(self._q, ts, usol, self._G[k], self._G[k + 1], R)
+        self._data[_NFEV] += nfev
+        self.stats.nfev = int(self._data[_NFEV])
+        roots = [(R[i, 0], int(R[i, 1]), int(R[i, 2]), R[i, 3:6].copy()) for i in range(m)]
         roots.sort(key=lambda r: r[0])
         for t, kind, sign, z in roots:
             if self._queue and t - self._queue[-1][0] <= 1e-14 * max(1.0, abs(t)):
@@ -497,29 +701,3 @@ class _LsodaStepper:
                 self._queue[-1][3].append(sign)
             else:
                 self._queue.append((t, z, [kind], [sign]))
-
-    def _locate(self, kind, ta, za, tb, zb):
-        """The root of g_kind on the cubic Hermite interpolant of z between two sub-points
-        (z and f = dz/dτ at both ends). The root functions are linear in z, so g is a cubic in
-        t; at 1/(32·16) of a half period apart its error is far below the tolerance."""
-        nd, e = self.nd, self._e
-        fa, fb = np.empty(3), np.empty(3)
-        ode_rhs(nd.law_code, nd.beta, nd.c, nd.d, e, za, fa)
-        ode_rhs(nd.law_code, nd.beta, nd.c, nd.d, e, zb, fb)
-        self._data[_NFEV] += 2.0
-        self.stats.nfev = int(self._data[_NFEV])
-        dt = tb - ta
-
-        def z_at(x):
-            x2, x3 = x * x, x * x * x
-            return ((2 * x3 - 3 * x2 + 1) * za + (x3 - 2 * x2 + x) * dt * fa
-                    + (-2 * x3 + 3 * x2) * zb + (x3 - x2) * dt * fb)
-
-        def g_at(x):
-            return self._g(z_at(x)[None, :])[0, kind]
-
-        ga, gb = g_at(0.0), g_at(1.0)
-        if ga * gb > 0.0:          # a root exactly at an end (signs carried over a restart)
-            return (ta, np.array(za)) if abs(ga) <= abs(gb) else (tb, np.array(zb))
-        x = brentq(g_at, 0.0, 1.0, xtol=1e-15, rtol=4 * np.finfo(float).eps)
-        return ta + x * dt, z_at(x)
