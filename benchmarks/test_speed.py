@@ -78,11 +78,11 @@ def _matched(problem, name: str):
 def test_matched_accuracy(benchmark, name, problem_name):
     problem = PROBLEMS[problem_name]
     algorithm, chosen_by = _matched(problem, name)
-    solve(problem, algorithm, max_points=1000)               # warm-up: numba compiles here
-    probe = solve(problem, algorithm, max_points=1000, wall_budget=QUICK.wall_budget)
+    solve(problem, algorithm, max_points=2)               # warm-up: numba compiles here
+    probe = solve(problem, algorithm, max_points=2, wall_budget=QUICK.wall_budget)
     rounds = 5 if probe.stats.wall_s < 1.0 else 1
     benchmark.group = problem_name
-    sol = benchmark.pedantic(solve, args=(problem, algorithm), kwargs={"max_points": 1000},
+    sol = benchmark.pedantic(solve, args=(problem, algorithm), kwargs={"max_points": 2},
                              rounds=rounds, iterations=1)
     errs = errors(sol, reference(problem))
     benchmark.extra_info.update({
