@@ -42,6 +42,8 @@ GRID = {"slip": dict(half_width=0.0008, lc_factor=10.0, n_lc=13),
 #: simulated time per point: ≥ 30 cycles at the observed recurrence interval
 T_END = {"W1": 40.0, "W2": 40.0, "W3": 40.0, "W4": 15.0}
 B_STEP = 1e-4
+#: s per point: a point that takes longer is recorded as failed (WallTime) and the sweep goes on
+POINT_BUDGET = 5.0
 
 
 def best_fit(name: str, law: str) -> tuple[float, float]:
@@ -74,7 +76,8 @@ def paper_sweeps(out, cache=None, windows=("W1", "W2", "W3", "W4"), laws=("slip"
             b0, lc0 = best_fit(name, law)
             b, lc = grid_around(b0, lc0, **GRID[law])
             res = sweep(name, law, b, lc, algorithm, observations(name), cache / f"{name}_{law}",
-                        t_end=T_END[name], workers=workers, progress=progress)
+                        t_end=T_END[name], workers=workers, progress=progress,
+                        wall_budget=POINT_BUDGET)
             dest = out / "sweeps" / f"{name}_{law}"
             dest.mkdir(parents=True, exist_ok=True)
             for f in ("sweep.csv", "summary.json"):
@@ -138,7 +141,7 @@ def sweep_scaling(out, n: int = 21, t_end: float = 40.0, progress: bool = True,
         with tempfile.TemporaryDirectory() as tmp:
             start = time.perf_counter()
             res = sweep("W2", "slip", b, lc, algorithm, obs, tmp, t_end=t_end, progress=progress,
-                        **kw)
+                        wall_budget=POINT_BUDGET, **kw)
             wall = time.perf_counter() - start
         s = res.summary
         runs[label] = {"wall_s": wall, "sim_wall_s_total": s["sim_wall_s_total"],

@@ -158,7 +158,7 @@ def phi_dense(a, kmax, out, half):
         n_inf = max(n_inf, abs(a[i, 0]) + abs(a[i, 1]) + abs(a[i, 2]))
     norm = min(n1, n_inf)      # either bounds the Taylor remainder
     s = 1
-    if norm > _THETA:
+    if _THETA < norm < 1e300:     # an infinite norm (an overflowed trial) must not mean 2^63
         s = max(1, int(math.ceil(math.log2(norm / _THETA))))
     sc = 0.5 ** s
     x = (a[0, 0] * sc, a[0, 1] * sc, a[0, 2] * sc, a[1, 0] * sc, a[1, 1] * sc, a[1, 2] * sc,
@@ -192,7 +192,7 @@ def _phi_2x2(s00, s01, s10, s11, kmax, out, half):
     norm = min(max(abs(s00) + abs(s10), abs(s01) + abs(s11)),
                max(abs(s00) + abs(s01), abs(s10) + abs(s11)))
     s = 1
-    if norm > _THETA:
+    if _THETA < norm < 1e300:     # an infinite norm (an overflowed trial) must not mean 2^63
         s = max(1, int(math.ceil(math.log2(norm / _THETA))))
     sc = 0.5 ** s
     x00, x01, x10, x11 = s00 * sc, s01 * sc, s10 * sc, s11 * sc
