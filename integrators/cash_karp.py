@@ -75,6 +75,18 @@ def _roots(p, z, g):
     g[3] = p[2] * z[0] - p[3] * (z[1] + p[1] * z[2])
 
 
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def crossed(G, g, dirs, stick_peaks):
+    """Has a root function changed sign, in a direction that counts, between the cursor (G[0])
+    and the new step end (g)? With ``stick_peaks`` False a PEAK crossing at w ≤ E_slow (END
+    negative at both ends) does not count (see the module docstring)."""
+    for k in range(4):
+        if (((G[0, k] < 0.0 <= g[k] and dirs[k] >= 0) or (G[0, k] > 0.0 >= g[k] and dirs[k] <= 0))
+                and (stick_peaks or k != PEAK or G[0, END] > 0.0 or g[END] > 0.0)):
+            return True
+    return False
+
+
 @njit(cache=True, error_model="numpy", inline="always")
 def _f(q, h, u, s, zb, fb):
     """ode_rhs on scalars, so that the stages stay in registers (twice as fast as in arrays);
@@ -222,12 +234,7 @@ def _advance(st, p, Z, G, dirs, t_out, n_max):
                 st[_TAU_OLD], st[_TAU], st[_H] = st[_TAU], tau, h
             if status < 0:
                 _roots(p, Z[_Z], g)
-                crossed = False
-                for k in range(4):
-                    crossed |= (((G[0, k] < 0.0 <= g[k] and dirs[k] >= 0)
-                                 or (G[0, k] > 0.0 >= g[k] and dirs[k] <= 0))
-                                and (k != PEAK or G[0, END] > 0.0 or g[END] > 0.0))
-                if not crossed:       # else the scan at the top of the loop places them
+                if not crossed(G, g, dirs, False):  # else the scan at the top places them
                     st[_CURSOR], G[0] = tau, g
     st[_STEPS] += n
     st[_REJECTED] += attempts - n

@@ -69,6 +69,7 @@ import numpy as np
 from numba import njit
 
 from integrators.cash_karp import _roots as _roots_ck
+from integrators.cash_karp import crossed
 from integrators.kernel_stepper import CompiledAlgorithm, KernelStepper
 from integrators.registry import register
 from problems.formulations import ode_jacobian, ode_rhs
@@ -408,11 +409,7 @@ def _advance(method, st, p, Z, G, dirs, t_out, n_max):
                 st[_TAU_OLD], st[_TAU], st[_H] = st[_TAU], tau, h
             if status < 0:
                 _roots(p, Z[_Z], g)
-                crossed = False
-                for k in range(4):
-                    crossed |= ((G[0, k] < 0.0 <= g[k] and dirs[k] >= 0)
-                                or (G[0, k] > 0.0 >= g[k] and dirs[k] <= 0))
-                if not crossed:       # else the scan at the top of the loop places them
+                if not crossed(G, g, dirs, True):   # else the scan at the top places them
                     st[_CURSOR], G[0] = tau, g
     st[_STEPS] += n
     st[_REJECTED] += attempts - n
