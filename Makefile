@@ -8,7 +8,7 @@ PY       := $(VENV)/bin/python
 APT_PKGS := gfortran libsundials-dev pkg-config cmake
 STAMP    := $(VENV)/.installed
 
-.PHONY: setup system-packages test reproduce bench clean
+.PHONY: setup system-packages numba-cache test reproduce bench clean
 
 setup: $(STAMP)
 
@@ -28,14 +28,21 @@ $(STAMP): pyproject.toml | system-packages
 	$(PY) -m pip install -q -e .
 	touch $@
 
-test: setup
+# numba's on-disk cache of a function is keyed by its own file only, so a kernel would keep the
+# stale inlined code of a helper edited in another module: drop every cache older than the newest
+# source file (a fresh clone has none; after an edit numba recompiles, ~1 min)
+numba-cache:
+	@newest=$$(ls -t integrators/*.py problems/*.py benchmarks/*.py | head -1); \
+	find integrators problems benchmarks -name '*.nb[ic]' ! -newer "$$newest" -delete
+
+test: setup numba-cache
 	$(PY) -m pytest
 
-reproduce: setup
+reproduce: setup numba-cache
 	$(VENV)/bin/rsfbench reproduce --out results
 
 # the pytest-benchmark suite (benchmarks/test_*.py): timings at matched accuracy, as JSON
-bench: setup
+bench: setup numba-cache
 	$(PY) -m pytest benchmarks --benchmark-json results/benchmarks.json \
 	  --benchmark-columns=min,median,rounds --benchmark-sort=min
 

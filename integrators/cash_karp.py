@@ -43,7 +43,7 @@ from typing import ClassVar
 import numpy as np
 from numba import njit
 
-from integrators.events import END, PEAK
+from integrators.events import AT_ROOT, END, PEAK, sign_change
 from integrators.kernel_stepper import CompiledAlgorithm, KernelStepper
 from integrators.registry import register
 from problems.formulations import ode_rhs
@@ -81,7 +81,8 @@ def crossed(G, g, dirs, stick_peaks):
     and the new step end (g)? With ``stick_peaks`` False a PEAK crossing at w ≤ E_slow (END
     negative at both ends) does not count (see the module docstring)."""
     for k in range(4):
-        if (((G[0, k] < 0.0 <= g[k] and dirs[k] >= 0) or (G[0, k] > 0.0 >= g[k] and dirs[k] <= 0))
+        sign = sign_change(G[0, k], g[k])
+        if (sign != 0 and (dirs[k] == 0 or dirs[k] == sign)
                 and (stick_peaks or k != PEAK or G[0, END] > 0.0 or g[END] > 0.0)):
             return True
     return False
@@ -170,7 +171,7 @@ def _scan(st, p, Z, G, dirs, t_end):
         _roots(p, zt, g_new)
         for k in range(4):
             g0, g1, ga, lo, hi = G[0, k], g_end[k], g_new[k], x_cur, x_end
-            if not ((g0 < 0.0 <= g1) or (g0 > 0.0 >= g1)):
+            if sign_change(g0, g1) == 0:
                 hi = np.inf
             elif ga == 0.0 or (ga > 0.0 and g1 > 0.0) or (ga < 0.0 and g1 < 0.0):
                 hi = x_cur            # the interpolant is past it already: at the cursor
@@ -201,7 +202,7 @@ def _scan(st, p, Z, G, dirs, t_end):
         for k in range(4):
             if x_root[k] == best:
                 sign = 1.0 if g_end[k] > G[0, k] else -1.0
-                g_new[k] = sign * max(abs(g_new[k]), 1e-300)     # the sign after the crossing
+                g_new[k] = sign * max(abs(g_new[k]), AT_ROOT)    # the sign after the crossing
                 if (dirs[k] == 0 or dirs[k] == sign) and (k != PEAK or g_new[END] > 0.0):
                     G[1, k] = sign
         st[_CURSOR], G[0] = t_root, g_new

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import brentq
 
-from integrators.events import DIRECTIONS, root_functions
+from integrators.events import AT_ROOT, DIRECTIONS, root_functions, sign_change
 from integrators.segments import Advance
 from integrators.solution import ReturnCode
 
@@ -82,7 +82,7 @@ class DenseStepper:
         """The first sign change in (cursor, t_end] of any root function, refined; roots in a
         direction that does not count only move the cursor's signs."""
         g0 = self._g
-        changed = [k for k in range(len(g0)) if (g0[k] < 0.0 <= g_end[k]) or (g0[k] > 0.0 >= g_end[k])]
+        changed = [k for k in range(len(g0)) if sign_change(g0[k], g_end[k]) != 0]
         if not changed:
             return None
         roots = []
@@ -103,7 +103,7 @@ class DenseStepper:
         counted = []
         for k in at_root:
             up = g_end[k] > g0[k]
-            g_new[k] = abs(g_new[k]) or 1e-300
+            g_new[k] = abs(g_new[k]) or AT_ROOT
             if not up:
                 g_new[k] = -g_new[k]       # the sign after the crossing
             if DIRECTIONS[k] == 0 or DIRECTIONS[k] == (1 if up else -1):

@@ -18,13 +18,33 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
-__all__ = ["START", "END", "H_EXTREMUM", "PEAK", "DIRECTIONS", "root_functions",
-           "root_derivatives", "EventRecorder"]
+__all__ = ["START", "END", "H_EXTREMUM", "PEAK", "DIRECTIONS", "AT_ROOT", "sign_change",
+           "root_functions", "root_derivatives", "EventRecorder"]
 
 START, END, H_EXTREMUM, PEAK = range(4)
 #: direction of a crossing that counts: +1 upward, −1 downward, 0 both
 DIRECTIONS = (1, -1, 0, -1)
+#: |g| of a root function marked "just crossed, now on this side" after a located root
+AT_ROOT = 1e-300
+
+
+@njit(cache=True, nogil=True, inline="always")
+def sign_change(a: float, b: float) -> int:
+    """+1 if a root function goes from a to b across zero upwards, −1 downwards, else 0.
+
+    Reaching exactly zero counts (zero is the far side), except from a value marked at a root
+    (|a| ≤ ``AT_ROOT``, the sign after a crossing just reported): from there only a strict sign
+    change counts. Without that exception a function that sits at exactly zero (velocity-
+    strengthening sliding settles at w = E to the bit, where u − ln E is 0.0) crosses back and
+    forth at one instant for ever: marked −AT_ROOT → 0 is "up", marked +AT_ROOT → 0 is "down".
+    """
+    if a < 0.0 and (b > 0.0 or (b == 0.0 and a < -AT_ROOT)):
+        return 1
+    if a > 0.0 and (b < 0.0 or (b == 0.0 and a > AT_ROOT)):
+        return -1
+    return 0
 
 
 def root_functions(nd, e: float, z: np.ndarray) -> np.ndarray:

@@ -22,7 +22,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from integrators.events import DIRECTIONS, H_EXTREMUM, root_functions
+from integrators.events import AT_ROOT, DIRECTIONS, H_EXTREMUM, root_functions
 from integrators.registry import AdaptiveAlgorithm
 from integrators.segments import Advance
 from integrators.solution import ReturnCode, Stats
@@ -95,7 +95,7 @@ class KernelStepper:
             # first step would find the same crossing again
             for kind, sign in last[2]:
                 if (kind != H_EXTREMUM or last[3] == self._e) and G[0, kind] * sign <= 0.0:
-                    G[0, kind] = sign * 1e-300
+                    G[0, kind] = sign * AT_ROOT
         self._sync()
 
     def _sync(self) -> None:

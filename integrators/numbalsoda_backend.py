@@ -105,7 +105,7 @@ from typing import ClassVar
 import numpy as np
 from numba import carray, cfunc, njit
 
-from integrators.events import DIRECTIONS, END, H_EXTREMUM, PEAK
+from integrators.events import AT_ROOT, DIRECTIONS, END, H_EXTREMUM, PEAK, sign_change
 from integrators.registry import AdaptiveAlgorithm, register
 from integrators.segments import Advance
 from integrators.solution import ReturnCode, Stats
@@ -140,7 +140,6 @@ _MXSTEP = 1_000_000                  # LSODA's per-interval limit; the budget is
 _GUARD_ATTEMPTS = 300
 _GUARD_DU = 0.01
 _FIRST_FRACTIONS = (1e-2, 1e-4, 1e-6, 1e-8, 1e-10)
-_TINY = 1e-300
 
 
 @njit(cache=True)
@@ -217,15 +216,10 @@ def _roots(q, z, g):
 @njit(cache=True, nogil=True, error_model="numpy")
 def _counts(k, a, b, end_a, end_b):
     """Whether g_k crosses zero from a to b in a direction that counts (the convention of
-    dense_roots: exactly zero is the far side); a PEAK crossing only where w > E_slow at an end
+    events.sign_change); a PEAK crossing only where w > E_slow at an end
     of the interval (end_a or end_b > 0: the stick-phase jitter of C h − D η is not a peak)."""
-    if a < 0.0 <= b:
-        ok = _DIRS[k] >= 0.0
-    elif a > 0.0 >= b:
-        ok = _DIRS[k] <= 0.0
-    else:
-        return False
-    return ok and (k != PEAK or end_a > 0.0 or end_b > 0.0)
+    sign = sign_change(a, b)
+    return sign != 0 and (_DIRS[k] == 0.0 or _DIRS[k] == sign) and (k != PEAK or end_a > 0.0 or end_b > 0.0)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -493,7 +487,7 @@ class _LsodaStepper:
             # new scan does not find the same crossing again
             for kind, sign in last[2]:
                 if (kind != H_EXTREMUM or last[3] == self._e) and g0[kind] * sign <= 0.0:
-                    g0[kind] = sign * _TINY
+                    g0[kind] = sign * AT_ROOT
         self._T, self._Y, self._G = np.array([float(tau0)]), z0[None, :], g0[None, :]
         self._cross = np.empty(0, dtype=int)
         self._k = 0

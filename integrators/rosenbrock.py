@@ -70,6 +70,7 @@ from numba import njit
 
 from integrators.cash_karp import _roots as _roots_ck
 from integrators.cash_karp import crossed
+from integrators.events import AT_ROOT, sign_change
 from integrators.kernel_stepper import CompiledAlgorithm, KernelStepper
 from integrators.registry import register
 from problems.formulations import ode_jacobian, ode_rhs
@@ -342,7 +343,7 @@ def _scan(st, p, Z, G, dirs, t_end):
         _roots(p, zt, g_new)
         for k in range(4):
             g0, g1, ga, lo, hi = G[0, k], g_end[k], g_new[k], x_cur, x_end
-            if not ((g0 < 0.0 <= g1) or (g0 > 0.0 >= g1)):
+            if sign_change(g0, g1) == 0:
                 hi = np.inf
             elif ga == 0.0 or (ga > 0.0 and g1 > 0.0) or (ga < 0.0 and g1 < 0.0):
                 hi = x_cur            # the interpolant is past it already: at the cursor
@@ -373,7 +374,7 @@ def _scan(st, p, Z, G, dirs, t_end):
         for k in range(4):
             if x_root[k] == best:
                 sign = 1.0 if g_end[k] > G[0, k] else -1.0
-                g_new[k] = sign * max(abs(g_new[k]), 1e-300)     # the sign after the crossing
+                g_new[k] = sign * max(abs(g_new[k]), AT_ROOT)    # the sign after the crossing
                 if dirs[k] == 0 or dirs[k] == sign:
                     G[1, k] = sign
         st[_CURSOR], G[0] = t_root, g_new

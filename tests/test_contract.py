@@ -7,6 +7,7 @@ import pytest
 import integrators as I
 import problems as P
 from integrators import REGISTRY, UNAVAILABLE
+from integrators.events import AT_ROOT, sign_change
 from integrators.solution import EVENT_COLUMNS
 
 NAMES = sorted(REGISTRY)
@@ -105,3 +106,30 @@ def test_python_and_numba_rhs_tiers_agree(name):
     # the tiers compute the same function; numba's exp and libm's differ in the last bit in
     # ~7 % of evaluations, which an adaptive method amplifies to ~1e-9 (Adams: 4e-9)
     np.testing.assert_allclose(a.events.t_start, b.events.t_start, rtol=1e-7)
+
+
+def test_sign_change_does_not_cross_back_from_a_marked_root():
+    # zero counts as the far side, except from a value marked at a root (±AT_ROOT)
+    assert sign_change(-1.0, 0.0) == 1 and sign_change(1.0, 0.0) == -1
+    assert sign_change(-1.0, 2.0) == 1 and sign_change(1.0, -2.0) == -1
+    assert sign_change(1.0, 2.0) == 0 and sign_change(0.0, 1.0) == 0
+    assert sign_change(-AT_ROOT, 0.0) == 0 and sign_change(AT_ROOT, 0.0) == 0
+    assert sign_change(-AT_ROOT, 1e-16) == 1 and sign_change(AT_ROOT, -1e-16) == -1
+
+
+# backends with their own crossing detection: the compiled kernels (cash_karp.crossed and the
+# scans), numbalsoda's block scan, dense_roots (scipy) and SUNDIALS' root finding
+STEADY_SLIDING = ["Exprb32", "Exprb43", "Rosenbrock23", "Rodas5P", "numbalsoda-LSODA",
+                  "scipy-Radau", "scipy-BDF", "odes-CVODE-BDF"]
+
+
+@pytest.mark.parametrize("name", [n for n in STEADY_SLIDING if n in REGISTRY])
+def test_velocity_strengthening_sliding_settles_without_events(name):
+    # W1 at b = 0.0077 < a: sliding settles at w = E, where u − ln E (the H_EXTREMUM root
+    # function, here also END's: E = E_slow) is exactly 0.0. Exprb43's large steps land on that
+    # fixed point to the bit, and its kernel used to report crossings back and forth at one
+    # instant for ever (`rsfbench sweep` hung); the budget turns a relapse into a failure.
+    sol = I.solve(P.window("W1", "slip", b=0.0077, lc=9e-9, t_end=40),
+                  REGISTRY[name](rtol=1e-3, atol=1e-3), max_points=2, wall_budget=60)
+    assert sol.success, f"{name}: {sol.retcode.value}: {sol.message}"
+    assert len(sol.events) == 0
