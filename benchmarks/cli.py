@@ -9,6 +9,7 @@
     rsfbench target --csv results/wp_quick.csv   # own integrators against LSODA and SUNDIALS
     rsfbench sweep --preset W2 --b 0.009:0.0098:0.0001 --lc 1e-7:1e-6:9log --json
     rsfbench reproduce --out results        # what `make reproduce` runs
+    rsfbench readme [--check]               # refill the README's numbers from results/
 """
 
 from __future__ import annotations
@@ -194,6 +195,14 @@ def cmd_convergence(args) -> int:
     return 0
 
 
+def cmd_readme(args) -> int:
+    from benchmarks.readme import refresh
+    stale = refresh(check=args.check)
+    verb = "out of date" if args.check else "refilled"
+    print(f"README blocks {verb}: {', '.join(stale)}" if stale else "README blocks up to date")
+    return 1 if stale and args.check else 0
+
+
 def cmd_speedup(args) -> int:
     from benchmarks.speedup import DEFAULT_SCIPY_BUDGET, speedup, speedup_markdown, write_speedup
     problem = preset("paper-example", t_end=args.t_end)
@@ -327,6 +336,11 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--out", default="results")
     t.add_argument("--json", action="store_true")
     t.set_defaults(func=cmd_target)
+
+    rd = sub.add_parser("readme", help="refill the README's generated blocks from results/")
+    rd.add_argument("--check", action="store_true",
+                    help="only say which blocks are out of date (exit status 1 if any)")
+    rd.set_defaults(func=cmd_readme)
 
     r = sub.add_parser("reproduce", help="regenerate results/ (what `make reproduce` runs)")
     r.add_argument("--out", default="results")

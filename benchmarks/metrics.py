@@ -28,15 +28,22 @@ METRICS = ("recurrence_s", "friction_drop", "slip_m", "peak_velocity_m_s")
 CLASSIFICATIONS = ("stick-slip", "multiple recurrence", "stable sliding", "not converged")
 
 
+def _metric_columns(events: pd.DataFrame, normal_force: float) -> tuple[np.ndarray, np.ndarray]:
+    """(t_start, the four METRICS as an (n, 4) array) in numpy: a sweep summarises every point,
+    and column arithmetic in pandas costs more than a short solve."""
+    col = {c: events[c].to_numpy(dtype=float) for c in ("t_start", "fs_max_before", "fs_min",
+                                                         "slip_end", "slip_start", "v_peak")}
+    t = col["t_start"]
+    recurrence = np.concatenate(([np.nan], np.diff(t))) if len(t) else t
+    x = np.column_stack((recurrence, (col["fs_max_before"] - col["fs_min"]) / normal_force,
+                         col["slip_end"] - col["slip_start"], col["v_peak"]))
+    return t, x
+
+
 def event_metrics(events: pd.DataFrame, normal_force: float) -> pd.DataFrame:
     """One row per event: its start time and the four metrics (ΔT is NaN for the first event)."""
-    return pd.DataFrame({
-        "t_start": events["t_start"].to_numpy(),
-        "recurrence_s": events["t_start"].diff().to_numpy(),
-        "friction_drop": ((events["fs_max_before"] - events["fs_min"]) / normal_force).to_numpy(),
-        "slip_m": (events["slip_end"] - events["slip_start"]).to_numpy(),
-        "peak_velocity_m_s": events["v_peak"].to_numpy(),
-    })
+    t, x = _metric_columns(events, normal_force)
+    return pd.DataFrame({"t_start": t, **{name: x[:, i] for i, name in enumerate(METRICS)}})
 
 
 @dataclass
@@ -77,16 +84,16 @@ def limit_cycle(events: pd.DataFrame, normal_force: float, t_end: float, rtol: f
     A period p is accepted when the last ``min_repeats``·p events each repeat the event p before
     them within ``rtol``; the smallest such p wins.
     """
-    m = event_metrics(events, normal_force)
-    n = len(m)
+    n = len(events)
     if n == 0:
         return LimitCycle("stable sliding", rtol=rtol)
+    _, x = _metric_columns(events, normal_force)
     # events that stopped long before the end: the oscillation decayed to steady sliding
-    last_interval = m["recurrence_s"].iloc[-1] if n > 1 else np.nan
-    gap = t_end - float(events["t_end"].iloc[-1])
+    last_interval = x[-1, 0]
+    gap = t_end - float(events["t_end"].to_numpy()[-1])
     if n > 1 and np.isfinite(last_interval) and gap > 3.0 * last_interval:
         return LimitCycle("stable sliding", n_events=n, rtol=rtol)
-    x = m[list(METRICS)].to_numpy()[1:]          # the first event has no recurrence interval
+    x = x[1:]                                    # the first event has no recurrence interval
     for p in range(1, max_period + 1):
         need = min_repeats * p
         if len(x) < need + p:

@@ -5,7 +5,8 @@ Steps (about 35 minutes on a 2-core machine, ten of them scipy's RK45 in its wal
 integrator table; W1–W4 simulated under both laws (``simulate_<window>_<law>.json`` and the
 windows table); the paper example; the reference solutions and their agreement; the speed-up
 claim; the convergence study; the quick work-precision study; every backend side by side; the
-Section 4 sweeps; the sweep's speed on 1 and 2 workers.
+Section 4 sweeps; the sweep's speed on 1 and 2 workers; last, when ``out`` is the project's
+``results/``, the README's generated blocks (:mod:`benchmarks.readme`).
 """
 
 from __future__ import annotations
@@ -123,6 +124,10 @@ def reproduce(out: Path, scipy_budget: float | None = None) -> None:
 
     (out / "REPORT.md").write_text(_report_markdown(report))
     print(f"\nwritten: {out / 'REPORT.md'}")
+    from benchmarks.readme import ROOT, refresh
+    if out.resolve() == (ROOT / "results").resolve():    # the README quotes these files
+        stale = refresh()
+        print(f"README blocks refilled: {', '.join(stale) or 'none changed'}")
 
 
 def _report_markdown(r: dict) -> str:

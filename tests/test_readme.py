@@ -1,0 +1,63 @@
+"""The README quotes results/ through generated blocks (benchmarks/readme.py): the committed
+README must match the committed results, and the blocks must render what their sources say."""
+
+import pandas as pd
+import pytest
+
+from benchmarks import readme
+
+
+def test_committed_readme_matches_committed_results():
+    stale = readme.refresh(check=True)
+    assert stale == [], f"README blocks out of date (run `rsfbench readme`): {stale}"
+
+
+def _root(tmp_path):
+    (tmp_path / "results").mkdir()
+    (tmp_path / "results" / "x.md").write_text(
+        "Intro 1.5 s.\n\n| a | b |\n|---|---|\n| 1 | 2 |\n\ntext\n\n| c |\n|---|\n| 3 |\n")
+    return tmp_path
+
+
+def test_blocks_render_a_file_or_one_of_its_tables(tmp_path):
+    root = _root(tmp_path)
+    text = ("# T\n<!-- rsfbench: results/x.md table 2 -->\nold\nlines\n<!-- /rsfbench -->\n"
+            "keep 7\n<!-- rsfbench: results/x.md -->\n<!-- /rsfbench -->\n")
+    out = readme.fill(text, root)
+    assert out.startswith("# T\n<!-- rsfbench: results/x.md table 2 -->\n| c |\n|---|\n| 3 |\n"
+                          "<!-- /rsfbench -->\nkeep 7\n")
+    assert "Intro 1.5 s.\n\n| a | b |" in out and "old" not in out
+    assert readme.fill(out, root) == out                      # idempotent
+    (root / "README.md").write_text(text)
+    assert readme.refresh(root / "README.md", check=True) == ["results/x.md table 2",
+                                                              "results/x.md"]
+    assert (root / "README.md").read_text() == text           # check does not write
+    readme.refresh(root / "README.md")
+    assert (root / "README.md").read_text() == out
+
+
+@pytest.mark.parametrize("source, error", [("results/x.md table 3", ValueError),
+                                           ("results/nope.md", FileNotFoundError),
+                                           ("a guess", ValueError)])
+def test_bad_block_sources_say_what_is_wrong(tmp_path, source, error):
+    with pytest.raises(error, match="x.md|nope.md|a guess"):
+        readme.render(source, _root(tmp_path))
+
+
+def test_recommendation_bullets_follow_the_study(tmp_path):
+    # two problems; Rodas5P is faster but reaches 1e-6 on both only at its tighter setting;
+    # ETD2 never reaches 1e-3 on problem q
+    rows = [("p", "Rodas5P", 1e-4, 0.001, 5e-4), ("q", "Rodas5P", 1e-4, 0.002, 2e-4),
+            ("p", "Rodas5P", 1e-7, 0.004, 4e-7), ("q", "Rodas5P", 1e-7, 0.005, 9e-7),
+            ("p", "ETD2", 1e-5, 0.010, 1e-4), ("q", "ETD2", 1e-5, 0.010, 2e-3)]
+    df = pd.DataFrame(rows, columns=["problem", "integrator", "setting", "wall_s",
+                                     "err_recurrence"]).assign(rhs_tier="numba",
+                                                               retcode="Success")
+    (tmp_path / "results").mkdir()
+    df.to_csv(tmp_path / "results" / "wp_quick.csv", index=False)
+    text = readme.recommendation(tmp_path)
+    assert text == (
+        "* **for recurrence intervals to 10⁻³, use `Rodas5P`** at rtol = atol = 0.0001: worst "
+        "error 0.0005, 3 ms for both problems;\n"
+        "* **for recurrence intervals to 10⁻⁶, use `Rodas5P`** at rtol = atol = 1e-07: worst "
+        "error 9e-07, 9 ms for both problems.")
