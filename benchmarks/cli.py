@@ -5,6 +5,7 @@
     rsfbench integrators                    # the registry
     rsfbench work-precision --study quick   # every integrator over a ladder of settings
     rsfbench convergence --json             # observed orders of the fixed-step methods
+    rsfbench convergence --fixed-steps      # ... and of the compiled stiff methods, control off
     rsfbench speedup --json                 # the paper's 1/10,000 claim, three ways
     rsfbench target --csv results/wp_quick.csv   # own integrators against LSODA and SUNDIALS
     rsfbench sweep --preset W2 --b 0.009:0.0098:0.0001 --lc 1e-7:1e-6:9log --json
@@ -176,10 +177,12 @@ def cmd_work_precision(args) -> int:
 
 def cmd_convergence(args) -> int:
     from benchmarks.convergence import convergence_study, convergence_summary, write_convergence
+    names = None if not args.integrators else [algorithm_name(n) for n in args.integrators]
+    if args.fixed_steps:
+        return _fixed_step_orders(args, names)
     problem = _study_problem(args.problem)
     if args.t_end:
         problem = dataclasses.replace(problem, t_end=args.t_end)
-    names = None if not args.integrators else [algorithm_name(n) for n in args.integrators]
     table, orders = convergence_study(problem, names=names, progress=not args.json)
     summary = (write_convergence(problem, table, orders, args.out) if args.out
                else convergence_summary(problem, table, orders))
@@ -192,6 +195,21 @@ def cmd_convergence(args) -> int:
             print(f"{name}: observed order {order:.3f} (declared {REGISTRY[name].order}, on this "
                   f"stiff problem {REGISTRY[name].stiff_order}); finest error "
                   f"{summary['finest_error'][name]:.3g}")
+    return 0
+
+
+def _fixed_step_orders(args, names) -> int:
+    from benchmarks.convergence import fixed_step_orders, write_fixed_step_orders
+    table, orders = fixed_step_orders(names, progress=not args.json)
+    summary = (write_fixed_step_orders(table, orders, args.out) if args.out
+               else {"orders": orders})
+    if args.json:
+        print(json.dumps(_jsonable(summary), indent=2))
+    else:
+        print(table.to_string(index=False))
+        for key, order in orders.items():
+            name = key.split("/")[0]
+            print(f"{key}: observed order {order:.2f} (declared {REGISTRY[name].order})")
     return 0
 
 
@@ -233,7 +251,7 @@ def cmd_target(args) -> int:
 
 def cmd_reproduce(args) -> int:
     from benchmarks.reproduce import reproduce
-    reproduce(Path(args.out), scipy_budget=args.scipy_budget)
+    reproduce(Path(args.out), scipy_budget=args.scipy_budget, start=args.start)
     return 0
 
 
@@ -310,7 +328,11 @@ def build_parser() -> argparse.ArgumentParser:
     cv = sub.add_parser("convergence", help="observed order of the fixed-step (ETD) methods")
     cv.add_argument("--problem", default="paper-example", metavar="PRESET[:LAW]")
     cv.add_argument("--t-end", type=float)
-    cv.add_argument("--integrators", nargs="+", help="fixed-step registry names (default: all)")
+    cv.add_argument("--integrators", nargs="+", help="fixed-step registry names (default: all; "
+                    "with --fixed-steps, the compiled stiff methods)")
+    cv.add_argument("--fixed-steps", action="store_true",
+                    help="the compiled stiff methods (Rosenbrock23, Rodas5P, Exprb32, Exprb43) "
+                         "with error control off, on a stiff stick-phase segment")
     cv.add_argument("--out", help="directory for the CSV, JSON and plot")
     cv.add_argument("--json", action="store_true")
     cv.set_defaults(func=cmd_convergence)
@@ -346,6 +368,10 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--out", default="results")
     r.add_argument("--scipy-budget", type=float, metavar="S",
                    help="wall budget of scipy's RK45 in the speed-up step (default 600 s)")
+    from benchmarks.reproduce import STEP_NAMES
+    r.add_argument("--from", dest="start", choices=STEP_NAMES, metavar="STEP",
+                   help="start at this step, keeping the files of the earlier ones (steps: "
+                        f"{', '.join(STEP_NAMES)})")
     r.set_defaults(func=cmd_reproduce)
 
     from benchmarks.cli_sweep import add_parsers

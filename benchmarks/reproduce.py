@@ -1,12 +1,13 @@
 """What ``make reproduce`` runs: every generated file in ``results/``, from scratch, and
 ``results/REPORT.md`` assembling them.
 
-Steps (about 35 minutes on a 2-core machine, ten of them scipy's RK45 in its wall budget):
+Steps (about 50 minutes on a 2-core machine, ten of them scipy's RK45 in its wall budget):
 integrator table; W1–W4 simulated under both laws (``simulate_<window>_<law>.json`` and the
 windows table); the paper example; the reference solutions and their agreement; the speed-up
-claim; the convergence study; the quick work-precision study; every backend side by side; the
-Section 4 sweeps; the sweep's speed on 1 and 2 workers; last, when ``out`` is the project's
-``results/``, the README's generated blocks (:mod:`benchmarks.readme`).
+claim; the convergence study and the fixed-step order of the compiled stiff methods; the quick
+work-precision study and issue 6's target; every backend side by side; the Section 4 sweeps;
+the sweep's speed on 1 and 2 workers; last, when ``out`` is the project's ``results/``, the
+README's generated blocks (:mod:`benchmarks.readme`).
 """
 
 from __future__ import annotations
@@ -32,21 +33,11 @@ def _section(title: str) -> None:
     print(f"\n== {title} ==", flush=True)
 
 
-def reproduce(out: Path, scipy_budget: float | None = None) -> None:
-    """Regenerate ``out`` (see the module docstring)."""
-    from benchmarks.convergence import convergence_study, write_convergence
-    from benchmarks.reference import agreement_table, reference
-    from benchmarks.report import markdown_table, write_work_precision
-    from benchmarks.speedup import DEFAULT_SCIPY_BUDGET, speedup, write_speedup
-    from benchmarks.work_precision import QUICK, study_problems, work_precision
-
-    out.mkdir(parents=True, exist_ok=True)
-    report = {}
-    _section("integrators")
+def _integrators(out: Path, scipy_budget) -> None:
     (out / "integrators.md").write_text(_integrators_markdown())
-    report["integrators"] = (out / "integrators.md").read_text()
 
-    _section("W1–W4 limit cycles (ETD2, both laws)")
+
+def _windows(out: Path, scipy_budget) -> None:
     algorithm = ETD2()
     for name in WINDOWS:
         for law in ("slip", "aging"):
@@ -54,12 +45,11 @@ def reproduce(out: Path, scipy_budget: float | None = None) -> None:
             warm_up(problem, algorithm)
             summary = simulate_summary(solve(problem, algorithm))
             (out / f"simulate_{name}_{law}.json").write_text(json.dumps(summary, indent=2) + "\n")
-    table = windows_table()
-    write_windows(table, out)
-    report["windows"] = (out / "windows.md").read_text()
+    write_windows(windows_table(), out)
 
-    _section("paper example (Appendix 1.4)")
-    problem = paper_example()
+
+def _paper_example(out: Path, scipy_budget) -> None:
+    algorithm, problem = ETD2(), paper_example()
     warm_up(problem, algorithm)
     sol = solve(problem, algorithm, max_points=200_000)
     summary = simulate_summary(sol)
@@ -68,66 +58,130 @@ def reproduce(out: Path, scipy_budget: float | None = None) -> None:
     plot_solution(solve(window("W2"), algorithm, max_points=200_000), out / "W2_slip.png")
     print(json.dumps(summary["limit_cycle"], indent=2))
 
-    _section("reference solutions (two independent solvers, checked)")
-    problems = study_problems("full")
-    refs = [(p, reference(p, progress=False)) for p in problems]
-    agreement = agreement_table(refs)
-    agreement.to_csv(out / "references.csv", index=False)
-    report["references"] = markdown_table(
-        agreement.groupby(["problem"], sort=False).agg(
-            solvers=("name", " & ".join), tol=("tol", "first"),
-            recurrence_s=("recurrence_s", "first"), event=("event_index", "first"),
-            max_disagreement=("max_disagreement", "first")).reset_index()
-        .assign(max_disagreement=lambda d: d.max_disagreement.map("{:.2g}".format),
-                recurrence_s=lambda d: d.recurrence_s.map("{:.10f}".format)))
-    print(report["references"])
 
-    _section("the paper's speed-up claim")
+def _references(out: Path, scipy_budget) -> None:
+    from benchmarks.reference import agreement_table, reference
+    from benchmarks.work_precision import study_problems
+    refs = [(p, reference(p, progress=False)) for p in study_problems("full")]
+    agreement_table(refs).to_csv(out / "references.csv", index=False)
+
+
+def _speedup(out: Path, scipy_budget) -> None:
+    from benchmarks.speedup import DEFAULT_SCIPY_BUDGET, speedup, write_speedup
     budget = DEFAULT_SCIPY_BUDGET if scipy_budget is None else scipy_budget
-    report["speedup"] = write_speedup(*speedup(problem, scipy_budget=budget), out)
-    print(report["speedup"])
+    print(write_speedup(*speedup(paper_example(), scipy_budget=budget), out))
 
-    _section("convergence of the fixed-step methods")
-    c_summary = write_convergence(problem, *convergence_study(problem), out)
-    report["convergence"] = "\n".join(
-        f"* {n}: observed order {o:.2f}; error at the finest step "
-        f"{c_summary['finest_error'][n]:.2g}" for n, o in c_summary["orders"].items()) + "\n"
-    print(report["convergence"])
 
-    _section("quick work-precision study")
-    wp = work_precision(study_problems("quick"), QUICK)
-    paths = write_work_precision(wp, out, "quick")
-    report["work_precision"] = paths["pareto_md"].read_text()
-    report["wp_figures"] = [p.name for k, p in paths.items() if k.startswith("png_")]
-    print(report["work_precision"])
+def _convergence(out: Path, scipy_budget) -> None:
+    from benchmarks.convergence import convergence_study, write_convergence
+    problem = paper_example()
+    write_convergence(problem, *convergence_study(problem), out)
+
+
+def _fixed_steps(out: Path, scipy_budget) -> None:
+    from benchmarks.convergence import fixed_step_orders, write_fixed_step_orders
+    write_fixed_step_orders(*fixed_step_orders(progress=False), out)
+
+
+def _work_precision(out: Path, scipy_budget) -> None:
+    from benchmarks.report import write_work_precision
     from benchmarks.target import write_target
+    from benchmarks.work_precision import QUICK, study_problems, work_precision
+    paths = write_work_precision(work_precision(study_problems("quick"), QUICK), out, "quick")
     write_target(paths["csv"], out)
-    report["target"] = (out / "target_quick.md").read_text()
 
-    _section(f"every integrator on the paper example, rtol = atol = {COMPARE_RTOL:g}")
+
+def _compare(out: Path, scipy_budget) -> None:
     table = compare_integrators(paper_example(), COMPARE_RTOL, COMPARE_RTOL,
                                 wall_budget=COMPARE_WALL_BUDGET)
     table.to_csv(out / "compare_paper_example.csv", index=False)
     (out / "compare_paper_example.md").write_text(_compare_markdown(table))
-    report["compare"] = (out / "compare_paper_example.md").read_text()
 
-    _section("Section 4: (b, Lc) sweeps around the published best fits")
-    from benchmarks.paper_sweeps import paper_sweeps, sweep_scaling
+
+def _sweeps(out: Path, scipy_budget) -> None:
+    from benchmarks.paper_sweeps import paper_sweeps
     paper_sweeps(out, study_csv=out / "wp_quick.csv")
-    report["sweeps"] = (out / "sweeps.md").read_text()
-    print(report["sweeps"])
 
-    _section("sweep speed: 21 x 21 on W2, serial and on 2 workers")
+
+def _sweep_scaling(out: Path, scipy_budget) -> None:
+    from benchmarks.paper_sweeps import sweep_scaling
     sweep_scaling(out, study_csv=out / "wp_quick.csv")
-    report["sweep_scaling"] = (out / "sweep_scaling.md").read_text()
-    print(report["sweep_scaling"])
 
-    (out / "REPORT.md").write_text(_report_markdown(report))
+
+#: the steps in order: (name for --from, title, function(out, scipy_budget))
+STEPS = (
+    ("integrators", "integrators", _integrators),
+    ("windows", "W1–W4 limit cycles (ETD2, both laws)", _windows),
+    ("paper-example", "paper example (Appendix 1.4)", _paper_example),
+    ("references", "reference solutions (two independent solvers, checked)", _references),
+    ("speedup", "the paper's speed-up claim", _speedup),
+    ("convergence", "convergence of the fixed-step methods", _convergence),
+    ("fixed-steps", "fixed-step order of the compiled stiff methods (stiff segment, control "
+                    "off)", _fixed_steps),
+    ("work-precision", "quick work-precision study and issue 6's target", _work_precision),
+    ("compare", f"every integrator on the paper example, rtol = atol = {COMPARE_RTOL:g}",
+     _compare),
+    ("sweeps", "Section 4: (b, Lc) sweeps around the published best fits", _sweeps),
+    ("sweep-scaling", "sweep speed: 21 x 21 on W2, serial and on 2 workers", _sweep_scaling),
+)
+STEP_NAMES = tuple(name for name, _, _ in STEPS)
+
+
+def reproduce(out: Path, scipy_budget: float | None = None, start: str | None = None) -> None:
+    """Regenerate ``out`` (see the module docstring); with ``start``, only that step and the ones
+    after it (the files of the earlier steps must be there: REPORT.md reads them all)."""
+    if start is not None and start not in STEP_NAMES:
+        raise ValueError(f"unknown step {start!r}: expected one of {', '.join(STEP_NAMES)}")
+    out.mkdir(parents=True, exist_ok=True)
+    first = STEP_NAMES.index(start) if start else 0
+    for name, title, step in STEPS[first:]:
+        _section(title)
+        step(out, scipy_budget)
+    (out / "REPORT.md").write_text(_report_markdown(_collect(out)))
     print(f"\nwritten: {out / 'REPORT.md'}")
     from benchmarks.readme import ROOT, refresh
     if out.resolve() == (ROOT / "results").resolve():    # the README quotes these files
         stale = refresh()
         print(f"README blocks refilled: {', '.join(stale) or 'none changed'}")
+
+
+def _collect(out: Path) -> dict:
+    """The pieces of REPORT.md, read from the files the steps wrote."""
+    import pandas as pd
+
+    from benchmarks.report import markdown_table
+
+    def read(name: str, step: str) -> str:
+        path = out / name
+        if not path.exists():
+            raise FileNotFoundError(f"{path} is missing: run `rsfbench reproduce --from {step}`")
+        return path.read_text()
+
+    read("references.csv", "references")
+    agreement = pd.read_csv(out / "references.csv")
+    c_summary = json.loads(read("convergence_paper-example_slip.json", "convergence"))
+    return {
+        "integrators": read("integrators.md", "integrators"),
+        "windows": read("windows.md", "windows"),
+        "references": markdown_table(
+            agreement.groupby(["problem"], sort=False).agg(
+                solvers=("name", " & ".join), tol=("tol", "first"),
+                recurrence_s=("recurrence_s", "first"), event=("event_index", "first"),
+                max_disagreement=("max_disagreement", "first")).reset_index()
+            .assign(max_disagreement=lambda d: d.max_disagreement.map("{:.2g}".format),
+                    recurrence_s=lambda d: d.recurrence_s.map("{:.10f}".format))),
+        "speedup": read("speedup.md", "speedup"),
+        "convergence": "\n".join(
+            f"* {n}: observed order {o:.2f}; error at the finest step "
+            f"{c_summary['finest_error'][n]:.2g}" for n, o in c_summary["orders"].items()) + "\n",
+        "fixed_steps": read("convergence_fixed_steps.md", "fixed-steps"),
+        "work_precision": read("wp_quick_pareto.md", "work-precision"),
+        "wp_figures": sorted(p.name for p in out.glob("wp_quick_*.png")),
+        "target": read("target_quick.md", "work-precision"),
+        "compare": read("compare_paper_example.md", "compare"),
+        "sweeps": read("sweeps.md", "sweeps"),
+        "sweep_scaling": read("sweep_scaling.md", "sweep-scaling"),
+    }
 
 
 def _report_markdown(r: dict) -> str:
@@ -158,6 +212,14 @@ finest points above the reference's uncertainty:
 
 {r['convergence']}
 ![convergence](convergence_paper-example_slip.png)
+
+## Order of the compiled stiff methods (`convergence_fixed_steps.*`)
+
+Equal steps with the error control off on the paper example's stick phase, τ ∈ [5, 9] (stiff:
+hD/w up to 1e7); the error of the state at the end against scipy Radau at 1e−13:
+
+{r['fixed_steps']}
+![fixed-step orders](convergence_fixed_steps.png)
 
 ## Quick work-precision study (`wp_quick.csv`, `wp_quick_pareto.*`)
 

@@ -43,7 +43,7 @@ from typing import ClassVar
 import numpy as np
 from numba import njit
 
-from integrators.events import AT_ROOT, END, PEAK, sign_change
+from integrators.events import AT_ROOT, END, PEAK, carry_signs, sign_change
 from integrators.kernel_stepper import CompiledAlgorithm, KernelStepper
 from integrators.registry import register
 from problems.formulations import ode_rhs
@@ -73,6 +73,23 @@ def _roots(p, z, g):
     """events.root_functions; p[7:10] hold ln(10 E_slow), ln E_slow, ln E."""
     g[0], g[1], g[2] = z[1] - p[7], z[1] - p[8], z[1] - p[9]
     g[3] = p[2] * z[0] - p[3] * (z[1] + p[1] * z[2])
+
+
+#: crossings placed in one scan at most: each moves the cursor forward, so this only stops a
+#: pathological step (a root function at zero to the bit) from scanning for ever
+MAX_PASSES = 64
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def cursor_time(t0, dt, x, lo, hi):
+    """The time of the fraction x of the step [t0, t0 + dt], within [lo, hi], rounded up so that
+    (t − t0)/dt ≥ x: the cursor must sit on the far side of a crossing just placed at x, where
+    the root function has the sign it is given (else the next pass finds the same crossing, and
+    the one after it the same in reverse, for ever)."""
+    t = min(max(t0 + x * dt, lo), hi)
+    while t < hi and (t - t0) / dt < x:
+        t = np.nextafter(t, np.inf)
+    return t
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -165,6 +182,7 @@ def _scan(st, p, Z, G, dirs, t_end):
     if t_end < st[_TAU]:
         _hermite(Z, x_end, dt, z_end)
     _roots(p, z_end, g_end)
+    passes = 0
     while True:
         x_cur = (st[_CURSOR] - t0) / dt
         _hermite(Z, x_cur, dt, zt)
@@ -187,12 +205,14 @@ def _scan(st, p, Z, G, dirs, t_end):
                     hi = mid
             x_root[k] = hi
         best = x_root.min()
-        if best == np.inf:
+        if best == np.inf or passes > MAX_PASSES:
+            carry_signs(G[0], g_end)
             st[_CURSOR] = st[_T_RET] = t_end
             Z[_ZR], G[0] = z_end, g_end
             return False
+        passes += 1
         t_root = (st[_CURSOR] if best == x_cur else t_end if best == x_end
-                  else min(max(t0 + best * dt, st[_CURSOR]), t_end))
+                  else cursor_time(t0, dt, best, st[_CURSOR], t_end))
         if best == x_end:
             Z[_ZR] = z_end
         else:
@@ -205,6 +225,7 @@ def _scan(st, p, Z, G, dirs, t_end):
                 g_new[k] = sign * max(abs(g_new[k]), AT_ROOT)    # the sign after the crossing
                 if (dirs[k] == 0 or dirs[k] == sign) and (k != PEAK or g_new[END] > 0.0):
                     G[1, k] = sign
+        carry_signs(G[0], g_new)
         st[_CURSOR], G[0] = t_root, g_new
         if G[1].any():
             st[_T_RET] = t_root
@@ -236,6 +257,7 @@ def _advance(st, p, Z, G, dirs, t_out, n_max):
             if status < 0:
                 _roots(p, Z[_Z], g)
                 if not crossed(G, g, dirs, False):  # else the scan at the top places them
+                    carry_signs(G[0], g)
                     st[_CURSOR], G[0] = tau, g
     st[_STEPS] += n
     st[_REJECTED] += attempts - n

@@ -21,6 +21,7 @@ import numpy as np
 from numba import njit
 
 __all__ = ["START", "END", "H_EXTREMUM", "PEAK", "DIRECTIONS", "AT_ROOT", "sign_change",
+           "carry_signs",
            "root_functions", "root_derivatives", "EventRecorder"]
 
 START, END, H_EXTREMUM, PEAK = range(4)
@@ -45,6 +46,17 @@ def sign_change(a: float, b: float) -> int:
     if a > 0.0 and (b < 0.0 or (b == 0.0 and a > AT_ROOT)):
         return -1
     return 0
+
+
+@njit(cache=True, nogil=True, inline="always")
+def carry_signs(old, new) -> None:
+    """Before ``new`` replaces ``old`` as the root functions at the cursor: an exact zero in
+    ``new`` becomes ±``AT_ROOT`` with the sign of ``old``. A function that lands on zero without
+    crossing (from a marked value, see :func:`sign_change`) keeps the side it came from; a plain
+    0.0 would never cross again (``sign_change(0, b)`` is 0)."""
+    for k in range(new.shape[0]):
+        if new[k] == 0.0 and old[k] != 0.0:
+            new[k] = AT_ROOT if old[k] > 0.0 else -AT_ROOT
 
 
 def root_functions(nd, e: float, z: np.ndarray) -> np.ndarray:

@@ -107,6 +107,7 @@ from numba import njit
 
 from integrators.cash_karp import (_CURSOR, _F, _FO, _H, _NFEV, _REJECTED, _STEPS, _T_RET, _TAU,
                                    _TAU_OLD, _Z, _ZO, _ZR, _roots, _scan, crossed)
+from integrators.events import carry_signs
 from integrators.kernel_stepper import CompiledAlgorithm, KernelStepper
 from integrators.registry import register
 from problems.formulations import ode_jacobian, ode_rhs
@@ -423,6 +424,7 @@ def _advance(st, p, Z, G, dirs, t_out, n_max):
             if status < 0:
                 _roots(p, Z[_Z], g)
                 if not crossed(G, g, dirs, False):  # else the scan at the top places them
+                    carry_signs(G[0], g)
                     st[_CURSOR], G[0] = tau, g
     st[_STEPS] += n
     st[_REJECTED] += attempts - n
@@ -471,6 +473,13 @@ class _Exprb(CompiledAlgorithm):
 
     def make_stepper(self, nd, budget):
         return _ExprbStepper(self, nd, budget)
+
+    def fixed_steps(self, nd, z0, span: float, n: int) -> np.ndarray:
+        """``n`` equal steps over ``span`` (τ) from z0 under the slow loading, no error control
+        (order studies: :func:`benchmarks.convergence.fixed_step_orders`): z at the end."""
+        p = self.make_stepper(nd, None)._p.copy()
+        p[4] = nd.e_slow
+        return fixed_steps(p, np.asarray(z0, dtype=float), span, n)
 
 
 @register

@@ -69,8 +69,8 @@ import numpy as np
 from numba import njit
 
 from integrators.cash_karp import _roots as _roots_ck
-from integrators.cash_karp import crossed
-from integrators.events import AT_ROOT, sign_change
+from integrators.cash_karp import MAX_PASSES, crossed, cursor_time
+from integrators.events import AT_ROOT, carry_signs, sign_change
 from integrators.kernel_stepper import CompiledAlgorithm, KernelStepper
 from integrators.registry import register
 from problems.formulations import ode_jacobian, ode_rhs
@@ -278,6 +278,13 @@ def _step(method, st, p, Z, J, M, piv, K, D, z0, f0, z1, f1, u, fb, t_out):
     while errmax > 1.0 and tau + hs > tau:
         attempts += 1
         errmax = _attempt(method, p, hs, J, M, piv, K, D, z0, f0, z1, f1, u, fb)
+        if errmax <= 1.0 and method != R23:     # f at the end: the next step's f0 and the
+            _rhs(int(p[0]), p[1], p[2], p[3], p[4], z1, f1)     # dense output's slope
+        if errmax <= 1.0 and not (np.isfinite(z1).all() and np.isfinite(f1).all()):
+            # an end state whose rates overflow (e^u at a loose tolerance's overshoot) is a
+            # failed trial, not a result
+            errmax = np.inf
+            st[_NFEV] += 1.0 if method != R23 else 0.0      # that f is not in the per-attempt count
         if errmax > 1.0:
             last = False
             st[_REJECT] = 1.0
@@ -295,8 +302,6 @@ def _step(method, st, p, Z, J, M, piv, K, D, z0, f0, z1, f1, u, fb, t_out):
             h_next = min(h_next, hs)
         st[_REJECT] = 0.0
         h_next = max(h_next, h) if last else h_next     # a shortened step says nothing about h
-        if method != R23:
-            _rhs(int(p[0]), p[1], p[2], p[3], p[4], z1, f1)
         finite = True
         for i in range(3):
             Z[_ZO, i], Z[_Z, i], Z[_F, i] = z0[i], z1[i], f1[i]
@@ -337,6 +342,7 @@ def _scan(st, p, Z, G, dirs, t_end):
     if t_end < st[_TAU]:
         _dense(Z, x_end, z_end)
     _roots(p, z_end, g_end)
+    passes = 0
     while True:
         x_cur = (st[_CURSOR] - t0) / dt
         _dense(Z, x_cur, zt)
@@ -359,12 +365,14 @@ def _scan(st, p, Z, G, dirs, t_end):
                     hi = mid
             x_root[k] = hi
         best = x_root.min()
-        if best == np.inf:
+        if best == np.inf or passes > MAX_PASSES:
+            carry_signs(G[0], g_end)
             st[_CURSOR] = st[_T_RET] = t_end
             Z[_ZR], G[0] = z_end, g_end
             return False
+        passes += 1
         t_root = (st[_CURSOR] if best == x_cur else t_end if best == x_end
-                  else min(max(t0 + best * dt, st[_CURSOR]), t_end))
+                  else cursor_time(t0, dt, best, st[_CURSOR], t_end))
         if best == x_end:
             Z[_ZR] = z_end
         else:
@@ -377,6 +385,7 @@ def _scan(st, p, Z, G, dirs, t_end):
                 g_new[k] = sign * max(abs(g_new[k]), AT_ROOT)    # the sign after the crossing
                 if dirs[k] == 0 or dirs[k] == sign:
                     G[1, k] = sign
+        carry_signs(G[0], g_new)
         st[_CURSOR], G[0] = t_root, g_new
         if G[1].any():
             st[_T_RET] = t_root
@@ -411,6 +420,7 @@ def _advance(method, st, p, Z, G, dirs, t_out, n_max):
             if status < 0:
                 _roots(p, Z[_Z], g)
                 if not crossed(G, g, dirs, True):   # else the scan at the top places them
+                    carry_signs(G[0], g)
                     st[_CURSOR], G[0] = tau, g
     st[_STEPS] += n
     st[_REJECTED] += attempts - n
@@ -445,6 +455,14 @@ class _Rosenbrock(CompiledAlgorithm):
 
     def make_stepper(self, nd, budget):
         return _RosenbrockStepper(self, nd, budget)
+
+    def fixed_steps(self, nd, z0, span: float, n: int) -> np.ndarray:
+        """``n`` equal steps over ``span`` (τ) from z0 under the slow loading, every one
+        accepted (order studies: :func:`benchmarks.convergence.fixed_step_orders`): z at
+        the end."""
+        p = self.make_stepper(nd, None)._p.copy()
+        p[4] = nd.e_slow
+        return fixed_steps(p, np.asarray(z0, dtype=float), span / n, n)
 
 
 @register

@@ -118,9 +118,11 @@ class SpringSlider:
 
     @property
     def kappa(self) -> float:
-        """Normalized stiffness κ = k/kc with kc = Fn (b − a)/Lc (the paper's Table 3)."""
+        """Normalized stiffness κ = k/kc with kc = Fn (b − a)/Lc (the paper's Table 3); negative
+        for velocity strengthening (b < a), infinite at b = a (kc = 0)."""
         law = self.law
-        return self.stiffness * law.lc / (self.normal_force * (law.b - law.a))
+        kc = self.normal_force * (law.b - law.a) / law.lc
+        return self.stiffness / kc if kc != 0.0 else math.inf
 
     def with_law(self, **changes) -> "SpringSlider":
         """A copy with friction-law parameters replaced, e.g. ``p.with_law(b=0.0094, lc=3e-7)``.

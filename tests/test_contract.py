@@ -123,13 +123,16 @@ STEADY_SLIDING = ["Exprb32", "Exprb43", "Rosenbrock23", "Rodas5P", "numbalsoda-L
                   "scipy-Radau", "scipy-BDF", "odes-CVODE-BDF"]
 
 
+@pytest.mark.parametrize("b, lc", [(0.0077, 9e-9), (0.0078, 9e-8)])
 @pytest.mark.parametrize("name", [n for n in STEADY_SLIDING if n in REGISTRY])
-def test_velocity_strengthening_sliding_settles_without_events(name):
-    # W1 at b = 0.0077 < a: sliding settles at w = E, where u − ln E (the H_EXTREMUM root
-    # function, here also END's: E = E_slow) is exactly 0.0. Exprb43's large steps land on that
-    # fixed point to the bit, and its kernel used to report crossings back and forth at one
-    # instant for ever (`rsfbench sweep` hung); the budget turns a relapse into a failure.
-    sol = I.solve(P.window("W1", "slip", b=0.0077, lc=9e-9, t_end=40),
+def test_velocity_strengthening_sliding_settles_without_events(name, b, lc):
+    # W1 at b < a = 0.008: sliding settles at w = E, where u − ln E (the H_EXTREMUM root
+    # function, here also END's: E = E_slow) and C h − D η (PEAK's) reach 0.0 exactly: Exprb43's
+    # large steps land on that fixed point to the bit. Its kernel used to report crossings back
+    # and forth at one instant for ever at the first point, and to place the same PEAK crossing
+    # for ever inside one scan at the second (`rsfbench sweep` hung); the budget turns a
+    # relapse into a failure.
+    sol = I.solve(P.window("W1", "slip", b=b, lc=lc, t_end=40),
                   REGISTRY[name](rtol=1e-3, atol=1e-3), max_points=2, wall_budget=60)
     assert sol.success, f"{name}: {sol.retcode.value}: {sol.message}"
     assert len(sol.events) == 0

@@ -166,6 +166,23 @@ def test_convergence_cli_json(cache, monkeypatch, capsys):
     assert out["orders"]["ETD2"] == pytest.approx(1.0, abs=0.2)
 
 
+def test_fixed_step_order_cli_measures_the_declared_orders(tmp_path, capsys):
+    # the compiled stiff methods with error control off on the paper example's stick phase;
+    # measured 2.01, 4.91 (Rodas5P: 8–24 steps; finer ones reach the reference's ~3e-13)
+    assert main(["convergence", "--fixed-steps", "--integrators", "Rosenbrock23", "Rodas5P",
+                 "--out", str(tmp_path), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert set(out["orders"]) == {f"{n}/{law}" for n in ("Rosenbrock23", "Rodas5P")
+                                  for law in ("slip", "aging")}
+    for key, order in out["orders"].items():
+        assert order == pytest.approx(out["declared"][key.split("/")[0]], abs=0.15), key
+    table = pd.read_csv(tmp_path / "convergence_fixed_steps.csv")
+    assert table.fitted.sum() == 16 and (table[table.fitted].error > 1e-10).all()
+    assert (tmp_path / "convergence_fixed_steps.png").exists()
+    assert main(["convergence", "--fixed-steps", "--integrators", "ETD2"]) == 2
+    assert "ETD2 has no fixed-step mode" in capsys.readouterr().err
+
+
 def test_work_precision_cli_writes_the_study(cache, monkeypatch, tmp_path, capsys):
     monkeypatch.setenv("RSFBENCH_CACHE", str(cache))
     assert main(["work-precision", "--problems", "W4", "--t-end", "1.5", "--integrators", "ETD2",

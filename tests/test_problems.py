@@ -68,6 +68,15 @@ def test_paper_example_nondimensional_numbers():
     assert nd.e_slow == pytest.approx(10.0)
 
 
+def test_kappa_across_b_equal_a():
+    # a sweep crosses b = a (W1's grid: a = 0.008): κ is negative below, infinite at, positive
+    # above; before, b = a raised ZeroDivisionError and the point became a failed row
+    p = P.window("W1", "slip")
+    a = p.law.a
+    assert p.with_law(b=a - 1e-4).kappa < 0 < p.with_law(b=a + 1e-4).kappa
+    assert p.with_law(b=a).kappa == math.inf
+
+
 @pytest.mark.parametrize("name", ["W1", "W2", "W3", "W4"])
 def test_windows_reproduce_table3_kappa(name):
     w = P.WINDOWS[name]
