@@ -362,38 +362,39 @@ def _attempt(q, method, J, z, f, hs, P, half, w, out):
 @njit(cache=True, nogil=True, error_model="numpy")
 def _step(p, Z, tau, h, t_out, w, P, half, J, zn):
     """One accepted step of proposed size h from (tau, Z[_Z], Z[_F]), shortened to land on t_out;
-    its start goes to Z[_ZO], Z[_FO]. Returns (-1, UNDERFLOW or NONFINITE; the new τ; the next h;
-    attempts)."""
+    its start goes to Z[_ZO], Z[_FO]. Returns (-1 or UNDERFLOW; the new τ; the next h; attempts;
+    f evaluations of trials rejected for a non-finite end)."""
     q = (int(p[0]), p[1], p[2], p[3], p[4])
     rtol, atol, method = p[5], p[6], int(p[_METHOD])
     expo = -1.0 / 3.0 if method == 0 else -0.25      # −1/(q+1), q the embedded order
     z, f = Z[_Z], Z[_F]
     ode_jacobian(q[0], q[1], q[2], q[3], q[4], z, J)
     hs, last = (t_out - tau, True) if tau + h >= t_out else (h, False)
-    attempts, rejected = 0, False
+    attempts, rejected, extra = 0, False, 0
     while True:
         if tau + hs == tau:
-            return UNDERFLOW, tau, hs, attempts
+            return UNDERFLOW, tau, hs, attempts, extra
         attempts += 1
         _attempt(q, method, J, z, f, hs, P, half, w, zn)
         errmax = 0.0
         for i in range(3):
             errmax = max(errmax, abs(w[0, i]) / (atol + rtol * max(abs(z[i]), abs(zn[i]))))
         if errmax <= 1.0:                               # False for NaN
-            break
+            ode_rhs(q[0], q[1], q[2], q[3], q[4], zn, w[6])
+            if np.isfinite(zn).all() and np.isfinite(w[6]).all():
+                break
+            # an end state whose rates overflow (e^u after a loose tolerance's overshoot) is a
+            # failed trial, not a result; its f is outside the per-attempt count
+            errmax, extra = np.inf, extra + 1
         last, rejected = False, True
         hs = max(0.9 * hs * errmax ** expo, 0.1 * hs) if np.isfinite(errmax) else 0.1 * hs
     Z[_ZO], Z[_FO] = Z[_Z], Z[_F]
-    Z[_Z] = zn
-    ode_rhs(q[0], q[1], q[2], q[3], q[4], Z[_Z], Z[_F])
+    Z[_Z], Z[_F] = zn, w[6]
     h_next = hs * min(5.0, 0.9 * errmax ** expo) if errmax > 0.0 else 5.0 * hs
     if rejected:
         h_next = min(h_next, hs)
     h_next = max(h_next, h) if last else h_next     # a shortened step says nothing about h
-    finite = True
-    for i in range(3):
-        finite &= np.isfinite(Z[_Z, i]) and np.isfinite(Z[_F, i])
-    return -1 if finite else NONFINITE, t_out if last else tau + hs, h_next, attempts
+    return -1, t_out if last else tau + hs, h_next, attempts, extra
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -404,7 +405,7 @@ def _advance(st, p, Z, G, dirs, t_out, n_max):
     g = np.empty(4)
     stages = 1 if int(p[_METHOD]) == 0 else 2
     status = -1 if np.isfinite(Z[_F]).all() else NONFINITE
-    n = attempts = calls = 0
+    n = attempts = calls = extra = 0
     while status < 0:
         if st[_CURSOR] < st[_TAU] and _scan(st, p, Z, G, dirs, min(st[_TAU], t_out)):
             status = ROOT
@@ -415,8 +416,10 @@ def _advance(st, p, Z, G, dirs, t_out, n_max):
         elif n >= n_max:
             status = CHUNK
         else:
-            status, tau, h, tried = _step(p, Z, st[_TAU], st[_H], t_out, w, P, half, J, zn)
+            status, tau, h, tried, more = _step(p, Z, st[_TAU], st[_H], t_out, w, P, half, J,
+                                                zn)
             attempts += tried
+            extra += more
             calls += 1
             if status != UNDERFLOW:           # a step was accepted
                 n += 1
@@ -428,7 +431,7 @@ def _advance(st, p, Z, G, dirs, t_out, n_max):
                     st[_CURSOR], G[0] = tau, g
     st[_STEPS] += n
     st[_REJECTED] += attempts - n
-    st[_NFEV] += stages * attempts + n
+    st[_NFEV] += stages * attempts + n + extra
     st[_NJEV] += calls
     return status
 
