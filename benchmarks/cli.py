@@ -251,7 +251,7 @@ def cmd_target(args) -> int:
 
 def cmd_reproduce(args) -> int:
     from benchmarks.reproduce import reproduce
-    reproduce(Path(args.out), scipy_budget=args.scipy_budget, start=args.start)
+    reproduce(Path(args.out), scipy_budget=args.scipy_budget, start=args.start, only=args.only)
     return 0
 
 
@@ -369,9 +369,12 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--scipy-budget", type=float, metavar="S",
                    help="wall budget of scipy's RK45 in the speed-up step (default 600 s)")
     from benchmarks.reproduce import STEP_NAMES
-    r.add_argument("--from", dest="start", choices=STEP_NAMES, metavar="STEP",
-                   help="start at this step, keeping the files of the earlier ones (steps: "
-                        f"{', '.join(STEP_NAMES)})")
+    which = r.add_mutually_exclusive_group()
+    which.add_argument("--from", dest="start", choices=STEP_NAMES, metavar="STEP",
+                       help="start at this step, keeping the files of the earlier ones (steps: "
+                            f"{', '.join(STEP_NAMES)})")
+    which.add_argument("--only", choices=STEP_NAMES, metavar="STEP",
+                       help="run this step alone, keeping the files of the others")
     r.set_defaults(func=cmd_reproduce)
 
     from benchmarks.cli_sweep import add_parsers

@@ -1,11 +1,12 @@
 """What ``make reproduce`` runs: every generated file in ``results/``, from scratch, and
 ``results/REPORT.md`` assembling them.
 
-Steps (about 50 minutes on a 2-core machine, ten of them scipy's RK45 in its wall budget):
+Steps (about two hours on a 2-core machine, ten of them scipy's RK45 in its wall budget):
 integrator table; W1–W4 simulated under both laws (``simulate_<window>_<law>.json`` and the
 windows table); the paper example; the reference solutions and their agreement; the speed-up
 claim; the convergence study and the fixed-step order of the compiled stiff methods; the quick
-work-precision study and issue 6's target; every backend side by side; the Section 4 sweeps;
+work-precision study and issue 6's target; the target on every study problem (a full
+work-precision study of the stiff adaptive integrators, about an hour); every backend side by side; the Section 4 sweeps;
 the sweep's speed on 1 and 2 workers; last, when ``out`` is the project's ``results/``, the
 README's generated blocks (:mod:`benchmarks.readme`).
 """
@@ -91,6 +92,11 @@ def _work_precision(out: Path, scipy_budget) -> None:
     write_target(paths["csv"], out)
 
 
+def _target_full(out: Path, scipy_budget) -> None:
+    from benchmarks.target import full_target, target_markdown
+    print(target_markdown(full_target(out)))
+
+
 def _compare(out: Path, scipy_budget) -> None:
     table = compare_integrators(paper_example(), COMPARE_RTOL, COMPARE_RTOL,
                                 wall_budget=COMPARE_WALL_BUDGET)
@@ -119,6 +125,8 @@ STEPS = (
     ("fixed-steps", "fixed-step order of the compiled stiff methods (stiff segment, control "
                     "off)", _fixed_steps),
     ("work-precision", "quick work-precision study and issue 6's target", _work_precision),
+    ("target-full", "issue 6's target on every study problem (full work-precision study of the "
+                    "stiff adaptive integrators)", _target_full),
     ("compare", f"every integrator on the paper example, rtol = atol = {COMPARE_RTOL:g}",
      _compare),
     ("sweeps", "Section 4: (b, Lc) sweeps around the published best fits", _sweeps),
@@ -127,14 +135,19 @@ STEPS = (
 STEP_NAMES = tuple(name for name, _, _ in STEPS)
 
 
-def reproduce(out: Path, scipy_budget: float | None = None, start: str | None = None) -> None:
+def reproduce(out: Path, scipy_budget: float | None = None, start: str | None = None,
+              only: str | None = None) -> None:
     """Regenerate ``out`` (see the module docstring); with ``start``, only that step and the ones
-    after it (the files of the earlier steps must be there: REPORT.md reads them all)."""
-    if start is not None and start not in STEP_NAMES:
-        raise ValueError(f"unknown step {start!r}: expected one of {', '.join(STEP_NAMES)}")
+    after it; with ``only``, that step alone (the files of the other steps must be there:
+    REPORT.md reads them all)."""
+    for what, name in (("start", start), ("only", only)):
+        if name is not None and name not in STEP_NAMES:
+            raise ValueError(f"unknown step {what}={name!r}: expected one of "
+                             f"{', '.join(STEP_NAMES)}")
     out.mkdir(parents=True, exist_ok=True)
-    first = STEP_NAMES.index(start) if start else 0
-    for name, title, step in STEPS[first:]:
+    first = STEP_NAMES.index(only or start) if (only or start) else 0
+    last = first + 1 if only else len(STEPS)
+    for name, title, step in STEPS[first:last]:
         _section(title)
         step(out, scipy_budget)
     (out / "REPORT.md").write_text(_report_markdown(_collect(out)))
@@ -154,7 +167,7 @@ def _collect(out: Path) -> dict:
     def read(name: str, step: str) -> str:
         path = out / name
         if not path.exists():
-            raise FileNotFoundError(f"{path} is missing: run `rsfbench reproduce --from {step}`")
+            raise FileNotFoundError(f"{path} is missing: run `rsfbench reproduce --only {step}`")
         return path.read_text()
 
     read("references.csv", "references")
@@ -178,6 +191,7 @@ def _collect(out: Path) -> dict:
         "work_precision": read("wp_quick_pareto.md", "work-precision"),
         "wp_figures": sorted(p.name for p in out.glob("wp_quick_*.png")),
         "target": read("target_quick.md", "work-precision"),
+        "target_full": read("target_full.md", "target-full"),
         "compare": read("compare_paper_example.md", "compare"),
         "sweeps": read("sweeps.md", "sweeps"),
         "sweep_scaling": read("sweep_scaling.md", "sweep-scaling"),
@@ -226,9 +240,15 @@ hD/w up to 1e7); the error of the state at the end against scipy Radau at 1e−1
 {r['work_precision']}
 {figures}
 
-## Issue 6's target: own integrators against compiled LSODA and SUNDIALS (`target_quick.*`)
+## Issue 6's target: own integrators against compiled LSODA and SUNDIALS
+
+On the quick study's two problems (`target_quick.*`, from `wp_quick.csv`):
 
 {r['target']}
+On every study problem (`target_full.*`, from `wp_full.csv`: the stiff adaptive integrators of
+the three sides on the full ladder, 10 s per run):
+
+{r['target_full']}
 ## Every integrator on the paper example at rtol = atol = 1e−8 (`compare_paper_example.*`)
 
 {r['compare']}

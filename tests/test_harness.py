@@ -232,3 +232,29 @@ def test_target_table_compares_the_fastest_own_run_with_lsoda_and_sundials():
     # 1e-7: own 3.0 s, LSODA 5.0 s → 1.67×: missed
     assert t.loc[1e-7, "met"] == "no" and t.loc[1e-7, "own"] == "Rodas5P"
     assert t.loc[1e-9, "met"].startswith("no (own: none)")
+
+
+def test_target_study_runs_every_stiff_adaptive_integrator_of_the_three_sides():
+    from benchmarks.target import groups, target_integrators
+    names, g = target_integrators(), groups()
+    assert {"Rosenbrock23", "Rodas5P", "Exprb32", "Exprb43", "numbalsoda-LSODA", "odes-CVODE-BDF",
+            "odes-IDA", "assimulo-CVode", "assimulo-IDA"} <= set(names)
+    assert not {"ETD2", "CashKarp45", "odes-CVODE-Adams"} & set(names)
+    assert all(any(n in g[side] for n in names) for side in ("own", "lsoda", "sundials"))
+
+
+def test_reproduce_runs_one_step_with_only_and_the_rest_with_from(tmp_path, monkeypatch):
+    from benchmarks import reproduce as RP
+    ran = []
+    steps = tuple((n, n, lambda out, budget, n=n: ran.append(n)) for n in ("a", "b", "c"))
+    monkeypatch.setattr(RP, "STEPS", steps)
+    monkeypatch.setattr(RP, "STEP_NAMES", ("a", "b", "c"))
+    monkeypatch.setattr(RP, "_collect", lambda out: {})
+    monkeypatch.setattr(RP, "_report_markdown", lambda r: "report\n")
+    RP.reproduce(tmp_path, only="b")
+    assert ran == ["b"]
+    RP.reproduce(tmp_path, start="b")
+    assert ran == ["b", "b", "c"]
+    with pytest.raises(ValueError, match="only='x'"):
+        RP.reproduce(tmp_path, only="x")
+    assert (tmp_path / "REPORT.md").read_text() == "report\n"
