@@ -44,6 +44,7 @@ import numpy as np
 from numba import njit
 
 from integrators.events import AT_ROOT, END, PEAK, carry_signs, sign_change
+from integrators.events import compiled_roots as _roots
 from integrators.kernel_stepper import CompiledAlgorithm, KernelStepper
 from integrators.registry import register
 from problems.formulations import ode_rhs
@@ -67,12 +68,6 @@ DC1, DC3, DC4 = C1 - 2825.0 / 27648.0, C3 - 18575.0 / 48384.0, C4 - 13525.0 / 55
 DC5, DC6 = -277.0 / 14336.0, C6 - 0.25
 SAFETY, PGROW, PSHRNK, ERRCON = 0.9, -0.2, -0.25, 1.89e-4      # ERRCON = (5/SAFETY)^(1/PGROW)
 
-
-@njit(cache=True, error_model="numpy")
-def _roots(p, z, g):
-    """events.root_functions; p[7:10] hold ln(10 E_slow), ln E_slow, ln E."""
-    g[0], g[1], g[2] = z[1] - p[7], z[1] - p[8], z[1] - p[9]
-    g[3] = p[2] * z[0] - p[3] * (z[1] + p[1] * z[2])
 
 
 #: crossings placed in one scan at most: each moves the cursor forward, so this only stops a

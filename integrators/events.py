@@ -22,7 +22,7 @@ from numba import njit
 
 __all__ = ["START", "END", "H_EXTREMUM", "PEAK", "DIRECTIONS", "AT_ROOT", "sign_change",
            "carry_signs",
-           "root_functions", "root_derivatives", "EventRecorder"]
+           "compiled_roots", "root_functions", "root_derivatives", "EventRecorder"]
 
 START, END, H_EXTREMUM, PEAK = range(4)
 #: direction of a crossing that counts: +1 upward, −1 downward, 0 both
@@ -57,6 +57,15 @@ def carry_signs(old, new) -> None:
     for k in range(new.shape[0]):
         if new[k] == 0.0 and old[k] != 0.0:
             new[k] = AT_ROOT if old[k] > 0.0 else -AT_ROOT
+
+
+@njit(cache=True, error_model="numpy")
+def compiled_roots(p, z, g):
+    """:func:`root_functions` in numba, into ``g``, with the parameter layout of the compiled
+    kernels (:mod:`integrators.kernel_stepper`): p[1:4] β, C, D, p[7:10] ln(10 E_slow),
+    ln E_slow, ln E."""
+    g[0], g[1], g[2] = z[1] - p[7], z[1] - p[8], z[1] - p[9]
+    g[3] = p[2] * z[0] - p[3] * (z[1] + p[1] * z[2])
 
 
 def root_functions(nd, e: float, z: np.ndarray) -> np.ndarray:

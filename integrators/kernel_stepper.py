@@ -22,7 +22,9 @@ from typing import ClassVar
 
 import numpy as np
 
-from integrators.events import AT_ROOT, DIRECTIONS, H_EXTREMUM, root_functions
+from numba import njit
+
+from integrators.events import AT_ROOT, DIRECTIONS, H_EXTREMUM, compiled_roots
 from integrators.registry import AdaptiveAlgorithm
 from integrators.segments import Advance
 from integrators.solution import ReturnCode, Stats
@@ -33,6 +35,59 @@ __all__ = ["CompiledAlgorithm", "KernelStepper", "REACHED", "ROOT", "CHUNK", "NO
 TAU, TAU_OLD, H, CURSOR, T_RET, STEPS, REJECTED, NFEV, NJEV = range(9)
 REACHED, ROOT, CHUNK, NONFINITE, UNDERFLOW = range(5)
 CHUNK_STEPS = 1 << 20            # accepted steps per kernel call at most
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _max_abs_ratio(a, b):
+    """max_i |a_i| / b_i over 3 entries, NaN if any ratio is NaN (as ``np.max``)."""
+    m = abs(a[0]) / b[0]
+    for i in range(1, 3):
+        r = abs(a[i]) / b[i]
+        if r > m or r != r:
+            m = r
+        if m != m:
+            break
+    return m
+
+
+@njit(cache=True, error_model="numpy")
+def _start(st, Z, G, p, tau0, z0, t_bound, exponent):
+    """The arithmetic of :meth:`KernelStepper.start`, compiled (in Python it cost ~40 µs per
+    restart, as much as a few hundred steps): z0 and f(z0) into Z, Hairer's initial step
+    (Hairer, Nørsett & Wanner I, §II.4, on the scale of the error test) into st[H], the root
+    functions at τ0 into G[0]. Python's ``min``/``max`` and numpy's NaN propagation are kept
+    as they were, so every step size is the same to the bit."""
+    rtol, atol = p[5], p[6]
+    z, f, trial, f1, scale = Z[0], Z[1], np.empty(3), np.empty(3), np.empty(3)
+    for i in range(3):
+        z[i] = z0[i]
+    ode_rhs(int(p[0]), p[1], p[2], p[3], p[4], z, f)
+    for i in range(3):
+        scale[i] = atol + rtol * abs(z[i])
+    d0, d1 = _max_abs_ratio(z, scale), _max_abs_ratio(f, scale)
+    small = d0 if not d1 < d0 else d1                            # Python's min(d0, d1)
+    h0 = 0.01 * d0 / d1 if small >= 1e-5 else 1e-6
+    for i in range(3):
+        trial[i] = z[i] + h0 * f[i]
+    ode_rhs(int(p[0]), p[1], p[2], p[3], p[4], trial, f1)
+    for i in range(3):
+        f1[i] = f1[i] - f[i]
+    big = _max_abs_ratio(f1, scale) / h0
+    big = big if big > d1 else d1                                # Python's max(d1, ·): inf if
+    if big > 1e-15:                                              # the trial overflowed
+        h1 = (0.01 / big) ** exponent
+    else:
+        h1 = 1e-3 * h0 if 1e-3 * h0 > 1e-6 else 1e-6
+    h = 100.0 * h0
+    second = h1 if h1 > 0.0 else 1e-3 * h0
+    if second < h:
+        h = second
+    if t_bound - tau0 < h:
+        h = t_bound - tau0
+    st[H] = h
+    st[TAU] = st[CURSOR] = tau0
+    st[NFEV] += 2.0
+    compiled_roots(p, z, G[0])
 
 
 class CompiledAlgorithm(AdaptiveAlgorithm):
@@ -71,26 +126,14 @@ class KernelStepper:
         """Clear a kernel's own memory in ``st`` at a (re)start."""
 
     def start(self, tau0, z0, e, t_bound):
-        st, Z, G, p, a = self._st, self._Z, self._G, self._p, self.algorithm
+        st, Z, G, p = self._st, self._Z, self._G, self._p
         self._e = p[4] = float(e)
         p[9] = math.log(self._e)
-        Z[0] = z0
-        ode_rhs(int(p[0]), p[1], p[2], p[3], p[4], Z[0], Z[1])
-        # initial step: Hairer, Nørsett & Wanner I, §II.4, on the scale of the error test
-        z, f, f1 = Z[0], Z[1], np.empty(3)
-        scale = a.atol + a.rtol * np.abs(z)
-        d0, d1 = np.max(np.abs(z) / scale), np.max(np.abs(f) / scale)
-        h0 = 0.01 * d0 / d1 if min(d0, d1) >= 1e-5 else 1e-6
-        ode_rhs(int(p[0]), p[1], p[2], p[3], p[4], z + h0 * f, f1)
-        big = max(d1, np.max(np.abs(f1 - f) / scale) / h0)     # inf if the trial overflowed
-        h1 = (0.01 / big) ** self.init_exponent if big > 1e-15 else max(1e-6, 1e-3 * h0)
-        st[H] = min(100.0 * h0, h1 if h1 > 0.0 else 1e-3 * h0, t_bound - tau0)
-        st[TAU] = st[CURSOR] = tau0
-        st[NFEV] += 2.0
+        _start(st, Z, G, p, float(tau0), np.asarray(z0, dtype=float), float(t_bound),
+               float(self.init_exponent))
         self.reset()
-        G[0] = root_functions(self.nd, self._e, z)
         last = self._last_root
-        if last is not None and last[0] == tau0 and np.array_equal(last[1], z):
+        if last is not None and last[0] == tau0 and (last[1] == Z[0]).all():
             # restarting at a root just reported: keep its sign after the crossing, or the
             # first step would find the same crossing again
             for kind, sign in last[2]:

@@ -92,3 +92,39 @@ def test_stick_phase_jitter_is_not_reported(monkeypatch):
     sol = I.solve(P.paper_example(t_end=1.5), I.CashKarp45(rtol=1e-8, atol=1e-8), max_points=2)
     assert sol.success and len(sol.events) == 1
     assert roots.count(PEAK) == 1
+
+
+def _initial_step_in_python(p, z, t_span, exponent):
+    """Hairer's initial step as KernelStepper.start computed it in Python before it was
+    compiled (numpy's NaN propagation, Python's min/max): the reference of the test below."""
+    from problems.formulations import ode_rhs
+    rtol, atol = p[5], p[6]
+    f, f1 = np.empty(3), np.empty(3)
+    ode_rhs(int(p[0]), p[1], p[2], p[3], p[4], z, f)
+    scale = atol + rtol * np.abs(z)
+    d0, d1 = np.max(np.abs(z) / scale), np.max(np.abs(f) / scale)
+    h0 = 0.01 * d0 / d1 if min(d0, d1) >= 1e-5 else 1e-6
+    ode_rhs(int(p[0]), p[1], p[2], p[3], p[4], z + h0 * f, f1)
+    big = max(d1, np.max(np.abs(f1 - f) / scale) / h0)
+    h1 = (0.01 / big) ** exponent if big > 1e-15 else max(1e-6, 1e-3 * h0)
+    return min(100.0 * h0, h1 if h1 > 0.0 else 1e-3 * h0, t_span)
+
+
+@pytest.mark.parametrize("z", [(0.3, -12.0, 11.0), (0.0, 0.0, 0.0), (5.0, 40.0, -40.0),
+                               (0.3, 700.0, 1.0), (0.3, 800.0, -800.0), (1e-3, -30.0, 29.0)])
+def test_compiled_start_takes_the_same_initial_step_as_the_python_one(z):
+    """The compiled start (kernel_stepper._start) against the Python code it replaced, to the
+    bit: a steady state (f = 0), a fast slip (e^40), an overflowing trial (e^700), a state whose
+    f is NaN in its last entry (e^800 = inf times u + s = 0: numpy's max is NaN), a deep stick. Same step sizes keep every committed result of the compiled methods."""
+    from integrators.kernel_stepper import H, _start
+    p = P.window("W2", "aging").nondimensional()
+    stepper = I.Rodas5P(rtol=1e-6, atol=1e-8).make_stepper(p, None)
+    z = np.array(z)
+    for e, span, exponent in ((p.e_slow, 50.0, 0.2), (p.e_fast, 1e-4, 1 / 3)):
+        stepper.start(0.0, z, e, span)               # sets E and ln E in p
+        q = stepper._p.copy()
+        st, Z, G = np.zeros(13), np.zeros((7, 3)), np.zeros((2, 4))
+        with np.errstate(all="ignore"):
+            _start(st, Z, G, q, 0.0, z, span, exponent)
+            expected = _initial_step_in_python(q, z, span, exponent)
+        assert st[H] == expected or (np.isnan(st[H]) and np.isnan(expected))
