@@ -41,10 +41,18 @@ against ~4 µs with the dense path alone and ~20 µs with generic (non-unrolled)
 Step control: errmax = max_i |err_i| / (atol + rtol·max(|z_n,i|, |z_{n+1},i|)) (the mixed test of
 scipy and SUNDIALS, in Cash–Karp's max norm; no |h f| term: in a stiff method h f of the fast mode
 is not a scale). errmax ≤ 1 accepts; the next h is h·min(5, 0.9·errmax^(−1/(q+1))) with q the
-embedded order, not above h after a rejection; errmax > 1 rejects with
-h·max(0.1, 0.9·errmax^(−1/(q+1))), a non-finite error with h/10. Initial step, landing on t_out,
-UNDERFLOW, NONFINITE, chunks of accepted steps, restarts at a reported root: as
-:mod:`integrators.cash_karp` (its adapter is reused).
+embedded order, or less if Gustafsson's predictive controller asks for less (as in
+:mod:`integrators.rosenbrock`: (h/h_acc)·0.9·(err_acc/errmax²)^(1/(q+1)) within [0.2, 5], with
+h_acc, err_acc those of the step before), and not above h after a rejection; errmax > 1 rejects
+with h·max(0.1, 0.9·errmax^(−1/(q+1))), a non-finite error with h/10. Why the predictive part:
+where an event nucleates or its slip rate falls, the time scale shortens from step to step and the
+step must shrink by ~20 % per step. The elementary controller assumes that the next step's error at
+a given h is this one's, so it proposed a step that failed once on nearly every step (W2 aging,
+rtol 1e−4: 1097 rejected attempts for 2663 steps, 29 % of the attempts; W4 slip 1e−3: 4512 for
+9537); the predictive one extrapolates the trend of the last two steps. With it: 132 for 2689, 946
+for 9539, the same errors, and a quarter fewer attempts (each computes the φ-functions, ~1 µs); at
+1e−8, +0.7 % steps. Initial step, landing on t_out, UNDERFLOW, NONFINITE, chunks of accepted steps,
+restarts at a reported root: as :mod:`integrators.cash_karp` (its adapter is reused).
 
 Cost counters: nfev = (1 + s)·steps + s·rejected + 2·starts with s = 1 (exprb32) or 2 (exprb43)
 stage evaluations per attempt, f at each accepted state (the next step's f(z_n) and the slope of
@@ -116,6 +124,7 @@ __all__ = ["Exprb32", "Exprb43", "phi_functions", "phi_dense"]
 
 REACHED, ROOT, CHUNK, NONFINITE, UNDERFLOW = range(5)
 _NJEV = 8                     # st[0:8] is Cash–Karp's layout; one more counter
+_HACC, _RACC, _NACC = 9, 10, 11       # the controller's memory (see _step)
 _METHOD = 10                  # p[10]: 0 exprb32, 1 exprb43
 _TAYLOR_TERMS = 12
 _THETA = 0.5                  # ‖A/2^s‖₁ ≤ _THETA before the Taylor series
@@ -360,7 +369,7 @@ def _attempt(q, method, J, z, f, hs, P, half, w, out):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _step(p, Z, tau, h, t_out, w, P, half, J, zn):
+def _step(p, st, Z, tau, h, t_out, w, P, half, J, zn):
     """One accepted step of proposed size h from (tau, Z[_Z], Z[_F]), shortened to land on t_out;
     its start goes to Z[_ZO], Z[_FO]. Returns (-1 or UNDERFLOW; the new τ; the next h; attempts;
     f evaluations of trials rejected for a non-finite end)."""
@@ -390,7 +399,16 @@ def _step(p, Z, tau, h, t_out, w, P, half, J, zn):
         hs = max(0.9 * hs * errmax ** expo, 0.1 * hs) if np.isfinite(errmax) else 0.1 * hs
     Z[_ZO], Z[_FO] = Z[_Z], Z[_F]
     Z[_Z], Z[_F] = zn, w[6]
-    h_next = hs * min(5.0, 0.9 * errmax ** expo) if errmax > 0.0 else 5.0 * hs
+    # elementary: 0.9 r with r = errmax^expo; Gustafsson's predictive (rodas.f): (h/h_acc) 0.9
+    # (err_acc/errmax²)^(−expo) = (h/h_acc) 0.9 r²/r_acc, r_acc = max(1e−2, err_acc)^expo kept in
+    # st (one power per step, as the elementary controller alone)
+    r = errmax ** expo if errmax > 0.0 else np.inf
+    grow = min(5.0, 0.9 * r)
+    if st[_NACC] >= 1.0 and errmax > 0.0:
+        grow = min(grow, max(0.2, min(5.0, hs / st[_HACC] * 0.9 * r * r / st[_RACC])))
+    st[_HACC], st[_RACC] = hs, r if errmax >= 1e-2 else 0.01 ** expo
+    st[_NACC] += 1.0
+    h_next = hs * grow
     if rejected:
         h_next = min(h_next, hs)
     h_next = max(h_next, h) if last else h_next     # a shortened step says nothing about h
@@ -416,8 +434,8 @@ def _advance(st, p, Z, G, dirs, t_out, n_max):
         elif n >= n_max:
             status = CHUNK
         else:
-            status, tau, h, tried, more = _step(p, Z, st[_TAU], st[_H], t_out, w, P, half, J,
-                                                zn)
+            status, tau, h, tried, more = _step(p, st, Z, st[_TAU], st[_H], t_out, w, P, half,
+                                                J, zn)
             attempts += tried
             extra += more
             calls += 1
@@ -459,8 +477,13 @@ class _ExprbStepper(KernelStepper):
     Cash–Karp's layouts with the method code appended to ``p`` and the Jacobian counter in
     ``st``."""
 
+    n_st = 12
+
     def __init__(self, algorithm, nd, budget):
         super().__init__(algorithm, nd, budget, extra_p=(float(algorithm.method_code),))
+
+    def reset(self):
+        self._st[_NACC] = 0.0
 
     def kernel(self, t_out, n_max):
         return _advance(self._st, self._p, self._Z, self._G, self._dirs, t_out, n_max)
