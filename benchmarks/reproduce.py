@@ -1,14 +1,15 @@
 """What ``make reproduce`` runs: every generated file in ``results/``, from scratch, and
 ``results/REPORT.md`` assembling them.
 
-Steps (about two hours on a 2-core machine, ten of them scipy's RK45 in its wall budget):
-integrator table; W1–W4 simulated under both laws (``simulate_<window>_<law>.json`` and the
-windows table); the paper example; the reference solutions and their agreement; the speed-up
-claim; the convergence study and the fixed-step order of the compiled stiff methods; the quick
-work-precision study and issue 6's target; the target on every study problem (a full
-work-precision study of the stiff adaptive integrators, about an hour); every backend side by side; the Section 4 sweeps;
-the sweep's speed on 1 and 2 workers; last, when ``out`` is the project's ``results/``, the
-README's generated blocks (:mod:`benchmarks.readme`).
+Steps (about an hour and a half on a 2-core machine; ten minutes of it are scipy's RK45 in its wall
+budget, half an hour the full study behind issue 6's target): integrator table; W1–W4 simulated
+under both laws (``simulate_<window>_<law>.json`` and the windows table); the paper example; the
+reference solutions and their agreement; the speed-up claim; the convergence study and the
+fixed-step order of the compiled stiff methods; the quick work-precision study and issue 6's
+target; the target on every study problem (a full work-precision study of the stiff adaptive
+integrators); every backend side by side; the Section 4 sweeps; the sweep's speed on 1 and 2
+workers; last, when ``out`` is the project's ``results/``, the README's generated blocks
+(:mod:`benchmarks.readme`).
 """
 
 from __future__ import annotations

@@ -112,7 +112,7 @@ def full_target(out, progress: bool = True) -> pd.DataFrame:
     """The target on every problem of the full study (the paper example and W1–W4 under both
     laws), from a work-precision study of :func:`target_integrators` on the full ladder with a
     10 s budget per run (compiled right-hand sides): ``wp_full*`` and ``target_full.*`` in
-    ``out``. About an hour on a 2-core machine."""
+    ``out``. About half an hour on a 2-core machine."""
     import dataclasses
 
     from benchmarks.report import write_work_precision
