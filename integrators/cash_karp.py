@@ -69,7 +69,6 @@ DC5, DC6 = -277.0 / 14336.0, C6 - 0.25
 SAFETY, PGROW, PSHRNK, ERRCON = 0.9, -0.2, -0.25, 1.89e-4      # ERRCON = (5/SAFETY)^(1/PGROW)
 
 
-
 #: crossings placed in one scan at most: each moves the cursor forward, so this only stops a
 #: pathological step (a root function at zero to the bit) from scanning for ever
 MAX_PASSES = 64
