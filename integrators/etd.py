@@ -42,7 +42,7 @@ import numpy as np
 from integrators import etd_kernel as K
 from integrators.registry import Algorithm, register
 from integrators.solution import RawRun, ReturnCode, Stats
-from problems._validate import check_positive
+from problems._validate import check_count, check_positive
 from problems.loading import event_thresholds
 
 __all__ = ["ETD1", "ETD2", "ETDIterated"]
@@ -70,8 +70,7 @@ class _ETD(Algorithm):
         check_positive("dtau_max", self.dtau_max)
         check_positive("dtau_cnst", self.dtau_cnst)
         check_positive("v_max", self.v_max)
-        if int(self.max_steps) != self.max_steps or self.max_steps < 1:
-            raise ValueError(f"max_steps must be a positive integer, got {self.max_steps!r}")
+        check_count("max_steps", self.max_steps)
 
     @classmethod
     def library_version(cls) -> str:
@@ -181,8 +180,7 @@ class ETDIterated(_ETD):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        if int(self.n_iterations) != self.n_iterations or self.n_iterations < 1:
-            raise ValueError(f"n_iterations must be an integer >= 1, got {self.n_iterations!r}")
+        check_count("n_iterations", self.n_iterations)
 
     def iterations(self) -> int:
         return int(self.n_iterations)

@@ -10,7 +10,7 @@ from __future__ import annotations
 import dataclasses
 from typing import ClassVar
 
-from problems._validate import check_positive
+from problems._validate import check_count, check_positive
 
 __all__ = ["Algorithm", "AdaptiveAlgorithm", "REGISTRY", "register", "algorithm_class", "make_algorithm"]
 
@@ -68,14 +68,15 @@ class AdaptiveAlgorithm(Algorithm):
         if self.rtol is None or self.atol is None:
             raise ValueError(f"{self.name} needs explicit rtol and atol (no default accuracy), "
                              f"got rtol={self.rtol!r}, atol={self.atol!r}")
-        check_positive("rtol", self.rtol)
         check_positive("atol", self.atol)
-        if self.rhs not in self.rhs_tiers:
+        if not RTOL_MIN <= check_positive("rtol", self.rtol) < 1.0:
+            raise ValueError(f"rtol must be in [{RTOL_MIN:.1e}, 1) (a relative tolerance below "
+                             f"100 ulps cannot be met in double precision), got {self.rtol!r}")
+        if not isinstance(self.rhs, str) or self.rhs not in self.rhs_tiers:
             why = f" ({self.rhs_tiers_reason})" if self.rhs_tiers_reason else ""
             raise ValueError(f"rhs must be one of {self.rhs_tiers} for {self.name}, "
                              f"got {self.rhs!r}{why}")
-        if int(self.max_steps) != self.max_steps or self.max_steps < 1:
-            raise ValueError(f"max_steps must be a positive integer, got {self.max_steps!r}")
+        check_count("max_steps", self.max_steps)
 
     def make_stepper(self, nd, budget):
         """The backend's adapter to the segment protocol (:mod:`integrators.segments`)."""
@@ -113,6 +114,8 @@ def make_algorithm(name: str, rtol: float | None = None, atol: float | None = No
 
 
 REGISTRY: dict[str, type[Algorithm]] = {}
+#: the smallest rtol an adaptive method accepts: 100 ulps of 1
+RTOL_MIN = 100 * 2.0 ** -52
 
 
 def register(cls: type[Algorithm]) -> type[Algorithm]:
@@ -128,6 +131,6 @@ def register(cls: type[Algorithm]) -> type[Algorithm]:
 def algorithm_class(name: str) -> type[Algorithm]:
     """Registry lookup, case-insensitive, with the known names in the error."""
     for key, cls in REGISTRY.items():
-        if key.lower() == name.lower():
+        if isinstance(name, str) and key.lower() == name.lower():
             return cls
     raise ValueError(f"unknown integrator {name!r}; known: {', '.join(sorted(REGISTRY))}")

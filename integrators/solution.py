@@ -8,7 +8,15 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-__all__ = ["ReturnCode", "Stats", "Solution", "EVENT_COLUMNS", "Output", "RawRun"]
+from problems._validate import check_count, check_positive
+
+__all__ = ["ReturnCode", "Stats", "Solution", "EVENT_COLUMNS", "Output", "RawRun",
+           "DEFAULT_POINTS", "SAVE_LIMIT"]
+
+#: points saved over a run when neither ``save_every`` nor ``max_points`` is given
+DEFAULT_POINTS = 20_000
+#: the most points ``save_every`` may save unless ``max_points`` allows more (~0.5 GB of arrays)
+SAVE_LIMIT = 10_000_000
 
 #: columns of :attr:`Solution.events`, one row per completed event, SI units.
 #: ``slip_*`` is the slip since the start of the run; ``fs_max_before`` is the largest spring
@@ -50,22 +58,30 @@ class Stats:
 
 @dataclass(frozen=True)
 class Output:
-    """What to save of the trajectory: every ``save_every`` seconds, or else ``max_points`` in all.
+    """What to save of the trajectory: every ``save_every`` seconds, or else ``max_points`` in all
+    (default :data:`DEFAULT_POINTS`). With ``save_every``, ``max_points`` caps the number of saved
+    points (default :data:`SAVE_LIMIT`), so a typo cannot fill the memory.
 
     Events are always recorded exactly, whatever the decimation.
     """
 
     save_every: float | None = None
-    max_points: int = 20_000
+    max_points: int | None = None
 
     def interval(self, t_end: float) -> float:
-        if self.save_every is not None:
-            if not self.save_every > 0:
-                raise ValueError(f"save_every must be positive, got {self.save_every!r}")
-            return float(self.save_every)
-        if self.max_points < 2:
-            raise ValueError(f"max_points must be at least 2, got {self.max_points!r}")
-        return t_end / (self.max_points - 1)
+        """The save interval in seconds (validates the options: call it before any work)."""
+        if self.save_every is None:
+            n = check_count("max_points", DEFAULT_POINTS if self.max_points is None
+                            else self.max_points, minimum=2)
+            return t_end / (n - 1)
+        dt = check_positive("save_every", self.save_every)
+        limit = check_count("max_points", SAVE_LIMIT if self.max_points is None
+                            else self.max_points, minimum=2)
+        if t_end / dt + 1 > limit:
+            raise ValueError(f"save_every = {dt:g} s would save {t_end / dt + 1:.3g} points over "
+                             f"t_end = {t_end:g} s, more than max_points = {limit}: save less "
+                             "often, or raise max_points")
+        return dt
 
 
 @dataclass
@@ -109,6 +125,12 @@ class Solution:
     @property
     def t_reached(self) -> float:
         return float(self.t[-1]) if len(self.t) else 0.0
+
+    @property
+    def reached_end(self) -> bool:
+        """Did the run reach ``problem.t_end``? Only then may its events be read as physics
+        (a failure or an exhausted budget stops it earlier: see ``retcode``)."""
+        return self.success and self.t_reached >= self.problem.t_end * (1.0 - 1e-9)
 
     @property
     def mu(self) -> np.ndarray:

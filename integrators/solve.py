@@ -6,6 +6,7 @@ problem onto its method (``Algorithm.run``).
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 
@@ -14,6 +15,7 @@ import pandas as pd
 
 from integrators.registry import Algorithm
 from integrators.solution import EVENT_COLUMNS, Output, RawRun, ReturnCode, Solution, Stats
+from problems._validate import check_positive
 from problems.slider import SpringSlider
 
 __all__ = ["solve", "Budget"]
@@ -29,14 +31,20 @@ class Budget:
     def exceeded(self) -> bool:
         return self.wall_s is not None and time.perf_counter() - self.start > self.wall_s
 
+    def deadline(self) -> float:
+        """The ``time.perf_counter()`` at which the budget runs out (inf: none), for compiled
+        code that reads the same clock (:func:`integrators.clock.monotonic`)."""
+        return math.inf if self.wall_s is None else self.start + self.wall_s
+
 
 def solve(problem: SpringSlider, algorithm: Algorithm, *, save_every: float | None = None,
-          max_points: int = 20_000, wall_budget: float | None = None,
+          max_points: int | None = None, wall_budget: float | None = None,
           progress: bool = False) -> Solution:
     """Integrate ``problem`` with ``algorithm`` from t = 0 to ``problem.t_end``.
 
     The trajectory is saved every ``save_every`` seconds, or else at ``max_points`` points in
-    all; events are recorded exactly either way. ``wall_budget`` (s) stops a run that takes
+    all (default 20,000); with ``save_every``, ``max_points`` caps the saved points (default
+    10⁷, see :class:`~integrators.solution.Output`). Events are recorded exactly either way. ``wall_budget`` (s) stops a run that takes
     longer (retcode ``WallTime``); ``progress`` shows a progress bar. A numerical failure comes
     back as a Solution with a failure retcode; misuse (bad arguments) raises ``ValueError``.
     """
@@ -44,8 +52,8 @@ def solve(problem: SpringSlider, algorithm: Algorithm, *, save_every: float | No
         raise ValueError(f"problem must be a SpringSlider, got {type(problem).__name__}")
     if not isinstance(algorithm, Algorithm):
         raise ValueError(f"algorithm must be an Algorithm instance, got {algorithm!r}")
-    if wall_budget is not None and not wall_budget > 0:
-        raise ValueError(f"wall_budget must be positive, got {wall_budget!r}")
+    if wall_budget is not None:
+        check_positive("wall_budget", wall_budget)
     output = Output(save_every=save_every, max_points=max_points)
     output.interval(problem.t_end)          # validates the decimation now, not mid-run
     budget = Budget(wall_s=wall_budget, start=time.perf_counter())

@@ -18,7 +18,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from problems._validate import check_non_negative, check_positive
+from problems._validate import check_non_negative, check_positive, warn_implausible
 
 __all__ = ["FrictionLaw", "SlipLaw", "AgingLaw", "LAWS", "law_from_name"]
 
@@ -38,10 +38,9 @@ class FrictionLaw:
     code: ClassVar[int] = -1
 
     def __post_init__(self) -> None:
-        check_positive("a", self.a)
-        check_non_negative("b", self.b)
-        check_positive("lc", self.lc)
-        check_positive("v0", self.v0)
+        for name, check in (("a", check_positive), ("b", check_non_negative),
+                            ("lc", check_positive), ("v0", check_positive)):
+            warn_implausible(name, check(name, getattr(self, name)), stacklevel=5)
 
     # --- the law itself -------------------------------------------------------------------
     def steady_state(self, v: float, fn: float) -> float:
@@ -136,6 +135,6 @@ def law_from_name(name: str, **params) -> FrictionLaw:
     """Build a law by its short name (``"slip"`` or ``"aging"``)."""
     try:
         cls = LAWS[name.lower()]
-    except KeyError:
+    except (KeyError, AttributeError):
         raise ValueError(f"law must be one of {sorted(LAWS)}, got {name!r}") from None
     return cls(**params)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from problems._validate import check_non_negative, check_positive
+from problems._validate import check_non_negative, check_positive, warn_implausible
 
 __all__ = ["ConstantLoading", "TwoSpeedLoading", "EVENT_START_FACTOR"]
 
@@ -23,7 +23,7 @@ class ConstantLoading:
     vl: float
 
     def __post_init__(self) -> None:
-        check_positive("vl", self.vl)
+        warn_implausible("vl", check_positive("vl", self.vl), stacklevel=4)
 
     @property
     def v_slow(self) -> float:
@@ -54,8 +54,8 @@ class TwoSpeedLoading:
     df: float
 
     def __post_init__(self) -> None:
-        check_positive("vls", self.vls)
-        check_positive("vlf", self.vlf)
+        warn_implausible("vls", check_positive("vls", self.vls), stacklevel=4)
+        warn_implausible("vlf", check_positive("vlf", self.vlf), stacklevel=4)
         check_non_negative("df", self.df)
 
     @property

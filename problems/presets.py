@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 from problems.friction import law_from_name
 from problems.loading import ConstantLoading, TwoSpeedLoading
-from problems.slider import SpringSlider, balanced_initial_state
+from problems.slider import BalancedStart, SpringSlider
 
 __all__ = ["MASS", "A", "V0", "NORMAL_STRESS", "NORMAL_FORCE", "WINDOWS", "Window",
            "paper_example", "window", "aging_best_fit", "preset", "PRESET_NAMES",
@@ -86,11 +86,9 @@ def aging_best_fit(w: Window) -> tuple[float, float]:
 
 
 def _slider(law, loading, stiffness: float, t_end: float, name: str) -> SpringSlider:
-    v = loading.v_slow
-    theta = law.steady_state(v / INITIAL_PERTURBATION, NORMAL_FORCE)
-    initial = balanced_initial_state(law, NORMAL_FORCE, MU0, v, theta)
     return SpringSlider(mass=MASS, stiffness=stiffness, normal_force=NORMAL_FORCE, law=law,
-                        loading=loading, initial=initial, t_end=t_end, mu0=MU0, name=name)
+                        loading=loading, initial=BalancedStart(INITIAL_PERTURBATION),
+                        t_end=t_end, mu0=MU0, name=name)
 
 
 def paper_example(law: str = "slip", b: float = 0.0092, lc: float = 0.5e-6,
@@ -114,8 +112,9 @@ def window(name: str, law: str = "slip", b: float | None = None, lc: float | Non
     """
     try:
         w = WINDOWS[name.upper()]
-    except KeyError:
+    except (KeyError, AttributeError):
         raise ValueError(f"window must be one of {sorted(WINDOWS)}, got {name!r}") from None
+    law_from_name(law, a=A, b=0.01, lc=1e-6)          # the law's name, checked first
     b_fit, lc_fit = (w.slip_b, w.slip_lc) if law.lower() == "slip" else aging_best_fit(w)
     friction = law_from_name(law, a=A, b=b_fit if b is None else b, lc=lc_fit if lc is None else lc,
                              v0=V0)
@@ -130,6 +129,6 @@ def preset(name: str, law: str = "slip", b: float | None = None, lc: float | Non
            t_end: float | None = None) -> SpringSlider:
     """A preset by its CLI name: ``paper-example`` or ``W1``..``W4``; ``None`` keeps the default."""
     kw = {k: v for k, v in dict(b=b, lc=lc, t_end=t_end).items() if v is not None}
-    if name.lower() == "paper-example":
+    if isinstance(name, str) and name.lower() == "paper-example":
         return paper_example(law=law, **kw)
     return window(name, law=law, **kw)

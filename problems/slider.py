@@ -4,11 +4,17 @@
 
 A :class:`SpringSlider` is data: parameters, loading, initial state and end time, validated at
 construction. Variants are made with :func:`dataclasses.replace` or :meth:`SpringSlider.with_law`.
+
+The initial state is either an :class:`InitialState` in physical units, kept as it is by every
+variant, or the rule :class:`BalancedStart` (what every preset uses), resolved against the
+problem's own law and loading: so ``window("W2", b=b, lc=lc)`` and
+``window("W2").with_law(b=b, lc=lc)`` are the same problem.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from dataclasses import dataclass
 from typing import NamedTuple, Union
@@ -19,10 +25,13 @@ from problems._validate import check_finite, check_positive
 from problems.friction import AgingLaw, FrictionLaw, SlipLaw
 from problems.loading import ConstantLoading, TwoSpeedLoading
 
-__all__ = ["InitialState", "SpringSlider", "Nondimensional", "steady_initial_state",
-           "balanced_initial_state"]
+__all__ = ["InitialState", "BalancedStart", "SpringSlider", "Nondimensional",
+           "steady_initial_state", "balanced_initial_state", "TAU_END_MAX"]
 
 Loading = Union[ConstantLoading, TwoSpeedLoading]
+#: the longest run in units of τ = v0 t/Lc: at τ the spacing of doubles is 2.2e−16 τ, and the
+#: stick phase needs steps of ~1e−3 in τ (a day of W1–W4 at Lc = 0.1 nm is ~1e9)
+TAU_END_MAX = 1e12
 
 
 @dataclass(frozen=True)
@@ -55,6 +64,27 @@ def balanced_initial_state(law: FrictionLaw, fn: float, mu0: float, v: float,
     return InitialState(v=v, theta=theta, fs=float(law.friction(v, theta, fn, mu0 * fn)))
 
 
+@dataclass(frozen=True)
+class BalancedStart:
+    """The start rule of the presets: sliding at the slow loading speed, with the state of steady
+    sliding at a speed ``slowdown`` times slower (a slightly healed fault) and the spring force
+    equal to friction (:func:`balanced_initial_state`: on the slow manifold, no fast inertial
+    layer at the start).
+
+    A rule, not values: it is resolved against the problem's own law, normal force, μ0 and
+    loading, so a variant with other friction parameters starts from the same rule.
+    """
+
+    slowdown: float = 1.1
+
+    def __post_init__(self) -> None:
+        check_positive("slowdown", self.slowdown)
+
+    def resolve(self, law: FrictionLaw, fn: float, mu0: float, loading) -> InitialState:
+        v = loading.v_slow
+        return balanced_initial_state(law, fn, mu0, v, law.steady_state(v / self.slowdown, fn))
+
+
 class Nondimensional(NamedTuple):
     """The nondimensional problem of SPEC §2: w = v/v0, τ = v0 t/Lc, h, η, Ψ.
 
@@ -81,8 +111,10 @@ class SpringSlider:
     """Spring-slider with mass: ``mass`` (kg), ``stiffness`` k (N/m), ``normal_force`` Fn (N),
     a friction ``law``, a ``loading`` protocol, an ``initial`` state and the end time ``t_end`` (s).
 
-    ``mu0`` = F0/Fn is the reference friction coefficient at v0; it only shifts the friction level
-    (Urata et al. 2017, Sect. 4.1).
+    ``initial`` is an :class:`InitialState` (physical units, kept by every variant) or a rule,
+    :class:`BalancedStart`, resolved against this problem's law and loading
+    (:attr:`initial_state`). ``mu0`` = F0/Fn is the reference friction coefficient at v0; it only
+    shifts the friction level (Urata et al. 2017, Sect. 4.1).
     """
 
     mass: float
@@ -90,7 +122,7 @@ class SpringSlider:
     normal_force: float
     law: FrictionLaw
     loading: Loading
-    initial: InitialState
+    initial: InitialState | BalancedStart
     t_end: float
     mu0: float = 0.6
     name: str = ""
@@ -101,14 +133,29 @@ class SpringSlider:
         check_positive("normal_force", self.normal_force)
         check_positive("t_end", self.t_end)
         check_finite("mu0", self.mu0)
+        if not isinstance(self.name, str):
+            raise ValueError(f"name must be a string, got {self.name!r}")
         if not isinstance(self.law, (SlipLaw, AgingLaw)):
             raise ValueError(f"law must be a SlipLaw or AgingLaw, got {self.law!r}")
         if not isinstance(self.loading, (ConstantLoading, TwoSpeedLoading)):
             raise ValueError(f"loading must be ConstantLoading or TwoSpeedLoading, got {self.loading!r}")
-        if not isinstance(self.initial, InitialState):
-            raise ValueError(f"initial must be an InitialState, got {self.initial!r}")
-        if isinstance(self.law, AgingLaw) and self.initial.theta <= 0:
-            raise ValueError(f"initial theta must be positive for the aging law, got {self.initial.theta!r}")
+        if not isinstance(self.initial, (InitialState, BalancedStart)):
+            raise ValueError(f"initial must be an InitialState or a BalancedStart, got {self.initial!r}")
+        ini = self.initial_state
+        if isinstance(self.law, AgingLaw) and ini.theta <= 0:
+            raise ValueError(f"initial theta must be positive for the aging law, got {ini.theta!r}")
+        tau_end = self.t_end * self.law.v0 / self.law.lc
+        if tau_end > TAU_END_MAX:
+            raise ValueError(f"t_end = {self.t_end:g} s is {tau_end:.3g} in τ = v0 t/Lc (Lc = "
+                             f"{self.law.lc:g} m), beyond {TAU_END_MAX:g}: there double precision "
+                             "cannot resolve the steps a run needs (t + h == t); shorten t_end")
+
+    @functools.cached_property
+    def initial_state(self) -> InitialState:
+        """The initial (v, θ, Fs) in physical units: ``initial`` itself, or its rule resolved."""
+        if isinstance(self.initial, InitialState):
+            return self.initial
+        return self.initial.resolve(self.law, self.normal_force, self.mu0, self.loading)
 
     # --- derived quantities ---------------------------------------------------------------
     @property
@@ -127,7 +174,9 @@ class SpringSlider:
     def with_law(self, **changes) -> "SpringSlider":
         """A copy with friction-law parameters replaced, e.g. ``p.with_law(b=0.0094, lc=3e-7)``.
 
-        The initial state is kept in physical units.
+        A :class:`BalancedStart` rule is resolved again against the new law (so a preset's variant
+        is the preset built with those parameters); an :class:`InitialState` is kept in physical
+        units.
         """
         return dataclasses.replace(self, law=dataclasses.replace(self.law, **changes))
 
@@ -152,7 +201,7 @@ class SpringSlider:
         A = law.a * fn
         m, k, lc, v0 = self.mass, self.stiffness, law.lc, law.v0
         ts = lc / v0
-        ini = self.initial
+        ini = self.initial_state
         x0 = np.array([(ini.fs - self.f0) / (k * lc),
                        (self.friction(ini.v, ini.theta) - self.f0) / A,
                        law.psi(ini.theta, fn)], dtype=float)

@@ -99,8 +99,8 @@ def test_paper_settings_accuracy_against_radau(paper_radau_reference):
 
 def test_non_finite_step_is_a_retcode_not_an_exception():
     base = P.paper_example(t_end=1.0)
-    p = dataclasses.replace(base, initial=P.InitialState(v=1e200, theta=base.initial.theta,
-                                                         fs=base.initial.fs))
+    p = dataclasses.replace(base, initial=P.InitialState(v=1e200, theta=base.initial_state.theta,
+                                                         fs=base.initial_state.fs))
     sol = I.solve(p, I.ETD2())
     assert sol.retcode is I.ReturnCode.NON_FINITE and not sol.success
     assert "non-finite" in sol.message and np.all(np.isfinite(sol.fs))

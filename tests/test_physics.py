@@ -33,7 +33,7 @@ def test_steady_sliding_is_a_fixed_point(law):
     sol = I.solve(p, I.ETD2())
     assert sol.success
     np.testing.assert_allclose(sol.v, V, rtol=1e-10)
-    np.testing.assert_allclose(sol.fs, p.initial.fs, rtol=1e-12)
+    np.testing.assert_allclose(sol.fs, p.initial_state.fs, rtol=1e-12)
     assert len(sol.events) == 0
 
 

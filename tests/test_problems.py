@@ -113,10 +113,10 @@ def test_nondimensional_rhs_is_the_dimensional_one(law):
     """Chain rule: d/dt of (h, η, Ψ) computed from the dimensional RHS equals the
     nondimensional RHS times dτ/dt."""
     p = P.window("W2", law)
-    p = dataclasses.replace(p, initial=P.InitialState(v=3e-4, theta=p.initial.theta * 1.3,
-                                                      fs=p.initial.fs + 200.0))
+    p = dataclasses.replace(p, initial=P.InitialState(v=3e-4, theta=p.initial_state.theta * 1.3,
+                                                      fs=p.initial_state.fs + 200.0))
     nd = p.nondimensional()
-    v, fs, theta = p.initial.v, p.initial.fs, p.initial.theta
+    v, fs, theta = p.initial_state.v, p.initial_state.fs, p.initial_state.theta
     dv, dfs, dth = p.rhs(0.0, [v, fs, theta])
     fn, A = p.normal_force, p.law.a * p.normal_force
     dft = A * dv / v + (dth if law == "slip" else p.law.b * fn * dth / theta)
