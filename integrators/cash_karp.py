@@ -19,7 +19,7 @@ scipy's ``select_initial_step``); then h is kept across ``advance`` calls. A ste
 
 Cost: explicit, so in the stick phase stability, not accuracy, limits the step (the η relaxation,
 rate D/w, SPEC §2): ~1e−7 in τ, ~6e7 steps for the 20 s paper example. The loop runs in one
-numba function, up to 2^20 accepted steps per Python call (the wall budget is checked between
+numba function, up to 2^16 accepted steps per Python call (the wall budget is checked between
 calls). nfev = 6·steps + 5·rejected + 2·starts: 5 per attempt, f at each accepted state (the next
 step's first stage and the slope of the interpolant: no extra evaluation), f(z0) and the initial
 step's trial per ``start``. njev = 0.

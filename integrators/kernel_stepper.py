@@ -34,7 +34,8 @@ __all__ = ["CompiledAlgorithm", "KernelStepper", "REACHED", "ROOT", "CHUNK", "NO
 
 TAU, TAU_OLD, H, CURSOR, T_RET, STEPS, REJECTED, NFEV, NJEV = range(9)
 REACHED, ROOT, CHUNK, NONFINITE, UNDERFLOW = range(5)
-CHUNK_STEPS = 1 << 20            # accepted steps per kernel call at most
+CHUNK_STEPS = 1 << 16            # accepted steps per kernel call at most (~0.1 s: the wall budget
+                                 # is checked between calls)
 
 
 @njit(cache=True, error_model="numpy", inline="always")

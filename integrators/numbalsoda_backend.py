@@ -107,6 +107,7 @@ from numba import carray, cfunc, njit
 
 from integrators.events import AT_ROOT, DIRECTIONS, END, H_EXTREMUM, PEAK, sign_change
 from integrators.registry import AdaptiveAlgorithm, register
+from integrators.clock import monotonic
 from integrators.segments import Advance
 from integrators.solution import ReturnCode, Stats
 from problems.formulations import ode_rhs
@@ -128,9 +129,11 @@ _VERSION = importlib.metadata.version("numbalsoda")
  _GUARD_U, _U_STIFF,                            # ...below this ln w
  _BLOCK, _U_ONSET, _U_END, _T_ARM, _ARMED,      # block ends: entering an event...
  _TWO_SPEED, _IN_EVENT, _END_DT, _END_KILL_T,   # ...and after an event's end (two-speed)
- _KILL, _KILL_T, _NT) = range(31)
-_DATA_LEN = 31                       # then the output times of the call (_NT of them)
-_STUCK, _BUDGET, _BLOCK_END = 1.0, 2.0, 3.0
+ _DEADLINE,                                     # the wall budget's end (monotonic clock)
+ _KILL, _KILL_T, _NT) = range(32)
+_DATA_LEN = 32                       # then the output times of the call (_NT of them)
+_STUCK, _BUDGET, _BLOCK_END, _WALL = 1.0, 2.0, 3.0, 4.0
+_CLOCK_EVERY = 1024                  # step attempts between two readings of the clock
 _KILL_VALUE = np.inf
 
 _BLOCK_MAX = 65536                   # grid points per lsoda call at most (memory)
@@ -147,6 +150,8 @@ def _watch(t, u, data):
     """At each new step attempt (trial time t, trial ln w = u): should LSODA be stopped?"""
     if data[_ATTEMPTS] > data[_LIMIT]:
         return _BUDGET
+    if data[_ATTEMPTS] % _CLOCK_EVERY == 0.0 and monotonic() > data[_DEADLINE]:
+        return _WALL
     if data[_GUARD_N] > 0.0:
         data[_GUARD_COUNT] += 1.0
         if data[_GUARD_COUNT] >= data[_GUARD_N]:
@@ -437,7 +442,7 @@ class NumbaLSODA(AdaptiveAlgorithm):
         return f"numbalsoda {_VERSION} (C++ port of ODEPACK LSODA)"
 
     def make_stepper(self, nd, budget):
-        return _LsodaStepper(self, nd)
+        return _LsodaStepper(self, nd, budget)
 
 
 class _LsodaStepper:
@@ -449,9 +454,10 @@ class _LsodaStepper:
     last scanned interval not yet reported.
     """
 
-    def __init__(self, algorithm: NumbaLSODA, nd):
+    def __init__(self, algorithm: NumbaLSODA, nd, budget=None):
         self.algorithm = algorithm
         self.nd = nd
+        self.budget = budget
         self.stats = Stats()
         # the data array with room for the output times of a call, and the output buffer
         # (NaN where the last call did not write); both grow to the longest call
@@ -461,6 +467,7 @@ class _LsodaStepper:
         d[[_LAW, _BETA, _C, _D]] = nd.law_code, nd.beta, nd.c, nd.d
         d[_T_LAST] = np.nan
         d[_LIMIT] = float(algorithm.max_steps)
+        d[_DEADLINE] = math.inf if budget is None else budget.deadline()
         d[_U_ONSET], d[_U_END] = math.log(10.0 * nd.e_slow), math.log(nd.e_slow)
         d[_TWO_SPEED] = float(nd.tau_fast > 0.0 and nd.e_fast != nd.e_slow)
         self._funcptr, self._lsoda = _library()
@@ -598,6 +605,11 @@ class _LsodaStepper:
 
     def _failed(self, t_from: float, t_to: float, z, ok: bool) -> Advance:
         a = self.algorithm
+        if self._data[_KILL] == _WALL:
+            return Advance(t_from, z, retcode=ReturnCode.WALL_TIME,
+                           message=f"wall-time budget of {self.budget.wall_s} s used up "
+                                   f"between t = {t_from * self.nd.time_scale:.6g} s and "
+                                   f"{t_to * self.nd.time_scale:.6g} s")
         if self._data[_KILL] == _BUDGET or self.stats.steps >= a.max_steps:
             return Advance(t_from, z, retcode=ReturnCode.MAX_STEPS,
                            message=f"step budget of {a.max_steps} used up "

@@ -48,7 +48,7 @@ Cost counting (Stats): njev = one Jacobian per step (the first attempt; retries 
 njev = steps + the steps that ended in underflow. nfev: Rosenbrock23 2 per attempt (F1, F2);
 Rodas5P 7 per attempt and f(z1) per accepted step (the next step's first stage); both + 2 per
 ``start`` (f(z0) and the initial step's trial): nfev = 2·(steps + rejected) + 2·starts,
-resp. 8·steps + 7·rejected + 2·starts. Up to 2^20 accepted steps per Python call.
+resp. 8·steps + 7·rejected + 2·starts. Up to 2^16 accepted steps per Python call.
 
 Events: as CashKarp45 (same kernel logic, on the dense output above): after each accepted step
 the four root functions of :mod:`integrators.events` are evaluated at its end; on a sign change in

@@ -80,6 +80,8 @@ _SUCCESS, _ROOT, _TOO_MUCH_WORK = 0, 2, -1
 # step failures after repeated error-test or corrector-convergence failures: h has collapsed
 _UNDERFLOW = {-3, -4}
 _TINY = 1e-30           # a float32-representable stand-in for 0 in root values
+# steps that do not advance t (the latest time a callback saw): a step-size underflow
+_STALLED_STEPS = 1000
 # CVODE -8..-11, IDA -8, -9, -12: the right-hand side / residual kept failing; ours fail only on
 # non-finite values
 _CV_NON_FINITE = {-8, -9, -10, -11}
@@ -128,7 +130,7 @@ class _Odes(AdaptiveAlgorithm):
         return f"SUNDIALS {_SUNDIALS_VERSION} via scikits-odes {_VERSION}"
 
     def make_stepper(self, nd, budget):
-        return self._stepper(self, nd)
+        return self._stepper(self, nd, budget)
 
 
 class _Stepper:
@@ -136,9 +138,10 @@ class _Stepper:
 
     _non_finite: set = set()
 
-    def __init__(self, algorithm: _Odes, nd):
+    def __init__(self, algorithm: _Odes, nd, budget=None):
         self.algorithm = algorithm
         self.nd = nd
+        self.budget = budget         # checked between calls inside one advance
         self.stats = Stats()
         self._solver = None
         self._message = ""
@@ -196,6 +199,7 @@ class _Stepper:
         self._close_segment()
         self._set_loading(e)
         self._t, self._z = float(tau0), np.array(z0, dtype=float)
+        self._t_seen = self._t               # the latest time a callback was evaluated at
         self._g = self._roots(self._z)
         self._failure = None
         self._message = ""
@@ -209,14 +213,30 @@ class _Stepper:
         if self._failure is not None:
             return Advance(self._t, self._z, retcode=ReturnCode.FAILURE, message=self._failure)
         a = self.algorithm
+        stalled_since = self.stats.steps + self._seg_steps
         while True:
             if self.stats.steps + self._seg_steps >= a.max_steps:
                 return Advance(self._t, self._z, retcode=ReturnCode.MAX_STEPS,
                                message=f"step budget of {a.max_steps} used up at "
                                        f"t = {self._t * self.nd.time_scale:.9g} s")
+            seen = self._t_seen
             sol = self._call(t_out)
             flag = int(sol.flag)
             if flag == _TOO_MUCH_WORK:
+                if self.budget is not None and self.budget.exceeded():
+                    return Advance(self._t, self._z, retcode=ReturnCode.WALL_TIME,
+                                   message=f"wall-time budget of {self.budget.wall_s} s used up "
+                                           f"at t = {self._t_seen * self.nd.time_scale:.6g} s")
+                # the solver's time is not returned here; the callbacks see it. Steps that no
+                # longer move it: t + h == t, on which SUNDIALS only warns and goes on
+                steps = self.stats.steps + self._seg_steps
+                if self._t_seen > seen:
+                    stalled_since = steps
+                elif steps - stalled_since >= _STALLED_STEPS:
+                    return Advance(self._t, self._z, retcode=ReturnCode.STEP_UNDERFLOW,
+                                   message=f"step size underflow: {steps - stalled_since} steps "
+                                           f"did not advance t = {seen * self.nd.time_scale:.9g} "
+                                           "s (t + h == t)")
                 continue
             if flag < 0:
                 return self._failed(flag, sol)
@@ -257,6 +277,8 @@ class _CvodeStepper(_Stepper):
     _MXSTEP = 500                        # SUNDIALS' default steps per call
 
     def _rhs(self, t, y, ydot):
+        if t > self._t_seen:
+            self._t_seen = t
         try:
             self._ode_rhs(*self._args, y, ydot)
         except (OverflowError, ZeroDivisionError, ValueError):   # a plain-Python tier's crash
@@ -309,12 +331,14 @@ class _CvodeStepper(_Stepper):
 class _IdaStepper(_Stepper):
     _non_finite = _IDA_NON_FINITE
 
-    def __init__(self, algorithm, nd):
-        super().__init__(algorithm, nd)
+    def __init__(self, algorithm, nd, budget=None):
+        super().__init__(algorithm, nd, budget)
         self._nres = 0
 
     def _res(self, t, y, yp, out):
         self._nres += 1
+        if t > self._t_seen:
+            self._t_seen = t
         try:
             self._dae_res(*self._args, y, yp, out)
         except (OverflowError, ZeroDivisionError, ValueError):   # a plain-Python tier's crash

@@ -65,6 +65,10 @@ _UNDERFLOW = {-3, -4}
 # a crash of a plain-Python callback (python tier); SUNDIALS then retries with a smaller step
 _PY_MATH_ERRORS = (OverflowError, ZeroDivisionError, ValueError)
 _TINY = 1e-300
+#: one-step calls between two checks of the wall budget inside one advance
+_BUDGET_EVERY = 100
+#: consecutive internal steps that do not advance t before the run stops (step underflow)
+_STALLED_STEPS = 10
 
 
 @dataclass(frozen=True)
@@ -78,16 +82,17 @@ class _Sundae(AdaptiveAlgorithm):
         return f"SUNDIALS {sksundae.SUNDIALS_VERSION} via scikit-sundae {sksundae.__version__}"
 
     def make_stepper(self, nd, budget):
-        return self._stepper(self, nd)
+        return self._stepper(self, nd, budget)
 
 
 class _OneStepper:
     """The segment protocol over a scikit-sundae solver in one-step mode (see the module
     docstring); subclasses build the solver and its callbacks."""
 
-    def __init__(self, algorithm: _Sundae, nd):
+    def __init__(self, algorithm: _Sundae, nd, budget=None):
         self.algorithm = algorithm
         self.nd = nd
+        self.budget = budget       # checked inside advance: one advance can be many steps
         self.stats = Stats()
         self._solver = None
         self._base = (0, 0)            # nfev, njev of the finished segments
@@ -138,6 +143,7 @@ class _OneStepper:
         self._queue = deque()          # roots inside the last step, not yet reported
         self._nfev = self._njev = 0
         self._failure = None
+        self._stalled = 0
         try:
             if self._solver is None:
                 self._solver = self._make_solver()
@@ -166,7 +172,13 @@ class _OneStepper:
 
     def _advance(self, t_out: float) -> Advance:
         a = self.algorithm
+        calls = 0
         while True:
+            calls += 1
+            if calls % _BUDGET_EVERY == 0 and self.budget is not None and self.budget.exceeded():
+                return Advance(self._t, self._z, retcode=ReturnCode.WALL_TIME,
+                               message=f"wall-time budget of {self.budget.wall_s} s used up at "
+                                       f"t = {self._t * self.nd.time_scale:.6g} s")
             if self._queue:
                 t, z, roots = self._queue[0]
                 if t <= t_out + self._roundoff():
@@ -224,6 +236,16 @@ class _OneStepper:
                                message=f"non-finite state at tau = {t:.9g}")
             if t > tn_old:
                 self._h = t - tn_old
+                self._stalled = 0
+            elif self._nfev > before:
+                # a step that evaluated f but did not move: t + h == t at this τ; SUNDIALS goes
+                # on taking such steps (it only warns), so stop after a few
+                self._stalled += 1
+                if self._stalled >= _STALLED_STEPS:
+                    return Advance(t, z, retcode=ReturnCode.STEP_UNDERFLOW,
+                                   message=f"step size underflow: {_STALLED_STEPS} steps did not "
+                                           f"advance t = {t * self.nd.time_scale:.9g} s "
+                                           "(t + h == t)")
             self._tn, self._zn = t, z
             return None
 
