@@ -20,7 +20,8 @@ __all__ = ["compare_integrators"]
 
 def compare_integrators(problem, rtol: float, atol: float, names=None,
                         wall_budget: float = 120.0, progress: bool = True) -> pd.DataFrame:
-    """One row per integrator: retcode, wall time, counters, last event's metrics."""
+    """One row per integrator: retcode, wall time, counters, the last event's metrics (only for
+    a run that reached its end: a failed run's events are not physics)."""
     rows = []
     names = sorted(REGISTRY, key=str.lower) if names is None else names
     for name in tqdm(names, desc=problem.name, disable=not progress):
@@ -29,7 +30,7 @@ def compare_integrators(problem, rtol: float, atol: float, names=None,
         warm_up(problem, algorithm)
         sol = solve(problem, algorithm, max_points=2, wall_budget=wall_budget)
         m = event_metrics(sol.events, problem.normal_force)
-        last = m.iloc[-1] if len(m) else None
+        last = m.iloc[-1] if len(m) and sol.success else None     # a failed run is no physics
         rows.append({
             "integrator": name, "library": cls.library, "version": cls.library_version(),
             "rtol": rtol if cls.adaptive else None, "retcode": sol.retcode.value,

@@ -143,7 +143,7 @@ def fixed_step_orders(names=None, laws=("slip", "aging"), steps=SEGMENT_STEPS,
             if not hasattr(cls, "fixed_steps"):
                 able = [n for n, c in REGISTRY.items() if hasattr(c, "fixed_steps")]
                 raise ValueError(f"{name} has no fixed-step mode; these do: {', '.join(able)}")
-            algorithm = cls(rtol=1.0, atol=1.0)        # the tolerances are not used
+            algorithm = cls(rtol=0.5, atol=0.5)        # the tolerances are not used
             for n in steps:
                 err = float(np.abs(algorithm.fixed_steps(nd, z0, SEGMENT_SPAN, n) - ref).max())
                 rows.append({"integrator": name, "law": law, "n_steps": n,

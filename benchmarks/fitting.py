@@ -12,10 +12,18 @@ simulations") is read here as the minimum over simulations of J̄2 + σJ.
 
 Slip-weakening curves (observed or synthetic) are CSV files with one row per sample and the
 columns ``event_id`` (any label; rows of one event together), ``slip_m`` (slip since the start
-of that event, m) and ``friction`` (shear force over normal force). The synthetic curve of a
-simulation is its last complete event, μ = Fs/Fn against the slip since the event started; it is
-linearly interpolated at the observed slips and held at its end values outside its range (before
-the event the fault is stuck, after it the slip no longer grows).
+of that event, m) and ``friction`` (the shear force on the fault over the normal force, Ft/Fn).
+The synthetic curve of a simulation is its last complete event: the friction Ft/Fn against the
+slip since the event started; it is linearly interpolated at the observed slips and held at its
+end values outside its range (before the event the fault is stuck, after it the slip no longer
+grows).
+
+Why friction and not the spring force: Eq. 11 compares "the shear force divided by the normal
+force", which the experiments estimate as Ft = Fs − m·a. The spring force against slip is, during
+an event, the spring's unloading line Fs = Fs0 − k·slip (+ the slow load-point motion), of slope
+−k/Fn whatever (b, Lc): a J2 on Fs/Fn carries almost no information on the friction law. Ft/Fn
+against slip is the slip-weakening curve itself, whose shape (the weakening distance ∝ Lc, the
+drop ∝ b − a) is what J2 constrains.
 """
 
 from __future__ import annotations
@@ -26,7 +34,7 @@ import numpy as np
 import pandas as pd
 
 __all__ = ["CHI2_95_2DOF", "CURVE_COLUMNS", "j1", "j2_per_event", "JointFit", "joint_fit",
-           "read_curves", "write_curves", "event_curve"]
+           "read_curves", "write_curves", "event_curve", "sample_curves"]
 
 #: the 95 % quantile of χ² with two degrees of freedom: the paper's J1 threshold
 CHI2_95_2DOF = 5.99146
@@ -94,19 +102,26 @@ def joint_fit(J1: np.ndarray, J2_mean: np.ndarray | None = None,
 
 
 def read_curves(path) -> pd.DataFrame:
-    """Observed slip-weakening curves from a CSV with :data:`CURVE_COLUMNS` (see the module doc)."""
-    df = pd.read_csv(path)
-    missing = [c for c in CURVE_COLUMNS if c not in df.columns]
-    if missing:
-        raise ValueError(f"slip-weakening file {path} lacks the columns {missing}; it needs "
-                         f"{list(CURVE_COLUMNS)}")
+    """Observed slip-weakening curves from a CSV with :data:`CURVE_COLUMNS` (see the module doc),
+    or ``ValueError`` naming the file and what is wrong: columns, non-numeric or non-finite
+    values, an event with fewer than two samples."""
+    from benchmarks.files import read_table
+    df = read_table(path, CURVE_COLUMNS, what="slip-weakening file",
+                    hint="it needs the columns event_id, slip_m (m), friction (Ft/Fn)")
     for c in ("slip_m", "friction"):
-        bad = ~np.isfinite(df[c].to_numpy(dtype=float))
+        values = pd.to_numeric(df[c], errors="coerce").to_numpy(dtype=float)
+        bad = ~np.isfinite(values)
         if bad.any():
-            raise ValueError(f"slip-weakening file {path}: column {c} is not finite in row "
-                             f"{int(np.argmax(bad)) + 2}")
-    if df.event_id.nunique() < 1 or len(df) < 2:
-        raise ValueError(f"slip-weakening file {path} has no curve")
+            raise ValueError(f"slip-weakening file {path}: column {c} is not a finite number in "
+                             f"row {int(np.argmax(bad)) + 2}")
+        df[c] = values
+    if df.event_id.isna().any():
+        raise ValueError(f"slip-weakening file {path}: event_id is empty in row "
+                         f"{int(np.argmax(df.event_id.isna().to_numpy())) + 2}")
+    sizes = df.groupby("event_id", sort=False).size()
+    if (sizes < 2).any():
+        raise ValueError(f"slip-weakening file {path}: event {sizes.index[sizes < 2][0]!r} has "
+                         "fewer than two samples")
     return df[list(CURVE_COLUMNS)]
 
 
@@ -116,7 +131,8 @@ def write_curves(df: pd.DataFrame, path) -> None:
 
 
 def event_curve(sol, index: int = -1) -> tuple[np.ndarray, np.ndarray]:
-    """Synthetic slip-weakening curve of event ``index`` (default: the last complete one).
+    """Synthetic slip-weakening curve of event ``index`` (default: the last complete one): the
+    friction Ft/Fn against the slip since the event started (module docstring).
 
     Uses the saved trajectory, so solve with a ``save_every`` that resolves the event. The slip
     since the event started is Δu = vL·(t − t_start) − ΔFs/k, exact for the spring with the load
@@ -131,4 +147,22 @@ def event_curve(sol, index: int = -1) -> tuple[np.ndarray, np.ndarray]:
     t = np.concatenate(([ev.t_start], sol.t[inside], [ev.t_end]))
     fs = np.interp(t, sol.t, sol.fs)
     slip = p.loading.v_slow * (t - t[0]) - (fs - fs[0]) / p.stiffness
-    return slip, fs / p.normal_force
+    return slip, np.interp(t, sol.t, sol.ft) / p.normal_force
+
+
+def sample_curves(sol, n_events: int = 3, n_points: int = 25, noise: float = 0.0,
+                  seed: int = 0, curve=event_curve) -> pd.DataFrame:
+    """Curves in the format of :func:`read_curves` from the last ``n_events`` events of ``sol``
+    (``curve(sol, index)``: :func:`event_curve` by default), each sampled at ``n_points`` slips
+    spread over the inside of the event — at (j + ½)/n of its total slip: at both ends the curve
+    is vertical (the friction changes while the slip does not), where a sample would weigh the
+    slip at which a curve ends rather than its shape — plus Gaussian noise of std ``noise``."""
+    rng = np.random.default_rng(seed)
+    frames = []
+    for i in range(n_events):
+        slip, mu = curve(sol, index=len(sol.events) - n_events + i)
+        s = (np.arange(n_points) + 0.5) / n_points * slip[-1]
+        frames.append(pd.DataFrame({"event_id": i + 1, "slip_m": s,
+                                    "friction": np.interp(s, slip, mu)
+                                    + noise * rng.standard_normal(n_points)}))
+    return pd.concat(frames, ignore_index=True)

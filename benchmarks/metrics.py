@@ -9,9 +9,22 @@ Per event (from ``Solution.events``, whatever the backend):
 
 The limit cycle is found by looking for the shortest period p (in events) for which every metric
 repeats, event to event p apart, within ``rtol``; it is summarised by the last complete period.
-Classification: ``stick-slip`` (p = 1), ``multiple recurrence`` (p > 1, which the two-speed
-loading can cause), ``stable sliding`` (no events, or events that died out) and ``not converged``
-(events still changing at the end of the run: run longer).
+
+Classification (:data:`CLASSIFICATIONS`). Only the first two are limit cycles whose metrics an
+inversion may fit (:data:`CYCLES`); every other class has NaN metrics and a ``reason``:
+
+* ``stick-slip`` (p = 1) and ``multiple recurrence`` (p > 1, which the two-speed loading can
+  cause): the metrics repeat, and between events the fault is locked;
+* ``oscillation about vL``: the metrics repeat and the slip rate crosses the event thresholds,
+  but between events the fault keeps slipping at a mean rate above :data:`LOCKED_SLIP_RATE` ×
+  vLs — a slip-rate oscillation that never locks, not stick–slip (the documented rule);
+* ``stable sliding``: no cycle (no events, a transient, or events that died out), the run ended
+  close to steady sliding at vLs (:data:`STEADY_LOG_TOLERANCE`) *and* steady sliding is linearly
+  stable there (:func:`problems.stability.characteristic_roots`);
+* ``not converged``: events still changing at the end of the run (run longer);
+* ``too short to classify``: no events, or too few to compare, and the end state does not show
+  stable sliding (still locked, or steady sliding is unstable): run longer;
+* ``failed``: the solve did not reach t_end (its retcode and message are the reason).
 """
 
 from __future__ import annotations
@@ -21,11 +34,25 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 import pandas as pd
 
-__all__ = ["event_metrics", "LimitCycle", "limit_cycle", "METRICS", "CLASSIFICATIONS"]
+__all__ = ["event_metrics", "LimitCycle", "limit_cycle", "summarize", "EndState", "end_state",
+           "METRICS", "CLASSIFICATIONS", "CYCLES", "LOCKED_SLIP_RATE", "STEADY_LOG_TOLERANCE"]
 
 #: the limit-cycle metrics, in the order tables show them
 METRICS = ("recurrence_s", "friction_drop", "slip_m", "peak_velocity_m_s")
-CLASSIFICATIONS = ("stick-slip", "multiple recurrence", "stable sliding", "not converged")
+CLASSIFICATIONS = ("stick-slip", "multiple recurrence", "oscillation about vL", "stable sliding",
+                   "not converged", "too short to classify", "failed")
+#: the classes with a limit cycle an inversion can fit: only they have metrics and scores
+CYCLES = ("stick-slip", "multiple recurrence")
+#: stick–slip needs the mean slip rate between consecutive events (slip between one event's end
+#: and the next one's start, over that time) at most this multiple of vLs: the fault locks. The
+#: events-table form of "v falls below vLs/10 between events": over 296 runs (the paper's fits,
+#: 5×5 sweep subsamples of W1–W4 under both laws, 22 oscillations and 70 runs across the
+#: boundary) no run with ratio ≤ 0.3 kept v above vLs/10; the fits sit at 0.005–0.035, the
+#: oscillations at 0.33–2.7 (docs/classification.md)
+LOCKED_SLIP_RATE = 0.3
+#: a run ended in steady sliding when |ln(v/vLs)| and |ln(θ/θss)| (aging) or |Ψ − Ψss| (slip)
+#: are below this
+STEADY_LOG_TOLERANCE = 0.05
 
 
 def _metric_columns(events: pd.DataFrame, normal_force: float) -> tuple[np.ndarray, np.ndarray]:
@@ -51,7 +78,8 @@ class LimitCycle:
     """Summary of the cycle a run settles into.
 
     Metrics are means over the last complete period (for ``multiple recurrence`` the individual
-    recurrence intervals of that period are in ``recurrence_values``). ``cycles_to_converge`` is
+    recurrence intervals of that period are in ``recurrence_values``); they are NaN unless the
+    classification is in :data:`CYCLES`, and ``reason`` then says why. ``cycles_to_converge`` is
     the index of the first event from which the metrics repeat within ``rtol``.
     """
 
@@ -65,9 +93,54 @@ class LimitCycle:
     n_events: int = 0
     rtol: float = 1e-3
     recurrence_values: list[float] = field(default_factory=list)
+    reason: str = ""
 
     def as_dict(self) -> dict:
         return asdict(self)
+
+
+@dataclass(frozen=True)
+class EndState:
+    """How a run ended, against steady sliding at the slow loading speed vLs: the slip rate
+    ``log_v`` = ln(v/vLs), and the state's and the spring's distance from steady sliding in
+    units of A = a·Fn (``state_offset``, ``force_offset``); whether steady sliding is linearly
+    stable (``growth_rate``, the largest real part of the characteristic roots, 1/s, < 0)."""
+
+    log_v: float
+    state_offset: float
+    force_offset: float
+    growth_rate: float
+
+    @property
+    def stable(self) -> bool:
+        return self.growth_rate < 0.0
+
+    @property
+    def near_steady(self) -> bool:
+        return max(abs(self.log_v), self.state_offset, self.force_offset) < STEADY_LOG_TOLERANCE
+
+    def describe(self) -> str:
+        stability = ("linearly stable" if self.stable else
+                     f"linearly unstable (perturbations grow e-fold in {1 / self.growth_rate:.3g} s)")
+        return (f"the run ended at v = {np.exp(self.log_v):.3g} vLs (state {self.state_offset:.2g} "
+                f"A, spring {self.force_offset:.2g} A from steady sliding); steady sliding is "
+                f"{stability}")
+
+
+def end_state(solution) -> EndState:
+    """The :class:`EndState` of a Solution (its last saved state)."""
+    from problems.stability import characteristic_roots
+    p = solution.problem
+    law, fn, v_s = p.law, p.normal_force, p.loading.v_slow
+    amp = law.a * fn
+    theta_ss = law.steady_state(v_s, fn)
+    ft_ss = float(law.steady_friction(v_s, fn, p.f0))
+    v, fs, theta = solution.v[-1], solution.fs[-1], solution.theta[-1]
+    return EndState(log_v=float(np.log(v / v_s)),
+                    state_offset=float(abs(law.state_term(theta, fn) - law.state_term(theta_ss, fn))
+                                       / amp),
+                    force_offset=float(abs(fs - ft_ss) / amp),
+                    growth_rate=float(np.max(characteristic_roots(p).real)))
 
 
 def _repeats(x: np.ndarray, period: int, rtol: float) -> np.ndarray:
@@ -77,30 +150,79 @@ def _repeats(x: np.ndarray, period: int, rtol: float) -> np.ndarray:
     return np.all(np.abs(a - b) <= rtol * scale, axis=1)
 
 
+def interevent_slip_rate(events: pd.DataFrame) -> np.ndarray:
+    """Mean slip rate (m/s) between each event's start and the end of the event before it
+    (NaN for the first event): how far from locked the fault is between events."""
+    t0, t1 = events["t_start"].to_numpy(float), events["t_end"].to_numpy(float)
+    s0, s1 = events["slip_start"].to_numpy(float), events["slip_end"].to_numpy(float)
+    rate = np.full(len(events), np.nan)
+    if len(events) > 1:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            rate[1:] = (s0[1:] - s1[:-1]) / (t0[1:] - t1[:-1])
+    return rate
+
+
 def limit_cycle(events: pd.DataFrame, normal_force: float, t_end: float, rtol: float = 1e-3,
-                max_period: int = 4, min_repeats: int = 2) -> LimitCycle:
+                max_period: int = 4, min_repeats: int = 2, v_slow: float | None = None,
+                end: EndState | None = None) -> LimitCycle:
     """Find the limit cycle of a run from its events table.
 
     A period p is accepted when the last ``min_repeats``·p events each repeat the event p before
-    them within ``rtol``; the smallest such p wins.
+    them within ``rtol``; the smallest such p wins. ``v_slow`` (the slow loading speed, m/s)
+    enables the locking test of stick–slip (:data:`LOCKED_SLIP_RATE`). When no cycle repeats,
+    ``end`` (how the run ended) tells stable sliding from a run too short to classify; without
+    it such a run is never called stable sliding.
     """
     n = len(events)
-    if n == 0:
-        return LimitCycle("stable sliding", rtol=rtol)
     _, x = _metric_columns(events, normal_force)
-    # events that stopped long before the end: the oscillation decayed to steady sliding
-    last_interval = x[-1, 0]
-    gap = t_end - float(events["t_end"].to_numpy()[-1])
-    if n > 1 and np.isfinite(last_interval) and gap > 3.0 * last_interval:
-        return LimitCycle("stable sliding", n_events=n, rtol=rtol)
-    x = x[1:]                                    # the first event has no recurrence interval
+    gap = t_end - float(events["t_end"].to_numpy()[-1]) if n else t_end
+    # events that stopped long before the end are no limit cycle, however regular they were
+    stopped = n > 1 and np.isfinite(x[-1, 0]) and gap > 3.0 * x[-1, 0]
+    if not stopped:
+        cycle = _periodic(events, x[1:], n, rtol, max_period, min_repeats, v_slow)
+        if cycle is not None:
+            return cycle
+    if end is not None and end.stable and end.near_steady:
+        what = "no events" if n == 0 else f"the {n} events died out"
+        return LimitCycle("stable sliding", n_events=n, rtol=rtol,
+                          reason=f"{what}; {end.describe()}")
+    why = end.describe() if end is not None else "no end state to compare with steady sliding"
+    if n == 0:
+        return LimitCycle("too short to classify", rtol=rtol,
+                          reason=f"no event in {t_end:g} s, and {why}: run longer")
+    if stopped:
+        return LimitCycle("too short to classify", n_events=n, rtol=rtol,
+                          reason=f"no event in the last {gap:.3g} s (more than 3 recurrence "
+                                 f"intervals), and {why}: run longer")
+    if n - 1 < 2 * min_repeats:
+        return LimitCycle("too short to classify", n_events=n, rtol=rtol,
+                          reason=f"{n} events in {t_end:g} s, too few to see a cycle repeat "
+                                 f"(at least {2 * min_repeats + 1} are needed), and {why}: "
+                                 "run longer")
+    return LimitCycle("not converged", n_events=n, rtol=rtol,
+                      reason=f"the metrics of the last events do not repeat within {rtol:g} "
+                             f"with any period up to {max_period}: run longer")
+
+
+def _periodic(events, x, n, rtol, max_period, min_repeats, v_slow) -> LimitCycle | None:
+    """The smallest period whose metrics repeat (``x``: the metrics from the second event on),
+    classified; None if none does."""
     for p in range(1, max_period + 1):
         need = min_repeats * p
         if len(x) < need + p:
-            break
+            return None
         ok = _repeats(x, p, rtol)
         if not ok[-need:].all():
             continue
+        if v_slow is not None:
+            ratio = float(np.max(interevent_slip_rate(events)[-p:])) / v_slow
+            if not ratio <= LOCKED_SLIP_RATE:
+                return LimitCycle(
+                    "oscillation about vL", period=p, n_events=n, rtol=rtol,
+                    reason=f"a periodic slip-rate oscillation (period {p}, ΔT "
+                           f"{x[-p:, 0].mean():.4g} s), but between events the fault slips at "
+                           f"{ratio:.2g} vLs on average (stick–slip needs ≤ "
+                           f"{LOCKED_SLIP_RATE:g} vLs): it never locks")
         # ok[i] compares event i + p + 1 with event i + 1 (event 0 has no recurrence interval)
         first = len(ok) - int(np.argmin(ok[::-1])) if not ok.all() else 0
         tail = x[-p:]
@@ -110,10 +232,17 @@ def limit_cycle(events: pd.DataFrame, normal_force: float, t_end: float, rtol: f
             slip_m=float(tail[:, 2].mean()), peak_velocity_m_s=float(tail[:, 3].mean()),
             cycles_to_converge=first + p + 1, n_events=n, rtol=rtol,
             recurrence_values=[float(v) for v in tail[:, 0]])
-    return LimitCycle("not converged", n_events=n, rtol=rtol)
+    return None
 
 
 def summarize(solution, rtol: float = 1e-3) -> LimitCycle:
-    """:func:`limit_cycle` of a Solution."""
+    """:func:`limit_cycle` of a Solution; a run that did not reach its end is ``failed``, never
+    classified as physics."""
     p = solution.problem
-    return limit_cycle(solution.events, p.normal_force, p.t_end, rtol=rtol)
+    events = solution.events
+    if not solution.success or not solution.reached_end:
+        why = (f"{solution.retcode.value}: {solution.message}" if not solution.success else
+               f"stopped at t = {solution.t_reached:g} s of {p.t_end:g} s")
+        return LimitCycle("failed", n_events=len(events), rtol=rtol, reason=why)
+    return limit_cycle(events, p.normal_force, p.t_end, rtol=rtol, v_slow=p.loading.v_slow,
+                       end=end_state(solution))

@@ -18,12 +18,15 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from benchmarks.files import (BadResultsFile, atomic_write, read_json_record,
+                              remove_stale_temporaries)
 from benchmarks.metrics import METRICS, event_metrics
 from integrators import REGISTRY, EVENT_COLUMNS, solve
 
@@ -45,6 +48,14 @@ _FORMAT = 1
 
 class ReferenceDisagreement(RuntimeError):
     """The two reference solvers do not agree: no reference for this problem."""
+
+
+class BadReferenceWarning(UserWarning):
+    """A cached reference that cannot be trusted; it is recomputed (the message names it)."""
+
+
+_REQUIRED = ("format", "key", "problem", "events", "grid_t", "grid_mu", "normal_force",
+             "event_index", "solvers", "agreement")
 
 
 @dataclass
@@ -108,13 +119,32 @@ def reference(problem, cache: Path | None = None, refresh: bool = False,
     key = _key(problem, pair)
     path = (cache or cache_dir()) / f"{(problem.name or 'problem').replace('/', '_')}-{key}.json"
     if path.exists() and not refresh:
-        return Reference.from_json(json.loads(path.read_text()))
+        cached = _load(path, key, problem)
+        if cached is not None:
+            return cached
     ref = _compute(problem, pair, key, progress)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".tmp")
-    tmp.write_text(json.dumps(ref.to_json()))
-    tmp.replace(path)            # atomic: parallel studies never read half a file
+    remove_stale_temporaries(path.parent)
+    atomic_write(path, json.dumps(ref.to_json()))   # parallel studies never read half a file
     return ref
+
+
+def _load(path: Path, key: str, problem) -> Reference | None:
+    """The cached reference at ``path`` if it is whole and is the one asked for (format, key,
+    problem); otherwise None, with a warning naming the file, and it is recomputed."""
+    try:
+        d = read_json_record(path, _REQUIRED, what="cached reference")
+        if (d["format"], d["key"], d["problem"]) != (_FORMAT, key, repr(problem)):
+            raise BadResultsFile(f"cached reference {path} is of another problem or format")
+        ref = Reference.from_json(d)
+        if not (len(ref.grid_t) == len(ref.grid_mu) == GRID_POINTS
+                and 0 <= ref.event_index < len(ref.events)
+                and np.isfinite(ref.events.to_numpy(dtype=float)).all()):
+            raise BadResultsFile(f"cached reference {path} is inconsistent (grid or events)")
+        return ref
+    except (BadResultsFile, KeyError, TypeError, ValueError) as exc:
+        warnings.warn(f"{exc}: recomputing it", BadReferenceWarning, stacklevel=3)
+        return None
 
 
 def _compute(problem, pair, key: str, progress: bool) -> Reference:

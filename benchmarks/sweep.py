@@ -1,26 +1,35 @@
 """Parameter sweeps over (b, Lc) for an inversion (Urata et al. 2017, Sect. 4; SPEC §6).
 
 Every grid point is one simulation of a preset with (b, Lc) replaced. Points run in parallel
-(local processes by default, threads or a Dask cluster on request) and each finished point is
-written at once to ``DIR/points/<key>.json`` (write to a temporary file, then rename: a killed
-sweep never leaves half a file). The key hashes everything the simulation depends on (problem,
-algorithm and its options, curve resolution, budget), so a sweep restarted with the same
-arguments skips the points it has, and changing only the observations (ΔT̄, σ, curves) re-scores
-the stored simulations without running them again.
+(local processes by default, threads or a Dask cluster on request: :mod:`benchmarks.sweep_exec`)
+and each finished point is written at once to ``DIR/points/<key>.json`` (write to a temporary
+file, then rename: a killed sweep never leaves half a file). The key hashes everything the
+simulation depends on (problem, algorithm and its options, curve resolution, budget), so a sweep
+restarted with the same arguments skips the points it has, and changing only the observations
+(ΔT̄, σ, curves) re-scores the stored simulations without running them again. A stored point is
+trusted only if it parses and holds its own key and grid point; any other file under that name
+(empty, truncated, copied from another point, garbage) is reported by name and recomputed.
+
+Everything is checked before the first point runs: the grid (finite, non-empty, at most
+``max_points`` points), every point's problem, the observations, the budget, the workers and the
+Dask scheduler.
 
 The table (``DIR/sweep.csv``, one row per grid point, b outer and Lc inner) holds the limit-cycle
-metrics, the classification (the paper's Fig. 8: stick–slip, multiple recurrence, stable
-sliding; ``not converged`` or ``failed`` otherwise), J1, and J2, J when slip-weakening curves are
-given (see :mod:`benchmarks.fitting`).
+metrics, the classification (:data:`benchmarks.metrics.CLASSIFICATIONS`: the paper's Fig. 8
+classes, and what a run that shows no limit cycle is), J1, and J2, J when slip-weakening curves
+are given (see :mod:`benchmarks.fitting`). Only a point with a limit cycle
+(:data:`benchmarks.metrics.CYCLES`) has metrics and scores; any other point has NaN there and
+the reason in its classification and message.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
-import tempfile
 import time
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -28,32 +37,52 @@ import numpy as np
 import pandas as pd
 from tqdm.auto import tqdm
 
+from benchmarks.files import (BadResultsFile, atomic_write, read_json_record,
+                              remove_stale_temporaries)
 from benchmarks.fitting import CHI2_95_2DOF, event_curve, j1, j2_per_event, joint_fit
-from benchmarks.metrics import summarize
+from benchmarks.metrics import CYCLES, summarize
 from benchmarks.report import jsonable
+from benchmarks.sweep_exec import CONNECT_TIMEOUT_S, WORKER_TIMEOUT_S, connect, execute
 from benchmarks.timing import warm_up
 from integrators import solve
 from problems import preset
+from problems._validate import UnitWarning, check_count, check_positive, warn_implausible
 
-__all__ = ["parse_b", "parse_lc", "PointTask", "run_point", "PointStore", "Observations",
-           "sweep", "SweepResult", "BACKENDS"]
+__all__ = ["parse_b", "parse_lc", "check_grid", "PointTask", "run_point", "PointStore",
+           "Observations", "sweep", "SweepResult", "BACKENDS", "MAX_GRID_POINTS",
+           "BadPointWarning"]
 
 BACKENDS = ("processes", "threads")
+#: the most grid points a sweep runs unless ``max_points`` allows more: a typo in a step must
+#: not start a sweep of 10⁸ points (at ~10 ms a point, 10⁴ points take minutes)
+MAX_GRID_POINTS = 10_000
 POINT_COLUMNS = ("b", "lc_m", "kappa", "classification", "period", "n_events", "recurrence_s",
                  "friction_drop", "slip_m", "peak_velocity_m_s", "retcode", "message", "nfev",
                  "steps", "wall_s", "integrator")
+#: what a stored point must hold to be trusted
+POINT_REQUIRED = ("key", "b", "lc_m", "classification", "retcode", "message", "integrator")
+_METRIC_COLUMNS = ("period", "recurrence_s", "friction_drop", "slip_m", "peak_velocity_m_s")
 
 
-def parse_b(spec: str) -> np.ndarray:
+class BadPointWarning(UserWarning):
+    """A stored point that cannot be trusted; it is recomputed (the message names the file)."""
+
+
+def parse_b(spec: str, max_points: int = MAX_GRID_POINTS) -> np.ndarray:
     """``START:STOP:STEP`` → b values from START to STOP inclusive (STOP kept if on the grid)."""
     start, stop, step = _fields("--b", spec, 3)
     if not step > 0 or stop < start:
         raise ValueError(f"--b must be START:STOP:STEP with STEP > 0 and STOP ≥ START, got {spec!r}")
-    n = int(np.floor((stop - start) / step + 1e-9)) + 1
+    if start < 0:
+        raise ValueError(f"--b must start at b ≥ 0, got {spec!r}")
+    n = math.floor((stop - start) / step + 1e-9) + 1
+    if n > max_points:
+        raise ValueError(f"--b {spec!r} has {n:.3g} values, more than the limit of {max_points} "
+                         "grid points (a typo in STEP?); raise the limit with --max-points")
     return np.round(start + step * np.arange(n), 12)
 
 
-def parse_lc(spec: str) -> np.ndarray:
+def parse_lc(spec: str, max_points: int = MAX_GRID_POINTS) -> np.ndarray:
     """``START:STOP:N`` (linear) or ``START:STOP:Nlog`` (log-spaced) → N values of Lc in metres."""
     head, _, count = spec.rpartition(":")
     log = count.endswith("log")
@@ -64,6 +93,11 @@ def parse_lc(spec: str) -> np.ndarray:
     start, stop = _fields("--lc", head, 2)
     if n < 1 or not 0 < start <= stop:
         raise ValueError(f"--lc needs 0 < START ≤ STOP and N ≥ 1, got {spec!r}")
+    if n > 1 and start == stop:
+        raise ValueError(f"--lc {spec!r} repeats one value {n} times: give N = 1, or STOP > START")
+    if n > max_points:
+        raise ValueError(f"--lc {spec!r} has {n} values, more than the limit of {max_points} "
+                         "grid points; raise the limit with --max-points")
     return np.geomspace(start, stop, n) if log else np.linspace(start, stop, n)
 
 
@@ -75,7 +109,40 @@ def _fields(flag: str, spec: str, n: int) -> list[float]:
         values = []
     if len(values) != n:
         raise ValueError(f"{flag} needs {n} numbers separated by ':', got {spec!r}")
+    if not all(math.isfinite(v) for v in values):
+        raise ValueError(f"{flag} needs finite numbers, got {spec!r}")
     return values
+
+
+def check_grid(b_values, lc_values, max_points: int = MAX_GRID_POINTS):
+    """The grid as float arrays, or ``ValueError``: both axes non-empty, finite, b ≥ 0, Lc > 0,
+    no value repeated, at most ``max_points`` points in all. An Lc axis outside the plausible
+    range in metres warns once (:class:`~problems._validate.UnitWarning`), not once a point."""
+    axes = []
+    for name, values in (("b", b_values), ("lc", lc_values)):
+        try:
+            x = np.asarray(values, dtype=float).ravel()
+        except (TypeError, ValueError):
+            raise ValueError(f"{name} values must be numbers, got {values!r}") from None
+        if x.size == 0:
+            raise ValueError(f"the {name} axis of the grid is empty")
+        if not np.isfinite(x).all():
+            raise ValueError(f"{name} values must be finite, got {x[~np.isfinite(x)][:3].tolist()}")
+        if np.unique(x).size != x.size:
+            raise ValueError(f"{name} values repeat: {x.tolist()[:10]}")
+        axes.append(x)
+    b, lc = axes
+    if (b < 0).any():
+        raise ValueError(f"b must be ≥ 0, got {b[b < 0][:3].tolist()}")
+    if (lc <= 0).any():
+        raise ValueError(f"lc must be positive (metres), got {lc[lc <= 0][:3].tolist()}")
+    limit = check_count("max_points", max_points)
+    if b.size * lc.size > limit:
+        raise ValueError(f"the grid has {b.size} × {lc.size} = {b.size * lc.size} points, more "
+                         f"than max_points = {limit}: raise it if you mean it")
+    for value in {lc.min(), lc.max()}:
+        warn_implausible("lc", value, stacklevel=3)
+    return b, lc
 
 
 @dataclass(frozen=True)
@@ -92,80 +159,88 @@ class PointTask:
     wall_budget: float | None = None
 
     def problem(self):
-        return preset(self.preset, law=self.law, b=self.b, lc=self.lc, t_end=self.t_end)
+        with warnings.catch_warnings():      # check_grid warned once for the whole Lc axis
+            warnings.simplefilter("ignore", UnitWarning)
+            return preset(self.preset, law=self.law, b=self.b, lc=self.lc, t_end=self.t_end)
 
     def key(self) -> str:
         """Hash of the full problem (so a changed preset is a new point) and the solve options."""
-        try:
-            problem = repr(self.problem())
-        except ValueError as exc:        # an invalid point is still a point: it fails in run_point
-            problem = repr((self.preset, self.law, self.b, self.lc, self.t_end, str(exc)))
-        text = repr((problem, self.algorithm, self.curve_dt, self.wall_budget))
+        text = repr((repr(self.problem()), self.algorithm, self.curve_dt, self.wall_budget))
         return hashlib.sha256(text.encode()).hexdigest()[:24]
 
 
 def run_point(task: PointTask) -> dict:
-    """Simulate one point and summarise it (never raises: a failure is a row with its retcode)."""
-    row = {"b": task.b, "lc_m": task.lc, "integrator": task.algorithm.name}
+    """Simulate one point and summarise it (never raises: a failure is a row with its retcode).
+    Limit-cycle metrics are filled in only for a limit cycle (:data:`benchmarks.metrics.CYCLES`):
+    a failed, truncated or unclassifiable run is never read as physics."""
     try:
         problem = task.problem()
-        row["kappa"] = problem.kappa
         save = (dict(save_every=task.curve_dt) if task.curve_dt else dict(max_points=2))
         sol = solve(problem, task.algorithm, wall_budget=task.wall_budget, **save)
-    except Exception as exc:            # a bad point (e.g. b ≤ 0) must not stop the sweep
-        return {**row, "classification": "failed", "retcode": "Failure",
-                "message": f"{type(exc).__name__}: {exc}"}
+    except Exception as exc:            # checked before the sweep started: a bug if it happens
+        return failed_row(task, f"{type(exc).__name__}: {exc}")
     cycle = summarize(sol)
-    row.update(classification=cycle.classification if sol.success else "failed",
-               period=cycle.period, n_events=len(sol.events), recurrence_s=cycle.recurrence_s,
-               friction_drop=cycle.friction_drop, slip_m=cycle.slip_m,
-               peak_velocity_m_s=cycle.peak_velocity_m_s, retcode=sol.retcode.value,
-               message=sol.message, nfev=sol.stats.nfev, steps=sol.stats.steps,
-               wall_s=sol.stats.wall_s)
-    if task.curve_dt:
-        slip, mu = event_curve(sol)
-        row.update(curve_slip=slip.tolist(), curve_friction=mu.tolist())
+    row = {"key": task.key(), "b": task.b, "lc_m": task.lc, "integrator": task.algorithm.name,
+           "kappa": problem.kappa, "classification": cycle.classification,
+           "n_events": len(sol.events), "retcode": sol.retcode.value,
+           "message": sol.message or cycle.reason, "nfev": sol.stats.nfev,
+           "steps": sol.stats.steps, "wall_s": sol.stats.wall_s}
+    if cycle.classification in CYCLES:
+        row.update({c: getattr(cycle, c) for c in _METRIC_COLUMNS})
+        if task.curve_dt:
+            slip, mu = event_curve(sol)
+            row.update(curve_slip=slip.tolist(), curve_friction=mu.tolist())
     return row
 
 
+def failed_row(task: PointTask, message: str) -> dict:
+    """The row of a point that could not be simulated at all."""
+    return {"key": task.key(), "b": task.b, "lc_m": task.lc, "integrator": task.algorithm.name,
+            "classification": "failed", "retcode": "Failure", "message": message}
+
+
 class PointStore:
-    """Finished points as one JSON file each under ``root/points``, written atomically."""
+    """Finished points as one JSON file each under ``root/points``, written atomically and
+    checked when read (module docstring); ``bad`` lists the files found untrustworthy."""
 
     def __init__(self, root) -> None:
         self.dir = Path(root) / "points"
         self.dir.mkdir(parents=True, exist_ok=True)
+        self.bad: list[str] = []
+        remove_stale_temporaries(self.dir)
 
-    def load(self, key: str) -> dict | None:
+    def load(self, task: PointTask, key: str) -> dict | None:
+        """The stored row of ``task`` (whose key is ``key``), or None: not stored, or stored
+        but not trustworthy (then reported with :class:`BadPointWarning`, to be recomputed)."""
         path = self.dir / f"{key}.json"
         if not path.exists():
             return None
         try:
-            return json.loads(path.read_text())
-        except json.JSONDecodeError:     # cannot happen with the atomic write; rerun it if so
+            row = read_json_record(path, POINT_REQUIRED, what="sweep point")
+            if row["key"] != key:
+                raise BadResultsFile(f"sweep point {path} holds the point {row['key']!r} (a "
+                                     "copied file?)")
+            if (row["b"], row["lc_m"]) != (task.b, task.lc):
+                raise BadResultsFile(f"sweep point {path} holds (b, Lc) = ({row['b']!r}, "
+                                     f"{row['lc_m']!r}), not ({task.b!r}, {task.lc!r})")
+            if (task.curve_dt and row["classification"] in CYCLES
+                    and not isinstance(row.get("curve_slip"), list)):
+                raise BadResultsFile(f"sweep point {path} lacks its slip-weakening curve")
+        except BadResultsFile as exc:
+            self.bad.append(str(exc))
+            warnings.warn(f"{exc}: recomputing it", BadPointWarning, stacklevel=2)
             return None
+        return row
 
     def save(self, key: str, row: dict) -> None:
         atomic_write(self.dir / f"{key}.json", json.dumps(jsonable(row)))
 
 
-def atomic_write(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` so that readers see the old file or the new one, never half."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 @dataclass(frozen=True)
 class Observations:
     """What a point is scored against: observed means and standard deviations (Eq. 10), and
-    optionally the observed slip-weakening curves (Eq. 11)."""
+    optionally the observed slip-weakening curves (Eq. 11). The four numbers must be positive
+    and finite (ΔT̄ and its σ in s, Δμ̄ and its σ dimensionless)."""
 
     recurrence_s: float
     sigma_recurrence_s: float
@@ -173,6 +248,11 @@ class Observations:
     sigma_friction_drop: float
     curves: pd.DataFrame | None = None
     assumed_sigma: bool = False        # σ not measured: 10 % of the mean, say so in the output
+
+    def __post_init__(self) -> None:
+        for name in ("recurrence_s", "sigma_recurrence_s", "friction_drop",
+                     "sigma_friction_drop"):
+            check_positive(name, getattr(self, name))
 
 
 @dataclass
@@ -189,85 +269,91 @@ def _warm(task: PointTask) -> None:
         pass
 
 
-def _execute(tasks: list[PointTask], workers: int, scheduler: str | None, backend: str):
-    """Yield ``(task, row)`` as points finish: in this process (1 worker), in a local pool, or
-    on the Dask cluster at ``scheduler``. Every worker warms up first."""
-    if not tasks:
-        return
-    if scheduler:
-        from distributed import Client, as_completed
-        with Client(scheduler) as client:
-            client.run(_warm, tasks[0])
-            futures = client.map(run_point, tasks, pure=False)
-            index = {f.key: t for f, t in zip(futures, tasks)}
-            for fut in as_completed(futures):
-                yield index[fut.key], fut.result()
-        return
-    if workers == 1 or backend == "threads":
-        _warm(tasks[0])
-    if workers == 1:
-        for t in tasks:
-            yield t, run_point(t)
-        return
-    from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor, as_completed
-    pool = (ProcessPoolExecutor(max_workers=workers, initializer=_warm, initargs=(tasks[0],))
-            if backend == "processes" else ThreadPoolExecutor(max_workers=workers))
-    with pool:
-        futures = {pool.submit(run_point, t): t for t in tasks}
-        for fut in as_completed(futures):
-            yield futures[fut], fut.result()
-
-
 def sweep(preset_name: str, law: str, b_values, lc_values, algorithm, obs: Observations,
           out, t_end: float | None = None, workers: int | None = None,
           scheduler: str | None = None, backend: str = "processes",
           curve_dt: float = 5e-5, wall_budget: float | None = None,
-          progress: bool = True) -> SweepResult:
+          progress: bool = True, max_points: int = MAX_GRID_POINTS,
+          connect_timeout: float = CONNECT_TIMEOUT_S,
+          worker_timeout: float = WORKER_TIMEOUT_S) -> SweepResult:
     """Run (or resume) the sweep over ``b_values`` × ``lc_values`` and score it against ``obs``.
 
     Finished points are read back from ``out`` and not run again. Returns the table (also
-    written to ``out/sweep.csv``) and a summary (also ``out/summary.json``).
+    written to ``out/sweep.csv``) and a summary (also ``out/summary.json``). Every argument is
+    checked before the first point runs (``ValueError``); ``max_points`` bounds the grid.
     """
-    if backend not in BACKENDS:
-        raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
-    workers = workers or os.cpu_count() or 1
-    if workers < 1:
-        raise ValueError(f"workers must be at least 1, got {workers!r}")
+    tasks = _tasks(preset_name, law, b_values, lc_values, algorithm, obs, t_end, workers,
+                   backend, curve_dt, wall_budget, max_points)
+    workers = os.cpu_count() or 1 if workers is None else workers
+    if scheduler:
+        connect(scheduler, connect_timeout).close()      # reachable, before any work
     store = PointStore(out)
-    need_curves = obs.curves is not None
-    tasks = [PointTask(preset_name, law, float(b), float(lc), t_end, algorithm,
-                       curve_dt if need_curves else None, wall_budget)
-             for b in b_values for lc in lc_values]
     keys = [t.key() for t in tasks]
-    rows = {k: store.load(k) for k in keys}
+    rows = {k: store.load(t, k) for t, k in zip(tasks, keys)}
     todo = [t for t, k in zip(tasks, keys) if rows[k] is None]
     n_resumed = len(tasks) - len(todo)
     start = time.perf_counter()
     bar = tqdm(total=len(tasks), initial=n_resumed, desc=f"sweep {preset_name}/{law}",
                unit="point", disable=not progress)
     with bar:
-        for task, row in _execute(todo, workers, scheduler, backend):
-            key = task.key()
-            store.save(key, row)
-            rows[key] = row
+        for task, row in execute(run_point, _warm, failed_row, todo, workers, scheduler,
+                                 backend, connect_timeout, worker_timeout):
+            store.save(row["key"], row)
+            rows[row["key"]] = row
             bar.update(1)
     wall = time.perf_counter() - start
     table = score(pd.DataFrame([rows[k] for k in keys]), obs)
     summary = summarize_sweep(table, obs, algorithm, wall_s=wall, n_run=len(todo),
-                              n_resumed=n_resumed, workers=1 if scheduler else workers,
+                              n_resumed=n_resumed, n_bad_files=len(store.bad),
+                              bad_files=store.bad, workers=1 if scheduler else workers,
                               scheduler=scheduler, backend=backend)
     out = Path(out)
+    remove_stale_temporaries(out)
     atomic_write(out / "sweep.csv", table.to_csv(index=False))
     atomic_write(out / "summary.json", json.dumps(jsonable(summary), indent=2))
     return SweepResult(table, summary)
 
 
+def _tasks(preset_name, law, b_values, lc_values, algorithm, obs, t_end, workers, backend,
+           curve_dt, wall_budget, max_points) -> list[PointTask]:
+    """The points of a sweep, every argument checked (``ValueError`` before any work)."""
+    from integrators import Algorithm
+    from integrators.solution import Output
+    if backend not in BACKENDS:
+        raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
+    if workers is not None:
+        check_count("workers", workers)
+    if not isinstance(algorithm, Algorithm):
+        raise ValueError(f"algorithm must be an Algorithm instance, got {algorithm!r}")
+    if not isinstance(obs, Observations):
+        raise ValueError(f"obs must be Observations, got {obs!r}")
+    for name, value in (("wall_budget", wall_budget), ("t_end", t_end), ("curve_dt", curve_dt)):
+        if value is not None:
+            check_positive(name, value)
+    b_values, lc_values = check_grid(b_values, lc_values, max_points)
+    need_curves = obs.curves is not None
+    tasks = [PointTask(preset_name, law, float(b), float(lc), t_end, algorithm,
+                       curve_dt if need_curves else None, wall_budget)
+             for b in b_values for lc in lc_values]
+    for task in tasks:                           # every point a valid problem, or say which
+        try:
+            problem = task.problem()
+        except ValueError as exc:
+            raise ValueError(f"grid point (b = {task.b:g}, Lc = {task.lc:g} m): {exc}") from None
+    if need_curves:                              # the saved trajectory of a point fits memory
+        Output(save_every=curve_dt).interval(problem.t_end)
+    return tasks
+
+
 def score(points: pd.DataFrame, obs: Observations) -> pd.DataFrame:
-    """Add J1 (and J2, J) and the regions to a table of simulated points."""
+    """Add J1 (and J2, J) and the regions to a table of simulated points. A point scores only
+    with a limit cycle: metrics of any other point are NaN, so it is in no region."""
     for c in POINT_COLUMNS:
         if c not in points:
             points[c] = np.nan
     table = points[list(POINT_COLUMNS)].copy()
+    no_cycle = ~table.classification.isin(CYCLES)
+    table.loc[no_cycle, list(_METRIC_COLUMNS)] = np.nan
     table["J1"] = j1(table.recurrence_s, table.friction_drop, obs.recurrence_s,
                      obs.sigma_recurrence_s, obs.friction_drop, obs.sigma_friction_drop)
     if obs.curves is None:
@@ -279,8 +365,6 @@ def score(points: pd.DataFrame, obs: Observations) -> pd.DataFrame:
                                      points.get("curve_friction", [None] * len(points)))]
         table["J2"] = [np.mean(x) if len(x) else np.nan for x in per_event]
         table["J2_std"] = [np.std(x) if len(x) else np.nan for x in per_event]
-        # J2 only means something for a point that has a stick–slip cycle
-        no_cycle = ~table.classification.isin(["stick-slip", "multiple recurrence"])
         table.loc[no_cycle, ["J2", "J2_std"]] = np.nan
         fit = joint_fit(table.J1.to_numpy(), table.J2.to_numpy(), table.J2_std.to_numpy())
         table["J"] = fit["J"]
@@ -302,6 +386,7 @@ def summarize_sweep(table: pd.DataFrame, obs: Observations, algorithm, **run) ->
         "best_by": objective,
         "n_points": len(table),
         "n_failed": int((table.retcode != "Success").sum()),
+        "n_scored": int(table.classification.isin(CYCLES).sum()),
         "n_in_region": int(table.in_region.sum()),
         "region": f"J1 <= {CHI2_95_2DOF}",
         "classification": table.classification.value_counts().to_dict(),

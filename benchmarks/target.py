@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 
 from benchmarks.report import fmt, markdown_table
-from benchmarks.work_precision import reliable_error
+from benchmarks.work_precision import read_study, reliable_error
 from integrators import REGISTRY
 
 __all__ = ["TARGET_LEVELS", "TARGET_FACTOR", "TARGET_WALL_BUDGET", "groups", "target_integrators",
@@ -101,7 +101,7 @@ def write_target(csv, out, name: str | None = None) -> pd.DataFrame:
     """``target_<name>.csv`` and ``.md`` in ``out`` from the study at ``csv``."""
     csv, out = Path(csv), Path(out)
     name = name or csv.stem.removeprefix("wp_")
-    t = target_table(pd.read_csv(csv))
+    t = target_table(read_study(csv))
     out.mkdir(parents=True, exist_ok=True)
     t.to_csv(out / f"target_{name}.csv", index=False)
     (out / f"target_{name}.md").write_text(target_markdown(t))

@@ -36,7 +36,7 @@ from problems import paper_example, window
 
 __all__ = ["Ladder", "FULL", "QUICK", "study_problems", "settings", "measure", "work_precision",
            "WP_COLUMNS", "SKIPPED", "reliable_error", "best_at_levels", "recommend",
-           "algorithm_at", "recommended_algorithm", "STUDY_CSV"]
+           "algorithm_at", "recommended_algorithm", "read_study", "STUDY_CSV"]
 
 SKIPPED = "Skipped"
 #: the columns every work-precision CSV has (then the errors, then provenance)
@@ -234,6 +234,14 @@ def algorithm_at(integrator: str, rhs_tier: str, setting: float):
     return cls(dtau_cnst=setting, dtau_max=d.dtau_max * setting / d.dtau_cnst)
 
 
+def read_study(path) -> pd.DataFrame:
+    """A work-precision study written by :func:`benchmarks.report.write_work_precision`, its
+    columns checked (:class:`benchmarks.files.BadResultsFile` otherwise)."""
+    from benchmarks.files import read_table
+    return read_table(path, WP_COLUMNS, what="work-precision study",
+                      hint="`rsfbench work-precision` writes one")
+
+
 def recommended_algorithm(level: float, csv=STUDY_CSV, error: str = "err_recurrence"):
     """``(algorithm, reason)``: the study's recommendation for ``level`` (see :func:`recommend`),
     or ETD2 at the paper's settings when there is no study or it recommends nothing."""
@@ -241,7 +249,7 @@ def recommended_algorithm(level: float, csv=STUDY_CSV, error: str = "err_recurre
     path = Path(csv)
     if not path.exists():
         return ETD2(), f"no work-precision study at {path}: ETD2 at the paper's settings"
-    advice = recommend(pd.read_csv(path), [level], error).iloc[0]
+    advice = recommend(read_study(path), [level], error).iloc[0]
     if pd.isna(advice.get("integrator")) or advice.integrator not in REGISTRY:
         return ETD2(), (f"{path.name} recommends nothing for {error} ≤ {level:g}: ETD2 at the "
                         f"paper's settings")

@@ -4,7 +4,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from benchmarks.metrics import event_metrics, limit_cycle
+from benchmarks.metrics import EndState, event_metrics, limit_cycle
 from integrators.solution import EVENT_COLUMNS
 
 FN = 1e6
@@ -57,10 +57,44 @@ def test_multiple_recurrence_period_two():
     assert lc.recurrence_s == pytest.approx(1.5)
 
 
-def test_stable_sliding_and_not_converged():
-    assert limit_cycle(_events([]), FN, t_end=10.0).classification == "stable sliding"
-    died_out = limit_cycle(_events([0.1, 0.3, 0.6]), FN, t_end=10.0)
-    assert died_out.classification == "stable sliding"
+STEADY_STABLE = EndState(log_v=1e-3, state_offset=1e-3, force_offset=1e-3, growth_rate=-2.0)
+LOCKED = EndState(log_v=-6.0, state_offset=4.0, force_offset=1.0, growth_rate=-2.0)
+UNSTABLE = EndState(log_v=1e-3, state_offset=1e-3, force_offset=1e-3, growth_rate=0.5)
+
+
+def test_stable_sliding_needs_a_steady_and_stable_end():
+    # no events: stable sliding only if the run ended at steady sliding and it is stable there
+    assert limit_cycle(_events([]), FN, 10.0, end=STEADY_STABLE).classification == "stable sliding"
+    for end in (LOCKED, UNSTABLE, None):
+        lc = limit_cycle(_events([]), FN, 10.0, end=end)
+        assert lc.classification == "too short to classify" and "run longer" in lc.reason
+    # events that died out: the same rule
+    died_out = _events([0.1, 0.3, 0.6])
+    assert limit_cycle(died_out, FN, 10.0, end=STEADY_STABLE).classification == "stable sliding"
+    assert limit_cycle(died_out, FN, 10.0, end=LOCKED).classification == "too short to classify"
+
+
+def test_not_converged_and_too_few_events():
     rng = np.random.default_rng(1)
     starts = np.cumsum(1.0 + rng.uniform(0, 1, 12))
-    assert limit_cycle(_events(starts), FN, t_end=starts[-1] + 0.5).classification == "not converged"
+    lc = limit_cycle(_events(starts), FN, t_end=starts[-1] + 0.5)
+    assert lc.classification == "not converged" and "run longer" in lc.reason
+    # three events cannot show a period-1 cycle repeating twice
+    assert limit_cycle(_events([1.0, 2.0, 3.0]), FN, t_end=3.5).classification == \
+        "too short to classify"
+
+
+def test_an_oscillation_that_never_locks_is_not_stick_slip():
+    starts = np.arange(12) * 2.0
+    locked = _events(starts)                 # slip only during events: locked between them
+    vl = 1e-4
+    assert limit_cycle(locked, FN, 24.5, v_slow=vl).classification == "stick-slip"
+    creeping = locked.copy()
+    # between events the fault slips at 0.8 vL (the event's own slip is unchanged)
+    gap = creeping.t_start.to_numpy()[1:] - creeping.t_end.to_numpy()[:-1]
+    shift = np.r_[0.0, np.cumsum(0.8 * vl * gap)]
+    creeping["slip_start"] += shift
+    creeping["slip_end"] += shift
+    lc = limit_cycle(creeping, FN, 24.5, v_slow=vl)
+    assert lc.classification == "oscillation about vL" and "0.8 vLs" in lc.reason
+    assert np.isnan(lc.recurrence_s)

@@ -14,12 +14,13 @@ import pytest
 from benchmarks.cli_sweep import observations
 from benchmarks.fitting import j1, j2_per_event, joint_fit, read_curves
 from benchmarks.sweep import parse_b, parse_lc, sweep
-from integrators import ETD2, ETDIterated
+from integrators import ETD2, ETDIterated, Rodas5P
 
 DATA = Path(__file__).parent / "data"
 # made by the project's simulator: `rsfbench slip-weakening --preset W2 --law slip --t-end 20
-# --events 3 --points 25 --noise 2e-4 --seed 1` (ETD2, the slip-law best fit b = 0.0094,
-# Lc = 0.3 µm), i.e. three events of the limit cycle plus Gaussian noise of std 2e-4 on μ
+# --events 3 --points 25 --noise 2e-4 --seed 1 --integrator Rodas5P --rtol 1e-8 --atol 1e-8`
+# (the slip-law best fit b = 0.0094, Lc = 0.3 µm), i.e. the friction Ft/Fn against slip of three
+# events of the limit cycle plus Gaussian noise of std 2e-4
 CURVES = DATA / "W2_slip_weakening.csv"
 NOISE = 2e-4
 # compared between runs: everything but the wall times
@@ -80,19 +81,37 @@ def _obs(curves=None, window="W2"):
     return observations(window, curves=curves)
 
 
-def test_sweep_scores_the_synthetic_curves_and_records_failures(tmp_path):
-    b = [-0.001, 0.0092, 0.0094]                      # b < 0 is not a friction law: a failed row
-    lc = [1e-7, 3e-7]
-    res = sweep("W2", "slip", b, lc, ETDIterated(), _obs(read_curves(CURVES)), tmp_path,
-                t_end=20.0, workers=1, progress=False)
+def test_failed_points_never_score(tmp_path):
+    # a step budget that W2 over 20 s fits at Lc = 0.3 µm (~200,000 ETD steps: τ spans
+    # t·v0/Lc) but not at 0.1 µm (~600,000): two failed rows beside two scored ones
+    res = sweep("W2", "slip", [0.0092, 0.0094], [1e-7, 3e-7], ETDIterated(max_steps=400_000),
+                _obs(), tmp_path, t_end=20.0, workers=1, progress=False)
     t = res.table.set_index(["b", "lc_m"])
-    assert (t.loc[-0.001].retcode == "Failure").all()
-    assert t.loc[-0.001].message.str.contains("b").all()
-    assert res.summary["n_failed"] == 2 and res.summary["n_points"] == 6
-    # the curves' own parameters: J2 is the noise variance (25 samples per event, 3 events)
+    failed = t.xs(1e-7, level="lc_m")
+    assert (failed.retcode == "MaxSteps").all() and (failed.classification == "failed").all()
+    assert failed.message.str.contains("step budget").all()
+    # no metrics, no J1, in no region
+    assert failed.recurrence_s.isna().all() and failed.J1.isna().all()
+    assert not failed.in_region.any()
+    ok = t.xs(3e-7, level="lc_m")
+    assert (ok.classification == "stick-slip").all() and ok.J1.notna().all()
+    assert res.summary["n_failed"] == 2 and res.summary["n_scored"] == 2
+
+
+def test_j2_sees_b_and_lc_in_the_friction_curves(tmp_path):
+    """J2 compares friction Ft/Fn against slip (Eq. 11), so it resolves both parameters: at the
+    curves' own (b, Lc) it is the noise variance, and a 2 % smaller b or a 3× larger Lc is
+    visibly worse (with the spring force Fs/Fn, the spring's unloading line, it was not).
+    Measured without noise: 1e-14 at (0.0094, 0.3 µm), 4.3e-5 at (0.0092, 0.3 µm), 4.4e-5 at
+    (0.0094, 1 µm), against the noise variance 4e-8."""
+    res = sweep("W2", "slip", [0.0092, 0.0094], [3e-7, 1e-6], Rodas5P(rtol=1e-8, atol=1e-8),
+                _obs(read_curves(CURVES)), tmp_path, t_end=20.0, workers=1, progress=False)
+    t = res.table.set_index(["b", "lc_m"])
     gen = t.loc[(0.0094, 3e-7)]
+    # 25 samples per event, the mean removed: E[J2] = (24/25) σ²
     assert 0.3 * NOISE ** 2 < gen.J2 < 2 * NOISE ** 2
-    assert t.loc[(0.0092, 3e-7)].J2 > 10 * gen.J2     # a smaller b: a visibly different curve
+    assert t.loc[(0.0092, 3e-7)].J2 > 100 * gen.J2
+    assert t.loc[(0.0094, 1e-6)].J2 > 100 * gen.J2
     assert gen.in_region and gen.possible
     written = pd.read_csv(tmp_path / "sweep.csv")
     for col in ("b", "lc_m", "recurrence_s", "friction_drop", "J1", "J2", "J", "classification",

@@ -1,0 +1,122 @@
+"""Where the points of a sweep run: this process, a local pool of processes or threads, or a Dask
+cluster, with the guarantees a long unattended run needs.
+
+* **No orphans.** A pool worker watches its parent (:func:`_watch_parent`) and exits within
+  :data:`PARENT_POLL_S` once the parent is gone, even when the parent was killed with SIGKILL and
+  could not shut its pool down. Workers ignore SIGINT: a Ctrl-C reaches the parent, which cancels
+  the pending points (the finished ones are stored) and stops the pool.
+* **No silent wait on a cluster.** The scheduler must answer within ``connect_timeout`` before any
+  work; while points are pending, a cluster left with no worker for ``worker_timeout`` seconds
+  ends the sweep with :class:`ClusterGone`, which says how many points are done (and kept).
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+import time
+
+__all__ = ["execute", "ClusterGone", "PARENT_POLL_S", "CONNECT_TIMEOUT_S", "WORKER_TIMEOUT_S"]
+
+#: s between two looks of a pool worker at its parent
+PARENT_POLL_S = 0.5
+#: s a Dask scheduler has to answer before the sweep is refused
+CONNECT_TIMEOUT_S = 10.0
+#: s a Dask cluster may have no worker while points are pending
+WORKER_TIMEOUT_S = 60.0
+
+
+class ClusterGone(RuntimeError):
+    """The Dask cluster has had no worker for longer than the sweep's ``worker_timeout``."""
+
+
+def _watch_parent(parent: int) -> None:
+    """In a pool worker: exit at once when the process that started it is gone."""
+    def watch():
+        while os.getppid() == parent:
+            time.sleep(PARENT_POLL_S)
+        os._exit(1)
+    threading.Thread(target=watch, name="rsfbench-parent-watch", daemon=True).start()
+
+
+def _init_worker(parent: int, warm, task) -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _watch_parent(parent)
+    warm(task)
+
+
+def execute(run, warm, failed, tasks: list, workers: int, scheduler: str | None, backend: str,
+            connect_timeout: float = CONNECT_TIMEOUT_S,
+            worker_timeout: float = WORKER_TIMEOUT_S):
+    """Yield ``(task, run(task))`` as points finish. ``warm(task)`` compiles what the tasks need,
+    once per worker, before the first point; ``failed(task, message)`` is the row of a point
+    whose Dask workers all died running it."""
+    if not tasks:
+        return
+    if scheduler:
+        yield from _on_dask(run, warm, failed, tasks, scheduler, connect_timeout, worker_timeout)
+        return
+    if workers == 1 or backend == "threads":
+        warm(tasks[0])
+    if workers == 1:
+        for t in tasks:
+            yield t, run(t)
+        return
+    from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor, as_completed
+    pool = (ProcessPoolExecutor(max_workers=workers, initializer=_init_worker,
+                                initargs=(os.getpid(), warm, tasks[0]))
+            if backend == "processes" else ThreadPoolExecutor(max_workers=workers))
+    try:
+        futures = {pool.submit(run, t): t for t in tasks}
+        for fut in as_completed(futures):
+            yield futures[fut], fut.result()
+    except BaseException:            # Ctrl-C, a closed generator: do not wait for the rest
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    pool.shutdown()
+
+
+def connect(scheduler: str, timeout: float = CONNECT_TIMEOUT_S):
+    """A Dask client of ``scheduler``, or ``ValueError`` saying it did not answer in time."""
+    from distributed import Client
+    try:
+        return Client(scheduler, timeout=timeout)
+    except (OSError, TimeoutError) as exc:
+        raise ValueError(f"cannot reach the Dask scheduler at {scheduler!r} within {timeout:g} s "
+                         f"({type(exc).__name__}: {exc})") from None
+
+
+def _on_dask(run, warm, failed, tasks, scheduler, connect_timeout, worker_timeout):
+    from distributed import wait
+    with connect(scheduler, connect_timeout) as client:
+        futures = client.map(run, tasks, pure=False)
+        index = {f.key: t for f, t in zip(futures, tasks)}
+        pending, alone_since = set(futures), None
+        try:
+            client.run(warm, tasks[0])           # every current worker; newcomers compile once
+        except Exception:                         # a worker that fails to warm still runs points
+            pass
+        while pending:
+            done, pending = wait(list(pending), timeout=1.0, return_when="FIRST_COMPLETED")
+            for fut in done:
+                task = index[fut.key]
+                try:
+                    row = fut.result()
+                except Exception as exc:       # KilledWorker: the point crashed its workers
+                    row = failed(task, f"{type(exc).__name__} on the Dask cluster: {exc}")
+                yield task, row
+            if not pending:
+                break
+            if client.scheduler_info().get("workers"):
+                alone_since = None
+            elif alone_since is None:
+                alone_since = time.monotonic()
+            elif time.monotonic() - alone_since > worker_timeout:
+                for fut in pending:
+                    fut.cancel()
+                n_done = len(tasks) - len(pending)
+                raise ClusterGone(
+                    f"the Dask cluster at {scheduler} has had no worker for {worker_timeout:g} s; "
+                    f"{n_done} of {len(tasks)} points were done and are kept: start workers and "
+                    "run the same sweep again to resume")
