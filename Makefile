@@ -8,7 +8,7 @@ PY       := $(VENV)/bin/python
 APT_PKGS := gfortran libsundials-dev pkg-config cmake
 STAMP    := $(VENV)/.installed
 
-.PHONY: setup system-packages numba-cache test reproduce bench clean
+.PHONY: setup system-packages numba-cache test test-slow reproduce bench clean
 
 setup: $(STAMP)
 
@@ -37,6 +37,10 @@ numba-cache:
 
 test: setup numba-cache
 	$(PY) -m pytest
+
+# the slow probes: kills, subprocesses, a Dask cluster losing its workers (~10 min)
+test-slow: setup numba-cache
+	$(PY) -m pytest -m slow
 
 reproduce: setup numba-cache
 	$(VENV)/bin/rsfbench reproduce --out results

@@ -15,17 +15,23 @@
 
 from __future__ import annotations
 
-import argparse
+import contextlib
 import dataclasses
+import io
 import json
+import os
 import sys
+import warnings
 from pathlib import Path
 
 from benchmarks import metrics
+from benchmarks.cli_args import (Parser, add_integrator_options, add_problem_options,
+                                 in_file, say, integrator_from_args, out_dir, out_file, positive,
+                                 problem_from_args, wants_json)
 from benchmarks.report import jsonable as _jsonable
 from benchmarks.timing import warm_up
-from integrators import REGISTRY, algorithm_class, make_algorithm, solve
-from problems import PRESET_NAMES, preset
+from integrators import REGISTRY, algorithm_class, solve
+from problems import PRESET_NAMES, WINDOWS, preset
 
 __all__ = ["main"]
 
@@ -54,40 +60,44 @@ def simulate_summary(sol) -> dict:
 
 def _print_summary(s: dict) -> None:
     lc = s["limit_cycle"]
-    print(f"{s['problem']}  (b = {s['b']:.5g}, Lc = {s['lc_m'] * 1e6:.4g} µm, {s['t_end']:g} s)")
-    print(f"  integrator  {s['integrator']}   {s['retcode']}  {s['message']}".rstrip())
-    print(f"  cost        {s['steps']} steps, {s['nfev']} rhs evaluations, {s['wall_s']:.4g} s wall")
-    print(f"  events      {s['n_events']}   classification: {lc['classification']}")
+    say(f"{s['problem']}  (b = {s['b']:.5g}, Lc = {s['lc_m'] * 1e6:.4g} µm, {s['t_end']:g} s)")
+    say(f"  integrator  {s['integrator']}   {s['retcode']}  {s['message']}".rstrip())
+    if s.get("integrator_choice"):
+        say(f"              ({s['integrator_choice']})")
+    say(f"  cost        {s['steps']} steps, {s['nfev']} rhs evaluations, {s['wall_s']:.4g} s wall")
+    say(f"  events      {s['n_events']}   classification: {lc['classification']}")
+    if lc.get("reason"):
+        say(f"              ({lc['reason']})")
     if lc["period"]:
-        print(f"  limit cycle (period {lc['period']}, converged from event {lc['cycles_to_converge']}):")
-        print(f"    recurrence interval  {lc['recurrence_s']:.6g} s")
-        print(f"    friction drop        {lc['friction_drop']:.6g}")
-        print(f"    slip per event       {lc['slip_m'] * 1e3:.6g} mm")
-        print(f"    peak slip rate       {lc['peak_velocity_m_s']:.6g} m/s")
+        say(f"  limit cycle (period {lc['period']}, converged from event {lc['cycles_to_converge']}):")
+        say(f"    recurrence interval  {lc['recurrence_s']:.6g} s")
+        say(f"    friction drop        {lc['friction_drop']:.6g}")
+        say(f"    slip per event       {lc['slip_m'] * 1e3:.6g} mm")
+        say(f"    peak slip rate       {lc['peak_velocity_m_s']:.6g} m/s")
     elif s["last_event"]:
         e = s["last_event"]
         recurrence = "n/a" if e["recurrence_s"] is None else f"{e['recurrence_s']:.6g} s"
-        print(f"  last event  at t = {e['t_start']:.6g} s: recurrence {recurrence}, "
+        say(f"  last event  at t = {e['t_start']:.6g} s: recurrence {recurrence}, "
               f"friction drop {e['friction_drop']:.6g}, slip {e['slip_m'] * 1e3:.6g} mm, "
               f"peak {e['peak_velocity_m_s']:.6g} m/s (run longer for the limit cycle)")
 
 
 def cmd_simulate(args) -> int:
-    problem = preset(args.preset, law=args.law, b=args.b, lc=args.lc, t_end=args.t_end)
-    algorithm = make_algorithm(args.integrator, rtol=args.rtol, atol=args.atol, rhs=args.rhs)
+    problem = problem_from_args(args)
+    algorithm, why = integrator_from_args(args)
     warm_up(problem, algorithm)     # so that wall_s excludes numba compilation
     sol = solve(problem, algorithm, max_points=200_000 if args.plot else 20_000,
                 progress=args.progress, wall_budget=args.wall_budget)
-    summary = simulate_summary(sol)
+    summary = {**simulate_summary(sol), "integrator_choice": why}
     if args.plot:
         from benchmarks.plots import plot_solution
         plot_solution(sol, args.plot)
     if args.json:
-        print(json.dumps(summary, indent=2))
+        say(json.dumps(summary, indent=2))
     else:
         _print_summary(summary)
         if args.plot:
-            print(f"  figure      {args.plot}")
+            say(f"  figure      {args.plot}")
     return 0 if sol.success else 1
 
 
@@ -97,29 +107,33 @@ def cmd_integrators(args) -> int:
              "stiff": cls.stiff, "library": cls.library, "version": cls.library_version()}
             for name, cls in sorted(REGISTRY.items(), key=lambda kv: kv[0].lower())]
     if args.json:
-        print(json.dumps(rows, indent=2))
+        say(json.dumps(rows, indent=2))
     elif args.markdown:
         import pandas as pd
         from benchmarks.report import markdown_table
-        print(markdown_table(pd.DataFrame(rows)), end="")
+        say(markdown_table(pd.DataFrame(rows)), end="")
     else:
-        print(f"{'name':<22} {'order':>5}  {'adaptive':<8} {'family':<32} library")
+        say(f"{'name':<22} {'order':>5}  {'adaptive':<8} {'family':<32} library")
         for r in rows:
-            print(f"{r['name']:<22} {r['order']:>5}  {str(r['adaptive']):<8} {r['family']:<32} "
+            say(f"{r['name']:<22} {r['order']:>5}  {str(r['adaptive']):<8} {r['family']:<32} "
                   f"{r['library']} ({r['version']})")
     return 0
 
 
 def cmd_windows(args) -> int:
     from benchmarks.windows import windows_table, write_windows
-    table = windows_table(laws=args.law, integrator=make_algorithm(args.integrator),
-                          t_end=args.t_end, progress=not args.json)
+    algorithm, why = integrator_from_args(args)
+    if not args.json:
+        say(f"integrator: {why}")
+    table = windows_table(laws=args.law, names=args.window, integrator=algorithm,
+                          t_end=args.t_end, wall_budget=args.wall_budget,
+                          progress=not args.json)
     if args.out:
         write_windows(table, Path(args.out))
     if args.json:
-        print(table.to_json(orient="records", indent=2))
+        say(table.to_json(orient="records", indent=2))
     else:
-        print(table.to_string(index=False))
+        say(table.to_string(index=False))
     return 0
 
 
@@ -133,13 +147,13 @@ def cmd_compare(args) -> int:
     if args.out:
         table.to_csv(args.out, index=False)
     if args.json:
-        print(table.to_json(orient="records", indent=2))
+        say(table.to_json(orient="records", indent=2))
     else:
         shown = table.drop(columns=["library", "message"]).assign(
             wall_s=table.wall_s.map("{:.4g}".format),
             recurrence_s=table.recurrence_s.map(lambda x: f"{x:.8g}" if x == x and x is not None else ""),
             friction_drop=table.friction_drop.map(lambda x: f"{x:.7g}" if x == x and x is not None else ""))
-        print(markdown_table(shown), end="")
+        say(markdown_table(shown), end="")
     return 0
 
 
@@ -158,6 +172,8 @@ def cmd_work_precision(args) -> int:
         ladder = dataclasses.replace(ladder, wall_budget=args.wall_budget)
     problems = ([_study_problem(x) for x in args.problems] if args.problems
                 else study_problems(args.study))
+    if args.t_end is not None:
+        problems = [dataclasses.replace(p, t_end=args.t_end) for p in problems]
     names = None if not args.integrators else [algorithm_name(n) for n in args.integrators]
     df = work_precision(problems, ladder, names=names, tiers=tuple(args.tiers),
                         progress=not args.no_progress)
@@ -165,13 +181,13 @@ def cmd_work_precision(args) -> int:
     pareto = best_at_levels(df, ERROR_LEVELS, args.error)
     if args.json:
         from benchmarks.work_precision import recommend
-        print(json.dumps(_jsonable({
+        say(json.dumps(_jsonable({
             "csv": str(paths["csv"]), "error": args.error,
             "recommendation": recommend(df, ERROR_LEVELS, args.error).to_dict(orient="records"),
             "pareto": pareto.to_dict(orient="records")}), indent=2))
     else:
-        print(paths["pareto_md"].read_text())
-        print("written: " + ", ".join(str(p) for p in paths.values()))
+        say(paths["pareto_md"].read_text())
+        say("written: " + ", ".join(str(p) for p in paths.values()))
     return 0
 
 
@@ -187,12 +203,12 @@ def cmd_convergence(args) -> int:
     summary = (write_convergence(problem, table, orders, args.out) if args.out
                else convergence_summary(problem, table, orders))
     if args.json:
-        print(json.dumps(_jsonable(summary), indent=2))
+        say(json.dumps(_jsonable(summary), indent=2))
     else:
-        print(table[["integrator", "dtau_cnst", "steps", "wall_s", "err_recurrence", "err_drop",
+        say(table[["integrator", "dtau_cnst", "steps", "wall_s", "err_recurrence", "err_drop",
                      "fitted"]].to_string(index=False))
         for name, order in orders.items():
-            print(f"{name}: observed order {order:.3f} (declared {REGISTRY[name].order}, on this "
+            say(f"{name}: observed order {order:.3f} (declared {REGISTRY[name].order}, on this "
                   f"stiff problem {REGISTRY[name].stiff_order}); finest error "
                   f"{summary['finest_error'][name]:.3g}")
     return 0
@@ -204,12 +220,12 @@ def _fixed_step_orders(args, names) -> int:
     summary = (write_fixed_step_orders(table, orders, args.out) if args.out
                else {"orders": orders})
     if args.json:
-        print(json.dumps(_jsonable(summary), indent=2))
+        say(json.dumps(_jsonable(summary), indent=2))
     else:
-        print(table.to_string(index=False))
+        say(table.to_string(index=False))
         for key, order in orders.items():
             name = key.split("/")[0]
-            print(f"{key}: observed order {order:.2f} (declared {REGISTRY[name].order})")
+            say(f"{key}: observed order {order:.2f} (declared {REGISTRY[name].order})")
     return 0
 
 
@@ -217,7 +233,7 @@ def cmd_readme(args) -> int:
     from benchmarks.readme import refresh
     stale = refresh(check=args.check)
     verb = "out of date" if args.check else "refilled"
-    print(f"README blocks {verb}: {', '.join(stale)}" if stale else "README blocks up to date")
+    say(f"README blocks {verb}: {', '.join(stale)}" if stale else "README blocks up to date")
     return 1 if stale and args.check else 0
 
 
@@ -232,21 +248,51 @@ def cmd_speedup(args) -> int:
     if args.out:
         write_speedup(summary, table, args.out)
     if args.json:
-        print(json.dumps(_jsonable(summary), indent=2))
+        say(json.dumps(_jsonable(summary), indent=2))
     else:
-        print(speedup_markdown(summary, table))
+        say(speedup_markdown(summary, table))
     return 0
 
 
 def cmd_target(args) -> int:
     from benchmarks.target import write_target
-    table = write_target(args.csv, args.out)
+    table = write_target(args.csv, args.out)     # checks the study's columns first
     if args.json:
-        print(json.dumps(_jsonable(table.to_dict(orient="records")), indent=2))
+        say(json.dumps(_jsonable(table.to_dict(orient="records")), indent=2))
     else:
         name = Path(args.csv).stem.removeprefix("wp_")
-        print((Path(args.out) / f"target_{name}.md").read_text())
+        say((Path(args.out) / f"target_{name}.md").read_text())
     return 0
+
+
+def cmd_classification(args) -> int:
+    from benchmarks.classification import classification_study, write_classification
+    table = classification_study(progress=not args.json)
+    text = write_classification(table, args.out) if args.out else None
+    if args.json:
+        say(table.to_json(orient="records", indent=2))
+    else:
+        say(text or table.to_string(index=False))
+    return 0
+
+
+def cmd_probe(args) -> int:
+    from benchmarks.probe import BAD_OUTCOMES, run_probe, write_probe
+    from benchmarks.probe_cases import cases
+    chosen = [c for c in cases() if (args.slow or not c.slow)
+              and (not args.kind or c.kind in args.kind)
+              and (not args.match or args.match.lower() in c.id.lower())]
+    if not chosen:
+        raise ValueError("no probe case matches --kind/--match")
+    table = run_probe(chosen, progress=not args.json)
+    if args.out:
+        text = write_probe(table, args.out)
+    if args.json:
+        say(table.to_json(orient="records", indent=2))
+    else:
+        say(text if args.out else table[~table.as_expected].to_string(index=False))
+    bad = table.observed.isin(BAD_OUTCOMES) | ~table.as_expected
+    return 1 if bad.any() else 0
 
 
 def cmd_reproduce(args) -> int:
@@ -255,53 +301,59 @@ def cmd_reproduce(args) -> int:
     return 0
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="rsfbench", description=__doc__.split("\n\n")[0])
-    sub = parser.add_subparsers(dest="command", required=True)
+def build_parser() -> Parser:
+    parser = Parser(prog="rsfbench", description=__doc__.split("\n\n")[0])
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     s = sub.add_parser("simulate", help="run one preset and summarise its limit cycle")
-    s.add_argument("--preset", required=True, choices=PRESET_NAMES,
-                   type=lambda x: "paper-example" if x.lower() == "paper-example" else x.upper())
-    s.add_argument("--law", choices=("slip", "aging"), default="slip")
-    s.add_argument("--b", type=float, help="evolution parameter b (default: the preset's)")
-    s.add_argument("--lc", type=float, metavar="LC_METRES", help="critical slip distance Lc in m")
-    s.add_argument("--t-end", type=float, help="simulated time in s (default: the preset's)")
-    s.add_argument("--integrator", default="ETD2", help="registry name (see `rsfbench integrators`)")
-    s.add_argument("--rtol", type=float, help="relative tolerance (adaptive integrators: required)")
-    s.add_argument("--atol", type=float, help="absolute tolerance (adaptive integrators: required)")
-    s.add_argument("--rhs", choices=("python", "numba"),
-                   help="right-hand-side tier of adaptive integrators (default numba)")
-    s.add_argument("--wall-budget", type=float, metavar="S", help="stop after S seconds of wall time")
+    add_problem_options(s, PRESET_NAMES)
+    add_integrator_options(s)
+    s.add_argument("--wall-budget", type=positive, metavar="S",
+                   help="stop after S seconds of wall time (default: no budget)")
     s.add_argument("--json", action="store_true", help="print one JSON object")
-    s.add_argument("--plot", metavar="FILE.png", help="draw v(t), μ(t) and the phase portrait")
+    s.add_argument("--plot", metavar="FILE.png", type=out_file(".png", ".pdf", ".svg"),
+                   help="draw v(t), μ(t) and the phase portrait (default: no figure)")
     s.add_argument("--progress", action="store_true", help="show a progress bar")
     s.set_defaults(func=cmd_simulate)
 
     i = sub.add_parser("integrators", help="list the registry")
-    i.add_argument("--json", action="store_true")
+    i.add_argument("--json", action="store_true", help="print one JSON array")
     i.add_argument("--markdown", action="store_true", help="a Markdown table (for the README)")
     i.set_defaults(func=cmd_integrators)
 
     w = sub.add_parser("windows", help="limit cycles of W1–W4 against the observed means")
-    w.add_argument("--law", nargs="+", choices=("slip", "aging"), default=["slip", "aging"])
-    w.add_argument("--integrator", default="ETD2")
-    w.add_argument("--t-end", type=float, default=None)
-    w.add_argument("--out", help="directory for windows.csv and windows.md")
-    w.add_argument("--json", action="store_true")
+    w.add_argument("--window", nargs="+", choices=sorted(WINDOWS), default=sorted(WINDOWS),
+                   type=str.upper, help="the windows to run")
+    w.add_argument("--law", nargs="+", choices=("slip", "aging"), default=["slip", "aging"],
+                   help="friction laws")
+    add_integrator_options(w)
+    w.add_argument("--t-end", type=positive, metavar="S",
+                   help="simulated time of each window in s (default: 40 s)")
+    w.add_argument("--wall-budget", type=positive, metavar="S",
+                   help="wall-time budget of each run in s (default: no budget)")
+    w.add_argument("--out", type=out_dir, metavar="DIR",
+                   help="directory for windows.csv and windows.md (default: write nothing)")
+    w.add_argument("--json", action="store_true", help="print one JSON array")
     w.set_defaults(func=cmd_windows)
 
     c = sub.add_parser("compare", help="every integrator on one preset, side by side")
     c.add_argument("--preset", default="paper-example", choices=PRESET_NAMES,
-                   type=lambda x: "paper-example" if x.lower() == "paper-example" else x.upper())
-    c.add_argument("--law", choices=("slip", "aging"), default="slip")
-    c.add_argument("--t-end", type=float)
-    c.add_argument("--rtol", type=float, required=True)
-    c.add_argument("--atol", type=float, required=True)
-    c.add_argument("--integrators", nargs="+", help="registry names (default: all)")
-    c.add_argument("--wall-budget", type=float, default=120.0, metavar="S",
-                   help="per-solve wall-time budget (default 120 s)")
-    c.add_argument("--out", metavar="FILE.csv")
-    c.add_argument("--json", action="store_true")
+                   type=lambda x: "paper-example" if x.lower() == "paper-example" else x.upper(),
+                   help="the problem")
+    c.add_argument("--law", choices=("slip", "aging"), default="slip", help="friction law")
+    c.add_argument("--t-end", type=positive, metavar="S",
+                   help="simulated time in s (default: the preset's)")
+    c.add_argument("--rtol", type=positive, required=True,
+                   help="relative tolerance of every adaptive integrator")
+    c.add_argument("--atol", type=positive, required=True,
+                   help="absolute tolerance of every adaptive integrator (nondimensional)")
+    c.add_argument("--integrators", nargs="+", metavar="NAME",
+                   help="registry names (default: all)")
+    c.add_argument("--wall-budget", type=positive, default=120.0, metavar="S",
+                   help="per-solve wall-time budget in s")
+    c.add_argument("--out", type=out_file(".csv"), metavar="FILE.csv",
+                   help="write the table as CSV (default: print only)")
+    c.add_argument("--json", action="store_true", help="print one JSON array")
     c.set_defaults(func=cmd_compare)
 
     wp = sub.add_parser("work-precision", help="every integrator over a ladder of settings")
@@ -310,53 +362,66 @@ def build_parser() -> argparse.ArgumentParser:
                          "and W1–W4 under both laws, budget 120 s/run")
     wp.add_argument("--problems", nargs="+", metavar="PRESET[:LAW]",
                     help="instead of the study's problems, e.g. paper-example W2:aging")
-    wp.add_argument("--t-end", type=float, help="simulated time of every problem (default: each "
-                    "preset's own)")
-    wp.add_argument("--integrators", nargs="+", help="registry names (default: all)")
-    wp.add_argument("--tiers", nargs="+", choices=("numba", "python"), default=["numba", "python"])
-    wp.add_argument("--wall-budget", type=float, metavar="S", help="per-run wall-time budget")
+    wp.add_argument("--t-end", type=positive, metavar="S",
+                    help="simulated time of every problem in s (default: each preset's own)")
+    wp.add_argument("--integrators", nargs="+", metavar="NAME",
+                    help="registry names (default: all)")
+    wp.add_argument("--tiers", nargs="+", choices=("numba", "python"), default=["numba", "python"],
+                    help="right-hand-side tiers")
+    wp.add_argument("--wall-budget", type=positive, metavar="S",
+                    help="per-run wall-time budget in s (default: the study's, 10 or 120 s)")
     wp.add_argument("--error", default="err_recurrence",
                     choices=("err_recurrence", "err_drop", "err_slip", "err_peak_velocity",
                              "err_event_time", "err_trajectory"),
                     help="the error of the Pareto summary and the plots")
-    wp.add_argument("--out", default="results")
+    wp.add_argument("--out", type=out_dir, default="results", metavar="DIR",
+                    help="directory for the CSV, the Pareto summary and the plots")
     wp.add_argument("--name", help="file stem (default: the study's name)")
-    wp.add_argument("--json", action="store_true", help="print the summary as JSON")
-    wp.add_argument("--no-progress", action="store_true")
+    wp.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    wp.add_argument("--no-progress", action="store_true", help="no progress bar")
     wp.set_defaults(func=cmd_work_precision)
 
     cv = sub.add_parser("convergence", help="observed order of the fixed-step (ETD) methods")
-    cv.add_argument("--problem", default="paper-example", metavar="PRESET[:LAW]")
-    cv.add_argument("--t-end", type=float)
-    cv.add_argument("--integrators", nargs="+", help="fixed-step registry names (default: all; "
-                    "with --fixed-steps, the compiled stiff methods)")
+    cv.add_argument("--problem", default="paper-example", metavar="PRESET[:LAW]",
+                    help="the problem, e.g. W2:aging")
+    cv.add_argument("--t-end", type=positive, metavar="S",
+                    help="simulated time in s (default: the preset's)")
+    cv.add_argument("--integrators", nargs="+", metavar="NAME",
+                    help="fixed-step registry names (default: all; with --fixed-steps, the "
+                         "compiled stiff methods)")
     cv.add_argument("--fixed-steps", action="store_true",
                     help="the compiled stiff methods (Rosenbrock23, Rodas5P, Exprb32, Exprb43) "
                          "with error control off, on a stiff stick-phase segment")
-    cv.add_argument("--out", help="directory for the CSV, JSON and plot")
-    cv.add_argument("--json", action="store_true")
+    cv.add_argument("--out", type=out_dir, metavar="DIR",
+                    help="directory for the CSV, JSON and plot (default: write nothing)")
+    cv.add_argument("--json", action="store_true", help="print one JSON object")
     cv.set_defaults(func=cmd_convergence)
 
     sp = sub.add_parser("speedup", help="the paper's 1/10,000 claim: ETD2 against RK45 three ways")
-    sp.add_argument("--rk-tol", type=float, default=1e-6,
-                    help="rtol = atol of both RK45 runs (default 1e-6)")
-    sp.add_argument("--scipy-budget", type=float, metavar="S",
-                    help="wall budget of scipy's RK45 (default 600 s; the full run takes ~40 min)")
+    sp.add_argument("--rk-tol", type=positive, default=1e-6,
+                    help="rtol = atol of both RK45 runs")
+    sp.add_argument("--scipy-budget", type=positive, metavar="S",
+                    help="wall budget of scipy's RK45 in s (default 600 s; the full run takes "
+                         "~40 min)")
     sp.add_argument("--full", action="store_true", help="run scipy's RK45 to the end, no budget")
-    sp.add_argument("--compiled-budget", type=float, metavar="S",
-                    help="wall budget of the compiled RK45 (default: none)")
-    sp.add_argument("--t-end", type=float, help="simulated time (default: the paper's 20 s)")
+    sp.add_argument("--compiled-budget", type=positive, metavar="S",
+                    help="wall budget of the compiled RK45 in s (default: none)")
+    sp.add_argument("--t-end", type=positive, metavar="S",
+                    help="simulated time in s (default: the paper's 20 s)")
     sp.add_argument("--implicit", nargs="+", metavar="NAME",
                     help="the implicit methods to search (default: every stiff adaptive one)")
-    sp.add_argument("--out", help="directory for speedup.json, .csv and .md")
-    sp.add_argument("--json", action="store_true")
+    sp.add_argument("--out", type=out_dir, metavar="DIR",
+                    help="directory for speedup.json, .csv and .md (default: write nothing)")
+    sp.add_argument("--json", action="store_true", help="print one JSON object")
     sp.set_defaults(func=cmd_speedup)
 
     t = sub.add_parser("target", help="issue 6's target: own integrators ≥ 2x faster than LSODA "
                        "and SUNDIALS at each error level, from a work-precision CSV")
-    t.add_argument("--csv", default="results/wp_quick.csv")
-    t.add_argument("--out", default="results")
-    t.add_argument("--json", action="store_true")
+    t.add_argument("--csv", type=in_file, default="results/wp_quick.csv", metavar="FILE.csv",
+                   help="a work-precision study (rsfbench work-precision writes one)")
+    t.add_argument("--out", type=out_dir, default="results", metavar="DIR",
+                   help="directory for target_<name>.csv and .md")
+    t.add_argument("--json", action="store_true", help="print one JSON array")
     t.set_defaults(func=cmd_target)
 
     rd = sub.add_parser("readme", help="refill the README's generated blocks from results/")
@@ -365,17 +430,40 @@ def build_parser() -> argparse.ArgumentParser:
     rd.set_defaults(func=cmd_readme)
 
     r = sub.add_parser("reproduce", help="regenerate results/ (what `make reproduce` runs)")
-    r.add_argument("--out", default="results")
-    r.add_argument("--scipy-budget", type=float, metavar="S",
-                   help="wall budget of scipy's RK45 in the speed-up step (default 600 s)")
+    r.add_argument("--out", type=out_dir, default="results", metavar="DIR",
+                   help="directory of the results")
+    r.add_argument("--scipy-budget", type=positive, metavar="S",
+                   help="wall budget of scipy's RK45 in the speed-up step in s (default 600 s)")
     from benchmarks.reproduce import STEP_NAMES
     which = r.add_mutually_exclusive_group()
     which.add_argument("--from", dest="start", choices=STEP_NAMES, metavar="STEP",
                        help="start at this step, keeping the files of the earlier ones (steps: "
-                            f"{', '.join(STEP_NAMES)})")
+                            f"{', '.join(STEP_NAMES)}; default: the first)")
     which.add_argument("--only", choices=STEP_NAMES, metavar="STEP",
-                       help="run this step alone, keeping the files of the others")
+                       help="run this step alone, keeping the files of the others "
+                            "(default: every step)")
     r.set_defaults(func=cmd_reproduce)
+
+    pr = sub.add_parser("probe", help="the reliability probe: bad input, budgets, corrupt "
+                        "files, --json, classification, each case checked")
+    from benchmarks.probe import KIND_TITLES
+    pr.add_argument("--kind", nargs="+", choices=sorted(KIND_TITLES), metavar="KIND",
+                    help=f"only these kinds ({', '.join(KIND_TITLES)}; default: all)")
+    pr.add_argument("--match", metavar="TEXT", help="only cases whose name contains TEXT "
+                    "(default: all)")
+    pr.add_argument("--slow", action="store_true",
+                    help="also the slow cases (kills, subprocesses, a Dask cluster; minutes)")
+    pr.add_argument("--out", type=out_dir, metavar="DIR",
+                    help="write reliability.csv and reliability.md there (default: print only)")
+    pr.add_argument("--json", action="store_true", help="print every case as one JSON array")
+    pr.set_defaults(func=cmd_probe)
+
+    cl = sub.add_parser("classification", help="the locking rule of stick-slip against the "
+                        "trajectory's minimum slip rate, on fits, sweep points and oscillations")
+    cl.add_argument("--out", type=out_dir, metavar="DIR",
+                    help="write classification.csv and .md there (default: print only)")
+    cl.add_argument("--json", action="store_true", help="print every run as one JSON array")
+    cl.set_defaults(func=cmd_classification)
 
     from benchmarks.cli_sweep import add_parsers
     add_parsers(sub, PRESET_NAMES)
@@ -383,12 +471,78 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    """Run one command; return its exit status: 0 done, 1 the run failed (its retcode says why),
+    2 a usage error (one line on stderr; with --json also one JSON document on stdout), 3 an
+    internal error, 130 interrupted.
+
+    Whatever a library writes to the standard output (assimulo's Fortran and SUNDIALS' warnings,
+    also from pool workers) goes to the standard error instead, so that the standard output holds
+    the command's own output only: with ``--json``, exactly one JSON document. Run as a program
+    (``argv`` None) the redirection is kept until exit, when Fortran flushes its buffers.
+    """
+    json_mode = wants_json(argv)
+    with _library_output_to_stderr(keep=argv is None), warnings.catch_warnings():
+        warnings.showwarning = _show_warning
+        try:
+            args = build_parser().parse_args(argv)
+            return args.func(args)
+        except (ValueError, OSError) as exc:      # a user's mistake: say which, no traceback
+            return _fail(_one_line(exc), 2, json_mode)
+        except KeyboardInterrupt:
+            return _fail("interrupted (a sweep keeps its finished points: run it again to "
+                         "resume)", 130, json_mode)
+        except Exception as exc:                  # a bug: one line, the traceback on request
+            if os.environ.get("RSFBENCH_DEBUG"):
+                raise
+            return _fail(f"internal error: {type(exc).__name__}: {_one_line(exc)} (set "
+                         "RSFBENCH_DEBUG=1 for the traceback; please report it)", 3, json_mode)
+
+
+def _one_line(exc: BaseException) -> str:
+    text = str(exc) if str(exc) else type(exc).__name__
+    if isinstance(exc, OSError) and exc.filename is not None:
+        text = f"{exc.strerror or text}: {exc.filename}"
+    return " ".join(text.split())
+
+
+def _fail(message: str, status: int, json_mode: bool) -> int:
+    prefix = "" if message.startswith("rsfbench") else "rsfbench: error: "
+    print(f"{prefix}{message}", file=sys.stderr)
+    if json_mode:
+        say(json.dumps({"error": message, "exit_status": status}))
+    return status
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    print(f"rsfbench: warning: {' '.join(str(message).split())}", file=sys.stderr)
+
+
+@contextlib.contextmanager
+def _library_output_to_stderr(keep: bool):
+    """While a command runs, the standard output is the standard error — for Python code
+    (``sys.stdout``) and for C and Fortran (file descriptor 1) — and :func:`say` writes to the
+    standard output as it was. ``keep``: leave descriptor 1 on the standard error at the end (a
+    program exits next, and Fortran flushes unit 6 at exit)."""
+    from benchmarks import cli_args
+    sys.stdout.flush()
+    saved = os.dup(1)
+    os.dup2(2, 1)
+    entry, mine = sys.stdout, None
+    if sys.stdout is sys.__stdout__:          # the real stdout: write to it by the saved copy
+        mine = io.TextIOWrapper(os.fdopen(os.dup(saved), "wb", buffering=0),
+                                encoding=entry.encoding, errors=entry.errors, line_buffering=True)
+    cli_args._OUTPUT = mine or entry          # under a test's capture: the capture
+    sys.stdout = sys.stderr
     try:
-        return args.func(args)
-    except ValueError as exc:   # bad parameters: say which, no traceback
-        print(f"rsfbench: error: {exc}", file=sys.stderr)
-        return 2
+        yield
+    finally:
+        sys.stdout = entry
+        cli_args._OUTPUT = None
+        if mine is not None:
+            mine.close()
+        if not keep:
+            os.dup2(saved, 1)
+        os.close(saved)
 
 
 if __name__ == "__main__":

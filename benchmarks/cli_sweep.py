@@ -11,9 +11,11 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
+from benchmarks.cli_args import (add_integrator_options, add_problem_options, count, in_file,
+                                 integrator_from_args, non_negative, out_dir, out_file, positive,
+                                 problem_from_args, say)
 from benchmarks.report import jsonable
 
 __all__ = ["add_parsers", "observations", "synthetic_curves"]
@@ -46,36 +48,27 @@ def observations(preset_name: str, obs_recurrence=None, sigma_recurrence=None, o
         curves=curves, assumed_sigma=assumed)
 
 
-def _algorithm(args):
-    """The integrator of a sweep: named by ``--integrator``, or the study's recommendation."""
-    from benchmarks.work_precision import recommended_algorithm
-    from integrators import algorithm_class, make_algorithm
-    if args.integrator:
-        cls = algorithm_class(args.integrator)
-        return (make_algorithm(cls.name, rtol=args.rtol, atol=args.atol),
-                f"{cls.name}, as asked (--integrator)")
-    return recommended_algorithm(args.accuracy)
-
-
 def cmd_sweep(args) -> int:
     from benchmarks.fitting import read_curves
     from benchmarks.maps import plot_sweep
     from benchmarks.sweep import parse_b, parse_lc, sweep
     from problems import preset
-    b_values, lc_values = parse_b(args.b), parse_lc(args.lc)
+    b_values = parse_b(args.b, args.max_points)
+    lc_values = parse_lc(args.lc, args.max_points)
     curves = read_curves(args.slip_weakening) if args.slip_weakening else None
     obs = observations(args.preset, args.obs_recurrence, args.sigma_recurrence, args.obs_drop,
                        args.sigma_drop, curves)
-    algorithm, why = _algorithm(args)
+    algorithm, why = integrator_from_args(args)
     out = Path(args.out or f"sweep_{args.preset}_{args.law}")
     if not args.json:
-        print(f"integrator: {why}")
+        say(f"integrator: {why}")
         if obs.assumed_sigma:
-            print("σ not given: assumed 10 % of the observed mean (an assumption, not data)")
+            say("σ not given: assumed 10 % of the observed mean (an assumption, not data)")
     result = sweep(args.preset, args.law, b_values, lc_values, algorithm, obs, out,
                    t_end=args.t_end, workers=args.workers, scheduler=args.scheduler,
                    backend=args.backend, wall_budget=args.wall_budget,
-                   progress=not args.no_progress)
+                   progress=not args.no_progress, max_points=args.max_points,
+                   connect_timeout=args.connect_timeout, worker_timeout=args.worker_timeout)
     s = {**result.summary, "integrator_choice": why, "out": str(out)}
     if not args.no_plot:
         p = preset(args.preset, law=args.law)
@@ -84,49 +77,55 @@ def cmd_sweep(args) -> int:
                    best=None if s["best_b"] is None else (s["best_b"], s["best_lc_m"]))
         s["maps"] = str(out / "maps.png")
     if args.json:
-        print(json.dumps(jsonable(s), indent=2))
+        say(json.dumps(jsonable(s), indent=2))
     else:
-        print(f"{s['n_points']} points ({s['n_resumed']} resumed, {s['n_failed']} failed) in "
+        say(f"{s['n_points']} points ({s['n_resumed']} resumed, {s['n_failed']} failed) in "
               f"{s['wall_s']:.1f} s; {s['n_in_region']} in the 95 % region J1 ≤ 5.99")
         if s["best_b"] is not None:
-            print(f"best ({s['best_by']}): b = {s['best_b']:.5g}, Lc = {s['best_lc_m'] * 1e6:.4g} µm,"
+            say(f"best ({s['best_by']}): b = {s['best_b']:.5g}, Lc = {s['best_lc_m'] * 1e6:.4g} µm,"
                   f" J1 = {s['best_J1']:.3g}")
-        print(f"classification: {s['classification']}")
-        print(f"written: {out / 'sweep.csv'}, {out / 'summary.json'}"
+        say(f"classification: {s['classification']}")
+        say(f"written: {out / 'sweep.csv'}, {out / 'summary.json'}"
               + ("" if args.no_plot else f", {out / 'maps.png'}"))
     return 0
 
 
 def synthetic_curves(problem, algorithm, n_events: int = 3, n_points: int = 25,
-                     noise: float = 0.0, seed: int = 0, curve_dt: float = 5e-5) -> pd.DataFrame:
-    """Slip-weakening curves of the last ``n_events`` events of a simulation, each sampled at
-    ``n_points`` slips from 0 to its total slip, plus Gaussian noise of std ``noise`` on μ."""
-    from benchmarks.fitting import event_curve
+                     noise: float = 0.0, seed: int = 0, curve_dt: float = 5e-5,
+                     wall_budget: float | None = None) -> pd.DataFrame:
+    """Slip-weakening curves (friction Ft/Fn against slip) of the last ``n_events`` events of a
+    simulation, sampled as :func:`benchmarks.fitting.sample_curves` does. A run that fails, or
+    does not reach a limit cycle, makes no curves (``ValueError`` with its retcode or
+    classification)."""
+    from benchmarks.fitting import sample_curves
+    from benchmarks.metrics import CYCLES, summarize
     from integrators import solve
-    sol = solve(problem, algorithm, save_every=curve_dt)
+    sol = solve(problem, algorithm, save_every=curve_dt, wall_budget=wall_budget)
+    cycle = summarize(sol)
+    if cycle.classification not in CYCLES:
+        raise ValueError(f"{problem.name} with {algorithm.name}: {cycle.classification} "
+                         f"({cycle.reason or sol.message}); no slip-weakening curves from it")
     if len(sol.events) < n_events:
         raise ValueError(f"the run has {len(sol.events)} events, fewer than --events {n_events}")
-    rng = np.random.default_rng(seed)
-    frames = []
-    for i in range(n_events):
-        slip, mu = event_curve(sol, index=len(sol.events) - n_events + i)
-        s = np.linspace(0.0, slip[-1], n_points)
-        frames.append(pd.DataFrame({"event_id": i + 1, "slip_m": s,
-                                    "friction": np.interp(s, slip, mu)
-                                    + noise * rng.standard_normal(n_points)}))
-    return pd.concat(frames, ignore_index=True)
+    return sample_curves(sol, n_events, n_points, noise, seed)
 
 
 def cmd_slip_weakening(args) -> int:
     from benchmarks.fitting import write_curves
-    from integrators import make_algorithm
-    from problems import preset
-    problem = preset(args.preset, law=args.law, b=args.b, lc=args.lc, t_end=args.t_end)
-    df = synthetic_curves(problem, make_algorithm(args.integrator), args.events, args.points,
-                          args.noise, args.seed)
+    problem = problem_from_args(args)
+    algorithm, why = integrator_from_args(args)
+    df = synthetic_curves(problem, algorithm, args.events, args.points, args.noise, args.seed,
+                          args.curve_dt, args.wall_budget)
     write_curves(df, args.out)
-    print(f"{df.event_id.nunique()} events, {len(df)} samples from {problem.name} "
-          f"(b = {problem.law.b:.5g}, Lc = {problem.law.lc:.4g} m): {args.out}")
+    summary = {"out": str(args.out), "events": int(df.event_id.nunique()), "samples": len(df),
+               "problem": problem.name, "b": problem.law.b, "lc_m": problem.law.lc,
+               "integrator": algorithm.name, "options": algorithm.options(),
+               "integrator_choice": why, "noise": args.noise, "seed": args.seed}
+    if args.json:
+        say(json.dumps(jsonable(summary), indent=2))
+    else:
+        say(f"{summary['events']} events, {len(df)} samples from {problem.name} "
+              f"(b = {problem.law.b:.5g}, Lc = {problem.law.lc:.4g} m; {why}): {args.out}")
     return 0
 
 
@@ -134,7 +133,7 @@ def cmd_paper_sweeps(args) -> int:
     from benchmarks.paper_sweeps import paper_sweeps
     table = paper_sweeps(Path(args.out), windows=args.windows, laws=args.laws,
                          workers=args.workers, progress=not args.no_progress)
-    print((Path(args.out) / "sweeps.md").read_text())
+    say((Path(args.out) / "sweeps.md").read_text())
     return 0 if len(table) else 1
 
 
@@ -143,73 +142,99 @@ def cmd_sweep_scaling(args) -> int:
     summary = sweep_scaling(Path(args.out), n=args.n, t_end=args.t_end,
                             progress=not args.no_progress)
     if args.json:
-        print(json.dumps(jsonable(summary), indent=2))
+        say(json.dumps(jsonable(summary), indent=2))
     else:
-        print((Path(args.out) / "sweep_scaling.md").read_text())
+        say((Path(args.out) / "sweep_scaling.md").read_text())
     return 0
 
 
 def add_parsers(sub, preset_names) -> None:
+    from benchmarks.sweep import MAX_GRID_POINTS
+    from benchmarks.sweep_exec import CONNECT_TIMEOUT_S, WORKER_TIMEOUT_S
     s = sub.add_parser("sweep", help="J1/J2/J over a (b, Lc) grid: parallel, resumable")
-    s.add_argument("--preset", required=True, choices=preset_names)
-    s.add_argument("--law", choices=("slip", "aging"), default="slip")
-    s.add_argument("--b", required=True, metavar="START:STOP:STEP", help="b values, STOP included")
+    s.add_argument("--preset", required=True, choices=preset_names, type=_preset_name,
+                   help="the problem whose (b, Lc) the grid replaces")
+    s.add_argument("--law", choices=("slip", "aging"), default="slip", help="friction law")
+    s.add_argument("--b", required=True, metavar="START:STOP:STEP",
+                   help="b values (dimensionless), STOP included")
     s.add_argument("--lc", required=True, metavar="START:STOP:N[log]",
                    help="Lc values in metres: N of them, log-spaced with the suffix 'log'")
-    s.add_argument("--obs-recurrence", type=float, metavar="S",
-                   help="observed mean ΔT (default: the window's published mean)")
-    s.add_argument("--sigma-recurrence", type=float, metavar="S",
-                   help="σ of ΔT (default: 10 %% of the mean, flagged as an assumption)")
-    s.add_argument("--obs-drop", type=float, metavar="X", help="observed mean Δμ")
-    s.add_argument("--sigma-drop", type=float, metavar="X", help="σ of Δμ (default: 10 %%)")
-    s.add_argument("--slip-weakening", metavar="FILE",
-                   help="observed curves, CSV with event_id, slip_m, friction: adds J2 and J")
-    s.add_argument("--t-end", type=float, metavar="S", help="simulated time per point")
-    s.add_argument("--integrator", help="registry name (default: the work-precision study's "
-                   "recommendation for --accuracy)")
-    s.add_argument("--rtol", type=float)
-    s.add_argument("--atol", type=float)
-    s.add_argument("--accuracy", type=float, default=1e-3,
-                   help="relative error in ΔT the default integrator must reach (default 1e-3)")
+    s.add_argument("--max-points", type=count, default=MAX_GRID_POINTS, metavar="N",
+                   help="refuse a grid of more points than this (a typo in a step)")
+    s.add_argument("--obs-recurrence", type=positive, metavar="S",
+                   help="observed mean ΔT in s (default: the window's published mean)")
+    s.add_argument("--sigma-recurrence", type=positive, metavar="S",
+                   help="σ of ΔT in s (default: 10 %% of the mean, flagged as an assumption)")
+    s.add_argument("--obs-drop", type=positive, metavar="X",
+                   help="observed mean friction drop Δμ, dimensionless (default: the window's "
+                        "published mean)")
+    s.add_argument("--sigma-drop", type=positive, metavar="X",
+                   help="σ of Δμ (default: 10 %% of the mean, flagged as an assumption)")
+    s.add_argument("--slip-weakening", type=in_file, metavar="FILE.csv",
+                   help="observed curves, CSV with event_id, slip_m (m), friction (Ft/Fn): adds "
+                        "J2 and J (default: J1 only)")
+    s.add_argument("--t-end", type=positive, metavar="S",
+                   help="simulated time per point in s (default: the preset's)")
+    add_integrator_options(s)
     where = s.add_mutually_exclusive_group()
-    where.add_argument("--workers", type=int, metavar="N", help="local workers (default: all cores)")
-    where.add_argument("--scheduler", metavar="ADDRESS", help="run on this Dask scheduler")
+    where.add_argument("--workers", type=count, metavar="N",
+                       help="local workers, N ≥ 1 (default: all cores)")
+    where.add_argument("--scheduler", metavar="ADDRESS",
+                       help="run on this Dask scheduler, e.g. tcp://host:8786 (default: local)")
     s.add_argument("--backend", choices=("processes", "threads"), default="processes",
-                   help="local parallelism (default: processes, measured faster)")
-    s.add_argument("--wall-budget", type=float, metavar="S", help="wall budget per point")
-    s.add_argument("--out", metavar="DIR", help="default: ./sweep_<preset>_<law>")
-    s.add_argument("--json", action="store_true")
-    s.add_argument("--no-progress", action="store_true")
-    s.add_argument("--no-plot", action="store_true")
+                   help="local parallelism (processes were measured faster)")
+    s.add_argument("--connect-timeout", type=positive, default=CONNECT_TIMEOUT_S, metavar="S",
+                   help="s the Dask scheduler has to answer before the sweep is refused")
+    s.add_argument("--worker-timeout", type=positive, default=WORKER_TIMEOUT_S, metavar="S",
+                   help="s a Dask cluster may have no worker before the sweep stops")
+    s.add_argument("--wall-budget", type=positive, metavar="S",
+                   help="wall budget per point in s (default: none)")
+    s.add_argument("--out", type=out_dir, metavar="DIR",
+                   help="directory of the points, table and maps (default: "
+                        "./sweep_<preset>_<law>)")
+    s.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    s.add_argument("--no-progress", action="store_true", help="no progress bar")
+    s.add_argument("--no-plot", action="store_true", help="do not draw maps.png")
     s.set_defaults(func=cmd_sweep)
 
     c = sub.add_parser("slip-weakening", help="synthetic slip-weakening curves (CSV) from a run")
-    c.add_argument("--preset", required=True, choices=preset_names)
-    c.add_argument("--law", choices=("slip", "aging"), default="slip")
-    c.add_argument("--b", type=float)
-    c.add_argument("--lc", type=float, metavar="LC_METRES")
-    c.add_argument("--t-end", type=float)
-    c.add_argument("--integrator", default="ETD2")
-    c.add_argument("--events", type=int, default=3)
-    c.add_argument("--points", type=int, default=25, help="samples per event")
-    c.add_argument("--noise", type=float, default=0.0, help="std of Gaussian noise added to μ")
-    c.add_argument("--seed", type=int, default=0)
-    c.add_argument("--out", required=True, metavar="FILE.csv")
+    add_problem_options(c, preset_names)
+    add_integrator_options(c)
+    c.add_argument("--events", type=count, default=3, help="the last N complete events")
+    c.add_argument("--points", type=count, default=25, help="samples per event")
+    c.add_argument("--noise", type=non_negative, default=0.0,
+                   help="std of Gaussian noise added to the friction Ft/Fn")
+    c.add_argument("--seed", type=int, default=0, help="seed of the noise")
+    c.add_argument("--curve-dt", type=positive, default=5e-5, metavar="S",
+                   help="s between saved points: the resolution of the curves")
+    c.add_argument("--wall-budget", type=positive, metavar="S",
+                   help="wall budget of the run in s (default: none)")
+    c.add_argument("--out", required=True, type=out_file(".csv"), metavar="FILE.csv",
+                   help="where to write the curves")
+    c.add_argument("--json", action="store_true", help="print a summary as one JSON object")
     c.set_defaults(func=cmd_slip_weakening)
 
     p = sub.add_parser("paper-sweeps", help="Sect. 4: J1 sweeps around the published best fits")
-    p.add_argument("--out", default="results")
+    p.add_argument("--out", type=out_dir, default="results", metavar="DIR",
+                   help="directory for sweeps.csv/.md and sweeps/<W>_<law>/")
     p.add_argument("--windows", nargs="+", default=["W1", "W2", "W3", "W4"],
-                   choices=["W1", "W2", "W3", "W4"])
-    p.add_argument("--laws", nargs="+", default=["slip", "aging"], choices=["slip", "aging"])
-    p.add_argument("--workers", type=int, metavar="N")
-    p.add_argument("--no-progress", action="store_true")
+                   choices=["W1", "W2", "W3", "W4"], type=str.upper, help="windows")
+    p.add_argument("--laws", nargs="+", default=["slip", "aging"], choices=["slip", "aging"],
+                   help="friction laws")
+    p.add_argument("--workers", type=count, metavar="N", help="local workers (default: all cores)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_paper_sweeps)
 
     g = sub.add_parser("sweep-scaling", help="time a 21 x 21 W2 sweep on 1 and 2 workers")
-    g.add_argument("--out", default="results")
-    g.add_argument("--n", type=int, default=21, help="grid points per axis")
-    g.add_argument("--t-end", type=float, default=40.0)
-    g.add_argument("--json", action="store_true")
-    g.add_argument("--no-progress", action="store_true")
+    g.add_argument("--out", type=out_dir, default="results", metavar="DIR",
+                   help="directory for sweep_scaling.json and .md")
+    g.add_argument("--n", type=count, default=21, help="grid points per axis")
+    g.add_argument("--t-end", type=positive, default=40.0, metavar="S",
+                   help="simulated time per point in s")
+    g.add_argument("--json", action="store_true", help="print one JSON object")
+    g.add_argument("--no-progress", action="store_true", help="no progress bar")
     g.set_defaults(func=cmd_sweep_scaling)
+
+
+def _preset_name(text: str) -> str:
+    return "paper-example" if text.lower() == "paper-example" else text.upper()

@@ -8,7 +8,8 @@ reference solutions and their agreement; the speed-up claim; the convergence stu
 fixed-step order of the compiled stiff methods; the quick work-precision study and issue 6's
 target; the target on every study problem (a full work-precision study of the stiff adaptive
 integrators); every backend side by side; the Section 4 sweeps; the sweep's speed on 1 and 2
-workers; last, when ``out`` is the project's ``results/``, the README's generated blocks
+workers; the locking rule of the classification against the trajectory; the reliability probe;
+last, when ``out`` is the project's ``results/``, the README's generated blocks
 (:mod:`benchmarks.readme`).
 """
 
@@ -115,6 +116,22 @@ def _sweep_scaling(out: Path, scipy_budget) -> None:
     sweep_scaling(out, study_csv=out / "wp_quick.csv")
 
 
+def _classification(out: Path, scipy_budget) -> None:
+    from benchmarks.classification import classification_study, write_classification
+    print(write_classification(classification_study(), out))
+
+
+def _misfit(out: Path, scipy_budget) -> None:
+    from benchmarks.misfit import j2_information, write_j2_information
+    print(write_j2_information(j2_information(), out))
+
+
+def _probe(out: Path, scipy_budget) -> None:
+    from benchmarks.probe import run_probe, write_probe
+    from benchmarks.probe_cases import cases
+    print(write_probe(run_probe(cases()), out))
+
+
 #: the steps in order: (name for --from, title, function(out, scipy_budget))
 STEPS = (
     ("integrators", "integrators", _integrators),
@@ -132,6 +149,10 @@ STEPS = (
      _compare),
     ("sweeps", "Section 4: (b, Lc) sweeps around the published best fits", _sweeps),
     ("sweep-scaling", "sweep speed: 21 x 21 on W2, serial and on 2 workers", _sweep_scaling),
+    ("classification", "the locking rule of stick-slip, against the trajectory",
+     _classification),
+    ("misfit", "what J2 sees: friction against the spring force", _misfit),
+    ("probe", "the reliability probe, slow cases included", _probe),
 )
 STEP_NAMES = tuple(name for name, _, _ in STEPS)
 
@@ -196,6 +217,9 @@ def _collect(out: Path) -> dict:
         "compare": read("compare_paper_example.md", "compare"),
         "sweeps": read("sweeps.md", "sweeps"),
         "sweep_scaling": read("sweep_scaling.md", "sweep-scaling"),
+        "classification": read("classification.md", "classification"),
+        "reliability": read("reliability.md", "probe"),
+        "misfit": read("j2_information.md", "misfit"),
     }
 
 
@@ -261,6 +285,17 @@ Maps: `sweeps/<window>_<law>/maps.png`.
 ## Sweep speed (`sweep_scaling.*`)
 
 {r['sweep_scaling']}
+## Reliability: the probe (`reliability.*`)
+
+Every case of `benchmarks/probe_cases.py`, by kind and outcome (`rsfbench probe --slow`):
+
+{r['reliability']}
+## What J2 sees (`j2_information.*`)
+
+{r['misfit']}
+## Stick–slip needs the fault to lock (`classification.*`)
+
+{r['classification']}
 ## W1–W4 limit cycles, ETD2 at the paper's settings (`windows.*`, `simulate_*.json`)
 
 {r['windows']}

@@ -84,7 +84,7 @@ def test_cli_overrides_plot_and_text(tmp_path, capsys):
 
 def test_cli_bad_parameter_is_a_clear_error(capsys):
     assert main(["simulate", "--preset", "W1", "--lc=-1e-6"]) == 2
-    assert "lc must be positive, got -1e-06" in capsys.readouterr().err
+    assert "argument --lc: must be positive, got '-1e-6'" in capsys.readouterr().err
     assert main(["simulate", "--preset", "W1", "--integrator", "nope"]) == 2
 
 

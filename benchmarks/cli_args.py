@@ -1,0 +1,213 @@
+"""What every ``rsfbench`` command shares: checked argument types, the problem and integrator
+options, and a parser whose errors are one line.
+
+Every value is checked while the command line is parsed, before any work: a number is finite
+and in range (``--t-end 0`` and ``--wall-budget -1`` are refused), a path to write is writable,
+a file to read exists. ``--help`` states every option's default and unit.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+from pathlib import Path
+
+__all__ = ["say", "Parser", "HelpFormatter", "positive", "non_negative", "finite", "count",
+           "out_dir", "out_file", "in_file", "add_problem_options", "add_integrator_options",
+           "integrator_from_args", "problem_from_args", "ACCURACY"]
+
+#: the relative error in ΔT the default integrator must reach
+ACCURACY = 1e-3
+#: where :func:`say` writes while a command runs (set by :func:`benchmarks.cli.main`)
+_OUTPUT = None
+
+
+def say(*args, **kwargs) -> None:
+    """``print`` to the command's own output: the standard output as it was when the command
+    started. Anything else written to the standard output while a command runs (a library's
+    messages, from Python or C) goes to the standard error (:func:`benchmarks.cli.main`)."""
+    print(*args, file=_OUTPUT or sys.stdout, **kwargs)
+
+
+class HelpFormatter(argparse.RawDescriptionHelpFormatter):
+    """Appends "(default: X)" to an option's help unless the help already says its default, the
+    option is a flag, or it has no default (then its help says what happens without it)."""
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        if ("default" in text or action.default in (None, False, argparse.SUPPRESS)
+                or action.required or isinstance(action, argparse._HelpAction)):
+            return text
+        value = (" ".join(map(str, action.default)) if isinstance(action.default, list)
+                 else action.default)
+        return f"{text} (default: {value})"
+
+
+class Parser(argparse.ArgumentParser):
+    """An ``ArgumentParser`` whose errors are one line (no usage block), exit status 2."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs.setdefault("formatter_class", HelpFormatter)
+        super().__init__(*args, **kwargs)
+
+    def error(self, message):
+        raise UsageError(f"{self.prog}: {message} (see {self.prog} --help)")
+
+
+class UsageError(ValueError):
+    """A command line that does not parse; the message is the one line to print."""
+
+
+def _number(text: str, what: str) -> float:
+    try:
+        x = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{what}, got {text!r}") from None
+    if not math.isfinite(x):
+        raise argparse.ArgumentTypeError(f"{what}, got {text!r}")
+    return x
+
+
+def positive(text: str) -> float:
+    """A finite number > 0."""
+    x = _number(text, "must be a finite positive number")
+    if x <= 0:
+        raise argparse.ArgumentTypeError(f"must be positive, got {text!r}")
+    return x
+
+
+def non_negative(text: str) -> float:
+    """A finite number ≥ 0."""
+    x = _number(text, "must be a finite number ≥ 0")
+    if x < 0:
+        raise argparse.ArgumentTypeError(f"must be ≥ 0, got {text!r}")
+    return x
+
+
+def finite(text: str) -> float:
+    """A finite number."""
+    return _number(text, "must be a finite number")
+
+
+def count(text: str) -> int:
+    """An integer ≥ 1."""
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer ≥ 1, got {text!r}") from None
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"must be an integer ≥ 1, got {text!r}")
+    return n
+
+
+def _writable_dir(path: Path, what: str) -> None:
+    """``path`` is a directory that exists or can be made, and can be written in."""
+    probe = path
+    while not probe.exists():
+        if probe.parent == probe:
+            break
+        probe = probe.parent
+    if not probe.is_dir():
+        raise argparse.ArgumentTypeError(f"{what}: {probe} is not a directory")
+    if not os.access(probe, os.W_OK | os.X_OK):
+        raise argparse.ArgumentTypeError(f"{what}: {probe} is not writable")
+
+
+def out_dir(text: str) -> Path:
+    """A directory to write into: it exists or can be created, and is writable."""
+    path = Path(text)
+    if path.exists() and not path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text!r} exists and is not a directory")
+    _writable_dir(path, repr(text))
+    return path
+
+
+def out_file(*suffixes: str):
+    """A type: a file to write, with one of ``suffixes``, in a writable (or creatable) place."""
+    def check(text: str) -> Path:
+        path = Path(text)
+        if suffixes and path.suffix.lower() not in suffixes:
+            raise argparse.ArgumentTypeError(f"{text!r} must end in {' or '.join(suffixes)}")
+        if path.is_dir():
+            raise argparse.ArgumentTypeError(f"{text!r} is a directory, not a file")
+        if path.exists() and not os.access(path, os.W_OK):
+            raise argparse.ArgumentTypeError(f"{text!r} is not writable")
+        _writable_dir(path.parent, repr(text))
+        return path
+    check.__name__ = "file to write"
+    return check
+
+
+def in_file(text: str) -> Path:
+    """A file to read: it exists, is a file and is readable."""
+    path = Path(text)
+    if not path.exists():
+        raise argparse.ArgumentTypeError(f"{text!r} does not exist")
+    if not path.is_file():
+        raise argparse.ArgumentTypeError(f"{text!r} is not a file")
+    if not os.access(path, os.R_OK):
+        raise argparse.ArgumentTypeError(f"{text!r} is not readable")
+    return path
+
+
+def _preset_name(text: str) -> str:
+    return "paper-example" if text.lower() == "paper-example" else text.upper()
+
+
+def add_problem_options(p, preset_names, t_end_help: str = "simulated time in s (default: the "
+                        "preset's: 20 s for paper-example, 40 s for W1–W4)") -> None:
+    """--preset, --law, --b, --lc, --t-end: a preset with its friction parameters replaced."""
+    p.add_argument("--preset", required=True, choices=preset_names, type=_preset_name,
+                   help="the problem: the paper's speed-up example or a window of its Table 2")
+    p.add_argument("--law", choices=("slip", "aging"), default="slip", help="friction law")
+    p.add_argument("--b", type=non_negative, help="evolution parameter b, dimensionless "
+                   "(default: the preset's best fit)")
+    p.add_argument("--lc", type=positive, metavar="LC_M", help="critical slip distance Lc in "
+                   "metres, e.g. 3e-7 for 0.3 µm (default: the preset's best fit)")
+    p.add_argument("--t-end", type=positive, metavar="S", help=t_end_help)
+
+
+def problem_from_args(args):
+    from problems import preset
+    return preset(args.preset, law=args.law, b=args.b, lc=args.lc, t_end=args.t_end)
+
+
+def add_integrator_options(p, default: str | None = None) -> None:
+    """--integrator, --rtol, --atol, --rhs, --accuracy: named, or the study's recommendation."""
+    p.add_argument("--integrator", default=default, metavar="NAME",
+                   help=("registry name, see `rsfbench integrators`" + (
+                       f" (default: {default})" if default else " (default: the integrator and "
+                       "tolerance the work-precision study recommends for --accuracy, from "
+                       "results/wp_quick.csv)")))
+    p.add_argument("--rtol", type=positive, help="relative tolerance of an adaptive integrator "
+                   "(required with --integrator NAME of an adaptive method; no default accuracy)")
+    p.add_argument("--atol", type=positive, help="absolute tolerance on (h, ln w, Ψ or ln Ψ), "
+                   "nondimensional (required with --rtol)")
+    p.add_argument("--rhs", choices=("numba", "python"),
+                   help="right-hand side of an adaptive integrator: compiled or plain Python "
+                        "(default: numba)")
+    p.add_argument("--accuracy", type=positive, default=ACCURACY, metavar="REL",
+                   help="relative error in the recurrence interval the recommended integrator "
+                        "must reach, when no --integrator is named")
+
+
+def integrator_from_args(args):
+    """``(algorithm, why)``: the named integrator with its options, or the recommendation."""
+    from benchmarks.work_precision import recommended_algorithm
+    from integrators import algorithm_class, make_algorithm
+    if args.integrator:
+        cls = algorithm_class(args.integrator)
+        return (make_algorithm(cls.name, rtol=args.rtol, atol=args.atol, rhs=args.rhs),
+                f"{cls.name}, as asked (--integrator)")
+    if args.rtol is not None or args.atol is not None or args.rhs is not None:
+        raise ValueError("--rtol, --atol and --rhs need --integrator NAME (without it the "
+                         "recommended integrator comes with its own tolerance)")
+    return recommended_algorithm(args.accuracy)
+
+
+def wants_json(argv: list[str]) -> bool:
+    """Did the command line ask for one JSON document (``--json`` before any ``--``)?"""
+    argv = sys.argv[1:] if argv is None else argv
+    return "--json" in (argv[:argv.index("--")] if "--" in argv else argv)

@@ -1,0 +1,52 @@
+"""The reliability probe (benchmarks/probe_cases.py): every case must end as it is expected to —
+refused with one clear line, a failure retcode, a warning, a recovered file, or a checked
+answer — and never as a traceback, a hang or a silently wrong result. The slow cases (kills,
+subprocesses, a Dask cluster) are marked ``slow``: ``make test-slow`` runs them."""
+
+import pytest
+
+from benchmarks.probe import BAD_OUTCOMES, OUTCOMES, run_case
+from benchmarks.probe_cases import cases
+
+CASES = cases()
+
+
+def _param(case):
+    marks = [pytest.mark.slow] if case.slow else []
+    return pytest.param(case, id=case.id, marks=marks)
+
+
+@pytest.mark.parametrize("case", [_param(c) for c in CASES])
+def test_probe_case(case):
+    got = run_case(case)
+    assert got.outcome not in BAD_OUTCOMES, f"{got.outcome}: {got.detail}"
+    assert got.outcome == case.expect, f"expected {case.expect}, observed {got.outcome}: {got.detail}"
+
+
+def test_the_probe_is_at_least_300_cases_of_every_kind():
+    from benchmarks.probe import KIND_TITLES
+    assert len(CASES) >= 300
+    assert {c.kind for c in CASES} == set(KIND_TITLES)
+    assert len({c.id for c in CASES}) == len(CASES)          # one id each
+    assert {c.expect for c in CASES} <= set(OUTCOMES)
+
+
+def test_the_probe_catches_what_it_should():
+    """The probe's own verdicts: a traceback, a hang and a wrong answer are seen as such."""
+    import time
+    from benchmarks.probe import Case, Wrong
+
+    def boom(tmp):
+        raise KeyError("x")
+
+    def wrong(tmp):
+        raise Wrong("silently wrong")
+
+    def hang(tmp):
+        while True:
+            time.sleep(0.01)
+
+    assert run_case(Case("physics", "t", boom, "ok")).outcome == "traceback"
+    assert run_case(Case("physics", "w", wrong, "ok")).outcome == "wrong"
+    assert run_case(Case("physics", "h", hang, "ok", timeout=0.3)).outcome == "hang"
+    assert run_case(Case("physics", "r", lambda tmp: int("x"), "refused")).outcome == "refused"
