@@ -25,7 +25,7 @@ import warnings
 from pathlib import Path
 
 from benchmarks import metrics
-from benchmarks.cli_args import (Parser, add_integrator_options, add_problem_options,
+from benchmarks.cli_args import (Parser, RunStopped, add_integrator_options, add_problem_options,
                                  in_file, say, integrator_from_args, out_dir, out_file, positive,
                                  problem_from_args, wants_json)
 from benchmarks.report import jsonable as _jsonable
@@ -361,7 +361,8 @@ def build_parser() -> Parser:
                     help="quick: paper example + W2 aging, budget 10 s/run; full: paper example "
                          "and W1–W4 under both laws, budget 120 s/run")
     wp.add_argument("--problems", nargs="+", metavar="PRESET[:LAW]",
-                    help="instead of the study's problems, e.g. paper-example W2:aging")
+                    help="instead of the study's problems, e.g. paper-example W2:aging "
+                         "(default: the study's)")
     wp.add_argument("--t-end", type=positive, metavar="S",
                     help="simulated time of every problem in s (default: each preset's own)")
     wp.add_argument("--integrators", nargs="+", metavar="NAME",
@@ -471,8 +472,8 @@ def build_parser() -> Parser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run one command; return its exit status: 0 done, 1 the run failed (its retcode says why),
-    2 a usage error (one line on stderr; with --json also one JSON document on stdout), 3 an
+    """Run one command; return its exit status: 0 done, 1 the run failed (its retcode, or one
+    line, says why), 2 a usage error (one line on stderr; with --json also one JSON document on stdout), 3 an
     internal error, 130 interrupted.
 
     Whatever a library writes to the standard output (assimulo's Fortran and SUNDIALS' warnings,
@@ -488,6 +489,8 @@ def main(argv: list[str] | None = None) -> int:
             return args.func(args)
         except (ValueError, OSError) as exc:      # a user's mistake: say which, no traceback
             return _fail(_one_line(exc), 2, json_mode)
+        except RunStopped as exc:                 # the run could not go on: say why
+            return _fail(_one_line(exc), 1, json_mode)
         except KeyboardInterrupt:
             return _fail("interrupted (a sweep keeps its finished points: run it again to "
                          "resume)", 130, json_mode)
@@ -531,13 +534,14 @@ def _library_output_to_stderr(keep: bool):
     if sys.stdout is sys.__stdout__:          # the real stdout: write to it by the saved copy
         mine = io.TextIOWrapper(os.fdopen(os.dup(saved), "wb", buffering=0),
                                 encoding=entry.encoding, errors=entry.errors, line_buffering=True)
+    outer = cli_args._OUTPUT                  # a command run by a command (the probe)
     cli_args._OUTPUT = mine or entry          # under a test's capture: the capture
     sys.stdout = sys.stderr
     try:
         yield
     finally:
         sys.stdout = entry
-        cli_args._OUTPUT = None
+        cli_args._OUTPUT = outer
         if mine is not None:
             mine.close()
         if not keep:

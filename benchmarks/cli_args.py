@@ -14,7 +14,7 @@ import os
 import sys
 from pathlib import Path
 
-__all__ = ["say", "Parser", "HelpFormatter", "positive", "non_negative", "finite", "count",
+__all__ = ["say", "RunStopped", "Parser", "HelpFormatter", "positive", "non_negative", "finite", "count",
            "out_dir", "out_file", "in_file", "add_problem_options", "add_integrator_options",
            "integrator_from_args", "problem_from_args", "ACCURACY"]
 
@@ -37,8 +37,9 @@ class HelpFormatter(argparse.RawDescriptionHelpFormatter):
 
     def _get_help_string(self, action):
         text = action.help or ""
-        if ("default" in text or action.default in (None, False, argparse.SUPPRESS)
-                or action.required or isinstance(action, argparse._HelpAction)):
+        if ("default" in text or action.default is None or action.default is False
+                or action.default == argparse.SUPPRESS or action.required
+                or isinstance(action, argparse._HelpAction)):
             return text
         value = (" ".join(map(str, action.default)) if isinstance(action.default, list)
                  else action.default)
@@ -58,6 +59,11 @@ class Parser(argparse.ArgumentParser):
 
 class UsageError(ValueError):
     """A command line that does not parse; the message is the one line to print."""
+
+
+class RunStopped(RuntimeError):
+    """A run that stopped for a reason outside its arguments (a cluster lost its workers); the
+    command says why in one line and exits with status 1."""
 
 
 def _number(text: str, what: str) -> float:
@@ -184,7 +190,7 @@ def add_integrator_options(p, default: str | None = None) -> None:
     p.add_argument("--rtol", type=positive, help="relative tolerance of an adaptive integrator "
                    "(required with --integrator NAME of an adaptive method; no default accuracy)")
     p.add_argument("--atol", type=positive, help="absolute tolerance on (h, ln w, Ψ or ln Ψ), "
-                   "nondimensional (required with --rtol)")
+                   "nondimensional (required with --rtol; no default accuracy)")
     p.add_argument("--rhs", choices=("numba", "python"),
                    help="right-hand side of an adaptive integrator: compiled or plain Python "
                         "(default: numba)")

@@ -17,6 +17,8 @@ import signal
 import threading
 import time
 
+from benchmarks.cli_args import RunStopped
+
 __all__ = ["execute", "ClusterGone", "PARENT_POLL_S", "CONNECT_TIMEOUT_S", "WORKER_TIMEOUT_S"]
 
 #: s between two looks of a pool worker at its parent
@@ -27,7 +29,7 @@ CONNECT_TIMEOUT_S = 10.0
 WORKER_TIMEOUT_S = 60.0
 
 
-class ClusterGone(RuntimeError):
+class ClusterGone(RunStopped):
     """The Dask cluster has had no worker for longer than the sweep's ``worker_timeout``."""
 
 
@@ -98,7 +100,10 @@ def _on_dask(run, warm, failed, tasks, scheduler, connect_timeout, worker_timeou
         except Exception:                         # a worker that fails to warm still runs points
             pass
         while pending:
-            done, pending = wait(list(pending), timeout=1.0, return_when="FIRST_COMPLETED")
+            try:
+                done, pending = wait(list(pending), timeout=1.0, return_when="FIRST_COMPLETED")
+            except TimeoutError:                  # nothing finished within the second
+                done = set()
             for fut in done:
                 task = index[fut.key]
                 try:

@@ -27,6 +27,20 @@ slider whose w/D the steps resolve (``rsfbench convergence`` shows it; a test ch
 ~1e−6 its error is this floor. Exponential integrators with a φ2 term (Cox & Matthews 2002;
 Hochbruck & Ostermann 2010) treat a linearly moving target exactly.
 
+Validity. The step rule bounds the slip per step by the slip rate at the start of the step. A
+problem whose slip rate can grow by orders of magnitude within one such step — a start out of
+force balance (an inertial layer of time scale m v/A), or strong weakening (b/a ≳ 40 with a
+small a) — makes the frozen-coefficient step run away: the starred state (or an iterate)
+reaches a slip rate 10⁴–10⁷ times the start's, the second half step frozen there unloads the
+spring by orders of magnitude, and the slider ends the step locked. The run then goes on,
+stably, and reports Success with no events where every adaptive method finds one within a few
+milliseconds. So every step checks Eq. 53 at the fastest state it evaluated (start, starred
+state, each iterate, end): s · max w over Δτcnst · vmax/v0, which costs one comparison. A step
+that exceeds ``rule_ratio_max`` (10) stops the run with retcode ``Unresolved`` and says where
+and by how much. Measured (issue 13): the paper example, W1–W4 at their best fits and 9 × 7
+sweep grids around each under both laws (1028 ETD2 and ETDIterated runs) never exceed 1.24;
+the 28 silent misses found exceed 6.5·10³.
+
 The compiled loop is in
 :mod:`integrators.etd_kernel`; this module holds the options and drives the loop in chunks.
 """
@@ -54,12 +68,15 @@ _SAVE_BUFFER_MAX = 65_536
 
 @dataclass(frozen=True)
 class _ETD(Algorithm):
-    """Options shared by the ETD family: the step rule of Eq. 53 and a step budget."""
+    """Options shared by the ETD family: the step rule of Eq. 53, the check of its validity
+    (``rule_ratio_max``: the slip of a step, at the fastest state it evaluated, over what the
+    rule allows; module docstring) and a step budget."""
 
     dtau_max: float = 0.01
     dtau_cnst: float = 1e-5
     v_max: float = 0.05
     max_steps: int = 200_000_000
+    rule_ratio_max: float = 10.0
 
     family: ClassVar[str] = "exponential time differencing"
     adaptive: ClassVar[bool] = False
@@ -71,6 +88,9 @@ class _ETD(Algorithm):
         check_positive("dtau_cnst", self.dtau_cnst)
         check_positive("v_max", self.v_max)
         check_count("max_steps", self.max_steps)
+        if not check_positive("rule_ratio_max", self.rule_ratio_max) >= 1.0:
+            raise ValueError(f"rule_ratio_max must be at least 1 (the rule itself), got "
+                             f"{self.rule_ratio_max!r}")
 
     @classmethod
     def library_version(cls) -> str:
@@ -87,7 +107,8 @@ class _ETD(Algorithm):
         p = np.array([nd.law_code, nd.beta, nd.c, nd.d, nd.e_slow, nd.e_fast, nd.tau_fast,
                       nd.tau_end, w_start, w_end, float(problem.loading.two_speed)])
         save_dtau = output.interval(problem.t_end) / nd.time_scale
-        o = np.array([self.dtau_max, self.dtau_cnst, self.v_max / v0, self.iterations(), save_dtau])
+        o = np.array([self.dtau_max, self.dtau_cnst, self.v_max / v0, self.iterations(), save_dtau,
+                      self.rule_ratio_max])
         st = K.initial_loop_state(nd.x0, save_dtau)
         n_save = min(_SAVE_BUFFER_MAX, int(math.ceil(nd.tau_end / save_dtau)) + 2)
         save_buf, ev_buf = np.empty((n_save, 4)), np.empty((_EVENT_BUFFER, K.E_SIZE))
@@ -108,6 +129,14 @@ class _ETD(Algorithm):
                 message = (f"a step from t = {st[K.S_TAU] * nd.time_scale:.9g} s produced a "
                            "non-finite value")
                 break
+            if status == K.STEP_RULE:
+                retcode = ReturnCode.UNRESOLVED
+                message = (f"the step from t = {st[K.S_TAU] * nd.time_scale:.9g} s slipped "
+                           f"{st[K.S_RULE]:.3g} times what its step rule (Eq. 53) allows, at the "
+                           "fastest state it evaluated: the scheme runs over dynamics it cannot "
+                           "resolve at these settings (it can step over an event); use smaller "
+                           "dtau_cnst and dtau_max, or an adaptive method")
+                break
             if st[K.S_STEPS] >= self.max_steps:
                 retcode, message = ReturnCode.MAX_STEPS, f"step budget of {self.max_steps} used up"
                 break
@@ -123,7 +152,8 @@ class _ETD(Algorithm):
         return RawRun(t=traj[:, 0] * nd.time_scale,
                       y=np.column_stack(problem.dimensional_state(traj[:, 1], traj[:, 2], traj[:, 3])),
                       events=_events_si(problem, nd, np.concatenate(events)),
-                      stats=stats, retcode=retcode, message=message)
+                      stats=stats, retcode=retcode, message=message,
+                      meta={"step_rule_max": float(st[K.S_RULE_MAX])})
 
 
 def _events_si(problem, nd, ev: np.ndarray) -> np.ndarray:

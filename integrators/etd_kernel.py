@@ -38,7 +38,9 @@ S_REDONE = 15         # steps redone to land on an event end
 S_NSAVED = 16
 S_NEVENTS = 17
 S_TAU_PEAK = 18
-S_SIZE = 19
+S_RULE = 19           # the step-rule ratio of the step that left the rule (STEP_RULE), else 0
+S_RULE_MAX = 20       # the largest step-rule ratio of the run (diagnostic)
+S_SIZE = 21
 
 # --- layout of the parameters ``p`` --------------------------------------------------------
 P_LAW, P_BETA, P_C, P_D, P_E_SLOW, P_E_FAST, P_TAU_FAST, P_TAU_END = 0, 1, 2, 3, 4, 5, 6, 7
@@ -46,15 +48,15 @@ P_W_START, P_W_END, P_TWO_SPEED = 8, 9, 10
 P_SIZE = 11
 
 # --- layout of the options ``o`` -----------------------------------------------------------
-O_DTAU_MAX, O_DTAU_CNST, O_W_MAX, O_N_ITER, O_SAVE_DTAU = 0, 1, 2, 3, 4
-O_SIZE = 5
+O_DTAU_MAX, O_DTAU_CNST, O_W_MAX, O_N_ITER, O_SAVE_DTAU, O_RULE_MAX = 0, 1, 2, 3, 4, 5
+O_SIZE = 6
 
 # --- event record columns ------------------------------------------------------------------
 E_TAU_START, E_TAU_END, E_HMAX, E_HMIN, E_WPEAK, E_SLIP_START, E_SLIP_END, E_TAU_PEAK = range(8)
 E_SIZE = 8
 
 # --- return codes of :func:`etd_advance` ---------------------------------------------------
-DONE, BUFFER_FULL, CHUNK_END, NONFINITE = 0, 1, 2, -1
+DONE, BUFFER_FULL, CHUNK_END, NONFINITE, STEP_RULE = 0, 1, 2, -1, -2
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -91,8 +93,12 @@ def _relax(y0, y_ss, rate, s):
 @njit(cache=True, nogil=True, error_model="numpy")
 def etd_step(law, beta, c, d, e, h0, eta0, psi0, s, n_iter):
     """One ETD step of length s: first order for ``n_iter`` = 0 (Eqs. 33–41), the paper's
-    second-order scheme for 1 (Eqs. 42–52), further re-evaluations for more."""
+    second-order scheme for 1 (Eqs. 42–52), further re-evaluations for more.
+
+    Returns the end state and the largest slip rate w at which coefficients were evaluated (the
+    start, the starred state, each iterate): the step-rule check of :func:`etd_advance`."""
     w0, ess0, re0, pss0, rp0 = coefficients(law, beta, c, d, h0, eta0, psi0)
+    w_seen = w0
     h1 = h0 + (e - w0) * s
     eta1 = _relax(eta0, ess0, re0, s)
     psi1 = _relax(psi0, pss0, rp0, s)
@@ -103,10 +109,12 @@ def etd_step(law, beta, c, d, e, h0, eta0, psi0, s, n_iter):
         psi_half = _relax(psi0, pss0, rp0, half)
         for _ in range(n_iter):
             w1, ess1, re1, pss1, rp1 = coefficients(law, beta, c, d, h1, eta1, psi1)
+            if w1 > w_seen:
+                w_seen = w1
             h1 = h_half + (e - w1) * half
             eta1 = _relax(eta_half, ess1, re1, half)
             psi1 = _relax(psi_half, pss1, rp1, half)
-    return h1, eta1, psi1
+    return h1, eta1, psi1, w_seen
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -124,8 +132,10 @@ def etd_advance(st, p, o, save_buf, ev_buf, max_steps):
 
     Writes saved points (τ, h, η, Ψ) to ``save_buf`` and completed events to ``ev_buf`` starting
     at the counts in ``st``. Returns DONE at τ_end, BUFFER_FULL when an output buffer is full,
-    CHUNK_END after ``max_steps`` steps, NONFINITE if a step produced a non-finite value (``st``
-    then still holds the last finite state).
+    CHUNK_END after ``max_steps`` steps, NONFINITE if a step produced a non-finite value, and
+    STEP_RULE if a step slipped more than ``o[O_RULE_MAX]`` times what Eq. 53 allows at the
+    fastest state it evaluated (the ratio is in ``st[S_RULE]``); ``st`` then still holds the state
+    before that step.
     """
     law = int(p[P_LAW])
     beta, c, d = p[P_BETA], p[P_C], p[P_D]
@@ -133,6 +143,8 @@ def etd_advance(st, p, o, save_buf, ev_buf, max_steps):
     ln_w_start, ln_w_end = math.log(p[P_W_START]), math.log(p[P_W_END])
     two_speed = p[P_TWO_SPEED] > 0.5
     dtau_max, dtau_cnst, w_max = o[O_DTAU_MAX], o[O_DTAU_CNST], o[O_W_MAX]
+    slip_bound = dtau_cnst * w_max          # Eq. 53: the slip per step, in Lc, at most
+    rule_max = o[O_RULE_MAX]
     n_iter = int(o[O_N_ITER])
     save_dtau = o[O_SAVE_DTAU]
     evals_per_step = 1 + n_iter
@@ -154,7 +166,7 @@ def etd_advance(st, p, o, save_buf, ev_buf, max_steps):
         if fast:
             s = min(s, st[S_FAST_UNTIL] - tau)
         s = min(s, tau_end - tau)
-        h1, eta1, psi1 = etd_step(law, beta, c, d, e, h, eta, psi, s, n_iter)
+        h1, eta1, psi1, w_seen = etd_step(law, beta, c, d, e, h, eta, psi, s, n_iter)
         st[S_STEPS] += 1
         st[S_EVALS] += evals_per_step
         lnw1 = log_slip_rate(law, beta, eta1, psi1)
@@ -163,6 +175,15 @@ def etd_advance(st, p, o, save_buf, ev_buf, max_steps):
             _store(st, tau, h, eta, psi, n_save, n_ev)
             return NONFINITE
         w1 = math.exp(lnw1)
+        # the step rule at the fastest state the step saw: a step that slips far more than the
+        # rule allows has run over dynamics it cannot resolve (an event it can step over)
+        rule = s * max(w_seen, w1) / slip_bound
+        if rule > st[S_RULE_MAX]:
+            st[S_RULE_MAX] = rule
+        if rule > rule_max:
+            st[S_RULE] = rule
+            _store(st, tau, h, eta, psi, n_save, n_ev)
+            return STEP_RULE
         if st[S_IN_EVENT] < 0.5:
             if lnw1 > ln_w_start:
                 f = _crossing(lnw, lnw1, ln_w_start)
@@ -179,7 +200,7 @@ def etd_advance(st, p, o, save_buf, ev_buf, max_steps):
             if two_speed and f < 1.0:
                 # land on the event end so that the loading switches at a step boundary
                 s = f * s
-                h1, eta1, psi1 = etd_step(law, beta, c, d, e, h, eta, psi, s, n_iter)
+                h1, eta1, psi1, w_seen = etd_step(law, beta, c, d, e, h, eta, psi, s, n_iter)
                 st[S_STEPS] += 1
                 st[S_EVALS] += evals_per_step
                 st[S_REDONE] += 1

@@ -33,6 +33,7 @@ class ReturnCode(enum.Enum):
     WALL_TIME = "WallTime"            # the wall-time budget ran out
     NON_FINITE = "NonFinite"          # a step produced NaN or inf
     STEP_UNDERFLOW = "StepUnderflow"  # the step size fell below what the library allows
+    UNRESOLVED = "Unresolved"         # a fixed-step rule left its own validity (ETD: Eq. 53)
     FAILURE = "Failure"               # any other library failure (its message is kept)
 
     @property
@@ -94,6 +95,7 @@ class RawRun:
     stats: Stats
     retcode: ReturnCode
     message: str = ""
+    meta: dict = field(default_factory=dict)   # a method's own diagnostics (Solution.meta)
 
 
 @dataclass
@@ -102,7 +104,9 @@ class Solution:
 
     Trajectory arrays are 1-D over saved times ``t`` (s): slip rate ``v`` (m/s), spring force
     ``fs`` (N), friction ``ft`` (N) and state ``theta`` (newtons for the slip law, seconds for
-    the aging law). ``events`` is a DataFrame with :data:`EVENT_COLUMNS`.
+    the aging law). ``events`` is a DataFrame with :data:`EVENT_COLUMNS`. ``meta`` holds a
+    method's own diagnostics (the ETD family: ``step_rule_max``, the largest slip of a step over
+    what its step rule allows).
     """
 
     problem: object

@@ -79,7 +79,8 @@ def _solution(problem: SpringSlider, algorithm: Algorithm, raw: RawRun) -> Solut
     ft = problem.friction(v, theta) if len(v) else np.empty(0)
     events = pd.DataFrame(raw.events, columns=list(EVENT_COLUMNS))
     return Solution(problem=problem, algorithm=algorithm, t=raw.t, v=v, fs=fs, ft=ft, theta=theta,
-                    events=events, stats=raw.stats, retcode=raw.retcode, message=raw.message)
+                    events=events, stats=raw.stats, retcode=raw.retcode, message=raw.message,
+                    meta=dict(raw.meta))
 
 
 def _progress_bar(problem: SpringSlider, algorithm: Algorithm):

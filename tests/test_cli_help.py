@@ -1,0 +1,37 @@
+"""Every command's --help states every option's default (or that it is required, a flag, or what
+happens without it) and the unit of every physical quantity."""
+
+import argparse
+
+import pytest
+
+from benchmarks.cli import build_parser
+from benchmarks.cli_args import HelpFormatter
+
+#: options that carry a physical quantity, and the unit their help must name
+UNITS = {"--t-end": " s", "--wall-budget": " s", "--lc": "metres", "--scipy-budget": " s",
+         "--compiled-budget": " s", "--curve-dt": " s", "--obs-recurrence": " s",
+         "--sigma-recurrence": " s", "--connect-timeout": " s", "--worker-timeout": " s"}
+
+
+def _commands():
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return sorted(sub.choices.items())
+
+
+@pytest.mark.parametrize("name, command", _commands(), ids=[n for n, _ in _commands()])
+def test_help_states_defaults_and_units(name, command):
+    formatter = HelpFormatter(prog=command.prog)
+    for action in command._actions:
+        if isinstance(action, argparse._HelpAction):
+            continue
+        flag = action.option_strings[0] if action.option_strings else action.dest
+        text = formatter._get_help_string(action) or ""
+        assert text, f"{name} {flag} has no help"
+        said = ("default" in text or action.required or action.nargs == 0
+                or isinstance(action, (argparse._StoreTrueAction, argparse._StoreFalseAction)))
+        assert said, f"{name} {flag}: no default stated: {text!r}"
+        if flag in UNITS:
+            assert UNITS[flag] in text, f"{name} {flag}: no unit ({UNITS[flag].strip()}): {text!r}"
+    command.format_help()          # renders (a % in a help string would raise here)
