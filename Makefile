@@ -38,7 +38,7 @@ numba-cache:
 test: setup numba-cache
 	$(PY) -m pytest
 
-# the slow probes: kills, subprocesses, a Dask cluster losing its workers (~10 min)
+# the slow probes: kills, Ctrl-C, subprocesses, a Dask cluster losing its workers (~1 min)
 test-slow: setup numba-cache
 	$(PY) -m pytest -m slow
 

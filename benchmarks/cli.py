@@ -27,7 +27,7 @@ from pathlib import Path
 from benchmarks import metrics
 from benchmarks.cli_args import (Parser, RunStopped, add_integrator_options, add_problem_options,
                                  in_file, say, integrator_from_args, out_dir, out_file, positive,
-                                 problem_from_args, wants_json)
+                                 flagged, preset_name, problem_from_args, wants_json)
 from benchmarks.report import jsonable as _jsonable
 from benchmarks.timing import warm_up
 from integrators import REGISTRY, algorithm_class, solve
@@ -36,9 +36,9 @@ from problems import PRESET_NAMES, WINDOWS, preset
 __all__ = ["main"]
 
 
-def algorithm_name(name: str) -> str:
+def algorithm_name(name: str, flag: str = "--integrators") -> str:
     """The registry's spelling of ``name`` (lookups are case-insensitive)."""
-    return algorithm_class(name).name
+    return flagged(flag, algorithm_class, name).name
 
 
 def simulate_summary(sol) -> dict:
@@ -46,7 +46,8 @@ def simulate_summary(sol) -> dict:
     lc = metrics.summarize(sol)
     p = sol.problem
     per_event = metrics.event_metrics(sol.events, p.normal_force)
-    last = per_event.iloc[-1].to_dict() if len(per_event) else {}
+    # the last event of a run that reached its end (a failed run's events are not physics)
+    last = per_event.iloc[-1].to_dict() if len(per_event) and sol.reached_end else {}
     return _jsonable({
         "problem": p.name, "law": p.law.name, "b": p.law.b, "lc_m": p.law.lc, "t_end": p.t_end,
         "integrator": sol.algorithm.name, "options": sol.algorithm.options(),
@@ -68,7 +69,7 @@ def _print_summary(s: dict) -> None:
     say(f"  events      {s['n_events']}   classification: {lc['classification']}")
     if lc.get("reason"):
         say(f"              ({lc['reason']})")
-    if lc["period"]:
+    if lc["classification"] in metrics.CYCLES:
         say(f"  limit cycle (period {lc['period']}, converged from event {lc['cycles_to_converge']}):")
         say(f"    recurrence interval  {lc['recurrence_s']:.6g} s")
         say(f"    friction drop        {lc['friction_drop']:.6g}")
@@ -78,8 +79,8 @@ def _print_summary(s: dict) -> None:
         e = s["last_event"]
         recurrence = "n/a" if e["recurrence_s"] is None else f"{e['recurrence_s']:.6g} s"
         say(f"  last event  at t = {e['t_start']:.6g} s: recurrence {recurrence}, "
-              f"friction drop {e['friction_drop']:.6g}, slip {e['slip_m'] * 1e3:.6g} mm, "
-              f"peak {e['peak_velocity_m_s']:.6g} m/s (run longer for the limit cycle)")
+            f"friction drop {e['friction_drop']:.6g}, slip {e['slip_m'] * 1e3:.6g} mm, "
+            f"peak {e['peak_velocity_m_s']:.6g} m/s (not a limit cycle)")
 
 
 def cmd_simulate(args) -> int:
@@ -157,11 +158,10 @@ def cmd_compare(args) -> int:
     return 0
 
 
-def _study_problem(spec: str):
+def _study_problem(spec: str, flag: str = "--problems"):
     """``W2``, ``W2:aging`` or ``paper-example`` → the preset problem."""
     name, _, law = spec.partition(":")
-    name = "paper-example" if name.lower() == "paper-example" else name.upper()
-    return preset(name, law=law or "slip")
+    return flagged(flag, preset, preset_name(name), law or "slip")
 
 
 def cmd_work_precision(args) -> int:
@@ -196,7 +196,7 @@ def cmd_convergence(args) -> int:
     names = None if not args.integrators else [algorithm_name(n) for n in args.integrators]
     if args.fixed_steps:
         return _fixed_step_orders(args, names)
-    problem = _study_problem(args.problem)
+    problem = _study_problem(args.problem, "--problem")
     if args.t_end:
         problem = dataclasses.replace(problem, t_end=args.t_end)
     table, orders = convergence_study(problem, names=names, progress=not args.json)
@@ -241,7 +241,7 @@ def cmd_speedup(args) -> int:
     from benchmarks.speedup import DEFAULT_SCIPY_BUDGET, speedup, speedup_markdown, write_speedup
     problem = preset("paper-example", t_end=args.t_end)
     budget = None if args.full else (args.scipy_budget or DEFAULT_SCIPY_BUDGET)
-    implicit = None if not args.implicit else [algorithm_name(n) for n in args.implicit]
+    implicit = None if not args.implicit else [algorithm_name(n, "--implicit") for n in args.implicit]
     summary, table = speedup(problem, rk_tol=args.rk_tol, scipy_budget=budget,
                              compiled_budget=args.compiled_budget, implicit=implicit,
                              progress=not args.json)
@@ -337,8 +337,7 @@ def build_parser() -> Parser:
     w.set_defaults(func=cmd_windows)
 
     c = sub.add_parser("compare", help="every integrator on one preset, side by side")
-    c.add_argument("--preset", default="paper-example", choices=PRESET_NAMES,
-                   type=lambda x: "paper-example" if x.lower() == "paper-example" else x.upper(),
+    c.add_argument("--preset", default="paper-example", choices=PRESET_NAMES, type=preset_name,
                    help="the problem")
     c.add_argument("--law", choices=("slip", "aging"), default="slip", help="friction law")
     c.add_argument("--t-end", type=positive, metavar="S",
@@ -487,9 +486,9 @@ def main(argv: list[str] | None = None) -> int:
         try:
             args = build_parser().parse_args(argv)
             return args.func(args)
-        except (ValueError, OSError) as exc:      # a user's mistake: say which, no traceback
+        except ValueError as exc:                 # a user's mistake: say which, no traceback
             return _fail(_one_line(exc), 2, json_mode)
-        except RunStopped as exc:                 # the run could not go on: say why
+        except (RunStopped, OSError) as exc:      # the run could not go on: say why
             return _fail(_one_line(exc), 1, json_mode)
         except KeyboardInterrupt:
             return _fail("interrupted (a sweep keeps its finished points: run it again to "

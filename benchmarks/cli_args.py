@@ -14,9 +14,10 @@ import os
 import sys
 from pathlib import Path
 
-__all__ = ["say", "RunStopped", "Parser", "HelpFormatter", "positive", "non_negative", "finite", "count",
-           "out_dir", "out_file", "in_file", "add_problem_options", "add_integrator_options",
-           "integrator_from_args", "problem_from_args", "ACCURACY"]
+__all__ = ["say", "RunStopped", "Parser", "HelpFormatter", "positive", "non_negative", "finite",
+           "count", "seed", "out_dir", "out_file", "in_file", "preset_name", "flagged",
+           "add_problem_options", "add_integrator_options", "integrator_from_args",
+           "problem_from_args", "ACCURACY"]
 
 #: the relative error in ΔT the default integrator must reach
 ACCURACY = 1e-3
@@ -97,15 +98,20 @@ def finite(text: str) -> float:
     return _number(text, "must be a finite number")
 
 
-def count(text: str) -> int:
-    """An integer ≥ 1."""
+def count(text: str, minimum: int = 1) -> int:
+    """An integer ≥ 1 (≥ ``minimum``)."""
     try:
         n = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"must be an integer ≥ 1, got {text!r}") from None
-    if n < 1:
-        raise argparse.ArgumentTypeError(f"must be an integer ≥ 1, got {text!r}")
+        n = minimum - 1
+    if n < minimum:
+        raise argparse.ArgumentTypeError(f"must be an integer ≥ {minimum}, got {text!r}")
     return n
+
+
+def seed(text: str) -> int:
+    """An integer ≥ 0 (a random seed)."""
+    return count(text, minimum=0)
 
 
 def _writable_dir(path: Path, what: str) -> None:
@@ -158,14 +164,15 @@ def in_file(text: str) -> Path:
     return path
 
 
-def _preset_name(text: str) -> str:
+def preset_name(text: str) -> str:
+    """A preset's name as the registry spells it: ``paper-example`` or ``W1``..``W4``."""
     return "paper-example" if text.lower() == "paper-example" else text.upper()
 
 
 def add_problem_options(p, preset_names, t_end_help: str = "simulated time in s (default: the "
                         "preset's: 20 s for paper-example, 40 s for W1–W4)") -> None:
     """--preset, --law, --b, --lc, --t-end: a preset with its friction parameters replaced."""
-    p.add_argument("--preset", required=True, choices=preset_names, type=_preset_name,
+    p.add_argument("--preset", required=True, choices=preset_names, type=preset_name,
                    help="the problem: the paper's speed-up example or a window of its Table 2")
     p.add_argument("--law", choices=("slip", "aging"), default="slip", help="friction law")
     p.add_argument("--b", type=non_negative, help="evolution parameter b, dimensionless "
@@ -199,12 +206,20 @@ def add_integrator_options(p, default: str | None = None) -> None:
                         "must reach, when no --integrator is named")
 
 
+def flagged(flag: str, function, *args):
+    """``function(*args)``, its ``ValueError`` prefixed by the flag whose value was wrong."""
+    try:
+        return function(*args)
+    except ValueError as exc:
+        raise ValueError(f"{flag}: {exc}") from None
+
+
 def integrator_from_args(args):
     """``(algorithm, why)``: the named integrator with its options, or the recommendation."""
     from benchmarks.work_precision import recommended_algorithm
     from integrators import algorithm_class, make_algorithm
     if args.integrator:
-        cls = algorithm_class(args.integrator)
+        cls = flagged("--integrator", algorithm_class, args.integrator)
         return (make_algorithm(cls.name, rtol=args.rtol, atol=args.atol, rhs=args.rhs),
                 f"{cls.name}, as asked (--integrator)")
     if args.rtol is not None or args.atol is not None or args.rhs is not None:

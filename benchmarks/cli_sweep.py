@@ -15,7 +15,7 @@ import pandas as pd
 
 from benchmarks.cli_args import (add_integrator_options, add_problem_options, count, in_file,
                                  integrator_from_args, non_negative, out_dir, out_file, positive,
-                                 problem_from_args, say)
+                                 preset_name, problem_from_args, say, seed)
 from benchmarks.report import jsonable
 
 __all__ = ["add_parsers", "observations", "synthetic_curves"]
@@ -36,8 +36,6 @@ def observations(preset_name: str, obs_recurrence=None, sigma_recurrence=None, o
     for flag, value in (("--obs-recurrence", obs_recurrence), ("--obs-drop", obs_drop)):
         if value is None:
             raise ValueError(f"{flag} is required for {preset_name!r} (it has no observed means)")
-        if not value > 0:
-            raise ValueError(f"{flag} must be positive, got {value!r}")
     assumed = sigma_recurrence is None or sigma_drop is None
     return Observations(
         recurrence_s=obs_recurrence,
@@ -152,7 +150,7 @@ def add_parsers(sub, preset_names) -> None:
     from benchmarks.sweep import MAX_GRID_POINTS
     from benchmarks.sweep_exec import CONNECT_TIMEOUT_S, WORKER_TIMEOUT_S
     s = sub.add_parser("sweep", help="J1/J2/J over a (b, Lc) grid: parallel, resumable")
-    s.add_argument("--preset", required=True, choices=preset_names, type=_preset_name,
+    s.add_argument("--preset", required=True, choices=preset_names, type=preset_name,
                    help="the problem whose (b, Lc) the grid replaces")
     s.add_argument("--law", choices=("slip", "aging"), default="slip", help="friction law")
     s.add_argument("--b", required=True, metavar="START:STOP:STEP",
@@ -204,7 +202,7 @@ def add_parsers(sub, preset_names) -> None:
     c.add_argument("--points", type=count, default=25, help="samples per event")
     c.add_argument("--noise", type=non_negative, default=0.0,
                    help="std of Gaussian noise added to the friction Ft/Fn")
-    c.add_argument("--seed", type=int, default=0, help="seed of the noise")
+    c.add_argument("--seed", type=seed, default=0, help="seed of the noise, an integer ≥ 0")
     c.add_argument("--curve-dt", type=positive, default=5e-5, metavar="S",
                    help="s between saved points: the resolution of the curves")
     c.add_argument("--wall-budget", type=positive, metavar="S",
@@ -235,6 +233,3 @@ def add_parsers(sub, preset_names) -> None:
     g.add_argument("--no-progress", action="store_true", help="no progress bar")
     g.set_defaults(func=cmd_sweep_scaling)
 
-
-def _preset_name(text: str) -> str:
-    return "paper-example" if text.lower() == "paper-example" else text.upper()

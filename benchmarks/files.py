@@ -2,7 +2,8 @@
 never trusted.
 
 * :func:`atomic_write`: a temporary file in the same directory, fsync'd, then renamed over the
-  target; a writer killed half-way leaves a temporary ``.NAME.*.tmp`` file, never a half file.
+  target; a writer killed half-way leaves a temporary ``.rsfbench-tmp-NAME.*.tmp`` file, never a
+  half file.
 * :func:`remove_stale_temporaries`: such leftovers are removed once they are older than any
   write can take (:data:`STALE_AFTER_S`), so a directory written by killed runs does not fill up.
 * :func:`read_json_record` and :func:`read_table` check what they read (it parses, it is the kind
@@ -27,6 +28,8 @@ __all__ = ["BadResultsFile", "atomic_write", "remove_stale_temporaries", "read_j
 #: a temporary file older than this (s) belongs to a writer that was killed: any write here
 #: (one small JSON or CSV file) takes milliseconds
 STALE_AFTER_S = 60.0
+#: the name prefix of :func:`atomic_write`'s temporary files: no other file is ever removed
+_PREFIX = ".rsfbench-tmp-"
 
 
 class BadResultsFile(ValueError):
@@ -34,10 +37,12 @@ class BadResultsFile(ValueError):
 
 
 def atomic_write(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` so that readers see the old file or the new one, never half."""
+    """Write ``text`` to ``path`` so that readers see the old file or the new one, never half.
+    The file gets the permissions a plain ``open`` would give it (``mkstemp``'s are 0600)."""
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f"{_PREFIX}{path.name}.", suffix=".tmp")
     try:
+        os.fchmod(fd, 0o666 & ~_UMASK)
         with os.fdopen(fd, "w") as f:
             f.write(text)
             f.flush()
@@ -48,11 +53,20 @@ def atomic_write(path: Path, text: str) -> None:
         raise
 
 
+def _umask() -> int:
+    mask = os.umask(0)          # the only way to read it: set it back at once (at import)
+    os.umask(mask)
+    return mask
+
+
+_UMASK = _umask()
+
+
 def remove_stale_temporaries(directory: Path, older_than: float = STALE_AFTER_S) -> list[Path]:
     """Delete the temporary files :func:`atomic_write` left in ``directory`` when its writer was
-    killed (those older than ``older_than`` seconds); return them."""
+    killed (its own prefix, older than ``older_than`` seconds); return them."""
     now, removed = time.time(), []
-    for tmp in Path(directory).glob(".*.tmp"):
+    for tmp in Path(directory).glob(f"{_PREFIX}*.tmp"):
         try:
             if now - tmp.stat().st_mtime > older_than:
                 tmp.unlink()

@@ -34,7 +34,8 @@ import numpy as np
 import pandas as pd
 
 __all__ = ["CHI2_95_2DOF", "CURVE_COLUMNS", "j1", "j2_per_event", "JointFit", "joint_fit",
-           "read_curves", "write_curves", "event_curve", "sample_curves"]
+           "read_curves", "check_curves", "write_curves", "event_curve", "event_window",
+           "sample_curves"]
 
 #: the 95 % quantile of χ² with two degrees of freedom: the paper's J1 threshold
 CHI2_95_2DOF = 5.99146
@@ -103,26 +104,39 @@ def joint_fit(J1: np.ndarray, J2_mean: np.ndarray | None = None,
 
 def read_curves(path) -> pd.DataFrame:
     """Observed slip-weakening curves from a CSV with :data:`CURVE_COLUMNS` (see the module doc),
-    or ``ValueError`` naming the file and what is wrong: columns, non-numeric or non-finite
-    values, an event with fewer than two samples."""
+    or ``ValueError`` naming the file and what is wrong (:func:`check_curves`)."""
     from benchmarks.files import read_table
     df = read_table(path, CURVE_COLUMNS, what="slip-weakening file",
                     hint="it needs the columns event_id, slip_m (m), friction (Ft/Fn)")
+    return check_curves(df, f"slip-weakening file {path}")
+
+
+def check_curves(df, source: str = "slip-weakening curves") -> pd.DataFrame:
+    """``df`` as curves (:data:`CURVE_COLUMNS`, numbers finite, every event_id given, at least
+    two samples per event), or ``ValueError`` naming ``source`` and what is wrong."""
+    if not isinstance(df, pd.DataFrame):
+        raise ValueError(f"{source} must be a DataFrame with columns {list(CURVE_COLUMNS)}, "
+                         f"got {type(df).__name__}")
+    missing = [c for c in CURVE_COLUMNS if c not in df.columns]
+    if missing:
+        raise ValueError(f"{source} lacks the columns {missing}; it needs {list(CURVE_COLUMNS)}")
+    df = df[list(CURVE_COLUMNS)].copy()
     for c in ("slip_m", "friction"):
         values = pd.to_numeric(df[c], errors="coerce").to_numpy(dtype=float)
         bad = ~np.isfinite(values)
         if bad.any():
-            raise ValueError(f"slip-weakening file {path}: column {c} is not a finite number in "
-                             f"row {int(np.argmax(bad)) + 2}")
+            raise ValueError(f"{source}: column {c} is not a finite number in row "
+                             f"{int(np.argmax(bad)) + 2}")
         df[c] = values
     if df.event_id.isna().any():
-        raise ValueError(f"slip-weakening file {path}: event_id is empty in row "
+        raise ValueError(f"{source}: event_id is empty in row "
                          f"{int(np.argmax(df.event_id.isna().to_numpy())) + 2}")
     sizes = df.groupby("event_id", sort=False).size()
-    if (sizes < 2).any():
-        raise ValueError(f"slip-weakening file {path}: event {sizes.index[sizes < 2][0]!r} has "
-                         "fewer than two samples")
-    return df[list(CURVE_COLUMNS)]
+    if len(sizes) == 0 or (sizes < 2).any():
+        first = sizes.index[sizes < 2][0] if len(sizes) else None
+        raise ValueError(f"{source}: " + (f"event {first!r} has fewer than two samples"
+                                           if len(sizes) else "no curve"))
+    return df
 
 
 def write_curves(df: pd.DataFrame, path) -> None:
@@ -141,13 +155,19 @@ def event_curve(sol, index: int = -1) -> tuple[np.ndarray, np.ndarray]:
     """
     if not len(sol.events):
         return np.empty(0), np.empty(0)
+    t, slip, _ = event_window(sol, index)
+    return slip, np.interp(t, sol.t, sol.ft) / sol.problem.normal_force
+
+
+def event_window(sol, index: int = -1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The saved times inside event ``index`` with its start and end, the slip since its start
+    at those times (exact: see :func:`event_curve`) and the spring force there (N)."""
     ev = sol.events.iloc[index]
     p = sol.problem
     inside = (sol.t > ev.t_start) & (sol.t < ev.t_end)
     t = np.concatenate(([ev.t_start], sol.t[inside], [ev.t_end]))
     fs = np.interp(t, sol.t, sol.fs)
-    slip = p.loading.v_slow * (t - t[0]) - (fs - fs[0]) / p.stiffness
-    return slip, np.interp(t, sol.t, sol.ft) / p.normal_force
+    return t, p.loading.v_slow * (t - t[0]) - (fs - fs[0]) / p.stiffness, fs
 
 
 def sample_curves(sol, n_events: int = 3, n_points: int = 25, noise: float = 0.0,

@@ -42,7 +42,9 @@ def plot_sweep(table, path, title: str = "", mark=None, best=None) -> None:
                    linewidths=0.8, label="J ≤ 2α1" if col == "J" else "J1 ≤ 5.99 (95 %)")
         for cls, style in (("stable sliding", dict(marker="o", c="0.6", s=10)),
                            ("multiple recurrence", dict(marker="+", c="k", s=18)),
+                           ("oscillation about vL", dict(marker="^", c="tab:purple", s=12)),
                            ("not converged", dict(marker=".", c="0.3", s=10)),
+                           ("too short to classify", dict(marker="v", c="tab:orange", s=12)),
                            ("failed", dict(marker="x", c="r", s=18))):
             sel = (table.classification == cls).to_numpy()
             if sel.any():

@@ -18,7 +18,8 @@ import numpy as np
 import pandas as pd
 from tqdm.auto import tqdm
 
-from benchmarks.fitting import event_curve, j2_per_event, read_curves, sample_curves
+from benchmarks.fitting import (event_curve, event_window, j2_per_event, read_curves,
+                                sample_curves)
 from benchmarks.metrics import summarize
 from benchmarks.report import fmt, markdown_table
 from integrators import Rodas5P, solve
@@ -35,11 +36,8 @@ T_END = 20.0
 
 def spring_curve(sol, index: int = -1) -> tuple[np.ndarray, np.ndarray]:
     """The curve J2 compared before issue 13: Fs/Fn against slip over event ``index``."""
-    ev, p = sol.events.iloc[index], sol.problem
-    inside = (sol.t > ev.t_start) & (sol.t < ev.t_end)
-    t = np.concatenate(([ev.t_start], sol.t[inside], [ev.t_end]))
-    fs = np.interp(t, sol.t, sol.fs)
-    return p.loading.v_slow * (t - t[0]) - (fs - fs[0]) / p.stiffness, fs / p.normal_force
+    _, slip, fs = event_window(sol, index)
+    return slip, fs / sol.problem.normal_force
 
 
 def j2_information(progress: bool = True) -> pd.DataFrame:

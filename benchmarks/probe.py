@@ -63,6 +63,7 @@ class Case:
     expect: str = "refused"
     slow: bool = False
     timeout: float = 120.0
+    names: str = ""            # what a refusal must name (the parameter, flag or value)
 
     @property
     def id(self) -> str:
@@ -87,7 +88,15 @@ def _time_limit(seconds: float):
 
 
 def run_case(case: Case) -> Observed:
-    """Run ``case`` under its time limit and name what happened."""
+    """Run ``case`` under its time limit and name what happened. A refusal that does not name
+    what the case says it must (``Case.names``) is not clear: ``wrong``."""
+    got = _run(case)
+    if got.outcome == "refused" and case.names and case.names not in got.detail:
+        return Observed("wrong", f"the refusal does not name {case.names!r}: {got.detail}")
+    return got
+
+
+def _run(case: Case) -> Observed:
     with tempfile.TemporaryDirectory(prefix="rsfbench-probe-") as tmp:
         try:
             with _time_limit(case.timeout):

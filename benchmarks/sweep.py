@@ -39,14 +39,16 @@ from tqdm.auto import tqdm
 
 from benchmarks.files import (BadResultsFile, atomic_write, read_json_record,
                               remove_stale_temporaries)
-from benchmarks.fitting import CHI2_95_2DOF, event_curve, j1, j2_per_event, joint_fit
-from benchmarks.metrics import CYCLES, summarize
+from benchmarks.fitting import (CHI2_95_2DOF, check_curves, event_curve, j1, j2_per_event,
+                                joint_fit)
+from benchmarks.metrics import CLASSIFICATIONS, CYCLES, summarize
 from benchmarks.report import jsonable
 from benchmarks.sweep_exec import CONNECT_TIMEOUT_S, WORKER_TIMEOUT_S, connect, execute
 from benchmarks.timing import warm_up
-from integrators import solve
+from integrators import ReturnCode, solve
 from problems import preset
-from problems._validate import UnitWarning, check_count, check_positive, warn_implausible
+from problems._validate import (check_count, check_positive, units_checked_already,
+                                warn_implausible)
 
 __all__ = ["parse_b", "parse_lc", "check_grid", "PointTask", "run_point", "PointStore",
            "Observations", "sweep", "SweepResult", "BACKENDS", "MAX_GRID_POINTS",
@@ -62,6 +64,7 @@ POINT_COLUMNS = ("b", "lc_m", "kappa", "classification", "period", "n_events", "
 #: what a stored point must hold to be trusted
 POINT_REQUIRED = ("key", "b", "lc_m", "classification", "retcode", "message", "integrator")
 _METRIC_COLUMNS = ("period", "recurrence_s", "friction_drop", "slip_m", "peak_velocity_m_s")
+RETCODES = {r.value for r in ReturnCode}
 
 
 class BadPointWarning(UserWarning):
@@ -75,10 +78,12 @@ def parse_b(spec: str, max_points: int = MAX_GRID_POINTS) -> np.ndarray:
         raise ValueError(f"--b must be START:STOP:STEP with STEP > 0 and STOP ≥ START, got {spec!r}")
     if start < 0:
         raise ValueError(f"--b must start at b ≥ 0, got {spec!r}")
-    n = math.floor((stop - start) / step + 1e-9) + 1
-    if n > max_points:
-        raise ValueError(f"--b {spec!r} has {n:.3g} values, more than the limit of {max_points} "
-                         "grid points (a typo in STEP?); raise the limit with --max-points")
+    span = (stop - start) / step                 # inf for a STEP that underflows the span
+    if not span + 1 <= max_points:
+        raise ValueError(f"--b {spec!r} has {span + 1:.3g} values, more than the limit of "
+                         f"{max_points} grid points (a typo in STEP?); raise the limit with "
+                         "--max-points")
+    n = math.floor(span + 1e-9) + 1
     return np.round(start + step * np.arange(n), 12)
 
 
@@ -159,8 +164,7 @@ class PointTask:
     wall_budget: float | None = None
 
     def problem(self):
-        with warnings.catch_warnings():      # check_grid warned once for the whole Lc axis
-            warnings.simplefilter("ignore", UnitWarning)
+        with units_checked_already():        # check_grid warned once for the whole Lc axis
             return preset(self.preset, law=self.law, b=self.b, lc=self.lc, t_end=self.t_end)
 
     def key(self) -> str:
@@ -194,9 +198,44 @@ def run_point(task: PointTask) -> dict:
 
 
 def failed_row(task: PointTask, message: str) -> dict:
-    """The row of a point that could not be simulated at all."""
+    """The row of a point that could not be simulated at all (its worker crashed): in this
+    sweep's table, but ``transient``, never stored, so that a rerun tries the point again."""
     return {"key": task.key(), "b": task.b, "lc_m": task.lc, "integrator": task.algorithm.name,
-            "classification": "failed", "retcode": "Failure", "message": message}
+            "classification": "failed", "retcode": "Failure", "message": message,
+            "transient": True}
+
+
+def _check_row(row: dict, task: PointTask, key: str, path: Path) -> None:
+    """``BadResultsFile`` unless ``row`` is a whole row of ``task``: its own key and grid point,
+    a known classification and retcode, finite metrics for a cycle and none otherwise, and its
+    slip-weakening curve when the sweep needs one."""
+    def bad(why):
+        raise BadResultsFile(f"sweep point {path} {why}")
+
+    def number(x):
+        return isinstance(x, (int, float)) and not isinstance(x, bool)
+
+    if row["key"] != key:
+        bad(f"holds the point {row['key']!r} (a copied file?)")
+    if (row["b"], row["lc_m"]) != (task.b, task.lc):
+        bad(f"holds (b, Lc) = ({row['b']!r}, {row['lc_m']!r}), not ({task.b!r}, {task.lc!r})")
+    if row["classification"] not in CLASSIFICATIONS or row["retcode"] not in RETCODES:
+        bad(f"holds an unknown classification or retcode ({row['classification']!r}, "
+            f"{row['retcode']!r})")
+    if row.get("transient") or row["integrator"] != task.algorithm.name:
+        bad("is not a finished point of this sweep's integrator")
+    if row["classification"] in CYCLES:
+        if not all(number(row.get(c)) and math.isfinite(row[c]) for c in _METRIC_COLUMNS):
+            bad("lacks a finite limit-cycle metric")
+        if task.curve_dt:
+            curve = [row.get("curve_slip"), row.get("curve_friction")]
+            if not (all(isinstance(x, list) and len(x) >= 2 for x in curve)
+                    and len(curve[0]) == len(curve[1])
+                    and all(number(v) and math.isfinite(v) for x in curve for v in x)):
+                bad("lacks its slip-weakening curve")
+    elif any(row.get(c) is not None and not (number(row[c]) and math.isnan(row[c]))
+             for c in _METRIC_COLUMNS):
+        bad(f"holds limit-cycle metrics for a point classified {row['classification']!r}")
 
 
 class PointStore:
@@ -217,15 +256,7 @@ class PointStore:
             return None
         try:
             row = read_json_record(path, POINT_REQUIRED, what="sweep point")
-            if row["key"] != key:
-                raise BadResultsFile(f"sweep point {path} holds the point {row['key']!r} (a "
-                                     "copied file?)")
-            if (row["b"], row["lc_m"]) != (task.b, task.lc):
-                raise BadResultsFile(f"sweep point {path} holds (b, Lc) = ({row['b']!r}, "
-                                     f"{row['lc_m']!r}), not ({task.b!r}, {task.lc!r})")
-            if (task.curve_dt and row["classification"] in CYCLES
-                    and not isinstance(row.get("curve_slip"), list)):
-                raise BadResultsFile(f"sweep point {path} lacks its slip-weakening curve")
+            _check_row(row, task, key, path)
         except BadResultsFile as exc:
             self.bad.append(str(exc))
             warnings.warn(f"{exc}: recomputing it", BadPointWarning, stacklevel=2)
@@ -253,6 +284,8 @@ class Observations:
         for name in ("recurrence_s", "sigma_recurrence_s", "friction_drop",
                      "sigma_friction_drop"):
             check_positive(name, getattr(self, name))
+        if self.curves is not None:
+            object.__setattr__(self, "curves", check_curves(self.curves, "obs.curves"))
 
 
 @dataclass
@@ -285,33 +318,48 @@ def sweep(preset_name: str, law: str, b_values, lc_values, algorithm, obs: Obser
     tasks = _tasks(preset_name, law, b_values, lc_values, algorithm, obs, t_end, workers,
                    backend, curve_dt, wall_budget, max_points)
     workers = os.cpu_count() or 1 if workers is None else workers
-    if scheduler:
-        connect(scheduler, connect_timeout).close()      # reachable, before any work
-    store = PointStore(out)
-    keys = [t.key() for t in tasks]
-    rows = {k: store.load(t, k) for t, k in zip(tasks, keys)}
-    todo = [t for t, k in zip(tasks, keys) if rows[k] is None]
-    n_resumed = len(tasks) - len(todo)
-    start = time.perf_counter()
-    bar = tqdm(total=len(tasks), initial=n_resumed, desc=f"sweep {preset_name}/{law}",
-               unit="point", disable=not progress)
-    with bar:
-        for task, row in execute(run_point, _warm, failed_row, todo, workers, scheduler,
-                                 backend, connect_timeout, worker_timeout):
-            store.save(row["key"], row)
-            rows[row["key"]] = row
-            bar.update(1)
-    wall = time.perf_counter() - start
-    table = score(pd.DataFrame([rows[k] for k in keys]), obs)
-    summary = summarize_sweep(table, obs, algorithm, wall_s=wall, n_run=len(todo),
-                              n_resumed=n_resumed, n_bad_files=len(store.bad),
-                              bad_files=store.bad, workers=1 if scheduler else workers,
-                              scheduler=scheduler, backend=backend)
+    client = connect(scheduler, connect_timeout) if scheduler else None   # before any work
+    try:
+        rows, n_run, n_resumed, wall, bad = _run(tasks, out, client, workers, backend,
+                                                 worker_timeout, f"{preset_name}/{law}", progress)
+    finally:
+        if client is not None:
+            client.close()
+    table = score(rows, obs)
+    summary = summarize_sweep(table, obs, algorithm, wall_s=wall, n_run=n_run,
+                              n_resumed=n_resumed, n_bad_files=len(bad), bad_files=bad,
+                              workers=1 if scheduler else workers, scheduler=scheduler,
+                              backend=backend)
     out = Path(out)
     remove_stale_temporaries(out)
     atomic_write(out / "sweep.csv", table.to_csv(index=False))
     atomic_write(out / "summary.json", json.dumps(jsonable(summary), indent=2))
     return SweepResult(table, summary)
+
+
+def _run(tasks, out, client, workers, backend, worker_timeout, name, progress):
+    """Load the stored points, run the others: (their rows in grid order, how many were run and
+    resumed, the wall time, the bad files found)."""
+    store = PointStore(out)
+    keys = [t.key() for t in tasks]
+    key_of = dict(zip(tasks, keys))       # the parent's keys: a worker's repr may differ
+    rows = {k: store.load(t, k) for t, k in zip(tasks, keys)}
+    todo = [t for t, k in zip(tasks, keys) if rows[k] is None]
+    n_resumed = len(tasks) - len(todo)
+    start = time.perf_counter()
+    bar = tqdm(total=len(tasks), initial=n_resumed, desc=f"sweep {name}", unit="point",
+               disable=not progress)
+    with bar:
+        for task, row in execute(run_point, _warm, failed_row, todo, workers, backend, client,
+                                 worker_timeout):
+            key = key_of[task]
+            row["key"] = key
+            if not row.get("transient"):
+                store.save(key, row)
+            rows[key] = row
+            bar.update(1)
+    wall = time.perf_counter() - start
+    return pd.DataFrame([rows[k] for k in keys]), len(todo), n_resumed, wall, store.bad
 
 
 def _tasks(preset_name, law, b_values, lc_values, algorithm, obs, t_end, workers, backend,

@@ -33,8 +33,11 @@ class ClusterGone(RunStopped):
     """The Dask cluster has had no worker for longer than the sweep's ``worker_timeout``."""
 
 
-def _watch_parent(parent: int) -> None:
-    """In a pool worker: exit at once when the process that started it is gone."""
+def _watch_parent() -> None:
+    """In a pool worker: exit at once when the process that started it is gone (whatever the
+    start method: the parent is read here, in the worker)."""
+    parent = os.getppid()
+
     def watch():
         while os.getppid() == parent:
             time.sleep(PARENT_POLL_S)
@@ -42,22 +45,22 @@ def _watch_parent(parent: int) -> None:
     threading.Thread(target=watch, name="rsfbench-parent-watch", daemon=True).start()
 
 
-def _init_worker(parent: int, warm, task) -> None:
+def _init_worker(warm, task) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    _watch_parent(parent)
+    _watch_parent()
     warm(task)
 
 
-def execute(run, warm, failed, tasks: list, workers: int, scheduler: str | None, backend: str,
-            connect_timeout: float = CONNECT_TIMEOUT_S,
+def execute(run, warm, failed, tasks: list, workers: int, backend: str, client=None,
             worker_timeout: float = WORKER_TIMEOUT_S):
-    """Yield ``(task, run(task))`` as points finish. ``warm(task)`` compiles what the tasks need,
-    once per worker, before the first point; ``failed(task, message)`` is the row of a point
-    whose Dask workers all died running it."""
+    """Yield ``(task, run(task))`` as points finish: on the Dask ``client``'s cluster if given
+    (see :func:`connect`), else locally. ``warm(task)`` compiles what the tasks need, once per
+    worker, before the first point; ``failed(task, message)`` is the row of a point whose Dask
+    workers all died running it."""
     if not tasks:
         return
-    if scheduler:
-        yield from _on_dask(run, warm, failed, tasks, scheduler, connect_timeout, worker_timeout)
+    if client is not None:
+        yield from _on_dask(run, warm, failed, tasks, client, worker_timeout)
         return
     if workers == 1 or backend == "threads":
         warm(tasks[0])
@@ -67,7 +70,7 @@ def execute(run, warm, failed, tasks: list, workers: int, scheduler: str | None,
         return
     from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor, as_completed
     pool = (ProcessPoolExecutor(max_workers=workers, initializer=_init_worker,
-                                initargs=(os.getpid(), warm, tasks[0]))
+                                initargs=(warm, tasks[0]))
             if backend == "processes" else ThreadPoolExecutor(max_workers=workers))
     try:
         futures = {pool.submit(run, t): t for t in tasks}
@@ -89,39 +92,38 @@ def connect(scheduler: str, timeout: float = CONNECT_TIMEOUT_S):
                          f"({type(exc).__name__}: {exc})") from None
 
 
-def _on_dask(run, warm, failed, tasks, scheduler, connect_timeout, worker_timeout):
+def _on_dask(run, warm, failed, tasks, client, worker_timeout):
     from distributed import wait
-    with connect(scheduler, connect_timeout) as client:
-        futures = client.map(run, tasks, pure=False)
-        index = {f.key: t for f, t in zip(futures, tasks)}
-        pending, alone_since = set(futures), None
+    futures = client.map(run, tasks, pure=False)
+    index = {f.key: t for f, t in zip(futures, tasks)}
+    pending, alone_since = set(futures), None
+    try:
+        client.run(warm, tasks[0])               # every current worker; newcomers compile once
+    except Exception:                             # a worker that fails to warm still runs points
+        pass
+    while pending:
         try:
-            client.run(warm, tasks[0])           # every current worker; newcomers compile once
-        except Exception:                         # a worker that fails to warm still runs points
-            pass
-        while pending:
+            done, pending = wait(list(pending), timeout=1.0, return_when="FIRST_COMPLETED")
+        except TimeoutError:                      # nothing finished within the second
+            done = set()
+        for fut in done:
+            task = index[fut.key]
             try:
-                done, pending = wait(list(pending), timeout=1.0, return_when="FIRST_COMPLETED")
-            except TimeoutError:                  # nothing finished within the second
-                done = set()
-            for fut in done:
-                task = index[fut.key]
-                try:
-                    row = fut.result()
-                except Exception as exc:       # KilledWorker: the point crashed its workers
-                    row = failed(task, f"{type(exc).__name__} on the Dask cluster: {exc}")
-                yield task, row
-            if not pending:
-                break
-            if client.scheduler_info().get("workers"):
-                alone_since = None
-            elif alone_since is None:
-                alone_since = time.monotonic()
-            elif time.monotonic() - alone_since > worker_timeout:
-                for fut in pending:
-                    fut.cancel()
-                n_done = len(tasks) - len(pending)
-                raise ClusterGone(
-                    f"the Dask cluster at {scheduler} has had no worker for {worker_timeout:g} s; "
-                    f"{n_done} of {len(tasks)} points were done and are kept: start workers and "
-                    "run the same sweep again to resume")
+                row = fut.result()
+            except Exception as exc:              # KilledWorker: the point crashed its workers
+                row = failed(task, f"{type(exc).__name__} on the Dask cluster: {exc}")
+            yield task, row
+        if not pending:
+            break
+        if client.scheduler_info().get("workers"):
+            alone_since = None
+        elif alone_since is None:
+            alone_since = time.monotonic()
+        elif time.monotonic() - alone_since > worker_timeout:
+            for fut in pending:
+                fut.cancel()
+            n_done = len(tasks) - len(pending)
+            raise ClusterGone(
+                f"the Dask cluster at {client.scheduler.address} has had no worker for "
+                f"{worker_timeout:g} s; {n_done} of {len(tasks)} points were done and are kept: "
+                "start workers and run the same sweep again to resume")

@@ -9,6 +9,8 @@ with a :class:`UnitWarning` that names the value and the unit.
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import math
 import numbers
 import warnings
@@ -16,7 +18,9 @@ import warnings
 import numpy as np
 
 __all__ = ["check_finite", "check_positive", "check_non_negative", "check_count", "UnitWarning",
-           "warn_implausible", "PLAUSIBLE"]
+           "warn_implausible", "units_checked_already", "PLAUSIBLE"]
+
+_UNITS_CHECKED = contextvars.ContextVar("rsfbench_units_checked", default=False)
 
 
 class UnitWarning(UserWarning):
@@ -77,11 +81,23 @@ PLAUSIBLE = {
 }
 
 
+@contextlib.contextmanager
+def units_checked_already():
+    """No :class:`UnitWarning` inside: the caller has warned once already (a sweep builds
+    thousands of problems from one axis). A context variable, not a warnings filter: filters
+    are global, and a sweep's worker threads would save and restore each other's."""
+    token = _UNITS_CHECKED.set(True)
+    try:
+        yield
+    finally:
+        _UNITS_CHECKED.reset(token)
+
+
 def warn_implausible(name: str, value: float, stacklevel: int = 3) -> None:
     """Warn (:class:`UnitWarning`) if ``value`` of parameter ``name`` is outside
     :data:`PLAUSIBLE`; zero (b = 0, an allowed limit) is never implausible."""
     low, high, unit, hint = PLAUSIBLE[name]
-    if value != 0 and not low <= abs(value) <= high:
+    if value != 0 and not _UNITS_CHECKED.get() and not low <= abs(value) <= high:
         where = f"{low:g}–{high:g} {unit}".rstrip()
         warnings.warn(f"{name} = {value:g} {unit} is outside the plausible range {where}: "
                       f"{hint}".replace("  ", " "), UnitWarning, stacklevel=stacklevel)
