@@ -8,7 +8,8 @@ reference solutions and their agreement; the speed-up claim; the convergence stu
 fixed-step order of the compiled stiff methods; the quick work-precision study and issue 6's
 target; the target on every study problem (a full work-precision study of the stiff adaptive
 integrators); every backend side by side; the Section 4 sweeps; the sweep's speed on 1 and 2
-workers; the locking rule of the classification against the trajectory; the reliability probe;
+workers; the locking rule of the classification against the trajectory; the ETD family's
+step-rule check on the studied problems; what J2 sees; the reliability probe;
 last, when ``out`` is the project's ``results/``, the README's generated blocks
 (:mod:`benchmarks.readme`).
 """
@@ -121,6 +122,11 @@ def _classification(out: Path, scipy_budget) -> None:
     print(write_classification(classification_study(), out))
 
 
+def _etd_validity(out: Path, scipy_budget) -> None:
+    from benchmarks.etd_validity import etd_validity, write_etd_validity
+    print(write_etd_validity(etd_validity(), out))
+
+
 def _misfit(out: Path, scipy_budget) -> None:
     from benchmarks.misfit import j2_information, write_j2_information
     print(write_j2_information(j2_information(), out))
@@ -151,6 +157,7 @@ STEPS = (
     ("sweep-scaling", "sweep speed: 21 x 21 on W2, serial and on 2 workers", _sweep_scaling),
     ("classification", "the locking rule of stick-slip, against the trajectory",
      _classification),
+    ("etd-validity", "the ETD family's step-rule check on the studied problems", _etd_validity),
     ("misfit", "what J2 sees: friction against the spring force", _misfit),
     ("probe", "the reliability probe, slow cases included", _probe),
 )
@@ -220,6 +227,7 @@ def _collect(out: Path) -> dict:
         "classification": read("classification.md", "classification"),
         "reliability": read("reliability.md", "probe"),
         "misfit": read("j2_information.md", "misfit"),
+        "etd_validity": read("etd_validity.md", "etd-validity"),
     }
 
 
@@ -290,6 +298,9 @@ Maps: `sweeps/<window>_<law>/maps.png`.
 Every case of `benchmarks/probe_cases.py`, by kind and outcome (`rsfbench probe --slow`):
 
 {r['reliability']}
+## The ETD family's step-rule check (`etd_validity.*`)
+
+{r['etd_validity']}
 ## What J2 sees (`j2_information.*`)
 
 {r['misfit']}

@@ -180,7 +180,7 @@ def test_two_speed_loading_switches_at_event_end():
 def test_the_step_rule_holds_on_every_preset(make):
     """The step-rule check (module docstring of integrators/etd.py) never fires on the paper's
     problems: measured max 1.24 over 1028 runs of the paper example, W1–W4 and sweep grids
-    around them; the check stops a run at 10."""
+    around them; the check stops a run at 100."""
     problems = [P.paper_example(law) for law in ("slip", "aging")]
     problems += [P.window(w, law, t_end=10.0) for w in ("W1", "W2", "W3", "W4")
                  for law in ("slip", "aging")]
