@@ -77,7 +77,8 @@ def classification_study(progress: bool = True) -> pd.DataFrame:
     gaps if it has no cycle) the largest mean slip rate and the smallest slip rate, over vLs."""
     algorithm = Rodas5P(rtol=1e-6, atol=1e-6)
     rows = []
-    for group, name, law, b, lc, t_end in tqdm(_runs(), desc="classification", disable=not progress):
+    runs = tqdm(_runs(), desc="classification", disable=not progress)
+    for group, name, law, b, lc, t_end in runs:
         p = preset(name, law=law, b=b, lc=lc, t_end=t_end)
         sol = solve(p, algorithm, max_points=_SAVED_POINTS, wall_budget=60)
         cycle = summarize(sol)

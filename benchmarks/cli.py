@@ -26,8 +26,9 @@ from pathlib import Path
 
 from benchmarks import metrics
 from benchmarks.cli_args import (Parser, RunStopped, add_integrator_options, add_problem_options,
-                                 in_file, say, integrator_from_args, out_dir, out_file, positive,
-                                 flagged, preset_name, problem_from_args, wants_json)
+                                 flagged, in_file, integrator_from_args, out_dir, out_file,
+                                 positive, preset_name, problem_from_args, say, show_progress,
+                                 wants_json)
 from benchmarks.report import jsonable as _jsonable
 from benchmarks.timing import warm_up
 from integrators import REGISTRY, algorithm_class, solve
@@ -128,7 +129,7 @@ def cmd_windows(args) -> int:
         say(f"integrator: {why}")
     table = windows_table(laws=args.law, names=args.window, integrator=algorithm,
                           t_end=args.t_end, wall_budget=args.wall_budget,
-                          progress=not args.json)
+                          progress=show_progress(args))
     if args.out:
         write_windows(table, Path(args.out))
     if args.json:
@@ -144,7 +145,7 @@ def cmd_compare(args) -> int:
     problem = preset(args.preset, law=args.law, t_end=args.t_end)
     names = None if not args.integrators else [algorithm_name(n) for n in args.integrators]
     table = compare_integrators(problem, args.rtol, args.atol, names=names,
-                                wall_budget=args.wall_budget, progress=not args.json)
+                                wall_budget=args.wall_budget, progress=show_progress(args))
     if args.out:
         table.to_csv(args.out, index=False)
     if args.json:
@@ -176,7 +177,7 @@ def cmd_work_precision(args) -> int:
         problems = [dataclasses.replace(p, t_end=args.t_end) for p in problems]
     names = None if not args.integrators else [algorithm_name(n) for n in args.integrators]
     df = work_precision(problems, ladder, names=names, tiers=tuple(args.tiers),
-                        progress=not args.no_progress)
+                        progress=show_progress(args))
     paths = write_work_precision(df, Path(args.out), args.name or args.study, error=args.error)
     pareto = best_at_levels(df, ERROR_LEVELS, args.error)
     if args.json:
@@ -199,7 +200,7 @@ def cmd_convergence(args) -> int:
     problem = _study_problem(args.problem, "--problem")
     if args.t_end:
         problem = dataclasses.replace(problem, t_end=args.t_end)
-    table, orders = convergence_study(problem, names=names, progress=not args.json)
+    table, orders = convergence_study(problem, names=names, progress=show_progress(args))
     summary = (write_convergence(problem, table, orders, args.out) if args.out
                else convergence_summary(problem, table, orders))
     if args.json:
@@ -216,7 +217,7 @@ def cmd_convergence(args) -> int:
 
 def _fixed_step_orders(args, names) -> int:
     from benchmarks.convergence import fixed_step_orders, write_fixed_step_orders
-    table, orders = fixed_step_orders(names, progress=not args.json)
+    table, orders = fixed_step_orders(names, progress=show_progress(args))
     summary = (write_fixed_step_orders(table, orders, args.out) if args.out
                else {"orders": orders})
     if args.json:
@@ -241,10 +242,11 @@ def cmd_speedup(args) -> int:
     from benchmarks.speedup import DEFAULT_SCIPY_BUDGET, speedup, speedup_markdown, write_speedup
     problem = preset("paper-example", t_end=args.t_end)
     budget = None if args.full else (args.scipy_budget or DEFAULT_SCIPY_BUDGET)
-    implicit = None if not args.implicit else [algorithm_name(n, "--implicit") for n in args.implicit]
+    implicit = (None if not args.implicit
+                else [algorithm_name(n, "--implicit") for n in args.implicit])
     summary, table = speedup(problem, rk_tol=args.rk_tol, scipy_budget=budget,
                              compiled_budget=args.compiled_budget, implicit=implicit,
-                             progress=not args.json)
+                             progress=show_progress(args))
     if args.out:
         write_speedup(summary, table, args.out)
     if args.json:
@@ -267,7 +269,7 @@ def cmd_target(args) -> int:
 
 def cmd_classification(args) -> int:
     from benchmarks.classification import classification_study, write_classification
-    table = classification_study(progress=not args.json)
+    table = classification_study(progress=show_progress(args))
     text = write_classification(table, args.out) if args.out else None
     if args.json:
         say(table.to_json(orient="records", indent=2))
@@ -284,14 +286,17 @@ def cmd_probe(args) -> int:
               and (not args.match or args.match.lower() in c.id.lower())]
     if not chosen:
         raise ValueError("no probe case matches --kind/--match")
-    table = run_probe(chosen, progress=not args.json)
+    table = run_probe(chosen, progress=show_progress(args))
     if args.out:
         text = write_probe(table, args.out)
+    bad = table.observed.isin(BAD_OUTCOMES) | ~table.as_expected
     if args.json:
         say(table.to_json(orient="records", indent=2))
+    elif args.out:
+        say(text)
     else:
-        say(text if args.out else table[~table.as_expected].to_string(index=False))
-    bad = table.observed.isin(BAD_OUTCOMES) | ~table.as_expected
+        say(f"{len(table)} cases, {int((~bad).sum())} as expected"
+            + ("" if not bad.any() else ":\n" + table[bad].to_string(index=False)))
     return 1 if bad.any() else 0
 
 
@@ -472,8 +477,8 @@ def build_parser() -> Parser:
 
 def main(argv: list[str] | None = None) -> int:
     """Run one command; return its exit status: 0 done, 1 the run failed (its retcode, or one
-    line, says why), 2 a usage error (one line on stderr; with --json also one JSON document on stdout), 3 an
-    internal error, 130 interrupted.
+    line, says why), 2 a usage error (one line on stderr; with --json also one JSON document on
+    stdout), 3 an internal error, 130 interrupted.
 
     Whatever a library writes to the standard output (assimulo's Fortran and SUNDIALS' warnings,
     also from pool workers) goes to the standard error instead, so that the standard output holds

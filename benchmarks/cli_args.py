@@ -14,7 +14,8 @@ import os
 import sys
 from pathlib import Path
 
-__all__ = ["say", "RunStopped", "Parser", "HelpFormatter", "positive", "non_negative", "finite",
+__all__ = ["say", "show_progress", "RunStopped", "Parser", "HelpFormatter", "positive",
+           "non_negative", "finite",
            "count", "seed", "out_dir", "out_file", "in_file", "preset_name", "flagged",
            "add_problem_options", "add_integrator_options", "integrator_from_args",
            "problem_from_args", "ACCURACY"]
@@ -23,6 +24,13 @@ __all__ = ["say", "RunStopped", "Parser", "HelpFormatter", "positive", "non_nega
 ACCURACY = 1e-3
 #: where :func:`say` writes while a command runs (set by :func:`benchmarks.cli.main`)
 _OUTPUT = None
+
+
+def show_progress(args) -> bool:
+    """Progress bars on the standard error: not with ``--json`` or ``--no-progress``, and not
+    when the standard error is not a terminal (a log file would fill with redrawn bars)."""
+    return (not getattr(args, "json", False) and not getattr(args, "no_progress", False)
+            and sys.stderr.isatty())
 
 
 def say(*args, **kwargs) -> None:

@@ -15,7 +15,7 @@ import pandas as pd
 
 from benchmarks.cli_args import (add_integrator_options, add_problem_options, count, in_file,
                                  integrator_from_args, non_negative, out_dir, out_file, positive,
-                                 preset_name, problem_from_args, say, seed)
+                                 preset_name, problem_from_args, say, seed, show_progress)
 from benchmarks.report import jsonable
 
 __all__ = ["add_parsers", "observations", "synthetic_curves"]
@@ -65,7 +65,7 @@ def cmd_sweep(args) -> int:
     result = sweep(args.preset, args.law, b_values, lc_values, algorithm, obs, out,
                    t_end=args.t_end, workers=args.workers, scheduler=args.scheduler,
                    backend=args.backend, wall_budget=args.wall_budget,
-                   progress=not args.no_progress, max_points=args.max_points,
+                   progress=show_progress(args), max_points=args.max_points,
                    connect_timeout=args.connect_timeout, worker_timeout=args.worker_timeout)
     s = {**result.summary, "integrator_choice": why, "out": str(out)}
     if not args.no_plot:
@@ -130,7 +130,7 @@ def cmd_slip_weakening(args) -> int:
 def cmd_paper_sweeps(args) -> int:
     from benchmarks.paper_sweeps import paper_sweeps
     table = paper_sweeps(Path(args.out), windows=args.windows, laws=args.laws,
-                         workers=args.workers, progress=not args.no_progress)
+                         workers=args.workers, progress=show_progress(args))
     say((Path(args.out) / "sweeps.md").read_text())
     return 0 if len(table) else 1
 
@@ -138,7 +138,7 @@ def cmd_paper_sweeps(args) -> int:
 def cmd_sweep_scaling(args) -> int:
     from benchmarks.paper_sweeps import sweep_scaling
     summary = sweep_scaling(Path(args.out), n=args.n, t_end=args.t_end,
-                            progress=not args.no_progress)
+                            progress=show_progress(args))
     if args.json:
         say(json.dumps(jsonable(summary), indent=2))
     else:

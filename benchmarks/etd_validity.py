@@ -31,7 +31,8 @@ def _problems():
     out = [(group, preset(name, law=law, b=b, lc=lc, t_end=t_end))
            for group, name, law, b, lc, t_end in _runs() if group != "oscillation"]
     p0 = paper_example()
-    out.append(("outside the rule", dataclasses.replace(p0, initial=p0.initial_state).with_law(a=0.001)))
+    unbalanced = dataclasses.replace(p0, initial=p0.initial_state).with_law(a=0.001)
+    out.append(("outside the rule", unbalanced))
     out.append(("outside the rule", paper_example(b=0.02, lc=5e-6).with_law(a=0.0002)))
     return out
 

@@ -122,8 +122,8 @@ class EndState:
         return max(abs(self.log_v), self.state_offset, self.force_offset) < STEADY_LOG_TOLERANCE
 
     def describe(self) -> str:
-        stability = ("linearly stable" if self.stable else
-                     f"linearly unstable (perturbations grow e-fold in {1 / self.growth_rate:.3g} s)")
+        stability = ("linearly stable" if self.stable else "linearly unstable (perturbations "
+                     f"grow e-fold in {1 / self.growth_rate:.3g} s)")
         return (f"the run ended at v = {np.exp(self.log_v):.3g} vLs (state {self.state_offset:.2g} "
                 f"A, spring {self.force_offset:.2g} A from steady sliding); steady sliding is "
                 f"{stability}")

@@ -232,9 +232,10 @@ def write_probe(table: pd.DataFrame, out: Path) -> str:
              "cases": int(counts.to_numpy().sum())}
     md = pd.concat([md, pd.DataFrame([total])], ignore_index=True)
     unexpected = table[~table.as_expected]
+    n_bad = int(table.observed.isin(BAD_OUTCOMES).sum())
     text = (f"{len(table)} cases ({int(table.slow.sum())} slow), "
-            f"{int(table.as_expected.sum())} as expected; {int(table.observed.isin(BAD_OUTCOMES).sum())} "
-            "tracebacks, hangs or silently wrong results.\n\n" + markdown_table(md))
+            f"{int(table.as_expected.sum())} as expected; {n_bad} tracebacks, hangs or silently "
+            "wrong results.\n\n" + markdown_table(md))
     if len(unexpected):
         text += "\nNot as expected:\n\n" + markdown_table(
             unexpected[["kind", "case", "expected", "observed", "detail"]])

@@ -1,4 +1,7 @@
-"""Shared fixtures: reference solutions are computed once per test session."""
+"""Shared fixtures: reference solutions are computed once per test session; Fortran output is
+flushed after each test, while pytest still captures it."""
+
+import ctypes
 
 import pytest
 
@@ -15,3 +18,25 @@ def paper_radau_reference():
     sol = I.solve(paper_example(), I.ScipyRadau(rtol=1e-11, atol=1e-11))
     assert sol.success, sol.message
     return sol
+
+
+
+def _gfortran_runtimes():
+    """Every gfortran runtime loaded in this process: wheels vendor their own copies (assimulo,
+    scipy, numpy, scikit-sundae), each with its own unit 6 buffer."""
+    with open("/proc/self/maps") as maps:
+        paths = {line.split()[-1] for line in maps if "libgfortran" in line}
+    return [ctypes.CDLL(p) for p in sorted(paths)]
+
+
+_GFORTRAN = _gfortran_runtimes()       # after `import integrators` above: every backend loaded
+
+
+@pytest.fixture(autouse=True)
+def _flush_fortran_output():
+    """gfortran buffers its unit 6 (assimulo's Dopri5 prints "THE PROBLEM SEEMS TO BECOME STIFF")
+    until the process exits, after pytest's summary; flushing it after each test keeps it in the
+    test's captured output."""
+    yield
+    for runtime in _GFORTRAN:
+        runtime._gfortran_flush_i4(None)
