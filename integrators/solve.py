@@ -44,9 +44,10 @@ def solve(problem: SpringSlider, algorithm: Algorithm, *, save_every: float | No
 
     The trajectory is saved every ``save_every`` seconds, or else at ``max_points`` points in
     all (default 20,000); with ``save_every``, ``max_points`` caps the saved points (default
-    10⁷, see :class:`~integrators.solution.Output`). Events are recorded exactly either way. ``wall_budget`` (s) stops a run that takes
-    longer (retcode ``WallTime``); ``progress`` shows a progress bar. A numerical failure comes
-    back as a Solution with a failure retcode; misuse (bad arguments) raises ``ValueError``.
+    10⁷, see :class:`~integrators.solution.Output`). Events are recorded exactly either way.
+    ``wall_budget`` (s) stops a run that takes longer (retcode ``WallTime``); ``progress`` shows
+    a progress bar. A numerical failure comes back as a Solution with a failure retcode (and
+    ``Solution.reached_end`` false); misuse (bad arguments) raises ``ValueError`` before any work.
     """
     if not isinstance(problem, SpringSlider):
         raise ValueError(f"problem must be a SpringSlider, got {type(problem).__name__}")
