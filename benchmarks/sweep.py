@@ -175,6 +175,7 @@ class PointTask:
 
 def run_point(task: PointTask) -> dict:
     """Simulate one point and summarise it (never raises: a failure is a row with its retcode).
+    The parent adds the point's key (computed once, there) before storing the row.
     Limit-cycle metrics are filled in only for a limit cycle (:data:`benchmarks.metrics.CYCLES`):
     a failed, truncated or unclassifiable run is never read as physics."""
     try:
@@ -184,7 +185,7 @@ def run_point(task: PointTask) -> dict:
     except Exception as exc:            # checked before the sweep started: a bug if it happens
         return failed_row(task, f"{type(exc).__name__}: {exc}")
     cycle = summarize(sol)
-    row = {"key": task.key(), "b": task.b, "lc_m": task.lc, "integrator": task.algorithm.name,
+    row = {"b": task.b, "lc_m": task.lc, "integrator": task.algorithm.name,
            "kappa": problem.kappa, "classification": cycle.classification,
            "n_events": len(sol.events), "retcode": sol.retcode.value,
            "message": sol.message or cycle.reason, "nfev": sol.stats.nfev,
@@ -200,7 +201,7 @@ def run_point(task: PointTask) -> dict:
 def failed_row(task: PointTask, message: str) -> dict:
     """The row of a point that could not be simulated at all (its worker crashed): in this
     sweep's table, but ``transient``, never stored, so that a rerun tries the point again."""
-    return {"key": task.key(), "b": task.b, "lc_m": task.lc, "integrator": task.algorithm.name,
+    return {"b": task.b, "lc_m": task.lc, "integrator": task.algorithm.name,
             "classification": "failed", "retcode": "Failure", "message": message,
             "transient": True}
 
