@@ -32,7 +32,7 @@ $(STAMP): pyproject.toml | system-packages
 # stale inlined code of a helper edited in another module: drop every cache older than the newest
 # source file (a fresh clone has none; after an edit numba recompiles, ~1 min)
 numba-cache:
-	@newest=$$(ls -t integrators/*.py problems/*.py benchmarks/*.py | head -1); \
+	@newest=$$(ls -t $$(find integrators problems benchmarks -name '*.py') | head -1); \
 	find integrators problems benchmarks -name '*.nb[ic]' ! -newer "$$newest" -delete
 
 test: setup numba-cache

@@ -1,7 +1,7 @@
 """How far the ETD family's runs are from its step-rule check: ``rsfbench reproduce --only
 etd-validity``.
 
-Each ETD step checks Eq. 53 at the fastest state it evaluated (``integrators/etd.py``, module
+Each ETD step checks Eq. 53 at the fastest state it evaluated (``integrators/own/etd.py``, module
 docstring): a step slipping more than ``rule_ratio_max`` = 100 times what the rule allows stops
 the run (``Unresolved``). This study records the largest ratio of every run
 (``Solution.meta["step_rule_max"]``) for ETD2 and ETDIterated at the paper's settings on the

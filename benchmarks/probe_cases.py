@@ -540,11 +540,15 @@ def _stall(name):
     (problems refuse τ_end > ``TAU_END_MAX``), so the backend's adapter is started at τ = 1e20
     directly, where any step the problem needs is below the spacing of doubles."""
     def run(tmp):
-        from integrators.solve import Budget
+        from integrators.core.solve import Budget
+        from integrators.own.compiled import CompiledAlgorithm
         from problems import paper_example
         from problems.formulations import to_ode_state
         nd = paper_example().nondimensional()
-        stepper = _algorithm(name).make_stepper(nd, Budget(wall_s=5.0, start=time.perf_counter()))
+        algorithm = _algorithm(name)
+        if isinstance(algorithm, CompiledAlgorithm):      # the own methods' compiled engine
+            return _stall_compiled(algorithm, nd)
+        stepper = algorithm.make_stepper(nd, Budget(wall_s=5.0, start=time.perf_counter()))
         try:
             stepper.start(1e20, to_ode_state(nd.law_code, nd.beta, nd.x0), nd.e_slow, 2e20)
             adv = stepper.advance(1.5e20)
@@ -554,6 +558,23 @@ def _stall(name):
             raise Wrong(f"Success at τ = {adv.tau:g} (asked for 1.5e20)")
         return Observed("retcode", f"{adv.retcode.value}: {adv.message}")
     return run
+
+
+def _stall_compiled(algorithm, nd):
+    """:func:`_stall` for the compiled engine: its state arrays set to start at τ = 1e20."""
+    import numpy as np
+    from integrators.own import engine as E
+    from problems.formulations import to_ode_state
+    st, p, Z, G = E.new_state(nd, False, algorithm.rtol, algorithm.atol, algorithm.constants,
+                              algorithm.max_steps, time.perf_counter() + 5.0)
+    st[E.ST["LAST_T"]] = st[E.ST["TAU0"]] = 1e20
+    p[E.P["TAU_END"]] = 2e20
+    Z[E.ZROW["ZC"]] = to_ode_state(nd.law_code, nd.beta, nd.x0)
+    status = type(algorithm).kernel(st, p, Z, G, np.array([1, -1, 0, -1]), np.array([1.5e20]),
+                                    np.empty((1, 3)), np.empty((4, 8)), 1 << 20)
+    if status != E.UNDERFLOW:
+        raise Wrong(f"engine status {status} at τ = {st[E.TAU]:g}, not UNDERFLOW ({E.UNDERFLOW})")
+    return Observed("retcode", f"StepUnderflow at τ = {st[E.TAU]:g}")
 
 
 def _sweep_point_budget(tmp):

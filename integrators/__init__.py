@@ -1,33 +1,53 @@
-"""Integrators: ``solve``, ``Solution``, the registry, the paper's ETD family and the backends."""
+"""Integrators: ``solve``, ``Solution``, the registry, and three rooms of methods.
 
-from integrators.registry import REGISTRY, Algorithm, algorithm_class, make_algorithm, register
-from integrators.solution import EVENT_COLUMNS, ReturnCode, Solution, Stats
-from integrators.solve import solve
-from integrators.etd import ETD1, ETD2, ETDIterated  # noqa: E402  (registers the ETD family)
-from integrators.cash_karp import CashKarp45  # noqa: E402  (Press et al.'s adaptive RK, numba)
-from integrators.exp_rosenbrock import Exprb32, Exprb43  # noqa: E402  (exponential Rosenbrock, numba)
-from integrators.rosenbrock import Rodas5P, Rosenbrock23  # noqa: E402  (Rosenbrock, numba)
-from integrators.scipy_backend import (ScipyBDF, ScipyDOP853, ScipyLSODA, ScipyRadau,  # noqa: E402
-                                      ScipyRK45)
+* :mod:`integrators.core`: ``solve``, ``Solution``, the registry and base classes, the events,
+  and the segment driver the adapters share;
+* :mod:`integrators.own`: the project's compiled methods (the paper's ETD family; CashKarp45,
+  Rosenbrock23, Rodas5P, Exprb32, Exprb43 on one compiled engine);
+* :mod:`integrators.external`: adapters to scipy, numbalsoda, scikits-odes, assimulo and
+  scikit-SUNDAE, declared by name here and imported on first use (``import integrators`` imports
+  none of those libraries; a name whose library fails to import is left out of the registry, the
+  reason in :data:`UNAVAILABLE`).
+"""
 
-#: optional backends: each registers its integrators when its library imports; otherwise the
-#: reason is kept here (tests report it as a skip; `make test` installs them all).
-OPTIONAL_BACKENDS = ("integrators.scikits_odes_backend", "integrators.assimulo_backend",
-                     "integrators.sksundae_backend", "integrators.numbalsoda_backend")
-UNAVAILABLE: dict[str, str] = {}
+from integrators.core.registry import (REGISTRY, UNAVAILABLE, Algorithm, algorithm_class,
+                                       make_algorithm, register)
+from integrators.core.solution import EVENT_COLUMNS, Output, ReturnCode, Solution, Stats
+from integrators.core.solve import Budget, solve
+from integrators.own.etd import ETD1, ETD2, ETDIterated
+from integrators.own.cash_karp import CashKarp45
+from integrators.own.exprb32 import Exprb32
+from integrators.own.exprb43 import Exprb43
+from integrators.own.rodas5p import Rodas5P
+from integrators.own.rosenbrock23 import Rosenbrock23
+
+#: the adapters to external libraries: module → the names it registers (a test checks the lists)
+EXTERNAL = {
+    "integrators.external.scipy_backend": ("scipy-RK45", "scipy-DOP853", "scipy-Radau",
+                                           "scipy-BDF", "scipy-LSODA"),
+    "integrators.external.numbalsoda_backend": ("numbalsoda-LSODA",),
+    "integrators.external.scikits_odes_backend": ("odes-CVODE-BDF", "odes-CVODE-Adams",
+                                                  "odes-IDA"),
+    "integrators.external.assimulo_backend": ("assimulo-CVode", "assimulo-IDA",
+                                              "assimulo-Radau5ODE", "assimulo-LSODAR",
+                                              "assimulo-RodasODE", "assimulo-Dopri5"),
+    "integrators.external.sksundae_backend": ("sundae-CVODE", "sundae-IDA"),
+}
+for _module, _names in EXTERNAL.items():
+    REGISTRY.declare(_module, _names)
+
+#: classes of the adapters reachable as attributes (``integrators.ScipyRadau``), imported on use
+_CLASSES = {"ScipyRK45": "scipy-RK45", "ScipyDOP853": "scipy-DOP853", "ScipyRadau": "scipy-Radau",
+            "ScipyBDF": "scipy-BDF", "ScipyLSODA": "scipy-LSODA"}
 
 
-def _load_optional() -> None:
-    import importlib
-    for module in OPTIONAL_BACKENDS:
-        try:
-            importlib.import_module(module)
-        except ImportError as exc:
-            UNAVAILABLE[module] = f"{type(exc).__name__}: {exc}"
+def __getattr__(name: str):
+    if name in _CLASSES:
+        return REGISTRY[_CLASSES[name]]
+    raise AttributeError(f"module 'integrators' has no attribute {name!r}")
 
 
-_load_optional()
-
-__all__ = ["REGISTRY", "Algorithm", "algorithm_class", "make_algorithm", "register", "EVENT_COLUMNS", "ReturnCode",
-           "Solution", "Stats", "UNAVAILABLE", "solve", "ETD1", "ETD2", "ETDIterated", "CashKarp45", "Exprb32", "Exprb43", "Rosenbrock23", "Rodas5P",
-           "ScipyBDF", "ScipyDOP853", "ScipyLSODA", "ScipyRadau", "ScipyRK45"]
+__all__ = ["REGISTRY", "UNAVAILABLE", "EXTERNAL", "Algorithm", "algorithm_class", "make_algorithm",
+           "register", "EVENT_COLUMNS", "Output", "ReturnCode", "Solution", "Stats", "Budget",
+           "solve", "ETD1", "ETD2", "ETDIterated", "CashKarp45", "Exprb32", "Exprb43",
+           "Rosenbrock23", "Rodas5P", *_CLASSES]

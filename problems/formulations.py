@@ -14,6 +14,13 @@ The aging-law state Ψ = v0 θ/Lc ~ 1/w spans as many decades, hence ln Ψ; the 
 
 The Jacobian is analytic (:func:`ode_jacobian`). Both functions are numba-compiled and take plain
 floats, so compiled integrators can call them; :class:`OdeForm` wraps them for Python callers.
+
+The friction laws in one place: every law-specific formula of the ODE, DAE and ETD forms is in
+the section "the laws" below (:func:`state_rate`, :func:`state_rate_partials`,
+:func:`ln_slip_rate`, :func:`etd_targets`, and their Python counterparts), dispatched on the law
+code (:data:`LAW_CODES`). An unknown code is refused by :func:`check_law_code` wherever Python
+hands one over, and gives NaN, never another law's formulas, in compiled code
+(docs/adding-a-law.md says how to add a law).
 """
 
 from __future__ import annotations
@@ -23,7 +30,78 @@ import numpy as np
 from numba import njit
 
 __all__ = ["ode_rhs", "ode_jacobian", "OdeForm", "to_ode_state", "from_ode_state", "dae_residual",
-           "dae_jacobian", "dae_initial", "DaeForm", "DAE_DIFFERENTIAL"]
+           "dae_jacobian", "dae_initial", "DaeForm", "DAE_DIFFERENTIAL", "SLIP_LAW", "AGING_LAW",
+           "LAW_CODES", "check_law_code", "state_rate", "state_rate_partials", "ln_slip_rate",
+           "etd_targets", "s_of_psi", "psi_of_s", "psi_rate"]
+
+# --- the laws ---------------------------------------------------------------------------------
+#: codes of the friction laws in compiled code (``FrictionLaw.code``)
+SLIP_LAW, AGING_LAW = 0, 1
+LAW_CODES = {SLIP_LAW: "slip", AGING_LAW: "aging"}
+
+
+def check_law_code(code) -> int:
+    """``code`` if it is a friction-law code the compiled forms know, else ValueError."""
+    if isinstance(code, bool) or not isinstance(code, (int, np.integer)) or int(code) not in LAW_CODES:
+        raise ValueError(f"unknown friction-law code {code!r}: the compiled forms know "
+                         f"{dict(LAW_CODES)} (docs/adding-a-law.md says how to add one)")
+    return int(code)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def state_rate(law, u, s, w):
+    """s' in the ODE form: −w (u + s) (slip law), e^(−s) − w (aging law); NaN for another code."""
+    if law == SLIP_LAW:
+        return -w * (u + s)
+    if law == AGING_LAW:
+        return np.exp(-s) - w
+    return np.nan
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def state_rate_partials(law, u, s, w):
+    """(∂s'/∂u, ∂s'/∂s) of :func:`state_rate`."""
+    if law == SLIP_LAW:
+        return -w * (u + s) - w, -w
+    if law == AGING_LAW:
+        return -w, -np.exp(-s)
+    return np.nan, np.nan
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def ln_slip_rate(law, beta, eta, psi):
+    """ln w from the friction-law constraint (Eq. 32 slip law, Eq. 62 aging law)."""
+    if law == SLIP_LAW:
+        return eta - beta * psi
+    if law == AGING_LAW:
+        return eta - beta * np.log(psi)
+    return np.nan
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def etd_targets(law, beta, c, d, h, lnw, w, psi):
+    """The ETD's frozen targets (ηss, Ψss) at (h, w, Ψ): Eqs. 36–40 (slip), 63–65 (aging)."""
+    if law == SLIP_LAW:
+        return (c * h - beta * w * w * (lnw + psi)) / d, -lnw
+    if law == AGING_LAW:
+        return (c * h + beta * w / psi - beta * w * w) / d, 1.0 / w
+    return np.nan, np.nan
+
+
+def s_of_psi(law_code: int, psi):
+    """The ODE form's s: Ψ (slip law) or ln Ψ (aging law); arrays welcome."""
+    return psi if check_law_code(law_code) == SLIP_LAW else np.log(psi)
+
+
+def psi_of_s(law_code: int, s):
+    """Ψ from the ODE form's s (inverse of :func:`s_of_psi`)."""
+    return s if check_law_code(law_code) == SLIP_LAW else np.exp(s)
+
+
+def psi_rate(law_code: int, psi, ds):
+    """Ψ' from s' (the chain rule of :func:`s_of_psi`)."""
+    return ds if check_law_code(law_code) == SLIP_LAW else psi * ds
+
 
 
 @njit(cache=True, error_model="numpy")
@@ -33,10 +111,7 @@ def ode_rhs(law, beta, c, d, e, z, out):
     w = np.exp(u)
     out[0] = e - w
     out[1] = (c * h - d * (u + beta * s)) / w
-    if law == 0:
-        out[2] = -w * (u + s)
-    else:
-        out[2] = np.exp(-s) - w
+    out[2] = state_rate(law, u, s, w)
 
 
 @njit(cache=True, error_model="numpy")
@@ -48,24 +123,21 @@ def ode_jacobian(law, beta, c, d, e, z, jac):
     fu = (c * h - d * (u + beta * s)) * inv_w
     jac[0, 0], jac[0, 1], jac[0, 2] = 0.0, -w, 0.0
     jac[1, 0], jac[1, 1], jac[1, 2] = c * inv_w, -d * inv_w - fu, -d * beta * inv_w
-    if law == 0:
-        jac[2, 0], jac[2, 1], jac[2, 2] = 0.0, -w * (u + s) - w, -w
-    else:
-        jac[2, 0], jac[2, 1], jac[2, 2] = 0.0, -w, -np.exp(-s)
+    dfs_du, dfs_ds = state_rate_partials(law, u, s, w)
+    jac[2, 0], jac[2, 1], jac[2, 2] = 0.0, dfs_du, dfs_ds
 
 
 def to_ode_state(law_code: int, beta: float, x) -> np.ndarray:
     """(h, η, Ψ) → (h, u, s)."""
     h, eta, psi = x
-    if law_code == 0:
-        return np.array([h, eta - beta * psi, psi])
-    return np.array([h, eta - beta * np.log(psi), np.log(psi)])
+    s = s_of_psi(law_code, psi)
+    return np.array([h, eta - beta * s, s])
 
 
 def from_ode_state(law_code: int, beta: float, z: np.ndarray):
     """(h, u, s) arrays → (h, η, Ψ) arrays."""
     h, u, s = z[..., 0], z[..., 1], z[..., 2]
-    return h, u + beta * s, (s if law_code == 0 else np.exp(s))
+    return h, u + beta * s, psi_of_s(law_code, s)
 
 
 class OdeForm:
@@ -115,18 +187,11 @@ DAE_DIFFERENTIAL = np.array([1.0, 0.0, 1.0, 1.0])
 
 
 @njit(cache=True, error_model="numpy")
-def _state_rate(law, u, s, w):
-    if law == 0:
-        return -w * (u + s)
-    return np.exp(-s) - w
-
-
-@njit(cache=True, error_model="numpy")
 def dae_residual(law, beta, c, d, e, y, yp, out):
     """Write F(y, y') of the DAE form into ``out`` (length 4)."""
     h, u, s, eta = y[0], y[1], y[2], y[3]
     w = np.exp(u)
-    fs = _state_rate(law, u, s, w)
+    fs = state_rate(law, u, s, w)
     out[0] = yp[0] - (e - w)
     out[1] = u - (eta - beta * s)
     out[2] = yp[2] - fs
@@ -138,10 +203,7 @@ def dae_jacobian(law, beta, c, d, e, y, cj, jac):
     """Write ∂F/∂y + cj ∂F/∂y' into the 4×4 ``jac`` (IDA's iteration matrix)."""
     h, u, s, eta = y[0], y[1], y[2], y[3]
     w = np.exp(u)
-    if law == 0:
-        dfs_du, dfs_ds = -w * (u + s) - w, -w
-    else:
-        dfs_du, dfs_ds = -w, -np.exp(-s)
+    dfs_du, dfs_ds = state_rate_partials(law, u, s, w)
     feta = (c * h - d * eta) / w
     for i in range(4):
         for j in range(4):

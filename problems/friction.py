@@ -19,8 +19,9 @@ from typing import ClassVar
 import numpy as np
 
 from problems._validate import check_non_negative, check_positive, warn_implausible
+from problems.formulations import LAW_CODES, check_law_code
 
-__all__ = ["FrictionLaw", "SlipLaw", "AgingLaw", "LAWS", "law_from_name"]
+__all__ = ["FrictionLaw", "SlipLaw", "AgingLaw", "LAWS", "law_from_name", "compiled_law_code"]
 
 
 @dataclass(frozen=True)
@@ -138,3 +139,14 @@ def law_from_name(name: str, **params) -> FrictionLaw:
     except (KeyError, AttributeError):
         raise ValueError(f"law must be one of {sorted(LAWS)}, got {name!r}") from None
     return cls(**params)
+
+
+def compiled_law_code(law: FrictionLaw) -> int:
+    """The code under which the compiled forms (:mod:`problems.formulations`) know ``law``'s
+    class; ValueError for any other class, a subclass included (its formulas may differ)."""
+    code = getattr(type(law), "code", None)
+    if LAWS.get(LAW_CODES.get(code, "")) is not type(law):
+        raise ValueError(f"friction law {type(law).__name__} (code {code!r}) has no compiled "
+                         f"form: the known laws are {sorted(LAWS)} (docs/adding-a-law.md says "
+                         "how to add one)")
+    return check_law_code(code)

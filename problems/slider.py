@@ -22,7 +22,8 @@ from typing import NamedTuple, Union
 import numpy as np
 
 from problems._validate import check_finite, check_positive
-from problems.friction import AgingLaw, FrictionLaw, SlipLaw
+from problems.formulations import psi_rate, s_of_psi, state_rate
+from problems.friction import AgingLaw, FrictionLaw, SlipLaw, compiled_law_code
 from problems.loading import ConstantLoading, TwoSpeedLoading
 
 __all__ = ["InitialState", "BalancedStart", "SpringSlider", "Nondimensional",
@@ -137,8 +138,10 @@ class SpringSlider:
             raise ValueError(f"name must be a string, got {self.name!r}")
         if not isinstance(self.law, (SlipLaw, AgingLaw)):
             raise ValueError(f"law must be a SlipLaw or AgingLaw, got {self.law!r}")
-        if not isinstance(self.loading, (ConstantLoading, TwoSpeedLoading)):
-            raise ValueError(f"loading must be ConstantLoading or TwoSpeedLoading, got {self.loading!r}")
+        compiled_law_code(self.law)      # a law class the compiled forms do not know
+        if type(self.loading) not in (ConstantLoading, TwoSpeedLoading):
+            raise ValueError(f"loading must be ConstantLoading or TwoSpeedLoading (the two the "
+                             f"integrators know; a subclass is refused), got {self.loading!r}")
         if not isinstance(self.initial, (InitialState, BalancedStart)):
             raise ValueError(f"initial must be an InitialState or a BalancedStart, got {self.initial!r}")
         ini = self.initial_state
@@ -206,7 +209,7 @@ class SpringSlider:
                        (self.friction(ini.v, ini.theta) - self.f0) / A,
                        law.psi(ini.theta, fn)], dtype=float)
         return Nondimensional(
-            law_code=law.code, beta=law.b / law.a,
+            law_code=compiled_law_code(law), beta=law.b / law.a,
             c=k * lc * lc / (m * v0 * v0), d=A * lc / (m * v0 * v0),
             e_slow=self.loading.v_slow / v0, e_fast=self.loading.v_fast / v0,
             tau_fast=self.loading.fast_duration / ts, tau_end=self.t_end / ts,
@@ -217,23 +220,17 @@ class SpringSlider:
         nd = self.nondimensional()
         e = nd.e_slow if e is None else e
         h, eta, psi = x
-        beta, c, d = nd.beta, nd.c, nd.d
-        if nd.law_code == SlipLaw.code:
-            w = math.exp(eta - beta * psi)
-            deta = (c * h - d * eta) / w - beta * w * (math.log(w) + psi)
-            dpsi = -w * (math.log(w) + psi)
-        else:
-            w = math.exp(eta - beta * math.log(psi))
-            deta = (c * h - d * eta) / w - beta * w + beta / psi
-            dpsi = 1.0 - w * psi
-        return np.array([e - w, deta, dpsi])
+        beta, c, d, code = nd.beta, nd.c, nd.d, nd.law_code
+        s = s_of_psi(code, psi)
+        u = eta - beta * s
+        w = math.exp(u)
+        ds = state_rate(code, u, s, w)
+        return np.array([e - w, (c * h - d * eta) / w + beta * ds, psi_rate(code, psi, ds)])
 
     def slip_rate_from_nondimensional(self, eta, psi):
         """w → v: the friction-law constraint w = exp(η − βΨ) or exp(η − β ln Ψ), in m/s."""
         beta = self.law.b / self.law.a
-        if self.law.code == SlipLaw.code:
-            return self.law.v0 * np.exp(eta - beta * psi)
-        return self.law.v0 * np.exp(eta - beta * np.log(psi))
+        return self.law.v0 * np.exp(eta - beta * s_of_psi(compiled_law_code(self.law), psi))
 
     def dimensional_state(self, h, eta, psi):
         """(v, Fs, θ) in SI units from the nondimensional (h, η, Ψ)."""

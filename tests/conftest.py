@@ -29,7 +29,8 @@ def _gfortran_runtimes():
     return [ctypes.CDLL(p) for p in sorted(paths)]
 
 
-_GFORTRAN = _gfortran_runtimes()       # after `import integrators` above: every backend loaded
+I.REGISTRY.load_all()                  # the adapters load on first use: load them all now
+_GFORTRAN = _gfortran_runtimes()
 
 
 @pytest.fixture(autouse=True)

@@ -7,8 +7,8 @@ import pytest
 import integrators as I
 import problems as P
 from integrators import REGISTRY, UNAVAILABLE
-from integrators.events import AT_ROOT, sign_change
-from integrators.solution import EVENT_COLUMNS
+from integrators.core.events import AT_ROOT, sign_change
+from integrators.core.solution import EVENT_COLUMNS
 
 NAMES = sorted(REGISTRY)
 CONTRACT_TOL = 1e-7
@@ -29,10 +29,29 @@ def first_events():
     return out
 
 
-@pytest.mark.parametrize("module", sorted(UNAVAILABLE) or ["(none)"])
+@pytest.mark.parametrize("module", sorted(I.EXTERNAL))
 def test_every_backend_library_is_installed(module):
-    if module != "(none)":
-        pytest.skip(f"backend {module} unavailable: {UNAVAILABLE[module]}")
+    """Each adapter imports (``make test`` installs every library) and registers the names it
+    is declared with in ``integrators.EXTERNAL``."""
+    for name in I.EXTERNAL[module]:
+        if module in UNAVAILABLE:
+            pytest.skip(f"backend {module} unavailable: {UNAVAILABLE[module]}")
+        assert REGISTRY[name].name == name and REGISTRY[name].__module__ == module
+
+
+def test_import_integrators_imports_no_external_library():
+    """``import integrators`` (and a solve with an own method) leaves scipy's integrators, the
+    SUNDIALS bindings, assimulo (which pulls in matplotlib) and numbalsoda unimported: they load
+    on first use of one of their names."""
+    import subprocess
+    import sys
+    code = ("import sys, integrators as I, problems as P; "
+            "I.solve(P.paper_example(t_end=0.1), I.Rodas5P(rtol=1e-4, atol=1e-4)); "
+            "print(' '.join(sorted(m for m in sys.modules if m.split('.')[0] in "
+            "('scikits', 'assimulo', 'sksundae', 'numbalsoda', 'matplotlib') "
+            "or m.startswith(('scipy.integrate', 'integrators.external.')))))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == []
 
 
 @pytest.mark.parametrize("law", ["slip", "aging"])
@@ -136,3 +155,24 @@ def test_velocity_strengthening_sliding_settles_without_events(name, b, lc):
                   REGISTRY[name](rtol=1e-3, atol=1e-3), max_points=2, wall_budget=60)
     assert sol.success, f"{name}: {sol.retcode.value}: {sol.message}"
     assert len(sol.events) == 0
+
+
+OWN_ADAPTIVE = [n for n in NAMES if REGISTRY[n].library.startswith("rsfbench") and REGISTRY[n].adaptive]
+
+
+@pytest.mark.parametrize("name", OWN_ADAPTIVE)
+def test_saved_output_never_changes_the_steps(name):
+    """The own adaptive methods fill the save grid from their dense output: two saved points,
+    the default 20,000 and a save every 1e−4 s give the same steps, counters and events, and a
+    saved point agrees with the final state where they coincide. (Before the compiled engine a
+    dense grid set the steps: Exprb43 on W2 took 21,003 steps instead of 1,597.)"""
+    p = P.window("W2", "aging", t_end=0.05)
+    alg = _make(REGISTRY[name], tol=1e-6)
+    runs = [I.solve(p, alg, max_points=2), I.solve(p, alg), I.solve(p, alg, save_every=1e-4)]
+    counts = {(s.stats.steps, s.stats.rejected, s.stats.nfev, s.stats.njev) for s in runs}
+    assert len(counts) == 1 and all(s.success for s in runs)
+    for s in runs[1:]:
+        np.testing.assert_array_equal(s.events.to_numpy(), runs[0].events.to_numpy())
+        assert s.t[-1] == p.t_end and s.v[-1] == runs[0].v[-1]
+    assert len(runs[1].t) == 20_000 and len(runs[2].t) == 501
+    np.testing.assert_allclose(np.diff(runs[2].t), 1e-4, rtol=1e-9)

@@ -52,7 +52,7 @@ def test_order_on_the_stick_slip_limit_cycle(make, paper_radau_reference):
     """Paper example (20 s, 8 events, converged cycle): relative error of the last recurrence
     interval against Radau rtol 1e−11 (conftest; assimulo Radau5 and CVODE BDF at 1e−12 agree
     with it to 6e−10). ETD1 and ETD2 converge at order 1 (ETD2: order reduction, see
-    integrators/etd.py). ETDIterated(2) is ~70× more accurate than ETD2 at the paper's steps but
+    integrators/own/etd.py). ETDIterated(2) is ~70× more accurate than ETD2 at the paper's steps but
     has no asymptotic order: its error meets the frozen-target floor (~3–4e−7, ∝ mass)."""
     p = P.paper_example()
     ref = _last_cycle(paper_radau_reference)["recurrence_s"]
@@ -178,7 +178,7 @@ def test_two_speed_loading_switches_at_event_end():
 
 @pytest.mark.parametrize("make", [I.ETD2, I.ETDIterated])
 def test_the_step_rule_holds_on_every_preset(make):
-    """The step-rule check (module docstring of integrators/etd.py) never fires on the paper's
+    """The step-rule check (module docstring of integrators/own/etd.py) never fires on the paper's
     problems: measured max 1.24 over 1028 runs of the paper example, W1–W4 and sweep grids
     around them; the check stops a run at 100."""
     problems = [P.paper_example(law) for law in ("slip", "aging")]

@@ -1,7 +1,7 @@
-"""Exponential Rosenbrock exprb32/exprb43 (integrators/exp_rosenbrock.py): φ-functions against
+"""Exponential Rosenbrock exprb32/exprb43 (integrators/own/exprb32.py, exprb43.py, phi.py): φ-functions against
 scipy's expm, observed order with fixed steps on a stiff segment, agreement with the reference
 on the paper example and W2, located event times, counters; and the measurement behind "Why not
-an error-controlled ETD" (its module docstring)."""
+an error-controlled ETD" (docs/own-methods.md)."""
 
 import math
 
@@ -15,24 +15,23 @@ import problems as P
 from benchmarks.convergence import observed_order
 from benchmarks.errors import errors
 from benchmarks.reference import reference
-from integrators import exp_rosenbrock as X
-from integrators.etd_kernel import etd_step
+from integrators.own import phi as X
+from integrators.own.etd_kernel import etd_step
 from problems.formulations import OdeForm, to_ode_state
 
 METHODS = [I.Exprb32, I.Exprb43]
 
 
-def _params(nd, method_code, e=None):
-    """The kernel's parameter vector (rtol, atol and the event thresholds unused here)."""
-    return np.array([nd.law_code, nd.beta, nd.c, nd.d, nd.e_slow if e is None else e,
-                     0.0, 0.0, 0.0, 0.0, 0.0, float(method_code)])
+def _fixed(cls, nd, z0, span, n):
+    """``n`` fixed steps of ``cls`` over ``span`` (τ) from z0, no error control."""
+    return cls(rtol=0.5, atol=0.5).fixed_steps(nd, z0, span, n)   # tolerances unused
 
 
 def _stick_state(nd, tau):
     """z at τ from z0 by 400 exprb43 steps per unit τ (fixed steps; the stick phase before the
     first event: its error, ~1e−11, does not matter to a test that starts from it)."""
     z0 = to_ode_state(nd.law_code, nd.beta, nd.x0)
-    return X.fixed_steps(_params(nd, 1), z0, tau, int(400 * tau))
+    return _fixed(I.Exprb43, nd, z0, tau, int(400 * tau))
 
 
 def _phis_expm(a, kmax):
@@ -79,7 +78,7 @@ def test_phi_functions_match_scipy_expm():
                     err = np.abs(got[k] - want[k]).max() / np.abs(want[k]).max()
                     assert err < 1e-8, (phi.__name__, tau, h, k, err)
                 assert np.abs(half - want_half).max() / np.abs(want_half).max() < 1e-8
-            split_used += a[1, 1] <= -64.0 and not np.isnan(X._stiff_eigenvalue(a))
+            split_used += a[1, 1] <= -64.0 and not np.isnan(X.stiff_eigenvalue(a))
     assert slip_seen >= 3 and split_used >= 40
 
 
@@ -96,10 +95,9 @@ def test_observed_order_with_fixed_steps_on_a_stiff_segment(cls, law):
     span = 4.0
     ref = solve_ivp(form.f, (0, span), z, method="Radau", jac=form.jac, rtol=1e-13,
                     atol=1e-13).y[:, -1]
-    p = _params(nd, cls.method_code)
-    assert np.abs(X.fixed_steps(_params(nd, 1), z, span, 4096) - ref).max() < 1e-11
+    assert np.abs(_fixed(I.Exprb43, nd, z, span, 4096) - ref).max() < 1e-11
     ns = np.array([4, 8, 16, 32, 64] if cls.order == 3 else [4, 8, 16, 32])
-    err = np.array([np.abs(X.fixed_steps(p, z, span, n) - ref).max() for n in ns])
+    err = np.array([np.abs(_fixed(cls, nd, z, span, n) - ref).max() for n in ns])
     assert err.min() > 1e-10                   # far above the reference's own error
     assert observed_order(span / ns, err) == pytest.approx(cls.order, abs=0.15)
 
@@ -126,23 +124,19 @@ def test_agrees_with_the_reference_at_tight_tolerance(cls, problem):
 
 
 @pytest.mark.parametrize("cls", METHODS, ids=lambda c: c.name)
-def test_counters(cls, monkeypatch):
+def test_counters(cls):
     """nfev = (1 + s)·steps + s·rejected + 2·starts (s stage evaluations per attempt), one
     Jacobian per step, on W2 (50 ms) with its two-speed restart. Two saved points: a dense
     save grid would set every step (and leave no rejection to count)."""
-    starts = []
-    original = X._ExprbStepper.start
-    monkeypatch.setattr(X._ExprbStepper, "start",
-                        lambda self, *args: (starts.append(args[0]), original(self, *args))[1])
     sol = I.solve(P.window("W2", "slip", t_end=0.05), cls(rtol=1e-7, atol=1e-7), max_points=2)
-    s, stages = sol.stats, 1 if cls.order == 3 else 2
-    assert sol.success and len(starts) >= 2 and s.rejected > 0
-    assert s.nfev == (1 + stages) * s.steps + stages * s.rejected + 2 * len(starts)
+    s, stages, starts = sol.stats, 1 if cls.order == 3 else 2, sol.meta["starts"]
+    assert sol.success and starts >= 2 and s.rejected > 0
+    assert s.nfev == (1 + stages) * s.steps + stages * s.rejected + 2 * starts
     assert s.njev == s.steps
 
 
 def test_why_not_an_error_controlled_etd():
-    """The measurement behind the module docstring's "Why not an error-controlled ETD": one step
+    """The measurement behind docs/own-methods.md's "Why not an error-controlled ETD": one step
     of the paper's ETD from a stick-phase state of the paper example (τ = 10, w/D = 2.8e−6),
     errors in u = ln w against 64 exprb43 steps. The naive estimate ETD2 − ETD1 is O(h), not
     O(h²): it is ETD1's own one-step lag h·dηss/dτ (ratio ≈ 1), so a controller that treats it
@@ -158,7 +152,7 @@ def test_why_not_an_error_controlled_etd():
         y = etd_step(nd.law_code, nd.beta, nd.c, nd.d, nd.e_slow, *x, h, n_iter)
         return y[1] - nd.beta * y[2]
 
-    exact = np.array([X.fixed_steps(_params(nd, 1), z, h, 64)[1] for h in hs])
+    exact = np.array([_fixed(I.Exprb43, nd, z, h, 64)[1] for h in hs])
     u1, u2, u3 = (np.array([u(h, k) for h in hs]) for k in (0, 1, 2))
     naive, embedded = np.abs(u2 - u1), np.abs(u3 - u2)
     assert observed_order(hs, naive) == pytest.approx(1.0, abs=0.05)

@@ -5,7 +5,7 @@ import pandas as pd
 import pytest
 
 from benchmarks.metrics import EndState, event_metrics, limit_cycle
-from integrators.solution import EVENT_COLUMNS
+from integrators.core.solution import EVENT_COLUMNS
 
 FN = 1e6
 

@@ -139,3 +139,43 @@ def test_critical_stiffness_and_frequency_formulas():
     assert np.abs(osc.real).max() < 1e-9 * np.abs(osc.imag).max()
     assert np.abs(osc.imag).max() == pytest.approx(P.neutral_frequency(p), rel=1e-10)
     assert P.neutral_frequency(p) == pytest.approx(v / law.lc * math.sqrt((law.b - law.a) / law.a))
+
+
+def test_unknown_law_code_fails_loudly_at_every_entry_point():
+    """A law the compiled forms do not know is never run with another law's formulas: the
+    problem refuses its class (a subclass included), the Python helpers refuse its code, and
+    the compiled functions give NaN, which a solve reports as a failure."""
+    from integrators.core.events import root_derivatives
+    from integrators.own import engine
+    from integrators.own.etd_kernel import coefficients
+    from problems import formulations as F
+    from problems.friction import AgingLaw, SlipLaw, compiled_law_code
+
+    class NewLaw(AgingLaw):
+        code = 2
+
+    class SlipLawVariant(SlipLaw):          # same code, other class: its formulas may differ
+        pass
+
+    base = P.paper_example("aging")
+    for law in (NewLaw(a=base.law.a, b=base.law.b, lc=base.law.lc),
+                SlipLawVariant(a=base.law.a, b=base.law.b, lc=base.law.lc)):
+        with pytest.raises(ValueError, match="has no compiled form"):
+            dataclasses.replace(base, law=law)
+        with pytest.raises(ValueError, match="has no compiled form"):
+            compiled_law_code(law)
+    nd = base.nondimensional()._replace(law_code=2)
+    z, out, jac = np.array([0.1, -2.0, 3.0]), np.empty(3), np.empty((3, 3))
+    for call in (lambda: F.check_law_code(2), lambda: F.check_law_code(True),
+                 lambda: F.to_ode_state(2, nd.beta, nd.x0), lambda: F.from_ode_state(2, 1.0, z),
+                 lambda: F.s_of_psi(2, 1.0), lambda: root_derivatives(nd, nd.e_slow, z),
+                 lambda: engine.new_state(nd, False, 1e-6, 1e-6, {}, 10, np.inf)):
+        with pytest.raises(ValueError, match="unknown friction-law code"):
+            call()
+    F.ode_rhs(2, nd.beta, nd.c, nd.d, nd.e_slow, z, out)
+    F.ode_jacobian(2, nd.beta, nd.c, nd.d, nd.e_slow, z, jac)
+    assert np.isnan(out[2]) and np.isnan(jac[2, 1:]).all() and np.isfinite(out[:2]).all()
+    res = np.empty(4)
+    F.dae_residual(2, nd.beta, nd.c, nd.d, nd.e_slow, np.append(z, 0.0), np.zeros(4), res)
+    assert np.isnan(res[2])
+    assert np.isnan(coefficients(2, nd.beta, nd.c, nd.d, 0.1, 0.5, 1.0)).all()

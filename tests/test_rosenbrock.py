@@ -1,4 +1,4 @@
-"""Rosenbrock23 and Rodas5P (integrators/rosenbrock.py): the 3×3 LU, the observed order with
+"""Rosenbrock23 and Rodas5P (integrators/own/rosenbrock23.py, rodas5p.py): the 3×3 LU, the observed order with
 fixed steps (classical and in the stiff stick phase), agreement with the references on the
 paper example and W2, located event times, the stick-phase PEAK jitter, the cost counters."""
 
@@ -13,8 +13,7 @@ import problems as P
 from benchmarks.convergence import observed_order
 from benchmarks.errors import errors
 from benchmarks.reference import reference
-from integrators import rosenbrock
-from integrators.events import PEAK
+from integrators.own import linalg
 from problems.formulations import OdeForm, to_ode_state
 
 METHODS = [I.Rosenbrock23, I.Rodas5P]
@@ -30,12 +29,12 @@ def test_lu3_matches_numpy():
              np.array([[1.0, 5e3, 0.0], [-2e-4, 1.0 + 4e4, 3e3], [0.0, 7.0, 1.0]])]
     for a in mats:
         lu, piv, b = a.copy(), np.empty(3, np.int64), rng.normal(size=(1, 3))
-        assert rosenbrock._lu3(lu, piv)
+        assert linalg.lu3(lu, piv)
         x = b.copy()
-        rosenbrock._lus3(lu, piv, x, 0)
+        linalg.lu_solve3(lu, piv, x, 0)
         np.testing.assert_allclose(x[0], np.linalg.solve(a, b[0]), rtol=1e-10, atol=1e-12)
     singular = np.array([[1.0, 2.0, 3.0], [2.0, 4.0, 6.0], [0.0, 1.0, 1.0]])
-    assert not rosenbrock._lu3(singular, np.empty(3, np.int64))
+    assert not linalg.lu3(singular, np.empty(3, np.int64))
 
 
 def _fixed_errors(cls, nd, z0, t, ns, check_method):
@@ -48,9 +47,8 @@ def _fixed_errors(cls, nd, z0, t, ns, check_method):
     jac = {} if check_method == "DOP853" else {"jac": form.jac}
     check = solve_ivp(form.f, (0.0, t), z0, method=check_method, rtol=1e-13, atol=1e-13,
                       **jac).y[:, -1]
-    p = np.array([nd.law_code, nd.beta, nd.c, nd.d, nd.e_slow, 1.0, 1.0, 0.0, 0.0, 0.0,
-                  cls.method_code])
-    errs = np.array([np.abs(rosenbrock.fixed_steps(p, z0, t / n, n) - ref).max() for n in ns])
+    method = cls(rtol=0.5, atol=0.5)      # tolerances unused by fixed steps
+    errs = np.array([np.abs(method.fixed_steps(nd, z0, t, n) - ref).max() for n in ns])
     assert np.abs(ref - check).max() < 0.02 * errs.min()
     return t / np.array(ns, float), errs
 
@@ -72,13 +70,16 @@ def test_classical_order_with_fixed_steps(cls):
 def stick_state():
     """The paper example at t = 1.2 s (τ = 24), in the stick phase after the first event
     (w ≈ 0.15, D/w ≈ 2.4e5: stiff), by Rodas5P at rtol = atol = 1e−12."""
-    nd = P.paper_example().nondimensional()
-    stepper = rosenbrock._RosenbrockStepper(I.Rodas5P(rtol=1e-12, atol=1e-12), nd, None)
-    stepper._dirs[:] = 5             # no crossing counts: straight to τ = 24
-    stepper.start(0.0, to_ode_state(nd.law_code, nd.beta, nd.x0), nd.e_slow, 24.0)
-    adv = stepper.advance(24.0)
-    assert adv.tau == 24.0 and np.exp(adv.z[1]) < 1.0
-    return nd, adv.z
+    problem = P.paper_example()
+    nd = problem.nondimensional()
+    sol = I.solve(dataclasses.replace(problem, t_end=24.0 * nd.time_scale),
+                  I.Rodas5P(rtol=1e-12, atol=1e-12), max_points=2)
+    law, fn = problem.law, problem.normal_force
+    x = ((sol.fs[-1] - problem.f0) / (problem.stiffness * law.lc),     # as nondimensional() does
+         (sol.ft[-1] - problem.f0) / (law.a * fn), law.psi(sol.theta[-1], fn))
+    z = to_ode_state(nd.law_code, nd.beta, np.array(x))
+    assert sol.success and np.exp(z[1]) < 1.0
+    return nd, z
 
 
 @pytest.mark.parametrize("cls", METHODS, ids=IDS)
@@ -141,31 +142,23 @@ def test_located_event_times(cls, factor, law, radau_short_w2):
 
 
 @pytest.mark.parametrize("cls", METHODS, ids=IDS)
-def test_no_stick_phase_jitter(cls, monkeypatch):
+def test_no_stick_phase_jitter(cls):
     """The L-stable methods damp the stiff mode: on the paper example (8 events) every PEAK
-    root returned is an event's peak, so CashKarp45's exclusion of PEAK crossings at
-    w ≤ E_slow is not needed here."""
-    roots = []
-    original = rosenbrock._RosenbrockStepper.advance
-    monkeypatch.setattr(rosenbrock._RosenbrockStepper, "advance",
-                        lambda self, t_out: (a := original(self, t_out), roots.extend(a.roots))[0])
+    root reported is an event's peak, so CashKarp45's exclusion of PEAK crossings at
+    w ≤ E_slow is not needed here (STICK_PEAKS = 1)."""
     sol = I.solve(P.paper_example(), cls(rtol=1e-8, atol=1e-8), max_points=2)
     assert sol.success and len(sol.events) == 8
-    assert roots.count(PEAK) == 8
+    assert sol.meta["roots"]["peak"] == 8
 
 
 @pytest.mark.parametrize("cls", METHODS, ids=IDS)
-def test_counters(cls, monkeypatch):
+def test_counters(cls):
     """nfev and njev as the module docstring counts them, on W2 (50 ms) with its two-speed
     restarts: Rosenbrock23 2 f per attempt, Rodas5P 7 per attempt and one per accepted step,
     both 2 per start; one Jacobian per step."""
-    starts = []
-    original = rosenbrock._RosenbrockStepper.start
-    monkeypatch.setattr(rosenbrock._RosenbrockStepper, "start",
-                        lambda self, *args: (starts.append(args[0]), original(self, *args))[1])
     sol = I.solve(P.window("W2", "slip", t_end=0.05), cls(rtol=1e-5, atol=1e-5), max_points=2)
-    s = sol.stats
-    assert sol.success and len(starts) >= 2 and s.steps > 0 and s.rejected > 0
+    s, starts = sol.stats, sol.meta["starts"]
+    assert sol.success and starts >= 2 and s.steps > 0 and s.rejected > 0
     per_step, per_rejected = (2, 2) if cls is I.Rosenbrock23 else (8, 7)
-    assert s.nfev == per_step * s.steps + per_rejected * s.rejected + 2 * len(starts)
+    assert s.nfev == per_step * s.steps + per_rejected * s.rejected + 2 * starts
     assert s.njev == s.steps

@@ -6,12 +6,12 @@ Radau5ODE (RADAU5, C port), LSODAR (ODEPACK Adams/BDF switching), RodasODE (RODA
 (DOPRI5). All six run correctly; none is left out.
 
 Events use assimulo's own state-event machinery: the problem's ``state_events`` returns the four
-root functions of :mod:`integrators.events`; the solver locates their sign changes (SUNDIALS'
+root functions of :mod:`integrators.core.events`; the solver locates their sign changes (SUNDIALS'
 root finding for CVode and IDA, ODEPACK's for LSODAR, assimulo's event locator on the dense
 output for Radau5ODE, RodasODE and Dopri5) and calls ``handle_event``. The event info of CVode,
 IDA and the event-locator solvers is the crossing direction (±1); LSODAR's (``JROOT``) is only
 1/0, so its directions come from the root functions' time derivatives
-(:func:`integrators.segments.directional_roots`).
+(:func:`integrators.core.segments.directional_roots`).
 
 The segment protocol. ``simulate`` is assimulo's only entry point that runs its event handling,
 and every call re-initialises the solver (``CVodeReInit``/``IDAReInit``; RADAU5, RODAS, DOPRI5 and
@@ -64,10 +64,10 @@ from assimulo.exception import TerminateSimulation
 from assimulo.problem import Explicit_Problem, Implicit_Problem
 from assimulo.solvers.sundials import get_sundials_version
 
-from integrators.events import root_functions
-from integrators.registry import AdaptiveAlgorithm, register
-from integrators.segments import Advance, directional_roots
-from integrators.solution import ReturnCode, Stats
+from integrators.core.events import root_functions
+from integrators.core.registry import AdaptiveAlgorithm, register
+from integrators.core.segments import Advance, directional_roots
+from integrators.core.solution import ReturnCode, Stats
 from problems.formulations import DAE_DIFFERENTIAL, DaeForm, OdeForm, dae_initial
 
 __all__ = ["AssimuloCVode", "AssimuloIDA", "AssimuloRadau5ODE", "AssimuloLSODAR",

@@ -2,7 +2,7 @@
 
 :func:`monotonic` is POSIX ``clock_gettime(CLOCK_MONOTONIC)`` in seconds, the clock behind
 Python's ``time.perf_counter`` on Linux, so a deadline computed in Python
-(:meth:`integrators.solve.Budget.deadline`) can be compared with it in a numba function or cfunc.
+(:meth:`integrators.core.solve.Budget.deadline`) can be compared with it in a numba function or cfunc.
 It is a numba intrinsic (a direct call of the C library's function, no Python object involved):
 it caches with the function that uses it, and costs ~20 ns.
 """

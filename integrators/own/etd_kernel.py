@@ -21,6 +21,8 @@ import math
 import numpy as np
 from numba import njit
 
+from problems.formulations import etd_targets, ln_slip_rate
+
 # --- layout of the loop state ``st`` -------------------------------------------------------
 S_TAU, S_H, S_ETA, S_PSI = 0, 1, 2, 3
 S_LOAD = 4            # load-point displacement / Lc since the start
@@ -62,25 +64,18 @@ DONE, BUFFER_FULL, CHUNK_END, NONFINITE, STEP_RULE = 0, 1, 2, -1, -2
 @njit(cache=True, nogil=True, error_model="numpy")
 def log_slip_rate(law, beta, eta, psi):
     """ln w from the friction-law constraint (Eq. 32 slip law, Eq. 62 aging law)."""
-    if law == 0:
-        return eta - beta * psi
-    return eta - beta * math.log(psi)
+    return ln_slip_rate(law, beta, eta, psi)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def coefficients(law, beta, c, d, h, eta, psi):
     """Frozen coefficients at (h, η, Ψ): w, ηss, D/w (rate of η), Ψss, w (rate of Ψ).
 
-    Eqs. 36–40 (slip law) and 63–65 (aging law).
+    Eqs. 36–40 (slip law) and 63–65 (aging law): :func:`problems.formulations.etd_targets`.
     """
-    lnw = log_slip_rate(law, beta, eta, psi)
+    lnw = ln_slip_rate(law, beta, eta, psi)
     w = math.exp(lnw)
-    if law == 0:
-        eta_ss = (c * h - beta * w * w * (lnw + psi)) / d
-        psi_ss = -lnw
-    else:
-        eta_ss = (c * h + beta * w / psi - beta * w * w) / d
-        psi_ss = 1.0 / w
+    eta_ss, psi_ss = etd_targets(law, beta, c, d, h, lnw, w, psi)
     return w, eta_ss, d / w, psi_ss, w
 
 

@@ -6,7 +6,7 @@ A backend supplies a :class:`SegmentSolver`, a thin adapter over its library:
   form, loading E = ``e``, never integrating past ``t_bound``;
 * ``advance(t_out)`` — integrate towards ``t_out`` (≤ t_bound) and return an :class:`Advance`:
   either at ``t_out`` or earlier, at the first root of the four root functions of
-  :mod:`integrators.events`, located by the library's own root finding;
+  :mod:`integrators.core.events`, located by the library's own root finding;
 * ``stats`` — a :class:`Stats` whose counters the adapter keeps summed over restarts.
 
 The driver owns what is common: the loading state (two-speed switch at an event end, back to slow
@@ -22,8 +22,8 @@ from typing import Protocol
 
 import numpy as np
 
-from integrators.events import DIRECTIONS, EventRecorder, root_derivatives
-from integrators.solution import RawRun, ReturnCode, Stats
+from integrators.core.events import DIRECTIONS, EventRecorder, root_derivatives
+from integrators.core.solution import RawRun, ReturnCode, Stats
 from problems.formulations import from_ode_state, to_ode_state
 
 __all__ = ["Advance", "SegmentSolver", "run_segments", "directional_roots"]

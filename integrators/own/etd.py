@@ -44,7 +44,7 @@ Between 10 and 100 a run can still be right: ETDIterated on b/a = 100 reaches 10
 first step and finds the event 22 % early.
 
 The compiled loop is in
-:mod:`integrators.etd_kernel`; this module holds the options and drives the loop in chunks.
+:mod:`integrators.own.etd_kernel`; this module holds the options and drives the loop in chunks.
 """
 
 from __future__ import annotations
@@ -55,9 +55,9 @@ from typing import ClassVar
 
 import numpy as np
 
-from integrators import etd_kernel as K
-from integrators.registry import Algorithm, register
-from integrators.solution import RawRun, ReturnCode, Stats
+from integrators.own import etd_kernel as K
+from integrators.core.registry import Algorithm, register
+from integrators.core.solution import RawRun, ReturnCode, Stats
 from problems._validate import check_count, check_positive
 from problems.loading import event_thresholds
 

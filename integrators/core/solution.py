@@ -87,7 +87,7 @@ class Output:
 
 @dataclass
 class RawRun:
-    """What a backend hands back to :func:`integrators.solve`: SI arrays, counters, outcome."""
+    """What a backend hands back to :func:`integrators.core.solve`: SI arrays, counters, outcome."""
 
     t: np.ndarray
     y: np.ndarray              # shape (len(t), 3): columns v (m/s), Fs (N), θ
@@ -100,7 +100,7 @@ class RawRun:
 
 @dataclass
 class Solution:
-    """The result of :func:`integrators.solve`.
+    """The result of :func:`integrators.core.solve`.
 
     Trajectory arrays are 1-D over saved times ``t`` (s): slip rate ``v`` (m/s), spring force
     ``fs`` (N), friction ``ft`` (N) and state ``theta`` (newtons for the slip law, seconds for

@@ -1,7 +1,7 @@
 """Root location on a step's dense output, for steppers that have no root finding of their own.
 
 :class:`DenseStepper` turns "take one step, then interpolate inside it" (scipy's ``OdeSolver``
-interface) into the ``advance(t_out)`` of :mod:`integrators.segments`: within each step it
+interface) into the ``advance(t_out)`` of :mod:`integrators.core.segments`: within each step it
 brackets sign changes of the four root functions between a cursor and the target and refines the
 earliest with Brent's method, as ``solve_ivp`` does for its events.
 """
@@ -11,9 +11,9 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import brentq
 
-from integrators.events import AT_ROOT, DIRECTIONS, root_functions, sign_change
-from integrators.segments import Advance
-from integrators.solution import ReturnCode
+from integrators.core.events import AT_ROOT, DIRECTIONS, root_functions, sign_change
+from integrators.core.segments import Advance
+from integrators.core.solution import ReturnCode
 
 __all__ = ["DenseStepper"]
 

@@ -1,18 +1,22 @@
 """The one registry of integrators, and the base class every algorithm derives from.
 
 Tests, benchmarks and the CLI iterate over :data:`REGISTRY`; adding an algorithm class with
-:func:`register` enrolls it everywhere. Optional backends register only when their library
-imports.
+:func:`register` enrolls it everywhere. The adapters to external libraries are *declared* by
+name (:meth:`Registry.declare`) and imported on first use: looking one name up imports its
+module; iterating, ``len`` or ``in`` imports every declared module (a library that fails to
+import is left out, with the reason in :data:`UNAVAILABLE`).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import importlib
 from typing import ClassVar
 
 from problems._validate import check_count, check_positive
 
-__all__ = ["Algorithm", "AdaptiveAlgorithm", "REGISTRY", "register", "algorithm_class", "make_algorithm"]
+__all__ = ["Algorithm", "AdaptiveAlgorithm", "REGISTRY", "Registry", "UNAVAILABLE", "register",
+           "algorithm_class", "make_algorithm"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -37,7 +41,7 @@ class Algorithm:
         return ""
 
     def run(self, problem, output, budget, progress):
-        """Integrate ``problem``; return an :class:`integrators.solution.RawRun`."""
+        """Integrate ``problem``; return an :class:`integrators.core.solution.RawRun`."""
         raise NotImplementedError
 
     def options(self) -> dict:
@@ -79,11 +83,11 @@ class AdaptiveAlgorithm(Algorithm):
         check_count("max_steps", self.max_steps)
 
     def make_stepper(self, nd, budget):
-        """The backend's adapter to the segment protocol (:mod:`integrators.segments`)."""
+        """The backend's adapter to the segment protocol (:mod:`integrators.core.segments`)."""
         raise NotImplementedError
 
     def run(self, problem, output, budget, progress):
-        from integrators.segments import run_segments
+        from integrators.core.segments import run_segments
         stepper = self.make_stepper(problem.nondimensional(), budget)
         try:
             return run_segments(problem, stepper, output, budget, progress)
@@ -113,7 +117,82 @@ def make_algorithm(name: str, rtol: float | None = None, atol: float | None = No
     return cls(**given)
 
 
-REGISTRY: dict[str, type[Algorithm]] = {}
+class Registry(dict):
+    """Name → algorithm class; names declared for a module are resolved by importing it."""
+
+    def __init__(self):
+        super().__init__()
+        self._declared: dict[str, str] = {}      # name → module, until the module is imported
+        self.origin: dict[str, str] = {}         # name → the module declared for it
+
+    def declare(self, module: str, names) -> None:
+        """``module`` registers ``names`` when imported; import it on first use only."""
+        for name in names:
+            self.origin[name] = module
+            if not dict.__contains__(self, name):
+                self._declared[name] = module
+
+    def _load(self, module: str) -> None:
+        names = [n for n, m in self._declared.items() if m == module]
+        try:
+            importlib.import_module(module)
+        except ImportError as exc:
+            UNAVAILABLE[module] = f"{type(exc).__name__}: {exc}"
+        finally:
+            for name in names:
+                self._declared.pop(name, None)
+        missing = [n for n in names if module not in UNAVAILABLE and not dict.__contains__(self, n)]
+        if missing:
+            raise RuntimeError(f"{module} was declared to register {missing} but did not")
+
+    def load_all(self) -> None:
+        """Import every declared module (iteration, ``len`` and ``in`` do this first)."""
+        for module in sorted(set(self._declared.values())):
+            self._load(module)
+
+    def __getitem__(self, name):
+        if name in self._declared:
+            self._load(self._declared[name])
+        return dict.__getitem__(self, name)
+
+    def get(self, name, default=None):
+        try:
+            return self[name]
+        except KeyError:
+            return default
+
+    def names(self) -> list[str]:
+        """Every registered or declared name, importing nothing."""
+        return sorted({*dict.keys(self), *self._declared})
+
+    def __contains__(self, name):
+        self.load_all()
+        return dict.__contains__(self, name)
+
+    def __iter__(self):
+        self.load_all()
+        return dict.__iter__(self)
+
+    def __len__(self):
+        self.load_all()
+        return dict.__len__(self)
+
+    def keys(self):
+        self.load_all()
+        return dict.keys(self)
+
+    def values(self):
+        self.load_all()
+        return dict.values(self)
+
+    def items(self):
+        self.load_all()
+        return dict.items(self)
+
+
+REGISTRY = Registry()
+#: declared modules whose library did not import: module → the reason
+UNAVAILABLE: dict[str, str] = {}
 #: the smallest rtol an adaptive method accepts: 100 ulps of 1
 RTOL_MIN = 100 * 2.0 ** -52
 
@@ -122,15 +201,22 @@ def register(cls: type[Algorithm]) -> type[Algorithm]:
     """Class decorator: enter ``cls`` in :data:`REGISTRY` under ``cls.name``."""
     if not cls.name:
         raise ValueError(f"{cls.__qualname__} has no name")
-    if cls.name in REGISTRY:
+    if dict.__contains__(REGISTRY, cls.name):
         raise ValueError(f"integrator name {cls.name!r} registered twice")
-    REGISTRY[cls.name] = cls
+    REGISTRY._declared.pop(cls.name, None)
+    dict.__setitem__(REGISTRY, cls.name, cls)
     return cls
 
 
 def algorithm_class(name: str) -> type[Algorithm]:
-    """Registry lookup, case-insensitive, with the known names in the error."""
-    for key, cls in REGISTRY.items():
+    """Registry lookup, case-insensitive, with the known names in the error; imports only the
+    module that registers ``name``."""
+    for key in REGISTRY.names():
         if isinstance(name, str) and key.lower() == name.lower():
-            return cls
+            try:
+                return REGISTRY[key]
+            except KeyError:
+                module = REGISTRY.origin.get(key, "")
+                raise ValueError(f"integrator {key!r} is not available here: {module} did not "
+                                 f"import ({UNAVAILABLE.get(module, 'unknown reason')})") from None
     raise ValueError(f"unknown integrator {name!r}; known: {', '.join(sorted(REGISTRY))}")

@@ -6,7 +6,7 @@ y = (h, u, s, η) with the analytic iteration matrix (``dae_jacobian``), u marke
 (``DAE_DIFFERENTIAL``) and consistent (y0, y'0) from ``dae_initial`` at every (re)start.
 
 Events use SUNDIALS' own root finding (``eventsfn``, ``num_events = 4``) on the four root
-functions of :mod:`integrators.events` (for IDA on y[:3]), with their counting directions handed
+functions of :mod:`integrators.core.events` (for IDA on y[:3]), with their counting directions handed
 to ``CVodeSetRootDirection``/``IDASetRootDirection`` (``eventsfn.direction``), so SUNDIALS reports
 only crossings that count; the crossing signs come back from its root info (``i_events``).
 
@@ -48,10 +48,10 @@ from typing import ClassVar
 import numpy as np
 import sksundae
 
-from integrators.events import DIRECTIONS
-from integrators.registry import AdaptiveAlgorithm, register
-from integrators.segments import Advance, directional_roots
-from integrators.solution import ReturnCode, Stats
+from integrators.core.events import DIRECTIONS
+from integrators.core.registry import AdaptiveAlgorithm, register
+from integrators.core.segments import Advance, directional_roots
+from integrators.core.solution import ReturnCode, Stats
 from problems.formulations import (DAE_DIFFERENTIAL, dae_initial, dae_jacobian, dae_residual,
                                    ode_jacobian, ode_rhs)
 

@@ -13,8 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from integrators.registry import Algorithm
-from integrators.solution import EVENT_COLUMNS, Output, RawRun, ReturnCode, Solution, Stats
+from integrators.core.registry import Algorithm
+from integrators.core.solution import EVENT_COLUMNS, Output, RawRun, ReturnCode, Solution, Stats
 from problems._validate import check_positive
 from problems.slider import SpringSlider
 
@@ -33,7 +33,7 @@ class Budget:
 
     def deadline(self) -> float:
         """The ``time.perf_counter()`` at which the budget runs out (inf: none), for compiled
-        code that reads the same clock (:func:`integrators.clock.monotonic`)."""
+        code that reads the same clock (:func:`integrators.core.clock.monotonic`)."""
         return math.inf if self.wall_s is None else self.start + self.wall_s
 
 
@@ -44,7 +44,7 @@ def solve(problem: SpringSlider, algorithm: Algorithm, *, save_every: float | No
 
     The trajectory is saved every ``save_every`` seconds, or else at ``max_points`` points in
     all (default 20,000); with ``save_every``, ``max_points`` caps the saved points (default
-    10⁷, see :class:`~integrators.solution.Output`). Events are recorded exactly either way.
+    10⁷, see :class:`~integrators.core.solution.Output`). Events are recorded exactly either way.
     ``wall_budget`` (s) stops a run that takes longer (retcode ``WallTime``); ``progress`` shows
     a progress bar. A numerical failure comes back as a Solution with a failure retcode (and
     ``Solution.reached_end`` false); misuse (bad arguments) raises ``ValueError`` before any work.

@@ -105,11 +105,12 @@ from typing import ClassVar
 import numpy as np
 from numba import carray, cfunc, njit
 
-from integrators.events import AT_ROOT, DIRECTIONS, END, H_EXTREMUM, PEAK, sign_change
-from integrators.registry import AdaptiveAlgorithm, register
-from integrators.clock import monotonic
-from integrators.segments import Advance
-from integrators.solution import ReturnCode, Stats
+from integrators.core.events import (AT_ROOT, DIRECTIONS, END, H_EXTREMUM, PEAK, compiled_roots,
+                                     sign_change)
+from integrators.core.registry import AdaptiveAlgorithm, register
+from integrators.core.clock import monotonic
+from integrators.core.segments import Advance
+from integrators.core.solution import ReturnCode, Stats
 from problems.formulations import ode_rhs
 
 __all__ = ["NumbaLSODA"]
@@ -214,8 +215,7 @@ _DIRS = np.array(DIRECTIONS, dtype=np.float64)
 @njit(cache=True, nogil=True, error_model="numpy")
 def _roots(q, z, g):
     """events.root_functions at z, into g."""
-    g[0], g[1], g[2] = z[1] - q[5], z[1] - q[6], z[1] - q[7]
-    g[3] = q[2] * z[0] - q[3] * (z[1] + q[1] * z[2])
+    compiled_roots(q[1], q[2], q[3], q[5], q[6], q[7], z, g)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

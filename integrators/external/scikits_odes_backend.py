@@ -6,12 +6,12 @@ with the analytic iteration matrix (``dae_jacobian``), ``DAE_DIFFERENTIAL`` as i
 consistent (y0, y'0) from ``dae_initial`` at every (re)start, checked by ``IDACalcIC``.
 
 Events: SUNDIALS' own root finding (``rootfn``/``nr_rootfns``) on the four root functions of
-:mod:`integrators.events` (for IDA on y[:3] = (h, u, s)). scikits-odes 3.0.0 wraps neither
+:mod:`integrators.core.events` (for IDA on y[:3] = (h, u, s)). scikits-odes 3.0.0 wraps neither
 ``CVodeSetRootDirection`` nor ``CVodeGetRootInfo`` (nor IDA's), so SUNDIALS stops at every
 crossing in either direction, and the functions it found are read off the signs: between two
 root returns SUNDIALS saw no sign change, so the functions whose sign differs from the last root
 (or the start) are the ones it bracketed — its own test — and the new sign is the direction.
-:func:`integrators.segments.directional_roots` keeps the crossings that count.
+:func:`integrators.core.segments.directional_roots` keeps the crossings that count.
 
 Stepping: ``advance(t_out)`` calls ``step(t_out)`` in CV_NORMAL/IDA_NORMAL mode, so SUNDIALS
 itself stops at t_out (interpolating) or earlier at a root, and keeps a root beyond t_out for the
@@ -65,9 +65,9 @@ import numpy as np
 from scikits.odes import dae, ode
 from scikits_odes_sundials import cvode as _cvode_module
 
-from integrators.registry import AdaptiveAlgorithm, register
-from integrators.segments import Advance, directional_roots
-from integrators.solution import ReturnCode, Stats
+from integrators.core.registry import AdaptiveAlgorithm, register
+from integrators.core.segments import Advance, directional_roots
+from integrators.core.solution import ReturnCode, Stats
 from problems.formulations import (DAE_DIFFERENTIAL, dae_initial, dae_jacobian, dae_residual,
                                    ode_jacobian, ode_rhs)
 

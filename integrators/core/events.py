@@ -20,9 +20,11 @@ import math
 import numpy as np
 from numba import njit
 
+from problems.formulations import check_law_code, state_rate
+
 __all__ = ["START", "END", "H_EXTREMUM", "PEAK", "DIRECTIONS", "AT_ROOT", "sign_change",
            "carry_signs",
-           "compiled_roots", "root_functions", "root_derivatives", "EventRecorder"]
+           "compiled_roots", "root_functions", "root_derivatives", "EventRecorder", "events_table"]
 
 START, END, H_EXTREMUM, PEAK = range(4)
 #: direction of a crossing that counts: +1 upward, −1 downward, 0 both
@@ -59,13 +61,12 @@ def carry_signs(old, new) -> None:
             new[k] = AT_ROOT if old[k] > 0.0 else -AT_ROOT
 
 
-@njit(cache=True, error_model="numpy")
-def compiled_roots(p, z, g):
-    """:func:`root_functions` in numba, into ``g``, with the parameter layout of the compiled
-    kernels (:mod:`integrators.kernel_stepper`): p[1:4] β, C, D, p[7:10] ln(10 E_slow),
-    ln E_slow, ln E."""
-    g[0], g[1], g[2] = z[1] - p[7], z[1] - p[8], z[1] - p[9]
-    g[3] = p[2] * z[0] - p[3] * (z[1] + p[1] * z[2])
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def compiled_roots(beta, c, d, ln_start, ln_end, ln_e, z, g):
+    """:func:`root_functions` in numba, into ``g`` (the same operations, so the same values to
+    the bit): ``ln_start`` = ln(10 E_slow), ``ln_end`` = ln E_slow, ``ln_e`` = ln E."""
+    g[0], g[1], g[2] = z[1] - ln_start, z[1] - ln_end, z[1] - ln_e
+    g[3] = c * z[0] - d * (z[1] + beta * z[2])
 
 
 def root_functions(nd, e: float, z: np.ndarray) -> np.ndarray:
@@ -81,7 +82,7 @@ def root_derivatives(nd, e: float, z: np.ndarray) -> np.ndarray:
     h, u, s = z
     w = math.exp(u)
     du = (nd.c * h - nd.d * (u + nd.beta * s)) / w
-    ds = -w * (u + s) if nd.law_code == 0 else math.exp(-s) - w
+    ds = state_rate(check_law_code(nd.law_code), u, s, w)
     return np.array([du, du, du, nd.c * (e - w) - nd.d * (du + nd.beta * ds)])
 
 
@@ -127,9 +128,13 @@ class EventRecorder:
 
     def table(self, problem, nd) -> np.ndarray:
         """The rows in SI units, columns of ``EVENT_COLUMNS``."""
-        ev = np.array(self.rows, dtype=float).reshape(-1, 8)
-        ts, lc = nd.time_scale, problem.law.lc
-        return np.column_stack([
-            ev[:, 0] * ts, ev[:, 1] * ts, problem.f0 + nd.force_h * ev[:, 2],
-            problem.f0 + nd.force_h * ev[:, 3], problem.law.v0 * ev[:, 4], ev[:, 5] * ts,
-            lc * ev[:, 6], lc * ev[:, 7]])
+        return events_table(np.array(self.rows, dtype=float).reshape(-1, 8), problem, nd)
+
+
+def events_table(rows: np.ndarray, problem, nd) -> np.ndarray:
+    """Nondimensional event rows (τ, h, w, slip in Lc) in SI units, columns of ``EVENT_COLUMNS``."""
+    ev, ts, lc = rows, nd.time_scale, problem.law.lc
+    return np.column_stack([
+        ev[:, 0] * ts, ev[:, 1] * ts, problem.f0 + nd.force_h * ev[:, 2],
+        problem.f0 + nd.force_h * ev[:, 3], problem.law.v0 * ev[:, 4], ev[:, 5] * ts,
+        lc * ev[:, 6], lc * ev[:, 7]])

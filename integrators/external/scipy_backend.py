@@ -3,7 +3,7 @@
 RK45 (Dormand–Prince 5(4)), DOP853, Radau (implicit Runge–Kutta, order 5), BDF (orders 1–5) and
 LSODA (Adams/BDF switching). Implicit methods get the analytic Jacobian. Events are located by
 Brent root finding on each method's dense output, as ``solve_ivp`` does for its events
-(:mod:`integrators.dense_roots`); the step loop is ours so that budgets and restarts are too.
+(:mod:`integrators.core.dense_roots`); the step loop is ours so that budgets and restarts are too.
 """
 
 from __future__ import annotations
@@ -14,10 +14,10 @@ from typing import ClassVar
 import scipy
 from scipy import integrate
 
-from integrators.dense_roots import DenseStepper
-from integrators.registry import AdaptiveAlgorithm, register
-from integrators.segments import Advance
-from integrators.solution import ReturnCode, Stats
+from integrators.core.dense_roots import DenseStepper
+from integrators.core.registry import AdaptiveAlgorithm, register
+from integrators.core.segments import Advance
+from integrators.core.solution import ReturnCode, Stats
 from problems.formulations import OdeForm
 
 __all__ = ["ScipyRK45", "ScipyDOP853", "ScipyRadau", "ScipyBDF", "ScipyLSODA"]

@@ -1,0 +1,1 @@
+"""Adapters to external libraries (scipy, numbalsoda, scikits-odes, assimulo, scikit-SUNDAE)."""

@@ -1,0 +1,132 @@
+"""The Python side of the own adaptive methods: arrays in, one compiled call, a ``RawRun`` out.
+
+:class:`CompiledAlgorithm` is the base of every method built on :mod:`integrators.own.engine`.
+A subclass names its compiled entry points (``kernel`` and ``fixed``, module-level numba
+functions of its own module that call :func:`integrators.own.engine.run` and
+:func:`integrators.own.engine.fixed_steps` with its step) and its constants; ``run`` does the
+rest: the save grid, the state arrays, the call (repeated only for a progress bar, every
+:data:`CHUNK_STEPS` accepted steps, or to enlarge the events table) and the conversion.
+``Solution.meta`` reports the engine's (re)starts and the roots reported of each kind.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Callable, ClassVar
+
+import numpy as np
+
+from integrators.core.events import DIRECTIONS, events_table
+from integrators.core.registry import AdaptiveAlgorithm
+from integrators.core.solution import RawRun, ReturnCode, Stats
+from integrators.own import engine as E
+from problems.formulations import from_ode_state
+
+__all__ = ["CompiledAlgorithm", "save_grid", "CHUNK_STEPS"]
+
+#: accepted steps per compiled call when a progress bar is shown (~0.05 s), and without one
+#: (~0.5 s: Ctrl-C is seen between calls); the wall budget is read inside
+CHUNK_STEPS = 1 << 16
+LONG_CHUNK_STEPS = 1 << 20
+_EVENTS_START = 64
+_DIRS = np.array(DIRECTIONS, dtype=np.int64)
+#: the root functions, in the order of :mod:`integrators.core.events` (``Solution.meta["roots"]``)
+ROOT_NAMES = ("start", "end", "h_extremum", "peak")
+
+
+def save_grid(t_end: float, dt: float) -> np.ndarray:
+    """The save times (s): 0, dt, 2 dt, … up to ``t_end``, and ``t_end`` itself (exactly)."""
+    n = int(math.floor(t_end / dt * (1.0 + 1e-12))) + 1
+    grid = np.arange(n) * dt
+    grid = grid[grid <= t_end]
+    if grid[-1] < t_end * (1.0 - 1e-12):
+        grid = np.append(grid, t_end)
+    grid[-1] = t_end
+    return grid
+
+
+class CompiledAlgorithm(AdaptiveAlgorithm):
+    """An adaptive method of this project on the compiled engine: the whole solve (events,
+    loading switches, save grid, budgets) runs in numba, so it offers the numba tier only."""
+
+    library: ClassVar[str] = "rsfbench (numba)"
+    rhs_tiers: ClassVar[tuple[str, ...]] = ("numba",)
+    #: the compiled entry points (set by each method module)
+    kernel: ClassVar[Callable]
+    fixed: ClassVar[Callable]
+    #: the engine's method constants (integrators.own.engine.P): INIT_EXPONENT, Q, STICK_PEAKS,
+    #: FSAL, HERMITE, STAGES
+    constants: ClassVar[dict] = {}
+
+    @classmethod
+    def library_version(cls) -> str:
+        import numba
+        return f"numba {numba.__version__}"
+
+    def run(self, problem, output, budget, progress):
+        nd = problem.nondimensional()
+        grid_t = save_grid(problem.t_end, output.interval(problem.t_end))
+        grid = grid_t / nd.time_scale
+        grid[-1] = nd.tau_end
+        deadline = budget.deadline() if budget is not None else math.inf
+        st, p, Z, G = E.new_state(nd, problem.loading.two_speed, self.rtol, self.atol,
+                                  self.constants, self.max_steps, deadline)
+        saved, ev = np.empty((len(grid), 3)), np.empty((_EVENTS_START, 8))
+        saved[0] = Z[E.ZROW["ZC"]]
+        st[E.ST["NEXT_SAVE"]] = 1
+        n_max = CHUNK_STEPS if progress is not None else LONG_CHUNK_STEPS
+        while True:
+            status = type(self).kernel(st, p, Z, G, _DIRS, grid, saved, ev, n_max)
+            if status == E.GROW:
+                ev = np.concatenate([ev, np.empty_like(ev)])
+            elif status == E.CHUNK:
+                if progress is not None:
+                    progress(st[E.CURSOR] * nd.time_scale)
+                if budget is not None and budget.exceeded():
+                    status = E.WALL_TIME
+                    break
+            else:
+                break
+        if progress is not None:
+            progress(st[E.CURSOR] * nd.time_scale)
+        return self._raw(problem, nd, status, st, Z, grid_t, saved, ev, budget)
+
+    def _raw(self, problem, nd, status, st, Z, grid_t, saved, ev, budget) -> RawRun:
+        ts = nd.time_scale
+        n = int(st[E.ST["NEXT_SAVE"]])
+        t, z = grid_t[:n], saved[:n]
+        retcode, message = ReturnCode.SUCCESS, ""
+        if status != E.DONE:
+            at = f"t = {st[E.TAU] * ts:.6g} s"
+            retcode, message = {
+                E.NONFINITE: (ReturnCode.NON_FINITE, f"non-finite state at {at}"),
+                E.UNDERFLOW: (ReturnCode.STEP_UNDERFLOW, f"step size underflow (t + h == t) "
+                                                         f"at {at}"),
+                E.MAX_STEPS: (ReturnCode.MAX_STEPS, f"step budget of {self.max_steps} used up "
+                                                    f"at {at}"),
+                E.WALL_TIME: (ReturnCode.WALL_TIME, f"wall-time budget of "
+                                                    f"{budget.wall_s if budget else None} s used "
+                                                    f"up at {at} of {problem.t_end:g} s"),
+            }[status]
+            # the state where it stopped: the end of the last step if it is a valid one (a
+            # budget ran out), else the last state handed on
+            budget_stop = status in (E.MAX_STEPS, E.WALL_TIME)
+            tau_stop, z_stop = ((st[E.TAU], Z[0]) if budget_stop and np.isfinite(Z[0]).all()
+                                else (st[E.ST["LAST_T"]], Z[E.ZROW["ZC"]]))
+            if tau_stop * ts > (t[-1] if n else -np.inf):
+                t, z = np.append(t, tau_stop * ts), np.vstack([z, z_stop])
+        h, eta, psi = from_ode_state(nd.law_code, nd.beta, z)
+        stats = Stats(nfev=int(st[E.NFEV]), njev=int(st[E.NJEV]), steps=int(st[E.STEPS]),
+                      rejected=int(st[E.REJECTED]))
+        roots = st[E.ST["ROOTS"]:E.ST["ROOTS"] + 4].astype(int).tolist()
+        meta = {"starts": int(st[E.ST["STARTS"]]), "roots": dict(zip(ROOT_NAMES, roots))}
+        return RawRun(t=t, y=np.column_stack(problem.dimensional_state(h, eta, psi)),
+                      events=events_table(ev[:int(st[E.ST["N_EVENTS"]])], problem, nd),
+                      stats=stats, retcode=retcode, message=message, meta=meta)
+
+    def fixed_steps(self, nd, z0, span: float, n: int) -> np.ndarray:
+        """``n`` equal steps over ``span`` (τ) from z0 under the slow loading, every one
+        accepted, no error control (order studies: :func:`benchmarks.convergence.
+        fixed_step_orders`): z at the end."""
+        _, p, _, _ = E.new_state(nd, False, np.inf, np.inf, self.constants, 0, math.inf)
+        return type(self).fixed(p, np.asarray(z0, dtype=float), span / n, n)

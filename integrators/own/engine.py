@@ -1,0 +1,598 @@
+"""The compiled engine of the project's own adaptive methods: one solve, one numba call.
+
+A method contributes four compiled functions and a few constants (:doc:`docs/own-methods.md`
+says how to add one); the engine owns everything else, once:
+
+* ``prepare(p, z0, f0, ws) -> int``: work done once per step at its start, reused by the
+  retries of a rejected attempt (a Jacobian, say); returns the Jacobians it evaluated;
+* ``attempt(p, hs, ws, z0, f0, z1, f1, D) -> errmax``: one trial step of size hs from
+  (z0, f0 = f(z0)): the solution into z1, the error divided by its scale (≤ 1 accepts; inf when
+  the trial failed), and either f1 = f(z1) (``fsal`` methods, whose error estimate needs it) or
+  nothing (the engine evaluates f1 once the error test passes), and the coefficients D of its own
+  dense output (``hermite`` False; else the engine builds the cubic Hermite interpolant);
+* a controller, ``reject(p, errmax, hs) -> hs`` and ``accept(st, p, errmax, hs) -> h`` (those of
+  this module: :func:`nr_reject`/:func:`nr_accept`, :func:`rodas_reject`/:func:`rodas_accept`,
+  :func:`pred_reject`/:func:`pred_accept`);
+* ``workspace()``: its scratch arrays, allocated once per call.
+
+Dense output, one form for every method: z(τ0 + x h) = (1 − x) z0 + x (z1 + (1 − x)(D1 + x (D2 +
+x D3))); the cubic Hermite interpolant of (z, f) at both ends is D1 = h f0 − Δz,
+D2 = Δz − h f1 − D1, D3 = 0.
+
+:func:`run` is the whole solve: steps (each shortened to land on the end of its loading segment,
+never on a save point), the event scan on the dense output after each step, the events table, the
+two-speed loading switch and its restarts, the save grid filled from the dense output, the step
+and wall-time budgets and the counters. It returns to Python only when done, when it has taken
+``n_max`` accepted steps (a progress bar, Ctrl-C), or to have its events table enlarged. All its
+state is in arrays (layouts below), so a call resumes where the last one stopped.
+
+Events: the four root functions of :mod:`integrators.core.events`, evaluated after each accepted
+step; on a sign change in a direction that counts, the crossings are placed on the dense output
+by bisection to the last bit, earliest first; a crossing in a direction that does not count only
+moves the cursor. A restart at a root keeps the root's sign after the crossing, or the first step
+would find the same crossing again. Methods at their stability limit in the stick phase (the
+explicit CashKarp45, the exponential Rosenbrock methods' undamped jitter) set ``stick_peaks``
+False: a PEAK crossing at w ≤ E_slow is not an event's peak (an event starts at w > 10 E_slow and
+ends at w ≤ E_slow) and is not reported.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from integrators.core.clock import monotonic
+from integrators.core.events import (AT_ROOT, END, H_EXTREMUM, PEAK, START, carry_signs,
+                                     compiled_roots, sign_change)
+from problems.formulations import ode_rhs
+
+__all__ = ["run", "fixed_steps", "rhs", "jacobian", "hermite", "new_state", "P", "ST", "ZROW",
+           "DONE", "CHUNK", "GROW", "NONFINITE", "UNDERFLOW", "MAX_STEPS", "WALL_TIME",
+           "nr_reject", "nr_accept", "rodas_reject", "rodas_accept", "pred_reject", "pred_accept"]
+
+# --- layouts -------------------------------------------------------------------------------
+#: st: the last step [TAU_OLD, TAU], its proposed successor H, the CURSOR ≤ TAU up to which
+#: roots and saves are done, T_RET the time of a root found; counters; the controller's memory
+#: (h and error of the last accepted step, accepted steps since the start, last attempt
+#: rejected); the driver: the loading segment (start, load there, end, end of the fast loading),
+#: the next save point, the events recorder, the last root (for a restart there), the point
+#: handed on last (a failure's final state), a restart pending.
+ST = dict(TAU=0, TAU_OLD=1, H=2, CURSOR=3, T_RET=4, STEPS=5, REJECTED=6, NFEV=7, NJEV=8,
+          HACC=9, ERRACC=10, NACC=11, REJECT=12, TAU0=13, LOAD0=14, T_BOUND=15, FAST_UNTIL=16,
+          NEXT_SAVE=17, N_EVENTS=18, IN_EVENT=19, H_MAX=20, EV_START=21, EV_SLIP=22, H_MIN=23,
+          W_PEAK=24, TAU_PEAK=25, LR_TAU=26, LR_E=27, LR_VALID=28, LAST_T=29, NEED_START=30,
+          STARTS=31, ROOTS=32)
+(TAU, TAU_OLD, H, CURSOR, T_RET, STEPS, REJECTED, NFEV, NJEV, HACC, ERRACC, NACC, REJECT, TAU0,
+ LOAD0, T_BOUND, FAST_UNTIL, NEXT_SAVE, N_EVENTS, IN_EVENT, H_MAX, EV_START, EV_SLIP, H_MIN,
+ W_PEAK, TAU_PEAK, LR_TAU, LR_E, LR_VALID, LAST_T, NEED_START, STARTS, ROOTS) = range(33)
+N_ST = ROOTS + 4
+#: rows of Z: z and f at TAU, z and f at TAU_OLD, the dense output's D1–D3, the state at T_RET,
+#: the state at the last root, the state handed on last
+ZROW = dict(Z=0, F=1, ZO=2, FO=3, D1=4, D2=5, D3=6, ZR=7, LRZ=8, ZC=9)
+_Z, _F, _ZO, _FO, _D1, _D2, _D3, _ZR, _LRZ, _ZC = range(10)
+N_Z = 10
+#: p: the problem (law code, β, C, D and the loading rate E of the current segment), the
+#: tolerances, the root functions' thresholds ln(10 E_slow), ln E_slow, ln E; the run (E_slow,
+#: E_fast, τ_end, τ_fast, two-speed flag, h at τ = 0, step budget, wall deadline); the method
+#: (exponent of the initial-step guess, controller order q, stick_peaks, fsal, hermite, f
+#: evaluations per attempt)
+P = dict(LAW=0, BETA=1, C=2, D=3, E=4, RTOL=5, ATOL=6, LN_10E_SLOW=7, LN_E_SLOW=8, LN_E=9,
+         E_SLOW=10, E_FAST=11, TAU_END=12, TAU_FAST=13, TWO_SPEED=14, H0=15, MAX_STEPS=16,
+         DEADLINE=17, INIT_EXPONENT=18, Q=19, STICK_PEAKS=20, FSAL=21, HERMITE=22, STAGES=23)
+(_LAW, _BETA, _C, _D, _E, _RTOL, _ATOL, _LN_10ES, _LN_ES, _LN_E, _E_SLOW, _E_FAST, _TAU_END,
+ _TAU_FAST, _TWO_SPEED, _H0, _MAX_STEPS, _DEADLINE, _INIT_EXPONENT, _Q, _STICK_PEAKS, _FSAL,
+ _HERMITE, _STAGES) = range(24)
+N_P = 24
+
+#: what :func:`run` returns
+DONE, CHUNK, GROW, NONFINITE, UNDERFLOW, MAX_STEPS, WALL_TIME = range(7)
+_OK = -1
+#: crossings placed in one scan at most: each moves the cursor forward, so this only stops a
+#: pathological step (a root function at zero to the bit) from scanning for ever
+MAX_PASSES = 64
+#: accepted steps between two readings of the clock (~20 ns each)
+CLOCK_EVERY = 256
+
+# the right-hand side and Jacobian, compiled again to be inlined into the stages: a call of the
+# compiled ones costs reference counting of its array arguments (~ as much as f itself)
+rhs = njit(cache=True, nogil=True, error_model="numpy", inline="always")(ode_rhs.py_func)
+from problems.formulations import ode_jacobian as _ode_jacobian  # noqa: E402
+jacobian = njit(cache=True, nogil=True, error_model="numpy", inline="always")(
+    _ode_jacobian.py_func)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def f_of(p, z, out):
+    """f(z) into ``out`` under the current segment's loading."""
+    rhs(int(p[_LAW]), p[_BETA], p[_C], p[_D], p[_E], z, out)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def roots(p, z, g):
+    """The four root functions of :mod:`integrators.core.events` at z, into g."""
+    compiled_roots(p[_BETA], p[_C], p[_D], p[_LN_10ES], p[_LN_ES], p[_LN_E], z, g)
+
+
+# --- controllers -------------------------------------------------------------------------------
+# Numerical Recipes §16.2 (rkqs), with p[Q] unused: shrink by errmax^(-1/4), grow by errmax^(-1/5)
+_NR_SAFETY, _NR_PGROW, _NR_PSHRNK, _NR_ERRCON = 0.9, -0.2, -0.25, 1.89e-4
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def nr_reject(p, errmax, hs):
+    """NR's rkqs after a failed trial: h·max(0.9 errmax^(−1/4), 1/10); h/10 for a non-finite one."""
+    if np.isfinite(errmax):
+        return max(_NR_SAFETY * hs * errmax ** _NR_PSHRNK, 0.1 * hs)
+    return 0.1 * hs
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def nr_accept(st, p, errmax, hs):
+    """NR's rkqs after an accepted step: 0.9 h errmax^(−1/5), at most 5 h."""
+    return _NR_SAFETY * hs * errmax ** _NR_PGROW if errmax > _NR_ERRCON else 5.0 * hs
+
+
+# Hairer's RODAS (rodas.f): fac = errmax^(1/q)/0.9 within [1/5, 6], Gustafsson's predictive
+# controller on accepted steps, no increase right after a rejection
+_SAFETY, _FAC_MIN, _FAC_MAX = 0.9, 1.0 / 6.0, 5.0      # h_new/h in [FAC_MIN, FAC_MAX]
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def rodas_reject(p, errmax, hs):
+    """RODAS after a failed trial: h/fac; h/10 for a non-finite trial."""
+    if errmax == np.inf:
+        return hs * 0.1
+    return hs * (1.0 / min(1.0 / _FAC_MIN, max(1.0 / _FAC_MAX, errmax ** (1.0 / p[_Q]) / _SAFETY)))
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def rodas_accept(st, p, errmax, hs):
+    """RODAS after an accepted step, with Gustafsson's predictive controller (rodas.f, PRED)."""
+    q = p[_Q]
+    fac = min(1.0 / _FAC_MIN, max(1.0 / _FAC_MAX, errmax ** (1.0 / q) / _SAFETY))
+    if st[NACC] >= 1:
+        gus = st[HACC] / hs * (errmax * errmax / st[ERRACC]) ** (1.0 / q) / _SAFETY
+        fac = max(fac, min(1.0 / _FAC_MIN, max(1.0 / _FAC_MAX, gus)))
+    st[HACC], st[ERRACC], st[NACC] = hs, max(1e-2, errmax), st[NACC] + 1
+    h_next = hs / fac
+    if st[REJECT] != 0.0:
+        h_next = min(h_next, hs)
+    return h_next
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def pred_reject(p, errmax, hs):
+    """After a failed trial: h·max(0.9 errmax^(−1/q), 1/10); h/10 for a non-finite trial."""
+    if np.isfinite(errmax):
+        return max(0.9 * hs * errmax ** (-1.0 / p[_Q]), 0.1 * hs)
+    return 0.1 * hs
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def pred_accept(st, p, errmax, hs):
+    """After an accepted step: the elementary 0.9 r (r = errmax^(−1/q)) within 5, or less if
+    Gustafsson's predictive controller asks for less ((h/h_acc) 0.9 r²/r_acc within [1/5, 5],
+    r_acc = max(1e−2, err_acc)^(−1/q) kept in ``st``: one power per step); not above h after a
+    rejection."""
+    expo = -1.0 / p[_Q]
+    r = errmax ** expo if errmax > 0.0 else np.inf
+    grow = min(5.0, 0.9 * r)
+    if st[NACC] >= 1.0 and errmax > 0.0:
+        grow = min(grow, max(0.2, min(5.0, hs / st[HACC] * 0.9 * r * r / st[ERRACC])))
+    st[HACC], st[ERRACC] = hs, r if errmax >= 1e-2 else 0.01 ** expo
+    st[NACC] += 1.0
+    h_next = hs * grow
+    if st[REJECT] != 0.0:
+        h_next = min(h_next, hs)
+    return h_next
+
+
+# --- dense output, events ----------------------------------------------------------------------
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def hermite(hs, z0, f0, z1, f1, D):
+    """The cubic Hermite interpolant of (z, f) at both ends of a step, in the engine's form."""
+    for i in range(3):
+        dz = z1[i] - z0[i]
+        D[0, i] = hs * f0[i] - dz
+        D[1, i] = dz - hs * f1[i] - D[0, i]
+        D[2, i] = 0.0
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _dense(Z, x, out):
+    """The dense output of the step [TAU_OLD, TAU] at the fraction x of it."""
+    y = 1.0 - x
+    for i in range(3):
+        out[i] = y * Z[_ZO, i] + x * (Z[_Z, i] + y * (Z[_D1, i] + x * (Z[_D2, i]
+                                                                      + x * Z[_D3, i])))
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _cursor_time(t0, dt, x, lo, hi):
+    """The time of the fraction x of the step [t0, t0 + dt], within [lo, hi], rounded up so that
+    (t − t0)/dt ≥ x: the cursor must sit on the far side of a crossing just placed at x, where
+    the root function has the sign it is given (else the next pass finds the same crossing, and
+    the one after it the same in reverse, for ever)."""
+    t = min(max(t0 + x * dt, lo), hi)
+    while t < hi and (t - t0) / dt < x:
+        t = np.nextafter(t, np.inf)
+    return t
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _crossed(G, g, dirs, stick_peaks):
+    """Has a root function changed sign, in a direction that counts, between the cursor (G[0])
+    and the new step end (g)?"""
+    for k in range(4):
+        sign = sign_change(G[0, k], g[k])
+        if (sign != 0 and (dirs[k] == 0 or dirs[k] == sign)
+                and (stick_peaks or k != PEAK or G[0, END] > 0.0 or g[END] > 0.0)):
+            return True
+    return False
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _scan(st, p, Z, G, dirs, stick_peaks, t_end, w):
+    """The earliest crossing that counts in (CURSOR, t_end] of the last step: True, with it at
+    T_RET, Z[ZR], G[1]; else False, the cursor moved to t_end. A crossing in a direction that
+    does not count only moves the cursor and its signs (G[0]). ``w``: 3 × 4 scratch."""
+    t0, dt = st[TAU_OLD], st[TAU] - st[TAU_OLD]
+    x_end = (t_end - t0) / dt
+    zt, z_end, g_end, g_new, gt, x_root = w[0, :3], w[1, :3], w[2], w[3], w[4], w[5]
+    if t_end < st[TAU]:
+        _dense(Z, x_end, z_end)
+    else:
+        z_end[:] = Z[_Z]
+    roots(p, z_end, g_end)
+    passes = 0
+    while True:
+        x_cur = (st[CURSOR] - t0) / dt
+        _dense(Z, x_cur, zt)
+        roots(p, zt, g_new)
+        for k in range(4):
+            g0, g1, ga, lo, hi = G[0, k], g_end[k], g_new[k], x_cur, x_end
+            if sign_change(g0, g1) == 0:
+                hi = np.inf
+            elif ga == 0.0 or (ga > 0.0 and g1 > 0.0) or (ga < 0.0 and g1 < 0.0):
+                hi = x_cur            # the interpolant is past it already: at the cursor
+            while lo < hi < np.inf:   # bisection to the last bit; hi keeps the far side's sign
+                mid = 0.5 * (lo + hi)
+                if mid <= lo or mid >= hi:
+                    break
+                _dense(Z, mid, zt)
+                roots(p, zt, gt)
+                if gt[k] != 0.0 and (gt[k] > 0.0) == (ga > 0.0):
+                    lo = mid
+                else:
+                    hi = mid
+            x_root[k] = hi
+        best = x_root.min()
+        if best == np.inf or passes > MAX_PASSES:
+            carry_signs(G[0], g_end)
+            st[CURSOR] = st[T_RET] = t_end
+            Z[_ZR], G[0] = z_end, g_end
+            return False
+        passes += 1
+        t_root = (st[CURSOR] if best == x_cur else t_end if best == x_end
+                  else _cursor_time(t0, dt, best, st[CURSOR], t_end))
+        if best == x_end:
+            Z[_ZR] = z_end
+        else:
+            _dense(Z, best, Z[_ZR])
+        roots(p, Z[_ZR], g_new)
+        G[1] = 0.0
+        for k in range(4):
+            if x_root[k] == best:
+                sign = 1.0 if g_end[k] > G[0, k] else -1.0
+                g_new[k] = sign * max(abs(g_new[k]), AT_ROOT)    # the sign after the crossing
+                if ((dirs[k] == 0 or dirs[k] == sign)
+                        and (stick_peaks or k != PEAK or g_new[END] > 0.0)):
+                    G[1, k] = sign
+        carry_signs(G[0], g_new)
+        st[CURSOR], G[0] = t_root, g_new
+        if G[1].any():
+            st[T_RET] = t_root
+            return True
+
+
+# --- start, step ---------------------------------------------------------------------------------
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _max_abs_ratio(a, b):
+    """max_i |a_i| / b_i over 3 entries, NaN if any ratio is NaN (as ``np.max``)."""
+    m = abs(a[0]) / b[0]
+    for i in range(1, 3):
+        r = abs(a[i]) / b[i]
+        if r > m or r != r:
+            m = r
+        if m != m:
+            break
+    return m
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def start(st, p, Z, G, tau0, z0, e, t_bound):
+    """(Re)start at τ0 from z0 under the loading rate ``e``: f(z0), Hairer's initial step
+    (Hairer, Nørsett & Wanner I, §II.4, on the scale of the error test, as scipy's
+    ``select_initial_step``), the root functions at τ0, the controller's memory cleared. At a
+    root just reported the root's sign after its crossing is kept (H_EXTREMUM only if the
+    loading is unchanged: u − ln E moves with E)."""
+    rtol, atol = p[_RTOL], p[_ATOL]
+    p[_E], p[_LN_E] = e, math.log(e)
+    z, f = Z[_Z], Z[_F]
+    trial, f1, scale = np.empty(3), np.empty(3), np.empty(3)
+    for i in range(3):
+        z[i] = z0[i]
+    f_of(p, z, f)
+    for i in range(3):
+        scale[i] = atol + rtol * abs(z[i])
+    d0, d1 = _max_abs_ratio(z, scale), _max_abs_ratio(f, scale)
+    small = d0 if not d1 < d0 else d1                            # Python's min(d0, d1)
+    h0 = 0.01 * d0 / d1 if small >= 1e-5 else 1e-6
+    for i in range(3):
+        trial[i] = z[i] + h0 * f[i]
+    f_of(p, trial, f1)
+    for i in range(3):
+        f1[i] = f1[i] - f[i]
+    big = _max_abs_ratio(f1, scale) / h0
+    big = big if big > d1 else d1                                # Python's max(d1, ·): inf if
+    if big > 1e-15:                                              # the trial overflowed
+        h1 = (0.01 / big) ** p[_INIT_EXPONENT]
+    else:
+        h1 = 1e-3 * h0 if 1e-3 * h0 > 1e-6 else 1e-6
+    h = 100.0 * h0
+    second = h1 if h1 > 0.0 else 1e-3 * h0
+    if second < h:
+        h = second
+    if t_bound - tau0 < h:
+        h = t_bound - tau0
+    st[H] = h
+    st[TAU] = st[TAU_OLD] = st[CURSOR] = tau0
+    st[NFEV] += 2.0
+    st[STARTS] += 1.0
+    st[NACC] = st[REJECT] = 0.0
+    st[T_BOUND] = t_bound
+    roots(p, z, G[0])
+    if st[LR_VALID] != 0.0 and st[LR_TAU] == tau0:
+        same = True
+        for i in range(3):
+            same &= Z[_LRZ, i] == z[i]
+        for k in range(4):
+            sign = G[2, k]
+            if (same and sign != 0.0 and (k != H_EXTREMUM or st[LR_E] == e)
+                    and G[0, k] * sign <= 0.0):
+                G[0, k] = sign * AT_ROOT
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _finite(a):
+    ok = True
+    for i in range(3):
+        ok &= np.isfinite(a[i])
+    return ok
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _step(prepare, attempt, reject, accept, st, p, Z, ws, v, D, t_land):
+    """One accepted step of proposed size st[H] from (TAU, Z[Z], Z[F]), shortened to land on
+    t_land; its start goes to Z[ZO], Z[FO], its dense output to Z[D1:D3]. Returns (_OK,
+    UNDERFLOW or NONFINITE; the new τ; the next h; attempts). ``v``: 4 × 3 scratch."""
+    z0, f0, z1, f1 = v[0], v[1], v[2], v[3]
+    tau, h = st[TAU], st[H]
+    for i in range(3):
+        z0[i], f0[i] = Z[_Z, i], Z[_F, i]
+    st[NJEV] += prepare(p, z0, f0, ws)
+    hs, last = (t_land - tau, True) if tau + h >= t_land else (h, False)
+    fsal, stages = p[_FSAL] != 0.0, p[_STAGES]
+    attempts, errmax = 0, np.inf
+    while True:
+        if tau + hs == tau:
+            return UNDERFLOW, tau, hs, attempts
+        attempts += 1
+        st[NFEV] += stages
+        errmax = attempt(p, hs, ws, z0, f0, z1, f1, D)
+        if errmax <= 1.0:                               # False for NaN
+            if not fsal:                # f at the end: the next step's f0, the interpolant's slope
+                f_of(p, z1, f1)
+                st[NFEV] += 1.0
+            if _finite(z1) and _finite(f1):
+                break
+            # an end state whose rates overflow (e^u after a loose tolerance's overshoot) is a
+            # failed trial, not a result
+            errmax = np.inf
+        last = False
+        st[REJECT] = 1.0
+        hs = reject(p, errmax, hs)
+    h_next = accept(st, p, errmax, hs)
+    st[REJECT] = 0.0
+    if last:
+        h_next = max(h_next, h)     # a shortened step says nothing about h
+    if p[_HERMITE] != 0.0:
+        hermite(hs, z0, f0, z1, f1, D)
+    for i in range(3):
+        Z[_ZO, i], Z[_FO, i], Z[_Z, i], Z[_F, i] = z0[i], f0[i], z1[i], f1[i]
+        for r in range(3):
+            Z[_D1 + r, i] = D[r, i]
+    return _OK, t_land if last else tau + hs, h_next, attempts
+
+
+# --- the driver: saves, events, loading ---------------------------------------------------------
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _observe(st, h):
+    """A state passed through (a save point, a root, a segment end): the extrema of h."""
+    if st[IN_EVENT] != 0.0:
+        if h < st[H_MIN]:
+            st[H_MIN] = h
+    elif h > st[H_MAX]:
+        st[H_MAX] = h
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _record(st, p, ev, kind, tau, z, load):
+    """A located root of ``kind`` at τ with state z and load-point displacement ``load`` (Lc)
+    into the events recorder; True when an event has just ended (columns of
+    :data:`integrators.core.solution.EVENT_COLUMNS`, nondimensional)."""
+    h, u = z[0], z[1]
+    slip = load - (h - p[_H0])
+    if kind == START and st[IN_EVENT] == 0.0:
+        st[IN_EVENT] = 1.0
+        st[EV_START], st[EV_SLIP] = tau, slip
+        st[H_MIN], st[W_PEAK], st[TAU_PEAK] = h, math.exp(u), tau
+    elif kind == PEAK and st[IN_EVENT] != 0.0:
+        if math.exp(u) > st[W_PEAK]:
+            st[W_PEAK], st[TAU_PEAK] = math.exp(u), tau
+    elif kind == H_EXTREMUM:
+        _observe(st, h)
+    elif kind == END and st[IN_EVENT] != 0.0:
+        if h < st[H_MIN]:
+            st[H_MIN] = h
+        n = int(st[N_EVENTS])
+        ev[n, 0], ev[n, 1], ev[n, 2], ev[n, 3] = st[EV_START], tau, st[H_MAX], st[H_MIN]
+        ev[n, 4], ev[n, 5], ev[n, 6], ev[n, 7] = st[W_PEAK], st[TAU_PEAK], st[EV_SLIP], slip
+        st[N_EVENTS] = n + 1
+        st[IN_EVENT] = 0.0
+        st[H_MAX] = h
+        return True
+    return False
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _save_until(st, Z, grid, saved, t_hi, inclusive, zt):
+    """Fill the save points of ``grid`` up to t_hi (or just before it) from the dense output of
+    the last step; each is a state passed through."""
+    k, n = int(st[NEXT_SAVE]), grid.shape[0]
+    t0, dt = st[TAU_OLD], st[TAU] - st[TAU_OLD]
+    while k < n and (grid[k] < t_hi or (inclusive and grid[k] == t_hi)):
+        if grid[k] == st[TAU]:
+            saved[k] = Z[_Z]
+        else:
+            _dense(Z, (grid[k] - t0) / dt, zt)
+            saved[k] = zt
+        _observe(st, saved[k, 0])
+        k += 1
+    st[NEXT_SAVE] = k
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _hand_on(st, Z, tau, z):
+    st[LAST_T] = tau
+    Z[_ZC] = z
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def run(prepare, attempt, reject, accept, workspace, st, p, Z, G, dirs, grid, saved, ev, n_max):
+    """The solve (module docstring), resumed from the state in ``st``, ``Z``, ``G`` and ``p``:
+    at most ``n_max`` accepted steps. ``grid``: the save times (τ), ``saved``: the states
+    there; ``ev``: the events table. Returns DONE, CHUNK, GROW (``ev`` full), NONFINITE,
+    UNDERFLOW, MAX_STEPS or WALL_TIME; the counters are in ``st``."""
+    ws = workspace()
+    v, D, scratch, g, zt = np.empty((4, 3)), np.empty((3, 3)), np.empty((6, 4)), np.empty(4), \
+        np.empty(3)
+    tau_end, two_speed = p[_TAU_END], p[_TWO_SPEED] != 0.0
+    stick_peaks = p[_STICK_PEAKS] != 0.0
+    tiny = 1e-12 * tau_end
+    n = 0
+    while True:
+        if st[NEED_START] != 0.0:
+            tau = st[LAST_T]
+            if tau >= tau_end - tiny:
+                return DONE
+            fast = two_speed and st[FAST_UNTIL] - tau > tiny
+            e = p[_E_FAST] if fast else p[_E_SLOW]
+            t_bound = min(tau_end, st[FAST_UNTIL]) if fast else tau_end
+            st[LOAD0] = st[LOAD0] + p[_E] * (tau - st[TAU0])     # the load at τ
+            st[TAU0] = tau
+            start(st, p, Z, G, tau, Z[_ZC], e, t_bound)
+            st[NEED_START] = 0.0
+            if not _finite(Z[_F]):
+                return NONFINITE
+        if st[CURSOR] < st[TAU]:
+            if st[N_EVENTS] >= ev.shape[0]:
+                return GROW
+            found = _scan(st, p, Z, G, dirs, stick_peaks, st[TAU], scratch)
+            t_ret = st[T_RET]
+            _save_until(st, Z, grid, saved, t_ret, not found, zt)
+            if found:
+                z = Z[_ZR]
+                load = st[LOAD0] + p[_E] * (t_ret - st[TAU0])
+                ended = False
+                for k in range(4):
+                    if G[1, k] != 0.0:
+                        st[ROOTS + k] += 1.0
+                        ended = _record(st, p, ev, k, t_ret, z, load) or ended
+                _observe(st, z[0])
+                st[LR_TAU], st[LR_E], st[LR_VALID] = t_ret, p[_E], 1.0
+                Z[_LRZ] = z
+                G[2] = G[1]
+                _hand_on(st, Z, t_ret, z)
+                if ended and two_speed:
+                    st[FAST_UNTIL] = t_ret + p[_TAU_FAST]
+                    st[NEED_START] = 1.0
+                continue
+            _hand_on(st, Z, st[TAU], Z[_Z])
+        if st[CURSOR] >= st[T_BOUND]:           # the end of the segment: restart or done
+            _observe(st, Z[_Z, 0])
+            _hand_on(st, Z, st[TAU], Z[_Z])
+            st[NEED_START] = 1.0
+            continue
+        if st[STEPS] >= p[_MAX_STEPS]:
+            return MAX_STEPS
+        if n >= n_max:
+            return CHUNK
+        if n % CLOCK_EVERY == CLOCK_EVERY - 1 and monotonic() > p[_DEADLINE]:
+            return WALL_TIME
+        status, tau, h, tried = _step(prepare, attempt, reject, accept, st, p, Z, ws, v, D,
+                                      st[T_BOUND])
+        st[REJECTED] += tried - (1 if status != UNDERFLOW else 0)
+        if status == UNDERFLOW:
+            return UNDERFLOW
+        n += 1
+        st[STEPS] += 1
+        st[TAU_OLD], st[TAU], st[H] = st[TAU], tau, h
+        roots(p, Z[_Z], g)
+        if not _crossed(G, g, dirs, stick_peaks):   # else the scan at the top places them
+            _save_until(st, Z, grid, saved, tau, True, zt)
+            carry_signs(G[0], g)
+            st[CURSOR], G[0] = tau, g
+            _hand_on(st, Z, tau, Z[_Z])
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def fixed_steps(prepare, attempt, workspace, p, z0, hs, n):
+    """``n`` steps of size ``hs`` from z0, each accepted, no error control (order studies):
+    the end state. The same ``prepare`` and ``attempt`` as the adaptive runs."""
+    ws = workspace()
+    z, f, z1, f1, D = z0.copy(), np.empty(3), np.empty(3), np.empty(3), np.empty((3, 3))
+    f_of(p, z, f)
+    for _ in range(n):
+        prepare(p, z, f, ws)
+        attempt(p, hs, ws, z, f, z1, f1, D)
+        if p[_FSAL] == 0.0:
+            f_of(p, z1, f1)
+        z[:] = z1
+        f[:] = f1
+    return z
+
+
+def new_state(nd, two_speed: bool, rtol: float, atol: float, constants: dict, max_steps: int,
+              deadline: float):
+    """The arrays (st, p, Z, G) of a solve of the nondimensional problem ``nd`` at τ = 0;
+    ``constants``: the method's INIT_EXPONENT, Q, STICK_PEAKS, FSAL, HERMITE, STAGES."""
+    from problems.formulations import check_law_code, to_ode_state
+    check_law_code(nd.law_code)
+    st, p, Z, G = np.zeros(N_ST), np.zeros(N_P), np.zeros((N_Z, 3)), np.zeros((3, 4))
+    p[[_LAW, _BETA, _C, _D, _E, _RTOL, _ATOL]] = (nd.law_code, nd.beta, nd.c, nd.d, nd.e_slow,
+                                                  rtol, atol)
+    p[[_LN_10ES, _LN_ES, _LN_E]] = (math.log(10.0 * nd.e_slow), math.log(nd.e_slow),
+                                    math.log(nd.e_slow))
+    p[[_E_SLOW, _E_FAST, _TAU_END, _TAU_FAST, _TWO_SPEED]] = (
+        nd.e_slow, nd.e_fast, nd.tau_end, nd.tau_fast, float(two_speed))
+    z0 = to_ode_state(nd.law_code, nd.beta, nd.x0)
+    p[_H0], p[_MAX_STEPS], p[_DEADLINE] = nd.x0[0], max_steps, deadline
+    for key, value in constants.items():
+        p[P[key]] = value
+    st[H_MAX], st[H_MIN], st[FAST_UNTIL] = nd.x0[0], math.nan, -math.inf
+    st[NEED_START] = 1.0
+    Z[_ZC] = z0
+    return st, p, Z, G

@@ -1,0 +1,57 @@
+"""3×3 linear algebra for the linearly implicit methods, written to be inlined into a step.
+
+One exit per function: numba cannot prune the reference counting of the arrays otherwise
+(~5 ns per array).
+"""
+
+from __future__ import annotations
+
+from numba import njit
+
+__all__ = ["lu3", "lu_solve3", "factor"]
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def lu3(a, piv):
+    """In-place LU of the 3×3 ``a`` with partial pivoting (rows swapped whole, as LAPACK
+    getrf); False if a pivot is zero."""
+    regular = True
+    for k in range(3):
+        p = k
+        for i in range(k + 1, 3):
+            if abs(a[i, k]) > abs(a[p, k]):
+                p = i
+        piv[k] = p
+        regular &= a[p, k] != 0.0
+        if p != k:
+            for j in range(3):
+                a[k, j], a[p, j] = a[p, j], a[k, j]
+        for i in range(k + 1, 3):
+            a[i, k] /= a[k, k]
+            for j in range(k + 1, 3):
+                a[i, j] -= a[i, k] * a[k, j]
+    return regular
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def lu_solve3(a, piv, b, r):
+    """Solve in place for row r of ``b`` with the factors of :func:`lu3`."""
+    for k in range(3):
+        p = piv[k]
+        if p != k:
+            b[r, k], b[r, p] = b[r, p], b[r, k]
+    b[r, 1] -= a[1, 0] * b[r, 0]
+    b[r, 2] -= a[2, 0] * b[r, 0] + a[2, 1] * b[r, 1]
+    b[r, 2] /= a[2, 2]
+    b[r, 1] = (b[r, 1] - a[1, 2] * b[r, 2]) / a[1, 1]
+    b[r, 0] = (b[r, 0] - a[0, 1] * b[r, 1] - a[0, 2] * b[r, 2]) / a[0, 0]
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def factor(hg, J, M, piv):
+    """M = I − hg·J, factored in place; False if singular."""
+    for i in range(3):
+        for j in range(3):
+            M[i, j] = -hg * J[i, j]
+        M[i, i] += 1.0
+    return lu3(M, piv)
