@@ -367,7 +367,7 @@ def _tasks(preset_name, law, b_values, lc_values, algorithm, obs, t_end, workers
            curve_dt, wall_budget, max_points) -> list[PointTask]:
     """The points of a sweep, every argument checked (``ValueError`` before any work)."""
     from integrators import Algorithm
-    from integrators.solution import Output
+    from integrators import Output
     if backend not in BACKENDS:
         raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
     if workers is not None:
