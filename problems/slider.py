@@ -199,7 +199,12 @@ class SpringSlider:
 
     # --- the nondimensional system (SPEC §2) ----------------------------------------------
     def nondimensional(self) -> Nondimensional:
-        """Nondimensional parameters and initial state of SPEC §2."""
+        """Nondimensional parameters and initial state of SPEC §2 (computed once per problem;
+        ``x0`` is read-only)."""
+        return self._nondimensional
+
+    @functools.cached_property
+    def _nondimensional(self) -> Nondimensional:
         law, fn = self.law, self.normal_force
         A = law.a * fn
         m, k, lc, v0 = self.mass, self.stiffness, law.lc, law.v0
@@ -208,6 +213,7 @@ class SpringSlider:
         x0 = np.array([(ini.fs - self.f0) / (k * lc),
                        (self.friction(ini.v, ini.theta) - self.f0) / A,
                        law.psi(ini.theta, fn)], dtype=float)
+        x0.flags.writeable = False
         return Nondimensional(
             law_code=compiled_law_code(law), beta=law.b / law.a,
             c=k * lc * lc / (m * v0 * v0), d=A * lc / (m * v0 * v0),

@@ -134,6 +134,8 @@ class EventRecorder:
 def events_table(rows: np.ndarray, problem, nd) -> np.ndarray:
     """Nondimensional event rows (τ, h, w, slip in Lc) in SI units, columns of ``EVENT_COLUMNS``."""
     ev, ts, lc = rows, nd.time_scale, problem.law.lc
+    if not len(ev):
+        return np.empty((0, 8))
     return np.column_stack([
         ev[:, 0] * ts, ev[:, 1] * ts, problem.f0 + nd.force_h * ev[:, 2],
         problem.f0 + nd.force_h * ev[:, 3], problem.law.v0 * ev[:, 4], ev[:, 5] * ts,

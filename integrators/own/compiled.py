@@ -120,7 +120,9 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
                       rejected=int(st[E.REJECTED]))
         roots = st[E.ST["ROOTS"]:E.ST["ROOTS"] + 4].astype(int).tolist()
         meta = {"starts": int(st[E.ST["STARTS"]]), "roots": dict(zip(ROOT_NAMES, roots))}
-        return RawRun(t=t, y=np.column_stack(problem.dimensional_state(h, eta, psi)),
+        y = np.empty((len(t), 3))
+        y[:, 0], y[:, 1], y[:, 2] = problem.dimensional_state(h, eta, psi)
+        return RawRun(t=t, y=y,
                       events=events_table(ev[:int(st[E.ST["N_EVENTS"]])], problem, nd),
                       stats=stats, retcode=retcode, message=message, meta=meta)
 

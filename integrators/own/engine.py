@@ -581,18 +581,15 @@ def new_state(nd, two_speed: bool, rtol: float, atol: float, constants: dict, ma
     ``constants``: the method's INIT_EXPONENT, Q, STICK_PEAKS, FSAL, HERMITE, STAGES."""
     from problems.formulations import check_law_code, to_ode_state
     check_law_code(nd.law_code)
-    st, p, Z, G = np.zeros(N_ST), np.zeros(N_P), np.zeros((N_Z, 3)), np.zeros((3, 4))
-    p[[_LAW, _BETA, _C, _D, _E, _RTOL, _ATOL]] = (nd.law_code, nd.beta, nd.c, nd.d, nd.e_slow,
-                                                  rtol, atol)
-    p[[_LN_10ES, _LN_ES, _LN_E]] = (math.log(10.0 * nd.e_slow), math.log(nd.e_slow),
-                                    math.log(nd.e_slow))
-    p[[_E_SLOW, _E_FAST, _TAU_END, _TAU_FAST, _TWO_SPEED]] = (
-        nd.e_slow, nd.e_fast, nd.tau_end, nd.tau_fast, float(two_speed))
-    z0 = to_ode_state(nd.law_code, nd.beta, nd.x0)
-    p[_H0], p[_MAX_STEPS], p[_DEADLINE] = nd.x0[0], max_steps, deadline
+    st, Z, G = np.zeros(N_ST), np.zeros((N_Z, 3)), np.zeros((3, 4))
+    ln_e = math.log(nd.e_slow)
+    p = np.array([nd.law_code, nd.beta, nd.c, nd.d, nd.e_slow, rtol, atol,
+                  math.log(10.0 * nd.e_slow), ln_e, ln_e, nd.e_slow, nd.e_fast, nd.tau_end,
+                  nd.tau_fast, float(two_speed), nd.x0[0], max_steps, deadline, 0.0, 0.0, 0.0,
+                  0.0, 0.0, 0.0])
     for key, value in constants.items():
         p[P[key]] = value
     st[H_MAX], st[H_MIN], st[FAST_UNTIL] = nd.x0[0], math.nan, -math.inf
     st[NEED_START] = 1.0
-    Z[_ZC] = z0
+    Z[_ZC] = to_ode_state(nd.law_code, nd.beta, nd.x0)
     return st, p, Z, G

@@ -104,11 +104,13 @@ def _attempt(p, hs, ws, z0, f0, z1, f1, D):
     for i in range(3):
         z1[i] = u[i] + K[7, i]
         errmax = max(errmax, abs(K[7, i]) / (atol + rtol * max(abs(z0[i]), abs(z1[i]))))
-        for r in range(3):
-            acc = 0.0
-            for s in range(8):
-                acc += H5P[r, s] * K[s, i]
-            D[r, i] = acc
+    if errmax <= 1.0:               # the dense output of an accepted step only
+        for i in range(3):
+            for r in range(3):
+                acc = 0.0
+                for s in range(8):
+                    acc += H5P[r, s] * K[s, i]
+                D[r, i] = acc
     return errmax if regular and np.isfinite(errmax) else np.inf
 
 
