@@ -45,6 +45,17 @@ def solve(problem: SpringSlider, algorithm: Algorithm, *, save_every: float | No
     The trajectory is saved every ``save_every`` seconds, or else at ``max_points`` points in
     all (default 20,000); with ``save_every``, ``max_points`` caps the saved points (default
     10⁷, see :class:`~integrators.core.solution.Output`). Events are recorded exactly either way.
+    The saved grid never changes the steps a method takes. How each backend fills it:
+
+    * the own adaptive methods (CashKarp45, Rosenbrock23, Rodas5P, Exprb32, Exprb43): from the
+      step's dense output, inside the compiled solve; steps land only on the end of a loading
+      segment;
+    * the ETD family: its fixed rule (Eq. 53) sets every step; a save time takes the state at the
+      first step end at or after it (``Solution.t`` holds those step times);
+    * scipy: its ``dense_output``; CVODE/IDA (scikits-odes: CV_NORMAL with tstop at the segment
+      end only; scikit-SUNDAE: one step at a time): SUNDIALS' interpolation; assimulo: its
+      ``interpolate``; numbalsoda: LSODA's own interpolation at the requested times.
+
     ``wall_budget`` (s) stops a run that takes longer (retcode ``WallTime``); ``progress`` shows
     a progress bar. A numerical failure comes back as a Solution with a failure retcode (and
     ``Solution.reached_end`` false); misuse (bad arguments) raises ``ValueError`` before any work.

@@ -1,0 +1,164 @@
+"""The own compiled engine against issue 14's targets, with numbalsoda's LSODA as the yardstick.
+
+For each own adaptive method and tolerance (rtol = atol = 1e−2 … 1e−10) on the paper example and
+W2/aging (40 s, two-speed loading): the relative error of the recurrence interval ΔT against the
+cached two-solver reference (:mod:`benchmarks.reference`), the counters, and the wall time
+(``Solution.stats.wall_s``: the solve without building the ``Solution``), the minimum over
+``repeats`` runs after a warm-up, ``max_points=2``. A setting is *reliable* at a level when its
+error and the error of every tighter tolerance of the same method are at most that level (a
+lucky cancellation at a loose tolerance does not count). The yardstick, timed in the same run:
+numbalsoda's ``lsoda`` called once over a 20,001-point grid at rtol = atol = 1e−6 with a numba
+``cfunc`` right-hand side, as its users call it: no events, no restarts (so W2's two-speed
+loading is not followed: it measures the machine, not an answer).
+
+``python -m benchmarks.engine_speed --out results`` writes ``engine_speed.csv`` (every setting)
+and ``engine_speed.md`` (the targets, met or missed).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from benchmarks.errors import errors
+from benchmarks.files import atomic_write
+from benchmarks.reference import reference
+from integrators import REGISTRY, solve
+from problems import paper_example, window
+
+__all__ = ["engine_speed", "targets", "write_engine_speed", "METHODS", "TOLERANCES"]
+
+METHODS = ("Rosenbrock23", "Rodas5P", "Exprb32", "Exprb43")
+TOLERANCES = tuple(10.0 ** -k for k in range(2, 11))
+#: issue 14's targets: (problem, reliable ΔT error, wall time in ms)
+TARGETS = (("paper-example", 1e-3, 0.3), ("paper-example", 1e-7, 1.0), ("W2/aging", 1e-3, 1.0))
+#: the cost of a Rodas5P step attempt on the paper example, µs, events included
+ATTEMPT_TARGET_US = 0.4
+
+
+def _problems():
+    return {"paper-example": paper_example(), "W2/aging": window("W2", "aging")}
+
+
+def _lsoda_wall(problem, repeats: int) -> float:
+    """numbalsoda's ``lsoda`` once over 20,001 points at 1e−6, slow loading throughout (s)."""
+    import time
+
+    from numba import carray, cfunc
+    from numbalsoda import lsoda, lsoda_sig
+
+    from problems.formulations import ode_rhs, to_ode_state
+
+    @cfunc(lsoda_sig)
+    def rhs(t, u, du, data):
+        q = carray(data, (5,))
+        ode_rhs(int(q[0]), q[1], q[2], q[3], q[4], carray(u, (3,)), carray(du, (3,)))
+
+    nd = problem.nondimensional()
+    data = np.array([nd.law_code, nd.beta, nd.c, nd.d, nd.e_slow])
+    z0, grid = to_ode_state(nd.law_code, nd.beta, nd.x0), np.linspace(0.0, nd.tau_end, 20_001)
+    walls = []
+    for _ in range(repeats + 1):
+        start = time.perf_counter()
+        _, ok = lsoda(rhs.address, z0, grid, data=data, rtol=1e-6, atol=1e-6)
+        walls.append(time.perf_counter() - start)
+        if not ok:
+            raise RuntimeError(f"numbalsoda's lsoda failed on {problem.name}")
+    return min(walls[1:])
+
+
+def _min_wall(problem, algorithm, repeats: int, **kw):
+    solve(problem, algorithm, **kw)                       # compiled, cache loaded
+    runs = [solve(problem, algorithm, **kw) for _ in range(repeats)]
+    return min(s.stats.wall_s for s in runs), runs[-1]
+
+
+def engine_speed(repeats: int = 5, progress: bool = False) -> tuple[pd.DataFrame, dict]:
+    """Every setting (a row each) and the yardstick's walls per problem (s)."""
+    rows, lsoda = [], {}
+    for pname, problem in _problems().items():
+        ref = reference(problem, progress=progress)
+        lsoda[pname] = _lsoda_wall(problem, repeats)
+        for name in METHODS:
+            for tol in TOLERANCES:
+                wall, sol = _min_wall(problem, REGISTRY[name](rtol=tol, atol=tol), repeats,
+                                      max_points=2)
+                err = errors(sol, ref)["err_recurrence"] if sol.reached_end else math.nan
+                s = sol.stats
+                rows.append(dict(problem=pname, method=name, tol=tol, err_dT=err,
+                                 steps=s.steps, rejected=s.rejected, nfev=s.nfev, njev=s.njev,
+                                 wall_ms=wall * 1e3,
+                                 us_per_attempt=wall * 1e6 / max(1, s.steps + s.rejected),
+                                 ratio_to_lsoda=wall / lsoda[pname]))
+    table = pd.DataFrame(rows)
+    # reliable at a level: this tolerance's error and every tighter one's are below it
+    table["err_reliable"] = (table.sort_values("tol").groupby(["problem", "method"])["err_dT"]
+                             .cummax().reindex(table.index))
+    return table, lsoda
+
+
+def targets(table: pd.DataFrame, lsoda: dict) -> pd.DataFrame:
+    """Issue 14's targets: the fastest reliable own setting per (problem, level), met or not."""
+    out = []
+    for pname, level, target_ms in TARGETS:
+        ok = table[(table.problem == pname) & (table.err_reliable <= level)]
+        best = ok.loc[ok.wall_ms.idxmin()] if len(ok) else None
+        out.append(dict(
+            target=f"{pname}, reliable ΔT error ≤ {level:g}", target_ms=target_ms,
+            fastest=(f"{best.method} {best.tol:.0e}" if best is not None else "none"),
+            wall_ms=best.wall_ms if best is not None else math.nan,
+            err_dT=best.err_dT if best is not None else math.nan,
+            lsoda_ms=lsoda[pname] * 1e3,
+            ratio_to_lsoda=best.ratio_to_lsoda if best is not None else math.nan,
+            met=bool(best is not None and best.wall_ms <= target_ms)))
+    rodas = table[(table.problem == "paper-example") & (table.method == "Rodas5P")]
+    out.append(dict(target="Rodas5P µs per step attempt, paper example (median over tolerances)",
+                    target_ms=ATTEMPT_TARGET_US, fastest="Rodas5P",
+                    wall_ms=float(np.median(rodas.us_per_attempt)), err_dT=math.nan,
+                    lsoda_ms=lsoda["paper-example"] * 1e3, ratio_to_lsoda=math.nan,
+                    met=bool(np.median(rodas.us_per_attempt) <= ATTEMPT_TARGET_US)))
+    return pd.DataFrame(out)
+
+
+def write_engine_speed(out: Path, repeats: int = 5) -> pd.DataFrame:
+    """``engine_speed.csv`` and ``engine_speed.md`` in ``out``; returns the targets table."""
+    table, lsoda = engine_speed(repeats)
+    goals = targets(table, lsoda)
+    atomic_write(out / "engine_speed.csv", table.to_csv(index=False))
+    lines = ["# The own compiled engine against issue 14's targets",
+             "",
+             f"`python -m benchmarks.engine_speed --out results` (min of {repeats} after a warm-up, "
+             "`max_points=2`, wall time of the solve without building the Solution; "
+             "numbalsoda's lsoda called once over a 20,001-point grid at 1e−6, no events, "
+             "timed in the same run). "
+             "The last row's times are µs per step attempt.",
+             "",
+             "| target | goal (ms) | fastest reliable own setting | wall (ms) | ΔT error | "
+             "lsoda (ms) | ratio to lsoda | met |",
+             "|---|---|---|---|---|---|---|---|"]
+    for r in goals.itertuples():
+        lines.append(f"| {r.target} | {r.target_ms:g} | {r.fastest} | {r.wall_ms:.3g} | "
+                     f"{r.err_dT:.2g} | {r.lsoda_ms:.3g} | {r.ratio_to_lsoda:.2g} | "
+                     f"{'yes' if r.met else 'no'} |")
+    atomic_write(out / "engine_speed.md", "\n".join(lines) + "\n")
+    return goals
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.engine_speed",
+                                     description=__doc__.split("\n\n")[0])
+    parser.add_argument("--out", type=Path, default=Path("results"),
+                        help="folder for engine_speed.csv/.md (default: results)")
+    parser.add_argument("--repeats", type=int, default=5,
+                        help="timed runs per setting after a warm-up (default: 5)")
+    args = parser.parse_args(argv)
+    args.out.mkdir(parents=True, exist_ok=True)
+    print(write_engine_speed(args.out, args.repeats).to_string(index=False))
+
+
+if __name__ == "__main__":
+    main()
