@@ -56,11 +56,6 @@ def _workspace():
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _prepare(p, z0, f0, ws):
-    return 0
-
-
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _f(p, h, u, s, ws):
     """f on scalars, so that the stages stay in registers (twice as fast as in arrays)."""
     zb, fb = ws
@@ -98,13 +93,13 @@ def _attempt(p, hs, ws, z, f, z1, f1, D):
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def kernel(st, p, Z, G, dirs, grid, saved, ev, n_max):
-    return engine.run(_prepare, _attempt, engine.nr_reject, engine.nr_accept, _workspace,
+    return engine.run(engine.prepare_nothing, _attempt, engine.nr_reject, engine.nr_accept, _workspace,
                       st, p, Z, G, dirs, grid, saved, ev, n_max)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def fixed(p, z0, hs, n):
-    return engine.fixed_steps(_prepare, _attempt, _workspace, p, z0, hs, n)
+    return engine.fixed_steps(engine.prepare_nothing, _attempt, _workspace, p, z0, hs, n)
 
 
 @register

@@ -50,7 +50,7 @@ from problems.formulations import ode_rhs
 
 __all__ = ["run", "fixed_steps", "rhs", "jacobian", "hermite", "new_state", "P", "ST", "ZROW",
            "DONE", "CHUNK", "GROW", "NONFINITE", "UNDERFLOW", "MAX_STEPS", "WALL_TIME",
-           "nr_reject", "nr_accept", "rodas_reject", "rodas_accept", "pred_reject", "pred_accept"]
+           "prepare_jacobian", "prepare_nothing", "nr_reject", "nr_accept", "rodas_reject", "rodas_accept", "pred_reject", "pred_accept"]
 
 # --- layouts -------------------------------------------------------------------------------
 #: st: the last step [TAU_OLD, TAU], its proposed successor H, the CURSOR ≤ TAU up to which
@@ -113,6 +113,20 @@ def f_of(p, z, out):
 def roots(p, z, g):
     """The four root functions of :mod:`integrators.core.events` at z, into g."""
     compiled_roots(p[_BETA], p[_C], p[_D], p[_LN_10ES], p[_LN_ES], p[_LN_E], z, g)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def prepare_jacobian(p, z0, f0, ws):
+    """A ``prepare`` for linearly implicit methods: the exact Jacobian at the step's start into
+    ws[0]."""
+    jacobian(int(p[_LAW]), p[_BETA], p[_C], p[_D], p[_E], z0, ws[0])
+    return 1
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def prepare_nothing(p, z0, f0, ws):
+    """A ``prepare`` for explicit methods."""
+    return 0
 
 
 # --- controllers -------------------------------------------------------------------------------

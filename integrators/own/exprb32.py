@@ -28,20 +28,13 @@ from integrators.own import engine
 from integrators.own.compiled import CompiledAlgorithm
 from integrators.own.phi import matvec, phi_functions, remainder_diff
 
-__all__ = ["Exprb32", "exprb_workspace", "exprb_prepare"]
+__all__ = ["Exprb32", "exprb_workspace"]
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def exprb_workspace():
     """J, the φ-functions P (5 × 3 × 3), φ1(hJ/2) and scratch vectors (7 × 3)."""
     return np.empty((3, 3)), np.empty((5, 3, 3)), np.empty((3, 3)), np.empty((7, 3))
-
-
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def exprb_prepare(p, z0, f0, ws):
-    """The exact Jacobian at the step's start."""
-    engine.jacobian(int(p[0]), p[1], p[2], p[3], p[4], z0, ws[0])
-    return 1
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -71,13 +64,13 @@ def _attempt(p, hs, ws, z, f, out, f1, D):
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def kernel(st, p, Z, G, dirs, grid, saved, ev, n_max):
-    return engine.run(exprb_prepare, _attempt, engine.pred_reject, engine.pred_accept,
+    return engine.run(engine.prepare_jacobian, _attempt, engine.pred_reject, engine.pred_accept,
                       exprb_workspace, st, p, Z, G, dirs, grid, saved, ev, n_max)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def fixed(p, z0, hs, n):
-    return engine.fixed_steps(exprb_prepare, _attempt, exprb_workspace, p, z0, hs, n)
+    return engine.fixed_steps(engine.prepare_jacobian, _attempt, exprb_workspace, p, z0, hs, n)
 
 
 @register

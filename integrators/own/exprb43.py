@@ -24,7 +24,7 @@ from numba import njit
 from integrators.core.registry import register
 from integrators.own import engine
 from integrators.own.compiled import CompiledAlgorithm
-from integrators.own.exprb32 import exprb_prepare, exprb_workspace
+from integrators.own.exprb32 import exprb_workspace
 from integrators.own.phi import matvec, phi_functions, remainder_diff
 
 __all__ = ["Exprb43"]
@@ -69,13 +69,13 @@ def _attempt(p, hs, ws, z, f, out, f1, D):
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def kernel(st, p, Z, G, dirs, grid, saved, ev, n_max):
-    return engine.run(exprb_prepare, _attempt, engine.pred_reject, engine.pred_accept,
+    return engine.run(engine.prepare_jacobian, _attempt, engine.pred_reject, engine.pred_accept,
                       exprb_workspace, st, p, Z, G, dirs, grid, saved, ev, n_max)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def fixed(p, z0, hs, n):
-    return engine.fixed_steps(exprb_prepare, _attempt, exprb_workspace, p, z0, hs, n)
+    return engine.fixed_steps(engine.prepare_jacobian, _attempt, exprb_workspace, p, z0, hs, n)
 
 
 @register

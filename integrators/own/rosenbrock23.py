@@ -43,12 +43,6 @@ def _workspace():
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _prepare(p, z0, f0, ws):
-    engine.jacobian(int(p[0]), p[1], p[2], p[3], p[4], z0, ws[0])
-    return 1
-
-
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _attempt(p, hs, ws, z0, f0, z1, f1, D):
     J, M, piv, K, u, fb = ws
     rtol, atol = p[5], p[6]
@@ -78,13 +72,13 @@ def _attempt(p, hs, ws, z0, f0, z1, f1, D):
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def kernel(st, p, Z, G, dirs, grid, saved, ev, n_max):
-    return engine.run(_prepare, _attempt, engine.rodas_reject, engine.rodas_accept, _workspace,
+    return engine.run(engine.prepare_jacobian, _attempt, engine.rodas_reject, engine.rodas_accept, _workspace,
                       st, p, Z, G, dirs, grid, saved, ev, n_max)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def fixed(p, z0, hs, n):
-    return engine.fixed_steps(_prepare, _attempt, _workspace, p, z0, hs, n)
+    return engine.fixed_steps(engine.prepare_jacobian, _attempt, _workspace, p, z0, hs, n)
 
 
 @register
