@@ -1,6 +1,6 @@
 # One command sets everything up and runs: `make test` (the test suite) or `make reproduce`
-# (regenerates results/). Both are idempotent: system packages are installed only if missing,
-# .venv is created once and re-synced when pyproject.toml changes.
+# (brings results/ up to date). Both are idempotent: system packages are installed only if
+# missing, .venv is created once and re-synced when pyproject.toml changes.
 
 PYTHON   ?= python3
 VENV     := .venv
@@ -8,7 +8,7 @@ PY       := $(VENV)/bin/python
 APT_PKGS := gfortran libsundials-dev pkg-config cmake
 STAMP    := $(VENV)/.installed
 
-.PHONY: setup system-packages numba-cache test test-slow reproduce bench clean
+.PHONY: setup system-packages numba-cache test test-slow reproduce reproduce-full bench clean
 
 setup: $(STAMP)
 
@@ -42,8 +42,16 @@ test: setup numba-cache
 test-slow: setup numba-cache
 	$(PY) -m pytest -m slow
 
+# the quick plan: reruns the quick steps whose inputs (code, package versions, settings, files
+# read, the machine for timings) changed, reuses the others and keeps the files of the full
+# steps; ~15 min on 2 cores when every quick step runs (docs/reproduce.md)
 reproduce: setup numba-cache
 	$(VENV)/bin/rsfbench reproduce --out results
+
+# the full plan: also the quick work-precision study, issue 6's target on every study problem
+# and scipy's RK45 to its 600 s budget (about 1.5 h on 2 cores when every step runs)
+reproduce-full: setup numba-cache
+	$(VENV)/bin/rsfbench reproduce --full --out results
 
 # the pytest-benchmark suite (benchmarks/test_*.py): timings at matched accuracy, as JSON
 bench: setup numba-cache

@@ -9,7 +9,7 @@
     rsfbench speedup --json                 # the paper's 1/10,000 claim, three ways
     rsfbench target --csv results/wp_quick.csv   # own integrators against LSODA and SUNDIALS
     rsfbench sweep --preset W2 --b 0.009:0.0098:0.0001 --lc 1e-7:1e-6:9log --json
-    rsfbench reproduce --out results        # what `make reproduce` runs
+    rsfbench reproduce --out results        # what `make reproduce` runs (--full: reproduce-full)
     rsfbench readme [--check]               # refill the README's numbers from results/
 """
 
@@ -21,6 +21,7 @@ import io
 import json
 import os
 import sys
+import textwrap
 import warnings
 from pathlib import Path
 
@@ -30,34 +31,33 @@ from benchmarks.cli_args import (Parser, RunStopped, add_integrator_options, add
                                  positive, preset_name, problem_from_args, say, show_progress,
                                  wants_json)
 from benchmarks.report import jsonable as _jsonable
+from benchmarks.summary import integrator_rows, integrators_markdown, simulate_summary
 from benchmarks.timing import warm_up
 from integrators import REGISTRY, algorithm_class, solve
 from problems import PRESET_NAMES, WINDOWS, preset
 
 __all__ = ["main"]
 
+REPRODUCE_HELP = """\
+Bring the results directory up to date, write its REPORT.md and, for the
+project's results/, refill the README's generated blocks.
+
+The quick plan (the default; `make reproduce`) runs the quick steps:
+{quick}
+The full plan (--full; `make reproduce-full`) also runs the long ones:
+{full}
+The quick plan keeps the files of the full steps and says which are stale.
+
+A step is reused, not rerun, when its code, the package versions, its
+settings, the files it reads and, for a timing, the machine are those of its
+last run, and the files it wrote are there unchanged (results/manifest.json).
+--force reruns every step of the plan; --only STEP reruns one step.
+See docs/reproduce.md."""
+
 
 def algorithm_name(name: str, flag: str = "--integrators") -> str:
     """The registry's spelling of ``name`` (lookups are case-insensitive)."""
     return flagged(flag, algorithm_class, name).name
-
-
-def simulate_summary(sol) -> dict:
-    """The JSON summary of one run (the keys ``rsfbench simulate --json`` promises)."""
-    lc = metrics.summarize(sol)
-    p = sol.problem
-    per_event = metrics.event_metrics(sol.events, p.normal_force)
-    # the last event of a run that reached its end (a failed run's events are not physics)
-    last = per_event.iloc[-1].to_dict() if len(per_event) and sol.reached_end else {}
-    return _jsonable({
-        "problem": p.name, "law": p.law.name, "b": p.law.b, "lc_m": p.law.lc, "t_end": p.t_end,
-        "integrator": sol.algorithm.name, "options": sol.algorithm.options(),
-        "retcode": sol.retcode.value, "message": sol.message,
-        "wall_s": sol.stats.wall_s, "steps": sol.stats.steps, "nfev": sol.stats.nfev,
-        "njev": sol.stats.njev, "n_events": len(sol.events),
-        "limit_cycle": lc.as_dict(),
-        "last_event": {k: float(v) for k, v in last.items()},
-    })
 
 
 def _print_summary(s: dict) -> None:
@@ -104,16 +104,11 @@ def cmd_simulate(args) -> int:
 
 
 def cmd_integrators(args) -> int:
-    rows = [{"name": name, "family": cls.family, "order": cls.order,
-             "stiff_order": cls.order if cls.stiff_order is None else cls.stiff_order, "adaptive": cls.adaptive,
-             "stiff": cls.stiff, "library": cls.library, "version": cls.library_version()}
-            for name, cls in sorted(REGISTRY.items(), key=lambda kv: kv[0].lower())]
+    rows = integrator_rows()
     if args.json:
         say(json.dumps(rows, indent=2))
     elif args.markdown:
-        import pandas as pd
-        from benchmarks.report import markdown_table
-        say(markdown_table(pd.DataFrame(rows)), end="")
+        say(integrators_markdown(), end="")
     else:
         say(f"{'name':<22} {'order':>5}  {'adaptive':<8} {'family':<32} library")
         for r in rows:
@@ -301,9 +296,18 @@ def cmd_probe(args) -> int:
 
 
 def cmd_reproduce(args) -> int:
-    from benchmarks.reproduce import reproduce
-    reproduce(Path(args.out), scipy_budget=args.scipy_budget, start=args.start, only=args.only)
+    from benchmarks.reproduce import describe, reproduce, summary
+    rows = reproduce(Path(args.out), full=args.full, force=args.force, start=args.start,
+                     only=args.only, scipy_budget=args.scipy_budget, dry_run=args.dry_run)
+    if args.dry_run:
+        for row in rows:
+            say(describe(row))
+    say(summary(rows))
     return 0
+
+
+def _listed(names) -> str:
+    return textwrap.fill(", ".join(names) + ".", 78, initial_indent="  ", subsequent_indent="  ")
 
 
 def build_parser() -> Parser:
@@ -434,19 +438,31 @@ def build_parser() -> Parser:
                     help="only say which blocks are out of date (exit status 1 if any)")
     rd.set_defaults(func=cmd_readme)
 
-    r = sub.add_parser("reproduce", help="regenerate results/ (what `make reproduce` runs)")
+    from benchmarks.reproduce import FULL_STEPS, QUICK_STEPS, STEP_NAMES
+    r = sub.add_parser("reproduce", help="bring results/ up to date (what `make reproduce` runs)",
+                       description=REPRODUCE_HELP.format(quick=_listed(QUICK_STEPS),
+                                                         full=_listed(FULL_STEPS)))
     r.add_argument("--out", type=out_dir, default="results", metavar="DIR",
                    help="directory of the results")
+    r.add_argument("--full", action="store_true",
+                   help="the full plan: also the long steps (" + ", ".join(FULL_STEPS) + "; "
+                        "about 1.5 h on 2 cores) (default: the quick plan, ~15 min when every "
+                        "quick step runs)")
+    r.add_argument("--force", action="store_true",
+                   help="rerun every step of the plan, reusing none (default: reuse the steps "
+                        "whose inputs did not change)")
+    r.add_argument("--dry-run", action="store_true",
+                   help="say which steps would run and why, run nothing")
     r.add_argument("--scipy-budget", type=positive, metavar="S",
-                   help="wall budget of scipy's RK45 in the speed-up step in s (default 600 s)")
-    from benchmarks.reproduce import STEP_NAMES
+                   help="wall budget of scipy's RK45 in the speedup step in s, with --full or "
+                        "--only speedup (default 600 s)")
     which = r.add_mutually_exclusive_group()
     which.add_argument("--from", dest="start", choices=STEP_NAMES, metavar="STEP",
-                       help="start at this step, keeping the files of the earlier ones (steps: "
-                            f"{', '.join(STEP_NAMES)}; default: the first)")
+                       help="start at this step of the plan, leaving the earlier ones alone "
+                            f"(steps: {', '.join(STEP_NAMES)}; default: the first)")
     which.add_argument("--only", choices=STEP_NAMES, metavar="STEP",
-                       help="run this step alone, keeping the files of the others "
-                            "(default: every step)")
+                       help="rerun this step alone, quick or full, whatever its inputs "
+                            "(default: every step of the plan)")
     r.set_defaults(func=cmd_reproduce)
 
     pr = sub.add_parser("probe", help="the reliability probe: bad input, budgets, corrupt "

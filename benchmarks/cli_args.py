@@ -14,6 +14,8 @@ import os
 import sys
 from pathlib import Path
 
+from benchmarks.sweep_exec import RunStopped
+
 __all__ = ["say", "show_progress", "RunStopped", "Parser", "HelpFormatter", "positive",
            "non_negative", "finite",
            "count", "seed", "out_dir", "out_file", "in_file", "preset_name", "flagged",
@@ -68,11 +70,6 @@ class Parser(argparse.ArgumentParser):
 
 class UsageError(ValueError):
     """A command line that does not parse; the message is the one line to print."""
-
-
-class RunStopped(RuntimeError):
-    """A run that stopped for a reason outside its arguments (a cluster lost its workers); the
-    command says why in one line and exits with status 1."""
 
 
 def _number(text: str, what: str) -> float:

@@ -17,40 +17,21 @@ from benchmarks.cli_args import (add_integrator_options, add_problem_options, co
                                  integrator_from_args, non_negative, out_dir, out_file, positive,
                                  preset_name, problem_from_args, say, seed, show_progress)
 from benchmarks.report import jsonable
+from benchmarks.sweep import observations
 
 __all__ = ["add_parsers", "observations", "synthetic_curves"]
-
-#: σ assumed when the user gives none: 10 % of the observed mean (flagged in the output)
-ASSUMED_SIGMA = 0.10
-
-
-def observations(preset_name: str, obs_recurrence=None, sigma_recurrence=None, obs_drop=None,
-                 sigma_drop=None, curves=None):
-    """Observations from the flags; a window's published means fill what is not given, and a
-    missing σ is 10 % of its mean (``assumed_sigma`` says so)."""
-    from benchmarks.sweep import Observations
-    from problems import WINDOWS
-    w = WINDOWS.get(preset_name.upper())
-    obs_recurrence = obs_recurrence if obs_recurrence is not None else (w and w.observed_recurrence)
-    obs_drop = obs_drop if obs_drop is not None else (w and w.observed_drop)
-    for flag, value in (("--obs-recurrence", obs_recurrence), ("--obs-drop", obs_drop)):
-        if value is None:
-            raise ValueError(f"{flag} is required for {preset_name!r} (it has no observed means)")
-    assumed = sigma_recurrence is None or sigma_drop is None
-    return Observations(
-        recurrence_s=obs_recurrence,
-        sigma_recurrence_s=(sigma_recurrence if sigma_recurrence is not None
-                            else ASSUMED_SIGMA * obs_recurrence),
-        friction_drop=obs_drop,
-        sigma_friction_drop=sigma_drop if sigma_drop is not None else ASSUMED_SIGMA * obs_drop,
-        curves=curves, assumed_sigma=assumed)
-
 
 def cmd_sweep(args) -> int:
     from benchmarks.fitting import read_curves
     from benchmarks.maps import plot_sweep
     from benchmarks.sweep import parse_b, parse_lc, sweep
-    from problems import preset
+    from problems import WINDOWS, preset
+    if args.preset.upper() not in WINDOWS:         # the flags a window's published means fill
+        for flag, value in (("--obs-recurrence", args.obs_recurrence),
+                            ("--obs-drop", args.obs_drop)):
+            if value is None:
+                raise ValueError(f"{flag} is required for {args.preset!r} (it has no observed "
+                                 "means)")
     b_values = parse_b(args.b, args.max_points)
     lc_values = parse_lc(args.lc, args.max_points)
     curves = read_curves(args.slip_weakening) if args.slip_weakening else None

@@ -15,7 +15,7 @@ from benchmarks.metrics import event_metrics
 from benchmarks.timing import warm_up
 from integrators import REGISTRY, solve
 
-__all__ = ["compare_integrators"]
+__all__ = ["compare_integrators", "compare_markdown"]
 
 
 def compare_integrators(problem, rtol: float, atol: float, names=None,
@@ -41,3 +41,17 @@ def compare_integrators(problem, rtol: float, atol: float, names=None,
             "message": sol.message,
         })
     return pd.DataFrame(rows)
+
+
+def compare_markdown(table: pd.DataFrame) -> str:
+    """The table of :func:`compare_integrators` in Markdown (``compare_<problem>.md``)."""
+    from benchmarks.report import fmt, markdown_table
+    shown = table.assign(
+        rtol=[fmt(x, "g") for x in table.rtol],
+        wall_s=[fmt(x, ".3g") for x in table.wall_s],
+        t_reached_s=[fmt(x, ".4g") for x in table.t_reached_s],
+        recurrence_s=[fmt(x, ".8f") for x in table.recurrence_s],
+        friction_drop=[fmt(x, ".7f") for x in table.friction_drop],
+    )[["integrator", "version", "rtol", "retcode", "t_reached_s", "wall_s", "nfev", "njev",
+       "steps", "n_events", "recurrence_s", "friction_drop"]]
+    return markdown_table(shown)

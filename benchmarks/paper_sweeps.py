@@ -22,12 +22,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from benchmarks.cli_sweep import observations
 from benchmarks.fitting import CHI2_95_2DOF
 from benchmarks.maps import plot_sweep
 from benchmarks.provenance import provenance
 from benchmarks.report import fmt, jsonable, markdown_table
-from benchmarks.sweep import sweep
+from benchmarks.sweep import observations, sweep
 from benchmarks.timing import warm_up
 from benchmarks.work_precision import STUDY_CSV, recommended_algorithm
 from integrators import solve

@@ -18,11 +18,17 @@ a bad file trusted, a budget overrun, output that is not one JSON document).
 
 The catalogue is :mod:`benchmarks.probe_cases`; ``tests/test_reliability.py`` runs every case
 and ``rsfbench probe`` writes the table of kinds and outcomes (``results/reliability.md``).
+
+The probe runs the command line as a user does: the installed program ``rsfbench``, in this
+process by its entry point (:func:`cli`) or as a subprocess. It imports no part of the command
+line, which itself runs the probe (``rsfbench probe``).
 """
 
 from __future__ import annotations
 
 import contextlib
+import functools
+import importlib.metadata
 import json
 import os
 import signal
@@ -138,11 +144,20 @@ class CliRun:
     err: str
 
 
+@functools.cache
+def program():
+    """The ``rsfbench`` program's entry point, loaded as its installed script loads it."""
+    found = importlib.metadata.entry_points(group="console_scripts", name="rsfbench")
+    if not found:
+        raise RuntimeError("the rsfbench program is not installed (pip install -e .)")
+    return next(iter(found)).load()
+
+
 def cli(*args: str) -> CliRun:
     """``rsfbench ARGS`` in this process, its standard output and error captured at the file
     descriptors (so what a library writes there is seen too)."""
-    from benchmarks.cli import main
     import sys
+    main = program()
     with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
         sys.stdout.flush()
         sys.stderr.flush()

@@ -181,8 +181,7 @@ def _make(name, **kw):
 # --- sweep arguments (API) -------------------------------------------------------------------
 
 def _sweep(tmp, b=(0.0094,), lc=(3e-7,), **kw):
-    from benchmarks.cli_sweep import observations
-    from benchmarks.sweep import sweep
+    from benchmarks.sweep import observations, sweep
     from integrators import ETD2
     args = dict(t_end=1.0, workers=1, progress=False)
     args.update(kw)

@@ -1,47 +1,73 @@
-"""What ``make reproduce`` runs: every generated file in ``results/``, from scratch, and
-``results/REPORT.md`` assembling them.
+"""What ``make reproduce`` runs: the generated files of ``results/``, ``results/REPORT.md``
+assembling them, and the README's generated blocks.
 
-Steps (about an hour and a half on a 2-core machine; ten minutes of it are scipy's RK45 in its wall
-budget, half an hour the full study behind issue 6's target): integrator table; W1–W4 simulated
-under both laws (``simulate_<window>_<law>.json`` and the windows table); the paper example; the
-reference solutions and their agreement; the speed-up claim; the convergence study and the
-fixed-step order of the compiled stiff methods; the quick work-precision study and issue 6's
-target; the target on every study problem (a full work-precision study of the stiff adaptive
-integrators); every backend side by side; the Section 4 sweeps; the sweep's speed on 1 and 2
-workers; the locking rule of the classification against the trajectory; the ETD family's
-step-rule check on the studied problems; what J2 sees; the reliability probe;
-last, when ``out`` is the project's ``results/``, the README's generated blocks
-(:mod:`benchmarks.readme`).
+Two plans share one list of steps (:data:`STEPS`). The quick plan (``make reproduce``; about a
+quarter of an hour on 2 cores when every quick step runs) runs the quick steps and keeps the
+files of the full ones; the full plan (``make reproduce-full``, ``rsfbench reproduce --full``;
+about an hour and a half) also runs the long steps: the quick work-precision study, issue 6's
+target on every study problem and scipy's RK45 to its budget in the speed-up claim. Either plan
+reuses a step whose inputs did not change (:mod:`benchmarks.manifest`: ``results/manifest.json``
+records what each step read and wrote); ``force`` reruns every step of the plan, ``only`` one
+step. A full step the quick plan keeps although its inputs changed is reported as stale, at the
+end and in ``REPORT.md``.
+
+When ``out`` is the project's ``results/``, the README's generated blocks are refilled last
+(:mod:`benchmarks.readme`). ``docs/reproduce.md`` lists the steps and their times.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
+import time
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Callable
 
-from benchmarks.cli import simulate_summary
-from benchmarks.compare import compare_integrators
-from benchmarks.plots import plot_solution
-from benchmarks.timing import warm_up
-from benchmarks.windows import windows_table, write_windows
-from integrators import ETD2, solve
-from problems import WINDOWS, paper_example, window
+from benchmarks import manifest as M
+from benchmarks.files import BadResultsFile
 
-__all__ = ["reproduce"]
+__all__ = ["reproduce", "run_steps", "describe", "summary", "Step", "STEPS", "STEP_NAMES",
+           "QUICK_STEPS", "FULL_STEPS"]
 
-COMPARE_RTOL = 1e-8          # the side-by-side comparison of every backend (issue 3)
-COMPARE_WALL_BUDGET = 60.0   # s per solve: explicit methods crawl through the stick phase
+
+@dataclass(frozen=True, eq=False)
+class Step:
+    """One step: ``run(out, **settings)`` writes its files to ``out``. ``full``: only in the
+    full plan. ``timed``: its numbers are timings (the machine is an input). ``reads``: results
+    files it reads, relative to ``out``; ``data``: project files it reads, relative to the
+    project; ``modules``: project modules it runs without importing them (a command line run
+    as a program). ``minutes``: the time it takes on 2 cores, as last measured."""
+
+    name: str
+    title: str
+    run: Callable[..., object]
+    full: bool = False
+    timed: bool = False
+    settings: dict = field(default_factory=dict)
+    reads: tuple[str, ...] = ()
+    data: tuple[str, ...] = ()
+    modules: tuple[str, ...] = ()
+    minutes: float = 0.0
 
 
 def _section(title: str) -> None:
     print(f"\n== {title} ==", flush=True)
 
 
-def _integrators(out: Path, scipy_budget) -> None:
-    (out / "integrators.md").write_text(_integrators_markdown())
+# --- the steps: thin calls of the library (their source is one of their inputs) ------------
+
+def _integrators(out: Path) -> None:
+    from benchmarks.summary import integrators_markdown
+    (out / "integrators.md").write_text(integrators_markdown())
 
 
-def _windows(out: Path, scipy_budget) -> None:
+def _windows(out: Path) -> None:
+    from benchmarks.summary import simulate_summary
+    from benchmarks.timing import warm_up
+    from benchmarks.windows import windows_table, write_windows
+    from integrators import ETD2, solve
+    from problems import WINDOWS, window
     algorithm = ETD2()
     for name in WINDOWS:
         for law in ("slip", "aging"):
@@ -52,7 +78,12 @@ def _windows(out: Path, scipy_budget) -> None:
     write_windows(windows_table(), out)
 
 
-def _paper_example(out: Path, scipy_budget) -> None:
+def _paper_example(out: Path) -> None:
+    from benchmarks.plots import plot_solution
+    from benchmarks.summary import simulate_summary
+    from benchmarks.timing import warm_up
+    from integrators import ETD2, solve
+    from problems import paper_example, window
     algorithm, problem = ETD2(), paper_example()
     warm_up(problem, algorithm)
     sol = solve(problem, algorithm, max_points=200_000)
@@ -63,128 +94,260 @@ def _paper_example(out: Path, scipy_budget) -> None:
     print(json.dumps(summary["limit_cycle"], indent=2))
 
 
-def _references(out: Path, scipy_budget) -> None:
+def _references(out: Path) -> None:
     from benchmarks.reference import agreement_table, reference
     from benchmarks.work_precision import study_problems
     refs = [(p, reference(p, progress=False)) for p in study_problems("full")]
     agreement_table(refs).to_csv(out / "references.csv", index=False)
 
 
-def _speedup(out: Path, scipy_budget) -> None:
-    from benchmarks.speedup import DEFAULT_SCIPY_BUDGET, speedup, write_speedup
-    budget = DEFAULT_SCIPY_BUDGET if scipy_budget is None else scipy_budget
-    print(write_speedup(*speedup(paper_example(), scipy_budget=budget), out))
+def _speedup(out: Path, scipy_budget: float) -> None:
+    from benchmarks.speedup import speedup, write_speedup
+    from problems import paper_example
+    print(write_speedup(*speedup(paper_example(), scipy_budget=scipy_budget), out))
 
 
-def _convergence(out: Path, scipy_budget) -> None:
+def _convergence(out: Path) -> None:
     from benchmarks.convergence import convergence_study, write_convergence
+    from problems import paper_example
     problem = paper_example()
     write_convergence(problem, *convergence_study(problem), out)
 
 
-def _fixed_steps(out: Path, scipy_budget) -> None:
+def _fixed_steps(out: Path) -> None:
     from benchmarks.convergence import fixed_step_orders, write_fixed_step_orders
     write_fixed_step_orders(*fixed_step_orders(progress=False), out)
 
 
-def _work_precision(out: Path, scipy_budget) -> None:
+def _work_precision(out: Path) -> None:
     from benchmarks.report import write_work_precision
-    from benchmarks.target import write_target
     from benchmarks.work_precision import QUICK, study_problems, work_precision
-    paths = write_work_precision(work_precision(study_problems("quick"), QUICK), out, "quick")
-    write_target(paths["csv"], out)
+    write_work_precision(work_precision(study_problems("quick"), QUICK), out, "quick")
 
 
-def _target_full(out: Path, scipy_budget) -> None:
+def _target(out: Path) -> None:
+    from benchmarks.target import write_target
+    write_target(out / "wp_quick.csv", out)
+
+
+def _target_full(out: Path) -> None:
     from benchmarks.target import full_target, target_markdown
     print(target_markdown(full_target(out)))
 
 
-def _compare(out: Path, scipy_budget) -> None:
-    table = compare_integrators(paper_example(), COMPARE_RTOL, COMPARE_RTOL,
-                                wall_budget=COMPARE_WALL_BUDGET)
+def _compare(out: Path, rtol: float, wall_budget: float) -> None:
+    from benchmarks.compare import compare_integrators, compare_markdown
+    from problems import paper_example
+    table = compare_integrators(paper_example(), rtol, rtol, wall_budget=wall_budget)
     table.to_csv(out / "compare_paper_example.csv", index=False)
-    (out / "compare_paper_example.md").write_text(_compare_markdown(table))
+    (out / "compare_paper_example.md").write_text(compare_markdown(table))
 
 
-def _sweeps(out: Path, scipy_budget) -> None:
+def _sweeps(out: Path) -> None:
     from benchmarks.paper_sweeps import paper_sweeps
     paper_sweeps(out, study_csv=out / "wp_quick.csv")
 
 
-def _sweep_scaling(out: Path, scipy_budget) -> None:
+def _sweep_scaling(out: Path) -> None:
     from benchmarks.paper_sweeps import sweep_scaling
     sweep_scaling(out, study_csv=out / "wp_quick.csv")
 
 
-def _classification(out: Path, scipy_budget) -> None:
+def _classification(out: Path) -> None:
     from benchmarks.classification import classification_study, write_classification
     print(write_classification(classification_study(), out))
 
 
-def _etd_validity(out: Path, scipy_budget) -> None:
+def _etd_validity(out: Path) -> None:
     from benchmarks.etd_validity import etd_validity, write_etd_validity
     print(write_etd_validity(etd_validity(), out))
 
 
-def _misfit(out: Path, scipy_budget) -> None:
+def _misfit(out: Path) -> None:
     from benchmarks.misfit import j2_information, write_j2_information
     print(write_j2_information(j2_information(), out))
 
 
-def _probe(out: Path, scipy_budget) -> None:
+def _probe(out: Path) -> None:
     from benchmarks.probe import run_probe, write_probe
     from benchmarks.probe_cases import cases
     print(write_probe(run_probe(cases()), out))
 
 
-#: the steps in order: (name for --from, title, function(out, scipy_budget))
+COMPARE_RTOL = 1e-8          # the side-by-side comparison of every backend (issue 3)
+#: the steps in order; ``minutes``: on 2 cores at fcab60f, measured, or for the full steps
+#: estimated from the wall times in their results files (docs/reproduce.md)
 STEPS = (
-    ("integrators", "integrators", _integrators),
-    ("windows", "W1–W4 limit cycles (ETD2, both laws)", _windows),
-    ("paper-example", "paper example (Appendix 1.4)", _paper_example),
-    ("references", "reference solutions (two independent solvers, checked)", _references),
-    ("speedup", "the paper's speed-up claim", _speedup),
-    ("convergence", "convergence of the fixed-step methods", _convergence),
-    ("fixed-steps", "fixed-step order of the compiled stiff methods (stiff segment, control "
-                    "off)", _fixed_steps),
-    ("work-precision", "quick work-precision study and issue 6's target", _work_precision),
-    ("target-full", "issue 6's target on every study problem (full work-precision study of the "
-                    "stiff adaptive integrators)", _target_full),
-    ("compare", f"every integrator on the paper example, rtol = atol = {COMPARE_RTOL:g}",
-     _compare),
-    ("sweeps", "Section 4: (b, Lc) sweeps around the published best fits", _sweeps),
-    ("sweep-scaling", "sweep speed: 21 x 21 on W2, serial and on 2 workers", _sweep_scaling),
-    ("classification", "the locking rule of stick-slip, against the trajectory",
-     _classification),
-    ("etd-validity", "the ETD family's step-rule check on the studied problems", _etd_validity),
-    ("misfit", "what J2 sees: friction against the spring force", _misfit),
-    ("probe", "the reliability probe, slow cases included", _probe),
+    Step("integrators", "integrators", _integrators, minutes=0.05),
+    Step("windows", "W1–W4 limit cycles (ETD2, both laws)", _windows, minutes=0.15),
+    Step("paper-example", "paper example (Appendix 1.4)", _paper_example, minutes=0.05),
+    Step("references", "reference solutions (two independent solvers, checked)", _references,
+         minutes=0.4),
+    Step("speedup", "the paper's speed-up claim", _speedup, full=True, timed=True,
+         settings={"scipy_budget": 600.0}, minutes=12),
+    Step("convergence", "convergence of the fixed-step methods", _convergence, minutes=0.05),
+    Step("fixed-steps", "fixed-step order of the compiled stiff methods (stiff segment, control "
+         "off)", _fixed_steps, minutes=0.3),
+    Step("work-precision", "quick work-precision study", _work_precision, full=True, timed=True,
+         minutes=30),
+    Step("target", "issue 6's target on the quick study", _target, reads=("wp_quick.csv",),
+         minutes=0.05),
+    Step("target-full", "issue 6's target on every study problem (full work-precision study of "
+         "the stiff adaptive integrators)", _target_full, full=True, timed=True, minutes=37),
+    Step("compare", f"every integrator on the paper example, rtol = atol = {COMPARE_RTOL:g}",
+         _compare, timed=True, settings={"rtol": COMPARE_RTOL, "wall_budget": 60.0},
+         minutes=3.6),
+    Step("sweeps", "Section 4: (b, Lc) sweeps around the published best fits", _sweeps,
+         reads=("wp_quick.csv",), minutes=0.7),
+    Step("sweep-scaling", "sweep speed: 21 x 21 on W2, serial and on 2 workers", _sweep_scaling,
+         timed=True, reads=("wp_quick.csv",), minutes=0.3),
+    Step("classification", "the locking rule of stick-slip, against the trajectory",
+         _classification, minutes=2.6),
+    Step("etd-validity", "the ETD family's step-rule check on the studied problems",
+         _etd_validity, minutes=4),
+    Step("misfit", "what J2 sees: friction against the spring force", _misfit,
+         data=("tests/data/W2_slip_weakening.csv",), minutes=1.4),
+    Step("probe", "the reliability probe, slow cases included", _probe,
+         data=("results/wp_quick.csv",), modules=("benchmarks.cli",), minutes=1.4),
 )
-STEP_NAMES = tuple(name for name, _, _ in STEPS)
+STEP_NAMES = tuple(s.name for s in STEPS)
+QUICK_STEPS = tuple(s.name for s in STEPS if not s.full)
+FULL_STEPS = tuple(s.name for s in STEPS if s.full)
 
 
-def reproduce(out: Path, scipy_budget: float | None = None, start: str | None = None,
-              only: str | None = None) -> None:
-    """Regenerate ``out`` (see the module docstring); with ``start``, only that step and the ones
-    after it; with ``only``, that step alone (the files of the other steps must be there:
-    REPORT.md reads them all)."""
+def reproduce(out: Path, full: bool = False, force: bool = False, start: str | None = None,
+              only: str | None = None, scipy_budget: float | None = None,
+              dry_run: bool = False) -> list[dict]:
+    """Bring ``out`` up to date (see the module docstring) and write ``REPORT.md``; return one
+    row per step considered (``step``, ``status``, ``why``).
+
+    ``full``: the full plan. ``force``: rerun every step of the plan, reusing none. ``start``:
+    begin at this step (the earlier ones are left alone). ``only``: rerun this step alone, quick
+    or full. ``scipy_budget``: the speed-up step's wall budget for scipy's RK45 in s.
+    ``dry_run``: say what would run, run nothing, write nothing."""
     for what, name in (("start", start), ("only", only)):
         if name is not None and name not in STEP_NAMES:
             raise ValueError(f"unknown step {what}={name!r}: expected one of "
                              f"{', '.join(STEP_NAMES)}")
-    out.mkdir(parents=True, exist_ok=True)
-    first = STEP_NAMES.index(only or start) if (only or start) else 0
-    last = first + 1 if only else len(STEPS)
-    for name, title, step in STEPS[first:last]:
-        _section(title)
-        step(out, scipy_budget)
+    if only and start:
+        raise ValueError("only and start exclude each other")
+    if start and not full and _step(start).full:
+        raise ValueError(f"step {start!r} is in the full plan only: add --full (full=True), or "
+                         f"rerun it alone with --only {start}")
+    if scipy_budget is not None and not (full or only == "speedup"):
+        raise ValueError("the scipy budget is a setting of the speedup step, which only the "
+                         "full plan runs: add --full (full=True), or --only speedup")
+    steps = [s if s.name != "speedup" or scipy_budget is None
+             else dataclasses.replace(s, settings={**s.settings, "scipy_budget": scipy_budget})
+             for s in STEPS]
+    if only:
+        modes = {only: "run"}
+    else:
+        first = STEP_NAMES.index(start) if start else 0
+        modes = {s.name: ("keep" if s.full and not full else "run" if force else "check")
+                 for s in steps[first:]}
+    out = Path(out)
+    if not dry_run:
+        out.mkdir(parents=True, exist_ok=True)
+    rows = run_steps(steps, out, modes, dry_run=dry_run)
+    if dry_run:
+        return rows
     (out / "REPORT.md").write_text(_report_markdown(_collect(out)))
     print(f"\nwritten: {out / 'REPORT.md'}")
     from benchmarks.readme import ROOT, refresh
     if out.resolve() == (ROOT / "results").resolve():    # the README quotes these files
         stale = refresh()
         print(f"README blocks refilled: {', '.join(stale) or 'none changed'}")
+    return rows
+
+
+def _step(name: str) -> Step:
+    return STEPS[STEP_NAMES.index(name)]
+
+
+def run_steps(steps, out: Path, modes: dict[str, str], dry_run: bool = False,
+              **code) -> list[dict]:
+    """Take each step of ``steps`` named in ``modes`` in order: ``run`` reruns it, ``check``
+    reruns it unless its inputs and files are unchanged (then it is reused), ``keep`` only
+    says whether its files are up to date. Each step that ran is recorded in ``out``'s
+    manifest at once. ``code``: :func:`benchmarks.manifest.step_inputs`' ``root``,
+    ``packages`` and ``whole``."""
+    try:
+        records = M.read_manifest(out)
+    except BadResultsFile as exc:
+        print(f"{exc}: every step reruns")
+        records = {}
+    order = [s.name for s in steps]
+    rows = []
+    for step in steps:
+        mode = modes.get(step.name)
+        if mode is None:
+            continue
+        inputs = _inputs(step, out, **code)
+        ok, why = M.reusable(records.get(step.name), inputs, out)
+        if mode == "keep" or (mode == "check" and ok):
+            row = {"step": step.name, "status": "reused" if ok else "stale",
+                   "why": why if ok else f"{why}; `make reproduce-full` reruns it"}
+        elif dry_run:
+            row = {"step": step.name, "status": "would run",
+                   "why": "rerun as asked" if mode == "run" else why, "minutes": step.minutes}
+        else:
+            row = None
+        if row is not None:
+            rows.append(row)
+            if not dry_run:
+                print(describe(row), flush=True)
+            continue
+        why = "rerun as asked" if mode == "run" else why
+        missing = [r for r in step.reads if not (out / r).is_file()]
+        if missing:
+            raise FileNotFoundError(f"step {step.name} reads {out / missing[0]}, which is not "
+                                    "there: run the step that writes it first (`rsfbench "
+                                    f"reproduce --full --out {out}`)")
+        _section(step.title)
+        print(f"({why})", flush=True)
+        before = M.snapshot(out)
+        started = time.perf_counter()
+        step.run(out, **step.settings)
+        wall = time.perf_counter() - started
+        records[step.name] = M.make_record(step.name, "full" if step.full else "quick", inputs,
+                                           M.written_since(before, out), wall)
+        M.write_manifest(out, records, order)
+        rows.append({"step": step.name, "status": "ran", "why": why})
+    return rows
+
+
+def describe(row: dict) -> str:
+    """One line for a row of :func:`run_steps`."""
+    if row["status"] == "reused":
+        return f"{row['step']}: reused (inputs unchanged)"
+    if row["status"] == "stale":
+        return f"{row['step']}: kept, a step of the full plan ({row['why']})"
+    if row["status"] == "would run":
+        return f"{row['step']}: would run ({row['why']}; ~{_duration(60 * row['minutes'])})"
+    return f"{row['step']}: {row['status']} ({row['why']})"
+
+
+def summary(rows: list[dict]) -> str:
+    """One line: how many steps ran (or would, and for how long) and were reused, and which
+    full steps are stale."""
+    would = [r["minutes"] for r in rows if r["status"] == "would run"]
+    ran = [r["step"] for r in rows if r["status"] == "ran"]
+    reused = [r["step"] for r in rows if r["status"] == "reused"]
+    stale = [r["step"] for r in rows if r["status"] == "stale"]
+    text = (f"{_steps(len(would))} would run (~{_duration(60 * sum(would))}), " if would
+            else f"{_steps(len(ran))} ran, ") + f"{len(reused)} reused"
+    return text + (f"; stale, kept from an earlier run: {', '.join(stale)} (`make "
+                   "reproduce-full` reruns them)" if stale else "")
+
+
+def _steps(n: int) -> str:
+    return f"{n} step" + ("" if n == 1 else "s")
+
+
+def _inputs(step: Step, out: Path, **code) -> dict:
+    return M.step_inputs(step.run, step.settings, out, reads=step.reads, data=step.data,
+                         modules=step.modules, timed=step.timed, **code)
 
 
 def _collect(out: Path) -> dict:
@@ -219,7 +382,7 @@ def _collect(out: Path) -> dict:
         "fixed_steps": read("convergence_fixed_steps.md", "fixed-steps"),
         "work_precision": read("wp_quick_pareto.md", "work-precision"),
         "wp_figures": sorted(p.name for p in out.glob("wp_quick_*.png")),
-        "target": read("target_quick.md", "work-precision"),
+        "target": read("target_quick.md", "target"),
         "target_full": read("target_full.md", "target-full"),
         "compare": read("compare_paper_example.md", "compare"),
         "sweeps": read("sweeps.md", "sweeps"),
@@ -228,7 +391,30 @@ def _collect(out: Path) -> dict:
         "reliability": read("reliability.md", "probe"),
         "misfit": read("j2_information.md", "misfit"),
         "etd_validity": read("etd_validity.md", "etd-validity"),
+        "steps": markdown_table(pd.DataFrame(_step_states(out))),
     }
+
+
+def _step_states(out: Path) -> list[dict]:
+    """One row per step: its plan, its last run (from the manifest) and whether its files are
+    up to date with its inputs."""
+    try:
+        records = M.read_manifest(out)
+    except BadResultsFile:
+        records = {}
+    rows = []
+    for step in STEPS:
+        r = records.get(step.name)
+        ok, why = M.reusable(r, _inputs(step, out), out)
+        rows.append({"step": step.name, "plan": "full" if step.full else "quick",
+                     "last run": r["finished"] if r else "", "commit": r["git_commit"] if r else "",
+                     "took": _duration(r["wall_s"]) if r else "",
+                     "files": "up to date" if ok else why})
+    return rows
+
+
+def _duration(seconds: float) -> str:
+    return f"{seconds:.0f} s" if seconds < 100 else f"{seconds / 60:.1f} min"
 
 
 def _report_markdown(r: dict) -> str:
@@ -237,10 +423,12 @@ def _report_markdown(r: dict) -> str:
     figures = "\n".join(f"![{f}]({f})" for f in r["wp_figures"])
     return f"""# rsfbench report
 
-Generated by `make reproduce` (`rsfbench reproduce --out results`) on {meta['date']}, commit
+Assembled by `make reproduce` (`rsfbench reproduce --out results`) on {meta['date']}, commit
 `{meta['git_commit']}`, {meta['cpu']} ({meta['n_cpus']} CPUs), Python {meta['python']},
 numpy {meta['v_numpy']}, scipy {meta['v_scipy']}, numba {meta['v_numba']}. Every number below
-is in a file of this directory, written by that command.
+is in a file of this directory, written by a step of `rsfbench reproduce`; the last section says
+when each step last ran and whether its files are up to date with its inputs
+(`manifest.json`).
 
 ## Reference solutions (`references.csv`)
 
@@ -312,28 +500,11 @@ Every case of `benchmarks/probe_cases.py`, by kind and outcome (`rsfbench probe 
 {r['windows']}
 ## The registry (`integrators.md`)
 
-{r['integrators']}"""
+{r['integrators']}
+## The steps (`manifest.json`)
 
+"Up to date": the step's code, package versions, settings, files read and (for timings) machine
+are those it last ran on. `make reproduce` reruns the quick steps that are not; `make
+reproduce-full` also the full ones.
 
-def _integrators_markdown() -> str:
-    import io
-    from contextlib import redirect_stdout
-
-    from benchmarks.cli import main
-    buf = io.StringIO()
-    with redirect_stdout(buf):
-        main(["integrators", "--markdown"])
-    return buf.getvalue()
-
-
-def _compare_markdown(table) -> str:
-    from benchmarks.report import fmt, markdown_table
-    shown = table.assign(
-        rtol=[fmt(x, "g") for x in table.rtol],
-        wall_s=[fmt(x, ".3g") for x in table.wall_s],
-        t_reached_s=[fmt(x, ".4g") for x in table.t_reached_s],
-        recurrence_s=[fmt(x, ".8f") for x in table.recurrence_s],
-        friction_drop=[fmt(x, ".7f") for x in table.friction_drop],
-    )[["integrator", "version", "rtol", "retcode", "t_reached_s", "wall_s", "nfev", "njev",
-       "steps", "n_events", "recurrence_s", "friction_drop"]]
-    return markdown_table(shown)
+{r['steps']}"""

@@ -51,8 +51,8 @@ from problems._validate import (check_count, check_positive, units_checked_alrea
                                 warn_implausible)
 
 __all__ = ["parse_b", "parse_lc", "check_grid", "PointTask", "run_point", "PointStore",
-           "Observations", "sweep", "SweepResult", "BACKENDS", "MAX_GRID_POINTS",
-           "BadPointWarning"]
+           "Observations", "observations", "ASSUMED_SIGMA", "sweep", "SweepResult", "BACKENDS",
+           "MAX_GRID_POINTS", "BadPointWarning"]
 
 BACKENDS = ("processes", "threads")
 #: the most grid points a sweep runs unless ``max_points`` allows more: a typo in a step must
@@ -287,6 +287,31 @@ class Observations:
             check_positive(name, getattr(self, name))
         if self.curves is not None:
             object.__setattr__(self, "curves", check_curves(self.curves, "obs.curves"))
+
+
+#: σ assumed when none is given: 10 % of the observed mean (flagged in the output)
+ASSUMED_SIGMA = 0.10
+
+
+def observations(preset_name: str, obs_recurrence=None, sigma_recurrence=None, obs_drop=None,
+                 sigma_drop=None, curves=None) -> Observations:
+    """Observations of a preset: a window's published means fill what is not given, and a
+    missing σ is 10 % of its mean (``assumed_sigma`` says so)."""
+    from problems import WINDOWS
+    w = WINDOWS.get(preset_name.upper())
+    obs_recurrence = obs_recurrence if obs_recurrence is not None else (w and w.observed_recurrence)
+    obs_drop = obs_drop if obs_drop is not None else (w and w.observed_drop)
+    for name, value in (("obs_recurrence", obs_recurrence), ("obs_drop", obs_drop)):
+        if value is None:
+            raise ValueError(f"{name} is required for {preset_name!r} (it has no observed means)")
+    assumed = sigma_recurrence is None or sigma_drop is None
+    return Observations(
+        recurrence_s=obs_recurrence,
+        sigma_recurrence_s=(sigma_recurrence if sigma_recurrence is not None
+                            else ASSUMED_SIGMA * obs_recurrence),
+        friction_drop=obs_drop,
+        sigma_friction_drop=sigma_drop if sigma_drop is not None else ASSUMED_SIGMA * obs_drop,
+        curves=curves, assumed_sigma=assumed)
 
 
 @dataclass

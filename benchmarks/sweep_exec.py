@@ -17,9 +17,8 @@ import signal
 import threading
 import time
 
-from benchmarks.cli_args import RunStopped
-
-__all__ = ["execute", "ClusterGone", "PARENT_POLL_S", "CONNECT_TIMEOUT_S", "WORKER_TIMEOUT_S"]
+__all__ = ["execute", "RunStopped", "ClusterGone", "PARENT_POLL_S", "CONNECT_TIMEOUT_S",
+           "WORKER_TIMEOUT_S"]
 
 #: s between two looks of a pool worker at its parent
 PARENT_POLL_S = 0.5
@@ -27,6 +26,11 @@ PARENT_POLL_S = 0.5
 CONNECT_TIMEOUT_S = 10.0
 #: s a Dask cluster may have no worker while points are pending
 WORKER_TIMEOUT_S = 60.0
+
+
+class RunStopped(RuntimeError):
+    """A run that stopped for a reason outside its arguments (a cluster lost its workers); a
+    command says why in one line and exits with status 1."""
 
 
 class ClusterGone(RunStopped):

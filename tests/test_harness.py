@@ -241,20 +241,3 @@ def test_target_study_runs_every_stiff_adaptive_integrator_of_the_three_sides():
             "odes-IDA", "assimulo-CVode", "assimulo-IDA"} <= set(names)
     assert not {"ETD2", "CashKarp45", "odes-CVODE-Adams"} & set(names)
     assert all(any(n in g[side] for n in names) for side in ("own", "lsoda", "sundials"))
-
-
-def test_reproduce_runs_one_step_with_only_and_the_rest_with_from(tmp_path, monkeypatch):
-    from benchmarks import reproduce as RP
-    ran = []
-    steps = tuple((n, n, lambda out, budget, n=n: ran.append(n)) for n in ("a", "b", "c"))
-    monkeypatch.setattr(RP, "STEPS", steps)
-    monkeypatch.setattr(RP, "STEP_NAMES", ("a", "b", "c"))
-    monkeypatch.setattr(RP, "_collect", lambda out: {})
-    monkeypatch.setattr(RP, "_report_markdown", lambda r: "report\n")
-    RP.reproduce(tmp_path, only="b")
-    assert ran == ["b"]
-    RP.reproduce(tmp_path, start="b")
-    assert ran == ["b", "b", "c"]
-    with pytest.raises(ValueError, match="only='x'"):
-        RP.reproduce(tmp_path, only="x")
-    assert (tmp_path / "REPORT.md").read_text() == "report\n"
