@@ -11,8 +11,13 @@ numbalsoda's ``lsoda`` called once over a 20,001-point grid at rtol = atol = 1eâ
 ``cfunc`` right-hand side, as its users call it: no events, no restarts (so W2's two-speed
 loading is not followed: it measures the machine, not an answer).
 
+Start-up, in fresh processes: ``import integrators``, the first solve after it (Rodas5P on the
+paper example) and ``rsfbench simulate --preset paper-example --json``, with the numba cache
+warm (the minimum of 3) and, for the first two, cold (a copy of the sources with no cache: every
+kernel that solve needs is compiled).
+
 ``python -m benchmarks.engine_speed --out results`` writes ``engine_speed.csv`` (every setting)
-and ``engine_speed.md`` (the targets, met or missed).
+and ``engine_speed.md`` (the targets, met or missed, and the start-up times).
 """
 
 from __future__ import annotations
@@ -124,6 +129,44 @@ def targets(table: pd.DataFrame, lsoda: dict) -> pd.DataFrame:
     return pd.DataFrame(out)
 
 
+_STARTUP = ("import time; t0 = time.perf_counter(); import integrators as I, problems as P; "
+            "t1 = time.perf_counter(); I.solve(P.paper_example(), I.Rodas5P(rtol=1e-4, atol=1e-4)); "
+            "print(t1 - t0, time.perf_counter() - t1)")
+
+
+def startup(warm_repeats: int = 3) -> dict:
+    """Seconds: import, first solve (warm and cold) and the simulate command (warm)."""
+    import shutil
+    import subprocess
+    import sys
+    import tempfile
+    import time
+
+    root = Path(__file__).resolve().parent.parent
+
+    def once(cwd, env_path):
+        env = {**__import__("os").environ, "PYTHONPATH": str(env_path)}
+        out = subprocess.run([sys.executable, "-c", _STARTUP], cwd=cwd, env=env, check=True,
+                             capture_output=True, text=True).stdout.split()
+        return float(out[0]), float(out[1])
+
+    once(root, root)                                          # the cache filled
+    warm = [once(root, root) for _ in range(warm_repeats)]
+    with tempfile.TemporaryDirectory() as tmp:
+        for package in ("integrators", "problems", "benchmarks"):
+            shutil.copytree(root / package, Path(tmp) / package,
+                            ignore=shutil.ignore_patterns("__pycache__"))
+        cold = once(tmp, tmp)
+    simulate = []
+    for _ in range(warm_repeats):
+        start = time.perf_counter()
+        subprocess.run([sys.executable, "-m", "benchmarks.cli", "simulate", "--preset",
+                        "paper-example", "--json"], cwd=root, check=True, capture_output=True)
+        simulate.append(time.perf_counter() - start)
+    return {"import_warm": min(w[0] for w in warm), "first_solve_warm": min(w[1] for w in warm),
+            "import_cold": cold[0], "first_solve_cold": cold[1], "simulate_warm": min(simulate)}
+
+
 def write_engine_speed(out: Path, repeats: int = 5) -> pd.DataFrame:
     """``engine_speed.csv`` and ``engine_speed.md`` in ``out``; returns the targets table."""
     table, lsoda = engine_speed(repeats)
@@ -144,6 +187,19 @@ def write_engine_speed(out: Path, repeats: int = 5) -> pd.DataFrame:
         lines.append(f"| {r.target} | {r.target_ms:g} | {r.fastest} | {r.wall_ms:.3g} | "
                      f"{r.err_dT:.2g} | {r.lsoda_ms:.3g} | {r.ratio_to_lsoda:.2g} | "
                      f"{'yes' if r.met else 'no'} |")
+    t = startup()
+    lines += ["",
+              "Start-up in a fresh process (`import integrators`; then the first solve, Rodas5P "
+              "on the paper example; the simulate command as a whole), warm numba cache (min of 3) "
+              "and cold (no cache: the kernels that solve needs are compiled):",
+              "",
+              "| | warm (s) | goal (s) | cold (s) |",
+              "|---|---|---|---|",
+              f"| `import integrators` | {t['import_warm']:.2f} | 1 | {t['import_cold']:.2f} |",
+              f"| first solve after it | {t['first_solve_warm']:.2f} | 0.5 | "
+              f"{t['first_solve_cold']:.1f} |",
+              f"| `rsfbench simulate --preset paper-example --json` | {t['simulate_warm']:.2f} | 2 "
+              "| â€“ |"]
     atomic_write(out / "engine_speed.md", "\n".join(lines) + "\n")
     return goals
 

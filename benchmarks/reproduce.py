@@ -168,6 +168,11 @@ def _misfit(out: Path) -> None:
     print(write_j2_information(j2_information(), out))
 
 
+def _engine_speed(out: Path) -> None:
+    from benchmarks.engine_speed import write_engine_speed
+    print(write_engine_speed(out).to_string(index=False))
+
+
 def _probe(out: Path) -> None:
     from benchmarks.probe import run_probe, write_probe
     from benchmarks.probe_cases import cases
@@ -207,6 +212,8 @@ STEPS = (
          _etd_validity, minutes=4),
     Step("misfit", "what J2 sees: friction against the spring force", _misfit,
          data=("tests/data/W2_slip_weakening.csv",), minutes=1.4),
+    Step("engine-speed", "the own compiled engine against issue 14's targets and numbalsoda's "
+         "lsoda", _engine_speed, timed=True, minutes=0.6),
     Step("probe", "the reliability probe, slow cases included", _probe,
          data=("results/wp_quick.csv",), modules=("benchmarks.cli",), minutes=1.4),
 )
@@ -391,6 +398,7 @@ def _collect(out: Path) -> dict:
         "reliability": read("reliability.md", "probe"),
         "misfit": read("j2_information.md", "misfit"),
         "etd_validity": read("etd_validity.md", "etd-validity"),
+        "engine_speed": read("engine_speed.md", "engine-speed"),
         "steps": markdown_table(pd.DataFrame(_step_states(out))),
     }
 
@@ -489,6 +497,9 @@ Every case of `benchmarks/probe_cases.py`, by kind and outcome (`rsfbench probe 
 ## The ETD family's step-rule check (`etd_validity.*`)
 
 {r['etd_validity']}
+## The own compiled engine against issue 14's targets (`engine_speed.*`)
+
+{r['engine_speed']}
 ## What J2 sees (`j2_information.*`)
 
 {r['misfit']}
