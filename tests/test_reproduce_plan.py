@@ -237,7 +237,7 @@ def test_every_step_declares_inputs_that_resolve(tmp_path):
     code = RP._inputs(RP.STEPS[RP.STEP_NAMES.index("probe")], tmp_path)["code"]
     assert {"benchmarks/cli.py", "benchmarks/probe_cases.py", "problems/presets.py"} <= set(code)
     code = RP._inputs(RP.STEPS[RP.STEP_NAMES.index("windows")], tmp_path)["code"]
-    assert {"benchmarks/windows.py", "benchmarks/summary.py", "integrators/etd.py"} <= set(code)
+    assert {"benchmarks/windows.py", "benchmarks/summary.py", "integrators/own/etd.py"} <= set(code)
     assert "benchmarks/reproduce.py" not in code and "benchmarks/cli.py" not in code
     assert {"speedup", "work-precision", "target-full"} == set(RP.FULL_STEPS)
 
