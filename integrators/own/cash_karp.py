@@ -11,11 +11,10 @@ does), the error estimate is y5 − y4. Cash & Karp (1990), ACM Trans. Math. Sof
     errmax ≤ 1: accept; next h = 0.9 h errmax^−1/5, at most 5 h
 
 NR's test is |yerr_i| ≤ eps·(|z_i| + |h f_i| + TINY); with eps = rtol and atol for the absolute
-floor, atol means what it means in scipy and SUNDIALS. A trial with a non-finite error is rejected with h/10 (NR's FMAX does that with a
-NaN); τ + h == τ is ``StepUnderflow``; a non-finite accepted state ``NonFinite``. First step
-after each ``start``: Hairer's heuristic (Hairer, Nørsett & Wanner, Solving ODEs I, §II.4, as
-scipy's ``select_initial_step``); then h is kept across ``advance`` calls. A step that would pass
-``t_out`` is shortened to land on it; the next one is the step proposed before, if larger.
+floor, atol means what it means in scipy and SUNDIALS. A trial with a non-finite error, or whose
+end state or rates are not finite, is rejected with h/10 (NR's FMAX does that with a NaN). The
+initial step, the landing on the end of a loading segment, underflow and the events are the
+engine's (:mod:`integrators.own.engine`).
 
 Cost: explicit, so in the stick phase stability, not accuracy, limits the step (the η relaxation,
 rate D/w, SPEC §2): ~1e−7 in τ, ~6e7 steps for the 20 s paper example. nfev = 6·steps +
