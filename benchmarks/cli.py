@@ -26,7 +26,7 @@ import warnings
 from pathlib import Path
 
 from benchmarks import metrics
-from benchmarks.cli_args import (Parser, RunStopped, add_integrator_options, add_problem_options,
+from benchmarks.cli_args import (Parser, RunStopped, add_integrator_options, add_problem_options, count,
                                  flagged, in_file, integrator_from_args, out_dir, out_file,
                                  positive, preset_name, problem_from_args, say, show_progress,
                                  wants_json)
@@ -273,6 +273,18 @@ def cmd_classification(args) -> int:
     return 0
 
 
+def cmd_engine_speed(args) -> int:
+    from benchmarks.engine_speed import write_engine_speed
+    if args.out:
+        args.out.mkdir(parents=True, exist_ok=True)        # before the work, not after it
+    goals, text = write_engine_speed(args.out, args.repeats)
+    if args.json:
+        say(goals.to_json(orient="records", indent=2))
+    else:
+        say(text)
+    return 0
+
+
 def cmd_probe(args) -> int:
     from benchmarks.probe import BAD_OUTCOMES, run_probe, write_probe
     from benchmarks.probe_cases import cases
@@ -485,6 +497,17 @@ def build_parser() -> Parser:
                     help="write classification.csv and .md there (default: print only)")
     cl.add_argument("--json", action="store_true", help="print every run as one JSON array")
     cl.set_defaults(func=cmd_classification)
+
+    es = sub.add_parser("engine-speed", help="the own compiled engine against issue 14's targets "
+                        "(fastest reliable setting per error level, µs per step attempt, "
+                        "start-up) and numbalsoda's lsoda, timed in one run (~1.5 min)")
+    es.add_argument("--out", type=out_dir, metavar="DIR",
+                    help="write engine_speed.csv and .md there (default: print only)")
+    es.add_argument("--repeats", type=count, default=5, metavar="N",
+                    help="timed runs per setting after a warm-up; the minimum is kept "
+                         "(default: 5)")
+    es.add_argument("--json", action="store_true", help="print the targets as one JSON array")
+    es.set_defaults(func=cmd_engine_speed)
 
     from benchmarks.cli_sweep import add_parsers
     add_parsers(sub, PRESET_NAMES)

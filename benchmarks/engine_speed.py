@@ -16,13 +16,12 @@ paper example) and ``rsfbench simulate --preset paper-example --json``, with the
 warm (the minimum of 3) and, for the first two, cold (a copy of the sources with no cache: every
 kernel that solve needs is compiled).
 
-``python -m benchmarks.engine_speed --out results`` writes ``engine_speed.csv`` (every setting)
-and ``engine_speed.md`` (the targets, met or missed, and the start-up times).
+``rsfbench engine-speed --out results`` writes ``engine_speed.csv`` (every setting) and
+``engine_speed.md`` (the targets, met or missed, and the start-up times).
 """
 
 from __future__ import annotations
 
-import argparse
 import math
 from pathlib import Path
 
@@ -35,7 +34,8 @@ from benchmarks.reference import reference
 from integrators import REGISTRY, solve
 from problems import paper_example, window
 
-__all__ = ["engine_speed", "targets", "write_engine_speed", "METHODS", "TOLERANCES"]
+__all__ = ["engine_speed", "targets", "startup", "engine_speed_markdown", "write_engine_speed",
+           "METHODS", "TOLERANCES"]
 
 METHODS = ("Rosenbrock23", "Rodas5P", "Exprb32", "Exprb43")
 TOLERANCES = tuple(10.0 ** -k for k in range(2, 11))
@@ -167,18 +167,14 @@ def startup(warm_repeats: int = 3) -> dict:
             "import_cold": cold[0], "first_solve_cold": cold[1], "simulate_warm": min(simulate)}
 
 
-def write_engine_speed(out: Path, repeats: int = 5) -> pd.DataFrame:
-    """``engine_speed.csv`` and ``engine_speed.md`` in ``out``; returns the targets table."""
-    table, lsoda = engine_speed(repeats)
-    goals = targets(table, lsoda)
-    atomic_write(out / "engine_speed.csv", table.to_csv(index=False))
+def engine_speed_markdown(goals: pd.DataFrame, t: dict, repeats: int) -> str:
+    """``engine_speed.md``: the targets table and the start-up times."""
     lines = ["# The own compiled engine against issue 14's targets",
              "",
-             f"`python -m benchmarks.engine_speed --out results` (min of {repeats} after a warm-up, "
+             f"`rsfbench engine-speed --out results` (min of {repeats} after a warm-up, "
              "`max_points=2`, wall time of the solve without building the Solution; "
              "numbalsoda's lsoda called once over a 20,001-point grid at 1e−6, no events, "
-             "timed in the same run). "
-             "The last row's times are µs per step attempt.",
+             "timed in the same run). The last row's times are µs per step attempt.",
              "",
              "| target | goal (ms) | fastest reliable own setting | wall (ms) | ΔT error | "
              "lsoda (ms) | ratio to lsoda | met |",
@@ -187,7 +183,6 @@ def write_engine_speed(out: Path, repeats: int = 5) -> pd.DataFrame:
         lines.append(f"| {r.target} | {r.target_ms:g} | {r.fastest} | {r.wall_ms:.3g} | "
                      f"{r.err_dT:.2g} | {r.lsoda_ms:.3g} | {r.ratio_to_lsoda:.2g} | "
                      f"{'yes' if r.met else 'no'} |")
-    t = startup()
     lines += ["",
               "Start-up in a fresh process (`import integrators`; then the first solve, Rodas5P "
               "on the paper example; the simulate command as a whole), warm numba cache (min of 3) "
@@ -200,21 +195,16 @@ def write_engine_speed(out: Path, repeats: int = 5) -> pd.DataFrame:
               f"{t['first_solve_cold']:.1f} |",
               f"| `rsfbench simulate --preset paper-example --json` | {t['simulate_warm']:.2f} | 2 "
               "| – |"]
-    atomic_write(out / "engine_speed.md", "\n".join(lines) + "\n")
-    return goals
+    return "\n".join(lines) + "\n"
 
 
-def main(argv=None) -> None:
-    parser = argparse.ArgumentParser(prog="python -m benchmarks.engine_speed",
-                                     description=__doc__.split("\n\n")[0])
-    parser.add_argument("--out", type=Path, default=Path("results"),
-                        help="folder for engine_speed.csv/.md (default: results)")
-    parser.add_argument("--repeats", type=int, default=5,
-                        help="timed runs per setting after a warm-up (default: 5)")
-    args = parser.parse_args(argv)
-    args.out.mkdir(parents=True, exist_ok=True)
-    print(write_engine_speed(args.out, args.repeats).to_string(index=False))
-
-
-if __name__ == "__main__":
-    main()
+def write_engine_speed(out: Path | None, repeats: int = 5) -> tuple[pd.DataFrame, str]:
+    """Measure; write ``engine_speed.csv`` and ``engine_speed.md`` in ``out`` (if given).
+    Returns the targets table and the Markdown."""
+    table, lsoda = engine_speed(repeats)
+    goals = targets(table, lsoda)
+    text = engine_speed_markdown(goals, startup(), repeats)
+    if out is not None:
+        atomic_write(out / "engine_speed.csv", table.to_csv(index=False))
+        atomic_write(out / "engine_speed.md", text)
+    return goals, text

@@ -170,7 +170,7 @@ def _misfit(out: Path) -> None:
 
 def _engine_speed(out: Path) -> None:
     from benchmarks.engine_speed import write_engine_speed
-    print(write_engine_speed(out).to_string(index=False))
+    print(write_engine_speed(out)[1])
 
 
 def _probe(out: Path) -> None:

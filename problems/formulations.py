@@ -13,7 +13,8 @@ The aging-law state Ψ = v0 θ/Lc ~ 1/w spans as many decades, hence ln Ψ; the 
     s' = e^(−s) − e^u             (aging law)
 
 The Jacobian is analytic (:func:`ode_jacobian`). Both functions are numba-compiled and take plain
-floats, so compiled integrators can call them; :class:`OdeForm` wraps them for Python callers.
+floats, so compiled integrators can call them (inlined: a call would cost reference counting of
+its array arguments, about as much as f itself); :class:`OdeForm` wraps them for Python callers.
 
 The friction laws in one place: every law-specific formula of the ODE, DAE and ETD forms is in
 the section "the laws" below (:func:`state_rate`, :func:`state_rate_partials`,
@@ -104,7 +105,7 @@ def psi_rate(law_code: int, psi, ds):
 
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def ode_rhs(law, beta, c, d, e, z, out):
     """Write dz/dτ into ``out`` (law 0 = slip, 1 = aging)."""
     h, u, s = z[0], z[1], z[2]
@@ -114,7 +115,7 @@ def ode_rhs(law, beta, c, d, e, z, out):
     out[2] = state_rate(law, u, s, w)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def ode_jacobian(law, beta, c, d, e, z, jac):
     """Write ∂(dz/dτ)/∂z into the 3×3 ``jac``."""
     h, u, s = z[0], z[1], z[2]

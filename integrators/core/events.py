@@ -24,7 +24,8 @@ from problems.formulations import check_law_code, state_rate
 
 __all__ = ["START", "END", "H_EXTREMUM", "PEAK", "DIRECTIONS", "AT_ROOT", "sign_change",
            "carry_signs",
-           "compiled_roots", "root_functions", "root_derivatives", "EventRecorder", "events_table"]
+           "compiled_roots", "root_functions", "root_derivatives", "EventRecorder", "events_table",
+           "new_recorder", "observe", "record", "REC_SIZE"]
 
 START, END, H_EXTREMUM, PEAK = range(4)
 #: direction of a crossing that counts: +1 upward, −1 downward, 0 both
@@ -86,49 +87,80 @@ def root_derivatives(nd, e: float, z: np.ndarray) -> np.ndarray:
     return np.array([du, du, du, nd.c * (e - w) - nd.d * (du + nd.beta * ds)])
 
 
+#: the recorder's state (one float array): in an event, the largest h since the last event, the
+#: current event's start τ, slip at its start, smallest h, peak w and its τ, events recorded, h(0)
+(IN_EVENT, H_MAX, EV_START, EV_SLIP, H_MIN, W_PEAK, TAU_PEAK, N_EVENTS, H0) = range(9)
+REC_SIZE = 9
+
+
+def new_recorder(h0: float) -> np.ndarray:
+    """A recorder's state at the start of a run, h(0) = ``h0``."""
+    rec = np.full(REC_SIZE, math.nan)
+    rec[IN_EVENT], rec[N_EVENTS], rec[H_MAX], rec[H0] = 0.0, 0.0, h0, h0
+    return rec
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def observe(rec, h):
+    """A state the run passed through (a save point, a root, a segment end): the extrema of h."""
+    if rec[IN_EVENT] != 0.0:
+        if h < rec[H_MIN]:
+            rec[H_MIN] = h
+    elif h > rec[H_MAX]:
+        rec[H_MAX] = h
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def record(rec, ev, kind, tau, h, u, load):
+    """A located root of ``kind`` at τ with state (h, u) and load-point displacement ``load``
+    (Lc); a completed event becomes row rec[N_EVENTS] of ``ev`` (room for it is the caller's
+    business), nondimensional. True when an event has just ended."""
+    slip = load - (h - rec[H0])
+    if kind == START and rec[IN_EVENT] == 0.0:
+        rec[IN_EVENT] = 1.0
+        rec[EV_START], rec[EV_SLIP] = tau, slip
+        rec[H_MIN], rec[W_PEAK], rec[TAU_PEAK] = h, math.exp(u), tau
+    elif kind == PEAK and rec[IN_EVENT] != 0.0:
+        if math.exp(u) > rec[W_PEAK]:
+            rec[W_PEAK], rec[TAU_PEAK] = math.exp(u), tau
+    elif kind == H_EXTREMUM:
+        observe(rec, h)
+    elif kind == END and rec[IN_EVENT] != 0.0:
+        if h < rec[H_MIN]:
+            rec[H_MIN] = h
+        n = int(rec[N_EVENTS])
+        ev[n, 0], ev[n, 1], ev[n, 2], ev[n, 3] = rec[EV_START], tau, rec[H_MAX], rec[H_MIN]
+        ev[n, 4], ev[n, 5], ev[n, 6], ev[n, 7] = rec[W_PEAK], rec[TAU_PEAK], rec[EV_SLIP], slip
+        rec[N_EVENTS] = n + 1
+        rec[IN_EVENT] = 0.0
+        rec[H_MAX] = h
+        return True
+    return False
+
+
 class EventRecorder:
-    """Builds the events table from located roots and observed states (nondimensional)."""
+    """The events table from located roots and observed states, for the Python segment driver
+    (:mod:`integrators.core.segments`): the compiled recorder the own engine runs, so that every
+    backend records events the same way."""
 
     def __init__(self, h0: float):
-        self.h0 = h0
-        self.in_event = False
-        self.h_max = h0
-        self.rows: list[list[float]] = []
-        self._start = self._slip_start = self._h_min = self._w_peak = self._tau_peak = math.nan
+        self.rec = new_recorder(h0)
+        self.ev = np.empty((64, 8))
 
     def observe(self, h: float) -> None:
-        """A state the backend passed through (segment ends): keeps the extrema honest."""
-        if self.in_event:
-            self._h_min = min(self._h_min, h)
-        else:
-            self.h_max = max(self.h_max, h)
+        observe(self.rec, float(h))
 
     def root(self, kind: int, tau: float, z: np.ndarray, load: float) -> bool:
         """Process a located root of ``kind`` at τ with state z and load-point displacement
         ``load`` (in Lc). Returns True when an event has just ended."""
-        h, u = float(z[0]), float(z[1])
-        slip = load - (h - self.h0)
-        if kind == START and not self.in_event:
-            self.in_event = True
-            self._start, self._slip_start = tau, slip
-            self._h_min, self._w_peak, self._tau_peak = h, math.exp(u), tau
-        elif kind == PEAK and self.in_event:
-            if math.exp(u) > self._w_peak:
-                self._w_peak, self._tau_peak = math.exp(u), tau
-        elif kind == H_EXTREMUM:
-            self.observe(h)
-        elif kind == END and self.in_event:
-            self._h_min = min(self._h_min, h)
-            self.rows.append([self._start, tau, self.h_max, self._h_min, self._w_peak,
-                              self._tau_peak, self._slip_start, slip])
-            self.in_event = False
-            self.h_max = h
-            return True
-        return False
+        if self.rec[N_EVENTS] >= len(self.ev):
+            self.ev = np.concatenate([self.ev, np.empty_like(self.ev)])
+        return record(self.rec, self.ev, int(kind), float(tau), float(z[0]), float(z[1]),
+                      float(load))
 
     def table(self, problem, nd) -> np.ndarray:
         """The rows in SI units, columns of ``EVENT_COLUMNS``."""
-        return events_table(np.array(self.rows, dtype=float).reshape(-1, 8), problem, nd)
+        return events_table(self.ev[:int(self.rec[N_EVENTS])], problem, nd)
 
 
 def events_table(rows: np.ndarray, problem, nd) -> np.ndarray:

@@ -2,8 +2,8 @@
 
 Tests, benchmarks and the CLI iterate over :data:`REGISTRY`; adding an algorithm class with
 :func:`register` enrolls it everywhere. The adapters to external libraries are *declared* by
-name (:meth:`Registry.declare`) and imported on first use: looking one name up imports its
-module; iterating, ``len`` or ``in`` imports every declared module (a library that fails to
+name (:meth:`Registry.declare`) and imported on first use: looking one name up (``[]``, ``get``,
+``in``) imports its module; iterating or ``len`` imports every declared module (a library that fails to
 import is left out, with the reason in :data:`UNAVAILABLE`).
 """
 
@@ -146,7 +146,7 @@ class Registry(dict):
             raise RuntimeError(f"{module} was declared to register {missing} but did not")
 
     def load_all(self) -> None:
-        """Import every declared module (iteration, ``len`` and ``in`` do this first)."""
+        """Import every declared module (iteration and ``len`` do this first)."""
         for module in sorted(set(self._declared.values())):
             self._load(module)
 
@@ -166,7 +166,8 @@ class Registry(dict):
         return sorted({*dict.keys(self), *self._declared})
 
     def __contains__(self, name):
-        self.load_all()
+        if name in self._declared:          # only the module that would register it
+            self._load(self._declared[name])
         return dict.__contains__(self, name)
 
     def __iter__(self):

@@ -16,7 +16,7 @@ from typing import Callable, ClassVar
 
 import numpy as np
 
-from integrators.core.events import DIRECTIONS, events_table
+from integrators.core.events import DIRECTIONS, N_EVENTS, events_table
 from integrators.core.registry import AdaptiveAlgorithm
 from integrators.core.solution import RawRun, ReturnCode, Stats
 from integrators.own import engine as E
@@ -123,7 +123,7 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
         y = np.empty((len(t), 3))
         y[:, 0], y[:, 1], y[:, 2] = problem.dimensional_state(h, eta, psi)
         return RawRun(t=t, y=y,
-                      events=events_table(ev[:int(st[E.ST["N_EVENTS"]])], problem, nd),
+                      events=events_table(ev[:int(st[E.REC + N_EVENTS])], problem, nd),
                       stats=stats, retcode=retcode, message=message, meta=meta)
 
     def fixed_steps(self, nd, z0, span: float, n: int) -> np.ndarray:

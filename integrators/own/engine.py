@@ -44,9 +44,10 @@ import numpy as np
 from numba import njit
 
 from integrators.core.clock import monotonic
-from integrators.core.events import (AT_ROOT, END, H_EXTREMUM, PEAK, START, carry_signs,
-                                     compiled_roots, sign_change)
-from problems.formulations import ode_rhs
+from integrators.core.events import (AT_ROOT, END, H_EXTREMUM, PEAK, REC_SIZE, carry_signs,
+                                     compiled_roots, new_recorder, observe, record, sign_change)
+from integrators.core.events import N_EVENTS as _REC_N
+from problems.formulations import ode_jacobian, ode_rhs
 
 __all__ = ["run", "fixed_steps", "rhs", "jacobian", "hermite", "new_state", "P", "ST", "ZROW",
            "DONE", "CHUNK", "GROW", "NONFINITE", "UNDERFLOW", "MAX_STEPS", "WALL_TIME",
@@ -61,12 +62,13 @@ __all__ = ["run", "fixed_steps", "rhs", "jacobian", "hermite", "new_state", "P",
 #: handed on last (a failure's final state), a restart pending.
 ST = dict(TAU=0, TAU_OLD=1, H=2, CURSOR=3, T_RET=4, STEPS=5, REJECTED=6, NFEV=7, NJEV=8,
           HACC=9, ERRACC=10, NACC=11, REJECT=12, TAU0=13, LOAD0=14, T_BOUND=15, FAST_UNTIL=16,
-          NEXT_SAVE=17, N_EVENTS=18, IN_EVENT=19, H_MAX=20, EV_START=21, EV_SLIP=22, H_MIN=23,
-          W_PEAK=24, TAU_PEAK=25, LR_TAU=26, LR_E=27, LR_VALID=28, LAST_T=29, NEED_START=30,
-          STARTS=31, ROOTS=32)
+          NEXT_SAVE=17, REC=18, LR_TAU=27, LR_E=28, LR_VALID=29, LAST_T=30, NEED_START=31,
+          STARTS=32, ROOTS=33)
 (TAU, TAU_OLD, H, CURSOR, T_RET, STEPS, REJECTED, NFEV, NJEV, HACC, ERRACC, NACC, REJECT, TAU0,
- LOAD0, T_BOUND, FAST_UNTIL, NEXT_SAVE, N_EVENTS, IN_EVENT, H_MAX, EV_START, EV_SLIP, H_MIN,
- W_PEAK, TAU_PEAK, LR_TAU, LR_E, LR_VALID, LAST_T, NEED_START, STARTS, ROOTS) = range(33)
+ LOAD0, T_BOUND, FAST_UNTIL, NEXT_SAVE) = range(18)
+REC = 18                        # the events recorder's state (integrators.core.events), REC_SIZE
+(LR_TAU, LR_E, LR_VALID, LAST_T, NEED_START, STARTS,
+ ROOTS) = range(REC + REC_SIZE, REC + REC_SIZE + 7)
 N_ST = ROOTS + 4
 #: rows of Z: z and f at TAU, z and f at TAU_OLD, the dense output's D1–D3, the state at T_RET,
 #: the state at the last root, the state handed on last
@@ -75,16 +77,16 @@ _Z, _F, _ZO, _FO, _D1, _D2, _D3, _ZR, _LRZ, _ZC = range(10)
 N_Z = 10
 #: p: the problem (law code, β, C, D and the loading rate E of the current segment), the
 #: tolerances, the root functions' thresholds ln(10 E_slow), ln E_slow, ln E; the run (E_slow,
-#: E_fast, τ_end, τ_fast, two-speed flag, h at τ = 0, step budget, wall deadline); the method
+#: E_fast, τ_end, τ_fast, two-speed flag, step budget, wall deadline); the method
 #: (exponent of the initial-step guess, controller order q, stick_peaks, fsal, hermite, f
 #: evaluations per attempt)
 P = dict(LAW=0, BETA=1, C=2, D=3, E=4, RTOL=5, ATOL=6, LN_10E_SLOW=7, LN_E_SLOW=8, LN_E=9,
-         E_SLOW=10, E_FAST=11, TAU_END=12, TAU_FAST=13, TWO_SPEED=14, H0=15, MAX_STEPS=16,
-         DEADLINE=17, INIT_EXPONENT=18, Q=19, STICK_PEAKS=20, FSAL=21, HERMITE=22, STAGES=23)
+         E_SLOW=10, E_FAST=11, TAU_END=12, TAU_FAST=13, TWO_SPEED=14, MAX_STEPS=15,
+         DEADLINE=16, INIT_EXPONENT=17, Q=18, STICK_PEAKS=19, FSAL=20, HERMITE=21, STAGES=22)
 (_LAW, _BETA, _C, _D, _E, _RTOL, _ATOL, _LN_10ES, _LN_ES, _LN_E, _E_SLOW, _E_FAST, _TAU_END,
- _TAU_FAST, _TWO_SPEED, _H0, _MAX_STEPS, _DEADLINE, _INIT_EXPONENT, _Q, _STICK_PEAKS, _FSAL,
- _HERMITE, _STAGES) = range(24)
-N_P = 24
+ _TAU_FAST, _TWO_SPEED, _MAX_STEPS, _DEADLINE, _INIT_EXPONENT, _Q, _STICK_PEAKS, _FSAL,
+ _HERMITE, _STAGES) = range(23)
+N_P = 23
 
 #: what :func:`run` returns
 DONE, CHUNK, GROW, NONFINITE, UNDERFLOW, MAX_STEPS, WALL_TIME = range(7)
@@ -95,12 +97,8 @@ MAX_PASSES = 64
 #: accepted steps between two readings of the clock (~20 ns each)
 CLOCK_EVERY = 256
 
-# the right-hand side and Jacobian, compiled again to be inlined into the stages: a call of the
-# compiled ones costs reference counting of its array arguments (~ as much as f itself)
-rhs = njit(cache=True, nogil=True, error_model="numpy", inline="always")(ode_rhs.py_func)
-from problems.formulations import ode_jacobian as _ode_jacobian  # noqa: E402
-jacobian = njit(cache=True, nogil=True, error_model="numpy", inline="always")(
-    _ode_jacobian.py_func)
+# the right-hand side and Jacobian (both inlined where compiled code calls them)
+rhs, jacobian = ode_rhs, ode_jacobian
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -432,49 +430,11 @@ def _step(prepare, attempt, reject, accept, st, p, Z, ws, v, D, t_land):
 
 
 # --- the driver: saves, events, loading ---------------------------------------------------------
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _observe(st, h):
-    """A state passed through (a save point, a root, a segment end): the extrema of h."""
-    if st[IN_EVENT] != 0.0:
-        if h < st[H_MIN]:
-            st[H_MIN] = h
-    elif h > st[H_MAX]:
-        st[H_MAX] = h
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _record(st, p, ev, kind, tau, z, load):
-    """A located root of ``kind`` at τ with state z and load-point displacement ``load`` (Lc)
-    into the events recorder; True when an event has just ended (columns of
-    :data:`integrators.core.solution.EVENT_COLUMNS`, nondimensional)."""
-    h, u = z[0], z[1]
-    slip = load - (h - p[_H0])
-    if kind == START and st[IN_EVENT] == 0.0:
-        st[IN_EVENT] = 1.0
-        st[EV_START], st[EV_SLIP] = tau, slip
-        st[H_MIN], st[W_PEAK], st[TAU_PEAK] = h, math.exp(u), tau
-    elif kind == PEAK and st[IN_EVENT] != 0.0:
-        if math.exp(u) > st[W_PEAK]:
-            st[W_PEAK], st[TAU_PEAK] = math.exp(u), tau
-    elif kind == H_EXTREMUM:
-        _observe(st, h)
-    elif kind == END and st[IN_EVENT] != 0.0:
-        if h < st[H_MIN]:
-            st[H_MIN] = h
-        n = int(st[N_EVENTS])
-        ev[n, 0], ev[n, 1], ev[n, 2], ev[n, 3] = st[EV_START], tau, st[H_MAX], st[H_MIN]
-        ev[n, 4], ev[n, 5], ev[n, 6], ev[n, 7] = st[W_PEAK], st[TAU_PEAK], st[EV_SLIP], slip
-        st[N_EVENTS] = n + 1
-        st[IN_EVENT] = 0.0
-        st[H_MAX] = h
-        return True
-    return False
-
-
 @njit(cache=True, nogil=True, error_model="numpy")
 def _save_until(st, Z, grid, saved, t_hi, inclusive, zt):
     """Fill the save points of ``grid`` up to t_hi (or just before it) from the dense output of
     the last step; each is a state passed through."""
+    rec = st[REC:REC + REC_SIZE]
     k, n = int(st[NEXT_SAVE]), grid.shape[0]
     t0, dt = st[TAU_OLD], st[TAU] - st[TAU_OLD]
     while k < n and (grid[k] < t_hi or (inclusive and grid[k] == t_hi)):
@@ -483,7 +443,7 @@ def _save_until(st, Z, grid, saved, t_hi, inclusive, zt):
         else:
             _dense(Z, (grid[k] - t0) / dt, zt)
             saved[k] = zt
-        _observe(st, saved[k, 0])
+        observe(rec, saved[k, 0])
         k += 1
     st[NEXT_SAVE] = k
 
@@ -506,6 +466,7 @@ def run(prepare, attempt, reject, accept, workspace, st, p, Z, G, dirs, grid, sa
     tau_end, two_speed = p[_TAU_END], p[_TWO_SPEED] != 0.0
     stick_peaks = p[_STICK_PEAKS] != 0.0
     tiny = 1e-12 * tau_end
+    rec = st[REC:REC + REC_SIZE]
     n = 0
     while True:
         if st[NEED_START] != 0.0:
@@ -522,7 +483,7 @@ def run(prepare, attempt, reject, accept, workspace, st, p, Z, G, dirs, grid, sa
             if not _finite(Z[_F]):
                 return NONFINITE
         if st[CURSOR] < st[TAU]:
-            if st[N_EVENTS] >= ev.shape[0]:
+            if rec[_REC_N] >= ev.shape[0]:
                 return GROW
             found = _scan(st, p, Z, G, dirs, stick_peaks, st[TAU], scratch)
             t_ret = st[T_RET]
@@ -534,8 +495,8 @@ def run(prepare, attempt, reject, accept, workspace, st, p, Z, G, dirs, grid, sa
                 for k in range(4):
                     if G[1, k] != 0.0:
                         st[ROOTS + k] += 1.0
-                        ended = _record(st, p, ev, k, t_ret, z, load) or ended
-                _observe(st, z[0])
+                        ended = record(rec, ev, k, t_ret, z[0], z[1], load) or ended
+                observe(rec, z[0])
                 st[LR_TAU], st[LR_E], st[LR_VALID] = t_ret, p[_E], 1.0
                 Z[_LRZ] = z
                 G[2] = G[1]
@@ -546,7 +507,7 @@ def run(prepare, attempt, reject, accept, workspace, st, p, Z, G, dirs, grid, sa
                 continue
             _hand_on(st, Z, st[TAU], Z[_Z])
         if st[CURSOR] >= st[T_BOUND]:           # the end of the segment: restart or done
-            _observe(st, Z[_Z, 0])
+            observe(rec, Z[_Z, 0])
             _hand_on(st, Z, st[TAU], Z[_Z])
             st[NEED_START] = 1.0
             continue
@@ -599,11 +560,12 @@ def new_state(nd, two_speed: bool, rtol: float, atol: float, constants: dict, ma
     ln_e = math.log(nd.e_slow)
     p = np.array([nd.law_code, nd.beta, nd.c, nd.d, nd.e_slow, rtol, atol,
                   math.log(10.0 * nd.e_slow), ln_e, ln_e, nd.e_slow, nd.e_fast, nd.tau_end,
-                  nd.tau_fast, float(two_speed), nd.x0[0], max_steps, deadline, 0.0, 0.0, 0.0,
-                  0.0, 0.0, 0.0])
+                  nd.tau_fast, float(two_speed), max_steps, deadline, 0.0, 0.0, 0.0, 0.0, 0.0,
+                  0.0])
     for key, value in constants.items():
         p[P[key]] = value
-    st[H_MAX], st[H_MIN], st[FAST_UNTIL] = nd.x0[0], math.nan, -math.inf
+    st[REC:REC + REC_SIZE] = new_recorder(nd.x0[0])
+    st[FAST_UNTIL] = -math.inf
     st[NEED_START] = 1.0
     Z[_ZC] = to_ode_state(nd.law_code, nd.beta, nd.x0)
     return st, p, Z, G
