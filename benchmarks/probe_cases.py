@@ -569,8 +569,9 @@ def _stall_compiled(algorithm, nd):
     st[E.ST["LAST_T"]] = st[E.ST["TAU0"]] = 1e20
     p[E.P["TAU_END"]] = 2e20
     Z[E.ZROW["ZC"]] = to_ode_state(nd.law_code, nd.beta, nd.x0)
-    status = type(algorithm).kernel(st, p, Z, G, np.array([1, -1, 0, -1]), np.array([1.5e20]),
-                                    np.empty((1, 3)), np.empty((4, 8)), 1 << 20)
+    cls = type(algorithm)
+    status = cls.kernel(cls.workspace(), E.scratch(), st, p, Z, G, np.array([1, -1, 0, -1]),
+                        np.array([1.5e20]), np.empty((1, 3)), np.empty((4, 8)), 1 << 20)
     if status != E.UNDERFLOW:
         raise Wrong(f"engine status {status} at τ = {st[E.TAU]:g}, not UNDERFLOW ({E.UNDERFLOW})")
     return Observed("retcode", f"StepUnderflow at τ = {st[E.TAU]:g}")

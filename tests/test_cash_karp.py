@@ -112,6 +112,6 @@ def test_compiled_start_takes_the_same_initial_step_as_the_python_one(z):
     for e, span, exponent in ((nd.e_slow, 50.0, 0.2), (nd.e_fast, 1e-4, 1 / 3)):
         st, q, Z, G = engine.new_state(nd, True, 1e-6, 1e-8, {"INIT_EXPONENT": exponent}, 1, 1.0)
         with np.errstate(all="ignore"):
-            engine.start(st, q, Z, G, 0.0, z, e, span)        # sets E and ln E in q
+            engine.start(st, q, Z, G, 0.0, z, e, span, np.empty((3, 3)))   # sets E, ln E in q
             expected = _initial_step_in_python(q, z, span, exponent)
         assert st[engine.H] == expected or (np.isnan(st[engine.H]) and np.isnan(expected))

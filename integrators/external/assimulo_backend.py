@@ -1,52 +1,18 @@
 """Assimulo's solvers (``assimulo-testing``) on the shared ODE form, and IDA on the DAE form.
 
-CVode (SUNDIALS BDF, Newton with the analytic Jacobian), IDA (SUNDIALS BDF on the DAE form of
-:mod:`problems.formulations`, analytic iteration matrix, ``algvar`` = ``DAE_DIFFERENTIAL``),
-Radau5ODE (RADAU5, C port), LSODAR (ODEPACK Adams/BDF switching), RodasODE (RODAS) and Dopri5
-(DOPRI5). All six run correctly; none is left out.
+CVode (SUNDIALS BDF, analytic Jacobian), IDA (DAE form, analytic iteration matrix), Radau5ODE,
+LSODAR, RodasODE and Dopri5. Events use assimulo's own state-event machinery (``state_events``
+returns the four root functions of :mod:`integrators.core.events`, the solver calls
+``handle_event``); LSODAR's root info has no direction, so its directions come from
+:func:`integrators.core.segments.directional_roots`.
 
-Events use assimulo's own state-event machinery: the problem's ``state_events`` returns the four
-root functions of :mod:`integrators.core.events`; the solver locates their sign changes (SUNDIALS'
-root finding for CVode and IDA, ODEPACK's for LSODAR, assimulo's event locator on the dense
-output for Radau5ODE, RodasODE and Dopri5) and calls ``handle_event``. The event info of CVode,
-IDA and the event-locator solvers is the crossing direction (±1); LSODAR's (``JROOT``) is only
-1/0, so its directions come from the root functions' time derivatives
-(:func:`integrators.core.segments.directional_roots`).
-
-The segment protocol. ``simulate`` is assimulo's only entry point that runs its event handling,
-and every call re-initialises the solver (``CVodeReInit``/``IDAReInit``; RADAU5, RODAS, DOPRI5 and
-LSODAR restart their routine from scratch), so ``simulate(t_out)`` per ``advance`` would restart
-the method at every save point: ~20 000 restarts on the 20 s paper example at the default
-decimation, against ~14 000 natural CVode steps (~2 600 RADAU5 steps). Instead each segment is
-ONE ``simulate(t_bound)`` run as a coroutine in a helper thread, with ``report_continuously``:
-after every accepted step the problem's ``step_events`` answers the pending ``t_out`` values
-the step passed from the solver's dense output (``interpolate``) and blocks until the driver asks
-for the next one, so the method keeps its step size and order. A root that counts is answered
-from ``handle_event``. The threads take turns, never run together; a round trip costs ~20 µs.
-What still restarts the method: each located root, counted or not (assimulo re-initialises after
-every ``handle_event``, assuming a discontinuity; ~8 roots per stick–slip cycle: CVode on the
-paper example takes 14 654 steps against 14 234 in one plain ``simulate`` without events) and
-each segment (two-speed loading). A segment ends early by returning True from ``step_events``
-(a clean stop that keeps the counters), then raising ``TerminateSimulation`` in ``handle_event``.
-
-Output and counters: ``verbosity`` QUIET, ``display_progress`` and ``store_event_points`` off and
-a ``handle_result`` that stores nothing, so memory does not grow with the run. Counters are
-``get_statistics()`` after each ``simulate`` (``nfcns`` + ``nfcnjacs``, ``njacs``, ``nsteps``,
-``nerrfails`` + ``nnfails``), summed over segments. ``max_steps`` counts accepted steps over the
-whole solve, checked after every step, as is the wall-time budget (a solver creeping with tiny
-steps may never reach the next ``t_out``). The library's ``maxsteps`` (attempted steps per call
-for RADAU5, RODAS, DOPRI5; not binding in the one-step mode of CVode, IDA, LSODAR) is set to ten
-times the remaining budget, a backstop only. ``maxh`` bounds the step size, not the work: unset.
-
-Library quirks: this assimulo is built on SUNDIALS 2.7.0. Some output cannot be turned off:
-``[CVode Warning]``/``[IDA Warning]`` lines (assimulo hard-codes the handler's verbosity) and the
-Fortran codes' own messages (DOPRI5 "THE PROBLEM SEEMS TO BECOME STIFF", RODAS/DOPRI5 exit
-messages, DLSODAR warnings). When DOPRI5, RODAS, LSODAR or IDA fail, assimulo raises before
-reading their counters, so the failing call's work is not counted. LSODAR (like scipy's LSODA,
-same ODEPACK) restarted where u' = 0 exactly (a PEAK root in the quasi-static stick phase) can
-stay in Adams order 1 at its stability limit (h ≈ 5e-7) for ~10^6 steps without switching to
-BDF: correct, but 1.25 million steps on the paper example where one plain ``simulate`` takes
-~10 000.
+``simulate`` is assimulo's only entry point that runs its event handling, and each call
+re-initialises the solver; so each loading segment is ONE ``simulate(t_bound)`` run as a
+coroutine in a helper thread (``report_continuously``), answering the driver's output times from
+the solver's dense output after every step; the threads take turns. Counters are
+``get_statistics()`` summed over segments; ``max_steps`` and the wall budget are checked after
+every step. Why so, and the library's quirks (its SUNDIALS 2.7.0, output that cannot be turned
+off, LSODAR stuck in Adams after a restart at u' = 0): docs/external-adapters.md.
 """
 
 from __future__ import annotations

@@ -1,95 +1,24 @@
 """numbalsoda's LSODA (Adams/BDF switching) on the shared ODE form, with a compiled right-hand side.
 
-What numbalsoda 0.3.4 offers, and what it does not: one function, ``lsoda(funcptr, u0, t_eval,
-data, rtol, atol, mxstep) -> (usol, success)``, which integrates through the times ``t_eval`` and
-returns the state at each. The right-hand side is a C function pointer (a numba ``cfunc`` with
-``lsoda_sig``: ``f(t, u*, du*, data*)``), so a plain Python function cannot be used: the
-``rhs="python"`` tier is rejected. There is no root finding, no dense output, no stepping
-interface, no Jacobian argument (LSODA forms its own by finite differences), no choice of method
-and no statistics (no nfev, no step count, not even the reason of a failure: LSODA prints it
-on stderr).
+numbalsoda 0.3.4 offers one function, ``lsoda(funcptr, u0, t_eval, data, rtol, atol, mxstep)``:
+a C function pointer as right-hand side (so ``rhs="python"`` is refused), no root finding, no
+dense output, no Jacobian argument and no statistics. What this adapter adds:
 
-One compiled cfunc, ``_rhs``, serves every problem: it calls :func:`problems.formulations.ode_rhs`
-with the friction law, β, C, D and the loading E read from the ``data`` array (a restart at a new
-loading only writes E), and keeps the counters there, so they are counted, not reported by LSODA:
+* one numba ``cfunc``, ``_rhs``, for every problem: it reads the law, β, C, D and E from the
+  ``data`` array and counts nfev, step attempts (``steps``; ``rejected`` is unavailable, 0) and
+  finite-difference Jacobians (``njev``) itself; it stops LSODA at the step budget or a safe
+  block end by returning inf and cutting numbalsoda's output loop (``_cut``);
+* events located to the integration tolerance: LSODA runs in blocks over a grid of ≥ 16 points
+  per half period π/√C; a numba kernel finds the grid intervals with a sign change that counts
+  (``_block_roots``), each is re-integrated over 128 sub-points and the crossing bisected to the
+  last bit on the cubic Hermite interpolant (``_sub_roots``);
+* a guard against LSODA's cold starts in the stick phase that never leave Adams.
 
-* ``nfev``: right-hand-side calls, the finite-difference Jacobian columns included, plus two
-  per sub-interval in which crossings are placed (f at its ends, for the Hermite interpolant);
-* ``steps``: step *attempts*, the calls whose t differs from the previous call's (every attempt,
-  accepted or rejected, evaluates f at its own new abscissa; LSODA's start-up evaluation counts as
-  one): an upper bound of LSODA's accepted steps; ``rejected`` is not available (0);
-* ``njev``: finite-difference Jacobians, recognised by their pattern: calls at the t of the call
-  before, each with that call's state moved in one component; the first column counts one.
+numbalsoda is imported at the first solve (its import compiles its own driver, ~9 s). Why each
+of these is done this way, and what was measured: docs/external-adapters.md.
 
-The cfunc also stops LSODA when it must (the step budget ``max_steps`` on attempts, and the two
-cases below) by returning inf from then on. That does not reliably fail LSODA: here it mostly
-carries on (the NaN that inf − inf makes of its error norm passes the test) with NaN states and
-interpolates every remaining output time (~80 ns each: 5 ms for a block of 65536 points stopped
-after 20, and numbalsoda reports success). So the
-cfunc also ends numbalsoda's loop over the output times, through the one check the wrapper makes:
-the output times live in the data array after the parameters, and it sets the one after the
-current output interval to −inf (``_cut``; restored for the next call by copying them in again).
-The rows LSODA wrote after the stop (NaN, or at or after the stop's trial time) are not used.
-
-Events, located to the integration tolerance, not to a grid: LSODA integrates in blocks, one
-``lsoda`` call each, through a grid that contains the driver's output times and has at least 16
-points per half period π/√C of the mass-spring oscillation, the fastest oscillation of the slider
-(crossings closer together than that spacing can be missed). The root functions at every grid
-point of a block, and the intervals with a sign change in a direction that counts, are found by
-one numba kernel (``_block_roots``); Python sees only those intervals. Each triggers one more
-``lsoda`` call from the left point through the interval at 128 sub-points (LSODA's own
-interpolation to each), which brackets every such crossing in it; in its bracket each crossing is
-placed by bisection to the last bit of the root functions on the cubic Hermite interpolant of z
-(z and dz/dτ at both ends; the root functions are linear in z), in numba (``_sub_roots``). The
-interpolation error over 1/(16·128) of a half period is ~(π/2048)^4/384 ≈ 1e−14 of the state's
-scale on that time scale: the located time carries the integration error only. As in CashKarp45
-and the Rosenbrock methods, a ``PEAK`` crossing at w ≤ E_slow is not reported (it cannot be an
-event's peak: an event starts at w > 10 E_slow and ends at w ≤ E_slow; the recorder ignores
-PEAK outside an event). In the stick phase C h − D η = w u' is ~0 and at loose tolerances
-jitters about it: at rtol 1e−3 that was ~20 crossings per cycle, each a re-integration, which
-made the run slower than at rtol 1e−10. An interval with only a PEAK sign change is looked at
-only when w > E_slow at one of its ends.
-
-Where blocks end, and why. A cold LSODA start in the stick phase sometimes (a few per cent of
-starts, more the deeper the stick) never leaves Adams: its stiffness test needs a corrector that
-took two iterations, and there every step converges in one, at the stability limit h ~ w/D, i.e.
-1e4–1e5 attempts per grid interval instead of ~1. So a block runs to the end of the segment and is
-ended by the cfunc only where a cold start is safe: when the slip rate enters an event
-(u > ln(10 E_slow)), and under two-speed loading three grid intervals after an event ends (the
-driver restarts there, so integrating further would be thrown away); at most ``_BLOCK_MAX``
-points. The cold starts that remain in the stick phase (the driver's restarts, the sub-point
-calls) are guarded: a call that takes ``_GUARD_ATTEMPTS`` attempts without advancing one grid
-interval, in a stiff state (D/w above 100 per grid interval) where ln w moves by less than
-``_GUARD_DU``, is stopped and restarted from its last good point with a shorter first output
-interval (another initial step, another start); the last try runs unguarded.
-
-numbalsoda is imported at the first solve, not with this module: its import compiles its own
-``solve_ivp`` driver (~9 s).
-
-Cost (warm, min of 3, ``max_points=2``, rtol = atol; old and new code in one run on a 2-core
-machine under other load, so ±20 %):
-
-=======  ==============================  ==============================
-rtol     paper example (20 s), ms        W2 aging (20 s), ms
-=======  ==============================  ==============================
-1e−3     182 → 11   (err_rec 7.1e−3)     628 → 28   (err_rec 2.4 / 2.7e−2)
-1e−4     213 → 10   (1.3e−3)             567 → 22   (3.8 / 5.6e−3)
-1e−6     138 → 14   (3.3e−5)             724 → 38   (8.2 / 8.9e−5)
-1e−8      81 → 17   (5.6e−7)             388 → 37   (2.5 / 2.5e−6)
-1e−10     74 → 22   (1.8e−8)             274 → 62   (4.2 / 4.7e−8)
-=======  ==============================  ==============================
-
-(before → after the event kernels, the PEAK rule, ``_cut`` and reused buffers; err_rec of
-:mod:`benchmarks.errors` before / after; W2 restarts at every event end, so the O(tol)
-difference in where END is placed moves its errors a little). Step attempts fell by 1–60 %
-(fewer re-integrations; no attempts counted after a stop). About half of what remains is LSODA
-itself (bare ``lsoda`` over the paper example with 37 000 output points, no events: 4 / 7 / 6 /
-15 ms at rtol 1e−3 / 1e−6 / 1e−8 / 1e−10); the rest is ~80 ns per output point and the Python
-side of ~40–100 ``lsoda`` calls (~0.1 ms each: blocks, re-integrations, restarts).
-
-Reference: Petzold (1983), Automatic selection of methods for solving stiff and nonstiff systems
-of ODEs, SIAM J. Sci. Stat. Comput. 4, 136–148; Hindmarsh (1983), ODEPACK; numbalsoda:
-N. Wogan, https://github.com/Nicholaswogan/numbalsoda (LSODA.cpp, a C++ port of LSODA).
+Reference: Petzold (1983), SIAM J. Sci. Stat. Comput. 4, 136–148; Hindmarsh (1983), ODEPACK;
+numbalsoda: N. Wogan, https://github.com/Nicholaswogan/numbalsoda (LSODA.cpp).
 """
 
 from __future__ import annotations

@@ -1,55 +1,20 @@
 """SUNDIALS CVODE (BDF and Adams) and IDA through scikits-odes, on the shared ODE and DAE forms.
 
-CVODE integrates the ODE form z = (h, u, s) of :mod:`problems.formulations` with Newton iteration
-on the analytic dense Jacobian (``ode_jacobian``); IDA integrates the DAE form y = (h, u, s, η)
-with the analytic iteration matrix (``dae_jacobian``), ``DAE_DIFFERENTIAL`` as its id vector and
-consistent (y0, y'0) from ``dae_initial`` at every (re)start, checked by ``IDACalcIC``.
+CVODE integrates the ODE form z = (h, u, s) with Newton iteration on the analytic Jacobian; IDA
+the DAE form y = (h, u, s, η) with the analytic iteration matrix and consistent (y0, y'0) at
+every (re)start. Events: SUNDIALS' own root finding on the four root functions of
+:mod:`integrators.core.events`; scikits-odes 3.0.0 wraps neither the root directions nor the root
+info, so the functions found and their directions are read off the signs
+(:func:`integrators.core.segments.directional_roots` keeps those that count). ``advance(t_out)``
+is one ``step(t_out)`` in normal mode, bounded by ``mxstep``. Counters: CVODE's ``get_info()``;
+IDA's evaluations counted in the callbacks, its steps as the calls that evaluated the residual
+(``mxstep`` = 1), rejected steps unavailable (0).
 
-Events: SUNDIALS' own root finding (``rootfn``/``nr_rootfns``) on the four root functions of
-:mod:`integrators.core.events` (for IDA on y[:3] = (h, u, s)). scikits-odes 3.0.0 wraps neither
-``CVodeSetRootDirection`` nor ``CVodeGetRootInfo`` (nor IDA's), so SUNDIALS stops at every
-crossing in either direction, and the functions it found are read off the signs: between two
-root returns SUNDIALS saw no sign change, so the functions whose sign differs from the last root
-(or the start) are the ones it bracketed — its own test — and the new sign is the direction.
-:func:`integrators.core.segments.directional_roots` keeps the crossings that count.
+scikits-odes 3.0.0 passes some values to SUNDIALS as float32 (root values, Jacobian entries,
+``tstop``, tolerances): handled as docs/external-adapters.md explains, with its other quirks and
+the reasons for the stepping mode.
 
-Stepping: ``advance(t_out)`` calls ``step(t_out)`` in CV_NORMAL/IDA_NORMAL mode, so SUNDIALS
-itself stops at t_out (interpolating) or earlier at a root, and keeps a root beyond t_out for the
-next call. SUNDIALS' maximum number of steps per call (``mxstep``) bounds each call; when it is
-used up the call returns ``TOO_MUCH_WORK`` (recoverable: the next call goes on) and the budget
-is checked. CVODE: ``mxstep`` = min(500, ``max_steps``) (500 is SUNDIALS' default), steps from
-``get_info``, so ``max_steps`` is exact up to 500 and otherwise overrun by < 500 steps. IDA:
-``mxstep`` = 1, the only way to count its steps (below), so its budget is exact; the extra
-returns cost ~25 % of wall time (measured on CVODE, same steps either way). One-step mode would
-not do: after a root found beyond t_out, SUNDIALS cannot interpolate back to t_out without
-re-reporting the crossing. The solver is re-initialised only in ``start`` (a new
-two-speed-loading segment).
-
-Counters, summed over segments: CVODE's ``get_info()`` (``NumSteps``, ``NumRhsEvals``,
-``NumErrTestFails`` as ``rejected``); Jacobian evaluations are counted in the Jacobian callback
-(``CVodeGetNumJacEvals`` is not wrapped). scikits-odes' IDA has no ``get_info``: residual and
-Jacobian evaluations are counted in the callbacks (``IDACalcIC``'s included), and a step is a
-call that evaluated the residual and succeeded (calls that only interpolate or report a root
-evaluate none; on CVODE this rule reproduces ``NumSteps`` exactly); IDA's rejected steps are not
-available (0). SUNDIALS' messages go to an error handler that keeps the last one for failures.
-
-scikits-odes 3.0.0 quirks handled here:
-
-* its ``.pxd`` declares ``sunrealtype`` as C ``float``, so every value it converts from a Python
-  object reaches SUNDIALS rounded to float32: root-function values, Jacobian entries, ``tstop``,
-  ``rtol``/``atol`` (states, right-hand sides and residuals go through double arrays and are
-  exact). Root values are therefore kept at least 1e−30 from 0 (a float32 flush to 0, or an
-  exact 0 of C h − D η on the stick-phase slow manifold, made SUNDIALS fail with "Root found at
-  and very near t"), and ``tstop`` is rounded up to a float32 value ≥ t_bound. The float32
-  Jacobian does not cost accuracy: CVODE's own difference-quotient Jacobian gave the same event
-  times to ~1e−9.
-* ``step`` converts every root found since ``init_step`` to arrays on each call, O(roots) per
-  call over a long constant-loading run; the private lists it appends to are emptied after each
-  root (reached through ``gc.get_referents``; they only feed ``step``'s return value).
-
-Reference: Hindmarsh et al. (2005), SUNDIALS: Suite of nonlinear and differential/algebraic
-equation solvers, ACM TOMS 31, 363–396; Malengier et al. (2018), odes: a high level interface to
-ODE and DAE solvers, JOSS 3(22), 165.
+Reference: Hindmarsh et al. (2005), ACM TOMS 31, 363–396; Malengier et al. (2018), JOSS 3(22), 165.
 """
 
 from __future__ import annotations

@@ -1,41 +1,17 @@
 """SUNDIALS CVODE (BDF) and IDA through scikit-sundae, on the shared ODE and DAE forms.
 
-CVODE integrates the ODE form z = (h, u, s) of :mod:`problems.formulations` with Newton iteration
-on the analytic dense Jacobian (``ode_jacobian``); IDA integrates the index-1 DAE form
-y = (h, u, s, η) with the analytic iteration matrix (``dae_jacobian``), u marked algebraic
-(``DAE_DIFFERENTIAL``) and consistent (y0, y'0) from ``dae_initial`` at every (re)start.
+CVODE integrates the ODE form z = (h, u, s) with Newton iteration on the analytic Jacobian; IDA
+the index-1 DAE form y = (h, u, s, η) with the analytic iteration matrix and consistent
+(y0, y'0) at every (re)start. Events: SUNDIALS' own root finding on the four root functions of
+:mod:`integrators.core.events`, their counting directions given to ``*SetRootDirection``, the
+signs read from its root info. Stepping: one-step mode with ``tstop`` at the segment's end; a
+step past ``t_out`` is drained of its roots, then ``t_out`` is SUNDIALS' own interpolant.
+Counters: ``nfev`` and ``njev`` from its results; ``steps`` counts the one-step calls that
+evaluated f; rejected steps unavailable (0). Why the stepping is done this way, and the two
+details around exact zeros and the roots log: docs/external-adapters.md.
 
-Events use SUNDIALS' own root finding (``eventsfn``, ``num_events = 4``) on the four root
-functions of :mod:`integrators.core.events` (for IDA on y[:3]), with their counting directions handed
-to ``CVodeSetRootDirection``/``IDASetRootDirection`` (``eventsfn.direction``), so SUNDIALS reports
-only crossings that count; the crossing signs come back from its root info (``i_events``).
-
-Stepping: scikit-sundae's ``step(t, "onestep", tstop=t_bound)`` (CV_ONE_STEP/IDA_ONE_STEP: one
-internal step per call, never past the segment's end). The step taking a segment past ``t_out``
-is followed by "draining" calls that return every further root inside that step (no new step is
-taken while roots remain); the value at ``t_out`` is then SUNDIALS' own interpolant, asked for by
-``step(t_out, "normal")`` while SUNDIALS' last returned time is the step's end, and one more
-one-step call, which only returns the step's end again, restores that state. Why so: when the
-last returned time lies after ``t_out`` (a root beyond ``t_out``, or a previous interpolation),
-SUNDIALS searches the interval back to ``t_out`` for roots and reports the crossing it has
-already reported, backwards. Max-steps-1 normal mode (what the scikits-odes backend does) is not
-an option here: scikit-sundae prints every SUNDIALS error, so each step would print a message.
-
-Two details: an exact zero of a root function is counted as positive (C h − D η cancels to a few
-ulps, and two exact zeros 1e−12 apart make SUNDIALS stop with "Root found at and very near t");
-scikit-sundae's log of roots on the events function is emptied before every call (it is turned
-into arrays at every call and would make each call cost more as the run goes on).
-
-Counters, summed over segments: ``nfev`` (CVODE right-hand-side evaluations; IDA residual
-evaluations) and ``njev`` from scikit-sundae's results (``CVodeGetNumRhsEvals``,
-``CVodeGetNumJacEvals`` and the IDA ones). scikit-sundae exposes no step counter, so ``steps``
-counts the one-step calls that evaluated the right-hand side (each is exactly one accepted
-internal step; root reports and interpolations evaluate none); rejected steps are not available.
-
-Reference: Hindmarsh et al. (2005), SUNDIALS: Suite of nonlinear and differential/algebraic
-equation solvers, ACM TOMS 31, 363–396; Gardner et al. (2022), Enabling new flexibility in the
-SUNDIALS suite, ACM TOMS, doi:10.1145/3539801; scikit-sundae (National Laboratory of the Rockies),
-https://github.com/NatLabRockies/scikit-sundae.
+Reference: Hindmarsh et al. (2005), ACM TOMS 31, 363–396; Gardner et al. (2022), ACM TOMS,
+doi:10.1145/3539801; scikit-sundae, https://github.com/NatLabRockies/scikit-sundae.
 """
 
 from __future__ import annotations

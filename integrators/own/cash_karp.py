@@ -90,10 +90,10 @@ def _attempt(p, hs, ws, z, f, z1, f1, D):
                abs(e2) / (atol + rtol * (abs(z2) + abs(hs * f2))))
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def kernel(st, p, Z, G, dirs, grid, saved, ev, n_max):
-    return engine.run(engine.prepare_nothing, _attempt, engine.nr_reject, engine.nr_accept, _workspace,
-                      st, p, Z, G, dirs, grid, saved, ev, n_max)
+@njit(**engine.NO_NRT)
+def kernel(ws, sc, st, p, Z, G, dirs, grid, saved, ev, n_max):
+    return engine.run(engine.prepare_nothing, _attempt, engine.nr_reject, engine.nr_accept,
+                      ws, sc, st, p, Z, G, dirs, grid, saved, ev, n_max)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -125,6 +125,7 @@ class CashKarp45(CompiledAlgorithm):
         "its step loop is compiled with numba and calls the compiled right-hand side; the "
         "python-tier explicit RK45 is scipy-RK45")
     kernel: ClassVar = kernel
+    workspace: ClassVar = _workspace
     fixed: ClassVar = fixed
     constants: ClassVar[dict] = dict(INIT_EXPONENT=0.2, Q=5.0, STICK_PEAKS=0, FSAL=0,
                                      HERMITE=1, STAGES=5)

@@ -51,9 +51,11 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
 
     library: ClassVar[str] = "rsfbench (numba)"
     rhs_tiers: ClassVar[tuple[str, ...]] = ("numba",)
-    #: the compiled entry points (set by each method module)
+    #: the compiled entry points (set by each method module) and the method's workspace
+    #: (a compiled function returning its scratch arrays: the kernel allocates nothing)
     kernel: ClassVar[Callable]
     fixed: ClassVar[Callable]
+    workspace: ClassVar[Callable]
     #: the engine's method constants (integrators.own.engine.P): INIT_EXPONENT, Q, STICK_PEAKS,
     #: FSAL, HERMITE, STAGES
     constants: ClassVar[dict] = {}
@@ -75,8 +77,9 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
         saved[0] = Z[E.ZROW["ZC"]]
         st[E.ST["NEXT_SAVE"]] = 1
         n_max = CHUNK_STEPS if progress is not None else LONG_CHUNK_STEPS
+        ws, sc = type(self).workspace(), E.scratch()
         while True:
-            status = type(self).kernel(st, p, Z, G, _DIRS, grid, saved, ev, n_max)
+            status = type(self).kernel(ws, sc, st, p, Z, G, _DIRS, grid, saved, ev, n_max)
             if status == E.GROW:
                 ev = np.concatenate([ev, np.empty_like(ev)])
             elif status == E.CHUNK:

@@ -49,9 +49,10 @@ from integrators.core.events import (AT_ROOT, END, H_EXTREMUM, PEAK, REC_SIZE, c
 from integrators.core.events import N_EVENTS as _REC_N
 from problems.formulations import ode_jacobian, ode_rhs
 
-__all__ = ["run", "fixed_steps", "rhs", "jacobian", "hermite", "new_state", "P", "ST", "ZROW",
-           "DONE", "CHUNK", "GROW", "NONFINITE", "UNDERFLOW", "MAX_STEPS", "WALL_TIME",
-           "prepare_jacobian", "prepare_nothing", "nr_reject", "nr_accept", "rodas_reject", "rodas_accept", "pred_reject", "pred_accept"]
+__all__ = ["run", "scratch", "NO_NRT", "fixed_steps", "rhs", "jacobian", "hermite", "new_state",
+           "P", "ST", "ZROW", "DONE", "CHUNK", "GROW", "NONFINITE", "UNDERFLOW", "MAX_STEPS",
+           "WALL_TIME", "prepare_jacobian", "prepare_nothing", "nr_reject", "nr_accept",
+           "rodas_reject", "rodas_accept", "pred_reject", "pred_accept"]
 
 # --- layouts -------------------------------------------------------------------------------
 #: st: the last step [TAU_OLD, TAU], its proposed successor H, the CURSOR ≤ TAU up to which
@@ -96,6 +97,11 @@ _OK = -1
 MAX_PASSES = 64
 #: accepted steps between two readings of the clock (~20 ns each)
 CLOCK_EVERY = 256
+#: the numba options of a method's ``kernel``: no reference counting. With it, every array
+#: argument of an inlined function and every view costs an atomic increment and decrement
+#: (~50 a step, a third of a Rosenbrock23 attempt); without it the kernel may not allocate,
+#: so the arrays come in as arguments (``ws``, :func:`scratch`).
+NO_NRT = dict(cache=True, nogil=True, error_model="numpy", _nrt=False)
 
 # the right-hand side and Jacobian (both inlined where compiled code calls them)
 rhs, jacobian = ode_rhs, ode_jacobian
@@ -201,6 +207,13 @@ def pred_accept(st, p, errmax, hs):
     return h_next
 
 
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _copy(src, dst):
+    """dst[:] = src, which the kernel (no reference counting) cannot write."""
+    for i in range(src.shape[0]):
+        dst[i] = src[i]
+
+
 # --- dense output, events ----------------------------------------------------------------------
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def hermite(hs, z0, f0, z1, f1, D):
@@ -256,7 +269,7 @@ def _scan(st, p, Z, G, dirs, stick_peaks, t_end, w):
     if t_end < st[TAU]:
         _dense(Z, x_end, z_end)
     else:
-        z_end[:] = Z[_Z]
+        _copy(Z[_Z], z_end)
     roots(p, z_end, g_end)
     passes = 0
     while True:
@@ -280,21 +293,26 @@ def _scan(st, p, Z, G, dirs, stick_peaks, t_end, w):
                 else:
                     hi = mid
             x_root[k] = hi
-        best = x_root.min()
+        best = x_root[0]                  # x_root.min() (which allocates), NaN included
+        for k in range(1, 4):
+            if x_root[k] < best or x_root[k] != x_root[k]:
+                best = x_root[k]
         if best == np.inf or passes > MAX_PASSES:
             carry_signs(G[0], g_end)
             st[CURSOR] = st[T_RET] = t_end
-            Z[_ZR], G[0] = z_end, g_end
+            _copy(z_end, Z[_ZR])
+            _copy(g_end, G[0])
             return False
         passes += 1
         t_root = (st[CURSOR] if best == x_cur else t_end if best == x_end
                   else _cursor_time(t0, dt, best, st[CURSOR], t_end))
         if best == x_end:
-            Z[_ZR] = z_end
+            _copy(z_end, Z[_ZR])
         else:
             _dense(Z, best, Z[_ZR])
         roots(p, Z[_ZR], g_new)
-        G[1] = 0.0
+        for k in range(4):
+            G[1, k] = 0.0
         for k in range(4):
             if x_root[k] == best:
                 sign = 1.0 if g_end[k] > G[0, k] else -1.0
@@ -303,8 +321,9 @@ def _scan(st, p, Z, G, dirs, stick_peaks, t_end, w):
                         and (stick_peaks or k != PEAK or g_new[END] > 0.0)):
                     G[1, k] = sign
         carry_signs(G[0], g_new)
-        st[CURSOR], G[0] = t_root, g_new
-        if G[1].any():
+        st[CURSOR] = t_root
+        _copy(g_new, G[0])
+        if G[1, 0] != 0.0 or G[1, 1] != 0.0 or G[1, 2] != 0.0 or G[1, 3] != 0.0:
             st[T_RET] = t_root
             return True
 
@@ -324,16 +343,16 @@ def _max_abs_ratio(a, b):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def start(st, p, Z, G, tau0, z0, e, t_bound):
-    """(Re)start at τ0 from z0 under the loading rate ``e``: f(z0), Hairer's initial step
-    (Hairer, Nørsett & Wanner I, §II.4, on the scale of the error test, as scipy's
-    ``select_initial_step``), the root functions at τ0, the controller's memory cleared. At a
+def start(st, p, Z, G, tau0, z0, e, t_bound, w):
+    """(Re)start at τ0 from z0 under the loading rate ``e`` (``w``: 3 × 3 scratch): f(z0),
+    Hairer's initial step (Hairer, Nørsett & Wanner I, §II.4, on the scale of the error test, as
+    scipy's ``select_initial_step``), the root functions at τ0, the controller's memory cleared. At a
     root just reported the root's sign after its crossing is kept (H_EXTREMUM only if the
     loading is unchanged: u − ln E moves with E)."""
     rtol, atol = p[_RTOL], p[_ATOL]
     p[_E], p[_LN_E] = e, math.log(e)
     z, f = Z[_Z], Z[_F]
-    trial, f1, scale = np.empty(3), np.empty(3), np.empty(3)
+    trial, f1, scale = w[0], w[1], w[2]
     for i in range(3):
         z[i] = z0[i]
     f_of(p, z, f)
@@ -386,11 +405,11 @@ def _finite(a):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _step(prepare, attempt, reject, accept, st, p, Z, ws, v, D, t_land):
+def _step(prepare, attempt, reject, accept, st, p, Z, ws, z0, f0, z1, f1, D, t_land):
     """One accepted step of proposed size st[H] from (TAU, Z[Z], Z[F]), shortened to land on
     t_land; its start goes to Z[ZO], Z[FO], its dense output to Z[D1:D3]. Returns (_OK,
-    UNDERFLOW or NONFINITE; the new τ; the next h; attempts). ``v``: 4 × 3 scratch."""
-    z0, f0, z1, f1 = v[0], v[1], v[2], v[3]
+    UNDERFLOW or NONFINITE; the new τ; the next h; attempts). z0, f0, z1, f1: scratch rows,
+    made once per solve (a view made per step costs an atomic reference count each way)."""
     tau, h = st[TAU], st[H]
     for i in range(3):
         z0[i], f0[i] = Z[_Z, i], Z[_F, i]
@@ -430,39 +449,45 @@ def _step(prepare, attempt, reject, accept, st, p, Z, ws, v, D, t_land):
 
 
 # --- the driver: saves, events, loading ---------------------------------------------------------
-@njit(cache=True, nogil=True, error_model="numpy")
-def _save_until(st, Z, grid, saved, t_hi, inclusive, zt):
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _save_until(st, rec, Z, grid, saved, t_hi, inclusive, zt):
     """Fill the save points of ``grid`` up to t_hi (or just before it) from the dense output of
-    the last step; each is a state passed through."""
-    rec = st[REC:REC + REC_SIZE]
+    the last step; each is a state passed through. ``rec``: the recorder's part of ``st``."""
     k, n = int(st[NEXT_SAVE]), grid.shape[0]
     t0, dt = st[TAU_OLD], st[TAU] - st[TAU_OLD]
     while k < n and (grid[k] < t_hi or (inclusive and grid[k] == t_hi)):
         if grid[k] == st[TAU]:
-            saved[k] = Z[_Z]
+            for i in range(3):
+                saved[k, i] = Z[_Z, i]
         else:
             _dense(Z, (grid[k] - t0) / dt, zt)
-            saved[k] = zt
+            for i in range(3):
+                saved[k, i] = zt[i]
         observe(rec, saved[k, 0])
         k += 1
     st[NEXT_SAVE] = k
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _hand_on(st, Z, tau, z):
+def _hand_on(st, Z, tau, row):
+    """The state at τ (row ``row`` of Z) is the one handed on (a restart's, a failure's)."""
     st[LAST_T] = tau
-    Z[_ZC] = z
+    for i in range(3):
+        Z[_ZC, i] = Z[row, i]
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def run(prepare, attempt, reject, accept, workspace, st, p, Z, G, dirs, grid, saved, ev, n_max):
+def run(prepare, attempt, reject, accept, ws, sc, st, p, Z, G, dirs, grid, saved, ev, n_max):
     """The solve (module docstring), resumed from the state in ``st``, ``Z``, ``G`` and ``p``:
-    at most ``n_max`` accepted steps. ``grid``: the save times (τ), ``saved``: the states
-    there; ``ev``: the events table. Returns DONE, CHUNK, GROW (``ev`` full), NONFINITE,
-    UNDERFLOW, MAX_STEPS or WALL_TIME; the counters are in ``st``."""
-    ws = workspace()
-    v, D, scratch, g, zt = np.empty((4, 3)), np.empty((3, 3)), np.empty((6, 4)), np.empty(4), \
-        np.empty(3)
+    at most ``n_max`` accepted steps. ``ws``: the method's workspace, ``sc``: the engine's
+    (:func:`scratch`); ``grid``: the save times (τ), ``saved``: the states there; ``ev``: the
+    events table. Returns DONE, CHUNK, GROW (``ev`` full), NONFINITE, UNDERFLOW, MAX_STEPS or
+    WALL_TIME; the counters are in ``st``.
+
+    The caller compiles it without numba's reference counting (``_nrt=False``, see
+    :data:`NO_NRT`), so it allocates nothing: every array comes in as an argument."""
+    z0, f0, z1, f1, D, scan_w, g, zt = sc
+    z_now, g_cur = Z[_Z], G[0]
     tau_end, two_speed = p[_TAU_END], p[_TWO_SPEED] != 0.0
     stick_peaks = p[_STICK_PEAKS] != 0.0
     tiny = 1e-12 * tau_end
@@ -478,16 +503,16 @@ def run(prepare, attempt, reject, accept, workspace, st, p, Z, G, dirs, grid, sa
             t_bound = min(tau_end, st[FAST_UNTIL]) if fast else tau_end
             st[LOAD0] = st[LOAD0] + p[_E] * (tau - st[TAU0])     # the load at τ
             st[TAU0] = tau
-            start(st, p, Z, G, tau, Z[_ZC], e, t_bound)
+            start(st, p, Z, G, tau, Z[_ZC], e, t_bound, D)
             st[NEED_START] = 0.0
             if not _finite(Z[_F]):
                 return NONFINITE
         if st[CURSOR] < st[TAU]:
             if rec[_REC_N] >= ev.shape[0]:
                 return GROW
-            found = _scan(st, p, Z, G, dirs, stick_peaks, st[TAU], scratch)
+            found = _scan(st, p, Z, G, dirs, stick_peaks, st[TAU], scan_w)
             t_ret = st[T_RET]
-            _save_until(st, Z, grid, saved, t_ret, not found, zt)
+            _save_until(st, rec, Z, grid, saved, t_ret, not found, zt)
             if found:
                 z = Z[_ZR]
                 load = st[LOAD0] + p[_E] * (t_ret - st[TAU0])
@@ -498,17 +523,17 @@ def run(prepare, attempt, reject, accept, workspace, st, p, Z, G, dirs, grid, sa
                         ended = record(rec, ev, k, t_ret, z[0], z[1], load) or ended
                 observe(rec, z[0])
                 st[LR_TAU], st[LR_E], st[LR_VALID] = t_ret, p[_E], 1.0
-                Z[_LRZ] = z
-                G[2] = G[1]
-                _hand_on(st, Z, t_ret, z)
+                _copy(z, Z[_LRZ])
+                _copy(G[1], G[2])
+                _hand_on(st, Z, t_ret, _ZR)
                 if ended and two_speed:
                     st[FAST_UNTIL] = t_ret + p[_TAU_FAST]
                     st[NEED_START] = 1.0
                 continue
-            _hand_on(st, Z, st[TAU], Z[_Z])
+            _hand_on(st, Z, st[TAU], _Z)
         if st[CURSOR] >= st[T_BOUND]:           # the end of the segment: restart or done
             observe(rec, Z[_Z, 0])
-            _hand_on(st, Z, st[TAU], Z[_Z])
+            _hand_on(st, Z, st[TAU], _Z)
             st[NEED_START] = 1.0
             continue
         if st[STEPS] >= p[_MAX_STEPS]:
@@ -517,20 +542,28 @@ def run(prepare, attempt, reject, accept, workspace, st, p, Z, G, dirs, grid, sa
             return CHUNK
         if n % CLOCK_EVERY == CLOCK_EVERY - 1 and monotonic() > p[_DEADLINE]:
             return WALL_TIME
-        status, tau, h, tried = _step(prepare, attempt, reject, accept, st, p, Z, ws, v, D,
-                                      st[T_BOUND])
+        status, tau, h, tried = _step(prepare, attempt, reject, accept, st, p, Z, ws,
+                                      z0, f0, z1, f1, D, st[T_BOUND])
         st[REJECTED] += tried - (1 if status != UNDERFLOW else 0)
         if status == UNDERFLOW:
             return UNDERFLOW
         n += 1
         st[STEPS] += 1
         st[TAU_OLD], st[TAU], st[H] = st[TAU], tau, h
-        roots(p, Z[_Z], g)
+        roots(p, z_now, g)
         if not _crossed(G, g, dirs, stick_peaks):   # else the scan at the top places them
-            _save_until(st, Z, grid, saved, tau, True, zt)
-            carry_signs(G[0], g)
-            st[CURSOR], G[0] = tau, g
-            _hand_on(st, Z, tau, Z[_Z])
+            _save_until(st, rec, Z, grid, saved, tau, True, zt)
+            carry_signs(g_cur, g)
+            st[CURSOR] = tau
+            _copy(g, g_cur)
+            _hand_on(st, Z, tau, _Z)
+
+
+def scratch():
+    """The engine's scratch arrays for :func:`run`: z0, f0, z1, f1 (a step's ends), D (its dense
+    output), the event scan's 6 × 4, the root functions, a state."""
+    return (np.empty(3), np.empty(3), np.empty(3), np.empty(3), np.empty((3, 3)),
+            np.empty((6, 4)), np.empty(4), np.empty(3))
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")

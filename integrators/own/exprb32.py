@@ -62,10 +62,10 @@ def _attempt(p, hs, ws, z, f, out, f1, D):
     return errmax
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def kernel(st, p, Z, G, dirs, grid, saved, ev, n_max):
+@njit(**engine.NO_NRT)
+def kernel(ws, sc, st, p, Z, G, dirs, grid, saved, ev, n_max):
     return engine.run(engine.prepare_jacobian, _attempt, engine.pred_reject, engine.pred_accept,
-                      exprb_workspace, st, p, Z, G, dirs, grid, saved, ev, n_max)
+                      ws, sc, st, p, Z, G, dirs, grid, saved, ev, n_max)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -87,6 +87,7 @@ class Exprb32(CompiledAlgorithm):
     rhs_tiers_reason: ClassVar[str] = (
         "its step loop, φ-functions and Jacobian are compiled with numba")
     kernel: ClassVar = kernel
+    workspace: ClassVar = exprb_workspace
     fixed: ClassVar = fixed
     constants: ClassVar[dict] = dict(INIT_EXPONENT=0.2, Q=3.0, STICK_PEAKS=0, FSAL=0,
                                      HERMITE=1, STAGES=1)

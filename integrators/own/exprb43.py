@@ -67,10 +67,10 @@ def _attempt(p, hs, ws, z, f, out, f1, D):
     return errmax
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def kernel(st, p, Z, G, dirs, grid, saved, ev, n_max):
+@njit(**engine.NO_NRT)
+def kernel(ws, sc, st, p, Z, G, dirs, grid, saved, ev, n_max):
     return engine.run(engine.prepare_jacobian, _attempt, engine.pred_reject, engine.pred_accept,
-                      exprb_workspace, st, p, Z, G, dirs, grid, saved, ev, n_max)
+                      ws, sc, st, p, Z, G, dirs, grid, saved, ev, n_max)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -91,6 +91,7 @@ class Exprb43(CompiledAlgorithm):
     rhs_tiers_reason: ClassVar[str] = (
         "its step loop, φ-functions and Jacobian are compiled with numba")
     kernel: ClassVar = kernel
+    workspace: ClassVar = exprb_workspace
     fixed: ClassVar = fixed
     constants: ClassVar[dict] = dict(INIT_EXPONENT=0.2, Q=4.0, STICK_PEAKS=0, FSAL=0,
                                      HERMITE=1, STAGES=2)

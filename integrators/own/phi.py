@@ -134,11 +134,13 @@ def _phi_2x2(s00, s01, s10, s11, kmax, out, half):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _phi_scalar(z, kmax, out):
-    """φ_0..φ_kmax(z) for z ≤ −1, where the recursion φ_k = (φ_{k−1} − 1/(k−1)!)/z is stable."""
-    out[0] = math.exp(z)
-    for k in range(1, kmax + 1):
-        out[k] = (out[k - 1] - _INV_FACT[k - 1]) / z
+def _phi_scalar(z):
+    """φ_0..φ_4(z) for z ≤ −1, where the recursion φ_k = (φ_{k−1} − 1/(k−1)!)/z is stable."""
+    f0 = math.exp(z)
+    f1 = (f0 - _INV_FACT[0]) / z
+    f2 = (f1 - _INV_FACT[1]) / z
+    f3 = (f2 - _INV_FACT[2]) / z
+    return f0, f1, f2, f3, (f3 - _INV_FACT[3]) / z
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -182,27 +184,29 @@ def phi_functions(a, kmax, out, half):
     if 16.0 * max(abs(s00) + abs(s10), abs(s01) + abs(s11)) > -lam:
         phi_dense(a, kmax, out, half)
         return
-    FS, HS, fl, hl = np.empty((kmax + 1, 2, 2)), np.empty((2, 2)), np.empty(kmax + 1), np.empty(2)
-    _phi_2x2(s00, s01, s10, s11, kmax, FS, HS)
-    _phi_scalar(lam, kmax, fl)
-    _phi_scalar(0.5 * lam, 1, hl)
+    # φ_k(S) goes to the top left 2 × 2 of out[k] (φ_1(S/2) to that of ``half``), read back
+    # before out[k] is written: no scratch arrays (the compiled solve allocates nothing)
+    _phi_2x2(s00, s01, s10, s11, kmax, out[:, :2, :2], half[:2, :2])
+    fl = _phi_scalar(lam)
+    hl1 = (math.exp(0.5 * lam) - _INV_FACT[0]) / (0.5 * lam)      # φ_1(λ/2)
     for k in range(kmax + 2):           # k = kmax + 1: φ_1 of the half matrix, into ``half``
-        x, F22, f11 = (lam, FS[k], fl[k]) if k <= kmax else (0.5 * lam, HS, hl[1])
+        o = out[k] if k <= kmax else half
+        x, f11 = (lam, fl[k]) if k <= kmax else (0.5 * lam, hl1)
+        F22 = (o[0, 0], o[0, 1], o[1, 0], o[1, 1])
         sc = 1.0 if k <= kmax else 0.5
         # F12 = (f11 bᵀ − bᵀ F22)(x I − sc S)⁻¹, a 1×2 row
-        r0 = sc * (f11 * b0 - (b0 * F22[0, 0] + b1 * F22[1, 0]))
-        r1 = sc * (f11 * b1 - (b0 * F22[0, 1] + b1 * F22[1, 1]))
+        r0 = sc * (f11 * b0 - (b0 * F22[0] + b1 * F22[2]))
+        r1 = sc * (f11 * b1 - (b0 * F22[1] + b1 * F22[3]))
         m00, m01, m10, m11 = x - sc * s00, -sc * s01, -sc * s10, x - sc * s11
         det = m00 * m11 - m01 * m10
         g0, g1 = (r0 * m11 - r1 * m10) / det, (r1 * m00 - r0 * m01) / det
         # back to z coordinates: φ(a) = V F V⁻¹, V⁻¹z = (z_u, z_h − vh z_u, z_s − vs z_u)
-        o = out[k] if k <= kmax else half
         o[1, 0], o[1, 2] = g0, g1
         o[1, 1] = f11 - g0 * vh - g1 * vs
-        o[0, 0], o[0, 2] = vh * g0 + F22[0, 0], vh * g1 + F22[0, 1]
-        o[2, 0], o[2, 2] = vs * g0 + F22[1, 0], vs * g1 + F22[1, 1]
-        o[0, 1] = vh * f11 - (vh * g0 + F22[0, 0]) * vh - (vh * g1 + F22[0, 1]) * vs
-        o[2, 1] = vs * f11 - (vs * g0 + F22[1, 0]) * vh - (vs * g1 + F22[1, 1]) * vs
+        o[0, 0], o[0, 2] = vh * g0 + F22[0], vh * g1 + F22[1]
+        o[2, 0], o[2, 2] = vs * g0 + F22[2], vs * g1 + F22[3]
+        o[0, 1] = vh * f11 - (vh * g0 + F22[0]) * vh - (vh * g1 + F22[1]) * vs
+        o[2, 1] = vs * f11 - (vs * g0 + F22[2]) * vh - (vs * g1 + F22[3]) * vs
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

@@ -108,10 +108,10 @@ def _attempt(p, hs, ws, z0, f0, z1, f1, D):
     return errmax if regular and np.isfinite(errmax) else np.inf
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def kernel(st, p, Z, G, dirs, grid, saved, ev, n_max):
-    return engine.run(engine.prepare_jacobian, _attempt, engine.rodas_reject, engine.rodas_accept, _workspace,
-                      st, p, Z, G, dirs, grid, saved, ev, n_max)
+@njit(**engine.NO_NRT)
+def kernel(ws, sc, st, p, Z, G, dirs, grid, saved, ev, n_max):
+    return engine.run(engine.prepare_jacobian, _attempt, engine.rodas_reject, engine.rodas_accept,
+                      ws, sc, st, p, Z, G, dirs, grid, saved, ev, n_max)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -135,6 +135,7 @@ class Rodas5P(CompiledAlgorithm):
         "its step loop is compiled with numba and calls the compiled right-hand side and "
         "Jacobian")
     kernel: ClassVar = kernel
+    workspace: ClassVar = _workspace
     fixed: ClassVar = fixed
     constants: ClassVar[dict] = dict(INIT_EXPONENT=1.0 / 5, Q=5.0, STICK_PEAKS=1, FSAL=0,
                                      HERMITE=0, STAGES=7)
