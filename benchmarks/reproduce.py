@@ -278,12 +278,17 @@ def run_steps(steps, out: Path, modes: dict[str, str], dry_run: bool = False,
     reruns it unless its inputs and files are unchanged (then it is reused), ``keep`` only
     says whether its files are up to date. Each step that ran is recorded in ``out``'s
     manifest at once. ``code``: :func:`benchmarks.manifest.step_inputs`' ``root``,
-    ``packages`` and ``whole``."""
-    try:
-        records = M.read_manifest(out)
-    except BadResultsFile as exc:
-        print(f"{exc}: every step reruns")
-        records = {}
+    ``packages`` and ``whole``.
+
+    The manifest on disk is read again before each step and before each record is written, so
+    that two runs of different steps (``--only``) at once keep each other's records."""
+    def current() -> dict[str, dict]:
+        try:
+            return M.read_manifest(out)
+        except BadResultsFile as exc:
+            print(f"{exc}: every step reruns")
+            return {}
+
     order = [s.name for s in steps]
     rows = []
     for step in steps:
@@ -291,7 +296,7 @@ def run_steps(steps, out: Path, modes: dict[str, str], dry_run: bool = False,
         if mode is None:
             continue
         inputs = _inputs(step, out, **code)
-        ok, why = M.reusable(records.get(step.name), inputs, out)
+        ok, why = M.reusable(current().get(step.name), inputs, out)
         if mode == "keep" or (mode == "check" and ok):
             row = {"step": step.name, "status": "reused" if ok else "stale",
                    "why": why if ok else f"{why}; `make reproduce-full` reruns it"}
@@ -317,6 +322,7 @@ def run_steps(steps, out: Path, modes: dict[str, str], dry_run: bool = False,
         started = time.perf_counter()
         step.run(out, **step.settings)
         wall = time.perf_counter() - started
+        records = current()
         records[step.name] = M.make_record(step.name, "full" if step.full else "quick", inputs,
                                            M.written_since(before, out), wall)
         M.write_manifest(out, records, order)
