@@ -266,3 +266,18 @@ def test_a_step_refuses_to_run_without_the_file_it_reads(fake):
     with pytest.raises(FileNotFoundError, match="step shout reads .*a.txt, which is not there"):
         fake.run(steps=fake.steps[1:2])
     assert not (fake.out / "manifest.json").exists()
+
+
+def test_two_runs_at_once_keep_each_others_records(fake):
+    """Two ``--only`` runs of different steps at once: each reads the manifest again before it
+    writes a record, so neither drops the other's (here the second finishes during the first's
+    step; before, the first wrote the records it had read at its start)."""
+    module = fake.module
+
+    def make_while_clock_runs(out, n):
+        fake.run({"clock": "run"})
+        module.make(out, n)
+
+    steps = [RP.Step("make", "make a", make_while_clock_runs, settings={"n": 1})]
+    assert fake.run({"make": "run"}, steps=steps) == {"make": "ran"}
+    assert set(M.read_manifest(fake.out)) == {"make", "clock"}
