@@ -44,12 +44,12 @@ test-slow: setup numba-cache
 
 # the quick plan: reruns the quick steps whose inputs (code, package versions, settings, files
 # read, the machine for timings) changed, reuses the others and keeps the files of the full
-# steps; ~15 min on 2 cores when every quick step runs (docs/reproduce.md)
+# steps; ~10 min on 2 cores when every quick step runs (docs/reproduce.md)
 reproduce: setup numba-cache
 	$(VENV)/bin/rsfbench reproduce --out results
 
 # the full plan: also the quick work-precision study, issue 6's target on every study problem
-# and scipy's RK45 to its 600 s budget (about 1.5 h on 2 cores when every step runs)
+# and scipy's RK45 to its 600 s budget (about 1.25 h on 2 cores when every step runs)
 reproduce-full: setup numba-cache
 	$(VENV)/bin/rsfbench reproduce --full --out results
 

@@ -5,7 +5,8 @@ The inputs of a step (:func:`step_inputs`):
 
 * ``code``: its function's source, and the source of every project module it imports, directly
   or through other modules (imports inside functions count; a module of ``integrators`` or
-  ``problems`` stands for its whole package);
+  ``problems`` stands for its whole package). Source is hashed as what runs (:func:`code_hash`:
+  its syntax tree without docstrings, comments and layout), so editing documentation reuses;
 * ``versions``: Python's and those of the packages pinned in ``pyproject.toml``, as installed;
 * ``settings``: its keyword arguments;
 * ``machine``: platform, CPU model and count, for a step whose numbers are timings;
@@ -37,7 +38,7 @@ from benchmarks.files import BadResultsFile, atomic_write
 
 __all__ = ["ROOT", "PACKAGES", "WHOLE_PACKAGES", "MANIFEST", "import_graph", "find_cycles",
            "step_inputs", "inputs_hash", "what_changed", "versions", "machine", "file_hash",
-           "read_manifest", "write_manifest", "snapshot", "written_since", "reusable",
+           "code_hash", "read_manifest", "write_manifest", "snapshot", "written_since", "reusable",
            "make_record"]
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -180,6 +181,27 @@ def file_hash(path: Path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
+def _without_docstrings(tree: ast.AST) -> ast.AST:
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)):
+            body = node.body
+            if (body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant)
+                    and isinstance(body[0].value.value, str)):
+                node.body = body[1:] or [ast.Pass()]
+    return tree
+
+
+def code_hash(source: str) -> str:
+    """The hash of Python source as what runs: its syntax tree without docstrings (comments and
+    layout are not in the tree), so that a documentation edit does not make results stale.
+    Source that does not parse is hashed as text."""
+    try:
+        tree = _without_docstrings(ast.parse(source))
+    except SyntaxError:
+        return hashlib.sha256(source.encode()).hexdigest()
+    return hashlib.sha256(ast.dump(tree, include_attributes=False).encode()).hexdigest()
+
+
 def _code(fn, root: Path, packages, whole, extra=()) -> dict[str, str]:
     """Relative path → hash of every source file ``fn`` (and the modules ``extra``) depends on,
     and of ``fn``'s own source."""
@@ -192,11 +214,11 @@ def _code(fn, root: Path, packages, whole, extra=()) -> dict[str, str]:
     wholes = {m.split(".")[0] for m in used} & set(whole)
     files = {modules[m] for m in used} | {p for n, p in modules.items()
                                           if n.split(".")[0] in wholes}
-    code = {p.relative_to(root).as_posix(): file_hash(p) for p in sorted(files)}
+    code = {p.relative_to(root).as_posix(): code_hash(p.read_text(encoding="utf-8"))
+            for p in sorted(files)}
     own, base = Path(inspect.getsourcefile(fn)).resolve(), root.resolve()
     where = own.relative_to(base).as_posix() if own.is_relative_to(base) else own.name
-    source = textwrap.dedent(inspect.getsource(fn)).encode()
-    code[f"{where}::{fn.__qualname__}"] = hashlib.sha256(source).hexdigest()
+    code[f"{where}::{fn.__qualname__}"] = code_hash(textwrap.dedent(inspect.getsource(fn)))
     return code
 
 

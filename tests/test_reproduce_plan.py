@@ -131,7 +131,11 @@ def test_a_step_reruns_when_code_it_imports_changes(fake, capsys):
     fake.run()
     (fake.root / "fakeplan/other.py").write_text("x = 2\n")       # imported by no step
     assert set(fake.run().values()) == {"reused"}
-    (fake.root / "fakeplan/lib.py").write_text("def value():\n    return 'v'  # same\n")
+    # documentation is not code: a docstring, a comment, the layout
+    (fake.root / "fakeplan/lib.py").write_text(
+        'def value():\n    """The value."""\n\n    return  \'v\'  # same\n')
+    assert set(fake.run().values()) == {"reused"}
+    (fake.root / "fakeplan/lib.py").write_text("def value():\n    return 'v' + ''\n")
     # make reruns; it writes the same a.txt, so shout, which reads it, is reused
     assert fake.run() == {"make": "ran", "shout": "reused", "clock": "reused"}
     assert "inputs changed: code (fakeplan/lib.py)" in capsys.readouterr().out

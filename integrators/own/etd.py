@@ -8,43 +8,17 @@ follows Noda & Lapusta (2010). Fixed rule for the step, not error-controlled (Eq
 with the paper's Δτmax = 0.01, Δτcnst = 1e−5, vmax = 0.05 m/s as defaults. The slip per step is
 then at most Δτcnst·vmax/v0 critical distances.
 
-Order reduction. ETD2 is second order in the non-stiff limit, as the paper states, but on the
-stick–slip problem it converges at first order: in the stick phase η relaxes on the time scale
-w/D, far shorter than a step, so it sits on its slow manifold η = ηss(h, w, Ψ). The starred η*
-is ηss frozen at the start of the step, so it lags by one step, w* = exp(η* − βΨ*) carries an
-O(Δτ) error, and the trapezoidal h update that uses w* loses one order. One more iteration
-(``ETDIterated(n_iterations=2)``) evaluates ηss at the starred end state, which removes that
-lag: at the paper's steps its recurrence error is ~70× smaller than ETD2's.
+What a user must know (docs/etd.md explains each, with what was measured):
 
-Error floor. Every scheme here relaxes η towards a target ηss frozen over the (half) step, and
-with D·Δτ/w ≫ 1 it lands on the target itself. The exact η trails its moving target by
-(w/D)·dηss/dτ, a lag no frozen-target step sees, whatever Δτ: the error stops falling at a floor
-proportional to w/D, i.e. to the mass, until the steps resolve w/D (Δτ ≲ w/D ~ 3e−6 in the
-stick phase here, ~3000 times below the paper's Δτmax = 0.01). On the paper example the floor
-is ~3–4·10⁻⁷ in the recurrence interval; it scales with the mass (×0.1 → ~10⁻⁸) and goes away for a 10× heavier
-slider whose w/D the steps resolve (``rsfbench convergence`` shows it; a test checks it). So
-``ETDIterated`` has no asymptotic order on the stick–slip problem (``stiff_order = 0``): below
-~1e−6 its error is this floor. Exponential integrators with a φ2 term (Cox & Matthews 2002;
-Hochbruck & Ostermann 2010) treat a linearly moving target exactly.
+* order reduction: on the stick–slip problem ETD2 converges at first order (η sits on its slow
+  manifold and the starred η* lags by one step); ``ETDIterated(n_iterations=2)`` removes the lag;
+* an error floor proportional to the slider's mass (w/D), ~3–4·10⁻⁷ in the recurrence interval
+  on the paper example: below ~1e−6 ``ETDIterated`` does not improve (``stiff_order = 0``);
+* validity: every step checks Eq. 53 at the fastest state it evaluated; a step that exceeds
+  ``rule_ratio_max`` (100) stops the run with retcode ``Unresolved`` instead of a silent miss.
 
-Validity. The step rule bounds the slip per step by the slip rate at the start of the step. A
-problem whose slip rate can grow by orders of magnitude within one such step — a start out of
-force balance (an inertial layer of time scale m v/A), or strong weakening (b/a ≳ 40 with a
-small a) — makes the frozen-coefficient step run away: the starred state (or an iterate)
-reaches a slip rate 10⁴–10⁷ times the start's, the second half step frozen there unloads the
-spring by orders of magnitude, and the slider ends the step locked. The run then goes on,
-stably, and reports Success with no events where every adaptive method finds one within a few
-milliseconds. So every step checks Eq. 53 at the fastest state it evaluated (start, starred
-state, each iterate, end): s · max w over Δτcnst · vmax/v0, which costs one comparison. A step
-that exceeds ``rule_ratio_max`` (100) stops the run with retcode ``Unresolved`` and says where
-and by how much. Measured (issue 13): the paper example, W1–W4 at their best fits and 9 × 7
-sweep grids around each under both laws (1028 ETD2 and ETDIterated runs) never exceed 1.24;
-the 28 silent misses found exceed 6.5·10³; 100 sits between them, a factor ~80 from each.
-Between 10 and 100 a run can still be right: ETDIterated on b/a = 100 reaches 10.9 at its
-first step and finds the event 22 % early.
-
-The compiled loop is in
-:mod:`integrators.own.etd_kernel`; this module holds the options and drives the loop in chunks.
+The compiled loop is in :mod:`integrators.own.etd_kernel`; this module holds the options and
+drives the loop in chunks.
 """
 
 from __future__ import annotations
