@@ -282,11 +282,15 @@ def run_steps(steps, out: Path, modes: dict[str, str], dry_run: bool = False,
 
     The manifest on disk is read again before each step and before each record is written, so
     that two runs of different steps (``--only``) at once keep each other's records."""
+    said = []
+
     def current() -> dict[str, dict]:
         try:
             return M.read_manifest(out)
         except BadResultsFile as exc:
-            print(f"{exc}: every step reruns")
+            if not said:                     # once, not before every step
+                print(f"{exc}: every step reruns")
+                said.append(exc)
             return {}
 
     order = [s.name for s in steps]
