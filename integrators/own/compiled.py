@@ -3,8 +3,8 @@
 :class:`CompiledAlgorithm` is the base of every method built on :mod:`integrators.own.engine`.
 A subclass names its compiled entry points (``kernel`` and ``fixed``, module-level numba
 functions of its own module that call :func:`integrators.own.engine.run` and
-:func:`integrators.own.engine.fixed_steps` with its step) and its constants; ``run`` does the
-rest: the save grid, the state arrays, the call (repeated only for a progress bar, every
+:func:`integrators.own.engine.fixed_steps` with its step), its ``workspace`` and its constants;
+``run`` does the rest: the save grid, the state and scratch arrays, the call (repeated only for a progress bar, every
 :data:`CHUNK_STEPS` accepted steps, or to enlarge the events table) and the conversion.
 ``Solution.meta`` reports the engine's (re)starts and the roots reported of each kind.
 """

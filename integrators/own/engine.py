@@ -13,7 +13,8 @@ says how to add one); the engine owns everything else, once:
 * a controller, ``reject(p, errmax, hs) -> hs`` and ``accept(st, p, errmax, hs) -> h`` (those of
   this module: :func:`nr_reject`/:func:`nr_accept`, :func:`rodas_reject`/:func:`rodas_accept`,
   :func:`pred_reject`/:func:`pred_accept`);
-* ``workspace()``: its scratch arrays, allocated once per call.
+* ``workspace()``: its scratch arrays, made once per solve by Python and passed in (the
+  kernel is compiled without reference counting, :data:`NO_NRT`, and allocates nothing).
 
 Dense output, one form for every method: z(τ0 + x h) = (1 − x) z0 + x (z1 + (1 − x)(D1 + x (D2 +
 x D3))); the cubic Hermite interpolant of (z, f) at both ends is D1 = h f0 − Δz,
