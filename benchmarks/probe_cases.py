@@ -512,7 +512,7 @@ def _budget_cases():
         out.append(Case("budgets", f"{name}: step budget 200", steps, "retcode", timeout=60))
     out += [
         *[Case("budgets", f"{n}: a stalled step (t + h == t) stops", _stall(n), "retcode",
-               timeout=60) for n in ("sundae-CVODE", "sundae-IDA", "Rodas5P", "Exprb43",
+               timeout=60) for n in ("sundae-CVODE", "sundae-IDA", "sundials-CVODE-BDF", "Rodas5P", "Exprb43",
                                      "CashKarp45", "scipy-BDF", "assimulo-CVode")],
         Case("budgets", "a problem beyond τ = 1e12 is refused",
              lambda tmp: _short("W2", t_end=1e9, lc=1e-9), "refused"),

@@ -32,6 +32,8 @@ EXTERNAL = {
                                               "assimulo-Radau5ODE", "assimulo-LSODAR",
                                               "assimulo-RodasODE", "assimulo-Dopri5"),
     "integrators.external.sksundae_backend": ("sundae-CVODE", "sundae-IDA"),
+    "integrators.external.sundials_c": ("sundials-CVODE-BDF", "sundials-CVODE-Adams",
+                                        "sundials-IDA"),
 }
 for _module, _names in EXTERNAL.items():
     REGISTRY.declare(_module, _names)
