@@ -285,6 +285,18 @@ def cmd_engine_speed(args) -> int:
     return 0
 
 
+def cmd_binding_overhead(args) -> int:
+    from benchmarks.binding_overhead import write_binding_overhead
+    if args.out:
+        args.out.mkdir(parents=True, exist_ok=True)        # before the work, not after it
+    table, text = write_binding_overhead(args.out, args.repeats, progress=not args.no_progress)
+    if args.json:
+        say(table.to_json(orient="records", indent=2))
+    else:
+        say(text)
+    return 0
+
+
 def cmd_probe(args) -> int:
     from benchmarks.probe import BAD_OUTCOMES, run_probe, write_probe
     from benchmarks.probe_cases import cases
@@ -508,6 +520,20 @@ def build_parser() -> Parser:
                          "(default: 5)")
     es.add_argument("--json", action="store_true", help="print the targets as one JSON array")
     es.set_defaults(func=cmd_engine_speed)
+
+    bo = sub.add_parser("binding-overhead", help="the same solver called compiled and from "
+                        "Python: SUNDIALS' CVODE and IDA from C against scikits-odes, "
+                        "scikit-sundae and assimulo, numbalsoda's LSODA against its plain grid "
+                        "call and ODEPACK's from scipy and assimulo; paper example and W2 aging "
+                        "at rtol = atol = 1e-6 and 1e-8, timed in one run (~5 min)")
+    bo.add_argument("--out", type=out_dir, metavar="DIR",
+                    help="write binding_overhead.csv and .md there (default: print only)")
+    bo.add_argument("--repeats", type=count, default=3, metavar="N",
+                    help="timed runs per setting after a warm-up; the minimum is kept "
+                         "(default: 3)")
+    bo.add_argument("--json", action="store_true", help="print every run as one JSON array")
+    bo.add_argument("--no-progress", action="store_true", help="no progress bar")
+    bo.set_defaults(func=cmd_binding_overhead)
 
     from benchmarks.cli_sweep import add_parsers
     add_parsers(sub, PRESET_NAMES)

@@ -173,6 +173,11 @@ def _engine_speed(out: Path) -> None:
     print(write_engine_speed(out)[1])
 
 
+def _binding_overhead(out: Path) -> None:
+    from benchmarks.binding_overhead import write_binding_overhead
+    print(write_binding_overhead(out, progress=False)[1])
+
+
 def _probe(out: Path) -> None:
     from benchmarks.probe import run_probe, write_probe
     from benchmarks.probe_cases import cases
@@ -214,6 +219,8 @@ STEPS = (
          data=("tests/data/W2_slip_weakening.csv",), minutes=1.4),
     Step("engine-speed", "the own compiled engine against issue 14's targets and numbalsoda's "
          "lsoda", _engine_speed, timed=True, minutes=0.6),
+    Step("binding-overhead", "the same solver called compiled and from Python (SUNDIALS, "
+         "LSODA)", _binding_overhead, full=True, timed=True, minutes=6),
     Step("probe", "the reliability probe, slow cases included", _probe,
          data=("results/wp_quick.csv",), modules=("benchmarks.cli",), minutes=1.4),
 )
@@ -409,6 +416,7 @@ def _collect(out: Path) -> dict:
         "misfit": read("j2_information.md", "misfit"),
         "etd_validity": read("etd_validity.md", "etd-validity"),
         "engine_speed": read("engine_speed.md", "engine-speed"),
+        "binding_overhead": read("binding_overhead.md", "binding-overhead"),
         "steps": markdown_table(pd.DataFrame(_step_states(out))),
     }
 
@@ -510,6 +518,9 @@ Every case of `benchmarks/probe_cases.py`, by kind and outcome (`rsfbench probe 
 ## The own compiled engine against issue 14's targets (`engine_speed.*`)
 
 {r['engine_speed']}
+## What a way of calling costs (`binding_overhead.*`)
+
+{r['binding_overhead']}
 ## What J2 sees (`j2_information.*`)
 
 {r['misfit']}

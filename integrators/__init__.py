@@ -26,6 +26,7 @@ EXTERNAL = {
     "integrators.external.scipy_backend": ("scipy-RK45", "scipy-DOP853", "scipy-Radau",
                                            "scipy-BDF", "scipy-LSODA"),
     "integrators.external.numbalsoda_backend": ("numbalsoda-LSODA",),
+    "integrators.external.numbalsoda_grid": ("numbalsoda-LSODA-grid",),
     "integrators.external.scikits_odes_backend": ("odes-CVODE-BDF", "odes-CVODE-Adams",
                                                   "odes-IDA"),
     "integrators.external.assimulo_backend": ("assimulo-CVode", "assimulo-IDA",
@@ -34,6 +35,8 @@ EXTERNAL = {
     "integrators.external.sksundae_backend": ("sundae-CVODE", "sundae-IDA"),
     "integrators.external.sundials_c": ("sundials-CVODE-BDF", "sundials-CVODE-Adams",
                                         "sundials-IDA"),
+    "integrators.external.cyrk_backend": ("CyRK-RK45", "CyRK-DOP853", "CyRK-Tsit5", "CyRK-BDF",
+                                          "CyRK-Radau", "CyRK-LSODA"),
 }
 for _module, _names in EXTERNAL.items():
     REGISTRY.declare(_module, _names)

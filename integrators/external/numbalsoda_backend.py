@@ -319,7 +319,7 @@ def _library():
     from numbalsoda import lsoda_sig
     from numbalsoda.driver import lsoda_wrapper
 
-    rhs = cfunc(lsoda_sig, cache=True)(_rhs)
+    rhs = cfunc(lsoda_sig, cache=True, error_model="numpy")(_rhs)
 
     @njit
     def run(funcptr, u0, t_eval, data, rtol, atol, mxstep, usol):
@@ -469,9 +469,11 @@ class _LsodaStepper:
 
     # --- lsoda calls ----------------------------------------------------------------------------
 
-    def _run(self, z0, t_eval, guard: bool, block: bool):
+    def _run(self, z0, t_eval, guard: bool, block: bool, onset: bool = True):
         """One lsoda call; counters updated. Returns (rows, n, ok): the n rows LSODA reached
-        (see ``_reached``); ``_data[_KILL]`` tells whether and why the cfunc stopped it."""
+        (see ``_reached``); ``_data[_KILL]`` tells whether and why the cfunc stopped it. With
+        ``block``, the call ends on entering an event (unless not ``onset``) and, under two-
+        speed loading, soon after an event's end."""
         a = self.algorithm
         nt = len(t_eval)
         if nt > len(self._ubuf):
@@ -490,7 +492,8 @@ class _LsodaStepper:
         # stiff: the stiff eigenvalue ~ D/w is over 100 per grid interval (w < D·dg/100); only
         # there can Adams be stuck at its stability limit, and only there is BDF so cheap
         d[_U_STIFF] = math.log(self.nd.d * self._dg / 100.0)
-        d[_BLOCK], d[_T_ARM], d[_ARMED] = float(block), t_eval[0] + 4.0 * self._dg, 0.0
+        d[_BLOCK], d[_ARMED] = float(block), 0.0
+        d[_T_ARM] = t_eval[0] + 4.0 * self._dg if onset else np.inf
         d[_IN_EVENT], d[_END_DT], d[_END_KILL_T] = 0.0, 3.0 * self._dg, np.inf
         d[_NT] = nt
         te = self._buf[_DATA_LEN:_DATA_LEN + nt]

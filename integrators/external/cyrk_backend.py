@@ -1,0 +1,431 @@
+"""CyRK's C++ solvers called from numba (``nbsolve2_ivp``): explicit Runge–Kutta pairs and the
+implicit BDF, Radau and LSODA, with a numba ``cfunc`` right-hand side.
+
+CyRK (J. P. Renaud) compiles its solvers in C++ and offers ``nbsolve2_ivp(diffeq_address,
+t_span, y0, method, dense_output, args, rtol, atol, max_num_steps, …)`` to numba users: the
+right-hand side is a cfunc, nothing runs in Python during the integration. It has no events on
+that entry point, so this adapter locates them on CyRK's dense output:
+
+* one call over the whole run, as a user's, unless it takes more than 2·``CHUNK_STEPS``
+  steps (memory: CyRK keeps every step and its interpolant; the explicit methods take
+  millions here, and their first call stops at ``FIRST_CAP``): then calls over spans expected
+  to take ``CHUNK_STEPS``/2 (the steps per unit time learned from the calls before). CyRK builds no dense output for a call that ran out
+  of steps, so such a call is done again over the shorter span. Under two-speed loading a
+  segment ends at an event's end, where the run restarts: so that the restart throws little
+  away, the first call of a segment spans 1.25× the last segment's length, or, before one is
+  known, ``FIRST_SPAN`` half periods π/√C, and each further call twice the one before. Each
+  call is a cold start (first step chosen again), as a new call of a user's would be;
+* the crossings that count (``events.DIRECTIONS``; a PEAK only where w > E_slow) between
+  consecutive steps, bisected to the last bit on CyRK's dense output, which a compiled kernel
+  calls through CyRK's C function (``_dense``), so no Python runs per step or per bisection;
+* counters: ``steps`` is CyRK's steps taken, nfev and the finite-difference Jacobians of the
+  implicit methods are counted in the cfunc (a column is one call at the abscissa of the call
+  before with one component perturbed, counted when the first is); CyRK does not report
+  rejected steps (0).
+
+``rhs="python"`` is refused: CyRK's Python entry point (``pysolve_ivp``) calls a Python function
+per evaluation, which the study's Python tier of other libraries already measures. The first
+solve in a process compiles CyRK's numba entry point (~5 s).
+
+Reference: CyRK, https://github.com/jrenaud90/CyRK (C++ ports of scipy's RK23/RK45/DOP853, BDF,
+Radau and LSODA; Tsit5, Vern7, Vern8).
+"""
+
+from __future__ import annotations
+
+import functools
+import importlib.metadata
+import importlib.util
+import math
+from collections import deque
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+from llvmlite import ir
+from numba import carray, cfunc, njit, types
+from numba.extending import intrinsic
+
+from integrators.core.events import AT_ROOT, DIRECTIONS, END, H_EXTREMUM, PEAK, sign_change
+from integrators.core.registry import AdaptiveAlgorithm, register
+from integrators.core.segments import Advance
+from integrators.core.solution import ReturnCode, Stats
+from problems.formulations import ode_rhs
+
+__all__ = ["CyRKRK45", "CyRKDOP853", "CyRKTsit5", "CyRKBDF", "CyRKRadau", "CyRKLSODA"]
+
+if importlib.util.find_spec("CyRK") is None:
+    raise ImportError("No module named 'CyRK'")
+_VERSION = importlib.metadata.version("CyRK")
+
+CHUNK_STEPS = 65_536
+#: under two-speed loading, the first call's span in half periods π/√C, until a cycle is known
+FIRST_SPAN = 16.0
+#: an explicit method's first call: at most this many steps, to learn the steps per unit time
+FIRST_CAP = 8192
+#: CyRK's status codes (CyrkErrorCodes) this adapter tells apart
+_SUCCESS, _MAX_STEPS_USER, _STEP_SPACING = 1, -52, -54
+
+# args handed to the cfunc: ode_rhs's parameters, then the address of the counters array
+(_LAW, _BETA, _C, _D, _E, _COUNTERS) = range(6)
+# the counters: rhs calls, Jacobian columns' first, the abscissa and state of the call before
+(_NFEV, _NJEV, _T_LAST, _Y0, _Y1, _Y2) = range(6)
+
+
+@intrinsic
+def _as_pointer(typingctx, address):
+    """The float64 array at an address (an int64): how the cfunc reaches its counters."""
+    sig = types.CPointer(types.float64)(types.int64)
+
+    def codegen(context, builder, signature, args):
+        return builder.inttoptr(args[0], context.get_value_type(signature.return_type))
+    return sig, codegen
+
+
+@intrinsic
+def _dense(typingctx, function, result, t, out):
+    """Call CyRK's ``call`` (int32(size_t result, double t, size_t out)) at its address."""
+    sig = types.int32(types.int64, types.int64, types.float64, types.int64)
+
+    def codegen(context, builder, signature, args):
+        i64 = ir.IntType(64)
+        fnty = ir.FunctionType(ir.IntType(32), [i64, ir.DoubleType(), i64])
+        fn = builder.inttoptr(args[0], fnty.as_pointer())
+        return builder.call(fn, [args[1], args[2], args[3]])
+    return sig, codegen
+
+
+def _rhs(dy, t, y, args):
+    """The right-hand side handed to CyRK, compiled as a cfunc (void(double*, double, double*,
+    double*)); counts its calls and the Jacobian columns (module docstring)."""
+    a = carray(args, (6,))
+    c = carray(_as_pointer(np.int64(a[_COUNTERS])), (6,))
+    z = carray(y, (3,))
+    if t == c[_T_LAST] and (z[0] != c[_Y0]) + (z[1] != c[_Y1]) + (z[2] != c[_Y2]) == 1:
+        if z[0] != c[_Y0]:
+            c[_NJEV] += 1.0
+    else:
+        c[_T_LAST], c[_Y0], c[_Y1], c[_Y2] = t, z[0], z[1], z[2]
+    c[_NFEV] += 1.0
+    ode_rhs(int(a[_LAW]), a[_BETA], a[_C], a[_D], a[_E], z, carray(dy, (3,)))
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _step_crossings(call, result, q, T, Y, g):
+    """The crossings that count between consecutive steps (T, Y: rows of the steps), each
+    bisected to the last bit on the dense output (``_dense`` with CyRK's ``call`` at ``call``
+    and the result at ``result``): rows (τ, kind, sign, z0, z1, z2), in time order. ``g`` holds
+    the root functions at T[0] (signs carried over a restart); left holding them at T[-1]."""
+    beta, c, d, ln_start, ln_end, ln_e = q[1], q[2], q[3], q[5], q[6], q[7]
+    gp, zt = g.copy(), np.empty(3)
+    R = np.empty((16, 6))
+    m = 0
+    for i in range(1, T.shape[0]):
+        u = Y[i, 1]                # events.root_functions, the operations of compiled_roots
+        g[0], g[1], g[2] = u - ln_start, u - ln_end, u - ln_e
+        g[3] = c * Y[i, 0] - d * (u + beta * Y[i, 2])
+        first = m
+        for k in range(4):
+            sign = sign_change(gp[k], g[k])
+            if sign == 0 or (DIRECTIONS[k] != 0 and DIRECTIONS[k] != sign):
+                continue
+            if k == PEAK and not (gp[END] > 0.0 or g[END] > 0.0):
+                continue           # the stick-phase jitter of C h − D η is not a peak
+            left_pos = gp[k] > 0.0
+            lo, hi = T[i - 1], T[i]
+            while True:
+                mid = 0.5 * (lo + hi)
+                if mid <= lo or mid >= hi:
+                    break
+                _dense(call, result, mid, zt.ctypes.data)
+                gk = (zt[1] - (ln_start, ln_end, ln_e)[k] if k < 3
+                      else c * zt[0] - d * (zt[1] + beta * zt[2]))
+                if gk != 0.0 and (gk > 0.0) == left_pos:
+                    lo = mid
+                else:
+                    hi = mid
+            if hi == T[i]:
+                zt[0], zt[1], zt[2] = Y[i, 0], Y[i, 1], Y[i, 2]
+            else:
+                _dense(call, result, hi, zt.ctypes.data)
+            if k == PEAK and not zt[1] - ln_end > 0.0:
+                continue           # at the root w ≤ E_slow: not a peak
+            if m == R.shape[0]:
+                R = np.concatenate((R, np.empty_like(R)))
+            R[m, 0], R[m, 1], R[m, 2] = hi, k, sign
+            R[m, 3], R[m, 4], R[m, 5] = zt[0], zt[1], zt[2]
+            j = m                  # insertion into time order among this interval's
+            while j > first and R[j - 1, 0] > R[j, 0]:
+                for col in range(6):
+                    R[j - 1, col], R[j, col] = R[j, col], R[j - 1, col]
+                j -= 1
+            m += 1
+        gp[:] = g
+    return R[:m]
+
+
+@functools.cache
+def _library():
+    """CyRK's numba entry point, the address of its dense-output call, and the cfunc."""
+    from CyRK import nbsolve2_ivp
+    from CyRK.nb import numba_c_api
+    double_p = types.CPointer(types.float64)
+    rhs = cfunc(types.void(double_p, types.float64, double_p, double_p), cache=True,
+                error_model="numpy")(_rhs)
+    return nbsolve2_ivp, int(numba_c_api.get_call_call_func_ptr()), rhs.address
+
+
+@dataclass(frozen=True)
+class _CyRK(AdaptiveAlgorithm):
+    """Options of every CyRK backend: those of :class:`AdaptiveAlgorithm` (``max_steps``
+    counts CyRK's steps taken). Compiled right-hand side only (module docstring)."""
+
+    library: ClassVar[str] = "CyRK"
+    method: ClassVar[str] = ""
+    rhs_tiers: ClassVar[tuple[str, ...]] = ("numba",)
+    rhs_tiers_reason: ClassVar[str] = (
+        "the adapter calls CyRK's numba entry point (nbsolve2_ivp), which takes a cfunc; its "
+        "Python entry point calls Python per evaluation, as the other libraries' Python tier")
+
+    @classmethod
+    def library_version(cls) -> str:
+        return f"CyRK {_VERSION} (C++, called from numba)"
+
+    def make_stepper(self, nd, budget):
+        return _CyRKStepper(self, nd, budget)
+
+
+@register
+@dataclass(frozen=True)
+class CyRKRK45(_CyRK):
+    """Dormand–Prince 5(4) (CyRK's port of scipy's RK45), explicit, adaptive, quartic dense
+    output. Reference: Dormand & Prince (1980), J. Comput. Appl. Math. 6, 19–26."""
+
+    name: ClassVar[str] = "CyRK-RK45"
+    family: ClassVar[str] = "explicit Runge–Kutta"
+    order: ClassVar[int] = 5
+    stiff: ClassVar[bool] = False
+    method: ClassVar[str] = "RK45"
+
+
+@register
+@dataclass(frozen=True)
+class CyRKDOP853(_CyRK):
+    """DOP853 (Hairer's 8(5,3) pair, CyRK's port of scipy's), explicit, adaptive, order-7 dense
+    output. Reference: Hairer, Nørsett & Wanner (1993), Solving ODEs I, §II.10."""
+
+    name: ClassVar[str] = "CyRK-DOP853"
+    family: ClassVar[str] = "explicit Runge–Kutta"
+    order: ClassVar[int] = 8
+    stiff: ClassVar[bool] = False
+    method: ClassVar[str] = "DOP853"
+
+
+@register
+@dataclass(frozen=True)
+class CyRKTsit5(_CyRK):
+    """Tsitouras 5(4), explicit, adaptive, with its free interpolant. Reference: Tsitouras
+    (2011), Comput. Math. Appl. 62, 770–775."""
+
+    name: ClassVar[str] = "CyRK-Tsit5"
+    family: ClassVar[str] = "explicit Runge–Kutta"
+    order: ClassVar[int] = 5
+    stiff: ClassVar[bool] = False
+    method: ClassVar[str] = "Tsit5"
+
+
+@register
+@dataclass(frozen=True)
+class CyRKBDF(_CyRK):
+    """Variable-order BDF (orders 1–5, CyRK's port of scipy's BDF: NDF coefficients, quasi-
+    constant step), finite-difference Jacobian. Reference: Shampine & Reichelt (1997), SIAM J.
+    Sci. Comput. 18, 1–22."""
+
+    name: ClassVar[str] = "CyRK-BDF"
+    family: ClassVar[str] = "BDF"
+    order: ClassVar[int] = 5
+    method: ClassVar[str] = "BDF"
+
+
+@register
+@dataclass(frozen=True)
+class CyRKRadau(_CyRK):
+    """Radau IIA, order 5 (CyRK's port of scipy's Radau), finite-difference Jacobian.
+    Reference: Hairer & Wanner (1996), Solving ODEs II, §IV.8."""
+
+    name: ClassVar[str] = "CyRK-Radau"
+    family: ClassVar[str] = "implicit Runge–Kutta (Radau IIA)"
+    order: ClassVar[int] = 5
+    method: ClassVar[str] = "RADAU"
+
+
+@register
+@dataclass(frozen=True)
+class CyRKLSODA(_CyRK):
+    """LSODA (Adams/BDF switching; CyRK's C++ port), finite-difference Jacobian. Reference:
+    Petzold (1983), SIAM J. Sci. Stat. Comput. 4, 136–148."""
+
+    name: ClassVar[str] = "CyRK-LSODA"
+    family: ClassVar[str] = "Adams/BDF (LSODA)"
+    order: ClassVar[int] = 12
+    method: ClassVar[str] = "LSODA"
+
+
+class _CyRKStepper:
+    """The segment protocol over chunked ``nbsolve2_ivp`` calls: ``_T``/``_Y`` are the current
+    chunk's steps, ``_result`` its CyRK result (dense output; freed when replaced), ``_queue``
+    its crossings not yet reported, ``_failure`` what to return once the chunk is used up."""
+
+    def __init__(self, algorithm: _CyRK, nd, budget=None):
+        self.algorithm = algorithm
+        self.nd = nd
+        self.budget = budget
+        self.stats = Stats()
+        self._solve, self._call, self._rhs = _library()
+        self._counters = np.zeros(6)
+        self._args = np.array([nd.law_code, nd.beta, nd.c, nd.d, 0.0,
+                               float(self._counters.ctypes.data)])
+        if int(self._args[_COUNTERS]) != self._counters.ctypes.data:   # above 2**53
+            raise MemoryError("the counters' address does not fit a double exactly")
+        self._q = np.array([nd.law_code, nd.beta, nd.c, nd.d, 0.0, math.log(10.0 * nd.e_slow),
+                            math.log(nd.e_slow), 0.0])
+        self._two_speed = nd.tau_fast > 0.0 and nd.e_fast != nd.e_slow
+        self._result = None
+        self._last_root = None
+        self._density = None         # steps per unit τ, learned from the calls before
+        self._segment = None         # (start, bound) of the current segment
+        self._cycle = None           # length of the last segment ended by a restart
+        self.redone = 0              # calls done again (diagnostics)
+
+    def start(self, tau0, z0, e, t_bound):
+        self._e = float(e)
+        self._args[_E] = self._q[4] = self._e
+        self._q[7] = math.log(self._e)
+        z0 = np.array(z0, dtype=float)
+        g0 = np.empty(4)
+        g0[:] = (z0[1] - self._q[5], z0[1] - self._q[6], z0[1] - self._q[7],
+                 self.nd.c * z0[0] - self.nd.d * (z0[1] + self.nd.beta * z0[2]))
+        last = self._last_root
+        if last is not None and last[0] == tau0 and np.array_equal(last[1], z0):
+            for kind, sign in last[2]:     # restarting at a root just reported: not again
+                if (kind != H_EXTREMUM or last[3] == self._e) and g0[kind] * sign <= 0.0:
+                    g0[kind] = sign * AT_ROOT
+        self._free()
+        self._T, self._Y, self._g = np.array([float(tau0)]), z0[None, :], g0
+        self._queue = deque()
+        self._t_bound = float(t_bound)
+        self._failure = None
+        # a segment that ended before its bound ended at an event's end (two-speed loading):
+        # the next one is expected to be about as long
+        prev = self._segment
+        if prev is not None and prev[0] < tau0 < prev[1]:
+            self._cycle = tau0 - prev[0]
+        self._segment = (float(tau0), float(t_bound))
+        self._span = (math.inf if not self._two_speed else
+                      FIRST_SPAN * math.pi / math.sqrt(self.nd.c) if self._cycle is None else
+                      1.25 * self._cycle)
+
+    def finish(self):
+        self._free()
+
+    def _free(self):
+        if self._result is not None:
+            self._result.free()
+            self._result = None
+
+    def advance(self, t_out):
+        t_out = float(t_out)
+        while True:
+            if self._queue and self._queue[0][0] <= t_out:
+                t, z, kinds, signs = self._queue.popleft()
+                self._last_root = (t, z, list(zip(kinds, signs)), self._e)
+                return Advance(t, z, roots=kinds)
+            if t_out <= self._T[-1]:
+                return Advance(t_out, self._state_at(t_out))
+            if self._failure is not None:
+                return self._failure
+            failure = self._chunk()
+            if failure is not None:
+                return failure
+
+    def _state_at(self, t: float) -> np.ndarray:
+        i = int(np.searchsorted(self._T, t))
+        if i < len(self._T) and self._T[i] == t:
+            return self._Y[i].copy()
+        z = np.empty(3)
+        _dense_into(self._call, self._result._ptr, t, z)
+        return z
+
+    def _chunk(self) -> Advance | None:
+        """One nbsolve2_ivp call from the chunk's last step (span: module docstring); its
+        crossings queued; a failure kept for when the chunk is used
+        up (or returned if nothing was reached)."""
+        a = self.algorithm
+        t0, z0 = float(self._T[-1]), self._Y[-1].copy()
+        while True:
+            left = a.max_steps - self.stats.steps
+            if left <= 0:
+                return Advance(t0, z0, retcode=ReturnCode.MAX_STEPS,
+                               message=f"step budget of {a.max_steps} used up at "
+                                       f"tau = {t0:.9g}")
+            if self.budget is not None and self.budget.exceeded():
+                return Advance(t0, z0, retcode=ReturnCode.WALL_TIME,
+                               message=f"wall-time budget of {self.budget.wall_s} s used up at "
+                                       f"t = {t0 * self.nd.time_scale:.6g} s")
+            span = (self._span if self._density is None else
+                    min(self._span, 0.5 * CHUNK_STEPS / self._density))
+            # an explicit method's first call is expected to run out (millions of steps here)
+            cap = 2 * CHUNK_STEPS if self._density or a.stiff else FIRST_CAP
+            t1 = self._t_bound if t0 + span >= self._t_bound else t0 + span
+            self._free()
+            r = self._result = self._solve(
+                self._rhs, (t0, t1), z0, method=a.method, dense_output=True, args=self._args,
+                rtol=a.rtol, atol=a.atol, max_num_steps=min(cap, left))
+            status, taken = int(r.status), int(r.steps_taken)
+            self.stats.steps += taken
+            self.stats.nfev = int(self._counters[_NFEV])
+            self.stats.njev = int(self._counters[_NJEV])
+            T = np.array(r.t)
+            if taken > 0 and T[-1] > t0:
+                self._density = max(taken / (T[-1] - t0), 1e-300)
+            if status != _MAX_STEPS_USER:
+                self._span = 2.0 * (t1 - t0)
+                break
+            # CyRK builds no dense output for a call that ran out of steps: the chunk is done
+            # again over a shorter span (budget: the steps it took count)
+            self.redone += 1
+            if taken >= left:
+                return Advance(float(T[-1]), np.array(r.y)[:, -1].copy(),
+                               retcode=ReturnCode.MAX_STEPS,
+                               message=f"step budget of {a.max_steps} used up at "
+                                       f"tau = {T[-1]:.9g}")
+        Y = np.ascontiguousarray(np.array(r.y).T)
+        if len(T) == 0 or T[0] != t0:
+            T, Y = np.concatenate(([t0], T)), np.concatenate((z0[None, :], Y))
+        if status != _SUCCESS or not np.all(np.isfinite(Y[-1])):
+            code = (ReturnCode.STEP_UNDERFLOW if status == _STEP_SPACING else
+                    ReturnCode.NON_FINITE if status == _SUCCESS else ReturnCode.FAILURE)
+            self._failure = Advance(float(T[-1]), Y[-1].copy(), retcode=code,
+                                    message=f"CyRK {a.method} stopped at tau = {T[-1]:.9g} "
+                                            f"with status {status}: {r.message}")
+            finite = np.all(np.isfinite(Y), axis=1)
+            n = len(T) if finite.all() else max(1, int(np.argmin(finite)))
+            T, Y = T[:n], Y[:n]
+            if n == 1:
+                return self._failure
+        R = _step_crossings(self._call, r._ptr, self._q, T, Y, self._g)
+        self._T, self._Y = T, Y
+        for i in range(len(R)):
+            t, kind, sign, z = R[i, 0], int(R[i, 1]), int(R[i, 2]), R[i, 3:6].copy()
+            if self._queue and t - self._queue[-1][0] <= 1e-14 * max(1.0, abs(t)):
+                self._queue[-1][2].append(kind)      # END and H_EXTREMUM coincide at E_slow
+                self._queue[-1][3].append(sign)
+            else:
+                self._queue.append((t, z, [kind], [sign]))
+        return None
+
+
+@njit(cache=True)
+def _dense_into(call, result, t, z):
+    """The dense output at t into z (for save points)."""
+    _dense(call, result, t, z.ctypes.data)
