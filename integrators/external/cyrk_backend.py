@@ -46,7 +46,8 @@ from llvmlite import ir
 from numba import carray, cfunc, njit, types
 from numba.extending import intrinsic
 
-from integrators.core.events import AT_ROOT, DIRECTIONS, END, H_EXTREMUM, PEAK, sign_change
+from integrators.core.crossings import carry_last_root, push_crossing, queue_crossings
+from integrators.core.events import DIRECTIONS, END, PEAK, sign_change
 from integrators.core.registry import AdaptiveAlgorithm, register
 from integrators.core.segments import Advance
 from integrators.core.solution import ReturnCode, Stats
@@ -150,15 +151,7 @@ def _step_crossings(call, result, q, T, Y, g):
                 _dense(call, result, hi, zt.ctypes.data)
             if k == PEAK and not zt[1] - ln_end > 0.0:
                 continue           # at the root w ≤ E_slow: not a peak
-            if m == R.shape[0]:
-                R = np.concatenate((R, np.empty_like(R)))
-            R[m, 0], R[m, 1], R[m, 2] = hi, k, sign
-            R[m, 3], R[m, 4], R[m, 5] = zt[0], zt[1], zt[2]
-            j = m                  # insertion into time order among this interval's
-            while j > first and R[j - 1, 0] > R[j, 0]:
-                for col in range(6):
-                    R[j - 1, col], R[j, col] = R[j, col], R[j - 1, col]
-                j -= 1
+            R = push_crossing(R, m, first, hi, k, sign, zt[0], zt[1], zt[2])
             m += 1
         gp[:] = g
     return R[:m]
@@ -305,11 +298,7 @@ class _CyRKStepper:
         g0 = np.empty(4)
         g0[:] = (z0[1] - self._q[5], z0[1] - self._q[6], z0[1] - self._q[7],
                  self.nd.c * z0[0] - self.nd.d * (z0[1] + self.nd.beta * z0[2]))
-        last = self._last_root
-        if last is not None and last[0] == tau0 and np.array_equal(last[1], z0):
-            for kind, sign in last[2]:     # restarting at a root just reported: not again
-                if (kind != H_EXTREMUM or last[3] == self._e) and g0[kind] * sign <= 0.0:
-                    g0[kind] = sign * AT_ROOT
+        carry_last_root(self._last_root, tau0, z0, g0, self._e)
         self._free()
         self._T, self._Y, self._g = np.array([float(tau0)]), z0[None, :], g0
         self._queue = deque()
@@ -415,13 +404,7 @@ class _CyRKStepper:
                 return self._failure
         R = _step_crossings(self._call, r._ptr, self._q, T, Y, self._g)
         self._T, self._Y = T, Y
-        for i in range(len(R)):
-            t, kind, sign, z = R[i, 0], int(R[i, 1]), int(R[i, 2]), R[i, 3:6].copy()
-            if self._queue and t - self._queue[-1][0] <= 1e-14 * max(1.0, abs(t)):
-                self._queue[-1][2].append(kind)      # END and H_EXTREMUM coincide at E_slow
-                self._queue[-1][3].append(sign)
-            else:
-                self._queue.append((t, z, [kind], [sign]))
+        queue_crossings(self._queue, ((r[0], r[1], r[2], r[3:6].copy()) for r in R))
         return None
 
 

@@ -34,10 +34,10 @@ from typing import ClassVar
 import numpy as np
 from numba import carray, cfunc, njit
 
-from integrators.core.events import (AT_ROOT, DIRECTIONS, END, H_EXTREMUM, PEAK, compiled_roots,
-                                     sign_change)
+from integrators.core.events import DIRECTIONS, END, PEAK, compiled_roots, sign_change
 from integrators.core.registry import AdaptiveAlgorithm, register
 from integrators.core.clock import monotonic
+from integrators.core.crossings import carry_last_root, queue_crossings
 from integrators.core.segments import Advance
 from integrators.core.solution import ReturnCode, Stats
 from problems.formulations import ode_rhs
@@ -417,13 +417,7 @@ class _LsodaStepper:
         z0 = np.array(z0, dtype=float)
         g0 = np.empty(4)
         _roots(self._q, z0, g0)
-        last = self._last_root
-        if last is not None and last[0] == tau0 and np.array_equal(last[1], z0):
-            # restarting at a root just reported: keep its sign after the crossing, so that the
-            # new scan does not find the same crossing again
-            for kind, sign in last[2]:
-                if (kind != H_EXTREMUM or last[3] == self._e) and g0[kind] * sign <= 0.0:
-                    g0[kind] = sign * AT_ROOT
+        carry_last_root(self._last_root, tau0, z0, g0, self._e)
         self._T, self._Y, self._G = np.array([float(tau0)]), z0[None, :], g0[None, :]
         self._cross = np.empty(0, dtype=int)
         self._k = 0
@@ -633,9 +627,4 @@ class _LsodaStepper:
         self.stats.nfev = int(self._data[_NFEV])
         roots = [(R[i, 0], int(R[i, 1]), int(R[i, 2]), R[i, 3:6].copy()) for i in range(m)]
         roots.sort(key=lambda r: r[0])
-        for t, kind, sign, z in roots:
-            if self._queue and t - self._queue[-1][0] <= 1e-14 * max(1.0, abs(t)):
-                self._queue[-1][2].append(kind)      # END and H_EXTREMUM coincide at E_slow
-                self._queue[-1][3].append(sign)
-            else:
-                self._queue.append((t, z, [kind], [sign]))
+        queue_crossings(self._queue, roots)

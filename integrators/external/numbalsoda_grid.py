@@ -36,11 +36,12 @@ from typing import ClassVar
 import numpy as np
 from numba import njit
 
-from integrators.core.events import AT_ROOT, END, H_EXTREMUM
-from integrators.core.registry import AdaptiveAlgorithm, register
+from integrators.core.crossings import carry_last_root, push_crossing, queue_crossings
+from integrators.core.events import AT_ROOT, END
+from integrators.core.registry import register
 from integrators.core.segments import Advance
 from integrators.core.solution import ReturnCode
-from integrators.external.numbalsoda_backend import (_BLOCK_END, _E, _KILL, _VERSION, _Abort,
+from integrators.external.numbalsoda_backend import (_BLOCK_END, _E, _KILL, NumbaLSODA, _Abort,
                                                      _counts, _LsodaStepper, _roots)
 
 __all__ = ["NumbaLSODAGrid", "CHUNK"]
@@ -73,19 +74,15 @@ def _grid_crossings(q, T, Y, n, g):
             a, b = gp[k], g[k]
             if not _counts(k, a, b, gp[END], g[END]):
                 continue
-            if m == R.shape[0]:
-                R = np.concatenate((R, np.empty_like(R)))
             x = 1.0 if abs(a) <= AT_ROOT or a == b else min(1.0, a / (a - b))
-            R[m, 0] = T[i] if x == 1.0 else T[i - 1] + x * (T[i] - T[i - 1])
-            R[m, 1] = k
-            R[m, 2] = 1.0 if b > a else -1.0
-            for j in range(3):
-                R[m, 3 + j] = Y[i, j] if x == 1.0 else Y[i - 1, j] + x * (Y[i, j] - Y[i - 1, j])
-            j = m                      # insertion into time order among this interval's
-            while j > first and R[j - 1, 0] > R[j, 0]:
-                for col in range(6):
-                    R[j - 1, col], R[j, col] = R[j, col], R[j - 1, col]
-                j -= 1
+            if x == 1.0:
+                t, z0, z1, z2 = T[i], Y[i, 0], Y[i, 1], Y[i, 2]
+            else:
+                t = T[i - 1] + x * (T[i] - T[i - 1])
+                z0 = Y[i - 1, 0] + x * (Y[i, 0] - Y[i - 1, 0])
+                z1 = Y[i - 1, 1] + x * (Y[i, 1] - Y[i - 1, 1])
+                z2 = Y[i - 1, 2] + x * (Y[i, 2] - Y[i - 1, 2])
+            R = push_crossing(R, m, first, t, k, 1.0 if b > a else -1.0, z0, z1, z2)
             m += 1
         gp[:] = g
     return R[:m]
@@ -93,8 +90,8 @@ def _grid_crossings(q, T, Y, n, g):
 
 @register
 @dataclass(frozen=True)
-class NumbaLSODAGrid(AdaptiveAlgorithm):
-    """LSODA (Petzold 1983) from numbalsoda, called once per chunk of a uniform output grid;
+class NumbaLSODAGrid(NumbaLSODA):
+    """LSODA (Petzold 1983) from numbalsoda, called once per segment over a uniform output grid;
     events found between grid points by linear interpolation (module docstring).
 
     Takes ``rtol``, ``atol`` (every component), ``max_steps`` (step attempts, whole solve) and
@@ -105,13 +102,6 @@ class NumbaLSODAGrid(AdaptiveAlgorithm):
     points_per_half_period: float | None = None
 
     name: ClassVar[str] = "numbalsoda-LSODA-grid"
-    family: ClassVar[str] = "Adams/BDF (LSODA)"
-    order: ClassVar[int] = 12
-    library: ClassVar[str] = "numbalsoda"
-    rhs_tiers: ClassVar[tuple[str, ...]] = ("numba",)
-    rhs_tiers_reason: ClassVar[str] = (
-        "numbalsoda calls the right-hand side from C through a function pointer, a numba "
-        "cfunc, which a Python function cannot provide")
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -120,10 +110,6 @@ class NumbaLSODAGrid(AdaptiveAlgorithm):
                               or not 1.0 <= m <= 1e6):
             raise ValueError("points_per_half_period must be a number in [1, 1e6] or None, "
                              f"got {m!r}")
-
-    @classmethod
-    def library_version(cls) -> str:
-        return f"numbalsoda {_VERSION} (C++ port of ODEPACK LSODA)"
 
     def make_stepper(self, nd, budget):
         return _GridStepper(self, nd, budget)
@@ -147,11 +133,7 @@ class _GridStepper(_LsodaStepper):
         z0 = np.array(z0, dtype=float)
         g0 = np.empty(4)
         _roots(self._q, z0, g0)
-        last = self._last_root
-        if last is not None and last[0] == tau0 and np.array_equal(last[1], z0):
-            for kind, sign in last[2]:     # restarting at a root just reported: not again
-                if (kind != H_EXTREMUM or last[3] == self._e) and g0[kind] * sign <= 0.0:
-                    g0[kind] = sign * AT_ROOT
+        carry_last_root(self._last_root, tau0, z0, g0, self._e)
         self._T, self._Y, self._g = np.array([float(tau0)]), z0[None, :], g0
         self._queue = deque()
         self._t_bound = float(t_bound)
@@ -199,10 +181,4 @@ class _GridStepper(_LsodaStepper):
                 raise _Abort(self._failure)
         R = _grid_crossings(self._q, t_eval, rows, n, self._g)
         self._T, self._Y = t_eval[:n].copy(), rows
-        for i in range(len(R)):
-            t, kind, sign, z = R[i, 0], int(R[i, 1]), int(R[i, 2]), R[i, 3:6].copy()
-            if self._queue and t - self._queue[-1][0] <= 1e-14 * max(1.0, abs(t)):
-                self._queue[-1][2].append(kind)      # END and H_EXTREMUM coincide at E_slow
-                self._queue[-1][3].append(sign)
-            else:
-                self._queue.append((t, z, [kind], [sign]))
+        queue_crossings(self._queue, ((r[0], r[1], r[2], r[3:6].copy()) for r in R))
