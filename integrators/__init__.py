@@ -34,7 +34,8 @@ EXTERNAL = {
                                               "assimulo-RodasODE", "assimulo-Dopri5"),
     "integrators.external.sksundae_backend": ("sundae-CVODE", "sundae-IDA"),
     "integrators.external.sundials_c": ("sundials-CVODE-BDF", "sundials-CVODE-Adams",
-                                        "sundials-IDA"),
+                                        "sundials-IDA", "sundials-ARKODE-IMEX",
+                                        "sundials-ARKODE-ERK"),
     "integrators.external.cyrk_backend": ("CyRK-RK45", "CyRK-DOP853", "CyRK-Tsit5", "CyRK-BDF",
                                           "CyRK-Radau", "CyRK-LSODA"),
 }

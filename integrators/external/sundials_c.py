@@ -1,4 +1,5 @@
-"""SUNDIALS called from compiled code: CVODE (BDF, Adams) and IDA with numba ``cfunc`` callbacks.
+"""SUNDIALS called from compiled code: CVODE (BDF, Adams), IDA and ARKODE (ARKStep's IMEX
+additive Runge–Kutta, ERKStep's explicit Runge–Kutta) with numba ``cfunc`` callbacks.
 
 The system SUNDIALS (Debian's libsundials 6, which ``make`` installs) is called through ctypes.
 Its right-hand side, Jacobian and root functions are numba ``cfunc`` s: they read the problem
@@ -8,7 +9,8 @@ loaded), so no Python runs per step. Python calls ``CVode`` once per root return
 loading segment, as the segment driver of :mod:`integrators.core.segments` asks: what a C user of
 SUNDIALS does, with the same events and restarts as every other backend. CVODE integrates the
 ODE form z = (h, u, s), IDA the index-1 DAE form y = (h, u, s, η) with u algebraic
-(``IDASetId``) and consistent (y0, y'0) from ``dae_initial`` at every (re)start.
+(``IDASetId``) and consistent (y0, y'0) from ``dae_initial`` at every (re)start. ARKStep splits
+the ODE form: the spring's h' = E − w explicit, the friction's relaxation (u', s') implicit.
 
 * Events: CVODE's root finding on the four root functions of :mod:`integrators.core.events`,
   with their counting directions (``CVodeSetRootDirection``); the crossings and their signs from
@@ -48,7 +50,8 @@ from integrators.core.solution import ReturnCode, Stats
 from problems.formulations import (DAE_DIFFERENTIAL, dae_initial, dae_jacobian, dae_residual,
                                    ode_jacobian, ode_rhs)
 
-__all__ = ["SundialsCVODEBDF", "SundialsCVODEAdams", "SundialsIDA"]
+__all__ = ["SundialsCVODEBDF", "SundialsCVODEAdams", "SundialsIDA", "SundialsARKodeIMEX",
+           "SundialsARKodeERK"]
 
 # cvode.h
 _CV_ADAMS, _CV_BDF, _CV_NORMAL = 1, 2, 1
@@ -106,6 +109,37 @@ def _roots(t, y, gout, user_data):
     for k in range(4):
         if g[k] == 0.0:
             g[k] = _TINY
+    return 0
+
+
+@cfunc(_I4(types.float64, _OBJ, _OBJ, _F8P), cache=True, error_model="numpy")
+def _rhs_explicit(t, y, ydot, user_data):
+    """ARKStep's explicit part: the load-point spring, h' = E − w (non-stiff: the oscillator)."""
+    q = carray(user_data, _N_P)
+    z, out = carray(y[0][2], 3), carray(ydot[0][2], 3)
+    out[0], out[1], out[2] = q[_E] - math.exp(z[1]), 0.0, 0.0
+    return 0 if math.isfinite(out[0]) else 1
+
+
+@cfunc(_I4(types.float64, _OBJ, _OBJ, _F8P), cache=True, error_model="numpy")
+def _rhs_implicit(t, y, ydot, user_data):
+    """ARKStep's implicit part: the friction's relaxation, u' and s' (stiff where w is small:
+    the eigenvalue −D/w)."""
+    q = carray(user_data, _N_P)
+    out = carray(ydot[0][2], 3)
+    ode_rhs(int(q[_LAW]), q[_BETA], q[_C], q[_D], q[_E], carray(y[0][2], 3), out)
+    out[0] = 0.0
+    return 0 if math.isfinite(out[1] + out[2]) else 1
+
+
+@cfunc(_I4(types.float64, _OBJ, _OBJ, _OBJ, _F8P, _OBJ, _OBJ, _OBJ), cache=True,
+       error_model="numpy")
+def _jac_implicit(t, y, fy, jmat, user_data, tmp1, tmp2, tmp3):
+    """∂(implicit part)/∂z: the ODE form's Jacobian without its first row."""
+    q = carray(user_data, _N_P)
+    jac = farray(jmat[0][2], (3, 3))
+    ode_jacobian(int(q[_LAW]), q[_BETA], q[_C], q[_D], q[_E], carray(y[0][2], 3), jac)
+    jac[0, 0], jac[0, 1], jac[0, 2] = 0.0, 0.0, 0.0
     return 0
 
 
@@ -181,24 +215,42 @@ _GENERIC = {
     "SetMaxNumSteps": (_I, (_P, _L)), "SetStopTime": (_I, (_P, _R)),
     "SetErrHandlerFn": (_I, (_P, _P, _P)), "RootInit": (_I, (_P, _I, _P)),
     "SetRootDirection": (_I, (_P, _P)), "SetNoInactiveRootWarn": (_I, (_P,)),
-    "SetLinearSolver": (_I, (_P, _P, _P)), "SetJacFn": (_I, (_P, _P)),
     "GetRootInfo": (_I, (_P, _P)), "GetCurrentTime": (_I, (_P, _P)),
     "GetNumSteps": (_I, (_P, _P)), "GetNumErrTestFails": (_I, (_P, _P)),
-    "GetNumJacEvals": (_I, (_P, _P)), "GetReturnFlagName": (_P, (_L,)), "Free": (None, (_P,)),
+    "GetReturnFlagName": (_P, (_L,)), "Free": (None, (_P,)),
 }
+#: the generic functions of the solvers with a linear solver (not ERKStep)
+_IMPLICIT = {
+    "SetLinearSolver": (_I, (_P, _P, _P)), "SetJacFn": (_I, (_P, _P)),
+    "GetNumJacEvals": (_I, (_P, _P)),
+}
+#: solver → (library, prefix of the generic names, has a linear solver, its own functions)
 _SOLVERS = {
-    "cvode": ("sundials_cvode", "CVode", {
+    "cvode": ("sundials_cvode", "CVode", True, {
         "Create": ("CVodeCreate", _PR, (_I, _P)), "Init": ("CVodeInit", _I, (_P, _P, _R, _P)),
         "ReInit": ("CVodeReInit", _I, (_P, _R, _P)), "Solve": ("CVode", _I, (_P, _R, _P, _P, _I)),
         "GetNumFEvals": ("CVodeGetNumRhsEvals", _I, (_P, _P)),
         "GetNumLinFEvals": ("CVodeGetNumLinRhsEvals", _I, (_P, _P))}),
-    "ida": ("sundials_ida", "IDA", {
+    "ida": ("sundials_ida", "IDA", True, {
         "Create": ("IDACreate", _PR, (_P,)), "Init": ("IDAInit", _I, (_P, _P, _R, _P, _P)),
         "ReInit": ("IDAReInit", _I, (_P, _R, _P, _P)),
         "Solve": ("IDASolve", _I, (_P, _R, _P, _P, _P, _I)),
         "GetNumFEvals": ("IDAGetNumResEvals", _I, (_P, _P)),
         "GetNumLinFEvals": ("IDAGetNumLinResEvals", _I, (_P, _P)),
         "SetId": ("IDASetId", _I, (_P, _P))}),
+    # ARKODE: ARKStep (additive Runge–Kutta, here IMEX) and ERKStep (explicit), one library;
+    # ARKStep counts the explicit and the implicit part's evaluations apart (GetNumFEvals2)
+    "arkstep": ("sundials_arkode", "ARKStep", True, {
+        "Create": ("ARKStepCreate", _PR, (_P, _P, _R, _P, _P)),
+        "ReInit": ("ARKStepReInit", _I, (_P, _P, _P, _R, _P)),
+        "Solve": ("ARKStepEvolve", _I, (_P, _R, _P, _P, _I)),
+        "GetNumFEvals2": ("ARKStepGetNumRhsEvals", _I, (_P, _P, _P)),
+        "GetNumLinFEvals": ("ARKStepGetNumLinRhsEvals", _I, (_P, _P))}),
+    "erkstep": ("sundials_arkode", "ERKStep", False, {
+        "Create": ("ERKStepCreate", _PR, (_P, _R, _P, _P)),
+        "ReInit": ("ERKStepReInit", _I, (_P, _P, _R, _P)),
+        "Solve": ("ERKStepEvolve", _I, (_P, _R, _P, _P, _I)),
+        "GetNumFEvals": ("ERKStepGetNumRhsEvals", _I, (_P, _P))}),
 }
 
 
@@ -206,7 +258,7 @@ _SOLVERS = {
 def _library(solver: str) -> SimpleNamespace:
     """A solver's shared library ("cvode" or "ida"), its functions declared under generic names,
     and the struct layout the callbacks rely on checked."""
-    soname, prefix, own = _SOLVERS[solver]
+    soname, prefix, implicit, own = _SOLVERS[solver]
     path = ctypes.util.find_library(soname)
     if path is None:
         raise ImportError(f"SUNDIALS' lib{soname} was not found: apt-get install libsundials-dev")
@@ -218,10 +270,12 @@ def _library(solver: str) -> SimpleNamespace:
         return fn
 
     fns = {name: declared(name, *sig) for name, sig in _COMMON.items()}
-    fns |= {name: declared(prefix + name, *sig) for name, sig in _GENERIC.items()}
+    generic = _GENERIC | (_IMPLICIT if implicit else {})
+    fns |= {name: declared(prefix + name, *sig) for name, sig in generic.items()
+            if name not in own}
     fns |= {name: declared(symbol, restype, argtypes)
             for name, (symbol, restype, argtypes) in own.items()}
-    ns = SimpleNamespace(**fns, path=path, free=ctypes.CDLL(None).free)
+    ns = SimpleNamespace(**fns, path=path, implicit=implicit, free=ctypes.CDLL(None).free)
     ns.free.argtypes, ns.free.restype = [_P], None
     buf = ctypes.create_string_buffer(32)
     ns.version = buf.value.decode() if ns.SUNDIALSGetVersion(buf, len(buf)) == 0 else "?"
@@ -297,7 +351,7 @@ class _Stepper:
 
     solver: ClassVar[str]
     n: ClassVar[int]                     # the length of the solver's state vector
-    callbacks: ClassVar[tuple]           # (f or residual, Jacobian, roots): cfuncs
+    callbacks: ClassVar[tuple]           # cfuncs: (…, Jacobian, roots); the Jacobian if implicit
 
     def __init__(self, algorithm: _SundialsC, nd, budget=None):
         self.algorithm = algorithm
@@ -335,20 +389,22 @@ class _Stepper:
         self._check("SUNContext_Create", ns.SUNContext_Create(None, ctypes.byref(ctx)))
         self._ctx, self._owned = ctx.value, []
         self._vec = self._vector(self._y)
-        self._mem = self._new_memory()
-        self._mat = ns.SUNDenseMatrix(self.n, self.n, self._ctx)
-        self._ls = ns.SUNLinSol_Dense(self._vec, self._mat, self._ctx)
-        if not (self._mem and self._mat and self._ls):
+        self._mem = self._new_memory(tau0)
+        if not self._mem:
             raise RuntimeError("SUNDIALS could not allocate its solver")
-        rhs, jac, roots = self.callbacks
-        mem = self._mem
+        mem, roots = self._mem, self.callbacks[-1]
         self._check("SetErrHandlerFn",
                     ns.SetErrHandlerFn(mem, _on_error.address, self._eh.ctypes.data))
-        self._init(rhs.address, tau0)
+        self._init(tau0)
         self._check("SStolerances", ns.SStolerances(mem, a.rtol, a.atol))
         self._check("SetUserData", ns.SetUserData(mem, self._p.ctypes.data))
-        self._check("SetLinearSolver", ns.SetLinearSolver(mem, self._ls, self._mat))
-        self._check("SetJacFn", ns.SetJacFn(mem, jac.address))
+        if ns.implicit:
+            self._mat = ns.SUNDenseMatrix(self.n, self.n, self._ctx)
+            self._ls = ns.SUNLinSol_Dense(self._vec, self._mat, self._ctx)
+            if not (self._mat and self._ls):
+                raise RuntimeError("SUNDIALS could not allocate its linear solver")
+            self._check("SetLinearSolver", ns.SetLinearSolver(mem, self._ls, self._mat))
+            self._check("SetJacFn", ns.SetJacFn(mem, self.callbacks[-2].address))
         self._check("RootInit", ns.RootInit(mem, 4, roots.address))
         self._check("SetRootDirection", ns.SetRootDirection(mem, self._dirs.ctypes.data))
         self._check("SetNoInactiveRootWarn", ns.SetNoInactiveRootWarn(mem))
@@ -451,10 +507,16 @@ class _Stepper:
         if self._live:
             ns, s = self._ns, self.stats
             s.steps += self._get(ns.GetNumSteps)
-            s.nfev += self._get(ns.GetNumFEvals) + self._get(ns.GetNumLinFEvals)
+            s.nfev += self._nfev()
             s.rejected += self._get(ns.GetNumErrTestFails)
-            s.njev += self._get(ns.GetNumJacEvals)
+            if ns.implicit:
+                s.njev += self._get(ns.GetNumJacEvals)
         self._live = False
+
+    def _nfev(self) -> int:
+        """Right-hand-side (or residual) evaluations of the segment, the linear solver's too."""
+        ns = self._ns
+        return self._get(ns.GetNumFEvals) + (self._get(ns.GetNumLinFEvals) if ns.implicit else 0)
 
     def _message(self) -> str:
         raw = bytes(self._eh[4:])
@@ -475,14 +537,14 @@ class _Stepper:
 class _Cvode(_Stepper):
     solver, n, callbacks = "cvode", 3, (_rhs, _jac, _roots)
 
-    def _new_memory(self) -> int:
+    def _new_memory(self, tau0) -> int:
         return self._ns.Create(self.algorithm.lmm, self._ctx)
 
     def _set_state(self, z) -> None:
         self._y[:] = z
 
-    def _init(self, f, tau0) -> None:
-        self._check("CVodeInit", self._ns.Init(self._mem, f, tau0, self._vec))
+    def _init(self, tau0) -> None:
+        self._check("CVodeInit", self._ns.Init(self._mem, _rhs.address, tau0, self._vec))
 
     def _reinit(self, tau0) -> None:
         self._check("CVodeReInit", self._ns.ReInit(self._mem, tau0, self._vec))
@@ -499,15 +561,16 @@ class _Ida(_Stepper):
         self._yp = np.empty(4)               # IDA's y' vector wraps this array's memory
         self._id = DAE_DIFFERENTIAL.copy()
 
-    def _new_memory(self) -> int:
+    def _new_memory(self, tau0) -> int:
         self._ypvec, self._idvec = self._vector(self._yp), self._vector(self._id)
         return self._ns.Create(self._ctx)
 
     def _set_state(self, z) -> None:
         self._y[:], self._yp[:] = dae_initial(self.nd, self._e, z)
 
-    def _init(self, res, tau0) -> None:
-        self._check("IDAInit", self._ns.Init(self._mem, res, tau0, self._vec, self._ypvec))
+    def _init(self, tau0) -> None:
+        self._check("IDAInit", self._ns.Init(self._mem, _res.address, tau0, self._vec,
+                                             self._ypvec))
         self._check("IDASetId", self._ns.SetId(self._mem, self._idvec))
 
     def _reinit(self, tau0) -> None:
@@ -516,6 +579,50 @@ class _Ida(_Stepper):
     def _solve(self, t_out) -> int:
         return self._ns.Solve(self._mem, t_out, ctypes.byref(self._tret), self._vec, self._ypvec,
                               _CV_NORMAL)
+
+
+class _ArkStep(_Stepper):
+    """ARKStep with the explicit part h' = E − w and the implicit rest (IMEX: ARKODE's default
+    ARK4(3)6L pair), Newton on the implicit part's analytic Jacobian."""
+
+    solver, n, callbacks = "arkstep", 3, (_jac_implicit, _roots)
+
+    def _new_memory(self, tau0) -> int:
+        return self._ns.Create(_rhs_explicit.address, _rhs_implicit.address, tau0, self._vec,
+                               self._ctx)
+
+    def _set_state(self, z) -> None:
+        self._y[:] = z
+
+    def _init(self, tau0) -> None:
+        pass                                 # ARKStepCreate initialised it
+
+    def _reinit(self, tau0) -> None:
+        self._check("ARKStepReInit", self._ns.ReInit(self._mem, _rhs_explicit.address,
+                                                     _rhs_implicit.address, tau0, self._vec))
+
+    def _solve(self, t_out) -> int:
+        return self._ns.Solve(self._mem, t_out, self._vec, ctypes.byref(self._tret), _CV_NORMAL)
+
+    def _nfev(self) -> int:
+        nfe, nfi = ctypes.c_long(0), ctypes.c_long(0)
+        self._ns.GetNumFEvals2(self._mem, ctypes.byref(nfe), ctypes.byref(nfi))
+        return nfe.value + nfi.value + self._get(self._ns.GetNumLinFEvals)
+
+
+class _ErkStep(_ArkStep):
+    """ERKStep on the whole right-hand side (ARKODE's default explicit pair, order 4)."""
+
+    solver, n, callbacks = "erkstep", 3, (_roots,)
+
+    def _new_memory(self, tau0) -> int:
+        return self._ns.Create(_rhs.address, tau0, self._vec, self._ctx)
+
+    def _reinit(self, tau0) -> None:
+        self._check("ERKStepReInit", self._ns.ReInit(self._mem, _rhs.address, tau0, self._vec))
+
+    def _nfev(self) -> int:
+        return self._get(self._ns.GetNumFEvals)
 
 
 @register
@@ -569,3 +676,35 @@ class SundialsIDA(_SundialsC):
     family: ClassVar[str] = "BDF (DAE)"
     order: ClassVar[int] = 5
     _stepper: ClassVar[type] = _Ida
+
+
+@register
+@dataclass(frozen=True)
+class SundialsARKodeIMEX(_SundialsC):
+    """SUNDIALS ARKODE's ARKStep, an additive Runge–Kutta method (IMEX: ARK4(3)6L, Kennedy &
+    Carpenter 2003), called from compiled code: the spring's h' = E − w explicit, the friction's
+    relaxation u', s' implicit (Newton on its analytic Jacobian). Adaptive; ARKODE's root finding
+    for the events. Needs ``rtol`` and ``atol``. Reference: Reynolds et al. (2023), ARKODE,
+    ACM TOMS 49, doi:10.1145/3594632; Kennedy & Carpenter (2003), Appl. Numer. Math. 44, 139–181.
+    """
+
+    name: ClassVar[str] = "sundials-ARKODE-IMEX"
+    family: ClassVar[str] = "additive Runge–Kutta (IMEX)"
+    order: ClassVar[int] = 4
+    _stepper: ClassVar[type] = _ArkStep
+
+
+@register
+@dataclass(frozen=True)
+class SundialsARKodeERK(_SundialsC):
+    """SUNDIALS ARKODE's ERKStep, explicit Runge–Kutta (ARKODE's default order-4 pair, Zonneveld
+    4(3)), called from compiled code. Adaptive; ARKODE's root finding for the events. Explicit:
+    on this stiff problem its steps are bounded by stability, as CashKarp45's. Needs ``rtol`` and
+    ``atol``. Reference: Reynolds et al. (2023), ACM TOMS 49, doi:10.1145/3594632.
+    """
+
+    name: ClassVar[str] = "sundials-ARKODE-ERK"
+    family: ClassVar[str] = "explicit Runge–Kutta"
+    order: ClassVar[int] = 4
+    stiff: ClassVar[bool] = False
+    _stepper: ClassVar[type] = _ErkStep
