@@ -26,10 +26,6 @@ REFERENCES = {
     "W2": (3.0440933348, 0.04521408348),
 }
 STIFF_ADAPTIVE = sorted(n for n, c in REGISTRY.items() if c.adaptive and c.stiff)
-#: backends that cannot do a problem with their library's default settings, and what they return
-#: instead (measured; tests/test_sundials_c.py checks the message)
-KNOWN_FAILURES = {("sundials-ARKODE-IMEX", "paper-example"): "StepUnderflow",
-                  ("sundials-ARKODE-IMEX", "W2"): "StepUnderflow"}
 
 
 def _last(problem, algorithm):
@@ -43,10 +39,6 @@ def _last(problem, algorithm):
 @pytest.mark.parametrize("name", STIFF_ADAPTIVE)
 def test_stiff_backends_agree_at_tight_tolerance(name, preset):
     p = P.preset(preset, "slip", t_end=20.0)
-    if (name, preset) in KNOWN_FAILURES:
-        sol = I.solve(p, REGISTRY[name](rtol=1e-10, atol=1e-10), max_points=2)
-        assert sol.retcode.value == KNOWN_FAILURES[name, preset], sol.message
-        return
     recurrence, drop = _last(p, REGISTRY[name](rtol=1e-10, atol=1e-10))
     ref_recurrence, ref_drop = REFERENCES[preset]
     assert recurrence == pytest.approx(ref_recurrence, rel=1e-5)

@@ -61,6 +61,8 @@ _UNDERFLOW = {-3, -4}          # error-test or convergence failures: h has colla
 #: a failing right-hand side, residual or root function (the same codes in CVODE and IDA)
 _NON_FINITE = {-8, -9, -10, -12}
 _TINY = 1e-300
+#: ARKStep's error-test failures per step (SUNDIALS' default: 7; see _ArkStep._init)
+_ARK_MAX_ERR_TEST_FAILS = 20
 #: steps per CVode call at most (SUNDIALS' default mxstep); between calls the budgets are checked
 _MXSTEP = 500
 #: internal steps that do not advance CVODE's time (t + h == t: SUNDIALS only warns and goes
@@ -245,6 +247,7 @@ _SOLVERS = {
         "ReInit": ("ARKStepReInit", _I, (_P, _P, _P, _R, _P)),
         "Solve": ("ARKStepEvolve", _I, (_P, _R, _P, _P, _I)),
         "GetNumFEvals2": ("ARKStepGetNumRhsEvals", _I, (_P, _P, _P)),
+        "SetMaxErrTestFails": ("ARKStepSetMaxErrTestFails", _I, (_P, _I)),
         "GetNumLinFEvals": ("ARKStepGetNumLinRhsEvals", _I, (_P, _P))}),
     "erkstep": ("sundials_arkode", "ERKStep", False, {
         "Create": ("ERKStepCreate", _PR, (_P, _R, _P, _P)),
@@ -595,7 +598,10 @@ class _ArkStep(_Stepper):
         self._y[:] = z
 
     def _init(self, tau0) -> None:
-        pass                                 # ARKStepCreate initialised it
+        # ARKStepCreate initialised it. With SUNDIALS' default of 7 error-test failures per
+        # step the pair fails at the first slip event (flag −3); 20 lets it through
+        self._check("ARKStepSetMaxErrTestFails",
+                    self._ns.SetMaxErrTestFails(self._mem, _ARK_MAX_ERR_TEST_FAILS))
 
     def _reinit(self, tau0) -> None:
         self._check("ARKStepReInit", self._ns.ReInit(self._mem, _rhs_explicit.address,
@@ -614,6 +620,9 @@ class _ErkStep(_ArkStep):
     """ERKStep on the whole right-hand side (ARKODE's default explicit pair, order 4)."""
 
     solver, n, callbacks = "erkstep", 3, (_roots,)
+
+    def _init(self, tau0) -> None:
+        pass                                 # ERKStepCreate initialised it
 
     def _new_memory(self, tau0) -> int:
         return self._ns.Create(_rhs.address, tau0, self._vec, self._ctx)
@@ -684,7 +693,8 @@ class SundialsARKodeIMEX(_SundialsC):
     """SUNDIALS ARKODE's ARKStep, an additive Runge–Kutta method (IMEX: ARK4(3)6L, Kennedy &
     Carpenter 2003), called from compiled code: the spring's h' = E − w explicit, the friction's
     relaxation u', s' implicit (Newton on its analytic Jacobian). Adaptive; ARKODE's root finding
-    for the events. Needs ``rtol`` and ``atol``. Reference: Reynolds et al. (2023), ARKODE,
+    for the events. Up to 20 error-test failures per step (SUNDIALS' default, 7, stops it at the
+    first slip event). Needs ``rtol`` and ``atol``. Reference: Reynolds et al. (2023), ARKODE,
     ACM TOMS 49, doi:10.1145/3594632; Kennedy & Carpenter (2003), Appl. Numer. Math. 44, 139–181.
     """
 
