@@ -347,8 +347,8 @@ class _CyRKStepper:
 
     def _chunk(self) -> Advance | None:
         """One nbsolve2_ivp call from the chunk's last step (span: module docstring); its
-        crossings queued; a failure kept for when the chunk is used
-        up (or returned if nothing was reached)."""
+        crossings queued; a failure kept for when the chunk is used up (or returned if nothing
+        was reached)."""
         a = self.algorithm
         t0, z0 = float(self._T[-1]), self._Y[-1].copy()
         while True:
