@@ -127,6 +127,18 @@ def cmd_sweep_scaling(args) -> int:
     return 0
 
 
+def cmd_ensemble_scaling(args) -> int:
+    from benchmarks.ensemble_scaling import ensemble_scaling
+    summary = ensemble_scaling(Path(args.out), n=args.n, big=args.big, kills=args.kills,
+                               dask=args.dask, repeats=args.repeats, seed=args.seed,
+                               progress=show_progress(args))
+    if args.json:
+        say(json.dumps(jsonable(summary), indent=2))
+    else:
+        say((Path(args.out) / "ensemble_scaling.md").read_text())
+    return 0
+
+
 def add_parsers(sub, preset_names) -> None:
     from benchmarks.sweep import MAX_GRID_POINTS
     from benchmarks.sweep_exec import CONNECT_TIMEOUT_S, WORKER_TIMEOUT_S
@@ -213,4 +225,22 @@ def add_parsers(sub, preset_names) -> None:
     g.add_argument("--json", action="store_true", help="print one JSON object")
     g.add_argument("--no-progress", action="store_true", help="no progress bar")
     g.set_defaults(func=cmd_sweep_scaling)
+
+    e = sub.add_parser("ensemble-scaling",
+                       help="issue 16's ensemble targets: 21 x 21, 10^5 points killed and "
+                            "resumed, 10^4 on a local Dask cluster")
+    e.add_argument("--out", type=out_dir, default="results", metavar="DIR",
+                   help="directory for ensemble_scaling.json and .md")
+    e.add_argument("--n", type=count, default=21, help="grid points per axis of the W2 grid")
+    e.add_argument("--big", type=seed, default=100_000, metavar="N",
+                   help="points of the killed-and-resumed run (0: skip it)")
+    e.add_argument("--kills", type=seed, default=3,
+                   help="SIGKILLs at random moments of the big run")
+    e.add_argument("--dask", type=seed, default=10_000, metavar="N",
+                   help="points on the local Dask cluster (0: skip it)")
+    e.add_argument("--repeats", type=count, default=3, help="runs of the grid; the minimum counts")
+    e.add_argument("--seed", type=seed, default=0, help="seed of the kill moments")
+    e.add_argument("--json", action="store_true", help="print one JSON object")
+    e.add_argument("--no-progress", action="store_true", help="no progress bar")
+    e.set_defaults(func=cmd_ensemble_scaling)
 

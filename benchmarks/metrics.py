@@ -34,27 +34,28 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 import pandas as pd
 
-__all__ = ["event_metrics", "LimitCycle", "limit_cycle", "summarize", "EndState", "end_state",
+from integrators.core import cycles
+
+__all__ = ["event_metrics", "LimitCycle", "limit_cycle", "cycle_from", "summarize", "EndState", "end_state",
            "METRICS", "CLASSIFICATIONS", "CYCLES", "LOCKED_SLIP_RATE", "STEADY_LOG_TOLERANCE"]
 
 #: the limit-cycle metrics, in the order tables show them
 METRICS = ("recurrence_s", "friction_drop", "slip_m", "peak_velocity_m_s")
-CLASSIFICATIONS = ("stick-slip", "multiple recurrence", "oscillation about vL", "stable sliding",
-                   "not converged", "too short to classify", "failed")
-#: the classes with a limit cycle an inversion can fit: only they have metrics and scores
-CYCLES = ("stick-slip", "multiple recurrence")
+#: the classes of a run, and those with a limit cycle an inversion can fit: only they have
+#: metrics and scores (defined with the compiled search, :mod:`integrators.core.cycles`)
+CLASSIFICATIONS, CYCLES = cycles.CLASSIFICATIONS, cycles.CYCLES
 #: stick–slip needs the mean slip rate between consecutive events (slip between one event's end
 #: and the next one's start, over that time) at most this multiple of vLs: the fault locks. The
 #: events-table form of "v falls below vLs/10 between events": over 296 runs (the paper's fits,
 #: 5×5 sweep subsamples of W1–W4 under both laws, 22 oscillations and 70 runs across the
 #: boundary) no run with ratio ≤ 0.3 kept v above vLs/10; the fits sit at 0.005–0.035, the
 #: oscillations at 0.33–2.7 (docs/reliability.md; ``rsfbench classification`` repeats a subset)
-LOCKED_SLIP_RATE = 0.3
+LOCKED_SLIP_RATE = cycles.LOCKED_SLIP_RATE
 #: a run ended in steady sliding when |ln(v/vLs)|, the state's friction term off its steady value
 #: and the spring force off steady friction (both in units of A = a·Fn: (b/a)|ln θ/θss| for the
 #: aging law, |θ − θss|/A for the slip law) are all below this: about one e-fold of decay from
 #: the presets' start
-STEADY_LOG_TOLERANCE = 0.05
+STEADY_LOG_TOLERANCE = cycles.STEADY_LOG_TOLERANCE
 
 
 def _metric_columns(events: pd.DataFrame, normal_force: float) -> tuple[np.ndarray, np.ndarray]:
@@ -131,25 +132,14 @@ class EndState:
 
 def end_state(solution) -> EndState:
     """The :class:`EndState` of a Solution (its last saved state)."""
-    from problems.stability import characteristic_roots
+    from problems.stability import growth_rate
     p = solution.problem
-    law, fn, v_s = p.law, p.normal_force, p.loading.v_slow
-    amp = law.a * fn
-    theta_ss = law.steady_state(v_s, fn)
-    ft_ss = float(law.steady_friction(v_s, fn, p.f0))
-    v, fs, theta = solution.v[-1], solution.fs[-1], solution.theta[-1]
-    return EndState(log_v=float(np.log(v / v_s)),
-                    state_offset=float(abs(law.state_term(theta, fn) - law.state_term(theta_ss, fn))
-                                       / amp),
-                    force_offset=float(abs(fs - ft_ss) / amp),
-                    growth_rate=float(np.max(characteristic_roots(p).real)))
-
-
-def _repeats(x: np.ndarray, period: int, rtol: float) -> np.ndarray:
-    """For each event i ≥ period: do all metrics of event i match those of event i − period?"""
-    a, b = x[period:], x[:-period]
-    scale = np.maximum(np.abs(a), np.abs(b))
-    return np.all(np.abs(a - b) <= rtol * scale, axis=1)
+    law, fn = p.law, p.normal_force
+    log_v, state, force = cycles.end_offsets(
+        law.code, law.a, law.b, law.lc, law.v0, fn, p.f0, p.loading.v_slow,
+        float(solution.v[-1]), float(solution.fs[-1]), float(solution.theta[-1]))
+    return EndState(log_v=log_v, state_offset=state, force_offset=force,
+                    growth_rate=growth_rate(p))
 
 
 def interevent_slip_rate(events: pd.DataFrame) -> np.ndarray:
@@ -173,68 +163,61 @@ def limit_cycle(events: pd.DataFrame, normal_force: float, t_end: float, rtol: f
     them within ``rtol``; the smallest such p wins. ``v_slow`` (the slow loading speed, m/s)
     enables the locking test of stick–slip (:data:`LOCKED_SLIP_RATE`). When no cycle repeats,
     ``end`` (how the run ended) tells stable sliding from a run too short to classify; without
-    it such a run is never called stable sliding.
+    it such a run is never called stable sliding. The search is
+    :func:`integrators.core.cycles.find_cycle`, the one the ensemble kernel runs.
     """
-    n = len(events)
-    _, x = _metric_columns(events, normal_force)
-    gap = t_end - float(events["t_end"].to_numpy()[-1]) if n else t_end
-    # events that stopped long before the end are no limit cycle, however regular they were
-    stopped = n > 1 and np.isfinite(x[-1, 0]) and gap > 3.0 * x[-1, 0]
-    if not stopped:
-        cycle = _periodic(events, x[1:], n, rtol, max_period, min_repeats, v_slow)
-        if cycle is not None:
-            return cycle
-    if end is not None and end.stable and end.near_steady:
-        what = "no events" if n == 0 else f"the {n} events died out"
-        return LimitCycle("stable sliding", n_events=n, rtol=rtol,
-                          reason=f"{what}; {end.describe()}")
-    why = end.describe() if end is not None else "no end state to compare with steady sliding"
-    if n == 0:
-        return LimitCycle("too short to classify", rtol=rtol,
-                          reason=f"no event in {t_end:g} s, and {why}: run longer")
-    if stopped:
-        return LimitCycle("too short to classify", n_events=n, rtol=rtol,
-                          reason=f"no event in the last {gap:.3g} s (more than 3 recurrence "
-                                 f"intervals), and {why}: run longer")
-    if n - 1 < 2 * min_repeats:
-        return LimitCycle("too short to classify", n_events=n, rtol=rtol,
-                          reason=f"{n} events in {t_end:g} s, too few to see a cycle repeat "
-                                 f"(at least {2 * min_repeats + 1} are needed), and {why}: "
-                                 "run longer")
-    return LimitCycle("not converged", n_events=n, rtol=rtol,
-                      reason=f"the metrics of the last events do not repeat within {rtol:g} "
-                             f"with any period up to {max_period}: run longer")
+    if not 1 <= max_period <= cycles.MAX_PERIOD:
+        raise ValueError(f"max_period must be in 1..{cycles.MAX_PERIOD}, got {max_period!r}")
+    t, x = _metric_columns(events, normal_force)
+    col = {c: events[c].to_numpy(dtype=float) for c in ("t_end", "slip_start", "slip_end")}
+    found = np.empty(cycles.N_F)
+    cycles.find_cycle(t, col["t_end"], col["slip_start"], col["slip_end"], np.ascontiguousarray(x),
+                      float(t_end), float(rtol), int(max_period), int(min_repeats),
+                      np.nan if v_slow is None else float(v_slow), found)
+    return cycle_from(found, len(events), t_end, rtol, max_period, min_repeats, end)
 
 
-def _periodic(events, x, n, rtol, max_period, min_repeats, v_slow) -> LimitCycle | None:
-    """The smallest period whose metrics repeat (``x``: the metrics from the second event on),
-    classified; None if none does."""
-    for p in range(1, max_period + 1):
-        need = min_repeats * p
-        if len(x) < need + p:
-            return None
-        ok = _repeats(x, p, rtol)
-        if not ok[-need:].all():
-            continue
-        if v_slow is not None:
-            ratio = float(np.max(interevent_slip_rate(events)[-p:])) / v_slow
-            if not ratio <= LOCKED_SLIP_RATE:
-                return LimitCycle(
-                    "oscillation about vL", period=p, n_events=n, rtol=rtol,
-                    reason=f"a periodic slip-rate oscillation (period {p}, ΔT "
-                           f"{x[-p:, 0].mean():.4g} s), but between events the fault slips at "
-                           f"{ratio:.2g} vLs on average (stick–slip needs ≤ "
-                           f"{LOCKED_SLIP_RATE:g} vLs): it never locks")
-        # ok[i] compares event i + p + 1 with event i + 1 (event 0 has no recurrence interval)
-        first = len(ok) - int(np.argmin(ok[::-1])) if not ok.all() else 0
-        tail = x[-p:]
+def cycle_from(found: np.ndarray, n: int, t_end: float, rtol: float, max_period: int,
+               min_repeats: int, end: EndState | None) -> LimitCycle:
+    """The :class:`LimitCycle` of :func:`integrators.core.cycles.find_cycle`'s output ``found``
+    for a run with ``n`` events that reached ``t_end`` (s), classified against its ``end``:
+    the reason a reader sees, for one run or for each point of an ensemble."""
+    F = cycles.F
+    outcome, p = int(found[F["OUTCOME"]]), found[F["PERIOD"]]
+    growth, offsets = ((end.growth_rate, (end.log_v, end.state_offset, end.force_offset))
+                       if end is not None else (np.nan, (np.nan,) * 3))
+    what = CLASSIFICATIONS[cycles.classify(outcome, p, growth, *offsets)]
+    if what in CYCLES:
+        p = int(p)
         return LimitCycle(
-            "stick-slip" if p == 1 else "multiple recurrence", period=p,
-            recurrence_s=float(tail[:, 0].mean()), friction_drop=float(tail[:, 1].mean()),
-            slip_m=float(tail[:, 2].mean()), peak_velocity_m_s=float(tail[:, 3].mean()),
-            cycles_to_converge=first + p + 1, n_events=n, rtol=rtol,
-            recurrence_values=[float(v) for v in tail[:, 0]])
-    return None
+            what, period=p, recurrence_s=float(found[F["RECURRENCE"]]),
+            friction_drop=float(found[F["DROP"]]), slip_m=float(found[F["SLIP"]]),
+            peak_velocity_m_s=float(found[F["PEAK_V"]]),
+            cycles_to_converge=int(found[F["FIRST"]]) + p + 1, n_events=n, rtol=rtol,
+            recurrence_values=[float(v) for v in found[F["VALUES"]:F["VALUES"] + p]])
+    if what == "oscillation about vL":
+        return LimitCycle(
+            what, period=int(p), n_events=n, rtol=rtol,
+            reason=f"a periodic slip-rate oscillation (period {int(p)}, ΔT "
+                   f"{found[F['RECURRENCE']]:.4g} s), but between events the fault slips at "
+                   f"{found[F['RATIO']]:.2g} vLs on average (stick–slip needs ≤ "
+                   f"{LOCKED_SLIP_RATE:g} vLs): it never locks")
+    if what == "stable sliding":
+        died = "no events" if n == 0 else f"the {n} events died out"
+        return LimitCycle(what, n_events=n, rtol=rtol, reason=f"{died}; {end.describe()}")
+    why = end.describe() if end is not None else "no end state to compare with steady sliding"
+    if outcome == cycles.NO_EVENTS:
+        reason = f"no event in {t_end:g} s, and {why}: run longer"
+    elif outcome == cycles.STOPPED:
+        reason = (f"no event in the last {found[F['GAP']]:.3g} s (more than 3 recurrence "
+                  f"intervals), and {why}: run longer")
+    elif outcome == cycles.TOO_FEW:
+        reason = (f"{n} events in {t_end:g} s, too few to see a cycle repeat (at least "
+                  f"{2 * min_repeats + 1} are needed), and {why}: run longer")
+    else:
+        reason = (f"the metrics of the last events do not repeat within {rtol:g} with any "
+                  f"period up to {max_period}: run longer")
+    return LimitCycle(what, n_events=n, rtol=rtol, reason=reason)
 
 
 def summarize(solution, rtol: float = 1e-3) -> LimitCycle:

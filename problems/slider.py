@@ -26,7 +26,8 @@ from problems.formulations import psi_rate, s_of_psi, state_rate
 from problems.friction import AgingLaw, FrictionLaw, SlipLaw, compiled_law_code
 from problems.loading import ConstantLoading, TwoSpeedLoading
 
-__all__ = ["InitialState", "BalancedStart", "SpringSlider", "Nondimensional",
+__all__ = ["InitialState", "BalancedStart", "SpringSlider", "Nondimensional", "variant",
+           "variant_fields",
            "steady_initial_state", "balanced_initial_state", "TAU_END_MAX"]
 
 Loading = Union[ConstantLoading, TwoSpeedLoading]
@@ -243,3 +244,41 @@ class SpringSlider:
         k, lc = self.stiffness, self.law.lc
         return (self.slip_rate_from_nondimensional(eta, psi), self.f0 + k * lc * np.asarray(h),
                 self.law.theta(np.asarray(psi), self.normal_force))
+
+
+#: the scalar fields :func:`variant` changes, by the part of the problem that holds them
+_PROBLEM_FIELDS = ("mass", "stiffness", "normal_force", "mu0", "t_end")
+_LAW_FIELDS = ("a", "b", "lc", "v0")
+
+
+def variant_fields(problem: SpringSlider) -> tuple[str, ...]:
+    """The names :func:`variant` accepts for ``problem``: the law's a, b, lc, v0; the problem's
+    mass, stiffness, normal_force, mu0, t_end; its loading's vl (constant) or vls, vlf, df (two
+    speeds); a :class:`BalancedStart`'s slowdown, or an :class:`InitialState`'s v, theta, fs as
+    initial_v, initial_theta, initial_fs."""
+    loading = tuple(f.name for f in dataclasses.fields(problem.loading))
+    initial = (("slowdown",) if isinstance(problem.initial, BalancedStart)
+               else ("initial_v", "initial_theta", "initial_fs"))
+    return _LAW_FIELDS + _PROBLEM_FIELDS + loading + initial
+
+
+def variant(problem: SpringSlider, **changes: float) -> SpringSlider:
+    """``problem`` with scalar fields replaced by name (:func:`variant_fields`), validated as any
+    problem is: ``variant(p, b=0.0094, lc=3e-7, stiffness=1.2e8)``. ValueError names an unknown
+    field and the ones there are."""
+    known = variant_fields(problem)
+    unknown = [k for k in changes if k not in known]
+    if unknown:
+        raise ValueError(f"{unknown[0]!r} is not a field a variant of this problem can change; "
+                         f"the fields are {', '.join(known)}")
+    parts = {"law": {}, "loading": {}, "initial": {}, "problem": {}}
+    loading = {f.name for f in dataclasses.fields(problem.loading)}
+    for name, value in changes.items():
+        part = ("law" if name in _LAW_FIELDS else "problem" if name in _PROBLEM_FIELDS
+                else "loading" if name in loading else "initial")
+        parts[part][name.removeprefix("initial_")] = value
+    top = dict(parts["problem"])
+    for part in ("law", "loading", "initial"):
+        if parts[part]:
+            top[part] = dataclasses.replace(getattr(problem, part), **parts[part])
+    return dataclasses.replace(problem, **top)

@@ -17,7 +17,7 @@ import numpy as np
 
 from problems.slider import SpringSlider
 
-__all__ = ["critical_stiffness", "neutral_frequency", "characteristic_roots"]
+__all__ = ["critical_stiffness", "neutral_frequency", "characteristic_roots", "growth_rate"]
 
 
 def _velocity(problem: SpringSlider, v: float | None) -> float:
@@ -44,3 +44,9 @@ def characteristic_roots(problem: SpringSlider, v: float | None = None) -> np.nd
     m, k = problem.mass, problem.stiffness
     A, B, lam = law.a * fn, law.b * fn, v / law.lc
     return np.roots([m * v, m * v * lam + A, k * v - (B - A) * lam, k * v * lam])
+
+
+def growth_rate(problem: SpringSlider, v: float | None = None) -> float:
+    """The largest real part of the characteristic roots (1/s): steady sliding is linearly
+    stable when it is negative."""
+    return float(np.max(characteristic_roots(problem, v).real))

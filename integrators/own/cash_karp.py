@@ -33,7 +33,7 @@ import numpy as np
 from numba import njit
 
 from integrators.core.registry import register
-from integrators.own import engine
+from integrators.own import batch, engine
 from integrators.own.compiled import CompiledAlgorithm
 
 __all__ = ["CashKarp45"]
@@ -101,6 +101,11 @@ def fixed(p, z0, hs, n):
     return engine.fixed_steps(engine.prepare_nothing, _attempt, _workspace, p, z0, hs, n)
 
 
+@njit(**batch.BATCH)
+def solve_batch(P, Z0, C, dirs, R, order):
+    batch.run_batch(kernel, _workspace, P, Z0, C, dirs, R, order)
+
+
 @register
 @dataclass(frozen=True)
 class CashKarp45(CompiledAlgorithm):
@@ -127,5 +132,6 @@ class CashKarp45(CompiledAlgorithm):
     kernel: ClassVar = kernel
     workspace: ClassVar = _workspace
     fixed: ClassVar = fixed
+    batch_kernel: ClassVar = solve_batch
     constants: ClassVar[dict] = dict(INIT_EXPONENT=0.2, Q=5.0, STICK_PEAKS=0, FSAL=0,
                                      HERMITE=1, STAGES=5)

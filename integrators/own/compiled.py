@@ -19,10 +19,11 @@ import numpy as np
 from integrators.core.events import DIRECTIONS, N_EVENTS, events_table
 from integrators.core.registry import AdaptiveAlgorithm
 from integrators.core.solution import RawRun, ReturnCode, Stats
+from integrators.own import batch as B
 from integrators.own import engine as E
 from problems.formulations import from_ode_state
 
-__all__ = ["CompiledAlgorithm", "save_grid", "CHUNK_STEPS"]
+__all__ = ["CompiledAlgorithm", "save_grid", "failure", "CHUNK_STEPS"]
 
 #: accepted steps per compiled call when a progress bar is shown (~0.05 s), and without one
 #: (~0.5 s: Ctrl-C is seen between calls); the wall budget is read inside
@@ -45,6 +46,19 @@ def save_grid(t_end: float, dt: float) -> np.ndarray:
     return grid
 
 
+def failure(status: int, t_stop: float, max_steps: int, wall_s: float | None,
+             t_end: float) -> tuple[ReturnCode, str]:
+    """The retcode and message of an engine status other than DONE, stopped at ``t_stop`` (s)."""
+    at = f"t = {t_stop:.6g} s"
+    return {
+        E.NONFINITE: (ReturnCode.NON_FINITE, f"non-finite state at {at}"),
+        E.UNDERFLOW: (ReturnCode.STEP_UNDERFLOW, f"step size underflow (t + h == t) at {at}"),
+        E.MAX_STEPS: (ReturnCode.MAX_STEPS, f"step budget of {max_steps} used up at {at}"),
+        E.WALL_TIME: (ReturnCode.WALL_TIME, f"wall-time budget of {wall_s} s used up at {at} "
+                                            f"of {t_end:g} s"),
+    }[status]
+
+
 class CompiledAlgorithm(AdaptiveAlgorithm):
     """An adaptive method of this project on the compiled engine: the whole solve (events,
     loading switches, save grid, budgets) runs in numba, so it offers the numba tier only."""
@@ -56,6 +70,8 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
     kernel: ClassVar[Callable]
     fixed: ClassVar[Callable]
     workspace: ClassVar[Callable]
+    #: the method's ``batch`` entry point (:func:`integrators.own.batch.run_batch` with its kernel)
+    batch_kernel: ClassVar[Callable]
     #: the engine's method constants (integrators.own.engine.P): INIT_EXPONENT, Q, STICK_PEAKS,
     #: FSAL, HERMITE, STAGES
     constants: ClassVar[dict] = {}
@@ -100,17 +116,8 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
         t, z = grid_t[:n], saved[:n]
         retcode, message = ReturnCode.SUCCESS, ""
         if status != E.DONE:
-            at = f"t = {st[E.TAU] * ts:.6g} s"
-            retcode, message = {
-                E.NONFINITE: (ReturnCode.NON_FINITE, f"non-finite state at {at}"),
-                E.UNDERFLOW: (ReturnCode.STEP_UNDERFLOW, f"step size underflow (t + h == t) "
-                                                         f"at {at}"),
-                E.MAX_STEPS: (ReturnCode.MAX_STEPS, f"step budget of {self.max_steps} used up "
-                                                    f"at {at}"),
-                E.WALL_TIME: (ReturnCode.WALL_TIME, f"wall-time budget of "
-                                                    f"{budget.wall_s if budget else None} s used "
-                                                    f"up at {at} of {problem.t_end:g} s"),
-            }[status]
+            retcode, message = failure(status, st[E.TAU] * ts, self.max_steps,
+                                       budget.wall_s if budget else None, problem.t_end)
             # the state where it stopped: the end of the last step if it is a valid one (a
             # budget ran out), else the last state handed on
             budget_stop = status in (E.MAX_STEPS, E.WALL_TIME)
@@ -128,6 +135,33 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
         return RawRun(t=t, y=y,
                       events=events_table(ev[:int(st[E.REC + N_EVENTS])], problem, nd),
                       stats=stats, retcode=retcode, message=message, meta=meta)
+
+    def batch_inputs(self, problems, wall_budget: float | None = None):
+        """The per-point inputs (P, Z0, C) of :mod:`integrators.own.batch` for ``problems``."""
+        from problems.stability import growth_rate
+        n = len(problems)
+        P, Z0, C = np.empty((n, E.N_P)), np.empty((n, 3)), np.empty((n, B.N_C))
+        budget = math.inf if wall_budget is None else wall_budget
+        for i, problem in enumerate(problems):
+            nd = problem.nondimensional()
+            _, P[i], Z, _ = E.new_state(nd, problem.loading.two_speed, self.rtol, self.atol,
+                                        self.constants, self.max_steps, math.inf)
+            Z0[i] = Z[E.ZROW["ZC"]]
+            law = problem.law
+            C[i] = (nd.time_scale, problem.f0, nd.force_h, law.v0, law.lc, problem.normal_force,
+                    law.a, law.b, problem.loading.v_slow, problem.t_end, growth_rate(problem),
+                    budget)
+        return P, Z0, C
+
+    def solve_batch(self, problems, wall_budget: float | None = None) -> np.ndarray:
+        """Solve and summarise every problem of ``problems`` in one compiled call on numba's
+        threads (:mod:`integrators.own.batch`): one row of ``batch.R`` per problem. Each solve is
+        the one :func:`integrators.solve` makes with ``max_points=2`` and ``wall_budget``."""
+        P, Z0, C = self.batch_inputs(problems, wall_budget)
+        out = np.empty((len(problems), B.N_R))
+        order = np.random.default_rng(0).permutation(len(problems))   # balance the threads
+        type(self).batch_kernel(P, Z0, C, _DIRS, out, order)
+        return out
 
     def fixed_steps(self, nd, z0, span: float, n: int) -> np.ndarray:
         """``n`` equal steps over ``span`` (τ) from z0 under the slow loading, every one

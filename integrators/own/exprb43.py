@@ -22,7 +22,7 @@ from typing import ClassVar
 from numba import njit
 
 from integrators.core.registry import register
-from integrators.own import engine
+from integrators.own import batch, engine
 from integrators.own.compiled import CompiledAlgorithm
 from integrators.own.exprb32 import exprb_workspace
 from integrators.own.phi import matvec, phi_functions, remainder_diff
@@ -78,6 +78,11 @@ def fixed(p, z0, hs, n):
     return engine.fixed_steps(engine.prepare_jacobian, _attempt, exprb_workspace, p, z0, hs, n)
 
 
+@njit(**batch.BATCH)
+def solve_batch(P, Z0, C, dirs, R, order):
+    batch.run_batch(kernel, exprb_workspace, P, Z0, C, dirs, R, order)
+
+
 @register
 @dataclass(frozen=True)
 class Exprb43(CompiledAlgorithm):
@@ -93,5 +98,6 @@ class Exprb43(CompiledAlgorithm):
     kernel: ClassVar = kernel
     workspace: ClassVar = exprb_workspace
     fixed: ClassVar = fixed
+    batch_kernel: ClassVar = solve_batch
     constants: ClassVar[dict] = dict(INIT_EXPONENT=0.2, Q=4.0, STICK_PEAKS=0, FSAL=0,
                                      HERMITE=1, STAGES=2)

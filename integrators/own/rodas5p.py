@@ -26,7 +26,7 @@ import numpy as np
 from numba import njit
 
 from integrators.core.registry import register
-from integrators.own import engine
+from integrators.own import batch, engine
 from integrators.own.compiled import CompiledAlgorithm
 from integrators.own.linalg import factor, lu_solve3
 
@@ -119,6 +119,11 @@ def fixed(p, z0, hs, n):
     return engine.fixed_steps(engine.prepare_jacobian, _attempt, _workspace, p, z0, hs, n)
 
 
+@njit(**batch.BATCH)
+def solve_batch(P, Z0, C, dirs, R, order):
+    batch.run_batch(kernel, _workspace, P, Z0, C, dirs, R, order)
+
+
 @register
 @dataclass(frozen=True)
 class Rodas5P(CompiledAlgorithm):
@@ -137,5 +142,6 @@ class Rodas5P(CompiledAlgorithm):
     kernel: ClassVar = kernel
     workspace: ClassVar = _workspace
     fixed: ClassVar = fixed
+    batch_kernel: ClassVar = solve_batch
     constants: ClassVar[dict] = dict(INIT_EXPONENT=1.0 / 5, Q=5.0, STICK_PEAKS=1, FSAL=0,
                                      HERMITE=0, STAGES=7)

@@ -1,0 +1,130 @@
+"""One row per point: how an ensemble's solves become a table, whatever ran them.
+
+Two paths give the same columns (:data:`RESULT_COLUMNS`, after the parameter columns):
+
+* :func:`batch_rows`: the project's methods on the compiled engine, a batch of points in one
+  numba call (:meth:`integrators.own.compiled.CompiledAlgorithm.solve_batch`), each summarised in
+  compiled code; Python only names the classes and writes the messages;
+* :func:`point_rows`: any other backend, point by point through :func:`integrators.solve` and
+  :func:`benchmarks.metrics.summarize`.
+
+Both classify with :func:`integrators.core.cycles.find_cycle` and word the reasons with
+:func:`benchmarks.metrics.cycle_from`, so an own method's rows are the same either way (the
+tests check it). A point that fails is a row with its retcode and message, never an exception;
+only a point with a limit cycle (:data:`benchmarks.metrics.CYCLES`) has metrics.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from benchmarks.metrics import CLASSIFICATIONS, CYCLES, EndState, cycle_from, summarize
+from integrators import ReturnCode, solve
+from integrators.core import cycles
+from integrators.own import batch as B
+from integrators.own.compiled import CompiledAlgorithm, failure
+
+__all__ = ["RESULT_COLUMNS", "METRIC_COLUMNS", "COUNTER_COLUMNS", "batch_rows", "point_rows",
+           "failed_rows", "compiled"]
+
+#: the limit-cycle columns, NaN unless the point has a limit cycle
+METRIC_COLUMNS = ("period", "recurrence_s", "friction_drop", "slip_m", "peak_velocity_m_s",
+                  "cycles_to_converge")
+#: the counters of the solve, summed over its restarts (wall_s: the solve's own wall time, s)
+COUNTER_COLUMNS = ("nfev", "njev", "steps", "rejected")
+RESULT_COLUMNS = ("classification", "retcode", "message", "n_events", *METRIC_COLUMNS, "kappa",
+                  *COUNTER_COLUMNS, "wall_s", "integrator")
+_TEXT = ("classification", "retcode", "message", "integrator")
+
+
+def compiled(algorithm) -> bool:
+    """Does ``algorithm`` run batches in one compiled call?"""
+    return isinstance(algorithm, CompiledAlgorithm)
+
+
+def _frame(names, values, columns: dict) -> pd.DataFrame:
+    """The table: parameter columns, then :data:`RESULT_COLUMNS` with fixed dtypes (so that
+    every chunk has the same schema, whatever it holds)."""
+    data = {name: values[:, j].astype(float) for j, name in enumerate(names)}
+    for c in RESULT_COLUMNS:
+        x = columns[c]
+        data[c] = (pd.array(x, dtype="str") if c in _TEXT
+                   else np.asarray(x, dtype=np.int64 if c in COUNTER_COLUMNS + ("n_events",)
+                                   else float))
+    return pd.DataFrame(data)
+
+
+def batch_rows(problems, algorithm, names, values, wall_budget=None) -> pd.DataFrame:
+    """The rows of ``problems`` (the points ``values`` of ``names``) solved in one compiled
+    batch of the own ``algorithm``."""
+    R = algorithm.solve_batch(problems, wall_budget)
+    n = len(problems)
+    col = {c: [None] * n for c in ("classification", "retcode", "message")}
+    metrics = np.full((n, len(METRIC_COLUMNS)), np.nan)
+    F, found = cycles.F, R[:, B.R["FOUND"]:]
+    for i, problem in enumerate(problems):
+        r, what = R[i], CLASSIFICATIONS[int(R[i, B.R["CLASS"]])]
+        n_events = int(r[B.R["N_EVENTS"]])
+        if what == "failed":
+            retcode, message = failure(int(r[B.R["STATUS"]]), r[B.R["T_STOP"]],
+                                       algorithm.max_steps, wall_budget, problem.t_end)
+        else:
+            retcode, message = ReturnCode.SUCCESS, ""
+            if what in CYCLES:
+                p = found[i, F["PERIOD"]]
+                metrics[i] = (p, *found[i, F["RECURRENCE"]:F["PEAK_V"] + 1],
+                              found[i, F["FIRST"]] + p + 1)
+            else:
+                end = EndState(log_v=float(r[B.R["LOG_V"]]),
+                               state_offset=float(r[B.R["STATE_OFFSET"]]),
+                               force_offset=float(r[B.R["FORCE_OFFSET"]]),
+                               growth_rate=float(r[B.R["GROWTH"]]))
+                message = cycle_from(found[i], n_events, problem.t_end, B.CYCLE_RTOL,
+                                     B.CYCLE_MAX_PERIOD, B.CYCLE_MIN_REPEATS, end).reason
+        col["classification"][i], col["retcode"][i], col["message"][i] = (
+            what, retcode.value, message)
+    col.update({c: metrics[:, j] for j, c in enumerate(METRIC_COLUMNS)})
+    col.update(n_events=R[:, B.R["N_EVENTS"]], kappa=[p.kappa for p in problems],
+               nfev=R[:, B.R["NFEV"]], njev=R[:, B.R["NJEV"]], steps=R[:, B.R["STEPS"]],
+               rejected=R[:, B.R["REJECTED"]], wall_s=R[:, B.R["WALL_S"]],
+               integrator=[algorithm.name] * n)
+    return _frame(names, values, col)
+
+
+def point_rows(problems, algorithm, names, values, wall_budget=None) -> pd.DataFrame:
+    """The rows of ``problems`` solved one by one with :func:`integrators.solve` (any backend),
+    as :func:`batch_rows` writes them."""
+    rows = []
+    for problem in problems:
+        try:
+            sol = solve(problem, algorithm, max_points=2, wall_budget=wall_budget)
+        except Exception as exc:       # checked before the ensemble started: a bug if it happens
+            rows.append(_failed(f"{type(exc).__name__}: {exc}", problem, algorithm))
+            continue
+        cycle = summarize(sol)
+        row = {"classification": cycle.classification, "retcode": sol.retcode.value,
+               "message": sol.message or cycle.reason, "n_events": len(sol.events),
+               "kappa": problem.kappa, "nfev": sol.stats.nfev, "njev": sol.stats.njev,
+               "steps": sol.stats.steps, "rejected": sol.stats.rejected,
+               "wall_s": sol.stats.wall_s, "integrator": algorithm.name}
+        if cycle.classification in CYCLES:
+            row.update({c: getattr(cycle, c) for c in METRIC_COLUMNS})
+        rows.append(row)
+    return _frame(names, values, _columns(rows))
+
+
+def _failed(message: str, problem, algorithm) -> dict:
+    return {"classification": "failed", "retcode": ReturnCode.FAILURE.value, "message": message,
+            "n_events": 0, "kappa": problem.kappa, "nfev": 0, "njev": 0, "steps": 0,
+            "rejected": 0, "wall_s": np.nan, "integrator": algorithm.name}
+
+
+def failed_rows(problems, algorithm, names, values, message: str) -> pd.DataFrame:
+    """The rows of points that could not be run at all (their workers died): ``Failure`` with
+    ``message``."""
+    return _frame(names, values, _columns([_failed(message, p, algorithm) for p in problems]))
+
+
+def _columns(rows: list[dict]) -> dict:
+    return {c: [row.get(c, np.nan) for row in rows] for c in RESULT_COLUMNS}

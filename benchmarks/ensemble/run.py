@@ -1,0 +1,176 @@
+"""``ensemble``: one problem, one algorithm, many points; one table.
+
+The points are cut into chunks (``chunk_size`` points, default :data:`CHUNK_SIZE`), the unit of
+work, of storage and of scheduling:
+
+* the own compiled methods (:func:`benchmarks.ensemble.rows.compiled`) on one machine: each
+  chunk is one numba call whose ``prange`` spreads its points over ``workers`` threads (the
+  default; the GIL is released for the whole chunk);
+* any other backend, or ``backend="processes"``: chunks go to a pool of processes (or threads),
+  each chunk solved point by point (:func:`integrators.solve`) or, for an own method, as one
+  single-threaded batch;
+* ``scheduler=ADDRESS``: chunks are Dask tasks on that cluster (a task per chunk, never per
+  point), with the guarantees of :mod:`benchmarks.sweep_exec`.
+
+With ``store=DIR`` every finished chunk is written at once (:mod:`benchmarks.ensemble.store`),
+and a rerun with the same arguments reads the finished chunks back instead of running them.
+Every argument and every point's problem is checked before the first solve.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+import pandas as pd
+from tqdm.auto import tqdm
+
+from benchmarks.ensemble.points import MAX_POINTS, check_points, point_problems
+from benchmarks.ensemble.rows import batch_rows, compiled, failed_rows, point_rows
+from benchmarks.ensemble.store import ChunkStore, identity_of
+from benchmarks.sweep_exec import CONNECT_TIMEOUT_S, WORKER_TIMEOUT_S, connect, execute
+from integrators import Algorithm
+from problems._validate import check_count, check_positive
+
+__all__ = ["ensemble", "Chunk", "run_chunk", "CHUNK_SIZE", "BACKENDS"]
+
+#: points per chunk: a few hundred keeps a Dask task (~1 ms to schedule) and a Parquet file
+#: (~10 ms to write) small beside the chunk's solves, and Ctrl-C is seen between chunks
+CHUNK_SIZE = 256
+BACKENDS = ("threads", "processes")
+
+
+@dataclass(frozen=True, eq=False)
+class Chunk:
+    """Consecutive points ``first``… of an ensemble, and how to solve them; ``threads``: numba
+    threads for an own method's batch (None: numba's setting)."""
+
+    problem: object
+    algorithm: Algorithm
+    names: tuple
+    values: np.ndarray = field(repr=False)
+    first: int
+    wall_budget: float | None = None
+    threads: int | None = None
+
+
+def run_chunk(chunk: Chunk) -> pd.DataFrame:
+    """The rows of a chunk (never raises for a failing point: it is a row)."""
+    problems = point_problems(chunk.problem, chunk.names, chunk.values, chunk.first)
+    if not compiled(chunk.algorithm):
+        return point_rows(problems, chunk.algorithm, chunk.names, chunk.values,
+                          chunk.wall_budget)
+    import numba
+    with _numba_threads(chunk.threads), numba.parallel_chunksize(1):
+        return batch_rows(problems, chunk.algorithm, chunk.names, chunk.values,
+                          chunk.wall_budget)
+
+
+@contextlib.contextmanager
+def _numba_threads(n: int | None):
+    import numba
+    if n is None:
+        yield
+        return
+    before = numba.get_num_threads()
+    numba.set_num_threads(min(n, numba.config.NUMBA_NUM_THREADS))
+    try:
+        yield
+    finally:
+        numba.set_num_threads(before)
+
+
+def warm_chunk(chunk: Chunk) -> None:
+    """Compile (or load from numba's cache) what the chunk needs: its first point, briefly."""
+    try:
+        first = point_problems(chunk.problem, chunk.names, chunk.values[:1])[0]
+        run_chunk(Chunk(replace(first, t_end=first.t_end * 1e-3), chunk.algorithm, (),
+                        np.empty((1, 0)), 0, threads=chunk.threads))
+    except Exception:            # a failing point is reported by run_chunk, not here
+        pass
+
+
+def failed_chunk(chunk: Chunk, message: str) -> pd.DataFrame:
+    """The rows of a chunk whose Dask workers all died running it: failed, and ``transient``
+    (never stored, so that a rerun tries the chunk again)."""
+    problems = point_problems(chunk.problem, chunk.names, chunk.values, chunk.first)
+    table = failed_rows(problems, chunk.algorithm, chunk.names, chunk.values, message)
+    table.attrs["transient"] = True
+    return table
+
+
+def ensemble(problem, algorithm, params, *, store=None, chunk_size: int = CHUNK_SIZE,
+             workers: int | None = None, backend: str = "threads", scheduler: str | None = None,
+             wall_budget: float | None = None, progress: bool = True,
+             max_points: int = MAX_POINTS, connect_timeout: float = CONNECT_TIMEOUT_S,
+             worker_timeout: float = WORKER_TIMEOUT_S) -> pd.DataFrame:
+    """Solve ``problem`` with ``algorithm`` at every point of ``params`` (field name → values,
+    one value per point: :func:`benchmarks.ensemble.grid` makes a grid's) and summarise each.
+
+    Returns a DataFrame, one row per point in the order given: the parameters, then
+    :data:`benchmarks.ensemble.rows.RESULT_COLUMNS` (class, retcode, message, limit-cycle
+    metrics, κ, counters, the solve's wall time). A failed point is a row with its retcode.
+    ``df.attrs`` says how many points ran and were resumed, the wall time, the bad chunk files.
+    ``wall_budget``: s per point. ``workers``: threads or processes on this machine (default:
+    all cores). Misuse raises ``ValueError`` before any work (module docstring for the rest).
+    """
+    if not isinstance(algorithm, Algorithm):
+        raise ValueError(f"algorithm must be an Algorithm instance, got {algorithm!r}")
+    if backend not in BACKENDS:
+        raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
+    chunk_size = check_count("chunk_size", chunk_size)
+    workers = os.cpu_count() or 1 if workers is None else check_count("workers", workers)
+    if wall_budget is not None:
+        check_positive("wall_budget", wall_budget)
+    names, values = check_points(problem, params, max_points)
+    point_problems(problem, names, values)                # every point valid, or say which
+    own_threads = compiled(algorithm) and backend == "threads" and scheduler is None
+    chunks = [Chunk(problem, algorithm, names, values[i:i + chunk_size], i, wall_budget,
+                    threads=workers if own_threads else 1)
+              for i in range(0, len(values), chunk_size)]
+    identity = identity_of(problem, algorithm, names, values, chunk_size, wall_budget)
+    client = connect(scheduler, connect_timeout) if scheduler else None   # before any work
+    chunk_store = ChunkStore(store, identity) if store is not None else None
+    start = time.perf_counter()
+    try:
+        with chunk_store or contextlib.nullcontext():
+            tables = {c.first: chunk_store.load(c.first, names, c.values) if chunk_store else None
+                      for c in chunks}
+            todo = [c for c in chunks if tables[c.first] is None]
+            n_resumed = len(values) - sum(len(c.values) for c in todo)
+            bar = tqdm(total=len(values), initial=n_resumed, unit="point", disable=not progress,
+                       desc=f"ensemble {getattr(problem, 'name', '') or 'problem'}")
+            with bar:
+                for chunk, table in _solve(todo, own_threads, workers, backend, client,
+                                           worker_timeout):
+                    if chunk_store is not None and not table.attrs.get("transient"):
+                        chunk_store.save(chunk.first, chunk.values, table)
+                    tables[chunk.first] = table
+                    bar.update(len(chunk.values))
+    finally:
+        if client is not None:
+            client.close()
+    table = pd.concat([tables[c.first] for c in chunks], ignore_index=True)
+    table.attrs = {"n_points": len(values), "n_run": len(values) - n_resumed,
+                   "n_resumed": n_resumed, "wall_s": time.perf_counter() - start,
+                   "chunks": len(chunks), "chunk_size": chunk_size,
+                   "workers": 1 if scheduler else workers, "backend": backend,
+                   "scheduler": scheduler, "batched": compiled(algorithm),
+                   "bad_chunks": list(chunk_store.bad) if chunk_store else []}
+    return table
+
+
+def _solve(todo, own_threads, workers, backend, client, worker_timeout):
+    """Yield ``(chunk, rows)`` as chunks finish."""
+    if not todo:
+        return
+    if own_threads:                          # this process, numba's threads inside each chunk
+        warm_chunk(todo[0])
+        for chunk in todo:
+            yield chunk, run_chunk(chunk)
+        return
+    yield from execute(run_chunk, warm_chunk, failed_chunk, todo, workers, backend, client,
+                       worker_timeout)

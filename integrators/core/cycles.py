@@ -1,0 +1,158 @@
+"""The limit cycle of a run from its events, in compiled code: one implementation for one run
+(:func:`benchmarks.metrics.limit_cycle`) and for a batch of runs inside the ensemble kernel
+(:mod:`integrators.own.batch`), so that both classify a run the same way to the bit.
+
+:func:`find_cycle` looks for the shortest period p (in events) whose four metrics repeat event
+to event within ``rtol`` over the last ``min_repeats``·p events, tests that the fault locks
+between events, and otherwise says why there is no cycle (:data:`OUTCOMES`).
+:func:`classify` turns that outcome and the end state into a class of
+:data:`CLASSIFICATIONS`. The rules, and the messages a reader sees, are
+:mod:`benchmarks.metrics`'.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+__all__ = ["CLASSIFICATIONS", "CYCLES", "OUTCOMES", "PERIODIC", "OSCILLATING", "NO_EVENTS",
+           "STOPPED", "TOO_FEW", "NOT_REPEATING", "F", "N_F", "find_cycle", "classify",
+           "end_offsets", "LOCKED_SLIP_RATE", "STEADY_LOG_TOLERANCE"]
+
+CLASSIFICATIONS = ("stick-slip", "multiple recurrence", "oscillation about vL", "stable sliding",
+                   "not converged", "too short to classify", "failed")
+CYCLES = ("stick-slip", "multiple recurrence")
+(_STICK_SLIP, _MULTIPLE, _OSCILLATION, _STABLE, _NOT_CONVERGED, _TOO_SHORT,
+ FAILED) = range(len(CLASSIFICATIONS))
+#: what :func:`find_cycle` found: a repeating cycle that locks; one that never locks; or no
+#: repeating cycle because there are no events, they stopped long before the end, there are too
+#: few to compare, or their metrics do not repeat
+OUTCOMES = ("periodic", "oscillating", "no events", "stopped", "too few", "not repeating")
+PERIODIC, OSCILLATING, NO_EVENTS, STOPPED, TOO_FEW, NOT_REPEATING = range(len(OUTCOMES))
+#: stick–slip needs the mean slip rate between events at most this multiple of vLs
+#: (:data:`benchmarks.metrics.LOCKED_SLIP_RATE` says how it was chosen)
+LOCKED_SLIP_RATE = 0.3
+#: a run ended in steady sliding when its three offsets are all below this
+#: (:data:`benchmarks.metrics.STEADY_LOG_TOLERANCE`)
+STEADY_LOG_TOLERANCE = 0.05
+#: the entries of :func:`find_cycle`'s output: the outcome, the period p, the index of the first
+#: event from which the metrics repeat, the four metrics' means over the last period, the
+#: locking ratio (mean inter-event slip rate / vLs), the quiet time at the end (s), and the
+#: period's recurrence intervals (up to 4, NaN-padded)
+F = dict(OUTCOME=0, PERIOD=1, FIRST=2, RECURRENCE=3, DROP=4, SLIP=5, PEAK_V=6, RATIO=7, GAP=8,
+         VALUES=9)
+_OUTCOME, _PERIOD, _FIRST, _RECURRENCE, _DROP, _SLIP, _PEAK_V, _RATIO, _GAP, _VALUES = range(10)
+N_F = 13
+MAX_PERIOD = 4
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _repeats_at(x, p, i, rtol):
+    """Do all metrics of row p + i of ``x`` match those of row i within ``rtol``?"""
+    for j in range(x.shape[1]):
+        a, b = x[p + i, j], x[i, j]
+        if not abs(a - b) <= rtol * max(abs(a), abs(b)):
+            return False
+    return True
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def find_cycle(t_start, t_stop, slip_start, slip_end, x, t_end, rtol, max_period, min_repeats,
+               v_slow, out):
+    """The limit cycle of the events (module docstring) into ``out`` (:data:`F`, NaN where an
+    entry does not apply). ``x``: the events' metrics (n × 4: ΔT with NaN first, Δμ, slip, peak
+    v), ``t_start``/``t_stop``: their start and end times (s), ``slip_start``/``slip_end``: the
+    slip there (m); ``v_slow``: vLs (m/s), NaN to skip the locking test."""
+    for k in range(N_F):
+        out[k] = np.nan
+    n = x.shape[0]
+    gap = t_end - t_stop[n - 1] if n > 0 else t_end
+    out[_GAP] = gap
+    # events that stopped long before the end are no limit cycle, however regular they were
+    stopped = n > 1 and np.isfinite(x[n - 1, 0]) and gap > 3.0 * x[n - 1, 0]
+    if not stopped and n > 1:
+        xs = x[1:]                    # event 0 has no recurrence interval
+        m = xs.shape[0]
+        for p in range(1, max_period + 1):
+            need = min_repeats * p
+            if m < need + p:
+                break
+            ok = True                 # the last `need` comparisons p apart all repeat
+            for i in range(m - p - need, m - p):
+                if not _repeats_at(xs, p, i, rtol):
+                    ok = False
+                    break
+            if not ok:
+                continue
+            out[_PERIOD] = p
+            if v_slow == v_slow:      # the mean slip rate between events: does the fault lock?
+                ratio = -np.inf
+                for i in range(n - p, n):
+                    rate = (slip_start[i] - slip_end[i - 1]) / (t_start[i] - t_stop[i - 1])
+                    if rate > ratio or rate != rate:
+                        ratio = rate
+                    if ratio != ratio:
+                        break
+                ratio = ratio / v_slow
+                out[_RATIO] = ratio
+                if not ratio <= LOCKED_SLIP_RATE:
+                    out[_OUTCOME] = OSCILLATING
+                    out[_RECURRENCE] = _tail_mean(xs, p, 0)
+                    return
+            trailing = 0              # comparisons that repeat, counted from the end
+            for i in range(m - p - 1, -1, -1):
+                if not _repeats_at(xs, p, i, rtol):
+                    break
+                trailing += 1
+            out[_FIRST] = (m - p) - trailing if trailing < m - p else 0
+            for j in range(4):
+                out[_RECURRENCE + j] = _tail_mean(xs, p, j)
+            for i in range(p):
+                out[_VALUES + i] = xs[m - p + i, 0]
+            out[_OUTCOME] = PERIODIC
+            return
+    out[_OUTCOME] = (NO_EVENTS if n == 0 else STOPPED if stopped
+                         else TOO_FEW if n - 1 < 2 * min_repeats else NOT_REPEATING)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _tail_mean(xs, p, j):
+    """The mean of column j over the last p rows, summed in order (as numpy does for p < 8)."""
+    m, acc = xs.shape[0], 0.0
+    for i in range(m - p, m):
+        acc += xs[i, j]
+    return acc / p
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def classify(outcome, period, growth_rate, log_v, state_offset, force_offset):
+    """The index in :data:`CLASSIFICATIONS` of a run that reached its end: a periodic cycle by
+    its period, a non-locking one as an oscillation, no cycle as stable sliding if the run ended
+    near steady sliding (all three offsets below :data:`STEADY_LOG_TOLERANCE`) and steady sliding
+    is linearly stable (``growth_rate`` < 0; NaN when there is no end state), else too short to
+    classify or, with enough events that do not repeat, not converged."""
+    if outcome == PERIODIC:
+        return _STICK_SLIP if period == 1 else _MULTIPLE
+    if outcome == OSCILLATING:
+        return _OSCILLATION
+    near = max(abs(log_v), max(state_offset, force_offset)) < STEADY_LOG_TOLERANCE
+    if growth_rate < 0.0 and near:
+        return _STABLE
+    return _NOT_CONVERGED if outcome == NOT_REPEATING else _TOO_SHORT
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def end_offsets(law_code, a, b, lc, v0, fn, f0, v_slow, v, fs, theta):
+    """How far the end state (v, Fs, θ) is from steady sliding at vLs: ln(v/vLs), and the
+    state's friction term and the spring force off their steady values in units of A = a·Fn
+    (the friction laws' formulas, :mod:`problems.friction`)."""
+    amp = a * fn
+    ft_ss = f0 + (a - b) * fn * math.log(v_slow / v0)
+    if law_code == 0:            # slip law: θ is the state term itself, θss = −B ln(vLs/v0)
+        state, state_ss = theta, -b * fn * math.log(v_slow / v0)
+    else:                        # aging law: B ln(v0 θ/Lc), θss = Lc/vLs
+        state = b * fn * math.log(v0 * theta / lc)
+        state_ss = b * fn * math.log(v0 * (lc / v_slow) / lc)
+    return math.log(v / v_slow), abs(state - state_ss) / amp, abs(fs - ft_ss) / amp

@@ -1,0 +1,147 @@
+"""Many solves of one own method in one compiled call, each summarised in compiled code.
+
+An ensemble (:mod:`benchmarks.ensemble`) runs one method on many variants of a problem. For the
+methods on the compiled engine, a batch of points is one numba call: a ``prange`` loop (the GIL
+released, numba's threads) in which each point is a whole solve (:func:`integrators.own.engine.run`
+through the method's ``kernel``, exactly as :func:`integrators.solve` calls it with
+``max_points=2``) followed by its limit-cycle summary (:func:`integrators.core.cycles.find_cycle`,
+the end state and the class). Python only builds the per-point inputs and reads the outputs.
+
+Inputs, one row per point: ``P`` the engine's parameters (:data:`integrators.own.engine.P`; the
+wall deadline is set when the point starts), ``Z0`` the ODE state at τ = 0, ``C`` the physics the
+summary needs (:data:`C`). Output: ``R`` (:data:`R`): the engine's status and counters, the solve's
+wall time, where it stopped, the events and the summary (with :func:`find_cycle`'s entries at
+``R[:, R["FOUND"]:]``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from integrators.core import cycles
+from integrators.core.clock import monotonic
+from integrators.core.events import H0, H_MAX, IN_EVENT, N_EVENTS, REC_SIZE
+from integrators.own import engine as E
+
+__all__ = ["C", "N_C", "R", "N_R", "BATCH", "run_batch", "CYCLE_RTOL", "CYCLE_MAX_PERIOD",
+           "CYCLE_MIN_REPEATS"]
+
+#: the numba options of a method's ``batch`` entry point
+BATCH = dict(cache=True, nogil=True, parallel=True, error_model="numpy")
+#: C, per point: seconds per unit of τ, F0 (N), newtons per unit of h (k Lc), v0 (m/s), Lc (m),
+#: Fn (N), a, b, vLs (m/s), t_end (s), the growth rate of steady sliding (1/s), the wall budget (s)
+C = dict(TS=0, F0=1, FORCE_H=2, V0=3, LC=4, FN=5, A=6, B=7, V_SLOW=8, T_END=9, GROWTH=10,
+         BUDGET=11)
+_TS, _F0, _FORCE_H, _V0, _LC, _FN, _A, _B, _V_SLOW, _T_END, _GROWTH, _BUDGET = range(12)
+N_C = 12
+#: R, per point: the engine's status, nfev, njev, accepted and rejected steps, (re)starts, the
+#: solve's wall time (s), the time reached (s), events, class (index in CLASSIFICATIONS), the end
+#: state's three offsets and the growth rate of steady sliding (C's), and find_cycle's output
+R = dict(STATUS=0, NFEV=1, NJEV=2, STEPS=3, REJECTED=4, STARTS=5, WALL_S=6, T_STOP=7,
+         N_EVENTS=8, CLASS=9, LOG_V=10, STATE_OFFSET=11, FORCE_OFFSET=12, GROWTH=13, FOUND=14)
+(_STATUS, _NFEV, _NJEV, _STEPS, _REJECTED, _STARTS, _WALL_S, _T_STOP, _N_EVENTS, _CLASS, _LOG_V,
+ _STATE_OFFSET, _FORCE_OFFSET, _R_GROWTH, _FOUND) = range(15)
+N_R = _FOUND + cycles.N_F
+#: the limit-cycle search of :func:`benchmarks.metrics.summarize` (its defaults)
+CYCLE_RTOL, CYCLE_MAX_PERIOD, CYCLE_MIN_REPEATS = 1e-3, 4, 2
+_EVENTS_START = 64
+_NO_LIMIT = 1 << 62
+# the engine's layouts as plain ints (compiled code reads module-level ints as constants)
+_DEADLINE, _TAU_END, _LAW, _BETA = (E.P[k] for k in ("DEADLINE", "TAU_END", "LAW", "BETA"))
+_FAST_UNTIL, _NEED_START, _NEXT_SAVE, _ST_STARTS = (
+    E.ST[k] for k in ("FAST_UNTIL", "NEED_START", "NEXT_SAVE", "STARTS"))
+_ZC = E.ZROW["ZC"]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _summarize(law_code, beta, c, ev, n_ev, z_end, r):
+    """The limit-cycle summary of a run that reached its end into ``r``: the events in SI units
+    (:func:`integrators.core.events.events_table`'s formulas), their metrics, the cycle search
+    and the end state (:mod:`problems.slider`'s conversions), the class."""
+    ts, f0, fh, lc = c[_TS], c[_F0], c[_FORCE_H], c[_LC]
+    t0, t1 = np.empty(n_ev), np.empty(n_ev)
+    s0, s1 = np.empty(n_ev), np.empty(n_ev)
+    x = np.empty((n_ev, 4))
+    for i in range(n_ev):
+        t0[i], t1[i] = ev[i, 0] * ts, ev[i, 1] * ts
+        s0[i], s1[i] = lc * ev[i, 6], lc * ev[i, 7]
+        x[i, 0] = t0[i] - t0[i - 1] if i > 0 else np.nan
+        x[i, 1] = ((f0 + fh * ev[i, 2]) - (f0 + fh * ev[i, 3])) / c[_FN]
+        x[i, 2] = s1[i] - s0[i]
+        x[i, 3] = c[_V0] * ev[i, 4]
+    found = r[_FOUND:]
+    cycles.find_cycle(t0, t1, s0, s1, x, c[_T_END], CYCLE_RTOL, CYCLE_MAX_PERIOD,
+                      CYCLE_MIN_REPEATS, c[_V_SLOW], found)
+    h, u, s = z_end[0], z_end[1], z_end[2]
+    psi = s if law_code == 0 else math.exp(s)
+    eta = u + beta * s
+    v = c[_V0] * math.exp(eta - beta * (psi if law_code == 0 else math.log(psi)))
+    fs = f0 + fh * h
+    theta = psi * (c[_B] * c[_FN]) if law_code == 0 else psi * lc / c[_V0]
+    log_v, state, force = cycles.end_offsets(law_code, c[_A], c[_B], lc, c[_V0], c[_FN], f0,
+                                             c[_V_SLOW], v, fs, theta)
+    r[_LOG_V], r[_STATE_OFFSET], r[_FORCE_OFFSET] = log_v, state, force
+    r[_CLASS] = cycles.classify(found[0], found[1], c[_GROWTH], log_v, state, force)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _one(kernel, workspace, p0, z0, c, dirs, r):
+    """One point: the solve as :meth:`integrators.own.compiled.CompiledAlgorithm.run` does it
+    with the save grid (0, t_end), then its summary, into ``r``."""
+    start = monotonic()
+    p = p0.copy()
+    p[_DEADLINE] = start + c[_BUDGET]
+    st, Z, G = np.zeros(E.N_ST), np.zeros((E.N_Z, 3)), np.zeros((3, 4))
+    rec = E.REC
+    for k in range(REC_SIZE):
+        st[rec + k] = np.nan
+    st[rec + IN_EVENT], st[rec + N_EVENTS] = 0.0, 0.0
+    st[rec + H_MAX], st[rec + H0] = z0[0], z0[0]
+    st[_FAST_UNTIL], st[_NEED_START] = -np.inf, 1.0
+    for i in range(3):
+        Z[_ZC, i] = z0[i]
+    grid = np.array([0.0, p[_TAU_END]])
+    saved = np.empty((2, 3))
+    for i in range(3):
+        saved[0, i] = z0[i]
+    st[_NEXT_SAVE] = 1.0
+    ev = np.empty((_EVENTS_START, 8))
+    ws = workspace()
+    sc = (np.empty(3), np.empty(3), np.empty(3), np.empty(3), np.empty((3, 3)), np.empty((6, 4)),
+          np.empty(4), np.empty(3))
+    while True:
+        status = kernel(ws, sc, st, p, Z, G, dirs, grid, saved, ev, _NO_LIMIT)
+        if status == E.GROW:
+            bigger = np.empty((2 * ev.shape[0], 8))
+            bigger[:ev.shape[0]] = ev
+            ev = bigger
+        elif status != E.CHUNK:
+            break
+    n_ev = int(st[rec + N_EVENTS])
+    r[_STATUS], r[_NFEV], r[_NJEV] = status, st[E.NFEV], st[E.NJEV]
+    r[_STEPS], r[_REJECTED], r[_STARTS] = st[E.STEPS], st[E.REJECTED], st[_ST_STARTS]
+    r[_T_STOP], r[_N_EVENTS] = st[E.TAU] * c[_TS], n_ev
+    for k in range(_CLASS, N_R):
+        r[k] = np.nan
+    r[_R_GROWTH] = c[_GROWTH]
+    if status == E.DONE:
+        _summarize(int(p[_LAW]), p[_BETA], c, ev, n_ev, saved[1], r)
+    else:
+        r[_CLASS] = cycles.FAILED
+    r[_WALL_S] = monotonic() - start
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def run_batch(kernel, workspace, P, Z0, C, dirs, R, order):
+    """Every point of the batch (rows of ``P``, ``Z0``, ``C``) into its row of ``R``, in
+    parallel, taken in the order ``order`` (a permutation): the body of each method's compiled
+    ``batch`` entry point. numba's threading layer here (OpenMP) gives each thread one
+    contiguous block of the loop, whatever ``parallel_chunksize`` says; neighbouring points cost
+    alike (a whole corner of a grid can take 30× the median), so a shuffled order balances the
+    threads where the grid's order would leave one thread with most of the work."""
+    for k in prange(P.shape[0]):
+        i = order[k]
+        _one(kernel, workspace, P[i], Z0[i], C[i], dirs, R[i])
