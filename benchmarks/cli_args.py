@@ -98,6 +98,19 @@ def non_negative(text: str) -> float:
     return x
 
 
+def b_lc(text: str) -> tuple[float, float]:
+    """``B,LC``: b ≥ 0 and Lc > 0 in metres, e.g. ``0.0094,3e-7``."""
+    parts = text.split(",")
+    try:
+        b, lc = (float(x) for x in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be B,LC (two numbers, Lc in m), got {text!r}") \
+            from None
+    if not (math.isfinite(b) and math.isfinite(lc) and b >= 0 and lc > 0):
+        raise argparse.ArgumentTypeError(f"needs b ≥ 0 and Lc > 0 (finite), got {text!r}")
+    return b, lc
+
+
 def finite(text: str) -> float:
     """A finite number."""
     return _number(text, "must be a finite number")

@@ -13,46 +13,65 @@ from pathlib import Path
 
 import pandas as pd
 
-from benchmarks.cli_args import (add_integrator_options, add_problem_options, count, in_file,
-                                 integrator_from_args, non_negative, out_dir, out_file, positive,
-                                 preset_name, problem_from_args, say, seed, show_progress)
+from benchmarks.cli_args import (add_integrator_options, add_problem_options, b_lc, count,
+                                 in_file, integrator_from_args, non_negative, out_dir, out_file,
+                                 positive, preset_name, problem_from_args, say, seed,
+                                 show_progress)
 from benchmarks.report import jsonable
 from benchmarks.sweep import observations
 
 __all__ = ["add_parsers", "observations", "synthetic_curves"]
 
+def sweep_problem(args):
+    """The problem a sweep varies and whether the preset's published fit and observations
+    apply: ``--preset`` (with ``--law``, ``--t-end``) or ``--problem FILE``."""
+    from problems import WINDOWS, load_problem, preset, variant
+    if args.problem is not None:
+        if args.law is not None:
+            raise ValueError("--law applies to --preset; a problem file names its law in [law]")
+        problem = load_problem(args.problem)
+        return (variant(problem, t_end=args.t_end) if args.t_end else problem), False
+    problem = preset(args.preset, law=args.law or "slip", t_end=args.t_end)
+    return problem, args.preset.upper() in WINDOWS
+
+
 def cmd_sweep(args) -> int:
     from benchmarks.fitting import read_curves
     from benchmarks.maps import plot_sweep
     from benchmarks.sweep import parse_b, parse_lc, sweep
-    from problems import WINDOWS, preset
-    if args.preset.upper() not in WINDOWS:         # the flags a window's published means fill
+    problem, published = sweep_problem(args)
+    if not published:                      # the flags a window's published means fill
         for flag, value in (("--obs-recurrence", args.obs_recurrence),
                             ("--obs-drop", args.obs_drop)):
             if value is None:
-                raise ValueError(f"{flag} is required for {args.preset!r} (it has no observed "
-                                 "means)")
+                raise ValueError(f"{flag} is required for {problem.name or 'this problem'} (it "
+                                 "has no observed means)")
     b_values = parse_b(args.b, args.max_points)
     lc_values = parse_lc(args.lc, args.max_points)
     curves = read_curves(args.slip_weakening) if args.slip_weakening else None
-    obs = observations(args.preset, args.obs_recurrence, args.sigma_recurrence, args.obs_drop,
-                       args.sigma_drop, curves)
+    obs = observations(args.preset if published else "", args.obs_recurrence,
+                       args.sigma_recurrence, args.obs_drop, args.sigma_drop, curves)
     algorithm, why = integrator_from_args(args)
-    out = Path(args.out or f"sweep_{args.preset}_{args.law}")
+    name = args.preset if args.problem is None else Path(args.problem).stem
+    out = Path(args.out or f"sweep_{name}_{problem.law.name}")
     if not args.json:
         say(f"integrator: {why}")
         if obs.assumed_sigma:
             say("σ not given: assumed 10 % of the observed mean (an assumption, not data)")
-    result = sweep(args.preset, args.law, b_values, lc_values, algorithm, obs, out,
-                   t_end=args.t_end, workers=args.workers, scheduler=args.scheduler,
-                   backend=args.backend, wall_budget=args.wall_budget,
+    result = sweep(problem, b_values, lc_values, algorithm, obs, out, workers=args.workers,
+                   scheduler=args.scheduler, backend=args.backend, wall_budget=args.wall_budget,
                    progress=show_progress(args), max_points=args.max_points,
-                   connect_timeout=args.connect_timeout, worker_timeout=args.worker_timeout)
+                   connect_timeout=args.connect_timeout, worker_timeout=args.worker_timeout,
+                   chunk_size=args.chunk_size)
     s = {**result.summary, "integrator_choice": why, "out": str(out)}
     if not args.no_plot:
-        p = preset(args.preset, law=args.law)
-        plot_sweep(result.table, out / "maps.png", title=f"{args.preset}/{args.law}",
-                   mark=(p.law.b, p.law.lc),
+        # the published fit is marked only against the published observations it was fitted to
+        own_obs = args.obs_recurrence is not None or args.obs_drop is not None
+        mark, label = ((args.mark, "given") if args.mark is not None else
+                       ((problem.law.b, problem.law.lc), "published")
+                       if published and not own_obs else (None, ""))
+        plot_sweep(result.table, out / "maps.png", title=problem.name or name, mark=mark,
+                   mark_label=label,
                    best=None if s["best_b"] is None else (s["best_b"], s["best_lc_m"]))
         s["maps"] = str(out / "maps.png")
     if args.json:
@@ -64,7 +83,7 @@ def cmd_sweep(args) -> int:
             say(f"best ({s['best_by']}): b = {s['best_b']:.5g}, Lc = {s['best_lc_m'] * 1e6:.4g} µm,"
                   f" J1 = {s['best_J1']:.3g}")
         say(f"classification: {s['classification']}")
-        say(f"written: {out / 'sweep.csv'}, {out / 'summary.json'}"
+        say(f"written: {out / 'sweep.csv'}, {out / 'summary.json'}, {out / 'chunks'} (Parquet)"
               + ("" if args.no_plot else f", {out / 'maps.png'}"))
     return 0
 
@@ -143,9 +162,16 @@ def add_parsers(sub, preset_names) -> None:
     from benchmarks.sweep import MAX_GRID_POINTS
     from benchmarks.sweep_exec import CONNECT_TIMEOUT_S, WORKER_TIMEOUT_S
     s = sub.add_parser("sweep", help="J1/J2/J over a (b, Lc) grid: parallel, resumable")
-    s.add_argument("--preset", required=True, choices=preset_names, type=preset_name,
-                   help="the problem whose (b, Lc) the grid replaces")
-    s.add_argument("--law", choices=("slip", "aging"), default="slip", help="friction law")
+    which = s.add_mutually_exclusive_group(required=True)
+    which.add_argument("--preset", choices=preset_names, type=preset_name,
+                       help="the problem whose (b, Lc) the grid replaces (no default: "
+                            "--preset or --problem is required)")
+    which.add_argument("--problem", type=in_file, metavar="FILE",
+                       help="or your own apparatus: a TOML or JSON file (mass, stiffness, "
+                            "normal_force, t_end, [law], [loading], [initial]; SI units; "
+                            "docs/examples/apparatus.toml is one; no default)")
+    s.add_argument("--law", choices=("slip", "aging"),
+                   help="friction law of --preset (default: slip)")
     s.add_argument("--b", required=True, metavar="START:STOP:STEP",
                    help="b values (dimensionless), STOP included")
     s.add_argument("--lc", required=True, metavar="START:STOP:N[log]",
@@ -165,15 +191,22 @@ def add_parsers(sub, preset_names) -> None:
                    help="observed curves, CSV with event_id, slip_m (m), friction (Ft/Fn): adds "
                         "J2 and J (default: J1 only)")
     s.add_argument("--t-end", type=positive, metavar="S",
-                   help="simulated time per point in s (default: the preset's)")
+                   help="simulated time per point in s (default: the preset's or the file's)")
     add_integrator_options(s)
     where = s.add_mutually_exclusive_group()
     where.add_argument("--workers", type=count, metavar="N",
                        help="local workers, N ≥ 1 (default: all cores)")
     where.add_argument("--scheduler", metavar="ADDRESS",
                        help="run on this Dask scheduler, e.g. tcp://host:8786 (default: local)")
-    s.add_argument("--backend", choices=("processes", "threads"), default="processes",
-                   help="local parallelism (processes were measured faster)")
+    s.add_argument("--backend", choices=("processes", "threads"),
+                   help="local parallelism (default: threads for the own compiled methods, one "
+                        "compiled batch a chunk; processes for the others)")
+    s.add_argument("--chunk-size", type=count, metavar="N",
+                   help="points per chunk, the unit of work and storage (default: 256 for "
+                        "compiled batches, about 1/64 of the grid for the others)")
+    s.add_argument("--mark", type=b_lc, metavar="B,LC",
+                   help="a point (b, Lc in m) to mark on the maps (default: a window's published "
+                        "fit, when scored against its published means)")
     s.add_argument("--connect-timeout", type=positive, default=CONNECT_TIMEOUT_S, metavar="S",
                    help="s the Dask scheduler has to answer before the sweep is refused")
     s.add_argument("--worker-timeout", type=positive, default=WORKER_TIMEOUT_S, metavar="S",
@@ -181,8 +214,8 @@ def add_parsers(sub, preset_names) -> None:
     s.add_argument("--wall-budget", type=positive, metavar="S",
                    help="wall budget per point in s (default: none)")
     s.add_argument("--out", type=out_dir, metavar="DIR",
-                   help="directory of the points, table and maps (default: "
-                        "./sweep_<preset>_<law>)")
+                   help="directory of the Parquet chunks, table and maps (default: "
+                        "./sweep_<preset or file name>_<law>)")
     s.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     s.add_argument("--no-progress", action="store_true", help="no progress bar")
     s.add_argument("--no-plot", action="store_true", help="do not draw maps.png")

@@ -22,9 +22,10 @@ _PANELS = (("recurrence_s", "ΔT (s)", False), ("friction_drop", "Δμ", False),
            ("J1", "J1", True), ("J", "J", True))
 
 
-def plot_sweep(table, path, title: str = "", mark=None, best=None) -> None:
+def plot_sweep(table, path, title: str = "", mark=None, best=None,
+               mark_label: str = "published") -> None:
     """Write the maps of ``table`` (a sweep table) to ``path``. ``mark`` = (b, Lc in m) is drawn
-    as a reference point; ``best`` = (b, Lc) as the star."""
+    as a reference point labelled ``mark_label``; ``best`` = (b, Lc) as the star."""
     panels = [p for p in _PANELS if p[0] in table and table[p[0]].notna().any()]
     fig, axes = plt.subplots(1, max(len(panels), 1), figsize=(4.2 * max(len(panels), 1), 3.8),
                              squeeze=False, constrained_layout=True)
@@ -54,7 +55,7 @@ def plot_sweep(table, path, title: str = "", mark=None, best=None) -> None:
                        edgecolors="k", label="best", zorder=5)
         if mark is not None:
             ax.scatter([mark[0]], [np.log10(mark[1] * 1e6)], marker="P", s=90, c="w",
-                       edgecolors="k", label="published", zorder=5)
+                       edgecolors="k", label=mark_label, zorder=5)
         ax.set_xlabel("b")
         ax.set_ylabel("log10 Lc (µm)")
         ax.set_title(label)

@@ -30,7 +30,7 @@ from benchmarks.sweep import observations, sweep
 from benchmarks.timing import warm_up
 from benchmarks.work_precision import STUDY_CSV, recommended_algorithm
 from integrators import solve
-from problems import WINDOWS, aging_best_fit, window
+from problems import WINDOWS, aging_best_fit, preset, window
 
 __all__ = ["paper_sweeps", "sweep_scaling", "GRID", "T_END"]
 
@@ -74,9 +74,9 @@ def paper_sweeps(out, cache=None, windows=("W1", "W2", "W3", "W4"), laws=("slip"
         for name in windows:
             b0, lc0 = best_fit(name, law)
             b, lc = grid_around(b0, lc0, **GRID[law])
-            res = sweep(name, law, b, lc, algorithm, observations(name), cache / f"{name}_{law}",
-                        t_end=T_END[name], workers=workers, progress=progress,
-                        wall_budget=POINT_BUDGET)
+            res = sweep(preset(name, law=law, t_end=T_END[name]), b, lc, algorithm,
+                        observations(name), cache / f"{name}_{law}", workers=workers,
+                        progress=progress, wall_budget=POINT_BUDGET)
             dest = out / "sweeps" / f"{name}_{law}"
             dest.mkdir(parents=True, exist_ok=True)
             for f in ("sweep.csv", "summary.json"):
@@ -135,12 +135,13 @@ def sweep_scaling(out, n: int = 21, t_end: float = 40.0, progress: bool = True,
     lc = np.geomspace(lc0 / 10, lc0 * 10, n)
     obs = observations("W2")
     runs = {}
-    for label, kw in (("serial", dict(workers=1)), ("2 processes", dict(workers=2)),
+    for label, kw in (("serial", dict(workers=1)),
+                      ("2 processes", dict(workers=2, backend="processes")),
                       ("2 threads", dict(workers=2, backend="threads"))):
         with tempfile.TemporaryDirectory() as tmp:
             start = time.perf_counter()
-            res = sweep("W2", "slip", b, lc, algorithm, obs, tmp, t_end=t_end, progress=progress,
-                        wall_budget=POINT_BUDGET, **kw)
+            res = sweep(preset("W2", law="slip", t_end=t_end), b, lc, algorithm, obs, tmp,
+                        progress=progress, wall_budget=POINT_BUDGET, **kw)
             wall = time.perf_counter() - start
         s = res.summary
         runs[label] = {"wall_s": wall, "sim_wall_s_total": s["sim_wall_s_total"],

@@ -183,10 +183,12 @@ def _make(name, **kw):
 def _sweep(tmp, b=(0.0094,), lc=(3e-7,), **kw):
     from benchmarks.sweep import observations, sweep
     from integrators import ETD2
+    from problems import preset
     args = dict(t_end=1.0, workers=1, progress=False)
     args.update(kw)
     obs = args.pop("obs", None) or observations("W2")
-    return sweep("W2", "slip", b, lc, args.pop("algorithm", ETD2()), obs, tmp / "out", **args)
+    problem = preset("W2", law="slip", t_end=args.pop("t_end"))
+    return sweep(problem, b, lc, args.pop("algorithm", ETD2()), obs, tmp / "out", **args)
 
 
 def _observations(**kw):
@@ -234,7 +236,7 @@ def _sweep_input_cases():
                 kw["obs"] = _observations(curves=pd.DataFrame(
                     {"event": [1, 1], "slip_m": [0.0, 1e-5], "friction": [0.6, 0.5]}))
             _sweep(tmp, **kw)
-            if (tmp / "out" / "points").exists() and any((tmp / "out" / "points").iterdir()):
+            if (tmp / "out" / "chunks").exists() and any((tmp / "out" / "chunks").iterdir()):
                 raise Wrong("points were run before the refusal")
         out.append(Case("api-input", f"sweep {name}", run, "refused", names=names))
     return out
@@ -246,6 +248,7 @@ _SIM = ("simulate", "--preset", "W2", "--t-end", "0.05")
 _SWEEP_DASK = ("sweep", "--preset", "W2", "--b", "0.0094:0.0094:0.0001", "--lc", "3e-7:3e-7:1",
                "--t-end", "1", "--no-progress", "--no-plot")
 _SWEEP = _SWEEP_DASK + ("--workers", "1")
+APPARATUS = ROOT / "docs" / "examples" / "apparatus.toml"
 
 
 def _cli_case(kind, name, args, expect="refused", json_mode=False, check=None, timeout=120.0,
@@ -282,6 +285,9 @@ def _cli_input_cases():
                            {"--wall-budget": "p", "--t-end": "p"}),
         "speedup": (("speedup",), {"--rk-tol": "p", "--scipy-budget": "p"}),
         "sweep-scaling": (("sweep-scaling", "--out", "{tmp}"), {"--n": "c", "--t-end": "p"}),
+        "ensemble-scaling": (("ensemble-scaling", "--out", "{tmp}"),
+                             {"--n": "c", "--big": "s", "--kills": "s", "--dask": "s",
+                              "--repeats": "c", "--seed": "s"}),
     }
     values = {"p": ("0", "-5", "inf", "nan", "abc"), "n": ("-1", "inf", "abc"),
               "c": ("0", "-1", "1.5", "abc"), "s": ("-1", "1.5", "abc")}
@@ -319,6 +325,20 @@ def _cli_input_cases():
         "sweep --workers with --scheduler": _SWEEP + ("--workers", "2", "--scheduler",
                                                       "tcp://127.0.0.1:1"),
         "sweep --backend gpu": _SWEEP + ("--backend", "gpu"),
+        "sweep --mark 0.01": _SWEEP + ("--mark", "0.01"),
+        "sweep --mark 0.01,0": _SWEEP + ("--mark", "0.01,0"),
+        "sweep --mark a,b": _SWEEP + ("--mark", "a,b"),
+        "sweep --chunk-size 0": _SWEEP + ("--chunk-size", "0"),
+        "sweep --preset and --problem": _SWEEP + ("--problem", str(APPARATUS)),
+        "sweep --problem missing.toml": ("sweep", "--problem", "{tmp}/missing.toml", "--b",
+                                         "0.009:0.01:0.001", "--lc", "1e-7:1e-6:2"),
+        "sweep --problem without --obs-recurrence": (
+            "sweep", "--problem", str(APPARATUS), "--b", "0.009:0.01:0.001",
+            "--lc", "1e-7:1e-6:2", "--out", "{tmp}/s"),
+        "sweep --problem with --law": (
+            "sweep", "--problem", str(APPARATUS), "--law", "aging", "--b",
+            "0.009:0.01:0.001", "--lc", "1e-7:1e-6:2", "--obs-recurrence", "1", "--obs-drop",
+            "0.04", "--out", "{tmp}/s"),
         "sweep --preset W9": ("sweep", "--preset", "W9", "--b", "0.009:0.01:0.001", "--lc",
                               "1e-7:1e-6:2"),
         "work-precision --problems W9": ("work-precision", "--problems", "W9", "--out", "{tmp}"),
@@ -371,6 +391,7 @@ def _cli_input_cases():
         "target --csv missing": ("target", "--csv", "{tmp}/none.csv"),
         "integrators --bogus": ("integrators", "--bogus"),
         "sweep-scaling --n 0": ("sweep-scaling", "--n", "0", "--out", "{tmp}"),
+        "ensemble-scaling --big -1": ("ensemble-scaling", "--big", "-1", "--out", "{tmp}"),
     }
     for name, args in json_refusals.items():
         must = name.split()[1] if name.split()[1].startswith("--") else name.split()[-1]
@@ -619,8 +640,8 @@ def _start_and_wait_for_points(tmp, n=2):
     proc = subprocess.Popen(_sweep_cli(tmp / "s"), cwd=ROOT, stdout=subprocess.DEVNULL,
                             stderr=subprocess.DEVNULL)
     deadline = time.time() + 240
-    points = tmp / "s" / "points"
-    while time.time() < deadline and len(list(points.glob("*.json"))) < n:
+    chunks = tmp / "s" / "chunks"              # one point a chunk on this grid
+    while time.time() < deadline and len(list(chunks.glob("*.parquet"))) < n:
         time.sleep(0.05)
     return proc
 
@@ -677,9 +698,9 @@ def _dask_no_workers(tmp):
              "ETD2", "--scheduler", address, "--worker-timeout", "5", "--out", str(tmp / "s"),
              "--no-progress", "--no-plot"], cwd=ROOT, stdout=subprocess.PIPE,
             stderr=subprocess.PIPE, text=True)
-        points = tmp / "s" / "points"
+        chunks = tmp / "s" / "chunks"
         deadline = time.time() + 120
-        while time.time() < deadline and len(list(points.glob("*.json"))) < 1:
+        while time.time() < deadline and len(list(chunks.glob("*.parquet"))) < 1:
             time.sleep(0.05)
         cluster.scale(0)
         try:
@@ -912,38 +933,50 @@ def _idiom_cases():
 # --- corrupt results ---------------------------------------------------------------------------
 
 def _corrupt_point_cases():
-    from benchmarks.sweep import BadPointWarning
+    from benchmarks.ensemble import BadChunkWarning
+
+    def rewrite(path, change):
+        """The chunk file with its table changed by ``change`` (its key kept)."""
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+        arrow = pq.read_table(path)
+        table = change(arrow.to_pandas())
+        out = pa.Table.from_pandas(table, preserve_index=False)
+        pq.write_table(out.replace_schema_metadata(arrow.schema.metadata), path)
+
+    def assign(**kw):
+        return lambda p, other: rewrite(p, lambda t: t.assign(**kw))
+
+    def strip_key(p, other):
+        import pyarrow.parquet as pq
+        pq.write_table(pq.read_table(p).replace_schema_metadata({}), p)
+
     corruptions = {
-        "an empty object {}": lambda p, other: p.write_text("{}"),
-        "a JSON list": lambda p, other: p.write_text("[1, 2]"),
+        "an empty file": lambda p, other: p.write_bytes(b""),
         "binary garbage": lambda p, other: p.write_bytes(bytes(range(256))),
-        "truncated JSON": lambda p, other: p.write_text(p.read_text()[: len(p.read_text()) // 2]),
-        "an empty file": lambda p, other: p.write_text(""),
-        "a copy of another point": lambda p, other: p.write_text(other.read_text()),
-        "its b changed": lambda p, other: p.write_text(json.dumps(
-            {**json.loads(p.read_text()), "b": 0.5})),
-        "the old format (no key)": lambda p, other: p.write_text(json.dumps(
-            {k: v for k, v in json.loads(p.read_text()).items() if k != "key"})),
-        "a NaN classification field": lambda p, other: p.write_text(json.dumps(
-            {**json.loads(p.read_text()), "classification": None, "key": None})),
-        "a string for a metric": lambda p, other: p.write_text(json.dumps(
-            {**json.loads(p.read_text()), "recurrence_s": "abc"})),
-        "an unknown classification": lambda p, other: p.write_text(json.dumps(
-            {**json.loads(p.read_text()), "classification": "stickslip"})),
-        "another integrator's point": lambda p, other: p.write_text(json.dumps(
-            {**json.loads(p.read_text()), "integrator": "Rodas5P"})),
+        "a truncated file": lambda p, other: p.write_bytes(p.read_bytes()[: p.stat().st_size // 2]),
+        "a copy of another chunk": lambda p, other: p.write_bytes(other.read_bytes()),
+        "its b changed": assign(b=0.5),
+        "no key in its metadata": strip_key,
+        "a column missing": lambda p, other: rewrite(p, lambda t: t.drop(columns="retcode")),
+        "an unknown classification": assign(classification="stickslip"),
+        "an unknown retcode": assign(retcode="Fine"),
+        "metrics of a point without a cycle": assign(classification="not converged",
+                                                     recurrence_s=1.0),
+        "no rows": lambda p, other: rewrite(p, lambda t: t.iloc[:0]),
+        "a JSON file under its name": lambda p, other: p.write_text("{}"),
     }
     out = []
     for name, corrupt in corruptions.items():
         def run(tmp, corrupt=corrupt):
             first = _sweep(tmp, b=[0.0093, 0.0094], lc=[3e-7], t_end=8.0)
-            files = sorted((tmp / "out" / "points").glob("*.json"))
+            files = sorted((tmp / "out" / "chunks").glob("*.parquet"))
             target, other = files[0], files[1]
             corrupt(target, other)
             with warnings.catch_warnings(record=True) as seen:
                 warnings.simplefilter("always")
                 again = _sweep(tmp, b=[0.0093, 0.0094], lc=[3e-7], t_end=8.0)
-            named = [w for w in seen if issubclass(w.category, BadPointWarning)
+            named = [w for w in seen if issubclass(w.category, BadChunkWarning)
                      and target.name in str(w.message)]
             if not named:
                 raise Wrong(f"the bad file {target.name} was not reported")
@@ -953,15 +986,15 @@ def _corrupt_point_cases():
             if again.summary["n_run"] != 1 or again.summary["n_bad_files"] != 1:
                 raise Wrong(f"not recomputed: {again.summary['n_run']} run")
             return Observed("recovered", str(named[0].message))
-        out.append(Case("corrupt-results", f"sweep point file holding {name}", run,
+        out.append(Case("corrupt-results", f"sweep chunk file holding {name}", run,
                         "recovered", timeout=120))
 
     def orphan_tmp(tmp):
         _sweep(tmp, t_end=8.0)
-        points = tmp / "out" / "points"
+        points = tmp / "out" / "chunks"
         # what atomic_write leaves when its writer is killed, an hour ago and just now
-        orphan = points / ".rsfbench-tmp-abc.json.k3j2.tmp"
-        fresh = points / ".rsfbench-tmp-def.json.x9q1.tmp"
+        orphan = points / ".rsfbench-tmp-abc.parquet.k3j2.tmp"
+        fresh = points / ".rsfbench-tmp-def.parquet.x9q1.tmp"
         users = points / ".notes.tmp"                  # not ours: never touched
         for f in (orphan, fresh, users):
             f.write_text("{")

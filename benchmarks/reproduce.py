@@ -153,6 +153,11 @@ def _sweep_scaling(out: Path) -> None:
     sweep_scaling(out, study_csv=out / "wp_quick.csv")
 
 
+def _ensemble_scaling(out: Path) -> None:
+    from benchmarks.ensemble_scaling import ensemble_scaling
+    ensemble_scaling(out, study_csv=out / "wp_quick.csv", progress=False)
+
+
 def _classification(out: Path) -> None:
     from benchmarks.classification import classification_study, write_classification
     print(write_classification(classification_study(), out))
@@ -211,6 +216,9 @@ STEPS = (
          reads=("wp_quick.csv",), minutes=0.7),
     Step("sweep-scaling", "sweep speed: 21 x 21 on W2, serial and on 2 workers", _sweep_scaling,
          timed=True, reads=("wp_quick.csv",), minutes=0.3),
+    Step("ensemble-scaling", "ensembles: 21 x 21 on 1 and 2 threads, 10^5 points killed and "
+         "resumed, 10^4 on a local Dask cluster", _ensemble_scaling, full=True, timed=True,
+         reads=("wp_quick.csv",), minutes=6),
     Step("classification", "the locking rule of stick-slip, against the trajectory",
          _classification, minutes=0.05),
     Step("etd-validity", "the ETD family's step-rule check on the studied problems",
@@ -411,6 +419,7 @@ def _collect(out: Path) -> dict:
         "compare": read("compare_paper_example.md", "compare"),
         "sweeps": read("sweeps.md", "sweeps"),
         "sweep_scaling": read("sweep_scaling.md", "sweep-scaling"),
+        "ensemble_scaling": read("ensemble_scaling.md", "ensemble-scaling"),
         "classification": read("classification.md", "classification"),
         "reliability": read("reliability.md", "probe"),
         "misfit": read("j2_information.md", "misfit"),
@@ -507,6 +516,9 @@ Maps: `sweeps/<window>_<law>/maps.png`.
 ## Sweep speed (`sweep_scaling.*`)
 
 {r['sweep_scaling']}
+## Ensembles at kernel speed (`ensemble_scaling.*`)
+
+{r['ensemble_scaling']}
 ## Reliability: the probe (`reliability.*`)
 
 Every case of `benchmarks/probe_cases.py`, by kind and outcome (`rsfbench probe --slow`):

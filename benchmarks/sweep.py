@@ -1,14 +1,13 @@
 """Parameter sweeps over (b, Lc) for an inversion (Urata et al. 2017, Sect. 4; SPEC §6).
 
-Every grid point is one simulation of a preset with (b, Lc) replaced. Points run in parallel
-(local processes by default, threads or a Dask cluster on request: :mod:`benchmarks.sweep_exec`)
-and each finished point is written at once to ``DIR/points/<key>.json`` (write to a temporary
-file, then rename: a killed sweep never leaves half a file). The key hashes everything the
-simulation depends on (problem, algorithm and its options, curve resolution, budget), so a sweep
-restarted with the same arguments skips the points it has, and changing only the observations
-(ΔT̄, σ, curves) re-scores the stored simulations without running them again. A stored point is
-trusted only if it parses and holds its own key and grid point; any other file under that name
-(empty, truncated, copied from another point, garbage) is reported by name and recomputed.
+A sweep is an ensemble (:mod:`benchmarks.ensemble`) of one problem — a preset or any
+:class:`~problems.SpringSlider` — over the grid b × Lc, scored against observations. The
+ensemble engine runs it: the own compiled methods in compiled batches on numba's threads, any
+other backend point by point on a pool of processes, or chunks on a Dask cluster; finished chunks
+are kept in a Parquet store under ``DIR/chunks`` (``pandas.read_parquet(DIR/"chunks")`` reads the
+simulations back), so a sweep restarted with the same arguments runs only what is missing, and
+changing only the observations (ΔT̄, σ) re-scores the stored simulations without running them
+again. Slip-weakening curves (J2) need each point's trajectory: such a sweep runs point by point.
 
 Everything is checked before the first point runs: the grid (finite, non-empty, at most
 ``max_points`` points), every point's problem, the observations, the budget, the workers and the
@@ -24,51 +23,34 @@ the reason in its classification and message.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
-import os
-import time
-import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from tqdm.auto import tqdm
 
-from benchmarks.files import (BadResultsFile, atomic_write, read_json_record,
-                              remove_stale_temporaries)
-from benchmarks.fitting import (CHI2_95_2DOF, check_curves, event_curve, j1, j2_per_event,
-                                joint_fit)
-from benchmarks.metrics import CLASSIFICATIONS, CYCLES, summarize
+from benchmarks.ensemble import ensemble, grid
+from benchmarks.files import atomic_write, remove_stale_temporaries
+from benchmarks.fitting import CHI2_95_2DOF, check_curves, j1, j2_per_event, joint_fit
+from benchmarks.metrics import CYCLES
 from benchmarks.report import jsonable
-from benchmarks.sweep_exec import CONNECT_TIMEOUT_S, WORKER_TIMEOUT_S, connect, execute
-from benchmarks.timing import warm_up
-from integrators import ReturnCode, solve
-from problems import preset
+from benchmarks.sweep_exec import CONNECT_TIMEOUT_S, WORKER_TIMEOUT_S
+from problems import SpringSlider
 from problems._validate import (check_count, check_positive, units_checked_already,
                                 warn_implausible)
 
-__all__ = ["parse_b", "parse_lc", "check_grid", "PointTask", "run_point", "PointStore",
-           "Observations", "observations", "ASSUMED_SIGMA", "sweep", "SweepResult", "BACKENDS",
-           "MAX_GRID_POINTS", "BadPointWarning"]
+__all__ = ["parse_b", "parse_lc", "check_grid", "Observations", "observations", "ASSUMED_SIGMA",
+           "sweep", "SweepResult", "score", "summarize_sweep", "MAX_GRID_POINTS"]
 
-BACKENDS = ("processes", "threads")
 #: the most grid points a sweep runs unless ``max_points`` allows more: a typo in a step must
-#: not start a sweep of 10⁸ points (at ~10 ms a point, 10⁴ points take minutes)
+#: not start a sweep of 10⁸ points (at ~1 ms a point, 10⁴ points take seconds to minutes)
 MAX_GRID_POINTS = 10_000
 POINT_COLUMNS = ("b", "lc_m", "kappa", "classification", "period", "n_events", "recurrence_s",
                  "friction_drop", "slip_m", "peak_velocity_m_s", "retcode", "message", "nfev",
                  "steps", "wall_s", "integrator")
-#: what a stored point must hold to be trusted
-POINT_REQUIRED = ("key", "b", "lc_m", "classification", "retcode", "message", "integrator")
 _METRIC_COLUMNS = ("period", "recurrence_s", "friction_drop", "slip_m", "peak_velocity_m_s")
-RETCODES = {r.value for r in ReturnCode}
-
-
-class BadPointWarning(UserWarning):
-    """A stored point that cannot be trusted; it is recomputed (the message names the file)."""
 
 
 def parse_b(spec: str, max_points: int = MAX_GRID_POINTS) -> np.ndarray:
@@ -151,124 +133,6 @@ def check_grid(b_values, lc_values, max_points: int = MAX_GRID_POINTS):
 
 
 @dataclass(frozen=True)
-class PointTask:
-    """One grid point: the preset with (b, Lc) replaced, and how to solve it."""
-
-    preset: str
-    law: str
-    b: float
-    lc: float
-    t_end: float | None
-    algorithm: object
-    curve_dt: float | None = None     # s: save the trajectory this finely, for J2
-    wall_budget: float | None = None
-
-    def problem(self):
-        with units_checked_already():        # check_grid warned once for the whole Lc axis
-            return preset(self.preset, law=self.law, b=self.b, lc=self.lc, t_end=self.t_end)
-
-    def key(self) -> str:
-        """Hash of the full problem (so a changed preset is a new point) and the solve options."""
-        text = repr((repr(self.problem()), self.algorithm, self.curve_dt, self.wall_budget))
-        return hashlib.sha256(text.encode()).hexdigest()[:24]
-
-
-def run_point(task: PointTask) -> dict:
-    """Simulate one point and summarise it (never raises: a failure is a row with its retcode).
-    The parent adds the point's key (computed once, there) before storing the row.
-    Limit-cycle metrics are filled in only for a limit cycle (:data:`benchmarks.metrics.CYCLES`):
-    a failed, truncated or unclassifiable run is never read as physics."""
-    try:
-        problem = task.problem()
-        save = (dict(save_every=task.curve_dt) if task.curve_dt else dict(max_points=2))
-        sol = solve(problem, task.algorithm, wall_budget=task.wall_budget, **save)
-    except Exception as exc:            # checked before the sweep started: a bug if it happens
-        return failed_row(task, f"{type(exc).__name__}: {exc}")
-    cycle = summarize(sol)
-    row = {"b": task.b, "lc_m": task.lc, "integrator": task.algorithm.name,
-           "kappa": problem.kappa, "classification": cycle.classification,
-           "n_events": len(sol.events), "retcode": sol.retcode.value,
-           "message": sol.message or cycle.reason, "nfev": sol.stats.nfev,
-           "steps": sol.stats.steps, "wall_s": sol.stats.wall_s}
-    if cycle.classification in CYCLES:
-        row.update({c: getattr(cycle, c) for c in _METRIC_COLUMNS})
-        if task.curve_dt:
-            slip, mu = event_curve(sol)
-            row.update(curve_slip=slip.tolist(), curve_friction=mu.tolist())
-    return row
-
-
-def failed_row(task: PointTask, message: str) -> dict:
-    """The row of a point that could not be simulated at all (its worker crashed): in this
-    sweep's table, but ``transient``, never stored, so that a rerun tries the point again."""
-    return {"b": task.b, "lc_m": task.lc, "integrator": task.algorithm.name,
-            "classification": "failed", "retcode": "Failure", "message": message,
-            "transient": True}
-
-
-def _check_row(row: dict, task: PointTask, key: str, path: Path) -> None:
-    """``BadResultsFile`` unless ``row`` is a whole row of ``task``: its own key and grid point,
-    a known classification and retcode, finite metrics for a cycle and none otherwise, and its
-    slip-weakening curve when the sweep needs one."""
-    def bad(why):
-        raise BadResultsFile(f"sweep point {path} {why}")
-
-    def number(x):
-        return isinstance(x, (int, float)) and not isinstance(x, bool)
-
-    if row["key"] != key:
-        bad(f"holds the point {row['key']!r} (a copied file?)")
-    if (row["b"], row["lc_m"]) != (task.b, task.lc):
-        bad(f"holds (b, Lc) = ({row['b']!r}, {row['lc_m']!r}), not ({task.b!r}, {task.lc!r})")
-    if row["classification"] not in CLASSIFICATIONS or row["retcode"] not in RETCODES:
-        bad(f"holds an unknown classification or retcode ({row['classification']!r}, "
-            f"{row['retcode']!r})")
-    if row.get("transient") or row["integrator"] != task.algorithm.name:
-        bad("is not a finished point of this sweep's integrator")
-    if row["classification"] in CYCLES:
-        if not all(number(row.get(c)) and math.isfinite(row[c]) for c in _METRIC_COLUMNS):
-            bad("lacks a finite limit-cycle metric")
-        if task.curve_dt:
-            curve = [row.get("curve_slip"), row.get("curve_friction")]
-            if not (all(isinstance(x, list) and len(x) >= 2 for x in curve)
-                    and len(curve[0]) == len(curve[1])
-                    and all(number(v) and math.isfinite(v) for x in curve for v in x)):
-                bad("lacks its slip-weakening curve")
-    elif any(row.get(c) is not None and not (number(row[c]) and math.isnan(row[c]))
-             for c in _METRIC_COLUMNS):
-        bad(f"holds limit-cycle metrics for a point classified {row['classification']!r}")
-
-
-class PointStore:
-    """Finished points as one JSON file each under ``root/points``, written atomically and
-    checked when read (module docstring); ``bad`` lists the files found untrustworthy."""
-
-    def __init__(self, root) -> None:
-        self.dir = Path(root) / "points"
-        self.dir.mkdir(parents=True, exist_ok=True)
-        self.bad: list[str] = []
-        remove_stale_temporaries(self.dir)
-
-    def load(self, task: PointTask, key: str) -> dict | None:
-        """The stored row of ``task`` (whose key is ``key``), or None: not stored, or stored
-        but not trustworthy (then reported with :class:`BadPointWarning`, to be recomputed)."""
-        path = self.dir / f"{key}.json"
-        if not path.exists():
-            return None
-        try:
-            row = read_json_record(path, POINT_REQUIRED, what="sweep point")
-            _check_row(row, task, key, path)
-        except BadResultsFile as exc:
-            self.bad.append(str(exc))
-            warnings.warn(f"{exc}: recomputing it", BadPointWarning, stacklevel=2)
-            return None
-        return row
-
-    def save(self, key: str, row: dict) -> None:
-        atomic_write(self.dir / f"{key}.json", json.dumps(jsonable(row)))
-
-
-@dataclass(frozen=True)
 class Observations:
     """What a point is scored against: observed means and standard deviations (Eq. 10), and
     optionally the observed slip-weakening curves (Eq. 11). The four numbers must be positive
@@ -320,103 +184,49 @@ class SweepResult:
     summary: dict
 
 
-def _warm(task: PointTask) -> None:
-    """Compile (or load from numba's cache) what ``task`` needs, so no point pays for it."""
-    try:
-        warm_up(task.problem(), task.algorithm)
-    except Exception:         # a failing point is reported by run_point, not here
-        pass
+def sweep(problem, b_values, lc_values, algorithm, obs: Observations, out,
+          workers: int | None = None, scheduler: str | None = None, backend: str | None = None,
+          curve_dt: float = 5e-5, wall_budget: float | None = None, progress: bool = True,
+          max_points: int = MAX_GRID_POINTS, connect_timeout: float = CONNECT_TIMEOUT_S,
+          worker_timeout: float = WORKER_TIMEOUT_S,
+          chunk_size: int | None = None) -> SweepResult:
+    """Run (or resume) the sweep of ``problem`` (a SpringSlider: its t_end is each point's) over
+    ``b_values`` × ``lc_values`` and score it against ``obs``.
 
-
-def sweep(preset_name: str, law: str, b_values, lc_values, algorithm, obs: Observations,
-          out, t_end: float | None = None, workers: int | None = None,
-          scheduler: str | None = None, backend: str = "processes",
-          curve_dt: float = 5e-5, wall_budget: float | None = None,
-          progress: bool = True, max_points: int = MAX_GRID_POINTS,
-          connect_timeout: float = CONNECT_TIMEOUT_S,
-          worker_timeout: float = WORKER_TIMEOUT_S) -> SweepResult:
-    """Run (or resume) the sweep over ``b_values`` × ``lc_values`` and score it against ``obs``.
-
-    Finished points are read back from ``out`` and not run again. Returns the table (also
+    Finished chunks are read back from ``out/chunks`` and not run again. Returns the table (also
     written to ``out/sweep.csv``) and a summary (also ``out/summary.json``). Every argument is
     checked before the first point runs (``ValueError``); ``max_points`` bounds the grid.
+    ``curve_dt`` (s) resolves the slip-weakening curves when ``obs`` has some.
     """
-    tasks = _tasks(preset_name, law, b_values, lc_values, algorithm, obs, t_end, workers,
-                   backend, curve_dt, wall_budget, max_points)
-    workers = os.cpu_count() or 1 if workers is None else workers
-    client = connect(scheduler, connect_timeout) if scheduler else None   # before any work
-    try:
-        rows, n_run, n_resumed, wall, bad = _run(tasks, out, client, workers, backend,
-                                                 worker_timeout, f"{preset_name}/{law}", progress)
-    finally:
-        if client is not None:
-            client.close()
-    table = score(rows, obs)
-    summary = summarize_sweep(table, obs, algorithm, wall_s=wall, n_run=n_run,
-                              n_resumed=n_resumed, n_bad_files=len(bad), bad_files=bad,
-                              workers=1 if scheduler else workers, scheduler=scheduler,
-                              backend=backend)
+    if not isinstance(problem, SpringSlider):
+        raise ValueError(f"problem must be a SpringSlider, got {type(problem).__name__}")
+    if not isinstance(obs, Observations):
+        raise ValueError(f"obs must be Observations, got {obs!r}")
+    if workers is not None:
+        check_count("workers", workers)
+    check_positive("curve_dt", curve_dt)
+    b_values, lc_values = check_grid(b_values, lc_values, max_points)
     out = Path(out)
+    with units_checked_already():            # check_grid warned once for the Lc axis
+        table = ensemble(problem, algorithm, grid(b=b_values, lc=lc_values), store=out / "chunks",
+                         chunk_size=chunk_size, workers=workers, backend=backend,
+                         scheduler=scheduler, wall_budget=wall_budget,
+                         curve_dt=curve_dt if obs.curves is not None else None,
+                         progress=progress, max_points=max_points,
+                         connect_timeout=connect_timeout, worker_timeout=worker_timeout,
+                         label=f"sweep {problem.name or 'problem'}")
+    run = table.attrs
+    table = score(table.rename(columns={"lc": "lc_m"}), obs)
+    summary = summarize_sweep(table, obs, algorithm, wall_s=run["wall_s"], n_run=run["n_run"],
+                              n_resumed=run["n_resumed"], n_bad_files=len(run["bad_chunks"]),
+                              bad_files=run["bad_chunks"], workers=run["workers"],
+                              scheduler=scheduler, backend=run["backend"],
+                              batched=run["batched"], chunks=run["chunks"],
+                              store=str(out / "chunks"))
     remove_stale_temporaries(out)
     atomic_write(out / "sweep.csv", table.to_csv(index=False))
     atomic_write(out / "summary.json", json.dumps(jsonable(summary), indent=2))
     return SweepResult(table, summary)
-
-
-def _run(tasks, out, client, workers, backend, worker_timeout, name, progress):
-    """Load the stored points, run the others: (their rows in grid order, how many were run and
-    resumed, the wall time, the bad files found)."""
-    store = PointStore(out)
-    keys = [t.key() for t in tasks]
-    key_of = dict(zip(tasks, keys))       # the parent's keys: a worker's repr may differ
-    rows = {k: store.load(t, k) for t, k in zip(tasks, keys)}
-    todo = [t for t, k in zip(tasks, keys) if rows[k] is None]
-    n_resumed = len(tasks) - len(todo)
-    start = time.perf_counter()
-    bar = tqdm(total=len(tasks), initial=n_resumed, desc=f"sweep {name}", unit="point",
-               disable=not progress)
-    with bar:
-        for task, row in execute(run_point, _warm, failed_row, todo, workers, backend, client,
-                                 worker_timeout):
-            key = key_of[task]
-            row["key"] = key
-            if not row.get("transient"):
-                store.save(key, row)
-            rows[key] = row
-            bar.update(1)
-    wall = time.perf_counter() - start
-    return pd.DataFrame([rows[k] for k in keys]), len(todo), n_resumed, wall, store.bad
-
-
-def _tasks(preset_name, law, b_values, lc_values, algorithm, obs, t_end, workers, backend,
-           curve_dt, wall_budget, max_points) -> list[PointTask]:
-    """The points of a sweep, every argument checked (``ValueError`` before any work)."""
-    from integrators import Algorithm
-    from integrators import Output
-    if backend not in BACKENDS:
-        raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
-    if workers is not None:
-        check_count("workers", workers)
-    if not isinstance(algorithm, Algorithm):
-        raise ValueError(f"algorithm must be an Algorithm instance, got {algorithm!r}")
-    if not isinstance(obs, Observations):
-        raise ValueError(f"obs must be Observations, got {obs!r}")
-    for name, value in (("wall_budget", wall_budget), ("t_end", t_end), ("curve_dt", curve_dt)):
-        if value is not None:
-            check_positive(name, value)
-    b_values, lc_values = check_grid(b_values, lc_values, max_points)
-    need_curves = obs.curves is not None
-    tasks = [PointTask(preset_name, law, float(b), float(lc), t_end, algorithm,
-                       curve_dt if need_curves else None, wall_budget)
-             for b in b_values for lc in lc_values]
-    for task in tasks:                           # every point a valid problem, or say which
-        try:
-            problem = task.problem()
-        except ValueError as exc:
-            raise ValueError(f"grid point (b = {task.b:g}, Lc = {task.lc:g} m): {exc}") from None
-    if need_curves:                              # the saved trajectory of a point fits memory
-        Output(save_every=curve_dt).interval(problem.t_end)
-    return tasks
 
 
 def score(points: pd.DataFrame, obs: Observations) -> pd.DataFrame:
@@ -433,8 +243,7 @@ def score(points: pd.DataFrame, obs: Observations) -> pd.DataFrame:
     if obs.curves is None:
         fit = joint_fit(table.J1.to_numpy())
     else:
-        per_event = [j2_per_event(np.asarray(s if isinstance(s, list) else []),
-                                  np.asarray(f if isinstance(f, list) else []), obs.curves)
+        per_event = [j2_per_event(_curve(s), _curve(f), obs.curves)
                      for s, f in zip(points.get("curve_slip", [None] * len(points)),
                                      points.get("curve_friction", [None] * len(points)))]
         table["J2"] = [np.mean(x) if len(x) else np.nan for x in per_event]
@@ -446,6 +255,11 @@ def score(points: pd.DataFrame, obs: Observations) -> pd.DataFrame:
     table["in_region"] = fit["in_region"]
     table.attrs.update({k: v for k, v in fit.items() if np.ndim(v) == 0})
     return table
+
+
+def _curve(x) -> np.ndarray:
+    """A stored curve as an array (empty for a point without one)."""
+    return np.asarray(x, dtype=float) if isinstance(x, (list, np.ndarray)) else np.empty(0)
 
 
 def summarize_sweep(table: pd.DataFrame, obs: Observations, algorithm, **run) -> dict:

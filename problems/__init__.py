@@ -1,5 +1,6 @@
 """Problem definitions: friction laws, loading, the spring-slider with mass, and the paper's presets."""
 
+from problems.files import load_problem
 from problems.friction import LAWS, AgingLaw, FrictionLaw, SlipLaw, law_from_name
 from problems.loading import ConstantLoading, TwoSpeedLoading, event_thresholds
 from problems.presets import PRESET_NAMES, WINDOWS, aging_best_fit, paper_example, preset, window
@@ -10,7 +11,7 @@ from problems.stability import (characteristic_roots, critical_stiffness, growth
                                 neutral_frequency)
 
 __all__ = [
-    "LAWS", "AgingLaw", "FrictionLaw", "SlipLaw", "law_from_name",
+    "load_problem", "LAWS", "AgingLaw", "FrictionLaw", "SlipLaw", "law_from_name",
     "ConstantLoading", "TwoSpeedLoading", "event_thresholds",
     "PRESET_NAMES", "WINDOWS", "aging_best_fit", "paper_example", "preset", "window",
     "BalancedStart", "InitialState", "Nondimensional", "SpringSlider", "balanced_initial_state",

@@ -245,7 +245,8 @@ def test_every_step_declares_inputs_that_resolve(tmp_path):
     code = RP._inputs(RP.STEPS[RP.STEP_NAMES.index("windows")], tmp_path)["code"]
     assert {"benchmarks/windows.py", "benchmarks/summary.py", "integrators/own/etd.py"} <= set(code)
     assert "benchmarks/reproduce.py" not in code and "benchmarks/cli.py" not in code
-    assert {"speedup", "work-precision", "target-full", "binding-overhead"} == set(RP.FULL_STEPS)
+    assert {"speedup", "work-precision", "target-full", "binding-overhead",
+            "ensemble-scaling"} == set(RP.FULL_STEPS)
 
 
 def test_the_command_line_refuses_misuse_in_one_line(capsys):

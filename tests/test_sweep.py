@@ -15,6 +15,7 @@ from benchmarks.cli_sweep import observations
 from benchmarks.fitting import j1, j2_per_event, joint_fit, read_curves
 from benchmarks.sweep import parse_b, parse_lc, sweep
 from integrators import ETD2, ETDIterated, Rodas5P
+from problems import preset
 
 DATA = Path(__file__).parent / "data"
 # made by the project's simulator: `rsfbench slip-weakening --preset W2 --law slip --t-end 20
@@ -84,8 +85,8 @@ def _obs(curves=None, window="W2"):
 def test_failed_points_never_score(tmp_path):
     # a step budget that W2 over 20 s fits at Lc = 0.3 µm (~200,000 ETD steps: τ spans
     # t·v0/Lc) but not at 0.1 µm (~600,000): two failed rows beside two scored ones
-    res = sweep("W2", "slip", [0.0092, 0.0094], [1e-7, 3e-7], ETDIterated(max_steps=400_000),
-                _obs(), tmp_path, t_end=20.0, workers=1, progress=False)
+    res = sweep(preset("W2", law="slip", t_end=20.0), [0.0092, 0.0094], [1e-7, 3e-7],
+                ETDIterated(max_steps=400_000), _obs(), tmp_path, workers=1, progress=False)
     t = res.table.set_index(["b", "lc_m"])
     failed = t.xs(1e-7, level="lc_m")
     assert (failed.retcode == "MaxSteps").all() and (failed.classification == "failed").all()
@@ -104,8 +105,9 @@ def test_j2_sees_b_and_lc_in_the_friction_curves(tmp_path):
     visibly worse (with the spring force Fs/Fn, the spring's unloading line, it was not).
     Measured without noise: 1e-14 at (0.0094, 0.3 µm), 4.3e-5 at (0.0092, 0.3 µm), 4.4e-5 at
     (0.0094, 1 µm), against the noise variance 4e-8."""
-    res = sweep("W2", "slip", [0.0092, 0.0094], [3e-7, 1e-6], Rodas5P(rtol=1e-8, atol=1e-8),
-                _obs(read_curves(CURVES)), tmp_path, t_end=20.0, workers=1, progress=False)
+    res = sweep(preset("W2", law="slip", t_end=20.0), [0.0092, 0.0094], [3e-7, 1e-6],
+                Rodas5P(rtol=1e-8, atol=1e-8), _obs(read_curves(CURVES)), tmp_path, workers=1,
+                progress=False)
     t = res.table.set_index(["b", "lc_m"])
     gen = t.loc[(0.0094, 3e-7)]
     # 25 samples per event, the mean removed: E[J2] = (24/25) σ²
@@ -128,17 +130,18 @@ def _cli(out, *extra):
 
 
 def test_a_killed_sweep_resumes_to_the_same_table(tmp_path):
-    whole = sweep("W4", "slip", parse_b("0.0101:0.0104:0.0001"), parse_lc("1e-7:2e-7:3log"),
-                  ETD2(), _obs(window="W4"), tmp_path / "whole", t_end=10.0, workers=1, progress=False)
+    whole = sweep(preset("W4", law="slip", t_end=10.0), parse_b("0.0101:0.0104:0.0001"),
+                  parse_lc("1e-7:2e-7:3log"), ETD2(), _obs(window="W4"), tmp_path / "whole",
+                  workers=1, progress=False)
     out = tmp_path / "killed"
     proc = subprocess.Popen(_cli(out), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    points = out / "points"
+    chunks = out / "chunks"                   # 12 points: one point a chunk (auto_chunk_size)
     deadline = time.time() + 120
-    while time.time() < deadline and len(list(points.glob("*.json"))) < 2:
+    while time.time() < deadline and len(list(chunks.glob("*.parquet"))) < 2:
         time.sleep(0.01)
     proc.send_signal(signal.SIGKILL)
     proc.wait()
-    done = len(list(points.glob("*.json")))
+    done = len(list(chunks.glob("*.parquet")))
     assert 2 <= done < 12, f"kill landed after {done} of 12 points"
     again = subprocess.run(_cli(out, "--json"), capture_output=True, text=True, check=True)
     summary = json.loads(again.stdout)
@@ -150,12 +153,13 @@ def test_a_killed_sweep_resumes_to_the_same_table(tmp_path):
 
 def test_dask_and_local_pools_give_the_same_table(tmp_path):
     distributed = pytest.importorskip("distributed")
-    args = ("W2", "slip", [0.0092, 0.0094], [1e-7, 3e-7], ETDIterated(), _obs())
-    serial = sweep(*args, tmp_path / "serial", t_end=20.0, workers=1, progress=False).table
-    pool = sweep(*args, tmp_path / "pool", t_end=20.0, workers=2, progress=False).table
+    args = (preset("W2", law="slip", t_end=20.0), [0.0092, 0.0094], [1e-7, 3e-7], ETDIterated(),
+            _obs())
+    serial = sweep(*args, tmp_path / "serial", workers=1, progress=False).table
+    pool = sweep(*args, tmp_path / "pool", workers=2, progress=False).table
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
                                   dashboard_address=None) as cluster:
-        res = sweep(*args, tmp_path / "dask", t_end=20.0, scheduler=cluster.scheduler_address,
+        res = sweep(*args, tmp_path / "dask", scheduler=cluster.scheduler_address,
                     progress=False)
     assert res.summary["scheduler"] == cluster.scheduler_address
     for other in (pool, res.table):

@@ -25,8 +25,8 @@ from integrators.core import cycles
 from integrators.own import batch as B
 from integrators.own.compiled import CompiledAlgorithm, failure
 
-__all__ = ["RESULT_COLUMNS", "METRIC_COLUMNS", "COUNTER_COLUMNS", "batch_rows", "point_rows",
-           "failed_rows", "compiled"]
+__all__ = ["RESULT_COLUMNS", "METRIC_COLUMNS", "COUNTER_COLUMNS", "CURVE_COLUMNS", "batch_rows",
+           "point_rows", "failed_rows", "compiled", "columns_of"]
 
 #: the limit-cycle columns, NaN unless the point has a limit cycle
 METRIC_COLUMNS = ("period", "recurrence_s", "friction_drop", "slip_m", "peak_velocity_m_s",
@@ -36,6 +36,14 @@ COUNTER_COLUMNS = ("nfev", "njev", "steps", "rejected")
 RESULT_COLUMNS = ("classification", "retcode", "message", "n_events", *METRIC_COLUMNS, "kappa",
                   *COUNTER_COLUMNS, "wall_s", "integrator")
 _TEXT = ("classification", "retcode", "message", "integrator")
+#: with ``curve_dt``: the slip-weakening curve of the last complete event (slip in m, friction
+#: Ft/Fn; :func:`benchmarks.fitting.event_curve`), empty unless the point has a limit cycle
+CURVE_COLUMNS = ("curve_slip", "curve_friction")
+
+
+def columns_of(names, curves: bool) -> list[str]:
+    """The columns of an ensemble's table: the parameters, the results, the curves if any."""
+    return [*names, *RESULT_COLUMNS, *(CURVE_COLUMNS if curves else ())]
 
 
 def compiled(algorithm) -> bool:
@@ -45,13 +53,17 @@ def compiled(algorithm) -> bool:
 
 def _frame(names, values, columns: dict) -> pd.DataFrame:
     """The table: parameter columns, then :data:`RESULT_COLUMNS` with fixed dtypes (so that
-    every chunk has the same schema, whatever it holds)."""
+    every chunk has the same schema, whatever it holds), then the curves if ``columns`` has
+    them."""
     data = {name: values[:, j].astype(float) for j, name in enumerate(names)}
     for c in RESULT_COLUMNS:
         x = columns[c]
         data[c] = (pd.array(x, dtype="str") if c in _TEXT
                    else np.asarray(x, dtype=np.int64 if c in COUNTER_COLUMNS + ("n_events",)
                                    else float))
+    for c in CURVE_COLUMNS:
+        if c in columns:
+            data[c] = pd.Series([np.asarray(x, dtype=float) for x in columns[c]], dtype=object)
     return pd.DataFrame(data)
 
 
@@ -92,15 +104,19 @@ def batch_rows(problems, algorithm, names, values, wall_budget=None) -> pd.DataF
     return _frame(names, values, col)
 
 
-def point_rows(problems, algorithm, names, values, wall_budget=None) -> pd.DataFrame:
+def point_rows(problems, algorithm, names, values, wall_budget=None,
+               curve_dt: float | None = None) -> pd.DataFrame:
     """The rows of ``problems`` solved one by one with :func:`integrators.solve` (any backend),
-    as :func:`batch_rows` writes them."""
+    as :func:`batch_rows` writes them; with ``curve_dt`` (s) the trajectory is saved that finely
+    and each row has its slip-weakening curve (:data:`CURVE_COLUMNS`)."""
+    from benchmarks.fitting import event_curve
+    save = dict(save_every=curve_dt) if curve_dt else dict(max_points=2)
     rows = []
     for problem in problems:
         try:
-            sol = solve(problem, algorithm, max_points=2, wall_budget=wall_budget)
+            sol = solve(problem, algorithm, wall_budget=wall_budget, **save)
         except Exception as exc:       # checked before the ensemble started: a bug if it happens
-            rows.append(_failed(f"{type(exc).__name__}: {exc}", problem, algorithm))
+            rows.append(_failed(f"{type(exc).__name__}: {exc}", problem, algorithm, curve_dt))
             continue
         cycle = summarize(sol)
         row = {"classification": cycle.classification, "retcode": sol.retcode.value,
@@ -108,23 +124,31 @@ def point_rows(problems, algorithm, names, values, wall_budget=None) -> pd.DataF
                "kappa": problem.kappa, "nfev": sol.stats.nfev, "njev": sol.stats.njev,
                "steps": sol.stats.steps, "rejected": sol.stats.rejected,
                "wall_s": sol.stats.wall_s, "integrator": algorithm.name}
+        if curve_dt:
+            row.update(curve_slip=[], curve_friction=[])
         if cycle.classification in CYCLES:
             row.update({c: getattr(cycle, c) for c in METRIC_COLUMNS})
+            if curve_dt:
+                row["curve_slip"], row["curve_friction"] = event_curve(sol)
         rows.append(row)
-    return _frame(names, values, _columns(rows))
+    return _frame(names, values, _columns(rows, curve_dt))
 
 
-def _failed(message: str, problem, algorithm) -> dict:
+def _failed(message: str, problem, algorithm, curve_dt=None) -> dict:
     return {"classification": "failed", "retcode": ReturnCode.FAILURE.value, "message": message,
             "n_events": 0, "kappa": problem.kappa, "nfev": 0, "njev": 0, "steps": 0,
-            "rejected": 0, "wall_s": np.nan, "integrator": algorithm.name}
+            "rejected": 0, "wall_s": np.nan, "integrator": algorithm.name,
+            **({"curve_slip": [], "curve_friction": []} if curve_dt else {})}
 
 
-def failed_rows(problems, algorithm, names, values, message: str) -> pd.DataFrame:
+def failed_rows(problems, algorithm, names, values, message: str,
+                curve_dt: float | None = None) -> pd.DataFrame:
     """The rows of points that could not be run at all (their workers died): ``Failure`` with
     ``message``."""
-    return _frame(names, values, _columns([_failed(message, p, algorithm) for p in problems]))
+    return _frame(names, values, _columns([_failed(message, p, algorithm, curve_dt)
+                                           for p in problems], curve_dt))
 
 
-def _columns(rows: list[dict]) -> dict:
-    return {c: [row.get(c, np.nan) for row in rows] for c in RESULT_COLUMNS}
+def _columns(rows: list[dict], curves) -> dict:
+    cols = RESULT_COLUMNS + (CURVE_COLUMNS if curves else ())
+    return {c: [row.get(c, np.nan) for row in rows] for c in cols}

@@ -32,10 +32,11 @@ from benchmarks.ensemble.points import MAX_POINTS, check_points, point_problems
 from benchmarks.ensemble.rows import batch_rows, compiled, failed_rows, point_rows
 from benchmarks.ensemble.store import ChunkStore, identity_of
 from benchmarks.sweep_exec import CONNECT_TIMEOUT_S, WORKER_TIMEOUT_S, connect, execute
-from integrators import Algorithm
+from integrators import Algorithm, Output
 from problems._validate import check_count, check_positive
 
-__all__ = ["ensemble", "Chunk", "run_chunk", "CHUNK_SIZE", "BACKENDS"]
+__all__ = ["ensemble", "Chunk", "run_chunk", "batched", "auto_chunk_size", "CHUNK_SIZE",
+           "BACKENDS"]
 
 #: points per chunk: a few hundred keeps a Dask task (~1 ms to schedule) and a Parquet file
 #: (~10 ms to write) small beside the chunk's solves, and Ctrl-C is seen between chunks
@@ -55,14 +56,32 @@ class Chunk:
     first: int
     wall_budget: float | None = None
     threads: int | None = None
+    curve_dt: float | None = None
+
+
+def batched(algorithm, curve_dt=None) -> bool:
+    """Does an ensemble of ``algorithm`` run compiled batches? The own methods on the compiled
+    engine do, unless slip-weakening curves are asked for (they need the trajectory, which a
+    batch does not keep)."""
+    return compiled(algorithm) and not curve_dt
+
+
+def auto_chunk_size(n: int, algorithm, curve_dt=None) -> int:
+    """The default chunk size: :data:`CHUNK_SIZE` for compiled batches; for point-by-point
+    solves (seconds each, for some backends) about 64 chunks, at most :data:`CHUNK_SIZE` points
+    each, so that a stopped run keeps most of its work. It depends on the points only, never on
+    the workers: a rerun on other workers finds the same chunks."""
+    if batched(algorithm, curve_dt):
+        return CHUNK_SIZE
+    return int(min(CHUNK_SIZE, max(1, -(-n // 64))))
 
 
 def run_chunk(chunk: Chunk) -> pd.DataFrame:
     """The rows of a chunk (never raises for a failing point: it is a row)."""
     problems = point_problems(chunk.problem, chunk.names, chunk.values, chunk.first)
-    if not compiled(chunk.algorithm):
+    if not batched(chunk.algorithm, chunk.curve_dt):
         return point_rows(problems, chunk.algorithm, chunk.names, chunk.values,
-                          chunk.wall_budget)
+                          chunk.wall_budget, chunk.curve_dt)
     import numba
     with _numba_threads(chunk.threads), numba.parallel_chunksize(1):
         return batch_rows(problems, chunk.algorithm, chunk.names, chunk.values,
@@ -97,16 +116,18 @@ def failed_chunk(chunk: Chunk, message: str) -> pd.DataFrame:
     """The rows of a chunk whose Dask workers all died running it: failed, and ``transient``
     (never stored, so that a rerun tries the chunk again)."""
     problems = point_problems(chunk.problem, chunk.names, chunk.values, chunk.first)
-    table = failed_rows(problems, chunk.algorithm, chunk.names, chunk.values, message)
+    table = failed_rows(problems, chunk.algorithm, chunk.names, chunk.values, message,
+                        chunk.curve_dt)
     table.attrs["transient"] = True
     return table
 
 
-def ensemble(problem, algorithm, params, *, store=None, chunk_size: int = CHUNK_SIZE,
-             workers: int | None = None, backend: str = "threads", scheduler: str | None = None,
-             wall_budget: float | None = None, progress: bool = True,
+def ensemble(problem, algorithm, params, *, store=None, chunk_size: int | None = None,
+             workers: int | None = None, backend: str | None = None,
+             scheduler: str | None = None, wall_budget: float | None = None,
+             curve_dt: float | None = None, progress: bool = True,
              max_points: int = MAX_POINTS, connect_timeout: float = CONNECT_TIMEOUT_S,
-             worker_timeout: float = WORKER_TIMEOUT_S) -> pd.DataFrame:
+             worker_timeout: float = WORKER_TIMEOUT_S, label: str = "") -> pd.DataFrame:
     """Solve ``problem`` with ``algorithm`` at every point of ``params`` (field name → values,
     one value per point: :func:`benchmarks.ensemble.grid` makes a grid's) and summarise each.
 
@@ -115,23 +136,33 @@ def ensemble(problem, algorithm, params, *, store=None, chunk_size: int = CHUNK_
     metrics, κ, counters, the solve's wall time). A failed point is a row with its retcode.
     ``df.attrs`` says how many points ran and were resumed, the wall time, the bad chunk files.
     ``wall_budget``: s per point. ``workers``: threads or processes on this machine (default:
-    all cores). Misuse raises ``ValueError`` before any work (module docstring for the rest).
+    all cores). ``backend``: ``"threads"`` or ``"processes"`` (default: threads for compiled
+    batches, processes for the others, whose Python holds the GIL). ``chunk_size``: points per
+    chunk (default :func:`auto_chunk_size`). ``curve_dt`` (s): also each point's slip-weakening
+    curve, from a trajectory saved that finely (point by point). Misuse raises ``ValueError``
+    before any work (module docstring for the rest).
     """
     if not isinstance(algorithm, Algorithm):
         raise ValueError(f"algorithm must be an Algorithm instance, got {algorithm!r}")
+    for name, value in (("wall_budget", wall_budget), ("curve_dt", curve_dt)):
+        if value is not None:
+            check_positive(name, value)
+    batch = batched(algorithm, curve_dt)
+    backend = backend or ("threads" if batch else "processes")
     if backend not in BACKENDS:
         raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
-    chunk_size = check_count("chunk_size", chunk_size)
     workers = os.cpu_count() or 1 if workers is None else check_count("workers", workers)
-    if wall_budget is not None:
-        check_positive("wall_budget", wall_budget)
     names, values = check_points(problem, params, max_points)
-    point_problems(problem, names, values)                # every point valid, or say which
-    own_threads = compiled(algorithm) and backend == "threads" and scheduler is None
+    chunk_size = (auto_chunk_size(len(values), algorithm, curve_dt) if chunk_size is None
+                  else check_count("chunk_size", chunk_size))
+    problems = point_problems(problem, names, values)     # every point valid, or say which
+    if curve_dt:                                          # the saved trajectory fits memory
+        Output(save_every=curve_dt).interval(max(p.t_end for p in problems))
+    own_threads = batch and backend == "threads" and scheduler is None
     chunks = [Chunk(problem, algorithm, names, values[i:i + chunk_size], i, wall_budget,
-                    threads=workers if own_threads else 1)
+                    threads=workers if own_threads else 1, curve_dt=curve_dt)
               for i in range(0, len(values), chunk_size)]
-    identity = identity_of(problem, algorithm, names, values, chunk_size, wall_budget)
+    identity = identity_of(problem, algorithm, names, values, chunk_size, wall_budget, curve_dt)
     client = connect(scheduler, connect_timeout) if scheduler else None   # before any work
     chunk_store = ChunkStore(store, identity) if store is not None else None
     start = time.perf_counter()
@@ -142,7 +173,7 @@ def ensemble(problem, algorithm, params, *, store=None, chunk_size: int = CHUNK_
             todo = [c for c in chunks if tables[c.first] is None]
             n_resumed = len(values) - sum(len(c.values) for c in todo)
             bar = tqdm(total=len(values), initial=n_resumed, unit="point", disable=not progress,
-                       desc=f"ensemble {getattr(problem, 'name', '') or 'problem'}")
+                       desc=label or f"ensemble {problem.name or 'problem'}")
             with bar:
                 for chunk, table in _solve(todo, own_threads, workers, backend, client,
                                            worker_timeout):
@@ -158,7 +189,7 @@ def ensemble(problem, algorithm, params, *, store=None, chunk_size: int = CHUNK_
                    "n_resumed": n_resumed, "wall_s": time.perf_counter() - start,
                    "chunks": len(chunks), "chunk_size": chunk_size,
                    "workers": 1 if scheduler else workers, "backend": backend,
-                   "scheduler": scheduler, "batched": compiled(algorithm),
+                   "scheduler": scheduler, "batched": batch,
                    "bad_chunks": list(chunk_store.bad) if chunk_store else []}
     return table
 

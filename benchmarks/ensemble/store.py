@@ -32,7 +32,7 @@ import numpy as np
 import pandas as pd
 
 from benchmarks.files import atomic_write, remove_stale_temporaries
-from benchmarks.ensemble.rows import METRIC_COLUMNS, RESULT_COLUMNS
+from benchmarks.ensemble.rows import METRIC_COLUMNS, columns_of
 from benchmarks.metrics import CLASSIFICATIONS, CYCLES
 from integrators import ReturnCode
 
@@ -51,12 +51,14 @@ class StoreBusy(RuntimeError):
     """Another run holds the store's lock."""
 
 
-def identity_of(problem, algorithm, names, values, chunk_size: int, wall_budget) -> dict:
+def identity_of(problem, algorithm, names, values, chunk_size: int, wall_budget,
+                curve_dt=None) -> dict:
     """What makes an ensemble the same ensemble: the base problem, the algorithm and its
-    options, the wall budget per point, the parameter names, the points (a hash) and the
-    chunking."""
+    options, the wall budget per point, the curves' resolution, the parameter names, the points
+    (a hash) and the chunking."""
     return {"schema": SCHEMA, "problem": repr(problem), "algorithm": repr(algorithm),
-            "wall_budget": wall_budget, "parameters": list(names), "n_points": len(values),
+            "wall_budget": wall_budget, "curve_dt": curve_dt, "parameters": list(names),
+            "n_points": len(values),
             "points_sha256": hashlib.sha256(np.ascontiguousarray(values).tobytes()).hexdigest(),
             "chunk_size": chunk_size}
 
@@ -107,8 +109,9 @@ class ChunkStore:
             except (OSError, ValueError):
                 held = None
             if held != self.identity:
-                what = ("unreadable" if held is None else ", ".join(
-                    k for k in self.identity if held.get(k) != self.identity[k]))
+                what = ("unreadable" if not isinstance(held, dict) else ", ".join(
+                    k for k in sorted(set(held) | set(self.identity))
+                    if held.get(k) != self.identity.get(k)))
                 raise ValueError(f"the store {self.root} holds another ensemble (differing: "
                                  f"{what}): give another directory, or remove it to start over")
         elif any(self.root.glob("*.parquet")):
@@ -135,7 +138,7 @@ class ChunkStore:
             return None
         try:
             table = _read(path, key)
-            _check(table, names, values, path)
+            _check(table, names, values, path, bool(self.identity.get("curve_dt")))
         except _Bad as exc:
             self.bad.append(str(exc))
             warnings.warn(f"{exc}: recomputing it", BadChunkWarning, stacklevel=2)
@@ -173,10 +176,11 @@ def _read(path: Path, key: str) -> pd.DataFrame:
     return arrow.to_pandas()
 
 
-def _check(table: pd.DataFrame, names, values: np.ndarray, path: Path) -> None:
+def _check(table: pd.DataFrame, names, values: np.ndarray, path: Path, curves: bool) -> None:
     """``_Bad`` unless ``table`` is the whole chunk: one row per point with exactly its
-    parameter values, every column, known classes and retcodes, metrics for the cycles only."""
-    expected = list(names) + list(RESULT_COLUMNS)
+    parameter values, every column, known classes and retcodes, metrics (and curves) for the
+    cycles only."""
+    expected = columns_of(names, curves)
     if list(table.columns) != expected:
         raise _Bad(f"chunk {path} has the columns {list(table.columns)}, not {expected}")
     if len(table) != len(values):
@@ -190,3 +194,10 @@ def _check(table: pd.DataFrame, names, values: np.ndarray, path: Path) -> None:
     metrics = table[list(METRIC_COLUMNS)].to_numpy(dtype=float)
     if not (np.isfinite(metrics[cycle]).all() and np.isnan(metrics[~cycle]).all()):
         raise _Bad(f"chunk {path} holds limit-cycle metrics that do not match its classes")
+    if curves:
+        for is_cycle, slip, mu in zip(cycle, table.curve_slip, table.curve_friction):
+            x, y = np.asarray(slip, dtype=float), np.asarray(mu, dtype=float)
+            if not (x.shape == y.shape and np.isfinite(x).all() and np.isfinite(y).all()
+                    and (x.size >= 2 if is_cycle else x.size == 0)):
+                raise _Bad(f"chunk {path} lacks a slip-weakening curve of a limit cycle, or "
+                           "holds one of another point")

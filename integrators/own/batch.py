@@ -110,8 +110,7 @@ def _one(kernel, workspace, p0, z0, c, dirs, r):
     st[_NEXT_SAVE] = 1.0
     ev = np.empty((_EVENTS_START, 8))
     ws = workspace()
-    sc = (np.empty(3), np.empty(3), np.empty(3), np.empty(3), np.empty((3, 3)), np.empty((6, 4)),
-          np.empty(4), np.empty(3))
+    sc = E.scratch()
     while True:
         status = kernel(ws, sc, st, p, Z, G, dirs, grid, saved, ev, _NO_LIMIT)
         if status == E.GROW:

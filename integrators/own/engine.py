@@ -560,9 +560,11 @@ def run(prepare, attempt, reject, accept, ws, sc, st, p, Z, G, dirs, grid, saved
             _hand_on(st, Z, tau, _Z)
 
 
+@njit(cache=True, nogil=True)
 def scratch():
     """The engine's scratch arrays for :func:`run`: z0, f0, z1, f1 (a step's ends), D (its dense
-    output), the event scan's 6 × 4, the root functions, a state."""
+    output), the event scan's 6 × 4, the root functions, a state (compiled, so that a batch of
+    solves can make them too)."""
     return (np.empty(3), np.empty(3), np.empty(3), np.empty(3), np.empty((3, 3)),
             np.empty((6, 4)), np.empty(4), np.empty(3))
 

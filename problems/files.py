@@ -1,0 +1,127 @@
+"""A spring-slider from a file: a user's own apparatus, in TOML or JSON, SI units.
+
+    name = "my apparatus"      # optional
+    mass = 1100.0              # kg
+    stiffness = 1.48e8         # N/m
+    normal_force = 997500.0    # N
+    t_end = 40.0               # s
+    mu0 = 0.6                  # optional, F0/Fn (default 0.6)
+
+    [law]
+    name = "slip"              # or "aging"
+    a = 0.008
+    b = 0.0094
+    lc = 3e-7                  # m
+    v0 = 1e-5                  # m/s, optional (default 1e-5)
+
+    [loading]                  # vl = ... (constant), or the two speeds:
+    vls = 7.5e-5               # m/s
+    vlf = 1.9717e-3            # m/s
+    df = 0.042                 # s
+
+    [initial]                  # optional: slowdown = 1.1 (the presets' rule, the default),
+    slowdown = 1.1             # or v (m/s), theta (the law's units), fs (N)
+
+The same keys as JSON objects. Every key is checked: an unknown or missing one, a value that is
+not a number, or a value the problem refuses is a ``ValueError`` naming the file and the key.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import tomllib
+from pathlib import Path
+
+from problems.friction import law_from_name
+from problems.loading import ConstantLoading, TwoSpeedLoading
+from problems.slider import BalancedStart, InitialState, SpringSlider
+
+__all__ = ["load_problem", "problem_dict", "PROBLEM_SUFFIXES"]
+
+PROBLEM_SUFFIXES = (".toml", ".json")
+_TOP = {"mass", "stiffness", "normal_force", "t_end", "mu0", "name", "law", "loading", "initial"}
+_REQUIRED = ("mass", "stiffness", "normal_force", "t_end", "law", "loading")
+
+
+def load_problem(path) -> SpringSlider:
+    """The :class:`SpringSlider` a TOML or JSON file describes (module docstring)."""
+    path = Path(path)
+    if path.suffix.lower() not in PROBLEM_SUFFIXES:
+        raise ValueError(f"problem file {path} must end in .toml or .json")
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise ValueError(f"cannot read the problem file {path}: {exc.strerror}") from None
+    try:
+        data = tomllib.loads(text) if path.suffix.lower() == ".toml" else json.loads(text)
+    except (tomllib.TOMLDecodeError, json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ValueError(f"problem file {path} is not valid {path.suffix[1:].upper()}: "
+                         f"{exc}") from None
+    try:
+        return problem_from_dict(data, default_name=path.stem)
+    except ValueError as exc:
+        raise ValueError(f"problem file {path}: {exc}") from None
+
+
+def problem_from_dict(data, default_name: str = "") -> SpringSlider:
+    """The problem of a parsed file (module docstring for the keys)."""
+    table = _table(data, "the file")
+    _keys(table, _TOP, _REQUIRED, "the file")
+    law = _table(table["law"], "[law]")
+    _keys(law, {"name", "a", "b", "lc", "v0"}, ("name", "a", "b", "lc"), "[law]")
+    if not isinstance(law["name"], str):
+        raise ValueError(f"[law] name must be \"slip\" or \"aging\", got {law['name']!r}")
+    law = law_from_name(law["name"], **{k: _number(law, k, "[law]") for k in law if k != "name"})
+    loading = _table(table["loading"], "[loading]")
+    if "vl" in loading:
+        _keys(loading, {"vl"}, ("vl",), "[loading]")
+        loading = ConstantLoading(_number(loading, "vl", "[loading]"))
+    else:
+        _keys(loading, {"vls", "vlf", "df"}, ("vls", "vlf", "df"), "[loading] (or vl alone)")
+        loading = TwoSpeedLoading(**{k: _number(loading, k, "[loading]") for k in loading})
+    initial = _table(table.get("initial", {}), "[initial]")
+    if set(initial) <= {"slowdown"}:
+        initial = BalancedStart(**{k: _number(initial, k, "[initial]") for k in initial})
+    else:
+        _keys(initial, {"v", "theta", "fs"}, ("v", "theta", "fs"), "[initial] (or slowdown alone)")
+        initial = InitialState(**{k: _number(initial, k, "[initial]") for k in initial})
+    name = table.get("name", default_name)
+    if not isinstance(name, str):
+        raise ValueError(f"name must be a string, got {name!r}")
+    scalars = {k: _number(table, k, "the file") for k in ("mass", "stiffness", "normal_force",
+                                                           "t_end", "mu0") if k in table}
+    return SpringSlider(law=law, loading=loading, initial=initial, name=name, **scalars)
+
+
+def problem_dict(problem: SpringSlider) -> dict:
+    """The file form of ``problem`` (what :func:`problem_from_dict` reads back)."""
+    import dataclasses
+    initial = dataclasses.asdict(problem.initial)
+    return {"name": problem.name, "mass": problem.mass, "stiffness": problem.stiffness,
+            "normal_force": problem.normal_force, "t_end": problem.t_end, "mu0": problem.mu0,
+            "law": {"name": problem.law.name, **dataclasses.asdict(problem.law)},
+            "loading": dataclasses.asdict(problem.loading), "initial": initial}
+
+
+def _table(value, where: str) -> dict:
+    if not isinstance(value, dict):
+        raise ValueError(f"{where} must be a table of keys, got {value!r}")
+    return value
+
+
+def _keys(table: dict, allowed: set, required, where: str) -> None:
+    unknown = sorted(set(table) - set(allowed))
+    if unknown:
+        raise ValueError(f"unknown key {unknown[0]!r} in {where}; the keys are "
+                         f"{', '.join(sorted(allowed))}")
+    missing = [k for k in required if k not in table]
+    if missing:
+        raise ValueError(f"{where} lacks the key {missing[0]!r}")
+
+
+def _number(table: dict, key: str, where: str) -> float:
+    value = table[key]
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ValueError(f"{key} in {where} must be a finite number, got {value!r}")
+    return float(value)
