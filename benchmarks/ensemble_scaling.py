@@ -171,6 +171,11 @@ def ensemble_scaling(out, n: int = 21, big: int = 100_000, kills: int = 3, dask:
                      repeats: int = 3, seed: int = 0, progress: bool = True,
                      study_csv=STUDY_CSV) -> dict:
     """Measure the three targets (module docstring); write ``out/ensemble_scaling.json``, ``.md``."""
+    from benchmarks.ensemble import CHUNK_SIZE
+    n_chunks = -(-len(_big_grid(big)["b"]) // CHUNK_SIZE) if big else 0
+    if big and not kills <= n_chunks - 2:
+        raise ValueError(f"kills = {kills} need at least {kills + 2} chunks of {CHUNK_SIZE} "
+                         f"points, and big = {big} makes {n_chunks}: raise big or kill less")
     algorithm, why = recommended_algorithm(1e-3, study_csv)
     summary = {"integrator": algorithm.name, "integrator_choice": why, "targets": TARGETS,
                "grid": _time_grid(algorithm, n, repeats, progress)}

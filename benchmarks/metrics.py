@@ -168,6 +168,8 @@ def limit_cycle(events: pd.DataFrame, normal_force: float, t_end: float, rtol: f
     """
     if not 1 <= max_period <= cycles.MAX_PERIOD:
         raise ValueError(f"max_period must be in 1..{cycles.MAX_PERIOD}, got {max_period!r}")
+    if not min_repeats >= 1:
+        raise ValueError(f"min_repeats must be at least 1, got {min_repeats!r}")
     t, x = _metric_columns(events, normal_force)
     col = {c: events[c].to_numpy(dtype=float) for c in ("t_end", "slip_start", "slip_end")}
     found = np.empty(cycles.N_F)

@@ -76,7 +76,7 @@ def paper_sweeps(out, cache=None, windows=("W1", "W2", "W3", "W4"), laws=("slip"
             b, lc = grid_around(b0, lc0, **GRID[law])
             res = sweep(preset(name, law=law, t_end=T_END[name]), b, lc, algorithm,
                         observations(name), cache / f"{name}_{law}", workers=workers,
-                        progress=progress, wall_budget=POINT_BUDGET)
+                        progress=progress, wall_budget=POINT_BUDGET, reclaim_store=True)
             dest = out / "sweeps" / f"{name}_{law}"
             dest.mkdir(parents=True, exist_ok=True)
             for f in ("sweep.csv", "summary.json"):

@@ -188,8 +188,8 @@ def sweep(problem, b_values, lc_values, algorithm, obs: Observations, out,
           workers: int | None = None, scheduler: str | None = None, backend: str | None = None,
           curve_dt: float = 5e-5, wall_budget: float | None = None, progress: bool = True,
           max_points: int = MAX_GRID_POINTS, connect_timeout: float = CONNECT_TIMEOUT_S,
-          worker_timeout: float = WORKER_TIMEOUT_S,
-          chunk_size: int | None = None) -> SweepResult:
+          worker_timeout: float = WORKER_TIMEOUT_S, chunk_size: int | None = None,
+          reclaim_store: bool = False) -> SweepResult:
     """Run (or resume) the sweep of ``problem`` (a SpringSlider: its t_end is each point's) over
     ``b_values`` × ``lc_values`` and score it against ``obs``.
 
@@ -197,6 +197,8 @@ def sweep(problem, b_values, lc_values, algorithm, obs: Observations, out,
     written to ``out/sweep.csv``) and a summary (also ``out/summary.json``). Every argument is
     checked before the first point runs (``ValueError``); ``max_points`` bounds the grid.
     ``curve_dt`` (s) resolves the slip-weakening curves when ``obs`` has some.
+    ``reclaim_store``: stored chunks of another sweep in ``out`` are cleared, not refused (for
+    the harness's own caches).
     """
     if not isinstance(problem, SpringSlider):
         raise ValueError(f"problem must be a SpringSlider, got {type(problem).__name__}")
@@ -214,7 +216,8 @@ def sweep(problem, b_values, lc_values, algorithm, obs: Observations, out,
                          curve_dt=curve_dt if obs.curves is not None else None,
                          progress=progress, max_points=max_points,
                          connect_timeout=connect_timeout, worker_timeout=worker_timeout,
-                         label=f"sweep {problem.name or 'problem'}")
+                         label=f"sweep {problem.name or 'problem'}",
+                         reclaim_store=reclaim_store)
     run = table.attrs
     table = score(table.rename(columns={"lc": "lc_m"}), obs)
     summary = summarize_sweep(table, obs, algorithm, wall_s=run["wall_s"], n_run=run["n_run"],

@@ -50,10 +50,11 @@ def load_problem(path) -> SpringSlider:
     if path.suffix.lower() not in PROBLEM_SUFFIXES:
         raise ValueError(f"problem file {path} must end in .toml or .json")
     try:
-        text = path.read_text()
+        raw = path.read_bytes()
     except OSError as exc:
         raise ValueError(f"cannot read the problem file {path}: {exc.strerror}") from None
     try:
+        text = raw.decode("utf-8")
         data = tomllib.loads(text) if path.suffix.lower() == ".toml" else json.loads(text)
     except (tomllib.TOMLDecodeError, json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise ValueError(f"problem file {path} is not valid {path.suffix[1:].upper()}: "

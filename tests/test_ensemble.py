@@ -1,6 +1,7 @@
 """Ensembles (issue 16): compiled batches equal single solves, failures are rows, the Parquet
 store resumes, distrusts bad chunk files and refuses a second run or another ensemble."""
 
+import dataclasses
 import shutil
 import warnings
 
@@ -191,3 +192,46 @@ def test_a_store_of_another_ensemble_is_refused(base, points, tmp_path):
     with pytest.raises(ValueError, match="holds another ensemble .*algorithm"):
         ensemble(base, Rodas5P(rtol=1e-5, atol=1e-5), points, store=tmp_path, chunk_size=3,
                  progress=False)
+
+
+def test_a_pool_of_processes_after_threads_and_serial_batches_agree(base, points):
+    """A threaded batch starts OpenMP in this process; a pool forked from it must not (GNU
+    OpenMP aborts such a child): its chunks run single-threaded. Same rows all three ways."""
+    algorithm = Rodas5P(rtol=1e-4, atol=1e-4)
+    threads = ensemble(base, algorithm, points, workers=2, progress=False)
+    one = ensemble(base, algorithm, points, workers=1, progress=False)
+    pool = ensemble(base, algorithm, points, workers=2, backend="processes", chunk_size=4,
+                    progress=False)
+    _same(one, threads)
+    _same(pool, threads)
+
+
+def test_a_point_that_cannot_start_is_refused_before_any_work(base, tmp_path):
+    """b = 0 under the slip law with a given θ ≠ 0: Ψ = θ/B is undefined. The problem is built,
+    but its nondimensional form fails; that is found before the first solve."""
+    from problems import InitialState
+    given = dataclasses.replace(base, initial=InitialState(v=7.5e-5, theta=1e3, fs=6e5))
+    with pytest.raises(ValueError, match=r"point 1 \(b = 0\)"):
+        ensemble(given, Rodas5P(rtol=1e-4, atol=1e-4), {"b": [0.0094, 0.0]},
+                 store=tmp_path / "s", progress=False)
+    assert not (tmp_path / "s").exists()
+
+
+def test_a_bad_chunk_is_moved_aside_so_readers_never_see_it(base, points, tmp_path):
+    _run(base, points, tmp_path)
+    target = sorted(tmp_path.glob("*.parquet"))[0]
+    target.write_bytes(b"garbage")
+    again = _run(base, points, tmp_path)
+    assert (tmp_path / f".bad-{target.name}").read_bytes() == b"garbage"
+    _same(pd.read_parquet(tmp_path), again)          # the recomputed chunk, once
+
+
+def test_a_store_written_by_other_code_is_refused_or_reclaimed(base, points, tmp_path):
+    import json
+    _run(base, points, tmp_path)
+    identity = json.loads((tmp_path / "_ensemble.json").read_text())
+    (tmp_path / "_ensemble.json").write_text(json.dumps({**identity, "code": "0" * 16}))
+    with pytest.raises(ValueError, match="holds another ensemble .*code"):
+        _run(base, points, tmp_path)
+    again = _run(base, points, tmp_path, reclaim_store=True)     # a cache of the harness
+    assert again.attrs["n_run"] == 12 and len(pd.read_parquet(tmp_path)) == 12

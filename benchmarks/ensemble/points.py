@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from problems import SpringSlider, variant, variant_fields
+from problems import SpringSlider, growth_rate, variant, variant_fields
 from problems._validate import PLAUSIBLE, check_count, units_checked_already, warn_implausible
 
 __all__ = ["grid", "check_points", "point_problems", "MAX_POINTS"]
@@ -85,7 +85,10 @@ def point_problems(problem: SpringSlider, names, values, first: int = 0) -> list
         for i, row in enumerate(values):
             changes = dict(zip(names, (float(v) for v in row)))
             try:
-                out.append(variant(problem, **changes))
+                point = variant(problem, **changes)
+                point.nondimensional()       # what a solve needs first (Ψ of θ, say)
+                growth_rate(point)
+                out.append(point)
             except ValueError as exc:
                 at = ", ".join(f"{k} = {v:g}" for k, v in changes.items())
                 raise ValueError(f"point {first + i} ({at}): {exc}") from None

@@ -23,6 +23,7 @@ from benchmarks.metrics import CLASSIFICATIONS, CYCLES, EndState, cycle_from, su
 from integrators import ReturnCode, solve
 from integrators.core import cycles
 from integrators.own import batch as B
+from integrators.own import engine as E
 from integrators.own.compiled import CompiledAlgorithm, failure
 
 __all__ = ["RESULT_COLUMNS", "METRIC_COLUMNS", "COUNTER_COLUMNS", "CURVE_COLUMNS", "batch_rows",
@@ -67,10 +68,11 @@ def _frame(names, values, columns: dict) -> pd.DataFrame:
     return pd.DataFrame(data)
 
 
-def batch_rows(problems, algorithm, names, values, wall_budget=None) -> pd.DataFrame:
+def batch_rows(problems, algorithm, names, values, wall_budget=None,
+               parallel: bool = True) -> pd.DataFrame:
     """The rows of ``problems`` (the points ``values`` of ``names``) solved in one compiled
-    batch of the own ``algorithm``."""
-    R = algorithm.solve_batch(problems, wall_budget)
+    batch of the own ``algorithm``, on numba's threads or (``parallel`` False) on this one."""
+    R = algorithm.solve_batch(problems, wall_budget, parallel)
     n = len(problems)
     col = {c: [None] * n for c in ("classification", "retcode", "message")}
     metrics = np.full((n, len(METRIC_COLUMNS)), np.nan)
@@ -78,7 +80,10 @@ def batch_rows(problems, algorithm, names, values, wall_budget=None) -> pd.DataF
     for i, problem in enumerate(problems):
         r, what = R[i], CLASSIFICATIONS[int(R[i, B.R["CLASS"]])]
         n_events = int(r[B.R["N_EVENTS"]])
-        if what == "failed":
+        if what == "failed" and int(r[B.R["STATUS"]]) == E.DONE:
+            # done, but the end was not saved (a restart just short of it): as summarize says
+            retcode, message = ReturnCode.SUCCESS, f"stopped at t = 0 s of {problem.t_end:g} s"
+        elif what == "failed":
             retcode, message = failure(int(r[B.R["STATUS"]]), r[B.R["T_STOP"]],
                                        algorithm.max_steps, wall_budget, problem.t_end)
         else:
@@ -111,12 +116,13 @@ def point_rows(problems, algorithm, names, values, wall_budget=None,
     and each row has its slip-weakening curve (:data:`CURVE_COLUMNS`)."""
     from benchmarks.fitting import event_curve
     save = dict(save_every=curve_dt) if curve_dt else dict(max_points=2)
-    rows = []
+    rows, crashed = [], False
     for problem in problems:
         try:
             sol = solve(problem, algorithm, wall_budget=wall_budget, **save)
-        except Exception as exc:       # checked before the ensemble started: a bug if it happens
+        except Exception as exc:       # checked before the ensemble started: a bug, or this
             rows.append(_failed(f"{type(exc).__name__}: {exc}", problem, algorithm, curve_dt))
+            crashed = True             # machine's environment (a missing library): not stored
             continue
         cycle = summarize(sol)
         row = {"classification": cycle.classification, "retcode": sol.retcode.value,
@@ -131,7 +137,10 @@ def point_rows(problems, algorithm, names, values, wall_budget=None,
             if curve_dt:
                 row["curve_slip"], row["curve_friction"] = event_curve(sol)
         rows.append(row)
-    return _frame(names, values, _columns(rows, curve_dt))
+    table = _frame(names, values, _columns(rows, curve_dt))
+    if crashed:
+        table.attrs["transient"] = True
+    return table
 
 
 def _failed(message: str, problem, algorithm, curve_dt=None) -> dict:

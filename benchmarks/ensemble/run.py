@@ -82,8 +82,10 @@ def run_chunk(chunk: Chunk) -> pd.DataFrame:
     if not batched(chunk.algorithm, chunk.curve_dt):
         return point_rows(problems, chunk.algorithm, chunk.names, chunk.values,
                           chunk.wall_budget, chunk.curve_dt)
-    import numba
-    with _numba_threads(chunk.threads), numba.parallel_chunksize(1):
+    if chunk.threads == 1:               # a pool's process, a Dask worker: no OpenMP at all
+        return batch_rows(problems, chunk.algorithm, chunk.names, chunk.values,
+                          chunk.wall_budget, parallel=False)
+    with _numba_threads(chunk.threads):
         return batch_rows(problems, chunk.algorithm, chunk.names, chunk.values,
                           chunk.wall_budget)
 
@@ -107,7 +109,7 @@ def warm_chunk(chunk: Chunk) -> None:
     try:
         first = point_problems(chunk.problem, chunk.names, chunk.values[:1])[0]
         run_chunk(Chunk(replace(first, t_end=first.t_end * 1e-3), chunk.algorithm, (),
-                        np.empty((1, 0)), 0, threads=chunk.threads))
+                        np.empty((1, 0)), 0, threads=chunk.threads, curve_dt=chunk.curve_dt))
     except Exception:            # a failing point is reported by run_chunk, not here
         pass
 
@@ -127,7 +129,8 @@ def ensemble(problem, algorithm, params, *, store=None, chunk_size: int | None =
              scheduler: str | None = None, wall_budget: float | None = None,
              curve_dt: float | None = None, progress: bool = True,
              max_points: int = MAX_POINTS, connect_timeout: float = CONNECT_TIMEOUT_S,
-             worker_timeout: float = WORKER_TIMEOUT_S, label: str = "") -> pd.DataFrame:
+             worker_timeout: float = WORKER_TIMEOUT_S, label: str = "",
+             reclaim_store: bool = False) -> pd.DataFrame:
     """Solve ``problem`` with ``algorithm`` at every point of ``params`` (field name → values,
     one value per point: :func:`benchmarks.ensemble.grid` makes a grid's) and summarise each.
 
@@ -139,8 +142,10 @@ def ensemble(problem, algorithm, params, *, store=None, chunk_size: int | None =
     all cores). ``backend``: ``"threads"`` or ``"processes"`` (default: threads for compiled
     batches, processes for the others, whose Python holds the GIL). ``chunk_size``: points per
     chunk (default :func:`auto_chunk_size`). ``curve_dt`` (s): also each point's slip-weakening
-    curve, from a trajectory saved that finely (point by point). Misuse raises ``ValueError``
-    before any work (module docstring for the rest).
+    curve, from a trajectory saved that finely (point by point). ``reclaim_store``: a store of
+    another ensemble is cleared, not refused (for the harness's own caches). With ``scheduler``
+    the cluster decides the parallelism (``workers`` and ``backend`` do not apply). Misuse raises
+    ``ValueError`` before any work (module docstring for the rest).
     """
     if not isinstance(algorithm, Algorithm):
         raise ValueError(f"algorithm must be an Algorithm instance, got {algorithm!r}")
@@ -164,7 +169,7 @@ def ensemble(problem, algorithm, params, *, store=None, chunk_size: int | None =
               for i in range(0, len(values), chunk_size)]
     identity = identity_of(problem, algorithm, names, values, chunk_size, wall_budget, curve_dt)
     client = connect(scheduler, connect_timeout) if scheduler else None   # before any work
-    chunk_store = ChunkStore(store, identity) if store is not None else None
+    chunk_store = ChunkStore(store, identity, reclaim_store) if store is not None else None
     start = time.perf_counter()
     try:
         with chunk_store or contextlib.nullcontext():

@@ -1,17 +1,19 @@
 """An ensemble's finished chunks on disk: one Parquet file per chunk, written atomically.
 
-A store is a directory holding one ensemble (one base problem, algorithm, wall budget, set of
-points and chunking: its *identity*, in ``_ensemble.json``). Each finished chunk of points is one
+A store is a directory holding one ensemble (the code that makes rows, one base problem,
+algorithm, wall budget, set of points and chunking: its *identity*, in ``_ensemble.json``;
+another ensemble there is refused, or with ``reclaim`` — the harness's own caches — cleared).
+Each finished chunk of points is one
 file ``c<first point>-<key>.parquet``, written to a temporary file, fsync'd and renamed
 (:func:`benchmarks.files.atomic_write`): a killed run leaves whole chunks or none. The key hashes
 the identity and the chunk's points, so a rerun with the same arguments finds its finished
 chunks and runs only the others.
 
-A chunk file is trusted only if it reads as Parquet, carries its own key in its metadata, has
-one row per point of its chunk with exactly those parameter values, the expected columns, known
-classes and retcodes, and finite metrics exactly for the points with a limit cycle; anything
-else (truncated, corrupt, copied from another chunk) is reported by name
-(:class:`BadChunkWarning`) and recomputed.
+A chunk file is trusted only if it reads as Parquet (page checksums verified), carries its own
+key in its metadata, has one row per point of its chunk with exactly those parameter values, the
+expected columns, known classes and retcodes, and finite metrics exactly for the points with a
+limit cycle; anything else (truncated, corrupt, copied from another chunk) is reported by name
+(:class:`BadChunkWarning`), renamed ``.bad-<name>`` (so no reader sees it) and recomputed.
 
 Two runs on one directory would interleave their chunks: a lock (``.lock``, ``flock``, released
 when the process ends, however it ends) makes the second stop with a clear error. Reading a store
@@ -25,6 +27,7 @@ import fcntl
 import hashlib
 import io
 import json
+import os
 import warnings
 from pathlib import Path
 
@@ -51,12 +54,31 @@ class StoreBusy(RuntimeError):
     """Another run holds the store's lock."""
 
 
+def code_version() -> str:
+    """A hash of the code that decides a row (``integrators/``, ``problems/``, and of
+    ``benchmarks/`` the metrics, the curves and the rows) and of numba's and numpy's versions: a
+    store written by other code is another ensemble, so a fixed bug cannot hide in old rows."""
+    import numba
+    import benchmarks
+    import integrators
+    import problems
+    here = Path(benchmarks.__file__).parent
+    files = [*sorted(Path(integrators.__file__).parent.rglob("*.py")),
+             *sorted(Path(problems.__file__).parent.rglob("*.py")),
+             here / "metrics.py", here / "fitting.py", here / "ensemble" / "rows.py"]
+    digest = hashlib.sha256(f"numba {numba.__version__} numpy {np.__version__}".encode())
+    for f in files:
+        digest.update(f.name.encode() + f.read_bytes())
+    return digest.hexdigest()[:16]
+
+
 def identity_of(problem, algorithm, names, values, chunk_size: int, wall_budget,
                 curve_dt=None) -> dict:
-    """What makes an ensemble the same ensemble: the base problem, the algorithm and its
-    options, the wall budget per point, the curves' resolution, the parameter names, the points
-    (a hash) and the chunking."""
-    return {"schema": SCHEMA, "problem": repr(problem), "algorithm": repr(algorithm),
+    """What makes an ensemble the same ensemble: the code (:func:`code_version`), the base
+    problem, the algorithm and its options, the wall budget per point, the curves' resolution,
+    the parameter names, the points (a hash) and the chunking."""
+    return {"schema": SCHEMA, "code": code_version(), "problem": repr(problem),
+            "algorithm": repr(algorithm),
             "wall_budget": wall_budget, "curve_dt": curve_dt, "parameters": list(names),
             "n_points": len(values),
             "points_sha256": hashlib.sha256(np.ascontiguousarray(values).tobytes()).hexdigest(),
@@ -67,9 +89,10 @@ class ChunkStore:
     """The chunks of one ensemble under ``root`` (module docstring). Use as a context manager:
     it holds the lock from ``__enter__`` to ``__exit__``."""
 
-    def __init__(self, root, identity: dict) -> None:
+    def __init__(self, root, identity: dict, reclaim: bool = False) -> None:
         self.root = Path(root)
         self.identity = identity
+        self.reclaim = reclaim
         self.bad: list[str] = []
         self._lock = None
 
@@ -112,8 +135,13 @@ class ChunkStore:
                 what = ("unreadable" if not isinstance(held, dict) else ", ".join(
                     k for k in sorted(set(held) | set(self.identity))
                     if held.get(k) != self.identity.get(k)))
-                raise ValueError(f"the store {self.root} holds another ensemble (differing: "
-                                 f"{what}): give another directory, or remove it to start over")
+                if not self.reclaim:
+                    raise ValueError(f"the store {self.root} holds another ensemble (differing: "
+                                     f"{what}): give another directory, or remove it to start "
+                                     "over")
+                for old in [*self.root.glob("c*.parquet"), *self.root.glob(".bad-*"), path]:
+                    old.unlink(missing_ok=True)      # a cache of the harness: start it over
+                atomic_write(path, json.dumps(self.identity, indent=2))
         elif any(self.root.glob("*.parquet")):
             raise ValueError(f"the store {self.root} holds Parquet files but no _ensemble.json: "
                              "not an ensemble store of this version; give another directory")
@@ -141,7 +169,10 @@ class ChunkStore:
             _check(table, names, values, path, bool(self.identity.get("curve_dt")))
         except _Bad as exc:
             self.bad.append(str(exc))
-            warnings.warn(f"{exc}: recomputing it", BadChunkWarning, stacklevel=2)
+            aside = path.with_name(f".bad-{path.name}")
+            os.replace(path, aside)             # readers skip it; the rerun writes a good one
+            warnings.warn(f"{exc}: recomputing it (the file is kept as {aside.name})",
+                          BadChunkWarning, stacklevel=2)
             return None
         return table
 
@@ -154,7 +185,7 @@ class ChunkStore:
         arrow = arrow.replace_schema_metadata({**(arrow.schema.metadata or {}),
                                                b"rsfbench_key": key.encode()})
         sink = io.BytesIO()
-        pq.write_table(arrow, sink, compression="zstd")
+        pq.write_table(arrow, sink, compression="zstd", write_page_checksum=True)
         path = self.path(first, key)
         atomic_write(path, sink.getvalue())
         return path
@@ -167,7 +198,7 @@ class _Bad(Exception):
 def _read(path: Path, key: str) -> pd.DataFrame:
     import pyarrow.parquet as pq
     try:
-        arrow = pq.read_table(path)
+        arrow = pq.read_table(path, page_checksum_verification=True)
     except Exception as exc:         # truncated, corrupt, not Parquet: pyarrow's own errors
         raise _Bad(f"chunk {path} does not read as Parquet ({type(exc).__name__}: {exc})")
     held = (arrow.schema.metadata or {}).get(b"rsfbench_key", b"").decode()

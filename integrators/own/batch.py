@@ -26,11 +26,12 @@ from integrators.core.clock import monotonic
 from integrators.core.events import H0, H_MAX, IN_EVENT, N_EVENTS, REC_SIZE
 from integrators.own import engine as E
 
-__all__ = ["C", "N_C", "R", "N_R", "BATCH", "run_batch", "CYCLE_RTOL", "CYCLE_MAX_PERIOD",
+__all__ = ["C", "N_C", "R", "N_R", "BATCH", "SERIAL", "run_batch", "run_serial", "CYCLE_RTOL", "CYCLE_MAX_PERIOD",
            "CYCLE_MIN_REPEATS"]
 
-#: the numba options of a method's ``batch`` entry point
+#: the numba options of a method's ``batch`` entry point, and of its single-threaded one
 BATCH = dict(cache=True, nogil=True, parallel=True, error_model="numpy")
+SERIAL = dict(cache=True, nogil=True, error_model="numpy")
 #: C, per point: seconds per unit of τ, F0 (N), newtons per unit of h (k Lc), v0 (m/s), Lc (m),
 #: Fn (N), a, b, vLs (m/s), t_end (s), the growth rate of steady sliding (1/s), the wall budget (s)
 C = dict(TS=0, F0=1, FORCE_H=2, V0=3, LC=4, FN=5, A=6, B=7, V_SLOW=8, T_END=9, GROWTH=10,
@@ -126,11 +127,23 @@ def _one(kernel, workspace, p0, z0, c, dirs, r):
     for k in range(_CLASS, N_R):
         r[k] = np.nan
     r[_R_GROWTH] = c[_GROWTH]
-    if status == E.DONE:
+    # DONE with the end not saved: a restart within 1e-12 τ_end of the end (the single solve's
+    # Solution then stops short of t_end, and summarize calls it failed too)
+    if status == E.DONE and st[_NEXT_SAVE] == 2.0:
         _summarize(int(p[_LAW]), p[_BETA], c, ev, n_ev, saved[1], r)
     else:
         r[_CLASS] = cycles.FAILED
     r[_WALL_S] = monotonic() - start
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def run_serial(kernel, workspace, P, Z0, C, dirs, R):
+    """:func:`run_batch` on the calling thread, in order: for a process of a pool or a Dask
+    worker (one thread each already). No OpenMP region is started, so it is also safe in a
+    process forked from one that ran :func:`run_batch` (GNU OpenMP aborts a forked child that
+    starts a parallel region)."""
+    for i in range(P.shape[0]):
+        _one(kernel, workspace, P[i], Z0[i], C[i], dirs, R[i])
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")

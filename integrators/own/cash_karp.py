@@ -106,6 +106,11 @@ def solve_batch(P, Z0, C, dirs, R, order):
     batch.run_batch(kernel, _workspace, P, Z0, C, dirs, R, order)
 
 
+@njit(**batch.SERIAL)
+def solve_batch_serial(P, Z0, C, dirs, R):
+    batch.run_serial(kernel, _workspace, P, Z0, C, dirs, R)
+
+
 @register
 @dataclass(frozen=True)
 class CashKarp45(CompiledAlgorithm):
@@ -133,5 +138,6 @@ class CashKarp45(CompiledAlgorithm):
     workspace: ClassVar = _workspace
     fixed: ClassVar = fixed
     batch_kernel: ClassVar = solve_batch
+    batch_serial: ClassVar = solve_batch_serial
     constants: ClassVar[dict] = dict(INIT_EXPONENT=0.2, Q=5.0, STICK_PEAKS=0, FSAL=0,
                                      HERMITE=1, STAGES=5)

@@ -70,8 +70,10 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
     kernel: ClassVar[Callable]
     fixed: ClassVar[Callable]
     workspace: ClassVar[Callable]
-    #: the method's ``batch`` entry point (:func:`integrators.own.batch.run_batch` with its kernel)
+    #: the method's batch entry points (:func:`integrators.own.batch.run_batch` and
+    #: :func:`~integrators.own.batch.run_serial` with its kernel)
     batch_kernel: ClassVar[Callable]
+    batch_serial: ClassVar[Callable]
     #: the engine's method constants (integrators.own.engine.P): INIT_EXPONENT, Q, STICK_PEAKS,
     #: FSAL, HERMITE, STAGES
     constants: ClassVar[dict] = {}
@@ -153,14 +155,19 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
                     budget)
         return P, Z0, C
 
-    def solve_batch(self, problems, wall_budget: float | None = None) -> np.ndarray:
-        """Solve and summarise every problem of ``problems`` in one compiled call on numba's
-        threads (:mod:`integrators.own.batch`): one row of ``batch.R`` per problem. Each solve is
-        the one :func:`integrators.solve` makes with ``max_points=2`` and ``wall_budget``."""
+    def solve_batch(self, problems, wall_budget: float | None = None,
+                    parallel: bool = True) -> np.ndarray:
+        """Solve and summarise every problem of ``problems`` in one compiled call, on numba's
+        threads or (``parallel`` False) on this thread only (:mod:`integrators.own.batch`): one
+        row of ``batch.R`` per problem. Each solve is the one :func:`integrators.solve` makes
+        with ``max_points=2`` and ``wall_budget``."""
         P, Z0, C = self.batch_inputs(problems, wall_budget)
         out = np.empty((len(problems), B.N_R))
-        order = np.random.default_rng(0).permutation(len(problems))   # balance the threads
-        type(self).batch_kernel(P, Z0, C, _DIRS, out, order)
+        if parallel:
+            order = np.random.default_rng(0).permutation(len(problems))  # balance the threads
+            type(self).batch_kernel(P, Z0, C, _DIRS, out, order)
+        else:
+            type(self).batch_serial(P, Z0, C, _DIRS, out)
         return out
 
     def fixed_steps(self, nd, z0, span: float, n: int) -> np.ndarray:

@@ -83,6 +83,11 @@ def solve_batch(P, Z0, C, dirs, R, order):
     batch.run_batch(kernel, exprb_workspace, P, Z0, C, dirs, R, order)
 
 
+@njit(**batch.SERIAL)
+def solve_batch_serial(P, Z0, C, dirs, R):
+    batch.run_serial(kernel, exprb_workspace, P, Z0, C, dirs, R)
+
+
 @register
 @dataclass(frozen=True)
 class Exprb43(CompiledAlgorithm):
@@ -99,5 +104,6 @@ class Exprb43(CompiledAlgorithm):
     workspace: ClassVar = exprb_workspace
     fixed: ClassVar = fixed
     batch_kernel: ClassVar = solve_batch
+    batch_serial: ClassVar = solve_batch_serial
     constants: ClassVar[dict] = dict(INIT_EXPONENT=0.2, Q=4.0, STICK_PEAKS=0, FSAL=0,
                                      HERMITE=1, STAGES=2)

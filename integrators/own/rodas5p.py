@@ -124,6 +124,11 @@ def solve_batch(P, Z0, C, dirs, R, order):
     batch.run_batch(kernel, _workspace, P, Z0, C, dirs, R, order)
 
 
+@njit(**batch.SERIAL)
+def solve_batch_serial(P, Z0, C, dirs, R):
+    batch.run_serial(kernel, _workspace, P, Z0, C, dirs, R)
+
+
 @register
 @dataclass(frozen=True)
 class Rodas5P(CompiledAlgorithm):
@@ -143,5 +148,6 @@ class Rodas5P(CompiledAlgorithm):
     workspace: ClassVar = _workspace
     fixed: ClassVar = fixed
     batch_kernel: ClassVar = solve_batch
+    batch_serial: ClassVar = solve_batch_serial
     constants: ClassVar[dict] = dict(INIT_EXPONENT=1.0 / 5, Q=5.0, STICK_PEAKS=1, FSAL=0,
                                      HERMITE=0, STAGES=7)

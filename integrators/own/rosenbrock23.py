@@ -86,6 +86,11 @@ def solve_batch(P, Z0, C, dirs, R, order):
     batch.run_batch(kernel, _workspace, P, Z0, C, dirs, R, order)
 
 
+@njit(**batch.SERIAL)
+def solve_batch_serial(P, Z0, C, dirs, R):
+    batch.run_serial(kernel, _workspace, P, Z0, C, dirs, R)
+
+
 @register
 @dataclass(frozen=True)
 class Rosenbrock23(CompiledAlgorithm):
@@ -105,5 +110,6 @@ class Rosenbrock23(CompiledAlgorithm):
     workspace: ClassVar = _workspace
     fixed: ClassVar = fixed
     batch_kernel: ClassVar = solve_batch
+    batch_serial: ClassVar = solve_batch_serial
     constants: ClassVar[dict] = dict(INIT_EXPONENT=1.0 / 3, Q=3.0, STICK_PEAKS=1, FSAL=1,
                                      HERMITE=1, STAGES=2)
