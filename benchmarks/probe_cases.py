@@ -609,8 +609,11 @@ def _sweep_point_budget(tmp):
 
 
 def _sweep_cli(out, *extra):
+    # 64 points, ETD2, 30 s of W4 each: long enough not to finish between the second chunk file
+    # and the signal on a loaded machine. With 10 s, twice under load a Ctrl-C came back with
+    # exit status 0, never when run alone; a sweep that had already finished is the likely reading
     return [sys.executable, "-m", "benchmarks.cli", "sweep", "--preset", "W4", "--law", "slip",
-            "--b", "0.0095:0.0110:0.0001", "--lc", "1e-7:3e-7:4log", "--t-end", "10",
+            "--b", "0.0095:0.0110:0.0001", "--lc", "1e-7:3e-7:4log", "--t-end", "30",
             "--integrator", "ETD2", "--workers", "2", "--out", str(out), "--no-progress",
             "--no-plot", *extra]
 
