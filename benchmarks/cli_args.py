@@ -20,7 +20,7 @@ __all__ = ["say", "show_progress", "RunStopped", "Parser", "HelpFormatter", "pos
            "non_negative", "finite",
            "count", "seed", "out_dir", "out_file", "in_file", "preset_name", "flagged",
            "add_problem_options", "add_integrator_options", "integrator_from_args",
-           "problem_from_args", "ACCURACY"]
+           "problem_from_args", "add_problem_choice", "ACCURACY"]
 
 #: the relative error in ΔT the default integrator must reach
 ACCURACY = 1e-3
@@ -187,22 +187,45 @@ def preset_name(text: str) -> str:
     return "paper-example" if text.lower() == "paper-example" else text.upper()
 
 
+def add_problem_choice(p, preset_names, what: str) -> None:
+    """--preset NAME or --problem FILE (one of them required), and --law of a preset."""
+    which = p.add_mutually_exclusive_group(required=True)
+    which.add_argument("--preset", choices=preset_names, type=preset_name,
+                       help=f"{what} (no default: --preset or --problem is required)")
+    which.add_argument("--problem", type=in_file, metavar="FILE",
+                       help="or your own apparatus: a TOML or JSON file (mass, stiffness, "
+                            "normal_force, t_end, [law], [loading], [initial]; SI units; "
+                            "docs/examples/apparatus.toml is one; no default)")
+    p.add_argument("--law", choices=("slip", "aging"),
+                   help="friction law of --preset (default: slip)")
+
+
 def add_problem_options(p, preset_names, t_end_help: str = "simulated time in s (default: the "
-                        "preset's: 20 s for paper-example, 40 s for W1–W4)") -> None:
-    """--preset, --law, --b, --lc, --t-end: a preset with its friction parameters replaced."""
-    p.add_argument("--preset", required=True, choices=preset_names, type=preset_name,
-                   help="the problem: the paper's speed-up example or a window of its Table 2")
-    p.add_argument("--law", choices=("slip", "aging"), default="slip", help="friction law")
+                        "preset's or the file's: 20 s for paper-example, 40 s for W1–W4)") -> None:
+    """--preset or --problem, --law, --b, --lc, --t-end: a problem with its friction parameters
+    replaced."""
+    add_problem_choice(p, preset_names, "the problem: the paper's speed-up example or a window "
+                       "of its Table 2")
     p.add_argument("--b", type=non_negative, help="evolution parameter b, dimensionless "
-                   "(default: the preset's best fit)")
+                   "(default: the preset's best fit, or the file's)")
     p.add_argument("--lc", type=positive, metavar="LC_M", help="critical slip distance Lc in "
-                   "metres, e.g. 3e-7 for 0.3 µm (default: the preset's best fit)")
+                   "metres, e.g. 3e-7 for 0.3 µm (default: the preset's best fit, or the file's)")
     p.add_argument("--t-end", type=positive, metavar="S", help=t_end_help)
 
 
-def problem_from_args(args):
-    from problems import preset
-    return preset(args.preset, law=args.law, b=args.b, lc=args.lc, t_end=args.t_end)
+def problem_from_args(args, fields=("b", "lc", "t_end")):
+    """The problem of --preset (with --law) or --problem FILE, with the given options among
+    ``fields`` (--b, --lc, --t-end) replaced (ValueError for --law with a file: the file names
+    its law)."""
+    from problems import load_problem, preset, variant
+    given = {k: getattr(args, k, None) for k in fields}
+    changes = {k: v for k, v in given.items() if v is not None}
+    if getattr(args, "problem", None) is not None:
+        if args.law is not None:
+            raise ValueError("--law applies to --preset; a problem file names its law in [law]")
+        problem = load_problem(args.problem)
+        return variant(problem, **changes) if changes else problem
+    return preset(args.preset, law=args.law or "slip", **changes)
 
 
 def add_integrator_options(p, default: str | None = None) -> None:

@@ -13,26 +13,21 @@ from pathlib import Path
 
 import pandas as pd
 
-from benchmarks.cli_args import (add_integrator_options, add_problem_options, b_lc, count,
-                                 in_file, integrator_from_args, non_negative, out_dir, out_file,
-                                 positive, preset_name, problem_from_args, say, seed,
-                                 show_progress)
+from benchmarks.cli_args import (add_integrator_options, add_problem_choice,
+                                 add_problem_options, b_lc, count, in_file, integrator_from_args,
+                                 non_negative, out_dir, out_file, positive, problem_from_args,
+                                 say, seed, show_progress)
 from benchmarks.report import jsonable
 from benchmarks.sweep import observations
 
 __all__ = ["add_parsers", "observations", "synthetic_curves"]
 
 def sweep_problem(args):
-    """The problem a sweep varies and whether the preset's published fit and observations
-    apply: ``--preset`` (with ``--law``, ``--t-end``) or ``--problem FILE``."""
-    from problems import WINDOWS, load_problem, preset, variant
-    if args.problem is not None:
-        if args.law is not None:
-            raise ValueError("--law applies to --preset; a problem file names its law in [law]")
-        problem = load_problem(args.problem)
-        return (variant(problem, t_end=args.t_end) if args.t_end else problem), False
-    problem = preset(args.preset, law=args.law or "slip", t_end=args.t_end)
-    return problem, args.preset.upper() in WINDOWS
+    """The problem a sweep varies (``--preset`` with ``--law`` and ``--t-end``, or ``--problem
+    FILE``) and whether a window's published fit and observations apply."""
+    from problems import WINDOWS
+    problem = problem_from_args(args, fields=("t_end",))     # --b and --lc are the grid
+    return problem, args.problem is None and args.preset.upper() in WINDOWS
 
 
 def cmd_sweep(args) -> int:
@@ -162,16 +157,7 @@ def add_parsers(sub, preset_names) -> None:
     from benchmarks.sweep import MAX_GRID_POINTS
     from benchmarks.sweep_exec import CONNECT_TIMEOUT_S, WORKER_TIMEOUT_S
     s = sub.add_parser("sweep", help="J1/J2/J over a (b, Lc) grid: parallel, resumable")
-    which = s.add_mutually_exclusive_group(required=True)
-    which.add_argument("--preset", choices=preset_names, type=preset_name,
-                       help="the problem whose (b, Lc) the grid replaces (no default: "
-                            "--preset or --problem is required)")
-    which.add_argument("--problem", type=in_file, metavar="FILE",
-                       help="or your own apparatus: a TOML or JSON file (mass, stiffness, "
-                            "normal_force, t_end, [law], [loading], [initial]; SI units; "
-                            "docs/examples/apparatus.toml is one; no default)")
-    s.add_argument("--law", choices=("slip", "aging"),
-                   help="friction law of --preset (default: slip)")
+    add_problem_choice(s, preset_names, "the problem whose (b, Lc) the grid replaces")
     s.add_argument("--b", required=True, metavar="START:STOP:STEP",
                    help="b values (dimensionless), STOP included")
     s.add_argument("--lc", required=True, metavar="START:STOP:N[log]",

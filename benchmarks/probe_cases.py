@@ -335,6 +335,9 @@ def _cli_input_cases():
         "sweep --problem without --obs-recurrence": (
             "sweep", "--problem", str(APPARATUS), "--b", "0.009:0.01:0.001",
             "--lc", "1e-7:1e-6:2", "--out", "{tmp}/s"),
+        "simulate --problem with --law": ("simulate", "--problem", str(APPARATUS), "--law",
+                                          "aging", "--t-end", "0.05"),
+        "simulate --problem and --preset": _SIM + ("--problem", str(APPARATUS)),
         "sweep --problem with --law": (
             "sweep", "--problem", str(APPARATUS), "--law", "aging", "--b",
             "0.009:0.01:0.001", "--lc", "1e-7:1e-6:2", "--obs-recurrence", "1", "--obs-drop",

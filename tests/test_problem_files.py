@@ -78,3 +78,11 @@ def test_cli_refuses_law_with_a_problem_file(tmp_path, capsys):
                    "--obs-drop", "0.04", "--out", str(tmp_path / "s"), "--json"])
     assert status == 2
     assert "--law applies to --preset" in json.loads(capsys.readouterr().out)["error"]
+
+
+def test_cli_simulates_a_problem_file_with_b_replaced(capsys):
+    from benchmarks.cli import main
+    assert main(["simulate", "--problem", str(EXAMPLE), "--b", "0.0095", "--t-end", "2",
+                 "--json"]) == 0
+    s = json.loads(capsys.readouterr().out)
+    assert s["problem"] == "W2, softer spring" and s["b"] == 0.0095 and s["lc_m"] == 3e-7
