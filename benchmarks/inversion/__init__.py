@@ -1,0 +1,6 @@
+"""Inversions of (b, Lc) a solver can be chosen for (issue 17): the misfit as a function
+(:mod:`~benchmarks.inversion.misfit`)."""
+
+from benchmarks.inversion.misfit import NO_CYCLE_RESIDUAL, Misfit
+
+__all__ = ["Misfit", "NO_CYCLE_RESIDUAL"]

@@ -1,0 +1,101 @@
+"""The misfit of (b, Lc) as a function, for fits, profiles and samplers (issue 17, item 1).
+
+:class:`Misfit` binds one problem, its observations (:class:`benchmarks.sweep.Observations`) and
+one algorithm. It evaluates any batch of (b, Lc) on the ensemble engine
+(:func:`benchmarks.ensemble.ensemble`: one compiled batch for the own methods) and returns, per
+point, the limit-cycle metrics, the residuals, J1 (Eq. 10), J2 (Eq. 11, when the observations
+have slip-weakening curves) and the log-likelihood.
+
+What an optimizer or a sampler sees at a point **without a limit cycle** (failed, not converged,
+too short, stable sliding, an oscillation that never locks) is defined, never NaN:
+
+* each residual is :data:`NO_CYCLE_RESIDUAL` (σ units), so J1 = 2·NO_CYCLE_RESIDUAL² — finite,
+  so that least squares can step away, and far above any point that makes stick–slip;
+* the log-likelihood is −inf: such a model cannot produce the observed events, and a sampler
+  rejects the move;
+* J2 is +inf.
+
+The class and the reason are in the table, so a fit can say why a region is excluded.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from benchmarks.ensemble import ensemble
+from benchmarks.fitting import j1, j2_per_event
+from benchmarks.metrics import CYCLES
+from benchmarks.sweep import Observations
+from integrators import Algorithm
+from problems import SpringSlider
+
+__all__ = ["Misfit", "NO_CYCLE_RESIDUAL"]
+
+#: the residual (in σ) of each observation at a point without a limit cycle
+NO_CYCLE_RESIDUAL = 1e3
+
+
+@dataclass(frozen=True)
+class Misfit:
+    """J(b, Lc) of ``problem`` against ``obs`` with ``algorithm`` (module docstring).
+    ``wall_budget``: s per forward solve; ``workers``: threads (or processes) of a batch;
+    ``curve_dt``: s between saved points of the trajectory J2 compares (with curves only)."""
+
+    problem: SpringSlider
+    obs: Observations
+    algorithm: Algorithm
+    wall_budget: float | None = None
+    workers: int | None = None
+    curve_dt: float = 5e-5
+
+    def __post_init__(self) -> None:
+        for name, value, kind in (("problem", self.problem, SpringSlider),
+                                  ("obs", self.obs, Observations),
+                                  ("algorithm", self.algorithm, Algorithm)):
+            if not isinstance(value, kind):
+                raise ValueError(f"{name} must be {kind.__name__}, got {value!r}")
+
+    def evaluate(self, b, lc, progress: bool = False) -> pd.DataFrame:
+        """One row per (b, Lc) pair (``b`` and ``lc`` broadcast together; Lc in m): the
+        ensemble's columns, then ``r_recurrence``, ``r_drop`` (residuals in σ), ``J1``, ``J2``
+        (NaN without curves) and ``log_likelihood``."""
+        b, lc = np.broadcast_arrays(np.asarray(b, dtype=float), np.asarray(lc, dtype=float))
+        table = ensemble(self.problem, self.algorithm, {"b": b.ravel(), "lc": lc.ravel()},
+                         wall_budget=self.wall_budget, workers=self.workers,
+                         curve_dt=self.curve_dt if self.obs.curves is not None else None,
+                         progress=progress)
+        o = self.obs
+        cycle = table.classification.isin(CYCLES).to_numpy()
+        r_t = (table.recurrence_s.to_numpy() - o.recurrence_s) / o.sigma_recurrence_s
+        r_m = (table.friction_drop.to_numpy() - o.friction_drop) / o.sigma_friction_drop
+        table["r_recurrence"] = np.where(cycle, r_t, NO_CYCLE_RESIDUAL)
+        table["r_drop"] = np.where(cycle, r_m, NO_CYCLE_RESIDUAL)
+        table["J1"] = np.where(cycle, j1(table.recurrence_s, table.friction_drop, o.recurrence_s,
+                                         o.sigma_recurrence_s, o.friction_drop,
+                                         o.sigma_friction_drop),
+                               2.0 * NO_CYCLE_RESIDUAL ** 2)
+        if o.curves is not None:
+            table["J2"] = [float(np.mean(j2_per_event(np.asarray(s, dtype=float),
+                                                      np.asarray(f, dtype=float), o.curves)))
+                           if c else np.inf
+                           for c, s, f in zip(cycle, table.curve_slip, table.curve_friction)]
+        else:
+            table["J2"] = np.nan
+        table["log_likelihood"] = np.where(cycle, -0.5 * table.J1.to_numpy(), -np.inf)
+        return table
+
+    def residuals(self, b: float, lc: float) -> np.ndarray:
+        """(ΔT − ΔT̄)/σ and (Δμ − Δμ̄)/σ at one point, for least squares."""
+        row = self.evaluate([b], [lc]).iloc[0]
+        return np.array([row.r_recurrence, row.r_drop])
+
+    def __call__(self, b: float, lc: float) -> float:
+        """J1 at one point (2·NO_CYCLE_RESIDUAL² without a limit cycle)."""
+        return float(self.evaluate([b], [lc]).J1.iloc[0])
+
+    def log_likelihood(self, b: float, lc: float) -> float:
+        """−J1/2 at one point (Gaussian errors of the stated σ), −inf without a limit cycle."""
+        return float(self.evaluate([b], [lc]).log_likelihood.iloc[0])

@@ -1,0 +1,82 @@
+"""The misfit as a function (issue 17, item 1): the same J1 and J2 as the sweep, defined values
+where there is no limit cycle, bad observations refused."""
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from benchmarks.fitting import read_curves
+from benchmarks.inversion import NO_CYCLE_RESIDUAL, Misfit
+from benchmarks.sweep import Observations, observations, sweep
+from integrators import Rodas5P
+from problems import preset
+
+CURVES = Path(__file__).parent / "data" / "W2_slip_weakening.csv"
+
+
+@pytest.fixture(scope="module")
+def w2():
+    return preset("W2", law="slip", t_end=10.0)
+
+
+def test_j1_agrees_with_the_sweep(w2, tmp_path):
+    b, lc = [0.0084, 0.0092, 0.0094, 0.0100], [5e-8, 3e-7, 2e-6]
+    algorithm = Rodas5P(rtol=1e-4, atol=1e-4)
+    table = sweep(w2, b, lc, algorithm, observations("W2"), tmp_path, progress=False).table
+    m = Misfit(w2, observations("W2"), algorithm)
+    got = m.evaluate(table.b.to_numpy(), table.lc_m.to_numpy())
+    cycle = table.J1.notna().to_numpy()
+    assert cycle.any() and (~cycle).any()                  # both kinds of point are covered
+    np.testing.assert_allclose(got.J1[cycle], table.J1[cycle], rtol=1e-12)
+    assert (got.J1[~cycle] == 2 * NO_CYCLE_RESIDUAL ** 2).all()
+    assert (got.log_likelihood[~cycle] == -np.inf).all()
+    np.testing.assert_allclose(got.log_likelihood[cycle], -0.5 * table.J1[cycle], rtol=1e-12)
+    np.testing.assert_allclose(got.r_recurrence ** 2 + got.r_drop ** 2, got.J1, rtol=1e-12)
+
+
+def test_one_point_calls_agree_with_the_batch(w2):
+    m = Misfit(w2, observations("W2"), Rodas5P(rtol=1e-4, atol=1e-4))
+    row = m.evaluate([0.0094], [3e-7]).iloc[0]
+    assert m(0.0094, 3e-7) == row.J1
+    assert m.log_likelihood(0.0094, 3e-7) == row.log_likelihood
+    assert (m.residuals(0.0094, 3e-7) == [row.r_recurrence, row.r_drop]).all()
+
+
+def test_velocity_strengthening_has_no_cycle_and_a_defined_misfit(w2):
+    """b < a: steady sliding is stable, no stick–slip; never a NaN for an optimizer."""
+    m = Misfit(w2, observations("W2"), Rodas5P(rtol=1e-4, atol=1e-4))
+    row = m.evaluate([0.006], [3e-7]).iloc[0]
+    assert row.classification not in ("stick-slip", "multiple recurrence")
+    assert row.J1 == 2 * NO_CYCLE_RESIDUAL ** 2 and row.log_likelihood == -np.inf
+    assert np.isfinite([row.r_recurrence, row.r_drop]).all()
+
+
+def test_j2_agrees_with_the_sweep(tmp_path):
+    problem = preset("W2", law="slip", t_end=20.0)
+    obs = observations("W2", curves=read_curves(CURVES))
+    algorithm = Rodas5P(rtol=1e-8, atol=1e-8)
+    table = sweep(problem, [0.0092, 0.0094], [3e-7], algorithm, obs, tmp_path,
+                  progress=False).table
+    got = Misfit(problem, obs, algorithm).evaluate(table.b.to_numpy(), table.lc_m.to_numpy())
+    np.testing.assert_allclose(got.J2, table.J2, rtol=1e-12)
+
+
+@pytest.mark.parametrize("kw, match", [
+    (dict(sigma_recurrence_s=0.0), "sigma_recurrence_s"),
+    (dict(friction_drop=np.nan), "friction_drop"),
+    (dict(curves=pd.DataFrame({"event_id": [], "slip_m": [], "friction": []})), "curves"),
+])
+def test_bad_observations_are_refused(kw, match):
+    base = dict(recurrence_s=3.1, sigma_recurrence_s=0.31, friction_drop=0.046,
+                sigma_friction_drop=0.0046)
+    with pytest.raises(ValueError, match=match):
+        Observations(**{**base, **kw})
+
+
+def test_misuse_is_refused(w2):
+    with pytest.raises(ValueError, match="obs must be Observations"):
+        Misfit(w2, {"recurrence_s": 3.1}, Rodas5P(rtol=1e-4, atol=1e-4))
+    with pytest.raises(ValueError, match="algorithm must be Algorithm"):
+        Misfit(w2, observations("W2"), "Rodas5P")
