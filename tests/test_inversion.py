@@ -80,3 +80,41 @@ def test_misuse_is_refused(w2):
         Misfit(w2, {"recurrence_s": 3.1}, Rodas5P(rtol=1e-4, atol=1e-4))
     with pytest.raises(ValueError, match="algorithm must be Algorithm"):
         Misfit(w2, observations("W2"), "Rodas5P")
+
+
+def _synthetic(problem, algorithm):
+    """Noise-free observations of ``problem`` (its own limit cycle), σ = 10 % of each mean."""
+    from benchmarks.metrics import summarize
+    from integrators import solve
+    c = summarize(solve(problem, algorithm, max_points=2))
+    assert c.classification == "stick-slip"
+    return Observations(c.recurrence_s, 0.1 * c.recurrence_s, c.friction_drop,
+                        0.1 * c.friction_drop)
+
+
+def test_the_fit_recovers_a_known_point_from_noise_free_data():
+    """W2 at (0.0094, 0.3 µm): the scan of the box does not contain the truth (its b values are
+    0.0086 + k·0.0001875), the least-squares fit reaches it to 1e−3 relative."""
+    from benchmarks.inversion.fit import fit
+    algorithm = Rodas5P(rtol=1e-8, atol=1e-8)
+    problem = preset("W2", law="slip", t_end=20.0)
+    result = fit(Misfit(problem, _synthetic(problem, algorithm), algorithm),
+                 b_range=(0.0086, 0.0101), lc_range=(1e-7, 1e-6))
+    assert result.success, result.message
+    assert abs(result.b / 0.0094 - 1) < 1e-3 and abs(result.lc / 3e-7 - 1) < 1e-3
+    assert result.J1 < 1e-6 and np.isfinite(result.covariance).all()
+    assert result.sigma_b > 0 and len(result.starts) == 3
+
+
+def test_a_box_without_stick_slip_is_a_failed_fit_not_a_guess(w2):
+    from benchmarks.inversion.fit import fit
+    result = fit(Misfit(w2, observations("W2"), Rodas5P(rtol=1e-4, atol=1e-4)),
+                 b_range=(0.004, 0.007), lc_range=(1e-7, 1e-6), grid=3)
+    assert not result.success and "no point" in result.message and np.isnan(result.b)
+
+
+def test_a_bad_box_is_refused(w2):
+    from benchmarks.inversion.fit import fit
+    with pytest.raises(ValueError, match="b_range"):
+        fit(Misfit(w2, observations("W2"), Rodas5P(rtol=1e-4, atol=1e-4)),
+            b_range=(0.01, 0.009))
