@@ -118,3 +118,46 @@ def test_a_bad_box_is_refused(w2):
     with pytest.raises(ValueError, match="b_range"):
         fit(Misfit(w2, observations("W2"), Rodas5P(rtol=1e-4, atol=1e-4)),
             b_range=(0.01, 0.009))
+
+
+def test_profile_intervals_contain_the_truth_for_seeded_noisy_data():
+    """W2 at (0.0094, 0.3 µm), observations with 10 % Gaussian noise (seed 0): both 95 %
+    profile intervals contain the truth. The data leave a long valley in (b, log Lc): the b
+    interval spans about 0.001 and Lc is bounded only from above (open at the low end)."""
+    from benchmarks.inversion.profile import CHI2_95_1DOF, profile
+    algorithm = Rodas5P(rtol=1e-8, atol=1e-8)
+    problem = preset("W2", law="slip", t_end=20.0)
+    exact = _synthetic(problem, algorithm)
+    rng = np.random.default_rng(0)
+    noisy = Observations(exact.recurrence_s * (1 + 0.1 * rng.standard_normal()),
+                         exact.sigma_recurrence_s,
+                         exact.friction_drop * (1 + 0.1 * rng.standard_normal()),
+                         exact.sigma_friction_drop)
+    m = Misfit(problem, noisy, algorithm)
+    pb = profile(m, "b", np.linspace(0.0086, 0.0102, 17), (1e-8, 1e-5))
+    assert pb.low < 0.0094 < pb.high and not (pb.open_low or pb.open_high)
+    pl = profile(m, "log10_lc", np.linspace(-8, -5, 13), (0.008, 0.011))
+    assert pl.low < np.log10(3e-7) < pl.high
+    assert pl.open_low and not pl.open_high          # Lc is not bounded from below
+    for p in (pb, pl):
+        inside = p.table.J1 - p.table.J1.min() <= CHI2_95_1DOF
+        assert inside.any() and np.isfinite(p.table.J1[inside]).all()
+
+
+def test_the_noise_free_profile_is_zero_at_the_truth():
+    from benchmarks.inversion.profile import profile
+    algorithm = Rodas5P(rtol=1e-8, atol=1e-8)
+    problem = preset("W2", law="slip", t_end=20.0)
+    m = Misfit(problem, _synthetic(problem, algorithm), algorithm)
+    p = profile(m, "b", [0.0093, 0.0094, 0.0095], (1e-7, 1e-6))
+    assert p.table.J1.iloc[1] < 1e-8
+    assert abs(10 ** p.table.log10_lc.iloc[1] / 3e-7 - 1) < 1e-2
+
+
+def test_profile_misuse_is_refused(w2):
+    from benchmarks.inversion.profile import profile
+    m = Misfit(w2, observations("W2"), Rodas5P(rtol=1e-4, atol=1e-4))
+    with pytest.raises(ValueError, match="parameter must be"):
+        profile(m, "lc", [1, 2], (0.008, 0.01))
+    with pytest.raises(ValueError, match="other_range"):
+        profile(m, "b", [0.009, 0.01], (1e-6, 1e-7))
