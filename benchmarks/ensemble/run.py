@@ -167,9 +167,10 @@ def ensemble(problem, algorithm, params, *, store=None, chunk_size: int | None =
     chunks = [Chunk(problem, algorithm, names, values[i:i + chunk_size], i, wall_budget,
                     threads=workers if own_threads else 1, curve_dt=curve_dt)
               for i in range(0, len(values), chunk_size)]
-    identity = identity_of(problem, algorithm, names, values, chunk_size, wall_budget, curve_dt)
     client = connect(scheduler, connect_timeout) if scheduler else None   # before any work
-    chunk_store = ChunkStore(store, identity, reclaim_store) if store is not None else None
+    chunk_store = (ChunkStore(store, identity_of(problem, algorithm, names, values, chunk_size,
+                                                 wall_budget, curve_dt), reclaim_store)
+                   if store is not None else None)
     start = time.perf_counter()
     try:
         with chunk_store or contextlib.nullcontext():

@@ -24,6 +24,7 @@ back is ``pandas.read_parquet(DIR)``: Parquet readers skip the names that start 
 from __future__ import annotations
 
 import fcntl
+import functools
 import hashlib
 import io
 import json
@@ -54,10 +55,12 @@ class StoreBusy(RuntimeError):
     """Another run holds the store's lock."""
 
 
+@functools.cache
 def code_version() -> str:
     """A hash of the code that decides a row (``integrators/``, ``problems/``, and of
     ``benchmarks/`` the metrics, the curves and the rows) and of numba's and numpy's versions: a
-    store written by other code is another ensemble, so a fixed bug cannot hide in old rows."""
+    store written by other code is another ensemble, so a fixed bug cannot hide in old rows.
+    Read once a process: the code a process runs does not change under it."""
     import numba
     import benchmarks
     import integrators
