@@ -57,6 +57,9 @@ class Chunk:
     wall_budget: float | None = None
     threads: int | None = None
     curve_dt: float | None = None
+    #: the points' problems, when they were built and checked already in this process (a
+    #: chunk sent to another process carries its values only)
+    problems: tuple | None = field(default=None, repr=False)
 
 
 def batched(algorithm, curve_dt=None) -> bool:
@@ -78,7 +81,8 @@ def auto_chunk_size(n: int, algorithm, curve_dt=None) -> int:
 
 def run_chunk(chunk: Chunk) -> pd.DataFrame:
     """The rows of a chunk (never raises for a failing point: it is a row)."""
-    problems = point_problems(chunk.problem, chunk.names, chunk.values, chunk.first)
+    problems = (list(chunk.problems) if chunk.problems is not None
+                else point_problems(chunk.problem, chunk.names, chunk.values, chunk.first))
     if not batched(chunk.algorithm, chunk.curve_dt):
         return point_rows(problems, chunk.algorithm, chunk.names, chunk.values,
                           chunk.wall_budget, chunk.curve_dt)
@@ -165,7 +169,8 @@ def ensemble(problem, algorithm, params, *, store=None, chunk_size: int | None =
         Output(save_every=curve_dt).interval(max(p.t_end for p in problems))
     own_threads = batch and backend == "threads" and scheduler is None
     chunks = [Chunk(problem, algorithm, names, values[i:i + chunk_size], i, wall_budget,
-                    threads=workers if own_threads else 1, curve_dt=curve_dt)
+                    threads=workers if own_threads else 1, curve_dt=curve_dt,
+                    problems=tuple(problems[i:i + chunk_size]) if own_threads else None)
               for i in range(0, len(values), chunk_size)]
     client = connect(scheduler, connect_timeout) if scheduler else None   # before any work
     chunk_store = (ChunkStore(store, identity_of(problem, algorithm, names, values, chunk_size,
