@@ -25,7 +25,7 @@ system-packages:
 $(STAMP): pyproject.toml | system-packages
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip==26.3 setuptools==84.2.1 wheel==0.48.0
-	$(PY) -m pip install -q -e .
+	$(PY) -m pip install -q -e '.[inversion]'
 	touch $@
 
 # numba's on-disk cache of a function is keyed by its own file only, so a kernel would keep the

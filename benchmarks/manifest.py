@@ -7,7 +7,11 @@ The inputs of a step (:func:`step_inputs`):
   or through other modules (imports inside functions count; a module of ``integrators`` or
   ``problems`` stands for its whole package). Source is hashed as what runs (:func:`code_hash`:
   its syntax tree without docstrings, comments and layout), so editing documentation reuses;
-* ``versions``: Python's and those of the packages pinned in ``pyproject.toml``, as installed;
+* ``versions``: Python's and those of the packages pinned in ``pyproject.toml``, as installed:
+  every package of ``dependencies`` (any step may use one through another: pandas reads Parquet
+  with pyarrow), and a package of ``optional-dependencies`` (e.g. the inversions' emcee) only
+  for a step whose code imports it, so that pinning a leaf package for new steps leaves the
+  others' results reusable;
 * ``settings``: its keyword arguments;
 * ``machine``: platform, CPU model and count, for a step whose numbers are timings;
 * ``reads``: the results files it reads (another step's output) and the project's data files.
@@ -22,6 +26,7 @@ from __future__ import annotations
 
 import ast
 import datetime
+import functools
 import hashlib
 import importlib.metadata
 import inspect
@@ -224,25 +229,57 @@ def _code(fn, root: Path, packages, whole, extra=()) -> dict[str, str]:
 
 # --- versions and machine --------------------------------------------------------------------
 
-def _pinned(root: Path) -> list[str]:
-    """The names of the packages ``pyproject.toml`` pins (``name==version``)."""
+def _pinned(root: Path, optional: bool = False) -> list[str]:
+    """The names of the packages ``pyproject.toml`` pins (``name==version``): its
+    ``dependencies``, or with ``optional`` those of every ``optional-dependencies`` group."""
     path = root / "pyproject.toml"
     if not path.exists():
         return []
-    deps = tomllib.loads(path.read_text(encoding="utf-8")).get("project", {}).get(
-        "dependencies", [])
+    project = tomllib.loads(path.read_text(encoding="utf-8")).get("project", {})
+    deps = ([d for group in project.get("optional-dependencies", {}).values() for d in group]
+            if optional else project.get("dependencies", []))
     return sorted(m.group(1) for d in deps if (m := re.match(r"\s*([A-Za-z0-9_.\-]+)", d))
                   and "==" in d)
 
 
-def versions(root: Path = ROOT) -> dict[str, str]:
-    """Python's version and the installed version of every pinned package."""
+def _top_imports(sources) -> set[str]:
+    """The top-level names of the modules that the Python ``sources`` import (absolute imports,
+    at module level or inside functions)."""
+    names = set()
+    for text in sources:
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, ast.Import):
+                names.update(a.name.split(".")[0] for a in node.names)
+            elif isinstance(node, ast.ImportFrom) and not node.level and node.module:
+                names.add(node.module.split(".")[0])
+    return names
+
+
+def versions(root: Path = ROOT, sources=None) -> dict[str, str]:
+    """Python's version and the installed version of every pinned package: those of
+    ``dependencies``, and those of ``optional-dependencies`` that ``sources`` (the step's code,
+    as texts) import; all of them when ``sources`` is None."""
     def version(name):
         try:
             return importlib.metadata.version(name)
         except importlib.metadata.PackageNotFoundError:
             return "missing"
-    return {"python": platform.python_version(), **{n: version(n) for n in _pinned(root)}}
+    optional = _pinned(root, optional=True)
+    if sources is not None:
+        imported = _top_imports(sources)
+        optional = [n for n in optional if _import_name(n) in imported]
+    return {"python": platform.python_version(),
+            **{n: version(n) for n in _pinned(root) + optional}}
+
+
+@functools.lru_cache(maxsize=None)
+def _import_name(distribution: str) -> str:
+    """The top-level module a distribution installs (its name with ``-`` → ``_`` when it is not
+    installed or has no record of its modules)."""
+    for module, names in importlib.metadata.packages_distributions().items():
+        if distribution.lower() in (n.lower() for n in names):
+            return module
+    return distribution.replace("-", "_").lower()
 
 
 def machine() -> dict:
@@ -262,8 +299,11 @@ def step_inputs(fn, settings: dict, out: Path, reads=(), data=(), modules=(),
     hashes as ``"missing"``); ``modules``: project modules it runs without importing them."""
     def hashed(base, paths):
         return {p: file_hash(base / p) if (base / p).is_file() else "missing" for p in paths}
-    return {"code": _code(fn, Path(root), packages, whole, modules),
-            "versions": versions(Path(root)),
+    code = _code(fn, Path(root), packages, whole, modules)
+    sources = [textwrap.dedent(inspect.getsource(fn))] + [
+        (Path(root) / p).read_text(encoding="utf-8") for p in code if "::" not in p]
+    return {"code": code,
+            "versions": versions(Path(root), sources),
             "settings": json.loads(json.dumps(settings, sort_keys=True, default=str)),
             "machine": machine() if timed else None,
             "reads": {**hashed(Path(out), reads), **hashed(Path(root), data)}}

@@ -148,10 +148,28 @@ def test_a_step_reruns_when_code_it_imports_changes(fake, capsys):
 def test_a_step_reruns_when_a_version_changes(fake, monkeypatch, capsys):
     fake.run()
     real = M.versions
-    monkeypatch.setattr(M, "versions", lambda root: {**real(root), "python": "0.0"})
+    monkeypatch.setattr(M, "versions", lambda root, sources=None: {**real(root, sources),
+                                                                     "python": "0.0"})
     assert set(fake.run().values()) == {"ran"}
     assert "inputs changed: versions (python" in capsys.readouterr().out
     assert set(fake.run().values()) == {"reused"}
+
+
+def test_an_optional_pin_counts_only_for_the_code_that_imports_it(tmp_path):
+    _write(tmp_path, {"pyproject.toml": """
+        [project]
+        dependencies = ["numpy==2.4.6", "unpinned"]
+        [project.optional-dependencies]
+        extra = ["emcee==3.1.6", "no-such-dist-xyz==1.0"]
+        """})
+    plain = M.versions(tmp_path, ["import numpy\n"])
+    assert set(plain) == {"python", "numpy"}
+    sampling = M.versions(tmp_path, ["def f():\n    from emcee import EnsembleSampler\n"])
+    assert set(sampling) == {"python", "numpy", "emcee"}
+    assert set(M.versions(tmp_path, ["import no_such_dist_xyz\n"])) == {
+        "python", "numpy", "no-such-dist-xyz"}
+    assert M.versions(tmp_path, ["import no_such_dist_xyz\n"])["no-such-dist-xyz"] == "missing"
+    assert set(M.versions(tmp_path)) == {"python", "numpy", "emcee", "no-such-dist-xyz"}
 
 
 def test_a_step_reruns_when_its_settings_change(fake):
