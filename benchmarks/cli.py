@@ -537,6 +537,8 @@ def build_parser() -> Parser:
 
     from benchmarks.cli_sweep import add_parsers
     add_parsers(sub, PRESET_NAMES)
+    from benchmarks.cli_invert import add_parsers as add_inversion_parsers
+    add_inversion_parsers(sub, PRESET_NAMES)
     return parser
 
 

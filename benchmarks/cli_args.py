@@ -20,7 +20,8 @@ __all__ = ["say", "show_progress", "RunStopped", "Parser", "HelpFormatter", "pos
            "non_negative", "finite",
            "count", "seed", "out_dir", "out_file", "in_file", "preset_name", "flagged",
            "add_problem_options", "add_integrator_options", "integrator_from_args",
-           "problem_from_args", "add_problem_choice", "ACCURACY"]
+           "problem_from_args", "add_problem_choice", "add_observation_options",
+           "check_observation_options", "observations_from_args", "ACCURACY"]
 
 #: the relative error in ΔT the default integrator must reach
 ACCURACY = 1e-3
@@ -226,6 +227,38 @@ def problem_from_args(args, fields=("b", "lc", "t_end")):
         problem = load_problem(args.problem)
         return variant(problem, **changes) if changes else problem
     return preset(args.preset, law=args.law or "slip", **changes)
+
+
+def add_observation_options(p) -> None:
+    """--obs-recurrence, --sigma-recurrence, --obs-drop, --sigma-drop: the observed means and
+    their σ (a window's published means by default; σ 10 % of the mean, flagged, by default)."""
+    p.add_argument("--obs-recurrence", type=positive, metavar="S",
+                   help="observed mean ΔT in s (default: the window's published mean)")
+    p.add_argument("--sigma-recurrence", type=positive, metavar="S",
+                   help="σ of ΔT in s (default: 10 %% of the mean, flagged as an assumption)")
+    p.add_argument("--obs-drop", type=positive, metavar="X",
+                   help="observed mean friction drop Δμ, dimensionless (default: the window's "
+                        "published mean)")
+    p.add_argument("--sigma-drop", type=positive, metavar="X",
+                   help="σ of Δμ (default: 10 %% of the mean, flagged as an assumption)")
+
+
+def check_observation_options(args, problem, published: bool) -> None:
+    """Refuse a problem without published means when --obs-recurrence or --obs-drop is
+    missing."""
+    if not published:                      # the flags a window's published means fill
+        for flag, value in (("--obs-recurrence", args.obs_recurrence),
+                            ("--obs-drop", args.obs_drop)):
+            if value is None:
+                raise ValueError(f"{flag} is required for {problem.name or 'this problem'} (it "
+                                 "has no observed means)")
+
+
+def observations_from_args(args, published: bool, curves=None):
+    """The observations of the options (a window's published means fill what is not given)."""
+    from benchmarks.sweep import observations
+    return observations(args.preset if published else "", args.obs_recurrence,
+                        args.sigma_recurrence, args.obs_drop, args.sigma_drop, curves)
 
 
 def add_integrator_options(p, default: str | None = None) -> None:

@@ -13,10 +13,11 @@ from pathlib import Path
 
 import pandas as pd
 
-from benchmarks.cli_args import (add_integrator_options, add_problem_choice,
-                                 add_problem_options, b_lc, count, in_file, integrator_from_args,
-                                 non_negative, out_dir, out_file, positive, problem_from_args,
-                                 say, seed, show_progress)
+from benchmarks.cli_args import (add_integrator_options, add_observation_options,
+                                 add_problem_choice, add_problem_options, b_lc,
+                                 check_observation_options, count, in_file, integrator_from_args,
+                                 non_negative, observations_from_args, out_dir, out_file,
+                                 positive, problem_from_args, say, seed, show_progress)
 from benchmarks.report import jsonable
 from benchmarks.sweep import observations
 
@@ -35,17 +36,11 @@ def cmd_sweep(args) -> int:
     from benchmarks.maps import plot_sweep
     from benchmarks.sweep import parse_b, parse_lc, sweep
     problem, published = sweep_problem(args)
-    if not published:                      # the flags a window's published means fill
-        for flag, value in (("--obs-recurrence", args.obs_recurrence),
-                            ("--obs-drop", args.obs_drop)):
-            if value is None:
-                raise ValueError(f"{flag} is required for {problem.name or 'this problem'} (it "
-                                 "has no observed means)")
+    check_observation_options(args, problem, published)
     b_values = parse_b(args.b, args.max_points)
     lc_values = parse_lc(args.lc, args.max_points)
     curves = read_curves(args.slip_weakening) if args.slip_weakening else None
-    obs = observations(args.preset if published else "", args.obs_recurrence,
-                       args.sigma_recurrence, args.obs_drop, args.sigma_drop, curves)
+    obs = observations_from_args(args, published, curves)
     algorithm, why = integrator_from_args(args)
     name = args.preset if args.problem is None else Path(args.problem).stem
     out = Path(args.out or f"sweep_{name}_{problem.law.name}")
@@ -164,15 +159,7 @@ def add_parsers(sub, preset_names) -> None:
                    help="Lc values in metres: N of them, log-spaced with the suffix 'log'")
     s.add_argument("--max-points", type=count, default=MAX_GRID_POINTS, metavar="N",
                    help="refuse a grid of more points than this (a typo in a step)")
-    s.add_argument("--obs-recurrence", type=positive, metavar="S",
-                   help="observed mean ΔT in s (default: the window's published mean)")
-    s.add_argument("--sigma-recurrence", type=positive, metavar="S",
-                   help="σ of ΔT in s (default: 10 %% of the mean, flagged as an assumption)")
-    s.add_argument("--obs-drop", type=positive, metavar="X",
-                   help="observed mean friction drop Δμ, dimensionless (default: the window's "
-                        "published mean)")
-    s.add_argument("--sigma-drop", type=positive, metavar="X",
-                   help="σ of Δμ (default: 10 %% of the mean, flagged as an assumption)")
+    add_observation_options(s)
     s.add_argument("--slip-weakening", type=in_file, metavar="FILE.csv",
                    help="observed curves, CSV with event_id, slip_m (m), friction (Ft/Fn): adds "
                         "J2 and J (default: J1 only)")

@@ -189,6 +189,24 @@ def _probe(out: Path) -> None:
     print(write_probe(run_probe(cases()), out))
 
 
+def _inversion(out: Path) -> None:
+    from benchmarks.inversion.studies import posterior_target
+    posterior_target(out, study_csv=out / "wp_quick.csv")
+    print((out / "inversion.md").read_text())
+
+
+def _calibration(out: Path) -> None:
+    from benchmarks.inversion.studies import calibration_study
+    calibration_study(out)
+    print((out / "calibration.md").read_text().split("\n## ")[0])
+
+
+def _solver_effect(out: Path) -> None:
+    from benchmarks.inversion.solver_effect import solver_effect_study
+    solver_effect_study(out, study_csv=out / "wp_full.csv", progress=True)
+    print((out / "solver_effect.md").read_text().split("\n## ")[1])
+
+
 COMPARE_RTOL = 1e-8          # the side-by-side comparison of every backend (issue 3)
 #: the steps in order; ``minutes``: on 2 cores at fcab60f, measured, or for the full steps
 #: estimated from the wall times in their results files (docs/reproduce.md)
@@ -229,6 +247,12 @@ STEPS = (
          "lsoda", _engine_speed, timed=True, minutes=0.6),
     Step("binding-overhead", "the same solver called compiled and from Python (SUNDIALS, "
          "LSODA)", _binding_overhead, full=True, timed=True, minutes=6),
+    Step("inversion", "a W2/slip inversion: fit, profiles, a 64,000-solve posterior (timed)",
+         _inversion, timed=True, reads=("wp_quick.csv",), minutes=1.2),
+    Step("calibration", "coverage of the 95 % regions over 1000 seeded synthetic data sets",
+         _calibration, minutes=1.5),
+    Step("solver-effect", "the solver's effect on the inferred (b, Lc): W1–W4, both laws",
+         _solver_effect, full=True, timed=True, reads=("wp_full.csv",), minutes=35),
     Step("probe", "the reliability probe, slow cases included", _probe,
          data=("results/wp_quick.csv",), modules=("benchmarks.cli",), minutes=1.4),
 )

@@ -1,12 +1,19 @@
 """Inversions of (b, Lc) a solver can be chosen for (issue 17): the misfit as a function
 (:mod:`~benchmarks.inversion.misfit`), the multi-start least-squares fit with its covariance
-(:mod:`~benchmarks.inversion.fit`), profile likelihoods (:mod:`~benchmarks.inversion.profile`)
-and posterior samples with emcee (:mod:`~benchmarks.inversion.posterior`)."""
+(:mod:`~benchmarks.inversion.fit`), profile likelihoods (:mod:`~benchmarks.inversion.profile`),
+posterior samples with emcee (:mod:`~benchmarks.inversion.posterior`), the forward model on a
+grid and the posteriors and profiles of any data set on it (:mod:`~benchmarks.inversion.grid`).
+Built on them: one inversion end to end (:mod:`~benchmarks.inversion.invert`), the coverage of
+the 95 % regions (:mod:`~benchmarks.inversion.calibration`), the solver's effect on the
+inference (:mod:`~benchmarks.inversion.solver_effect`) and the reproduce steps' studies
+(:mod:`~benchmarks.inversion.studies`)."""
 
 from benchmarks.inversion.fit import FitResult, fit
-from benchmarks.inversion.misfit import NO_CYCLE_RESIDUAL, Misfit
+from benchmarks.inversion.grid import NO_CYCLE_J1, GridPosterior, MetricMap, box_grid, metric_map
+from benchmarks.inversion.misfit import NO_CYCLE_RESIDUAL, Misfit, synthetic
 from benchmarks.inversion.posterior import Posterior, sample
 from benchmarks.inversion.profile import CHI2_95_1DOF, Profile, profile
 
-__all__ = ["Misfit", "NO_CYCLE_RESIDUAL", "fit", "FitResult", "profile", "Profile",
-           "CHI2_95_1DOF", "sample", "Posterior"]
+__all__ = ["Misfit", "NO_CYCLE_RESIDUAL", "synthetic", "fit", "FitResult", "profile", "Profile",
+           "CHI2_95_1DOF", "sample", "Posterior", "metric_map", "MetricMap", "GridPosterior",
+           "box_grid", "NO_CYCLE_J1"]

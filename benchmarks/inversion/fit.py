@@ -42,22 +42,26 @@ class FitResult:
 
 
 def fit(misfit: Misfit, b_range=(0.005, 0.02), lc_range=(1e-8, 1e-5), grid: int = 9,
-        starts: int = 3, diff_step: float = 1e-3, max_solves: int = 2000) -> FitResult:
+        starts: int = 3, diff_step: float = 1e-3, max_solves: int = 2000,
+        start=None) -> FitResult:
     """Fit (b, Lc) within the box ``b_range`` × ``lc_range`` (m), from the ``starts`` best points
-    of a ``grid`` × ``grid`` scan (module docstring); at most ``max_solves`` forward solves per
-    start. A box with no limit cycle on its scan is a failed fit (``success`` False), not a
-    guess."""
+    of a ``grid`` × ``grid`` scan (module docstring), or from the one point ``start`` = (b, Lc)
+    without a scan; at most ``max_solves`` forward solves per start. A box with no limit cycle
+    on its scan is a failed fit (``success`` False), not a guess."""
     from scipy.optimize import least_squares
     (b_lo, b_hi), (lc_lo, lc_hi) = b_range, lc_range
     if not (0 <= b_lo < b_hi and 0 < lc_lo < lc_hi):
         raise ValueError(f"the box must have 0 ≤ b_lo < b_hi and 0 < lc_lo < lc_hi, got "
                          f"b_range = {b_range!r}, lc_range = {lc_range!r}")
     lo, hi = np.array([b_lo, np.log10(lc_lo)]), np.array([b_hi, np.log10(lc_hi)])
-    bb, ll = np.meshgrid(np.linspace(b_lo, b_hi, grid), np.geomspace(lc_lo, lc_hi, grid),
-                         indexing="ij")
-    scan = misfit.evaluate(bb.ravel(), ll.ravel())
-    n_solves = len(scan)
-    ok = scan[np.isfinite(scan.log_likelihood)].nsmallest(starts, "J1")
+    if start is not None:
+        ok, n_solves = pd.DataFrame({"b": [float(start[0])], "lc": [float(start[1])]}), 0
+    else:
+        bb, ll = np.meshgrid(np.linspace(b_lo, b_hi, grid), np.geomspace(lc_lo, lc_hi, grid),
+                             indexing="ij")
+        scan = misfit.evaluate(bb.ravel(), ll.ravel())
+        n_solves = len(scan)
+        ok = scan[np.isfinite(scan.log_likelihood)].nsmallest(starts, "J1")
     if ok.empty:
         return FitResult(np.nan, np.nan, np.nan, np.full((2, 2), np.nan), np.nan, np.nan,
                          n_solves, pd.DataFrame(), success=False,

@@ -32,7 +32,7 @@ from benchmarks.sweep import Observations
 from integrators import Algorithm
 from problems import SpringSlider
 
-__all__ = ["Misfit", "NO_CYCLE_RESIDUAL"]
+__all__ = ["Misfit", "NO_CYCLE_RESIDUAL", "synthetic"]
 
 #: the residual (in σ) of each observation at a point without a limit cycle
 NO_CYCLE_RESIDUAL = 1e3
@@ -64,7 +64,8 @@ class Misfit:
         (NaN without curves) and ``log_likelihood``."""
         b, lc = np.broadcast_arrays(np.asarray(b, dtype=float), np.asarray(lc, dtype=float))
         table = ensemble(self.problem, self.algorithm, {"b": b.ravel(), "lc": lc.ravel()},
-                         wall_budget=self.wall_budget, workers=self.workers,
+                         wall_budget=self.wall_budget,
+                         workers=1 if b.size == 1 else self.workers,   # no pool for one point
                          curve_dt=self.curve_dt if self.obs.curves is not None else None,
                          progress=progress)
         o = self.obs
@@ -99,3 +100,14 @@ class Misfit:
     def log_likelihood(self, b: float, lc: float) -> float:
         """−J1/2 at one point (Gaussian errors of the stated σ), −inf without a limit cycle."""
         return float(self.evaluate([b], [lc]).log_likelihood.iloc[0])
+
+
+def synthetic(recurrence_s: float, friction_drop: float, sigma_rel: float,
+              seed: int) -> Observations:
+    """Observations of a limit cycle with true ΔT = ``recurrence_s``, Δμ = ``friction_drop``:
+    each plus N(0, σ²) with σ = ``sigma_rel`` × its true value, from ``default_rng(seed)``."""
+    if not 0 < sigma_rel < 1:
+        raise ValueError(f"sigma_rel must be in (0, 1), got {sigma_rel!r}")
+    z = np.random.default_rng(seed).standard_normal(2)
+    s_t, s_m = sigma_rel * recurrence_s, sigma_rel * friction_drop
+    return Observations(recurrence_s + s_t * z[0], s_t, friction_drop + s_m * z[1], s_m)

@@ -1,0 +1,199 @@
+"""``rsfbench invert``, ``rsfbench calibration`` and ``rsfbench solver-effect``: inversions of
+(b, Lc) and what a solver's choice does to them.
+
+    rsfbench invert --preset W2 --law slip --out inv_W2     # fit, profiles, posterior, plots
+    rsfbench invert --problem my.toml --obs-recurrence 4.2 --obs-drop 0.03 \\
+        --b-range 0.008,0.012 --lc-range 1e-8,1e-5 --steps 1000 --json
+    rsfbench calibration --out results      # coverage of the 95 % regions over 1000 seeds
+    rsfbench solver-effect --out results    # the solver's effect over W1–W4, both laws (~35 min)
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from benchmarks.cli_args import (add_integrator_options, add_observation_options,
+                                 add_problem_choice, check_observation_options, count,
+                                 in_file, integrator_from_args, observations_from_args, out_dir, positive,
+                                 problem_from_args, say, seed, show_progress)
+from benchmarks.report import jsonable
+
+__all__ = ["add_parsers"]
+
+
+def _range(text: str, what: str, low_ok: bool):
+    parts = text.split(",")
+    try:
+        lo, hi = (float(x) for x in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be LO,HI (two numbers{what}), got {text!r}") \
+            from None
+    if not (lo >= 0 if low_ok else lo > 0) or not lo < hi or hi == float("inf"):
+        raise argparse.ArgumentTypeError(
+            f"needs {'0 ≤' if low_ok else '0 <'} LO < HI (finite{what}), got {text!r}")
+    return lo, hi
+
+
+def b_range(text: str):
+    """``LO,HI``: 0 ≤ LO < HI, the box of b."""
+    return _range(text, "", low_ok=True)
+
+
+def lc_range(text: str):
+    """``LO,HI``: 0 < LO < HI in metres, the box of Lc."""
+    return _range(text, ", in m", low_ok=False)
+
+
+def cmd_invert(args) -> int:
+    from benchmarks.inversion import Misfit
+    from benchmarks.inversion.invert import invert, write_inversion
+    from benchmarks.inversion.studies import prior_box
+    from problems import WINDOWS
+    problem = problem_from_args(args, fields=("t_end",))
+    published = args.problem is None and args.preset.upper() in WINDOWS
+    check_observation_options(args, problem, published)
+    if (args.b_range is None or args.lc_range is None) and not published:
+        raise ValueError("--b-range and --lc-range are required for a problem without a "
+                         "published fit (the prior box is yours to state)")
+    box_b, box_lc = prior_box(args.preset.upper(), args.law or "slip") if published else (None, None)
+    box_b, box_lc = args.b_range or box_b, args.lc_range or box_lc
+    obs = observations_from_args(args, published)
+    algorithm, why = integrator_from_args(args)
+    name = args.preset if args.problem is None else Path(args.problem).stem
+    out = Path(args.out or f"invert_{name}_{problem.law.name}")
+    misfit = Misfit(problem, obs, algorithm, wall_budget=args.wall_budget, workers=args.workers)
+    quiet = args.json or not show_progress(args)
+    if not args.json:
+        say(f"integrator: {why}")
+        if obs.assumed_sigma:
+            say("σ not given: assumed 10 % of the observed mean (an assumption, not data)")
+    inv = invert(misfit, box_b, box_lc, walkers=args.walkers, steps=args.steps,
+                 profile_points=args.profile_points, seed=args.seed, progress=not quiet,
+                 say=None if args.json else (lambda text: say(f"… {text}")))
+    summary = {**write_inversion(inv, out), "integrator_choice": why, "out": str(out)}
+    if args.json:
+        say(json.dumps(jsonable(summary), indent=2))
+        return 0
+    f = summary["fit"]
+    say(f"least squares: b = {f['b']:.5g} ± {f['sigma_b']:.2g}, Lc = {f['lc_m'] * 1e6:.4g} µm "
+        f"(log10 Lc ± {f['sigma_log10_lc']:.2g}), J1 = {f['J1']:.3g}"
+        + ("" if f["success"] else f" — not converged: {f['message']}"))
+    for k, p in summary["profiles"].items():
+        opens = [e for e, o in (("low", p["open_low"]), ("high", p["open_high"])) if o]
+        say(f"profile of {k}: 95 % interval [{p['low']:.5g}, {p['high']:.5g}]"
+            + (f" (open at the {' and '.join(opens)} end of the box)" if opens else ""))
+    if "posterior" in summary:
+        p = summary["posterior"]
+        say(f"posterior ({p['n_solves']:,} solves, {p['wall_s']:.1f} s): b = "
+            f"{p['mean']['b']:.5g} ± {p['std']['b']:.2g}, log10 Lc = "
+            f"{p['mean']['log10_lc']:.3f} ± {p['std']['log10_lc']:.2g}; acceptance "
+            f"{p['acceptance']:.2f}, τ = {max(p['tau'].values()):.1f} steps"
+            f"{'' if p['tau_reliable'] else ' (chain < 50 τ: run more --steps)'}, "
+            f"{p['effective_samples']:.0f} effective samples")
+        say(f"prior: {p['prior']}")
+    say(f"written: {', '.join(summary['files'].values())}")
+    return 0
+
+
+def cmd_calibration(args) -> int:
+    from benchmarks.inversion.studies import calibration_study
+    summary = calibration_study(Path(args.out), seeds=args.seeds, n=args.n,
+                                sigma_rel=args.sigma, check_seeds=args.check_seeds,
+                                progress=show_progress(args))
+    if args.json:
+        say(json.dumps(jsonable(summary.to_dict(orient="records")), indent=2))
+    else:
+        say((Path(args.out) / "calibration.md").read_text())
+    return 0
+
+
+def cmd_solver_effect(args) -> int:
+    from benchmarks.inversion.solver_effect import solver_effect_study
+    table = solver_effect_study(Path(args.out), n=args.n, windows=args.windows, laws=args.laws,
+                                study_csv=args.study, progress=show_progress(args))
+    if args.json:
+        import pandas as pd
+        advice = pd.read_csv(Path(args.out) / "solver_effect_recommendation.csv")
+        say(json.dumps(jsonable(advice.to_dict(orient="records")), indent=2))
+    else:
+        say((Path(args.out) / "solver_effect.md").read_text().split("\n## ")[1])
+    return 0 if len(table) else 1
+
+
+def add_parsers(sub, preset_names) -> None:
+    from benchmarks.inversion.invert import MAX_SAMPLES_SAVED
+    i = sub.add_parser("invert", help="invert observed means for (b, Lc): least-squares fit with "
+                       "covariance, profiles of b and log10 Lc, emcee posterior, corner and "
+                       "profile plots")
+    add_problem_choice(i, preset_names, "the problem whose (b, Lc) is inferred")
+    add_observation_options(i)
+    i.add_argument("--b-range", type=b_range, metavar="LO,HI",
+                   help="the prior box of b (uniform): required for --problem; default for "
+                        "W1–W4: the paper sweep's, the published fit ± 0.0008 (slip law) or "
+                        "± 0.0015 (aging)")
+    i.add_argument("--lc-range", type=lc_range, metavar="LO,HI",
+                   help="the prior box of Lc in m (uniform in log10 Lc): required for "
+                        "--problem; default for W1–W4: the published fit ÷ and × 10 (slip "
+                        "law) or 30 (aging)")
+    i.add_argument("--t-end", type=positive, metavar="S",
+                   help="simulated time per solve in s (default: the preset's or the file's)")
+    add_integrator_options(i)
+    i.add_argument("--walkers", type=lambda t: count(t, 4), default=32, metavar="N",
+                   help="emcee walkers, ≥ 4 (default: 32)")
+    i.add_argument("--steps", type=lambda t: count(t, 0), default=2000, metavar="N",
+                   help="emcee steps per walker, a quarter dropped as burn-in; 0: no posterior "
+                        "(default: 2000)")
+    i.add_argument("--profile-points", type=lambda t: count(t, 3), default=21, metavar="N",
+                   help="values of each profiled parameter across the box (default: 21)")
+    i.add_argument("--seed", type=seed, default=0, help="seed of the walkers' start and moves "
+                   "(default: 0)")
+    i.add_argument("--workers", type=count, metavar="N",
+                   help="threads (own methods) or processes per batch (default: all cores)")
+    i.add_argument("--wall-budget", type=positive, metavar="S",
+                   help="wall budget per forward solve in s; a solve over it counts as without "
+                        "a cycle (default: none)")
+    i.add_argument("--out", type=out_dir, metavar="DIR",
+                   help="where to write inversion.json, the CSVs (posterior.csv: at most "
+                        f"{MAX_SAMPLES_SAVED} samples) and PNGs (default: "
+                        "./invert_<preset or file name>_<law>)")
+    i.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    i.add_argument("--no-progress", action="store_true", help="no progress bar")
+    i.set_defaults(func=cmd_invert)
+
+    c = sub.add_parser("calibration", help="coverage of the 95 %% regions (J1, profiles, "
+                       "posterior) on seeded synthetic W2/slip data (~2 min)")
+    c.add_argument("--out", type=out_dir, default="results", metavar="DIR",
+                   help="where to write calibration.csv/.md/.json/.png (default: results)")
+    c.add_argument("--seeds", type=count, default=1000, metavar="N",
+                   help="synthetic data sets, seeds 0..N-1 (default: 1000)")
+    c.add_argument("--sigma", type=positive, default=0.05, metavar="REL",
+                   help="noise σ as a fraction of the true ΔT and Δμ, < 1 (default: 0.05)")
+    c.add_argument("--n", type=lambda t: count(t, 5), default=121, metavar="N",
+                   help="grid nodes per parameter (default: 121)")
+    c.add_argument("--check-seeds", type=lambda t: count(t, 0), default=2, metavar="N",
+                   help="seeds also inverted by emcee and refined profiles (default: 2)")
+    c.add_argument("--json", action="store_true", help="print the coverage as one JSON array")
+    c.add_argument("--no-progress", action="store_true", help="no progress bar")
+    c.set_defaults(func=cmd_calibration)
+
+    e = sub.add_parser("solver-effect", help="does the solver change the inferred (b, Lc)? "
+                       "every candidate setting against a tight reference, W1–W4 and both laws "
+                       "(~35 min)")
+    e.add_argument("--out", type=out_dir, default="results", metavar="DIR",
+                   help="where to write solver_effect.csv/.md/.png (default: results)")
+    e.add_argument("--study", type=in_file, metavar="FILE.csv",
+                   help="the full work-precision study the LSODA and SUNDIALS settings come "
+                        "from (default: OUT/wp_full.csv; without one, only the own methods and "
+                        "ETD2)")
+    e.add_argument("--n", type=lambda t: count(t, 5), default=31, metavar="N",
+                   help="grid nodes per parameter over the posterior's zoom (default: 31)")
+    e.add_argument("--windows", nargs="+", default=["W1", "W2", "W3", "W4"],
+                   choices=["W1", "W2", "W3", "W4"], type=str.upper, help="windows")
+    e.add_argument("--laws", nargs="+", default=["slip", "aging"], choices=["slip", "aging"],
+                   help="friction laws")
+    e.add_argument("--json", action="store_true",
+                   help="print the recommendation as one JSON array")
+    e.add_argument("--no-progress", action="store_true", help="no progress lines")
+    e.set_defaults(func=cmd_solver_effect)

@@ -1,0 +1,189 @@
+"""The forward model on a grid of (b, log10 Lc), and what any set of observations makes of it.
+
+The limit-cycle metrics of a problem do not depend on the observations, so one ensemble over a
+grid (:func:`metric_map`) serves every data set scored against it: the published means, a
+thousand seeded synthetic sets (calibration), the same data under another solver (the solver's
+effect). From a :class:`MetricMap` and an :class:`~benchmarks.sweep.Observations`:
+
+* :meth:`MetricMap.j1`: J1 (Eq. 10) on the grid, ``NO_CYCLE_J1`` where there is no limit cycle;
+* :meth:`MetricMap.posterior`: the posterior under the uniform prior in (b, log10 Lc) on the
+  grid's box, by the midpoint rule — the grid is uniform in both, so every node carries the same
+  prior mass and the posterior mass of a node is exp(−J1/2) normalised (zero without a cycle).
+  Reported: the marginal means and standard deviations, the 95 % highest-posterior-density set of
+  nodes (the fewest nodes holding 95 % of the mass), 95 % equal-tailed marginal intervals and
+  the mass on the box's edge nodes (a posterior cut by the box says so);
+* :meth:`MetricMap.profile`: the profile of b or of log10 Lc, J1 minimised over the other
+  parameter on the grid (no refinement between nodes: the grid's spacing bounds its error).
+
+A grid posterior is exact up to its quadrature, has no Monte-Carlo noise and costs one ensemble
+for any number of data sets; in two parameters that beats sampling wherever the posterior is
+resolved by the grid. Whether it is, is measured against emcee where the two are compared
+(:mod:`benchmarks.inversion.calibration`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from benchmarks.ensemble import ensemble
+from benchmarks.inversion.misfit import NO_CYCLE_RESIDUAL
+from benchmarks.metrics import CYCLES
+from benchmarks.sweep import Observations
+from integrators import Algorithm
+from problems import SpringSlider
+
+__all__ = ["MetricMap", "GridPosterior", "metric_map", "box_grid", "NO_CYCLE_J1"]
+
+_SIDES = ("b_low", "b_high", "lc_low", "lc_high")
+#: J1 of a node without a limit cycle (both residuals at NO_CYCLE_RESIDUAL, as the Misfit's)
+NO_CYCLE_J1 = 2.0 * NO_CYCLE_RESIDUAL ** 2
+
+
+def box_grid(b_range, lc_range, n_b: int = 41, n_lc: int = 41, through=None):
+    """``(b, log10_lc)``: ``n_b`` values of b and ``n_lc`` of log10 Lc spanning the box
+    ``b_range`` × ``lc_range`` (Lc in m) uniformly. With ``through`` = (b, Lc), the grids are
+    shifted by less than half a spacing so that the point is a node (the box grows by as much)."""
+    (b_lo, b_hi), (lc_lo, lc_hi) = b_range, lc_range
+    if not (0 <= b_lo < b_hi and 0 < lc_lo < lc_hi):
+        raise ValueError(f"the box must have 0 ≤ b_lo < b_hi and 0 < lc_lo < lc_hi, got "
+                         f"b_range = {b_range!r}, lc_range = {lc_range!r}")
+    if n_b < 2 or n_lc < 2:
+        raise ValueError(f"n_b and n_lc must be ≥ 2, got {n_b}, {n_lc}")
+    b = np.linspace(b_lo, b_hi, n_b)
+    log10_lc = np.linspace(np.log10(lc_lo), np.log10(lc_hi), n_lc)
+    if through is not None:
+        b = _through(b, through[0])
+        log10_lc = _through(log10_lc, np.log10(through[1]))
+        b = b[b > 0] if b[0] <= 0 else b
+    return b, log10_lc
+
+
+def _through(x: np.ndarray, x0: float) -> np.ndarray:
+    step = x[1] - x[0]
+    k = int(np.argmin(np.abs(x - x0)))
+    return x + (x0 - x[k]) if abs(x0 - x[k]) <= step else x
+
+
+@dataclass
+class GridPosterior:
+    """The posterior of one data set on a :class:`MetricMap`'s grid (module docstring).
+    ``mass``: (n_b, n_lc), summing to one (all zero, and ``ok`` False, when no node has a cycle);
+    ``hpd``: the 95 % highest-density nodes; ``interval``: 95 % equal-tailed marginal intervals;
+    ``edge_mass``: the mass on the box's boundary nodes, and ``side_mass`` on each side
+    (``b_low``, ``b_high``, ``lc_low``, ``lc_high``)."""
+
+    mass: np.ndarray = field(repr=False)
+    hpd: np.ndarray = field(repr=False)
+    mean: dict
+    std: dict
+    interval: dict
+    edge_mass: float
+    side_mass: dict
+    ok: bool
+
+
+@dataclass
+class MetricMap:
+    """The limit-cycle metrics of ``problem`` with ``algorithm`` at every node of the grid
+    ``b`` × ``log10_lc`` (arrays of shape (n_b, n_lc); the metrics NaN where ``cycle`` is
+    False), with the counters of the ensemble that made it: ``n_failed`` solves that did not
+    succeed (their nodes have no cycle), ``wall_s`` the sum of the solves' own wall times,
+    ``run_wall_s`` the ensemble's wall time."""
+
+    b: np.ndarray
+    log10_lc: np.ndarray
+    recurrence_s: np.ndarray = field(repr=False)
+    friction_drop: np.ndarray = field(repr=False)
+    cycle: np.ndarray = field(repr=False)
+    classification: np.ndarray = field(repr=False)
+    algorithm: str
+    n_solves: int
+    n_failed: int
+    nfev: int
+    wall_s: float
+    run_wall_s: float
+
+    def j1(self, obs: Observations) -> np.ndarray:
+        """J1 at every node against ``obs``; :data:`NO_CYCLE_J1` without a limit cycle."""
+        if not isinstance(obs, Observations):
+            raise ValueError(f"obs must be Observations, got {obs!r}")
+        dt = (self.recurrence_s - obs.recurrence_s) / obs.sigma_recurrence_s
+        dm = (self.friction_drop - obs.friction_drop) / obs.sigma_friction_drop
+        return np.where(self.cycle, dt * dt + dm * dm, NO_CYCLE_J1)
+
+    def posterior(self, obs: Observations, level: float = 0.95) -> GridPosterior:
+        """The grid posterior of ``obs`` (module docstring); ``level``: of the HPD set and of the
+        marginal intervals."""
+        J = self.j1(obs)
+        log_w = np.where(self.cycle, -0.5 * J, -np.inf)
+        if not self.cycle.any():
+            nan = {"b": np.nan, "log10_lc": np.nan}
+            return GridPosterior(np.zeros_like(J), np.zeros(J.shape, bool), nan, nan,
+                                 {"b": (np.nan, np.nan), "log10_lc": (np.nan, np.nan)},
+                                 np.nan, dict.fromkeys(_SIDES, np.nan), ok=False)
+        w = np.exp(log_w - log_w.max())
+        mass = w / w.sum()
+        order = np.argsort(mass, axis=None)[::-1]
+        cum = np.cumsum(mass.ravel()[order])
+        n_in = int(np.searchsorted(cum, level) + 1)       # the node that crosses the level, too
+        hpd = np.zeros(mass.size, bool)
+        hpd[order[:n_in]] = True
+        mean, std, interval = {}, {}, {}
+        for name, axis, x in (("b", 1, self.b), ("log10_lc", 0, self.log10_lc)):
+            marginal = mass.sum(axis=axis)
+            mean[name] = float(marginal @ x)
+            std[name] = float(np.sqrt(max(marginal @ (x - mean[name]) ** 2, 0.0)))
+            interval[name] = _quantiles(x, marginal, ((1 - level) / 2, (1 + level) / 2))
+        edge = np.zeros(J.shape, bool)
+        edge[[0, -1], :] = edge[:, [0, -1]] = True
+        sides = dict(zip(_SIDES, (mass[0].sum(), mass[-1].sum(), mass[:, 0].sum(),
+                                  mass[:, -1].sum())))
+        return GridPosterior(mass, hpd.reshape(J.shape), mean, std, interval,
+                             float(mass[edge].sum()), {k: float(v) for k, v in sides.items()},
+                             ok=True)
+
+    def profile(self, obs: Observations, parameter: str) -> tuple[np.ndarray, np.ndarray]:
+        """``(values, J1)``: the grid's values of ``parameter`` (``"b"`` or ``"log10_lc"``) and
+        J1 minimised over the other parameter's nodes at each."""
+        if parameter not in ("b", "log10_lc"):
+            raise ValueError(f"parameter must be 'b' or 'log10_lc', got {parameter!r}")
+        J = self.j1(obs)
+        return (self.b, J.min(axis=1)) if parameter == "b" else (self.log10_lc, J.min(axis=0))
+
+
+def _quantiles(x: np.ndarray, mass: np.ndarray, qs) -> tuple[float, float]:
+    """Quantiles of a distribution of masses ``mass`` at nodes ``x``, each node's mass spread
+    uniformly over its cell (the linear interpolation of the cumulative mass at cell edges)."""
+    edges = np.concatenate([[x[0] - (x[1] - x[0]) / 2], (x[1:] + x[:-1]) / 2,
+                            [x[-1] + (x[-1] - x[-2]) / 2]])
+    cum = np.concatenate([[0.0], np.cumsum(mass)])
+    return tuple(float(np.interp(q, cum, edges)) for q in qs)
+
+
+def metric_map(problem: SpringSlider, algorithm: Algorithm, b, log10_lc,
+               wall_budget: float | None = None, workers: int | None = None,
+               progress: bool = False) -> MetricMap:
+    """One ensemble over the grid ``b`` × ``log10_lc`` (1-D arrays, Lc in log10 m)."""
+    import time
+    b = np.asarray(b, dtype=float)
+    log10_lc = np.asarray(log10_lc, dtype=float)
+    for name, x in (("b", b), ("log10_lc", log10_lc)):
+        if x.ndim != 1 or x.size < 2 or not np.isfinite(x).all() or not (np.diff(x) > 0).all():
+            raise ValueError(f"{name} must be at least two finite increasing values, got {x!r}")
+    bb, ll = np.meshgrid(b, log10_lc, indexing="ij")
+    started = time.perf_counter()
+    table = ensemble(problem, algorithm, {"b": bb.ravel(), "lc": 10.0 ** ll.ravel()},
+                     wall_budget=wall_budget, workers=workers, progress=progress)
+    run_wall = time.perf_counter() - started
+    shape = bb.shape
+    cycle = table.classification.isin(CYCLES).to_numpy().reshape(shape)
+    return MetricMap(
+        b=b, log10_lc=log10_lc,
+        recurrence_s=np.where(cycle, table.recurrence_s.to_numpy().reshape(shape), np.nan),
+        friction_drop=np.where(cycle, table.friction_drop.to_numpy().reshape(shape), np.nan),
+        cycle=cycle, classification=table.classification.to_numpy().reshape(shape),
+        algorithm=algorithm.name, n_solves=len(table),
+        n_failed=int((table.retcode != "Success").sum()), nfev=int(table.nfev.sum()),
+        wall_s=float(table.wall_s.sum()), run_wall_s=run_wall)

@@ -1,0 +1,181 @@
+"""One inversion from start to end, as ``rsfbench invert`` runs it, and its files.
+
+:func:`invert` chains the three estimates on one :class:`~benchmarks.inversion.Misfit`: the
+multi-start least-squares fit with its covariance, the profiles of b and of log10 Lc over the
+prior box, and emcee's posterior started at the fit. :func:`write_inversion` writes:
+
+* ``inversion.json``: the problem, the observations, the algorithm, the box and prior, the fit
+  (with covariance), the profile intervals, the posterior's mean, standard deviation, 95 %
+  intervals and diagnostics, the number of forward solves and the wall time of each stage;
+* ``fit_starts.csv``, ``profile_b.csv``, ``profile_log10_lc.csv``;
+* ``posterior.csv``: the samples after burn-in, thinned to at most ``MAX_SAMPLES_SAVED`` rows
+  (every k-th of the flattened chain; the summaries use all of them);
+* ``corner.png`` (the ``corner`` package) and ``profiles.png``.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from benchmarks.inversion.fit import FitResult, fit
+from benchmarks.inversion.misfit import Misfit
+from benchmarks.inversion.posterior import Posterior, sample
+from benchmarks.inversion.profile import CHI2_95_1DOF, profile
+from benchmarks.report import jsonable
+
+__all__ = ["invert", "Inversion", "write_inversion", "MAX_SAMPLES_SAVED"]
+
+#: rows of posterior.csv at most
+MAX_SAMPLES_SAVED = 4000
+
+
+@dataclass
+class Inversion:
+    """The three estimates of one inversion, the box they searched, and their wall times."""
+
+    misfit: Misfit = field(repr=False)
+    b_range: tuple
+    lc_range: tuple
+    fit: FitResult
+    profiles: dict
+    posterior: Posterior | None
+    wall_s: dict
+
+
+def invert(misfit: Misfit, b_range, lc_range, walkers: int = 32, steps: int = 2000,
+           profile_points: int = 21, seed: int = 0, progress: bool = False,
+           say=None) -> Inversion:
+    """Fit, profile (``profile_points`` values of each parameter across the box) and sample
+    (``walkers`` × ``steps``; ``steps`` = 0: no posterior) within ``b_range`` × ``lc_range``
+    (Lc in m). ``say``: a callable given a line of text as each stage starts."""
+    say = say or (lambda text: None)
+    if not isinstance(profile_points, int) or profile_points < 3:
+        raise ValueError(f"profile_points must be an integer ≥ 3, got {profile_points!r}")
+    wall = {}
+    t = time.perf_counter()
+    say("least-squares fit (multi-start)")
+    best = fit(misfit, b_range, lc_range)
+    wall["fit"] = time.perf_counter() - t
+    profiles = {}
+    for name, values, other in (
+            ("b", np.linspace(*b_range, profile_points), lc_range),
+            ("log10_lc", np.linspace(*np.log10(lc_range), profile_points), b_range)):
+        t = time.perf_counter()
+        say(f"profile of {name}")
+        profiles[name] = profile(misfit, name, values, other)
+        wall[f"profile_{name}"] = time.perf_counter() - t
+    post = None
+    if steps:
+        t = time.perf_counter()
+        say(f"posterior: {walkers} walkers × {steps} steps")
+        start = ((best.b, best.lc) if best.success or np.isfinite(best.J1) else
+                 (np.mean(b_range), float(np.sqrt(lc_range[0] * lc_range[1]))))
+        post = sample(misfit, b_range, lc_range, start, walkers=walkers, steps=steps, seed=seed,
+                      progress=progress)
+        wall["posterior"] = time.perf_counter() - t
+    return Inversion(misfit, tuple(b_range), tuple(lc_range), best, profiles, post, wall)
+
+
+def _summary(inv: Inversion) -> dict:
+    m, f = inv.misfit, inv.fit
+    o = m.obs
+    out = {
+        "problem": m.problem.name, "law": m.problem.law.name,
+        "observations": {"recurrence_s": o.recurrence_s,
+                         "sigma_recurrence_s": o.sigma_recurrence_s,
+                         "friction_drop": o.friction_drop,
+                         "sigma_friction_drop": o.sigma_friction_drop,
+                         "sigma_assumed": o.assumed_sigma},
+        "integrator": m.algorithm.name, "options": m.algorithm.options(),
+        "b_range": list(inv.b_range), "lc_range_m": list(inv.lc_range),
+        "fit": {"b": f.b, "lc_m": f.lc, "log10_lc": float(np.log10(f.lc)) if f.lc > 0 else None,
+                "J1": f.J1, "sigma_b": f.sigma_b, "sigma_log10_lc": f.sigma_log10_lc,
+                "covariance_b_log10_lc": f.covariance.tolist(), "success": f.success,
+                "message": f.message, "n_solves": f.n_solves},
+        "profiles": {k: {"low": p.low, "high": p.high, "open_low": p.open_low,
+                         "open_high": p.open_high, "n_solves": p.n_solves,
+                         "level": f"ΔJ1 ≤ {CHI2_95_1DOF:.3f}"} for k, p in inv.profiles.items()},
+        "wall_s": inv.wall_s}
+    if inv.posterior is not None:
+        p = inv.posterior
+        q = p.samples.quantile([0.025, 0.975])
+        out["posterior"] = {
+            "prior": p.prior, "mean": p.mean, "std": p.std,
+            "interval_95": {k: [float(q[k].iloc[0]), float(q[k].iloc[1])] for k in p.mean},
+            "acceptance": p.acceptance, "tau": p.tau, "tau_reliable": p.tau_reliable,
+            "effective_samples": p.effective_samples, "n_solves": p.n_solves,
+            "n_samples": len(p.samples), "wall_s": p.wall_s}
+    return out
+
+
+def write_inversion(inv: Inversion, out: Path) -> dict:
+    """Write the files of the module docstring to ``out``; return the summary (as written to
+    ``inversion.json``) with the paths written."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    summary = _summary(inv)
+    files = {"summary": out / "inversion.json", "fit_starts": out / "fit_starts.csv",
+             "profiles_plot": out / "profiles.png"}
+    inv.fit.starts.to_csv(files["fit_starts"], index=False)
+    for name, p in inv.profiles.items():
+        files[f"profile_{name}"] = out / f"profile_{name}.csv"
+        p.table.to_csv(files[f"profile_{name}"], index=False)
+    _plot_profiles(inv, files["profiles_plot"])
+    if inv.posterior is not None:
+        s = inv.posterior.samples
+        stride = max(1, -(-len(s) // MAX_SAMPLES_SAVED))
+        files["posterior"] = out / "posterior.csv"
+        s.iloc[::stride].to_csv(files["posterior"], index=False)
+        files["corner"] = out / "corner.png"
+        _plot_corner(inv, files["corner"])
+    summary["files"] = {k: str(v) for k, v in files.items()}
+    files["summary"].write_text(json.dumps(jsonable(summary), indent=2) + "\n")
+    return summary
+
+
+def _plot_profiles(inv: Inversion, path: Path) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(1, 2, figsize=(9, 3.6))
+    for ax, (name, p) in zip(axes, inv.profiles.items()):
+        J = p.table.J1.to_numpy()
+        x = p.table[name].to_numpy()
+        finite = np.isfinite(J)
+        if finite.any():
+            ax.plot(x[finite], J[finite] - J[finite].min(), "o-", ms=3)
+            ax.axhline(CHI2_95_1DOF, color="k", lw=0.8, ls="--", label="95 % (ΔJ1 = 3.84)")
+            if np.isfinite(p.low):
+                ax.axvspan(p.low, p.high, color="C1", alpha=0.2, label="95 % interval"
+                           + (" (open)" if p.open_low or p.open_high else ""))
+            ax.set_ylim(0, max(3 * CHI2_95_1DOF, 1.0))
+        ax.xaxis.set_major_locator(plt.MaxNLocator(5))
+        ax.set_xlabel("b" if name == "b" else "log10 Lc (m)")
+        ax.set_ylabel("J1 − min J1 (profile)")
+        ax.legend(fontsize=8)
+    fig.suptitle(f"{inv.misfit.problem.name}: profiles ({inv.misfit.algorithm.name})", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _plot_corner(inv: Inversion, path: Path) -> None:
+    import corner
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    s = inv.posterior.samples
+    truths = ([inv.fit.b, np.log10(inv.fit.lc)] if np.isfinite(inv.fit.J1) and inv.fit.lc > 0
+              else None)
+    fig = corner.corner(s[["b", "log10_lc"]].to_numpy(), labels=["b", "log10 Lc (m)"],
+                        quantiles=[0.025, 0.5, 0.975], show_titles=True, title_fmt=".4g",
+                        truths=truths, truth_color="C3")
+    fig.suptitle(f"{inv.misfit.problem.name}: posterior ({inv.misfit.algorithm.name}); red: "
+                 "least-squares fit", fontsize=9, y=1.02)
+    fig.savefig(path, dpi=110, bbox_inches="tight")
+    plt.close(fig)
