@@ -46,6 +46,14 @@ def lc_range(text: str):
     return _range(text, ", in m", low_ok=False)
 
 
+def steps(text: str) -> int:
+    """0 (no posterior) or an integer ≥ 2 (emcee's steps per walker)."""
+    n = count(text, 0)
+    if n == 1:
+        raise argparse.ArgumentTypeError("must be 0 (no posterior) or an integer ≥ 2, got '1'")
+    return n
+
+
 def cmd_invert(args) -> int:
     from benchmarks.inversion import Misfit
     from benchmarks.inversion.invert import invert, write_inversion
@@ -84,7 +92,9 @@ def cmd_invert(args) -> int:
         opens = [e for e, o in (("low", p["open_low"]), ("high", p["open_high"])) if o]
         say(f"profile of {k}: 95 % interval [{p['low']:.5g}, {p['high']:.5g}]"
             + (f" (open at the {' and '.join(opens)} end of the box)" if opens else ""))
-    if "posterior" in summary:
+    if summary["posterior"] is None:
+        say(f"posterior: {summary['no_posterior']}")
+    else:
         p = summary["posterior"]
         say(f"posterior ({p['n_solves']:,} solves, {p['wall_s']:.1f} s): b = "
             f"{p['mean']['b']:.5g} ± {p['std']['b']:.2g}, log10 Lc = "
@@ -99,6 +109,7 @@ def cmd_invert(args) -> int:
 
 def cmd_calibration(args) -> int:
     from benchmarks.inversion.studies import calibration_study
+    args.out.mkdir(parents=True, exist_ok=True)          # before the work, not after it
     summary = calibration_study(Path(args.out), seeds=args.seeds, n=args.n,
                                 sigma_rel=args.sigma, check_seeds=args.check_seeds,
                                 progress=show_progress(args))
@@ -142,7 +153,7 @@ def add_parsers(sub, preset_names) -> None:
     add_integrator_options(i)
     i.add_argument("--walkers", type=lambda t: count(t, 4), default=32, metavar="N",
                    help="emcee walkers, ≥ 4 (default: 32)")
-    i.add_argument("--steps", type=lambda t: count(t, 0), default=2000, metavar="N",
+    i.add_argument("--steps", type=steps, default=2000, metavar="N",
                    help="emcee steps per walker, a quarter dropped as burn-in; 0: no posterior "
                         "(default: 2000)")
     i.add_argument("--profile-points", type=lambda t: count(t, 3), default=21, metavar="N",

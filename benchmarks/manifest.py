@@ -244,10 +244,14 @@ def _pinned(root: Path, optional: bool = False) -> list[str]:
 
 def _top_imports(sources) -> set[str]:
     """The top-level names of the modules that the Python ``sources`` import (absolute imports,
-    at module level or inside functions)."""
+    at module level or inside functions; a source that does not parse imports nothing)."""
     names = set()
     for text in sources:
-        for node in ast.walk(ast.parse(text)):
+        try:
+            tree = ast.parse(text)
+        except SyntaxError:
+            continue
+        for node in ast.walk(tree):
             if isinstance(node, ast.Import):
                 names.update(a.name.split(".")[0] for a in node.names)
             elif isinstance(node, ast.ImportFrom) and not node.level and node.module:
@@ -267,19 +271,24 @@ def versions(root: Path = ROOT, sources=None) -> dict[str, str]:
     optional = _pinned(root, optional=True)
     if sources is not None:
         imported = _top_imports(sources)
-        optional = [n for n in optional if _import_name(n) in imported]
+        optional = [n for n in optional if _import_names(n) & imported]
     return {"python": platform.python_version(),
             **{n: version(n) for n in _pinned(root) + optional}}
 
 
+def _normal(name: str) -> str:
+    """A distribution's name as PEP 503 compares them."""
+    return re.sub(r"[-_.]+", "-", name).lower()
+
+
 @functools.lru_cache(maxsize=None)
-def _import_name(distribution: str) -> str:
-    """The top-level module a distribution installs (its name with ``-`` → ``_`` when it is not
-    installed or has no record of its modules)."""
-    for module, names in importlib.metadata.packages_distributions().items():
-        if distribution.lower() in (n.lower() for n in names):
-            return module
-    return distribution.replace("-", "_").lower()
+def _import_names(distribution: str) -> frozenset[str]:
+    """Every top-level module the installed ``distribution`` provides, and the name it would
+    import as (``-`` → ``_``) in case it is not installed or keeps no record of its modules."""
+    wanted = _normal(distribution)
+    found = {module for module, names in importlib.metadata.packages_distributions().items()
+             if any(_normal(n) == wanted for n in names)}
+    return frozenset(found | {distribution.replace("-", "_").lower()})
 
 
 def machine() -> dict:

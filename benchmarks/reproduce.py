@@ -450,6 +450,9 @@ def _collect(out: Path) -> dict:
         "etd_validity": read("etd_validity.md", "etd-validity"),
         "engine_speed": read("engine_speed.md", "engine-speed"),
         "binding_overhead": read("binding_overhead.md", "binding-overhead"),
+        "inversion": read("inversion.md", "inversion"),
+        "calibration": read("calibration.md", "calibration"),
+        "solver_effect": read("solver_effect.md", "solver-effect").split("\n## ")[1],
         "steps": markdown_table(pd.DataFrame(_step_states(out))),
     }
 
@@ -557,6 +560,23 @@ Every case of `benchmarks/probe_cases.py`, by kind and outcome (`rsfbench probe 
 ## What a way of calling costs (`binding_overhead.*`)
 
 {r['binding_overhead']}
+## An inversion: fit, profiles, posterior (`inversion.md`, `inversion_W2_slip/`)
+
+{r['inversion']}
+![posterior](inversion_W2_slip/corner.png)
+
+## Coverage of the 95 % regions (`calibration.*`)
+
+{r['calibration'].split(chr(10), 1)[1]}
+![coverage](calibration.png)
+
+## The solver's effect on the inferred (b, Lc) (`solver_effect.*`)
+
+{r['solver_effect'].split(chr(10), 1)[1]}
+Every window and law: `solver_effect.md`.
+
+![solver effect](solver_effect.png)
+
 ## What J2 sees (`j2_information.*`)
 
 {r['misfit']}

@@ -172,6 +172,16 @@ def test_an_optional_pin_counts_only_for_the_code_that_imports_it(tmp_path):
     assert set(M.versions(tmp_path)) == {"python", "numpy", "emcee", "no-such-dist-xyz"}
 
 
+def test_a_step_gets_an_optional_pin_it_imports_through_other_modules():
+    """The inversion step imports emcee four modules down, inside a function; the windows step
+    never does."""
+    steps = {s.name: s for s in RP.STEPS}
+    inversion = M.step_inputs(steps["inversion"].run, {}, M.ROOT / "results")
+    windows = M.step_inputs(steps["windows"].run, {}, M.ROOT / "results")
+    assert "emcee" in inversion["versions"] and "corner" in inversion["versions"]
+    assert "emcee" not in windows["versions"] and "numpy" in windows["versions"]
+
+
 def test_a_step_reruns_when_its_settings_change(fake):
     fake.run()
     steps = [RP.Step("make", "make a", fake.module.make, settings={"n": 2})] + fake.steps[1:]
@@ -264,7 +274,7 @@ def test_every_step_declares_inputs_that_resolve(tmp_path):
     assert {"benchmarks/windows.py", "benchmarks/summary.py", "integrators/own/etd.py"} <= set(code)
     assert "benchmarks/reproduce.py" not in code and "benchmarks/cli.py" not in code
     assert {"speedup", "work-precision", "target-full", "binding-overhead",
-            "ensemble-scaling"} == set(RP.FULL_STEPS)
+            "ensemble-scaling", "solver-effect"} == set(RP.FULL_STEPS)
 
 
 def test_the_command_line_refuses_misuse_in_one_line(capsys):

@@ -34,7 +34,7 @@ import numpy as np
 import pandas as pd
 
 from benchmarks.fitting import CHI2_95_2DOF
-from benchmarks.inversion.grid import MetricMap, box_grid, metric_map
+from benchmarks.inversion.grid import MetricMap, box_grid, cell_box, metric_map
 from benchmarks.inversion.misfit import Misfit, synthetic
 from benchmarks.inversion.profile import CHI2_95_1DOF
 from integrators import Algorithm
@@ -88,6 +88,8 @@ def coverage(problem: SpringSlider, truth, algorithm: Algorithm, b_range, lc_ran
     inside the prior box ``b_range`` × ``lc_range`` (Lc in m), on an ``n_b`` × ``n_lc`` grid."""
     if not isinstance(seeds, int) or seeds < 1:
         raise ValueError(f"seeds must be a positive integer, got {seeds!r}")
+    if not 0 < sigma_rel < 1:
+        raise ValueError(f"sigma_rel must be in (0, 1), got {sigma_rel!r}")
     b_t, lc_t = float(truth[0]), float(truth[1])
     if not (b_range[0] < b_t < b_range[1] and lc_range[0] < lc_t < lc_range[1]):
         raise ValueError(f"truth = {truth!r} is outside the box {b_range!r} × {lc_range!r}")
@@ -133,9 +135,7 @@ def _checks(problem, algorithm, grid_map: MetricMap, table, n, T0, M0, sigma_rel
     from benchmarks.inversion.posterior import sample
     from benchmarks.inversion.profile import profile
     b, log10_lc = grid_map.b, grid_map.log10_lc
-    half_b, half_l = (b[1] - b[0]) / 2, (log10_lc[1] - log10_lc[0]) / 2
-    b_box = (b[0] - half_b, b[-1] + half_b)                  # the nodes' cells: the prior box
-    lc_box = (10.0 ** (log10_lc[0] - half_l), 10.0 ** (log10_lc[-1] + half_l))
+    b_box, lc_box = cell_box(b, log10_lc)                    # the nodes' cells: the prior box
     rows = []
     for seed in range(n):
         obs = synthetic(T0, M0, sigma_rel, seed)

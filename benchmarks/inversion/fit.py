@@ -27,7 +27,8 @@ __all__ = ["fit", "FitResult"]
 @dataclass
 class FitResult:
     """The best fit (b, Lc in m, J1 there), the covariance of (b, log10 Lc) and the standard
-    errors of b and of log10 Lc, the number of forward solves, and every start's end point."""
+    errors of b and of log10 Lc (NaN where the Jacobian is singular and the covariance has no
+    meaning), the number of forward solves, and every start's end point."""
 
     b: float
     lc: float
@@ -89,7 +90,9 @@ def fit(misfit: Misfit, b_range=(0.005, 0.02), lc_range=(1e-8, 1e-5), grid: int 
         cov = np.linalg.inv(res.jac.T @ res.jac)
     except np.linalg.LinAlgError:
         cov = np.full((2, 2), np.inf)
+    var = np.diag(cov)                    # a singular JᵀJ can invert to a negative diagonal
+    sd = np.where(var >= 0, np.sqrt(np.abs(var)), np.nan)
     return FitResult(b=float(res.x[0]), lc=float(10.0 ** res.x[1]), J1=J1, covariance=cov,
-                     sigma_b=float(np.sqrt(cov[0, 0])), sigma_log10_lc=float(np.sqrt(cov[1, 1])),
+                     sigma_b=float(sd[0]), sigma_log10_lc=float(sd[1]),
                      n_solves=n_solves, starts=pd.DataFrame(rows), success=bool(res.success),
                      message=res.message)

@@ -7,8 +7,9 @@ effect). From a :class:`MetricMap` and an :class:`~benchmarks.sweep.Observations
 
 * :meth:`MetricMap.j1`: J1 (Eq. 10) on the grid, ``NO_CYCLE_J1`` where there is no limit cycle;
 * :meth:`MetricMap.posterior`: the posterior under the uniform prior in (b, log10 Lc) on the
-  grid's box, by the midpoint rule — the grid is uniform in both, so every node carries the same
-  prior mass and the posterior mass of a node is exp(−J1/2) normalised (zero without a cycle).
+  box the grid's cells tile (:func:`box_grid` puts the nodes at the cells' centres;
+  :func:`cell_box`), by the midpoint rule — every node carries the same prior mass and the
+  posterior mass of a node is exp(−J1/2) normalised (zero without a cycle).
   Reported: the marginal means and standard deviations, the 95 % highest-posterior-density set of
   nodes (the fewest nodes holding 95 % of the mass), 95 % equal-tailed marginal intervals and
   the mass on the box's edge nodes (a posterior cut by the box says so);
@@ -34,7 +35,7 @@ from benchmarks.sweep import Observations
 from integrators import Algorithm
 from problems import SpringSlider
 
-__all__ = ["MetricMap", "GridPosterior", "metric_map", "box_grid", "NO_CYCLE_J1"]
+__all__ = ["MetricMap", "GridPosterior", "metric_map", "box_grid", "cell_box", "NO_CYCLE_J1"]
 
 _SIDES = ("b_low", "b_high", "lc_low", "lc_high")
 #: J1 of a node without a limit cycle (both residuals at NO_CYCLE_RESIDUAL, as the Misfit's)
@@ -42,22 +43,37 @@ NO_CYCLE_J1 = 2.0 * NO_CYCLE_RESIDUAL ** 2
 
 
 def box_grid(b_range, lc_range, n_b: int = 41, n_lc: int = 41, through=None):
-    """``(b, log10_lc)``: ``n_b`` values of b and ``n_lc`` of log10 Lc spanning the box
-    ``b_range`` × ``lc_range`` (Lc in m) uniformly. With ``through`` = (b, Lc), the grids are
-    shifted by less than half a spacing so that the point is a node (the box grows by as much)."""
+    """``(b, log10_lc)``: the centres of ``n_b`` × ``n_lc`` equal cells tiling the box
+    ``b_range`` × ``lc_range`` (Lc in m) in (b, log10 Lc), so that the cells are the box and a
+    uniform prior on the box gives every node the same mass. With ``through`` = (b, Lc), the
+    nodes are shifted by at most half a spacing so that the point is a node (the box moves by as
+    much)."""
     (b_lo, b_hi), (lc_lo, lc_hi) = b_range, lc_range
     if not (0 <= b_lo < b_hi and 0 < lc_lo < lc_hi):
         raise ValueError(f"the box must have 0 ≤ b_lo < b_hi and 0 < lc_lo < lc_hi, got "
                          f"b_range = {b_range!r}, lc_range = {lc_range!r}")
     if n_b < 2 or n_lc < 2:
         raise ValueError(f"n_b and n_lc must be ≥ 2, got {n_b}, {n_lc}")
-    b = np.linspace(b_lo, b_hi, n_b)
-    log10_lc = np.linspace(np.log10(lc_lo), np.log10(lc_hi), n_lc)
+    b = _centres(b_lo, b_hi, n_b)
+    log10_lc = _centres(np.log10(lc_lo), np.log10(lc_hi), n_lc)
     if through is not None:
         b = _through(b, through[0])
         log10_lc = _through(log10_lc, np.log10(through[1]))
         b = b[b > 0] if b[0] <= 0 else b
     return b, log10_lc
+
+
+def _centres(lo: float, hi: float, n: int) -> np.ndarray:
+    h = (hi - lo) / n
+    return lo + h * (np.arange(n) + 0.5)
+
+
+def cell_box(b: np.ndarray, log10_lc: np.ndarray) -> tuple[tuple, tuple]:
+    """The box the cells of uniform nodes ``b`` × ``log10_lc`` tile: ``(b_range, lc_range)``
+    (Lc in m), the prior box of their grid posterior."""
+    hb, hl = (b[1] - b[0]) / 2, (log10_lc[1] - log10_lc[0]) / 2
+    return ((float(b[0] - hb), float(b[-1] + hb)),
+            (float(10.0 ** (log10_lc[0] - hl)), float(10.0 ** (log10_lc[-1] + hl))))
 
 
 def _through(x: np.ndarray, x0: float) -> np.ndarray:

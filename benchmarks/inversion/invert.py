@@ -24,7 +24,7 @@ import numpy as np
 
 from benchmarks.inversion.fit import FitResult, fit
 from benchmarks.inversion.misfit import Misfit
-from benchmarks.inversion.posterior import Posterior, sample
+from benchmarks.inversion.posterior import Posterior, check_sampler, sample
 from benchmarks.inversion.profile import CHI2_95_1DOF, profile
 from benchmarks.report import jsonable
 
@@ -36,7 +36,8 @@ MAX_SAMPLES_SAVED = 4000
 
 @dataclass
 class Inversion:
-    """The three estimates of one inversion, the box they searched, and their wall times."""
+    """The three estimates of one inversion, the box they searched, and their wall times;
+    ``no_posterior``: why there is no posterior, when there is none."""
 
     misfit: Misfit = field(repr=False)
     b_range: tuple
@@ -45,6 +46,7 @@ class Inversion:
     profiles: dict
     posterior: Posterior | None
     wall_s: dict
+    no_posterior: str = ""
 
 
 def invert(misfit: Misfit, b_range, lc_range, walkers: int = 32, steps: int = 2000,
@@ -52,10 +54,14 @@ def invert(misfit: Misfit, b_range, lc_range, walkers: int = 32, steps: int = 20
            say=None) -> Inversion:
     """Fit, profile (``profile_points`` values of each parameter across the box) and sample
     (``walkers`` × ``steps``; ``steps`` = 0: no posterior) within ``b_range`` × ``lc_range``
-    (Lc in m). ``say``: a callable given a line of text as each stage starts."""
+    (Lc in m). The sampler starts at the fit; when the fit found no point with a limit cycle
+    there is no posterior (``no_posterior`` says why), not a chain frozen at −inf. ``say``: a
+    callable given a line of text as each stage starts."""
     say = say or (lambda text: None)
     if not isinstance(profile_points, int) or profile_points < 3:
         raise ValueError(f"profile_points must be an integer ≥ 3, got {profile_points!r}")
+    if steps:                            # a bad chain is refused before the fit, not after it
+        check_sampler(b_range, lc_range, walkers, steps)
     wall = {}
     t = time.perf_counter()
     say("least-squares fit (multi-start)")
@@ -69,16 +75,20 @@ def invert(misfit: Misfit, b_range, lc_range, walkers: int = 32, steps: int = 20
         say(f"profile of {name}")
         profiles[name] = profile(misfit, name, values, other)
         wall[f"profile_{name}"] = time.perf_counter() - t
-    post = None
-    if steps:
+    post, why = None, "not asked for (steps = 0)"
+    if steps and not np.isfinite(best.J1):
+        why = f"not sampled: {best.message} (no point of the box is known to have a cycle)"
+    elif steps:
         t = time.perf_counter()
         say(f"posterior: {walkers} walkers × {steps} steps")
-        start = ((best.b, best.lc) if best.success or np.isfinite(best.J1) else
-                 (np.mean(b_range), float(np.sqrt(lc_range[0] * lc_range[1]))))
-        post = sample(misfit, b_range, lc_range, start, walkers=walkers, steps=steps, seed=seed,
-                      progress=progress)
+        lo, hi = np.array([b_range[0], np.log10(lc_range[0])]), np.array(
+            [b_range[1], np.log10(lc_range[1])])
+        x = np.clip([best.b, np.log10(best.lc)], lo + 1e-6 * (hi - lo), hi - 1e-6 * (hi - lo))
+        post = sample(misfit, b_range, lc_range, (x[0], 10.0 ** x[1]), walkers=walkers,
+                      steps=steps, seed=seed, progress=progress)
         wall["posterior"] = time.perf_counter() - t
-    return Inversion(misfit, tuple(b_range), tuple(lc_range), best, profiles, post, wall)
+        why = ""
+    return Inversion(misfit, tuple(b_range), tuple(lc_range), best, profiles, post, wall, why)
 
 
 def _summary(inv: Inversion) -> dict:
@@ -101,7 +111,10 @@ def _summary(inv: Inversion) -> dict:
                          "open_high": p.open_high, "n_solves": p.n_solves,
                          "level": f"ΔJ1 ≤ {CHI2_95_1DOF:.3f}"} for k, p in inv.profiles.items()},
         "wall_s": inv.wall_s}
-    if inv.posterior is not None:
+    if inv.posterior is None:
+        out["posterior"] = None
+        out["no_posterior"] = inv.no_posterior
+    else:
         p = inv.posterior
         q = p.samples.quantile([0.025, 0.975])
         out["posterior"] = {
@@ -154,10 +167,14 @@ def _plot_profiles(inv: Inversion, path: Path) -> None:
                 ax.axvspan(p.low, p.high, color="C1", alpha=0.2, label="95 % interval"
                            + (" (open)" if p.open_low or p.open_high else ""))
             ax.set_ylim(0, max(3 * CHI2_95_1DOF, 1.0))
+        else:
+            ax.text(0.5, 0.5, "no limit cycle on this profile", ha="center",
+                    transform=ax.transAxes)
         ax.xaxis.set_major_locator(plt.MaxNLocator(5))
         ax.set_xlabel("b" if name == "b" else "log10 Lc (m)")
         ax.set_ylabel("J1 − min J1 (profile)")
-        ax.legend(fontsize=8)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=8)
     fig.suptitle(f"{inv.misfit.problem.name}: profiles ({inv.misfit.algorithm.name})", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)

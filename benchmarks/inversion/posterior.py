@@ -22,7 +22,7 @@ import pandas as pd
 
 from benchmarks.inversion.misfit import Misfit
 
-__all__ = ["sample", "Posterior"]
+__all__ = ["sample", "Posterior", "check_sampler"]
 
 
 @dataclass
@@ -42,25 +42,33 @@ class Posterior:
     prior: str
 
 
+def check_sampler(b_range, lc_range, walkers: int, steps: int, burn: int | None = None) -> int:
+    """Refuse a bad prior box or chain shape (``ValueError`` naming it); return the burn-in
+    (default: a quarter of the steps)."""
+    (b_lo, b_hi), (lc_lo, lc_hi) = b_range, lc_range
+    if not (0 <= b_lo < b_hi and 0 < lc_lo < lc_hi):
+        raise ValueError(f"the prior box must have 0 ≤ b_lo < b_hi and 0 < lc_lo < lc_hi, got "
+                         f"b_range = {b_range!r}, lc_range = {lc_range!r}")
+    if walkers < 4 or steps < 2:
+        raise ValueError(f"walkers must be ≥ 4 and steps ≥ 2, got {walkers}, {steps}")
+    burn = steps // 4 if burn is None else burn
+    if not 0 <= burn < steps:
+        raise ValueError(f"burn must be in [0, steps), got {burn}")
+    return burn
+
+
 def sample(misfit: Misfit, b_range, lc_range, start, walkers: int = 32, steps: int = 2000,
            burn: int | None = None, seed: int = 0, progress: bool = False) -> Posterior:
     """Sample the posterior (module docstring) with ``walkers`` walkers for ``steps`` steps,
     started in a small ball (1e−4 relative in b, 1e−3 in log10 Lc) around ``start`` = (b, Lc in
     m), e.g. a least-squares fit; the first ``burn`` steps (default: a quarter) are dropped."""
     import emcee
+    burn = check_sampler(b_range, lc_range, walkers, steps, burn)
     (b_lo, b_hi), (lc_lo, lc_hi) = b_range, lc_range
-    if not (0 <= b_lo < b_hi and 0 < lc_lo < lc_hi):
-        raise ValueError(f"the prior box must have 0 ≤ b_lo < b_hi and 0 < lc_lo < lc_hi, got "
-                         f"b_range = {b_range!r}, lc_range = {lc_range!r}")
     lo, hi = np.array([b_lo, np.log10(lc_lo)]), np.array([b_hi, np.log10(lc_hi)])
     x0 = np.array([start[0], np.log10(start[1])])
     if not ((lo < x0) & (x0 < hi)).all():
         raise ValueError(f"start = {start!r} is outside the prior box")
-    if walkers < 4 or steps < 2:
-        raise ValueError(f"walkers must be ≥ 4 and steps ≥ 2, got {walkers}, {steps}")
-    burn = steps // 4 if burn is None else burn
-    if not 0 <= burn < steps:
-        raise ValueError(f"burn must be in [0, steps), got {burn}")
     count = {"n": 0}
 
     def log_prob(x):                     # x: (walkers, 2); one ensemble batch a step

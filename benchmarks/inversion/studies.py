@@ -54,12 +54,13 @@ def posterior_target(out, walkers: int = 32, steps: int = 2400, seed: int = 0,
     from benchmarks.work_precision import STUDY_CSV, recommended_algorithm
     from problems import preset
     out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
     algorithm, why = recommended_algorithm(1e-3, study_csv or STUDY_CSV)
     misfit = Misfit(preset("W2", law="slip", t_end=T_END["W2"]), observations("W2"), algorithm)
     inv = invert(misfit, *prior_box("W2", "slip"), walkers=walkers, steps=steps, seed=seed,
                  progress=progress)
     summary = write_inversion(inv, out / "inversion_W2_slip")
-    p = summary["posterior"]
+    p = summary["posterior"] or {"n_solves": 0, "wall_s": float("nan")}
     target = {"solves": p["n_solves"], "wall_s": p["wall_s"], "cores": os.cpu_count(),
               "min_solves": TARGET_SOLVES, "max_wall_s": TARGET_WALL_S,
               "met": bool(p["n_solves"] >= TARGET_SOLVES and p["wall_s"] <= TARGET_WALL_S)}
@@ -72,6 +73,9 @@ def posterior_target(out, walkers: int = 32, steps: int = 2400, seed: int = 0,
 
 def _inversion_markdown(s: dict) -> str:
     f, p, t = s["fit"], s["posterior"], s["target"]
+    if p is None or f["log10_lc"] is None:
+        return (f"An inversion of W2/slip's published means **failed**: fit: {f['message']}; "
+                f"posterior: {s.get('no_posterior', '')}. Target missed.\n")
     pr = s["profiles"]
     o = s["observations"]
     rows = pd.DataFrame([
@@ -91,8 +95,7 @@ def _inversion_markdown(s: dict) -> str:
                          f"{p['interval_95']['log10_lc'][1]:.3f}]",
          "solves": p["n_solves"], "wall (s)": fmt(p["wall_s"], ".3g")}])
     return (
-        f"# Inversion of W2/slip's published means\n\n"
-        f"Data: ΔT = {o['recurrence_s']:g} ± {o['sigma_recurrence_s']:.3g} s, Δμ = "
+        f"An inversion of W2/slip's published means. Data: ΔT = {o['recurrence_s']:g} ± {o['sigma_recurrence_s']:.3g} s, Δμ = "
         f"{o['friction_drop']:g} ± {o['sigma_friction_drop']:.3g} (σ = 10 % of the mean, "
         f"assumed: the paper publishes none). Integrator: {s['integrator_choice']}. Box: b in "
         f"[{s['b_range'][0]:g}, {s['b_range'][1]:g}], Lc in [{s['lc_range_m'][0]:.3g}, "
@@ -123,10 +126,12 @@ def calibration_study(out, seeds: int = 1000, n: int = 121, sigma_rel: float = 0
     true values, uniform prior on b ± 0.0012 and Lc within a factor 100), with Rodas5P at
     rtol = atol = 1e−6 simulating and inverting; write ``out/calibration.*``."""
     from benchmarks.inversion.calibration import coverage
+    from benchmarks.inversion.grid import cell_box
     from benchmarks.paper_sweeps import T_END
     from integrators import Rodas5P
     from problems import preset
     out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
     b_t, lc_t = CALIBRATION_TRUTH
     algorithm = Rodas5P(rtol=1e-6, atol=1e-6)
     started = time.perf_counter()
@@ -137,10 +142,11 @@ def calibration_study(out, seeds: int = 1000, n: int = 121, sigma_rel: float = 0
     wall = time.perf_counter() - started
     cal.seeds.to_csv(out / "calibration.csv", index=False)
     g = cal.grid_map
+    (b_lo, b_hi), (lc_lo, lc_hi) = cell_box(g.b, g.log10_lc)
     info = {"truth": {"b": b_t, "lc_m": lc_t}, "sigma_rel": sigma_rel, "seeds": seeds,
             "integrator": algorithm.name, "options": algorithm.options(),
-            "grid": f"{len(g.b)} x {len(g.log10_lc)}", "b_range": [g.b[0], g.b[-1]],
-            "log10_lc_range": [g.log10_lc[0], g.log10_lc[-1]],
+            "grid": f"{len(g.b)} x {len(g.log10_lc)}", "b_range": [b_lo, b_hi],
+            "log10_lc_range": [np.log10(lc_lo), np.log10(lc_hi)],
             "nodes_per_posterior_sd_min": cal.nodes_per_sigma, "n_solves": g.n_solves,
             "n_cycle_nodes": int(g.cycle.sum()), "wall_s": wall,
             "coverage": cal.summary.to_dict(orient="records"),
@@ -179,9 +185,9 @@ def _calibration_markdown(cal, info) -> str:
         f"observations ΔT and Δμ of its limit cycle plus Gaussian noise of σ = "
         f"{info['sigma_rel']:.0%} of each, seeds 0–{info['seeds'] - 1}. Simulated and inverted "
         f"with {info['integrator']} at rtol = atol = 1e−6 on a {info['grid']} grid of "
-        f"(b, log10 Lc) (b {info['b_range'][0]:.5f}–{info['b_range'][1]:.5f}, log10 Lc "
-        f"{info['log10_lc_range'][0]:.2f}–{info['log10_lc_range'][1]:.2f}; prior uniform on that "
-        f"box), {info['n_solves']:,} forward solves for all seeds, {info['wall_s']:.0f} s in all. "
+        f"(b, log10 Lc) whose cells tile the prior box (uniform in b "
+        f"{info['b_range'][0]:.5f}–{info['b_range'][1]:.5f} and log10 Lc "
+        f"{info['log10_lc_range'][0]:.2f}–{info['log10_lc_range'][1]:.2f}), {info['n_solves']:,} forward solves for all seeds, {info['wall_s']:.0f} s in all. "
         f"The posterior's standard deviation spans at least "
         f"{info['nodes_per_posterior_sd_min']['b']:.1f} nodes in b and "
         f"{info['nodes_per_posterior_sd_min']['log10_lc']:.1f} in log10 Lc.\n\n"
