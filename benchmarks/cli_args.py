@@ -17,7 +17,7 @@ from pathlib import Path
 from benchmarks.sweep_exec import RunStopped
 
 __all__ = ["say", "show_progress", "RunStopped", "Parser", "HelpFormatter", "positive",
-           "non_negative", "finite",
+           "non_negative", "finite", "pair",
            "count", "seed", "out_dir", "out_file", "in_file", "preset_name", "flagged",
            "add_problem_options", "add_integrator_options", "integrator_from_args",
            "problem_from_args", "add_problem_choice", "add_observation_options",
@@ -99,17 +99,22 @@ def non_negative(text: str) -> float:
     return x
 
 
+def pair(text: str, form: str, ok, need: str) -> tuple[float, float]:
+    """Two comma-separated finite numbers ``x,y`` with ``ok(x, y)``; otherwise an argparse error
+    saying the ``form`` (e.g. ``B,LC (two numbers, Lc in m)``) or what they ``need``."""
+    try:
+        x, y = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be {form}, got {text!r}") from None
+    if not (math.isfinite(x) and math.isfinite(y) and ok(x, y)):
+        raise argparse.ArgumentTypeError(f"needs {need}, got {text!r}")
+    return x, y
+
+
 def b_lc(text: str) -> tuple[float, float]:
     """``B,LC``: b ≥ 0 and Lc > 0 in metres, e.g. ``0.0094,3e-7``."""
-    parts = text.split(",")
-    try:
-        b, lc = (float(x) for x in parts)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be B,LC (two numbers, Lc in m), got {text!r}") \
-            from None
-    if not (math.isfinite(b) and math.isfinite(lc) and b >= 0 and lc > 0):
-        raise argparse.ArgumentTypeError(f"needs b ≥ 0 and Lc > 0 (finite), got {text!r}")
-    return b, lc
+    return pair(text, "B,LC (two numbers, Lc in m)", lambda b, lc: b >= 0 and lc > 0,
+                "b ≥ 0 and Lc > 0 (finite)")
 
 
 def finite(text: str) -> float:

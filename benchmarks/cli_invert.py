@@ -15,35 +15,23 @@ import json
 from pathlib import Path
 
 from benchmarks.cli_args import (add_integrator_options, add_observation_options,
-                                 add_problem_choice, check_observation_options, count,
-                                 in_file, integrator_from_args, observations_from_args, out_dir, positive,
-                                 problem_from_args, say, seed, show_progress)
+                                 add_problem_choice, check_observation_options, count, in_file,
+                                 integrator_from_args, observations_from_args, out_dir, pair,
+                                 positive, problem_from_args, say, seed, show_progress)
 from benchmarks.report import jsonable
 
 __all__ = ["add_parsers"]
 
 
-def _range(text: str, what: str, low_ok: bool):
-    parts = text.split(",")
-    try:
-        lo, hi = (float(x) for x in parts)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be LO,HI (two numbers{what}), got {text!r}") \
-            from None
-    if not (lo >= 0 if low_ok else lo > 0) or not lo < hi or hi == float("inf"):
-        raise argparse.ArgumentTypeError(
-            f"needs {'0 ≤' if low_ok else '0 <'} LO < HI (finite{what}), got {text!r}")
-    return lo, hi
-
-
 def b_range(text: str):
     """``LO,HI``: 0 ≤ LO < HI, the box of b."""
-    return _range(text, "", low_ok=True)
+    return pair(text, "LO,HI (two numbers)", lambda lo, hi: 0 <= lo < hi, "0 ≤ LO < HI (finite)")
 
 
 def lc_range(text: str):
     """``LO,HI``: 0 < LO < HI in metres, the box of Lc."""
-    return _range(text, ", in m", low_ok=False)
+    return pair(text, "LO,HI (two numbers, in m)", lambda lo, hi: 0 < lo < hi,
+                "0 < LO < HI (finite, in m)")
 
 
 def steps(text: str) -> int:

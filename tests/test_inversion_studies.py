@@ -356,3 +356,25 @@ def test_invert_json_prints_one_document(capsys, tmp_path):
     doc = json.loads(capsys.readouterr().out)
     assert doc["integrator"] == "Rodas5P" and doc["posterior"]["n_samples"] == 8 * 5
     assert (tmp_path / "inv" / "corner.png").exists()
+
+
+def test_joint_misfit_agrees_with_the_sweeps_j(tmp_path):
+    """J at fixed weights is the sweep's J at its own weights (Eq. 12)."""
+    from pathlib import Path
+    from benchmarks.fitting import read_curves
+    from benchmarks.inversion.joint import joint_misfit
+    from benchmarks.sweep import observations, sweep
+    curves = Path(__file__).parent / "data" / "W2_slip_weakening.csv"
+    problem = preset("W2", law="slip", t_end=20.0)
+    obs = observations("W2", curves=read_curves(curves))
+    algorithm = Rodas5P(rtol=1e-8, atol=1e-8)
+    table = sweep(problem, [0.0092, 0.0094, 0.0096], [3e-7], algorithm, obs, tmp_path,
+                  progress=False).table
+    a1, a2 = table.attrs["alpha1"], table.attrs["alpha2"]
+    got = joint_misfit(Misfit(problem, obs, algorithm), table.b.to_numpy(),
+                       table.lc_m.to_numpy(), a1, a2)
+    np.testing.assert_allclose(got.J, table.J, rtol=1e-12)
+    with pytest.raises(ValueError, match="alpha2 must be"):
+        joint_misfit(Misfit(problem, obs, algorithm), [0.0094], [3e-7], a1, 0.0)
+    with pytest.raises(ValueError, match="needs observed slip-weakening curves"):
+        joint_misfit(Misfit(problem, observations("W2"), algorithm), [0.0094], [3e-7], 1.0, 1.0)

@@ -42,7 +42,7 @@ def prior_box(name: str, law: str):
     return (float(b.min()), float(b.max())), (float(lc.min()), float(lc.max()))
 
 
-def posterior_target(out, walkers: int = 32, steps: int = 2400, seed: int = 0,
+def posterior_target(out, walkers: int = 32, steps: int = 2500, seed: int = 0,
                      study_csv=None, progress: bool = False) -> dict:
     """Invert W2/slip's published means (σ 10 %, assumed) in the paper sweep's box with the
     integrator the work-precision study recommends for 1e−3 in ΔT; check the posterior's size
@@ -114,9 +114,10 @@ def _inversion_markdown(s: dict) -> str:
 
 
 def _interval(p: dict) -> str:
-    lo = ("≤ " if p["open_low"] else "") + f"{p['low']:.5g}"
+    """A profile interval, each end that is the box's end marked so."""
+    lo = f"{p['low']:.5g}" + (" (box end)" if p["open_low"] else "")
     hi = f"{p['high']:.5g}" + (" (box end)" if p["open_high"] else "")
-    return f"[{lo}, {hi}]" + (" (open: box end)" if p["open_low"] else "")
+    return f"[{lo}, {hi}]"
 
 
 def calibration_study(out, seeds: int = 1000, n: int = 121, sigma_rel: float = 0.05,
