@@ -5,7 +5,7 @@
     rsfbench invert --problem my.toml --obs-recurrence 4.2 --obs-drop 0.03 \\
         --b-range 0.008,0.012 --lc-range 1e-8,1e-5 --steps 1000 --json
     rsfbench calibration --out results      # coverage of the 95 % regions over 1000 seeds
-    rsfbench solver-effect --out results    # the solver's effect over W1–W4, both laws (~35 min)
+    rsfbench solver-effect --out results    # the solver's effect over W1–W4, both laws (~100 min)
 """
 
 from __future__ import annotations
@@ -179,7 +179,7 @@ def add_parsers(sub, preset_names) -> None:
 
     e = sub.add_parser("solver-effect", help="does the solver change the inferred (b, Lc)? "
                        "every candidate setting against a tight reference, W1–W4 and both laws "
-                       "(~35 min)")
+                       "(~100 min)")
     e.add_argument("--out", type=out_dir, default="results", metavar="DIR",
                    help="where to write solver_effect.csv/.md/.png (default: results)")
     e.add_argument("--study", type=in_file, metavar="FILE.csv",

@@ -248,11 +248,11 @@ STEPS = (
     Step("binding-overhead", "the same solver called compiled and from Python (SUNDIALS, "
          "LSODA)", _binding_overhead, full=True, timed=True, minutes=6),
     Step("inversion", "a W2/slip inversion: fit, profiles, a 64,000-solve posterior (timed)",
-         _inversion, timed=True, reads=("wp_quick.csv",), minutes=1.2),
+         _inversion, timed=True, reads=("wp_quick.csv",), minutes=0.9),
     Step("calibration", "coverage of the 95 % regions over 1000 seeded synthetic data sets",
-         _calibration, minutes=1.5),
+         _calibration, minutes=2),
     Step("solver-effect", "the solver's effect on the inferred (b, Lc): W1–W4, both laws",
-         _solver_effect, full=True, timed=True, reads=("wp_full.csv",), minutes=35),
+         _solver_effect, full=True, timed=True, reads=("wp_full.csv",), minutes=101),
     Step("probe", "the reliability probe, slow cases included", _probe,
          data=("results/wp_quick.csv",), modules=("benchmarks.cli",), minutes=1.4),
 )
