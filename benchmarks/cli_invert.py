@@ -14,6 +14,8 @@ import argparse
 import json
 from pathlib import Path
 
+import numpy as np
+
 from benchmarks.cli_args import (add_integrator_options, add_observation_options,
                                  add_problem_choice, check_observation_options, count, in_file,
                                  integrator_from_args, observations_from_args, out_dir, pair,
@@ -59,6 +61,7 @@ def cmd_invert(args) -> int:
     algorithm, why = integrator_from_args(args)
     name = args.preset if args.problem is None else Path(args.problem).stem
     out = Path(args.out or f"invert_{name}_{problem.law.name}")
+    out.mkdir(parents=True, exist_ok=True)               # before the work, not after it
     misfit = Misfit(problem, obs, algorithm, wall_budget=args.wall_budget, workers=args.workers)
     quiet = args.json or not show_progress(args)
     if not args.json:
@@ -69,10 +72,15 @@ def cmd_invert(args) -> int:
                  profile_points=args.profile_points, seed=args.seed, progress=not quiet,
                  say=None if args.json else (lambda text: say(f"… {text}")))
     summary = {**write_inversion(inv, out), "integrator_choice": why, "out": str(out)}
+    failed = not np.isfinite(inv.fit.J1)         # no point of the box had a limit cycle
     if args.json:
         say(json.dumps(jsonable(summary), indent=2))
-        return 0
+        return 1 if failed else 0
     f = summary["fit"]
+    if failed:
+        say(f"inversion failed: {f['message']} (failed solves, e.g. over --wall-budget, count "
+            f"as without a cycle); written: {summary['files']['summary']}")
+        return 1
     say(f"least squares: b = {f['b']:.5g} ± {f['sigma_b']:.2g}, Lc = {f['lc_m'] * 1e6:.4g} µm "
         f"(log10 Lc ± {f['sigma_log10_lc']:.2g}), J1 = {f['J1']:.3g}"
         + ("" if f["success"] else f" — not converged: {f['message']}"))

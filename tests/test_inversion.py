@@ -120,6 +120,15 @@ def test_a_bad_box_is_refused(w2):
             b_range=(0.01, 0.009))
 
 
+def _noisy(exact: Observations, seed: int = 0) -> Observations:
+    """``exact``'s means with 10 % Gaussian noise (seeded), its σ unchanged."""
+    rng = np.random.default_rng(seed)
+    return Observations(exact.recurrence_s * (1 + 0.1 * rng.standard_normal()),
+                        exact.sigma_recurrence_s,
+                        exact.friction_drop * (1 + 0.1 * rng.standard_normal()),
+                        exact.sigma_friction_drop)
+
+
 def test_profile_intervals_contain_the_truth_for_seeded_noisy_data():
     """W2 at (0.0094, 0.3 µm), observations with 10 % Gaussian noise (seed 0): both 95 %
     profile intervals contain the truth. The data leave a long valley in (b, log Lc): the b
@@ -128,11 +137,7 @@ def test_profile_intervals_contain_the_truth_for_seeded_noisy_data():
     algorithm = Rodas5P(rtol=1e-8, atol=1e-8)
     problem = preset("W2", law="slip", t_end=20.0)
     exact = _synthetic(problem, algorithm)
-    rng = np.random.default_rng(0)
-    noisy = Observations(exact.recurrence_s * (1 + 0.1 * rng.standard_normal()),
-                         exact.sigma_recurrence_s,
-                         exact.friction_drop * (1 + 0.1 * rng.standard_normal()),
-                         exact.sigma_friction_drop)
+    noisy = _noisy(exact)
     m = Misfit(problem, noisy, algorithm)
     pb = profile(m, "b", np.linspace(0.0086, 0.0102, 17), (1e-8, 1e-5))
     assert pb.low < 0.0094 < pb.high and not (pb.open_low or pb.open_high)
@@ -172,11 +177,7 @@ def test_posterior_credible_intervals_contain_the_truth_for_seeded_noisy_data():
     algorithm = Rodas5P(rtol=1e-6, atol=1e-6)
     problem = preset("W2", law="slip", t_end=20.0)
     exact = _synthetic(problem, Rodas5P(rtol=1e-8, atol=1e-8))
-    rng = np.random.default_rng(0)
-    noisy = Observations(exact.recurrence_s * (1 + 0.1 * rng.standard_normal()),
-                         exact.sigma_recurrence_s,
-                         exact.friction_drop * (1 + 0.1 * rng.standard_normal()),
-                         exact.sigma_friction_drop)
+    noisy = _noisy(exact)
     m = Misfit(problem, noisy, algorithm)
     box = dict(b_range=(0.0085, 0.0105), lc_range=(1e-8, 1e-5))
     best = fit(m, **box)

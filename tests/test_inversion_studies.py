@@ -378,3 +378,17 @@ def test_joint_misfit_agrees_with_the_sweeps_j(tmp_path):
         joint_misfit(Misfit(problem, obs, algorithm), [0.0094], [3e-7], a1, 0.0)
     with pytest.raises(ValueError, match="needs observed slip-weakening curves"):
         joint_misfit(Misfit(problem, observations("W2"), algorithm), [0.0094], [3e-7], 1.0, 1.0)
+
+
+def test_an_inversion_without_any_cycle_exits_1_and_an_unwritable_out_is_refused_first(
+        capsys, tmp_path):
+    argv = ["invert", "--preset", "W4", "--t-end", "15", "--integrator", "Rodas5P", "--rtol",
+            "1e-4", "--atol", "1e-4", "--steps", "0", "--profile-points", "3"]
+    assert main(argv + ["--wall-budget", "1e-9", "--out", str(tmp_path / "a"), "--json"]) == 1
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["fit"]["success"] is False and doc["posterior"] is None
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    assert main(argv + ["--out", str(blocker / "sub")]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1
