@@ -11,6 +11,7 @@
     rsfbench sweep --preset W2 --b 0.009:0.0098:0.0001 --lc 1e-7:1e-6:9log --json
     rsfbench reproduce --out results        # what `make reproduce` runs (--full: reproduce-full)
     rsfbench readme [--check]               # refill the README's numbers from results/
+    rsfbench lab shs --holds 1 10 100       # a slide-hold-slide test and its healing
 """
 
 from __future__ import annotations
@@ -539,6 +540,8 @@ def build_parser() -> Parser:
     add_parsers(sub, PRESET_NAMES)
     from benchmarks.cli_invert import add_parsers as add_inversion_parsers
     add_inversion_parsers(sub, PRESET_NAMES)
+    from benchmarks.cli_lab import add_parsers as add_lab_parsers
+    add_lab_parsers(sub)
     return parser
 
 

@@ -202,8 +202,9 @@ def add_problem_choice(p, preset_names, what: str) -> None:
                        help="or your own apparatus: a TOML or JSON file (mass, stiffness, "
                             "normal_force, t_end, [law], [loading], [initial]; SI units; "
                             "docs/examples/apparatus.toml is one; no default)")
-    p.add_argument("--law", choices=("slip", "aging"),
-                   help="friction law of --preset (default: slip)")
+    p.add_argument("--law", choices=("slip", "aging", "nagata"),
+                   help="friction law of --preset (default: slip; nagata: the aging law's best "
+                        "fit with the Nagata law's c = 2)")
 
 
 def add_problem_options(p, preset_names, t_end_help: str = "simulated time in s (default: the "

@@ -56,15 +56,14 @@ def _lsoda_wall(problem, repeats: int) -> float:
     from numba import carray, cfunc
     from numbalsoda import lsoda, lsoda_sig
 
-    from problems.formulations import ode_rhs, to_ode_state
+    from problems.formulations import N_Q, form_vector, ode_rhs, to_ode_state
 
     @cfunc(lsoda_sig)
     def rhs(t, u, du, data):
-        q = carray(data, (5,))
-        ode_rhs(int(q[0]), q[1], q[2], q[3], q[4], carray(u, (3,)), carray(du, (3,)))
+        ode_rhs(carray(data, (N_Q,)), carray(u, (3,)), carray(du, (3,)))
 
     nd = problem.nondimensional()
-    data = np.array([nd.law_code, nd.beta, nd.c, nd.d, nd.e_slow])
+    data = form_vector(nd, nd.e_slow)
     z0, grid = to_ode_state(nd.law_code, nd.beta, nd.x0), np.linspace(0.0, nd.tau_end, 20_001)
     walls = []
     for _ in range(repeats + 1):

@@ -62,15 +62,16 @@ _BAD = (("string", "0.01", "pnf"), ("nan", NAN, "pnf"), ("inf", INF, "pnf"), ("n
 def _builders():
     """(dataclass name, field, its kind: p positive / n non-negative / f finite, builder)."""
     from integrators import ETD2, ETDIterated, Rodas5P
-    from problems import (AgingLaw, BalancedStart, ConstantLoading, InitialState, SlipLaw,
-                          SpringSlider, TwoSpeedLoading, paper_example)
+    from problems import (AgingLaw, BalancedStart, ConstantLoading, InitialState, LoadHistory,
+                          NagataLaw, SlipLaw, SpringSlider, TwoSpeedLoading, paper_example)
     law = dict(a=0.008, b=0.0092, lc=5e-7, v0=1e-5)
     base = paper_example()
     slider = dict(mass=base.mass, stiffness=base.stiffness, normal_force=base.normal_force,
                   law=base.law, loading=base.loading, initial=base.initial, t_end=1.0, mu0=0.6)
     out = []
-    for cls in (SlipLaw, AgingLaw):
-        for f, kind in (("a", "p"), ("b", "n"), ("lc", "p"), ("v0", "p")):
+    for cls in (SlipLaw, AgingLaw, NagataLaw):
+        fields = (("a", "p"), ("b", "p" if cls is NagataLaw else "n"), ("lc", "p"), ("v0", "p"))
+        for f, kind in fields + ((("c", "n"),) if cls is NagataLaw else ()):
             out.append((cls.__name__, f, kind, lambda v, c=cls, f=f: c(**{**law, f: v})))
     out.append(("ConstantLoading", "vl", "p", lambda v: ConstantLoading(v)))
     for f, kind in (("vls", "p"), ("vlf", "p"), ("df", "n")):
@@ -79,9 +80,13 @@ def _builders():
     for f, kind in (("v", "p"), ("theta", "f"), ("fs", "f")):
         out.append(("InitialState", f, kind,
                     lambda v, f=f: InitialState(**{**dict(v=1e-4, theta=1.0, fs=6e5), f: v})))
+    history = dict(velocities=(1e-4, 2e-4), switch_times=(1.0,), overshoot_velocity=1e-3,
+                   overshoot_duration=0.04)
+    for f, kind in (("overshoot_velocity", "p"), ("overshoot_duration", "n")):
+        out.append(("LoadHistory", f, kind, lambda v, f=f: LoadHistory(**{**history, f: v})))
     out.append(("BalancedStart", "slowdown", "p", lambda v: BalancedStart(v)))
-    for f, kind in (("mass", "p"), ("stiffness", "p"), ("normal_force", "p"), ("t_end", "p"),
-                    ("mu0", "f")):
+    for f, kind in (("mass", "n"), ("stiffness", "p"), ("normal_force", "p"), ("t_end", "p"),
+                    ("mu0", "f"), ("radiation_damping", "n")):
         out.append(("SpringSlider", f, kind, lambda v, f=f: SpringSlider(**{**slider, f: v})))
     for f in ("rtol", "atol"):
         out.append(("Rodas5P", f, "p",
@@ -588,7 +593,8 @@ def _stall_compiled(algorithm, nd):
     import numpy as np
     from integrators.own import engine as E
     from problems.formulations import to_ode_state
-    st, p, Z, G = E.new_state(nd, False, algorithm.rtol, algorithm.atol, algorithm.constants,
+    st, p, Z, G = E.new_state(nd._replace(tau_fast=0.0), algorithm.rtol, algorithm.atol,
+                              algorithm.constants,
                               algorithm.max_steps, time.perf_counter() + 5.0)
     st[E.ST["LAST_T"]] = st[E.ST["TAU0"]] = 1e20
     p[E.P["TAU_END"]] = 2e20

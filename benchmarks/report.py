@@ -11,11 +11,16 @@ import pandas as pd
 __all__ = ["markdown_table", "jsonable", "fmt", "ERROR_LEVELS", "write_work_precision", "pareto_markdown"]
 
 
-def markdown_table(df: pd.DataFrame) -> str:
-    """A GitHub-flavoured Markdown table of ``df`` (values as ``str``)."""
+def markdown_table(df: pd.DataFrame, floatfmt: str | None = None) -> str:
+    """A GitHub-flavoured Markdown table of ``df`` (values as ``str``; floats with ``floatfmt``
+    if given, NaN as a gap)."""
+    def cell(v):
+        if floatfmt is not None and isinstance(v, (float, np.floating)):
+            return fmt(float(v), floatfmt)
+        return str(v)
     cols = [str(c) for c in df.columns]
     lines = ["| " + " | ".join(cols) + " |", "|" + "|".join("---" for _ in cols) + "|"]
-    lines += ["| " + " | ".join(str(v) for v in row) + " |" for row in df.itertuples(index=False)]
+    lines += ["| " + " | ".join(cell(v) for v in row) + " |" for row in df.itertuples(index=False)]
     return "\n".join(lines) + "\n"
 
 

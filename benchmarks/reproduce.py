@@ -119,6 +119,23 @@ def _fixed_steps(out: Path) -> None:
     write_fixed_step_orders(*fixed_step_orders(progress=False), out)
 
 
+def _problem_family(out: Path) -> None:
+    from benchmarks.family import write_lab_checks
+    checks = write_lab_checks(out)
+    print(checks["marone"].to_string(index=False))
+
+
+def _family(out: Path) -> None:
+    from benchmarks.family import summary, write_family
+    print(summary(write_family(out, progress=False)).to_string(index=False))
+
+
+def _mass_limit(out: Path) -> None:
+    from benchmarks.mass_limit import write_mass_limit
+    write_mass_limit(out, progress=False)
+    print((out / "mass_limit.md").read_text().split("## ")[1])
+
+
 def _work_precision(out: Path) -> None:
     from benchmarks.report import write_work_precision
     from benchmarks.work_precision import QUICK, study_problems, work_precision
@@ -253,6 +270,13 @@ STEPS = (
          _calibration, minutes=2),
     Step("solver-effect", "the solver's effect on the inferred (b, Lc): W1–W4, both laws",
          _solver_effect, full=True, timed=True, reads=("wp_full.csv",), minutes=101),
+    Step("problem-family", "the problem family: Marone's numbers, velocity steps, healing",
+         _problem_family, minutes=0.5),
+    Step("family", "which integrator for a velocity step, a slide-hold-slide test, the "
+         "quasi-dynamic and the damped slider (work-precision)", _family, full=True,
+         timed=True, minutes=16),
+    Step("mass-limit", "where the paper's ETD advantage goes as the mass goes", _mass_limit,
+         full=True, timed=True, minutes=3),
     Step("probe", "the reliability probe, slow cases included", _probe,
          data=("results/wp_quick.csv",), modules=("benchmarks.cli",), minutes=1.4),
 )

@@ -35,10 +35,12 @@ from integrators import REGISTRY, solve
 from problems import paper_example, window
 
 __all__ = ["Ladder", "FULL", "QUICK", "study_problems", "settings", "measure", "work_precision",
-           "WP_COLUMNS", "SKIPPED", "reliable_error", "best_at_levels", "recommend",
+           "WP_COLUMNS", "SKIPPED", "REFUSED", "reliable_error", "best_at_levels", "recommend",
            "algorithm_at", "recommended_algorithm", "read_study", "STUDY_CSV"]
 
 SKIPPED = "Skipped"
+#: the retcode of a method that cannot integrate a problem at all (the paper's ETD without mass)
+REFUSED = "Refused"
 #: the columns every work-precision CSV has (then the errors, then provenance)
 WP_COLUMNS = ("problem", "law", "integrator", "rhs_tier", "setting_name", "setting", "options",
               "retcode", "message", "t_reached_s", "wall_s", "timings", "nfev", "njev", "steps",
@@ -93,7 +95,8 @@ def tiers_of(cls, tiers) -> list[str]:
     return [t for t in tiers if t in offered]
 
 
-def measure(problem, algorithm, ref, ladder: Ladder) -> dict:
+def measure(problem, algorithm, ref, ladder: Ladder, error_of=errors,
+            gridded_timing: bool = False) -> dict:
     """One point. First a run that saves μ on the reference's grid: it warms numba up and gives
     the trajectory error. Then the timed runs, which record events only (``max_points=2``, what
     an inversion uses): the minimum over ``repeats`` for runs under ``repeat_below`` s, one run
@@ -101,11 +104,24 @@ def measure(problem, algorithm, ref, ladder: Ladder) -> dict:
 
     Why not time the gridded run: a method that returns to Python at every output time (the
     segment backends do) would pay ~2000 round trips that ETD, saving inside its kernel, does
-    not, and a method that lands its steps on output times would take extra steps."""
-    grid = solve(problem, algorithm, wall_budget=ladder.wall_budget,
-                 save_every=problem.t_end / (len(ref.grid_t) - 1))
+    not, and a method that lands its steps on output times would take extra steps.
+
+    ``gridded_timing``: time the gridded run instead, for problems whose user needs the
+    trajectory (a laboratory test fitted sample by sample); ``error_of(solution, ref)`` gives
+    the errors (default :func:`benchmarks.errors.errors`). A method that cannot integrate the
+    problem at all (``check_problem``) is a row with retcode ``Refused`` and its reason."""
+    try:
+        algorithm.check_problem(problem)
+    except ValueError as exc:
+        return {"retcode": REFUSED, "message": str(exc), **dict.fromkeys(ERROR_COLUMNS, math.nan)}
+    save = problem.t_end / (len(ref.grid_t) - 1)
+    grid = solve(problem, algorithm, wall_budget=ladder.wall_budget, save_every=save)
     sol, timings = grid, [grid.stats.wall_s]
-    if grid.success:
+    if grid.success and gridded_timing:
+        while min(timings) < ladder.repeat_below and len(timings) < ladder.repeats:
+            timings.append(solve(problem, algorithm, wall_budget=ladder.wall_budget,
+                                 save_every=save).stats.wall_s)
+    elif grid.success:
         sol = solve(problem, algorithm, wall_budget=ladder.wall_budget, max_points=2)
         timings = [sol.stats.wall_s]
         while sol.success and min(timings) < ladder.repeat_below and len(timings) < ladder.repeats:
@@ -115,12 +131,15 @@ def measure(problem, algorithm, ref, ladder: Ladder) -> dict:
     return {"retcode": sol.retcode.value, "message": sol.message, "t_reached_s": sol.t_reached,
             "wall_s": min(timings), "timings": len(timings), "nfev": s.nfev, "njev": s.njev,
             "steps": s.steps, "rejected": s.rejected, "n_events": len(sol.events),
-            **errors(sol, ref), "err_trajectory": errors(grid, ref)["err_trajectory"]}
+            **error_of(sol, ref), "err_trajectory": error_of(grid, ref)["err_trajectory"]}
 
 
 def work_precision(problems, ladder: Ladder = QUICK, names=None, tiers=("numba", "python"),
-                   progress: bool = True) -> pd.DataFrame:
-    """Run the study; one row per (problem, integrator, tier, setting), columns WP_COLUMNS."""
+                   progress: bool = True, reference_of=reference, error_of=errors,
+                   gridded_timing: bool = False) -> pd.DataFrame:
+    """Run the study; one row per (problem, integrator, tier, setting), columns WP_COLUMNS.
+    ``reference_of(problem)``, ``error_of`` and ``gridded_timing``: the references, errors and
+    timing of another kind of problem (:mod:`benchmarks.family`)."""
     names = sorted(REGISTRY, key=str.lower) if names is None else list(names)
     jobs = [(p, n, t) for p in problems for n in names for t in tiers_of(REGISTRY[n], tiers)]
     total = sum(len(settings(REGISTRY[n], ladder, t)) for _, n, t in jobs)
@@ -131,13 +150,13 @@ def work_precision(problems, ladder: Ladder = QUICK, names=None, tiers=("numba",
         for problem, name, tier in jobs:
             if problem not in refs:
                 bar.set_postfix_str(f"reference {problem.name}")
-                refs[problem] = reference(problem)
+                refs[problem] = reference_of(problem)
             ref, cls = refs[problem], REGISTRY[name]
             stopped = None
             for setting_name, setting, algorithm in settings(cls, ladder, tier):
                 bar.set_postfix_str(f"{problem.name} {name} [{tier}] {setting:.3g}")
                 if stopped is None:
-                    point = measure(problem, algorithm, ref, ladder)
+                    point = measure(problem, algorithm, ref, ladder, error_of, gridded_timing)
                     if point["retcode"] in _BUDGET_STOPS and not cls.stiff:
                         stopped = setting
                 else:

@@ -1,14 +1,15 @@
 """A spring-slider from a file: a user's own apparatus, in TOML or JSON, SI units.
 
     name = "my apparatus"      # optional
-    mass = 1100.0              # kg
+    mass = 1100.0              # kg (0: quasi-static)
     stiffness = 1.48e8         # N/m
     normal_force = 997500.0    # N
     t_end = 40.0               # s
     mu0 = 0.6                  # optional, F0/Fn (default 0.6)
+    radiation_damping = 0.0    # optional, N s/m (default 0)
 
     [law]
-    name = "slip"              # or "aging"
+    name = "slip"              # or "aging", or "nagata" (with c = 2.0, its stress coefficient)
     a = 0.008
     b = 0.0094
     lc = 3e-7                  # m
@@ -18,6 +19,8 @@
     vls = 7.5e-5               # m/s
     vlf = 1.9717e-3            # m/s
     df = 0.042                 # s
+    # or a history: velocities = [1e-6, 0.0, 1e-6] (m/s; 0 holds) and switch_times = [10, 110]
+    # (s), optionally with overshoot_velocity, overshoot_duration and reference_velocity
 
     [initial]                  # optional: slowdown = 1.1 (the presets' rule, the default),
     slowdown = 1.1             # or v (m/s), theta (the law's units), fs (N)
@@ -34,13 +37,15 @@ import tomllib
 from pathlib import Path
 
 from problems.friction import law_from_name
-from problems.loading import ConstantLoading, TwoSpeedLoading
+from problems.loading import ConstantLoading, LoadHistory, TwoSpeedLoading
 from problems.slider import BalancedStart, InitialState, SpringSlider
 
 __all__ = ["load_problem", "problem_dict", "PROBLEM_SUFFIXES"]
 
 PROBLEM_SUFFIXES = (".toml", ".json")
-_TOP = {"mass", "stiffness", "normal_force", "t_end", "mu0", "name", "law", "loading", "initial"}
+_TOP = {"mass", "stiffness", "normal_force", "t_end", "mu0", "name", "law", "loading", "initial",
+        "radiation_damping"}
+_HISTORY_SCALARS = ("overshoot_velocity", "overshoot_duration", "reference_velocity")
 _REQUIRED = ("mass", "stiffness", "normal_force", "t_end", "law", "loading")
 
 
@@ -70,14 +75,24 @@ def problem_from_dict(data, default_name: str = "") -> SpringSlider:
     table = _table(data, "the file")
     _keys(table, _TOP, _REQUIRED, "the file")
     law = _table(table["law"], "[law]")
-    _keys(law, {"name", "a", "b", "lc", "v0"}, ("name", "a", "b", "lc"), "[law]")
+    allowed = {"name", "a", "b", "lc", "v0"} | ({"c"} if law.get("name") == "nagata" else set())
+    _keys(law, allowed, ("name", "a", "b", "lc"), "[law]")
     if not isinstance(law["name"], str):
-        raise ValueError(f"[law] name must be \"slip\" or \"aging\", got {law['name']!r}")
+        raise ValueError(f"[law] name must be \"slip\", \"aging\" or \"nagata\", got "
+                         f"{law['name']!r}")
     law = law_from_name(law["name"], **{k: _number(law, k, "[law]") for k in law if k != "name"})
     loading = _table(table["loading"], "[loading]")
     if "vl" in loading:
         _keys(loading, {"vl"}, ("vl",), "[loading]")
         loading = ConstantLoading(_number(loading, "vl", "[loading]"))
+    elif "velocities" in loading:
+        _keys(loading, {"velocities", "switch_times", *_HISTORY_SCALARS}, ("velocities",),
+              "[loading] (a history)")
+        lists = {k: tuple(_number({f"{k}[{i}]": x}, f"{k}[{i}]", "[loading]")
+                          for i, x in enumerate(_list(loading, k)))
+                 for k in ("velocities", "switch_times") if k in loading}
+        loading = LoadHistory(**lists, **{k: _number(loading, k, "[loading]")
+                                          for k in _HISTORY_SCALARS if k in loading})
     else:
         _keys(loading, {"vls", "vlf", "df"}, ("vls", "vlf", "df"), "[loading] (or vl alone)")
         loading = TwoSpeedLoading(**{k: _number(loading, k, "[loading]") for k in loading})
@@ -91,7 +106,8 @@ def problem_from_dict(data, default_name: str = "") -> SpringSlider:
     if not isinstance(name, str):
         raise ValueError(f"name must be a string, got {name!r}")
     scalars = {k: _number(table, k, "the file") for k in ("mass", "stiffness", "normal_force",
-                                                           "t_end", "mu0") if k in table}
+                                                           "t_end", "mu0", "radiation_damping")
+               if k in table}
     return SpringSlider(law=law, loading=loading, initial=initial, name=name, **scalars)
 
 
@@ -99,10 +115,13 @@ def problem_dict(problem: SpringSlider) -> dict:
     """The file form of ``problem`` (what :func:`problem_from_dict` reads back)."""
     import dataclasses
     initial = dataclasses.asdict(problem.initial)
+    loading = {k: list(v) if isinstance(v, tuple) else v
+               for k, v in dataclasses.asdict(problem.loading).items() if v is not None}
     return {"name": problem.name, "mass": problem.mass, "stiffness": problem.stiffness,
             "normal_force": problem.normal_force, "t_end": problem.t_end, "mu0": problem.mu0,
+            "radiation_damping": problem.radiation_damping,
             "law": {"name": problem.law.name, **dataclasses.asdict(problem.law)},
-            "loading": dataclasses.asdict(problem.loading), "initial": initial}
+            "loading": loading, "initial": initial}
 
 
 def _table(value, where: str) -> dict:
@@ -119,6 +138,13 @@ def _keys(table: dict, allowed: set, required, where: str) -> None:
     missing = [k for k in required if k not in table]
     if missing:
         raise ValueError(f"{where} lacks the key {missing[0]!r}")
+
+
+def _list(table: dict, key: str) -> list:
+    value = table[key]
+    if not isinstance(value, list):
+        raise ValueError(f"{key} in [loading] must be a list of numbers, got {value!r}")
+    return value
 
 
 def _number(table: dict, key: str, where: str) -> float:

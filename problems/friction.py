@@ -1,13 +1,19 @@
-"""Rate-and-state friction laws: the slip (Ruina) law and the aging (Dieterich) law.
+"""Rate-and-state friction laws: the slip (Ruina) law, the aging (Dieterich) law and the Nagata
+law.
 
-Both laws share the direct effect ``A ln(v/v0)`` and differ in the state variable θ and its
-evolution (Urata et al. 2017, Eqs. 6–9; SPEC §1):
+All share the direct effect ``A ln(v/v0)`` and differ in the state variable θ and its evolution
+(Urata et al. 2017, Eqs. 6–9; SPEC §1; Nagata et al. 2012):
 
-* slip law, θ in newtons:   Ft = F0 + A ln(v/v0) + θ,             dθ/dt = −(v/Lc)(θ + B ln(v/v0))
-* aging law, θ in seconds:  Ft = F0 + A ln(v/v0) + B ln(v0 θ/Lc),  dθ/dt = 1 − v θ/Lc
+* slip law, θ in newtons:    Ft = F0 + A ln(v/v0) + θ,             dθ/dt = −(v/Lc)(θ + B ln(v/v0))
+* aging law, θ in seconds:   Ft = F0 + A ln(v/v0) + B ln(v0 θ/Lc),  dθ/dt = 1 − v θ/Lc
+* Nagata law, θ in seconds:  the aging law's friction,  dθ/dt = 1 − v θ/Lc − (c/b) θ dμ/dt
 
-with A = a·Fn and B = b·Fn. A law object holds (a, b, Lc, v0) only; the normal force Fn and the
-reference friction F0 belong to the spring-slider and are passed in.
+with A = a·Fn and B = b·Fn. In the Nagata law the state also weakens with the shear stress rate
+dμ/dt (μ = shear force/Fn; c ≈ 2 in Nagata et al.'s fits to granite). Here the shear stress is the
+spring's, the force the apparatus measures: dμ/dt = k (vL − v)/Fn. It is the friction's in the
+quasi-static limit and the law's own definition (Nagata et al. 2012, Eq. 7; rsfmodel's
+``NagataState``). A law object holds (a, b, Lc, v0) and its own parameters only; the normal force
+Fn and the reference friction F0 belong to the spring-slider and are passed in.
 """
 
 from __future__ import annotations
@@ -21,7 +27,7 @@ import numpy as np
 from problems._validate import check_non_negative, check_positive, warn_implausible
 from problems.formulations import LAW_CODES, check_law_code
 
-__all__ = ["FrictionLaw", "SlipLaw", "AgingLaw", "LAWS", "law_from_name", "compiled_law_code"]
+__all__ = ["FrictionLaw", "SlipLaw", "AgingLaw", "NagataLaw", "LAWS", "law_from_name", "compiled_law_code"]
 
 
 @dataclass(frozen=True)
@@ -35,7 +41,7 @@ class FrictionLaw:
 
     #: short name used by the CLI and in result tables
     name: ClassVar[str] = ""
-    #: integer code read by the compiled kernels (0 = slip law, 1 = aging law)
+    #: integer code read by the compiled kernels (0 = slip law, 1 = aging law, 2 = Nagata law)
     code: ClassVar[int] = -1
 
     def __post_init__(self) -> None:
@@ -48,12 +54,21 @@ class FrictionLaw:
         """State θss at steady sliding with slip rate ``v``."""
         raise NotImplementedError
 
-    def state_rate(self, v, theta, fn: float):
-        """dθ/dt of the law."""
+    def state_rate(self, v, theta, fn: float, stress_rate=0.0):
+        """dθ/dt of the law; ``stress_rate`` is dFs/dt (N/s), read by laws that depend on it."""
         raise NotImplementedError
+
+    @property
+    def stress_coefficient(self) -> float:
+        """c of a state that weakens with the shear stress rate (Nagata law), else 0."""
+        return 0.0
 
     def state_term(self, theta, fn: float):
         """The state's contribution to friction, Ft − F0 − A ln(v/v0), in newtons."""
+        raise NotImplementedError
+
+    def state_term_derivative(self, theta, fn: float):
+        """d(state term)/dθ (N per unit of θ)."""
         raise NotImplementedError
 
     def friction(self, v, theta, fn: float, f0: float):
@@ -88,11 +103,14 @@ class SlipLaw(FrictionLaw):
     def steady_state(self, v: float, fn: float) -> float:
         return -self.b * fn * math.log(v / self.v0)
 
-    def state_rate(self, v, theta, fn: float):
+    def state_rate(self, v, theta, fn: float, stress_rate=0.0):
         return -(v / self.lc) * (theta + self.b * fn * np.log(v / self.v0))
 
     def state_term(self, theta, fn: float):
         return theta
+
+    def state_term_derivative(self, theta, fn: float):
+        return np.ones_like(np.asarray(theta, dtype=float))[()]
 
     def psi(self, theta, fn: float):
         if self.b == 0:
@@ -116,11 +134,14 @@ class AgingLaw(FrictionLaw):
     def steady_state(self, v: float, fn: float) -> float:
         return self.lc / v
 
-    def state_rate(self, v, theta, fn: float):
+    def state_rate(self, v, theta, fn: float, stress_rate=0.0):
         return 1.0 - v * theta / self.lc
 
     def state_term(self, theta, fn: float):
         return self.b * fn * np.log(self.v0 * theta / self.lc)
+
+    def state_term_derivative(self, theta, fn: float):
+        return self.b * fn / theta
 
     def psi(self, theta, fn: float):
         return self.v0 * theta / self.lc
@@ -129,11 +150,38 @@ class AgingLaw(FrictionLaw):
         return psi * self.lc / self.v0
 
 
-LAWS: dict[str, type[FrictionLaw]] = {"slip": SlipLaw, "aging": AgingLaw}
+@dataclass(frozen=True)
+class NagataLaw(AgingLaw):
+    """Nagata et al. (2012): the aging law's friction and state, whose evolution also weakens
+    with the shear stress rate, dθ/dt = 1 − vθ/Lc − (c/b) θ dμ/dt (c dimensionless, ≥ 0; c = 0
+    is the aging law). Steady sliding is the aging law's (θ = Lc/v); the quasi-static critical
+    stiffness is Fn (b − a)/(Lc (1 + c)) (:mod:`problems.stability`)."""
+
+    c: float = 2.0
+
+    name: ClassVar[str] = "nagata"
+    code: ClassVar[int] = 2
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        check_non_negative("c", self.c)
+        if self.b == 0:
+            raise ValueError("the Nagata law needs b > 0 (its stress term is (c/b) θ dμ/dt), "
+                             "got b = 0")
+
+    def state_rate(self, v, theta, fn: float, stress_rate=0.0):
+        return 1.0 - v * theta / self.lc - (self.c / self.b) * theta * stress_rate / fn
+
+    @property
+    def stress_coefficient(self) -> float:
+        return self.c
+
+
+LAWS: dict[str, type[FrictionLaw]] = {"slip": SlipLaw, "aging": AgingLaw, "nagata": NagataLaw}
 
 
 def law_from_name(name: str, **params) -> FrictionLaw:
-    """Build a law by its short name (``"slip"`` or ``"aging"``)."""
+    """Build a law by its short name (``"slip"``, ``"aging"`` or ``"nagata"``)."""
     try:
         cls = LAWS[name.lower()]
     except (KeyError, AttributeError):

@@ -18,6 +18,7 @@ resolve and that shifts the phase of the first events.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from problems.friction import law_from_name
@@ -26,13 +27,14 @@ from problems.slider import BalancedStart, SpringSlider
 
 __all__ = ["MASS", "A", "V0", "NORMAL_STRESS", "NORMAL_FORCE", "WINDOWS", "Window",
            "paper_example", "window", "aging_best_fit", "preset", "PRESET_NAMES",
-           "SHEAR_MODULUS", "POISSON_RATIO"]
+           "SHEAR_MODULUS", "POISSON_RATIO", "LAB", "velocity_step_test",
+           "slide_hold_slide_test", "fault_radiation_damping", "FAULT_AREA"]
 
 MASS = 1.1e3                       # kg (Table 4)
 A = 0.008                          # direct effect (Table 4)
 V0 = 1e-5                          # m/s (Table 4)
 NORMAL_STRESS = 1.33e6             # Pa
-NORMAL_FORCE = NORMAL_STRESS * 1.5 * 0.5   # N, on the 1.5 m × 0.5 m fault
+NORMAL_FORCE = NORMAL_STRESS * 1.5 * 0.5   # N, on the 1.5 m × 0.5 m fault (FAULT_AREA)
 SHEAR_MODULUS = 39.3e9             # Pa, Indian metagabbro (Discussion)
 POISSON_RATIO = 0.31
 MU0 = 0.6                          # F0/Fn; only shifts the friction level
@@ -132,3 +134,65 @@ def preset(name: str, law: str = "slip", b: float | None = None, lc: float | Non
     if isinstance(name, str) and name.lower() == "paper-example":
         return paper_example(law=law, **kw)
     return window(name, law=law, **kw)
+
+
+# --- laboratory tests: a velocity step and a slide-hold-slide sequence ----------------------------
+#: Marone's rate-and-state code as distributed with rsfmodel (Leeman et al., github.com/jrleeman/
+#: rsfmodel, cjm_model_comparison/): a = 0.005, b = 0.01, Dc = 10 µm, k = 0.001 per µm (friction
+#: per displacement), V0 = 1 µm/s, μ0 = 0.6, quasi-static. In SI units with a normal force of
+#: 10 kN (any Fn gives the same friction coefficient): k = 1e-3 µm⁻¹ · Fn = 1e7 N/m.
+LAB = dict(a=0.005, b=0.01, lc=10e-6, v0=1e-6, normal_force=1e4, stiffness=1e7, mu0=0.6)
+
+
+def _lab_slider(law: str, loading, t_end: float, name: str, mass: float,
+                radiation_damping: float, c: float | None,
+                stiffness: float | None) -> SpringSlider:
+    params = {k: LAB[k] for k in ("a", "b", "lc", "v0")}
+    if c is not None:
+        params["c"] = c
+    friction = law_from_name(law, **params)
+    return SpringSlider(mass=mass, stiffness=LAB["stiffness"] if stiffness is None else stiffness,
+                        normal_force=LAB["normal_force"], law=friction, loading=loading,
+                        initial=BalancedStart(1.0), t_end=t_end, mu0=LAB["mu0"], name=name,
+                        radiation_damping=radiation_damping)
+
+
+def velocity_step_test(law: str = "aging", v1: float = 1e-6, v2: float = 1e-5,
+                       t_step: float = 10.0, t_end: float = 40.0, mass: float = 0.0,
+                       radiation_damping: float = 0.0, c: float | None = None,
+                       stiffness: float | None = None) -> SpringSlider:
+    """A velocity step on the laboratory apparatus of :data:`LAB`: steady sliding at ``v1`` (m/s)
+    until ``t_step`` (s), then the load point at ``v2``; quasi-static by default (``mass`` 0),
+    as in Marone's code and rsfmodel. ``c``: the Nagata law's stress coefficient."""
+    from problems.loading import velocity_step
+    return _lab_slider(law, velocity_step(v1, v2, t_step), t_end,
+                       f"velocity-step/{law}", mass, radiation_damping, c, stiffness)
+
+
+def slide_hold_slide_test(law: str = "aging", holds=(1.0, 3.0, 10.0, 30.0, 100.0),
+                          v: float = 1e-6, slide: float = 100.0, first_slide: float = 10.0,
+                          mass: float = 0.0, radiation_damping: float = 0.0,
+                          c: float | None = None,
+                          stiffness: float | None = None) -> SpringSlider:
+    """A slide-hold-slide sequence on the apparatus of :data:`LAB`: steady sliding at ``v``
+    (m/s) for ``first_slide`` s, then each hold of ``holds`` (s) followed by ``slide`` s of
+    sliding at ``v``. The run ends at the end of the last slide."""
+    from problems.loading import slide_hold_slide
+    loading = slide_hold_slide(v, holds, slide, first_slide)
+    t_end = first_slide + sum(holds) + slide * len(holds)
+    return _lab_slider(law, loading, t_end, f"slide-hold-slide/{law}", mass, radiation_damping,
+                       c, stiffness)
+
+
+#: the paper's fault, 1.5 m × 0.5 m
+FAULT_AREA = 1.5 * 0.5
+#: kg/m³: not in the paper (metagabbro is about 2900–3100), for the shear-wave speed of
+#: :func:`fault_radiation_damping` only
+ASSUMED_DENSITY = 3000.0
+
+
+def fault_radiation_damping(density: float = ASSUMED_DENSITY) -> float:
+    """ηr = G S/(2 cs) (N s/m) of the paper's fault: the radiation damping of a fault of area S
+    in an elastic medium of shear modulus G (Discussion: 39.3 GPa) and shear-wave speed
+    cs = sqrt(G/ρ), the quasi-dynamic approximation of QDYN and Rice (1993). ≈ 4.1e6 N s/m."""
+    return SHEAR_MODULUS * FAULT_AREA / (2.0 * math.sqrt(SHEAR_MODULUS / density))

@@ -1,6 +1,12 @@
 """The one-degree-of-freedom spring-slider with mass under rate-and-state friction (SPEC §1–2).
 
-    m dv/dt  = Fs − Ft(v, θ)          dFs/dt = k (vL(t) − v)          dθ/dt = law
+    m dv/dt  = Fs − Ft(v, θ) − ηr v          dFs/dt = k (vL(t) − v)          dθ/dt = law
+
+and its two limits, each an option of the same problem: the quasi-static slider (``mass = 0``:
+the force balance Fs = Ft + ηr v is algebraic, as in rsfmodel) and radiation damping
+(``radiation_damping`` ηr > 0, N s/m, with or without mass: without mass it is the
+quasi-dynamic slider of QDYN). The load-point velocity vL(t) is a piecewise-constant history
+(:mod:`problems.loading`).
 
 A :class:`SpringSlider` is data: parameters, loading, initial state and end time, validated at
 construction. Variants are made with :func:`dataclasses.replace` or :meth:`SpringSlider.with_law`.
@@ -22,15 +28,16 @@ from typing import NamedTuple, Union
 import numpy as np
 
 from problems._validate import check_finite, check_positive
-from problems.formulations import psi_rate, s_of_psi, state_rate
-from problems.friction import AgingLaw, FrictionLaw, SlipLaw, compiled_law_code
-from problems.loading import ConstantLoading, TwoSpeedLoading
+from problems._validate import check_non_negative
+from problems.formulations import form_vector, ode_rhs, psi_rate, s_of_psi, to_ode_state
+from problems.friction import AgingLaw, FrictionLaw, compiled_law_code
+from problems.loading import LOADINGS, ConstantLoading, LoadHistory, TwoSpeedLoading, history_vector
 
 __all__ = ["InitialState", "BalancedStart", "SpringSlider", "Nondimensional", "variant",
            "variant_fields",
            "steady_initial_state", "balanced_initial_state", "TAU_END_MAX"]
 
-Loading = Union[ConstantLoading, TwoSpeedLoading]
+Loading = Union[ConstantLoading, TwoSpeedLoading, LoadHistory]
 #: the longest run in units of τ = v0 t/Lc: at τ the spacing of doubles is 2.2e−16 τ, and the
 #: stick phase needs steps of ~1e−3 in τ (a day of W1–W4 at Lc = 0.1 nm is ~1e9)
 TAU_END_MAX = 1e12
@@ -60,10 +67,12 @@ def steady_initial_state(law: FrictionLaw, fn: float, mu0: float, v_ss: float,
 
 
 def balanced_initial_state(law: FrictionLaw, fn: float, mu0: float, v: float,
-                           theta: float) -> InitialState:
-    """Slip rate ``v`` and state ``theta`` with the spring force equal to friction (Fs = Ft, so
-    dv/dt = 0): a start on the slow manifold, with no fast initial layer."""
-    return InitialState(v=v, theta=theta, fs=float(law.friction(v, theta, fn, mu0 * fn)))
+                           theta: float, damping: float = 0.0) -> InitialState:
+    """Slip rate ``v`` and state ``theta`` with the spring force balancing friction and
+    radiation damping ``damping`` (Fs = Ft + ηr v, so dv/dt = 0): a start on the slow manifold,
+    with no fast initial layer (and the only consistent start without mass)."""
+    return InitialState(v=v, theta=theta,
+                        fs=float(law.friction(v, theta, fn, mu0 * fn)) + damping * v)
 
 
 @dataclass(frozen=True)
@@ -82,16 +91,31 @@ class BalancedStart:
     def __post_init__(self) -> None:
         check_positive("slowdown", self.slowdown)
 
-    def resolve(self, law: FrictionLaw, fn: float, mu0: float, loading) -> InitialState:
-        v = loading.v_slow
-        return balanced_initial_state(law, fn, mu0, v, law.steady_state(v / self.slowdown, fn))
+    def resolve(self, law: FrictionLaw, fn: float, mu0: float, loading,
+                damping: float = 0.0) -> InitialState:
+        v = _initial_velocity(loading)
+        return balanced_initial_state(law, fn, mu0, v, law.steady_state(v / self.slowdown, fn),
+                                      damping)
+
+
+def _initial_velocity(loading) -> float:
+    """The slip rate a balanced start slides at: the load point's first velocity, or the
+    reference velocity if the history opens with a hold."""
+    first = loading.history.velocities[0]
+    return first if first > 0 else loading.v_slow
 
 
 class Nondimensional(NamedTuple):
     """The nondimensional problem of SPEC §2: w = v/v0, τ = v0 t/Lc, h, η, Ψ.
 
-    ``x0`` is the initial (h, η, Ψ); ``e_slow``/``e_fast`` are vL/v0 of the two loading speeds,
-    ``tau_fast`` the duration of fast loading, ``tau_end`` the end of the run, all in τ.
+    ``x0`` is the initial (h, η, Ψ); ``e_slow`` is vL/v0 of the events' reference velocity,
+    ``e_fast`` and ``tau_fast`` the overshoot's rate and duration (τ), ``tau_end`` the end of the
+    run. ``c``, ``d``, ``g`` are C, D, G with mass and K, 0, R without (``quasi_static``;
+    :mod:`problems.formulations`); ``law_param`` is the law's γ; ``history`` the loading's
+    compiled form (:func:`problems.loading.history_vector`); ``grid_tau`` a time over which the
+    slow phase changes by O(1) (half an inertial period π/√C with mass, the time to load one Lc at
+    the fastest load-point speed without), which backends without dense root finding use to space
+    their scans.
     """
 
     law_code: int
@@ -106,12 +130,27 @@ class Nondimensional(NamedTuple):
     time_scale: float     # seconds per unit of τ: Lc/v0
     force_h: float        # newtons per unit of h: k Lc
     force_eta: float      # newtons per unit of η: A = a Fn
+    g: float = 0.0
+    quasi_static: bool = False
+    law_param: float = 0.0
+    history: np.ndarray | None = None
+    grid_tau: float = 1.0
+
+    @property
+    def two_speed(self) -> bool:
+        """Events switch the loading to the overshoot."""
+        return self.tau_fast > 0.0
+
+    def q(self, e: float) -> np.ndarray:
+        """The problem vector of :mod:`problems.formulations` under loading rate ``e``."""
+        return form_vector(self, e)
 
 
 @dataclass(frozen=True)
 class SpringSlider:
-    """Spring-slider with mass: ``mass`` (kg), ``stiffness`` k (N/m), ``normal_force`` Fn (N),
-    a friction ``law``, a ``loading`` protocol, an ``initial`` state and the end time ``t_end`` (s).
+    """Spring-slider with mass: ``mass`` (kg; 0 for the quasi-static limit), ``stiffness`` k
+    (N/m), ``normal_force`` Fn (N), a friction ``law``, a ``loading`` protocol, an ``initial``
+    state, the end time ``t_end`` (s) and ``radiation_damping`` ηr (N s/m, default 0).
 
     ``initial`` is an :class:`InitialState` (physical units, kept by every variant) or a rule,
     :class:`BalancedStart`, resolved against this problem's law and loading
@@ -128,26 +167,38 @@ class SpringSlider:
     t_end: float
     mu0: float = 0.6
     name: str = ""
+    radiation_damping: float = 0.0
 
     def __post_init__(self) -> None:
-        check_positive("mass", self.mass)
+        check_non_negative("mass", self.mass)
+        check_non_negative("radiation_damping", self.radiation_damping)
         check_positive("stiffness", self.stiffness)
         check_positive("normal_force", self.normal_force)
         check_positive("t_end", self.t_end)
         check_finite("mu0", self.mu0)
         if not isinstance(self.name, str):
             raise ValueError(f"name must be a string, got {self.name!r}")
-        if not isinstance(self.law, (SlipLaw, AgingLaw)):
-            raise ValueError(f"law must be a SlipLaw or AgingLaw, got {self.law!r}")
+        if not isinstance(self.law, FrictionLaw):
+            raise ValueError(f"law must be a FrictionLaw (SlipLaw, AgingLaw, NagataLaw), got "
+                             f"{self.law!r}")
         compiled_law_code(self.law)      # a law class the compiled forms do not know
-        if type(self.loading) not in (ConstantLoading, TwoSpeedLoading):
-            raise ValueError(f"loading must be ConstantLoading or TwoSpeedLoading (the two the "
-                             f"integrators know; a subclass is refused), got {self.loading!r}")
+        if type(self.loading) not in LOADINGS:
+            raise ValueError(f"loading must be ConstantLoading, TwoSpeedLoading or LoadHistory "
+                             f"(the ones the integrators know; a subclass is refused), got "
+                             f"{self.loading!r}")
         if not isinstance(self.initial, (InitialState, BalancedStart)):
             raise ValueError(f"initial must be an InitialState or a BalancedStart, got {self.initial!r}")
         ini = self.initial_state
         if isinstance(self.law, AgingLaw) and ini.theta <= 0:
-            raise ValueError(f"initial theta must be positive for the aging law, got {ini.theta!r}")
+            raise ValueError(f"initial theta must be positive for the {self.law.name} law, got "
+                             f"{ini.theta!r}")
+        if self.mass == 0:
+            balance = float(self.friction(ini.v, ini.theta)) + self.radiation_damping * ini.v
+            if abs(ini.fs - balance) > 1e-9 * (abs(balance) + self.law.a * self.normal_force):
+                raise ValueError(
+                    f"initial fs = {ini.fs!r} N does not balance friction and damping "
+                    f"(Ft + ηr v = {balance!r} N): without mass (quasi-static) the force balance "
+                    "is a constraint; start from problems.balanced_initial_state or BalancedStart")
         tau_end = self.t_end * self.law.v0 / self.law.lc
         if tau_end > TAU_END_MAX:
             raise ValueError(f"t_end = {self.t_end:g} s is {tau_end:.3g} in τ = v0 t/Lc (Lc = "
@@ -159,7 +210,8 @@ class SpringSlider:
         """The initial (v, θ, Fs) in physical units: ``initial`` itself, or its rule resolved."""
         if isinstance(self.initial, InitialState):
             return self.initial
-        return self.initial.resolve(self.law, self.normal_force, self.mu0, self.loading)
+        return self.initial.resolve(self.law, self.normal_force, self.mu0, self.loading,
+                                    self.radiation_damping)
 
     # --- derived quantities ---------------------------------------------------------------
     @property
@@ -189,14 +241,26 @@ class SpringSlider:
         """Friction force Ft (N)."""
         return self.law.friction(v, theta, self.normal_force, self.f0)
 
+    @property
+    def quasi_static(self) -> bool:
+        """No mass: the force balance is algebraic."""
+        return self.mass == 0
+
     def rhs(self, t: float, y, vl: float | None = None) -> np.ndarray:
-        """d/dt of y = (v, Fs, θ), with load-point velocity ``vl`` (default: the slow speed)."""
+        """d/dt of y = (v, Fs, θ), with load-point velocity ``vl`` (default: the slow speed).
+        Without mass, dv/dt is the derivative of the force balance Fs = Ft + ηr v."""
         v, fs, theta = y
         vl = self.loading.v_slow if vl is None else vl
-        ft = self.friction(v, theta)
-        return np.array([(fs - ft) / self.mass,
-                         self.stiffness * (vl - v),
-                         self.law.state_rate(v, theta, self.normal_force)])
+        dfs = self.stiffness * (vl - v)
+        dtheta = self.law.state_rate(v, theta, self.normal_force, dfs)
+        if self.quasi_static:
+            # dFs/dt = (A/v + ηr) dv/dt + ∂Ft/∂θ dθ/dt
+            dft_dtheta = self.law.state_term_derivative(theta, self.normal_force)
+            dv = (dfs - dft_dtheta * dtheta) / (self.law.a * self.normal_force / v
+                                                 + self.radiation_damping)
+        else:
+            dv = (fs - self.friction(v, theta) - self.radiation_damping * v) / self.mass
+        return np.array([dv, dfs, dtheta])
 
     # --- the nondimensional system (SPEC §2) ----------------------------------------------
     def nondimensional(self) -> Nondimensional:
@@ -208,31 +272,39 @@ class SpringSlider:
     def _nondimensional(self) -> Nondimensional:
         law, fn = self.law, self.normal_force
         A = law.a * fn
-        m, k, lc, v0 = self.mass, self.stiffness, law.lc, law.v0
+        m, k, lc, v0, eta_r = self.mass, self.stiffness, law.lc, law.v0, self.radiation_damping
         ts = lc / v0
         ini = self.initial_state
         x0 = np.array([(ini.fs - self.f0) / (k * lc),
                        (self.friction(ini.v, ini.theta) - self.f0) / A,
                        law.psi(ini.theta, fn)], dtype=float)
         x0.flags.writeable = False
+        hist = history_vector(self.loading, v0, ts)
+        hist.flags.writeable = False
+        if m > 0:
+            c, d, g = k * lc * lc / (m * v0 * v0), A * lc / (m * v0 * v0), eta_r * lc / (m * v0)
+            grid_tau = math.pi / math.sqrt(c)
+        else:
+            c, d, g = k * lc / A, 0.0, eta_r * v0 / A
+            grid_tau = v0 / max(self.loading.history.velocities + (self.loading.v_fast,))
+        law_param = law.stress_coefficient / law.b * k * lc / fn if law.stress_coefficient else 0.0
+        loading = self.loading.history
         return Nondimensional(
-            law_code=compiled_law_code(law), beta=law.b / law.a,
-            c=k * lc * lc / (m * v0 * v0), d=A * lc / (m * v0 * v0),
-            e_slow=self.loading.v_slow / v0, e_fast=self.loading.v_fast / v0,
-            tau_fast=self.loading.fast_duration / ts, tau_end=self.t_end / ts,
-            x0=x0, time_scale=ts, force_h=k * lc, force_eta=A)
+            law_code=compiled_law_code(law), beta=law.b / law.a, c=c, d=d,
+            e_slow=self.loading.v_slow / v0, e_fast=loading.v_fast / v0,
+            tau_fast=loading.fast_duration / ts, tau_end=self.t_end / ts,
+            x0=x0, time_scale=ts, force_h=k * lc, force_eta=A, g=g, quasi_static=m == 0,
+            law_param=law_param, history=hist, grid_tau=grid_tau)
 
     def rhs_nondimensional(self, tau: float, x, e: float | None = None) -> np.ndarray:
         """d/dτ of x = (h, η, Ψ) (Eqs. 25–27 slip law, 25, 60, 61 aging law), at E = ``e``."""
         nd = self.nondimensional()
         e = nd.e_slow if e is None else e
-        h, eta, psi = x
-        beta, c, d, code = nd.beta, nd.c, nd.d, nd.law_code
-        s = s_of_psi(code, psi)
-        u = eta - beta * s
-        w = math.exp(u)
-        ds = state_rate(code, u, s, w)
-        return np.array([e - w, (c * h - d * eta) / w + beta * ds, psi_rate(code, psi, ds)])
+        code, beta = nd.law_code, nd.beta
+        z = to_ode_state(code, beta, x)
+        f = np.empty(3)
+        ode_rhs(form_vector(nd, e), z, f)
+        return np.array([f[0], f[1] + beta * f[2], psi_rate(code, x[2], f[2])])
 
     def slip_rate_from_nondimensional(self, eta, psi):
         """w → v: the friction-law constraint w = exp(η − βΨ) or exp(η − β ln Ψ), in m/s."""
@@ -247,19 +319,24 @@ class SpringSlider:
 
 
 #: the scalar fields :func:`variant` changes, by the part of the problem that holds them
-_PROBLEM_FIELDS = ("mass", "stiffness", "normal_force", "mu0", "t_end")
-_LAW_FIELDS = ("a", "b", "lc", "v0")
+_PROBLEM_FIELDS = ("mass", "stiffness", "normal_force", "mu0", "t_end", "radiation_damping")
+
+
+def _scalar_fields(obj) -> tuple[str, ...]:
+    return tuple(f.name for f in dataclasses.fields(obj)
+                 if isinstance(getattr(obj, f.name), (int, float)))
 
 
 def variant_fields(problem: SpringSlider) -> tuple[str, ...]:
-    """The names :func:`variant` accepts for ``problem``: the law's a, b, lc, v0; the problem's
-    mass, stiffness, normal_force, mu0, t_end; its loading's vl (constant) or vls, vlf, df (two
-    speeds); a :class:`BalancedStart`'s slowdown, or an :class:`InitialState`'s v, theta, fs as
-    initial_v, initial_theta, initial_fs."""
-    loading = tuple(f.name for f in dataclasses.fields(problem.loading))
+    """The names :func:`variant` accepts for ``problem``: the law's a, b, lc, v0 (and its own,
+    such as the Nagata law's c); the problem's mass, stiffness, normal_force, mu0, t_end,
+    radiation_damping; its loading's scalars: vl (constant), vls, vlf, df (two speeds), the
+    overshoot of a history; a :class:`BalancedStart`'s slowdown, or an :class:`InitialState`'s
+    v, theta, fs as initial_v, initial_theta, initial_fs."""
     initial = (("slowdown",) if isinstance(problem.initial, BalancedStart)
                else ("initial_v", "initial_theta", "initial_fs"))
-    return _LAW_FIELDS + _PROBLEM_FIELDS + loading + initial
+    return (_scalar_fields(problem.law) + _PROBLEM_FIELDS + _scalar_fields(problem.loading)
+            + initial)
 
 
 def variant(problem: SpringSlider, **changes: float) -> SpringSlider:
@@ -272,9 +349,9 @@ def variant(problem: SpringSlider, **changes: float) -> SpringSlider:
         raise ValueError(f"{unknown[0]!r} is not a field a variant of this problem can change; "
                          f"the fields are {', '.join(known)}")
     parts = {"law": {}, "loading": {}, "initial": {}, "problem": {}}
-    loading = {f.name for f in dataclasses.fields(problem.loading)}
+    law, loading = set(_scalar_fields(problem.law)), set(_scalar_fields(problem.loading))
     for name, value in changes.items():
-        part = ("law" if name in _LAW_FIELDS else "problem" if name in _PROBLEM_FIELDS
+        part = ("law" if name in law else "problem" if name in _PROBLEM_FIELDS
                 else "loading" if name in loading else "initial")
         parts[part][name.removeprefix("initial_")] = value
     top = dict(parts["problem"])

@@ -1,12 +1,16 @@
-"""Linear stability of steady sliding for the spring-slider with mass (SPEC §7).
+"""Linear stability of steady sliding for the spring-slider (SPEC §7), with mass or without,
+with radiation damping ηr, for the slip, aging and Nagata laws.
 
-Both laws linearise to the same system about steady sliding at V (Rice & Ruina 1983; Gu et al.
-1984). With λ = V/Lc, the characteristic polynomial of small perturbations is
+All three laws linearise alike about steady sliding at V (Rice & Ruina 1983; Gu et al. 1984);
+the Nagata law's stress term adds c k V to one coefficient. With λ = V/Lc, A = a Fn, B = b Fn,
+the characteristic polynomial of small perturbations is
 
-    m V s³ + (m V λ + A) s² + (k V − (B − A) λ) s + k V λ = 0,
+    m V s³ + (m V λ + A + ηr V) s² + (k V (1 + c) − (B − A) λ + ηr V λ) s + k V λ = 0
 
-steady sliding is stable for k > kcr = Fn (b − a)/Lc · [1 + m V²/(A Lc)], and at k = kcr the
-oscillation has angular frequency ω = (V/Lc) sqrt((b − a)/a), independent of the mass.
+(the derivation is in docs/problem-family.md). With ηr = c = 0: steady sliding is stable for
+k > kcr = Fn (b − a)/Lc · [1 + m V²/(A Lc)], and at k = kcr the oscillation has angular frequency
+ω = (V/Lc) sqrt((b − a)/a), independent of the mass. Without mass (quasi-static) the polynomial
+is quadratic and kcr = (Fn (b − a) − ηr V)/(Lc (1 + c)): σ(b − a)/Lc for the aging and slip laws.
 """
 
 from __future__ import annotations
@@ -17,33 +21,54 @@ import numpy as np
 
 from problems.slider import SpringSlider
 
-__all__ = ["critical_stiffness", "neutral_frequency", "characteristic_roots", "growth_rate"]
+__all__ = ["critical_stiffness", "neutral_frequency", "characteristic_roots", "growth_rate",
+           "characteristic_polynomial"]
 
 
 def _velocity(problem: SpringSlider, v: float | None) -> float:
     return problem.loading.v_slow if v is None else v
 
 
-def critical_stiffness(problem: SpringSlider, v: float | None = None) -> float:
-    """kcr (N/m) at steady sliding speed ``v`` (default: the slow loading speed)."""
+def characteristic_polynomial(problem: SpringSlider, v: float | None = None,
+                              stiffness: float | None = None) -> np.ndarray:
+    """Coefficients (highest power first) of the characteristic polynomial at steady sliding
+    speed ``v`` (default: the slow loading speed), at ``stiffness`` (default: the problem's)."""
     law, fn, v = problem.law, problem.normal_force, _velocity(problem, v)
-    return fn * (law.b - law.a) / law.lc * (1.0 + problem.mass * v * v / (law.a * fn * law.lc))
+    m, eta = problem.mass, problem.radiation_damping
+    k = problem.stiffness if stiffness is None else stiffness
+    A, B, lam, c = law.a * fn, law.b * fn, v / law.lc, law.stress_coefficient
+    return np.array([m * v, m * v * lam + A + eta * v,
+                     k * v * (1.0 + c) - (B - A) * lam + eta * v * lam, k * v * lam])
+
+
+def critical_stiffness(problem: SpringSlider, v: float | None = None) -> float:
+    """kcr (N/m) at steady sliding speed ``v`` (default: the slow loading speed): the stiffness
+    at which the Routh–Hurwitz condition a2 a1 > a3 a0 of the polynomial turns."""
+    law, fn, v = problem.law, problem.normal_force, _velocity(problem, v)
+    m, eta = problem.mass, problem.radiation_damping
+    A, B, lam, c = law.a * fn, law.b * fn, v / law.lc, law.stress_coefficient
+    a2 = m * v * lam + A + eta * v
+    # a2 (k V (1 + c) − (B − A) λ + ηr V λ) = m V k V λ, linear in k
+    return a2 * ((B - A) * lam - eta * v * lam) / (v * (1.0 + c) * a2 - m * v * v * lam)
 
 
 def neutral_frequency(problem: SpringSlider, v: float | None = None) -> float:
-    """Angular frequency ω (rad/s) of the neutrally stable oscillation at k = kcr."""
-    law, v = problem.law, _velocity(problem, v)
-    if law.b <= law.a:
-        raise ValueError(f"no neutral oscillation for velocity-strengthening friction (b={law.b} <= a={law.a})")
-    return v / law.lc * math.sqrt((law.b - law.a) / law.a)
+    """Angular frequency ω (rad/s) of the neutrally stable oscillation at k = kcr: there the
+    polynomial is (s² + ω²)(a3 s + a2), so ω² = a0/a2."""
+    v = _velocity(problem, v)
+    kcr = critical_stiffness(problem, v)
+    if not kcr > 0:
+        raise ValueError(f"no neutral oscillation: steady sliding is stable at every stiffness "
+                         f"(kcr = {kcr:g} N/m; b = {problem.law.b} ≤ a = {problem.law.a}, or "
+                         "damping stabilises it)")
+    a2, _, a0 = characteristic_polynomial(problem, v, stiffness=kcr)[1:]
+    return math.sqrt(a0 / a2)
 
 
 def characteristic_roots(problem: SpringSlider, v: float | None = None) -> np.ndarray:
     """Roots s (1/s) of the characteristic polynomial; Re s > 0 means unstable steady sliding."""
-    law, fn, v = problem.law, problem.normal_force, _velocity(problem, v)
-    m, k = problem.mass, problem.stiffness
-    A, B, lam = law.a * fn, law.b * fn, v / law.lc
-    return np.roots([m * v, m * v * lam + A, k * v - (B - A) * lam, k * v * lam])
+    coeffs = characteristic_polynomial(problem, v)
+    return np.roots(coeffs if coeffs[0] != 0 else coeffs[1:])
 
 
 def growth_rate(problem: SpringSlider, v: float | None = None) -> float:

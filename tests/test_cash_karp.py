@@ -89,13 +89,14 @@ def _initial_step_in_python(p, z, t_span, exponent):
     """Hairer's initial step as the stepper's start computed it in Python before it was
     compiled (numpy's NaN propagation, Python's min/max): the reference of the test below."""
     from problems.formulations import ode_rhs
-    rtol, atol = p[5], p[6]
+    from integrators.own.engine import P_ATOL, P_RTOL
+    rtol, atol = p[P_RTOL], p[P_ATOL]
     f, f1 = np.empty(3), np.empty(3)
-    ode_rhs(int(p[0]), p[1], p[2], p[3], p[4], z, f)
+    ode_rhs(p, z, f)
     scale = atol + rtol * np.abs(z)
     d0, d1 = np.max(np.abs(z) / scale), np.max(np.abs(f) / scale)
     h0 = 0.01 * d0 / d1 if min(d0, d1) >= 1e-5 else 1e-6
-    ode_rhs(int(p[0]), p[1], p[2], p[3], p[4], z + h0 * f, f1)
+    ode_rhs(p, z + h0 * f, f1)
     big = max(d1, np.max(np.abs(f1 - f) / scale) / h0)
     h1 = (0.01 / big) ** exponent if big > 1e-15 else max(1e-6, 1e-3 * h0)
     return min(100.0 * h0, h1 if h1 > 0.0 else 1e-3 * h0, t_span)
@@ -110,7 +111,7 @@ def test_compiled_start_takes_the_same_initial_step_as_the_python_one(z):
     nd = P.window("W2", "aging").nondimensional()
     z = np.array(z)
     for e, span, exponent in ((nd.e_slow, 50.0, 0.2), (nd.e_fast, 1e-4, 1 / 3)):
-        st, q, Z, G = engine.new_state(nd, True, 1e-6, 1e-8, {"INIT_EXPONENT": exponent}, 1, 1.0)
+        st, q, Z, G = engine.new_state(nd, 1e-6, 1e-8, {"INIT_EXPONENT": exponent}, 1, 1.0)
         with np.errstate(all="ignore"):
             engine.start(st, q, Z, G, 0.0, z, e, span, np.empty((3, 3)))   # sets E, ln E in q
             expected = _initial_step_in_python(q, z, span, exponent)

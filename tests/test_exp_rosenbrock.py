@@ -17,6 +17,7 @@ from benchmarks.errors import errors
 from benchmarks.reference import reference
 from integrators.own import phi as X
 from integrators.own.etd_kernel import etd_step
+from problems.formulations import form_vector
 from problems.formulations import OdeForm, to_ode_state
 
 METHODS = [I.Exprb32, I.Exprb43]
@@ -149,7 +150,7 @@ def test_why_not_an_error_controlled_etd():
     hs = np.array([1e-3, 2e-3, 4e-3, 8e-3, 1.6e-2])
 
     def u(h, n_iter):
-        y = etd_step(nd.law_code, nd.beta, nd.c, nd.d, nd.e_slow, *x, h, n_iter)
+        y = etd_step(form_vector(nd, nd.e_slow), *x, h, n_iter)
         return y[1] - nd.beta * y[2]
 
     exact = np.array([_fixed(I.Exprb43, nd, z, h, 64)[1] for h in hs])

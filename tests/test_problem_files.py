@@ -7,7 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from problems import InitialState, load_problem, paper_example, variant, window
+from problems import (InitialState, LoadHistory, load_problem, paper_example,
+                      slide_hold_slide_test, variant, velocity_step_test, window)
 from problems.files import problem_dict
 
 EXAMPLE = Path(__file__).parents[1] / "docs" / "examples" / "apparatus.toml"
@@ -16,7 +17,13 @@ EXAMPLE = Path(__file__).parents[1] / "docs" / "examples" / "apparatus.toml"
 @pytest.mark.parametrize("problem", [
     window("W2", "slip"), window("W3", "aging"), paper_example(),
     dataclasses.replace(window("W1"), initial=InitialState(v=1e-4, theta=2e3, fs=6e5)),
-], ids=["W2-slip", "W3-aging", "paper-example", "initial-state"])
+    slide_hold_slide_test("nagata", c=1.5, radiation_damping=2.0),
+    velocity_step_test("slip", mass=3.0),
+    dataclasses.replace(window("W2"), loading=LoadHistory(
+        (1e-4, 2e-4), (5.0,), overshoot_velocity=1e-3, overshoot_duration=0.04,
+        reference_velocity=1e-4)),
+], ids=["W2-slip", "W3-aging", "paper-example", "initial-state", "shs-nagata-quasi-dynamic",
+        "velocity-step-mass", "history-overshoot"])
 def test_a_problem_written_as_json_reads_back_equal(problem, tmp_path):
     path = tmp_path / "p.json"
     path.write_text(json.dumps(problem_dict(problem)))

@@ -152,7 +152,7 @@ def test_unknown_law_code_fails_loudly_at_every_entry_point():
     from problems.friction import AgingLaw, SlipLaw, compiled_law_code
 
     class NewLaw(AgingLaw):
-        code = 2
+        code = 3
 
     class SlipLawVariant(SlipLaw):          # same code, other class: its formulas may differ
         pass
@@ -164,18 +164,21 @@ def test_unknown_law_code_fails_loudly_at_every_entry_point():
             dataclasses.replace(base, law=law)
         with pytest.raises(ValueError, match="has no compiled form"):
             compiled_law_code(law)
-    nd = base.nondimensional()._replace(law_code=2)
+    nd = base.nondimensional()._replace(law_code=3)
     z, out, jac = np.array([0.1, -2.0, 3.0]), np.empty(3), np.empty((3, 3))
-    for call in (lambda: F.check_law_code(2), lambda: F.check_law_code(True),
-                 lambda: F.to_ode_state(2, nd.beta, nd.x0), lambda: F.from_ode_state(2, 1.0, z),
-                 lambda: F.s_of_psi(2, 1.0), lambda: root_derivatives(nd, nd.e_slow, z),
-                 lambda: engine.new_state(nd, False, 1e-6, 1e-6, {}, 10, np.inf)):
+    for call in (lambda: F.check_law_code(3), lambda: F.check_law_code(True),
+                 lambda: F.check_law_code(1.5), lambda: F.form_vector(nd, nd.e_slow),
+                 lambda: F.to_ode_state(3, nd.beta, nd.x0), lambda: F.from_ode_state(3, 1.0, z),
+                 lambda: F.s_of_psi(3, 1.0), lambda: root_derivatives(nd, nd.e_slow, z),
+                 lambda: engine.new_state(nd, 1e-6, 1e-6, {}, 10, np.inf)):
         with pytest.raises(ValueError, match="unknown friction-law code"):
             call()
-    F.ode_rhs(2, nd.beta, nd.c, nd.d, nd.e_slow, z, out)
-    F.ode_jacobian(2, nd.beta, nd.c, nd.d, nd.e_slow, z, jac)
+    q = F.form_vector(base.nondimensional(), nd.e_slow)
+    q[F.Q_LAW] = 3.0                          # as compiled code would see an unknown code
+    F.ode_rhs(q, z, out)
+    F.ode_jacobian(q, z, jac)
     assert np.isnan(out[2]) and np.isnan(jac[2, 1:]).all() and np.isfinite(out[:2]).all()
     res = np.empty(4)
-    F.dae_residual(2, nd.beta, nd.c, nd.d, nd.e_slow, np.append(z, 0.0), np.zeros(4), res)
+    F.dae_residual(q, np.append(z, 0.0), np.zeros(4), res)
     assert np.isnan(res[2])
-    assert np.isnan(coefficients(2, nd.beta, nd.c, nd.d, 0.1, 0.5, 1.0)).all()
+    assert np.isnan(coefficients(q, 0.1, 0.5, 1.0)).all()

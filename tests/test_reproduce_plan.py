@@ -274,7 +274,7 @@ def test_every_step_declares_inputs_that_resolve(tmp_path):
     assert {"benchmarks/windows.py", "benchmarks/summary.py", "integrators/own/etd.py"} <= set(code)
     assert "benchmarks/reproduce.py" not in code and "benchmarks/cli.py" not in code
     assert {"speedup", "work-precision", "target-full", "binding-overhead",
-            "ensemble-scaling", "solver-effect"} == set(RP.FULL_STEPS)
+            "ensemble-scaling", "solver-effect", "family", "mass-limit"} == set(RP.FULL_STEPS)
 
 
 def test_the_command_line_refuses_misuse_in_one_line(capsys):

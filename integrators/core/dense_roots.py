@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import brentq
 
-from integrators.core.events import AT_ROOT, DIRECTIONS, root_functions, sign_change
+from integrators.core.events import AT_ROOT, DIRECTIONS, RootFunctions, sign_change
 from integrators.core.segments import Advance
 from integrators.core.solution import ReturnCode
 
@@ -37,7 +37,8 @@ class DenseStepper:
         self._e = e
         self._solver = self._new_solver(tau0, np.asarray(z0, float), e, t_bound)
         self._cursor, self._z_cursor = tau0, np.asarray(z0, float)
-        self._g = root_functions(self.nd, e, self._z_cursor)
+        self._roots = RootFunctions(self.nd, e)
+        self._g = self._roots(self._z_cursor)
         self._dense = None
 
     def finish(self):
@@ -46,7 +47,7 @@ class DenseStepper:
             self._solver = None
 
     def _g_at(self, t):
-        return root_functions(self.nd, self._e, self._dense(t))
+        return self._roots(self._dense(t))
 
     def advance(self, t_out):
         s = self._solver
@@ -54,7 +55,7 @@ class DenseStepper:
             if self._dense is not None and self._cursor < s.t:
                 t_end = min(s.t, t_out)
                 z_end = s.y if t_end == s.t else self._dense(t_end)
-                g_end = root_functions(self.nd, self._e, z_end)
+                g_end = self._roots(z_end)
                 found = self._earliest_root(t_end, g_end)
                 if found is not None:
                     return found
@@ -99,7 +100,7 @@ class DenseStepper:
         t_root = min(r[0] for r in roots)
         at_root = [k for t, k in roots if t == t_root]
         z_root = self._dense(t_root)
-        g_new = root_functions(self.nd, self._e, z_root)
+        g_new = self._roots(z_root)
         counted = []
         for k in at_root:
             up = g_end[k] > g0[k]

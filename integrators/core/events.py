@@ -7,7 +7,8 @@ Root functions located by the backend's own root finding:
   stops here and restarts with the fast loading speed);
 * ``H_EXTREMUM``: u − ln E (h' = E − w = 0): the spring force is extremal — its maximum before
   an event and its minimum during one;
-* ``PEAK``: C h − D η (u' = 0), crossing downward: the peak slip rate.
+* ``PEAK``: a function with the sign of u' (C h − D η with mass and no damping), crossing
+  downward: the peak slip rate (:func:`problems.formulations.peak_function`).
 
 :class:`EventRecorder` turns the located roots, fed in time order, into the rows of
 ``EVENT_COLUMNS`` (nondimensional until :meth:`EventRecorder.table` converts them).
@@ -20,11 +21,12 @@ import math
 import numpy as np
 from numba import njit
 
-from problems.formulations import check_law_code, state_rate
+from problems.formulations import form_vector, ode_rhs, peak_function, state_rate_partials
+from problems.loading import ln_load_rate
 
 __all__ = ["START", "END", "H_EXTREMUM", "PEAK", "DIRECTIONS", "AT_ROOT", "sign_change",
            "carry_signs",
-           "compiled_roots", "root_functions", "root_derivatives", "EventRecorder", "events_table",
+           "compiled_roots", "root_functions", "RootFunctions", "root_derivatives", "EventRecorder", "events_table",
            "new_recorder", "observe", "record", "REC_SIZE"]
 
 START, END, H_EXTREMUM, PEAK = range(4)
@@ -63,28 +65,48 @@ def carry_signs(old, new) -> None:
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def compiled_roots(beta, c, d, ln_start, ln_end, ln_e, z, g):
+def compiled_roots(q, ln_start, ln_end, ln_e, z, g):
     """:func:`root_functions` in numba, into ``g`` (the same operations, so the same values to
-    the bit): ``ln_start`` = ln(10 E_slow), ``ln_end`` = ln E_slow, ``ln_e`` = ln E."""
+    the bit): q the problem vector (:mod:`problems.formulations`), ``ln_start`` = ln(10 E_slow),
+    ``ln_end`` = ln E_slow, ``ln_e`` = ln E (:func:`problems.loading.ln_load_rate`)."""
     g[0], g[1], g[2] = z[1] - ln_start, z[1] - ln_end, z[1] - ln_e
-    g[3] = c * z[0] - d * (z[1] + beta * z[2])
+    g[3] = peak_function(q, z)
+
+
+class RootFunctions:
+    """The four root functions under loading E = ``e``, their constants computed once:
+    ``RootFunctions(nd, e)(z)`` is :func:`root_functions` ``(nd, e, z)``."""
+
+    def __init__(self, nd, e: float):
+        self.q = form_vector(nd, e)
+        self.levels = (math.log(10.0 * nd.e_slow), math.log(nd.e_slow), ln_load_rate(e))
+
+    def __call__(self, z) -> np.ndarray:
+        g = np.empty(4)
+        compiled_roots(self.q, *self.levels, np.asarray(z, dtype=float), g)
+        return g
 
 
 def root_functions(nd, e: float, z: np.ndarray) -> np.ndarray:
     """Values of the four root functions at state z under loading E = ``e``."""
-    h, u, s = z
-    eta = u + nd.beta * s
-    return np.array([u - math.log(10.0 * nd.e_slow), u - math.log(nd.e_slow), u - math.log(e),
-                     nd.c * h - nd.d * eta])
+    return RootFunctions(nd, e)(z)
 
 
 def root_derivatives(nd, e: float, z: np.ndarray) -> np.ndarray:
     """d/dτ of the four root functions at z: the crossing direction where one is zero."""
+    q = form_vector(nd, e)
+    z = np.asarray(z, dtype=float)
+    f = np.empty(3)
+    ode_rhs(q, z, f)
     h, u, s = z
     w = math.exp(u)
-    du = (nd.c * h - nd.d * (u + nd.beta * s)) / w
-    ds = state_rate(check_law_code(nd.law_code), u, s, w)
-    return np.array([du, du, du, nd.c * (e - w) - nd.d * (du + nd.beta * ds)])
+    du, ds = f[1], f[2]
+    if nd.quasi_static:
+        dsu, dss = state_rate_partials(q, u, s, w)
+        dpeak = -nd.c * w * du - nd.beta * (dsu * du + dss * ds)
+    else:
+        dpeak = nd.c * f[0] - nd.d * (du + nd.beta * ds) - nd.g * w * du
+    return np.array([du, du, du, dpeak])
 
 
 #: the recorder's state (one float array): in an event, the largest h since the last event, the

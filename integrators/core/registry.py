@@ -44,6 +44,10 @@ class Algorithm:
         """Integrate ``problem``; return an :class:`integrators.core.solution.RawRun`."""
         raise NotImplementedError
 
+    def check_problem(self, problem) -> None:
+        """ValueError, before any work, if the method cannot integrate ``problem`` at all (the
+        paper's ETD without mass, say); nothing for a method that can."""
+
     def options(self) -> dict:
         return dataclasses.asdict(self)
 

@@ -9,8 +9,8 @@ A backend supplies a :class:`SegmentSolver`, a thin adapter over its library:
   :mod:`integrators.core.events`, located by the library's own root finding;
 * ``stats`` — a :class:`Stats` whose counters the adapter keeps summed over restarts.
 
-The driver owns what is common: the loading state (two-speed switch at an event end, back to slow
-after ``df``), the :class:`EventRecorder`, the save grid, progress and budgets, and the
+The driver owns what is common: the loading state (a segment per piece of the load-point
+history, :func:`problems.loading.load_segment`; the overshoot after an event's end), the :class:`EventRecorder`, the save grid, progress and budgets, and the
 conversion to a :class:`RawRun`. So every backend has the same event semantics and counters.
 """
 
@@ -25,6 +25,7 @@ import numpy as np
 from integrators.core.events import DIRECTIONS, EventRecorder, root_derivatives
 from integrators.core.solution import RawRun, ReturnCode, Stats
 from problems.formulations import from_ode_state, to_ode_state
+from problems.loading import load_segment
 
 __all__ = ["Advance", "SegmentSolver", "run_segments", "directional_roots"]
 
@@ -67,7 +68,7 @@ def run_segments(problem, solver: SegmentSolver, output, budget, progress,
                  check_every: int = 50) -> RawRun:
     """Integrate ``problem`` to t_end with ``solver``; see the module docstring."""
     nd = problem.nondimensional()
-    two_speed = problem.loading.two_speed
+    two_speed = nd.two_speed
     save_dtau = output.interval(problem.t_end) / nd.time_scale
     z = to_ode_state(nd.law_code, nd.beta, nd.x0)
     tau, load, fast_until = 0.0, 0.0, -math.inf
@@ -78,9 +79,7 @@ def run_segments(problem, solver: SegmentSolver, output, budget, progress,
     tiny = 1e-12 * nd.tau_end
     calls = 0
     while tau < nd.tau_end - tiny and retcode is ReturnCode.SUCCESS:
-        fast = two_speed and fast_until - tau > tiny
-        e = nd.e_fast if fast else nd.e_slow
-        t_bound = min(nd.tau_end, fast_until) if fast else nd.tau_end
+        e, t_bound = load_segment(nd.history, tau, fast_until, nd.tau_end, tiny)
         solver.start(tau, z, e, t_bound)
         tau0_seg, load0_seg = tau, load
         while True:

@@ -66,6 +66,7 @@ def solve(problem: SpringSlider, algorithm: Algorithm, *, save_every: float | No
         raise ValueError(f"algorithm must be an Algorithm instance, got {algorithm!r}")
     if wall_budget is not None:
         check_positive("wall_budget", wall_budget)
+    algorithm.check_problem(problem)
     output = Output(save_every=save_every, max_points=max_points)
     output.interval(problem.t_end)          # validates the decimation now, not mid-run
     budget = Budget(wall_s=wall_budget, start=time.perf_counter())

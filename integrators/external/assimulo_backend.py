@@ -30,11 +30,11 @@ from assimulo.exception import TerminateSimulation
 from assimulo.problem import Explicit_Problem, Implicit_Problem
 from assimulo.solvers.sundials import get_sundials_version
 
-from integrators.core.events import root_functions
+from integrators.core.events import RootFunctions
 from integrators.core.registry import AdaptiveAlgorithm, register
 from integrators.core.segments import Advance, directional_roots
 from integrators.core.solution import ReturnCode, Stats
-from problems.formulations import DAE_DIFFERENTIAL, DaeForm, OdeForm, dae_initial
+from problems.formulations import DaeForm, OdeForm, dae_differential, dae_initial
 
 __all__ = ["AssimuloCVode", "AssimuloIDA", "AssimuloRadau5ODE", "AssimuloLSODAR",
            "AssimuloRodasODE", "AssimuloDopri5"]
@@ -42,6 +42,15 @@ __all__ = ["AssimuloCVode", "AssimuloIDA", "AssimuloRadau5ODE", "AssimuloLSODAR"
 _VERSION = importlib.metadata.version("assimulo-testing")
 _STOP = None            # the request that ends a segment
 _QUIET = 50
+#: an exact zero of a root function is handed over as this (counted positive): at steady
+#: sliding u − ln E is 0.0 to the bit, and LSODAR stops on a root at its initial point ("too
+#: near to the initial point", flag −3), SUNDIALS on a root "at and very near" t
+_TINY = 1e-300
+
+
+def _nonzero(g: np.ndarray) -> np.ndarray:
+    g[g == 0.0] = _TINY
+    return g
 
 
 @dataclass(frozen=True)
@@ -81,7 +90,7 @@ class _Assimulo(AdaptiveAlgorithm):
         if self.uses_jacobian:
             sim.usejac = True
         if self.dae:
-            sim.algvar = DAE_DIFFERENTIAL
+            sim.algvar = dae_differential(nd)
         return sim
 
 
@@ -101,6 +110,7 @@ class _OdeProblem(_Callbacks, Explicit_Problem):
     def __init__(self, form, nd, e, link, z0, tau0):
         super().__init__(y0=np.array(z0, float), t0=float(tau0))
         self.form, self.nd, self.e, self.link = form, nd, e, link
+        self.roots = RootFunctions(nd, e)
 
     def rhs(self, t, y, sw=None):
         return self.form.f(t, y)
@@ -109,7 +119,7 @@ class _OdeProblem(_Callbacks, Explicit_Problem):
         return self.form.jac(t, y)
 
     def state_events(self, t, y, sw=None):
-        return root_functions(self.nd, self.e, y)
+        return _nonzero(self.roots(y))
 
     def handle_result(self, solver, t, y):
         pass
@@ -121,6 +131,7 @@ class _DaeProblem(_Callbacks, Implicit_Problem):
     def __init__(self, form, nd, e, link, y0, yp0, tau0):
         super().__init__(y0=y0, yd0=yp0, t0=float(tau0))
         self.form, self.nd, self.e, self.link = form, nd, e, link
+        self.roots = RootFunctions(nd, e)
 
     def res(self, t, y, yd, sw=None):
         out = np.empty(4)
@@ -133,7 +144,7 @@ class _DaeProblem(_Callbacks, Implicit_Problem):
         return out
 
     def state_events(self, t, y, yd, sw=None):
-        return root_functions(self.nd, self.e, y[:3])
+        return _nonzero(self.roots(y[:3]))
 
     def handle_result(self, solver, t, y, yd):
         pass

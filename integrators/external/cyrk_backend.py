@@ -47,11 +47,12 @@ from numba import carray, cfunc, njit, types
 from numba.extending import intrinsic
 
 from integrators.core.crossings import carry_last_root, push_crossing, queue_crossings
-from integrators.core.events import DIRECTIONS, END, PEAK, sign_change
+from integrators.core.events import DIRECTIONS, END, PEAK, compiled_roots, sign_change
 from integrators.core.registry import AdaptiveAlgorithm, register
 from integrators.core.segments import Advance
 from integrators.core.solution import ReturnCode, Stats
-from problems.formulations import ode_rhs
+from problems.formulations import N_Q, Q_E, form_vector, ode_rhs
+from problems.loading import ln_load_rate
 
 __all__ = ["CyRKRK45", "CyRKDOP853", "CyRKTsit5", "CyRKBDF", "CyRKRadau", "CyRKLSODA"]
 
@@ -67,8 +68,12 @@ FIRST_CAP = 8192
 #: CyRK's status codes (CyrkErrorCodes) this adapter tells apart
 _SUCCESS, _MAX_STEPS_USER, _STEP_SPACING = 1, -52, -54
 
-# args handed to the cfunc: ode_rhs's parameters, then the address of the counters array
-(_LAW, _BETA, _C, _D, _E, _COUNTERS) = range(6)
+# args handed to the cfunc: the problem vector q of problems.formulations, then the address of
+# the counters array
+_COUNTERS, _N_ARGS = N_Q, N_Q + 1
+_E = Q_E
+# the event kernels' q: the problem vector, then ln 10 E_slow, ln E_slow, ln E
+_LN_10ES, _LN_ES, _LN_E = N_Q, N_Q + 1, N_Q + 2
 # the counters: rhs calls, Jacobian columns' first, the abscissa and state of the call before
 (_NFEV, _NJEV, _T_LAST, _Y0, _Y1, _Y2) = range(6)
 
@@ -99,7 +104,7 @@ def _dense(typingctx, function, result, t, out):
 def _rhs(dy, t, y, args):
     """The right-hand side handed to CyRK, compiled as a cfunc (void(double*, double, double*,
     double*)); counts its calls and the Jacobian columns (module docstring)."""
-    a = carray(args, (6,))
+    a = carray(args, (_N_ARGS,))
     c = carray(_as_pointer(np.int64(a[_COUNTERS])), (6,))
     z = carray(y, (3,))
     if t == c[_T_LAST] and (z[0] != c[_Y0]) + (z[1] != c[_Y1]) + (z[2] != c[_Y2]) == 1:
@@ -108,7 +113,7 @@ def _rhs(dy, t, y, args):
     else:
         c[_T_LAST], c[_Y0], c[_Y1], c[_Y2] = t, z[0], z[1], z[2]
     c[_NFEV] += 1.0
-    ode_rhs(int(a[_LAW]), a[_BETA], a[_C], a[_D], a[_E], z, carray(dy, (3,)))
+    ode_rhs(a, z, carray(dy, (3,)))
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -117,14 +122,12 @@ def _step_crossings(call, result, q, T, Y, g):
     bisected to the last bit on the dense output (``_dense`` with CyRK's ``call`` at ``call``
     and the result at ``result``): rows (τ, kind, sign, z0, z1, z2), in time order. ``g`` holds
     the root functions at T[0] (signs carried over a restart); left holding them at T[-1]."""
-    beta, c, d, ln_start, ln_end, ln_e = q[1], q[2], q[3], q[5], q[6], q[7]
-    gp, zt = g.copy(), np.empty(3)
+    ln_end = q[_LN_ES]
+    gp, zt, gt = g.copy(), np.empty(3), np.empty(4)
     R = np.empty((16, 6))
     m = 0
     for i in range(1, T.shape[0]):
-        u = Y[i, 1]                # events.root_functions, the operations of compiled_roots
-        g[0], g[1], g[2] = u - ln_start, u - ln_end, u - ln_e
-        g[3] = c * Y[i, 0] - d * (u + beta * Y[i, 2])
+        compiled_roots(q, q[_LN_10ES], q[_LN_ES], q[_LN_E], Y[i], g)
         first = m
         for k in range(4):
             sign = sign_change(gp[k], g[k])
@@ -139,8 +142,8 @@ def _step_crossings(call, result, q, T, Y, g):
                 if mid <= lo or mid >= hi:
                     break
                 _dense(call, result, mid, zt.ctypes.data)
-                gk = (zt[1] - (ln_start, ln_end, ln_e)[k] if k < 3
-                      else c * zt[0] - d * (zt[1] + beta * zt[2]))
+                compiled_roots(q, q[_LN_10ES], q[_LN_ES], q[_LN_E], zt, gt)
+                gk = gt[k]
                 if gk != 0.0 and (gk > 0.0) == left_pos:
                     lo = mid
                 else:
@@ -276,13 +279,12 @@ class _CyRKStepper:
         self.stats = Stats()
         self._solve, self._call, self._rhs = _library()
         self._counters = np.zeros(6)
-        self._args = np.array([nd.law_code, nd.beta, nd.c, nd.d, 0.0,
-                               float(self._counters.ctypes.data)])
+        self._args = np.append(form_vector(nd, nd.e_slow), float(self._counters.ctypes.data))
         if int(self._args[_COUNTERS]) != self._counters.ctypes.data:   # above 2**53
             raise MemoryError("the counters' address does not fit a double exactly")
-        self._q = np.array([nd.law_code, nd.beta, nd.c, nd.d, 0.0, math.log(10.0 * nd.e_slow),
-                            math.log(nd.e_slow), 0.0])
-        self._two_speed = nd.tau_fast > 0.0 and nd.e_fast != nd.e_slow
+        self._q = np.concatenate([form_vector(nd, nd.e_slow),
+                                  [math.log(10.0 * nd.e_slow), math.log(nd.e_slow), 0.0]])
+        self._two_speed = nd.two_speed
         self._result = None
         self._last_root = None
         self._density = None         # steps per unit τ, learned from the calls before
@@ -292,12 +294,11 @@ class _CyRKStepper:
 
     def start(self, tau0, z0, e, t_bound):
         self._e = float(e)
-        self._args[_E] = self._q[4] = self._e
-        self._q[7] = math.log(self._e)
+        self._args[_E] = self._q[_E] = self._e
+        self._q[_LN_E] = ln_load_rate(self._e)
         z0 = np.array(z0, dtype=float)
         g0 = np.empty(4)
-        g0[:] = (z0[1] - self._q[5], z0[1] - self._q[6], z0[1] - self._q[7],
-                 self.nd.c * z0[0] - self.nd.d * (z0[1] + self.nd.beta * z0[2]))
+        compiled_roots(self._q, self._q[_LN_10ES], self._q[_LN_ES], self._q[_LN_E], z0, g0)
         carry_last_root(self._last_root, tau0, z0, g0, self._e)
         self._free()
         self._T, self._Y, self._g = np.array([float(tau0)]), z0[None, :], g0
@@ -311,7 +312,7 @@ class _CyRKStepper:
             self._cycle = tau0 - prev[0]
         self._segment = (float(tau0), float(t_bound))
         self._span = (math.inf if not self._two_speed else
-                      FIRST_SPAN * math.pi / math.sqrt(self.nd.c) if self._cycle is None else
+                      FIRST_SPAN * self.nd.grid_tau if self._cycle is None else
                       1.25 * self._cycle)
 
     def finish(self):

@@ -40,7 +40,8 @@ from integrators.core.clock import monotonic
 from integrators.core.crossings import carry_last_root, queue_crossings
 from integrators.core.segments import Advance
 from integrators.core.solution import ReturnCode, Stats
-from problems.formulations import ode_rhs
+from problems.formulations import N_Q, Q_E, form_vector, ode_rhs
+from problems.loading import ln_load_rate
 
 __all__ = ["NumbaLSODA"]
 
@@ -52,16 +53,17 @@ _VERSION = importlib.metadata.version("numbalsoda")
 # The data array handed to the cfunc: the parameters of ode_rhs, the counters, and what decides
 # when the cfunc stops LSODA (_KILL says why: 1 stuck start, 2 step budget, 3 end of block);
 # after them the call's output times, which the wrapper reads from there too (see _cut).
-(_LAW, _BETA, _C, _D, _E,                       # ode_rhs parameters
- _NFEV, _ATTEMPTS, _T_LAST, _LIMIT,             # counters and the step budget
+# (the problem vector q of problems.formulations first)
+(_NFEV, _ATTEMPTS, _T_LAST, _LIMIT,             # counters and the step budget
  _NJEV, _YB0, _YB1, _YB2,                       # Jacobians, and the state they perturb
  _GUARD_N, _GUARD_DT, _GUARD_COUNT, _GUARD_T,   # stuck-start guard...
  _GUARD_U, _U_STIFF,                            # ...below this ln w
  _BLOCK, _U_ONSET, _U_END, _T_ARM, _ARMED,      # block ends: entering an event...
  _TWO_SPEED, _IN_EVENT, _END_DT, _END_KILL_T,   # ...and after an event's end (two-speed)
  _DEADLINE,                                     # the wall budget's end (monotonic clock)
- _KILL, _KILL_T, _NT) = range(32)
-_DATA_LEN = 32                       # then the output times of the call (_NT of them)
+ _KILL, _KILL_T, _NT) = range(N_Q, N_Q + 27)
+_DATA_LEN = N_Q + 27                 # then the output times of the call (_NT of them)
+_E = Q_E
 _STUCK, _BUDGET, _BLOCK_END, _WALL = 1.0, 2.0, 3.0, 4.0
 _CLOCK_EVERY = 1024                  # step attempts between two readings of the clock
 _KILL_VALUE = np.inf
@@ -136,15 +138,16 @@ def _rebase(z, data):
 
 
 # --- event kernels: root functions on a whole block, bracketing, Hermite bisection -----------
-# q = (law, β, C, D, E, ln 10 E_slow, ln E_slow, ln E): ode_rhs's parameters and the levels of
-# events.root_functions (same operations, so the same values to the bit)
+# q: the problem vector, then ln 10 E_slow, ln E_slow, ln E: the levels of events.root_functions
+# (same operations, so the same values to the bit)
+_LN_10ES, _LN_ES, _LN_E = N_Q, N_Q + 1, N_Q + 2
 _DIRS = np.array(DIRECTIONS, dtype=np.float64)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _roots(q, z, g):
     """events.root_functions at z, into g."""
-    compiled_roots(q[1], q[2], q[3], q[5], q[6], q[7], z, g)
+    compiled_roots(q, q[_LN_10ES], q[_LN_ES], q[_LN_E], z, g)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -191,7 +194,6 @@ def _sub_roots(q, ts, Z, g_a, g_b, R):
     n = ts.shape[0]
     g0, g1, gt = g_a.copy(), np.empty(4), np.empty(4)
     fa, fb, zt = np.empty(3), np.empty(3), np.empty(3)
-    law = int(q[0])
     m, nfev = 0, 0
     for j in range(n - 1):
         if j == n - 2:
@@ -204,8 +206,8 @@ def _sub_roots(q, ts, Z, g_a, g_b, R):
                 continue
             dt = ts[j + 1] - ts[j]
             if not have_f:
-                ode_rhs(law, q[1], q[2], q[3], q[4], Z[j], fa)
-                ode_rhs(law, q[1], q[2], q[3], q[4], Z[j + 1], fb)
+                ode_rhs(q, Z[j], fa)
+                ode_rhs(q, Z[j + 1], fb)
                 nfev += 2
                 have_f = True
             left_pos = g0[k] > 0.0
@@ -307,7 +309,7 @@ def _rhs(t, u, du, p):
         out[1] = _KILL_VALUE
         out[2] = _KILL_VALUE
         return
-    ode_rhs(int(data[_LAW]), data[_BETA], data[_C], data[_D], data[_E], z, out)
+    ode_rhs(data, z, out)
 
 
 @functools.cache
@@ -393,17 +395,17 @@ class _LsodaStepper:
         self._buf = np.zeros(_DATA_LEN + 1024)
         self._ubuf = np.full((1024, 3), np.nan)
         d = self._data = self._buf[:_DATA_LEN]
-        d[[_LAW, _BETA, _C, _D]] = nd.law_code, nd.beta, nd.c, nd.d
+        d[:N_Q] = form_vector(nd, nd.e_slow)
         d[_T_LAST] = np.nan
         d[_LIMIT] = float(algorithm.max_steps)
         d[_DEADLINE] = math.inf if budget is None else budget.deadline()
         d[_U_ONSET], d[_U_END] = math.log(10.0 * nd.e_slow), math.log(nd.e_slow)
-        d[_TWO_SPEED] = float(nd.tau_fast > 0.0 and nd.e_fast != nd.e_slow)
+        d[_TWO_SPEED] = float(nd.two_speed)
         self._funcptr, self._lsoda = _library()
         # the parameters of the event kernels (E and ln E are set by start)
-        self._q = np.array([nd.law_code, nd.beta, nd.c, nd.d, 0.0, math.log(10.0 * nd.e_slow),
-                            math.log(nd.e_slow), 0.0])
-        self._dcap = math.pi / math.sqrt(nd.c) / _POINTS_PER_HALF_PERIOD
+        self._q = np.concatenate([form_vector(nd, nd.e_slow),
+                                  [math.log(10.0 * nd.e_slow), math.log(nd.e_slow), 0.0]])
+        self._dcap = nd.grid_tau / _POINTS_PER_HALF_PERIOD
         self._dt_out = 0.0            # spacing of the driver's output times, learned
         self._last_request = None
         self._last_root = None        # (tau, z, [(kind, sign after crossing)], e)
@@ -412,8 +414,8 @@ class _LsodaStepper:
 
     def start(self, tau0, z0, e, t_bound):
         self._e = float(e)
-        self._data[_E] = self._q[4] = self._e
-        self._q[7] = math.log(self._e)
+        self._data[_E] = self._q[_E] = self._e
+        self._q[_LN_E] = ln_load_rate(self._e)
         z0 = np.array(z0, dtype=float)
         g0 = np.empty(4)
         _roots(self._q, z0, g0)
@@ -485,7 +487,9 @@ class _LsodaStepper:
         d[_GUARD_DT], d[_GUARD_COUNT], d[_GUARD_T], d[_GUARD_U] = self._dg, 0.0, t_eval[0], z0[1]
         # stiff: the stiff eigenvalue ~ D/w is over 100 per grid interval (w < D·dg/100); only
         # there can Adams be stuck at its stability limit, and only there is BDF so cheap
-        d[_U_STIFF] = math.log(self.nd.d * self._dg / 100.0)
+        # (no inertial relaxation without mass: never stiff that way)
+        d[_U_STIFF] = (math.log(self.nd.d * self._dg / 100.0) if self.nd.d > 0.0
+                       else -math.inf)
         d[_BLOCK], d[_ARMED] = float(block), 0.0
         d[_T_ARM] = t_eval[0] + 4.0 * self._dg if onset else np.inf
         d[_IN_EVENT], d[_END_DT], d[_END_KILL_T] = 0.0, 3.0 * self._dg, np.inf
@@ -571,7 +575,7 @@ class _LsodaStepper:
         for j in (i - 1, i):
             if 0 <= j < len(T) and abs(T[j] - t) <= self._match():
                 f = np.empty(3)
-                ode_rhs(self.nd.law_code, self.nd.beta, self.nd.c, self.nd.d, self._e, Y[j], f)
+                ode_rhs(self._q, Y[j], f)
                 z = Y[j] + f * (t - T[j])      # first-order shift by a few ulps of t
                 break
         else:

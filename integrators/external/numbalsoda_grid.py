@@ -37,12 +37,14 @@ import numpy as np
 from numba import njit
 
 from integrators.core.crossings import carry_last_root, push_crossing, queue_crossings
-from integrators.core.events import AT_ROOT, END
+from integrators.core.events import AT_ROOT, END, compiled_roots
 from integrators.core.registry import register
 from integrators.core.segments import Advance
 from integrators.core.solution import ReturnCode
-from integrators.external.numbalsoda_backend import (_BLOCK_END, _E, _KILL, NumbaLSODA, _Abort,
-                                                     _counts, _LsodaStepper, _roots)
+from integrators.external.numbalsoda_backend import (_BLOCK_END, _E, _KILL, _LN_10ES, _LN_E,
+                                                     _LN_ES, NumbaLSODA, _Abort, _counts,
+                                                     _LsodaStepper, _roots)
+from problems.loading import ln_load_rate
 
 __all__ = ["NumbaLSODAGrid", "CHUNK"]
 
@@ -61,14 +63,11 @@ def _grid_crossings(q, T, Y, n, g):
     linear interpolant of its root function is zero: rows (τ, kind, sign, z0, z1, z2), in time
     order. ``g`` holds the root functions at row 0 (signs carried over a restart) and is left
     holding them at row n−1."""
-    beta, c, d, ln_start, ln_end, ln_e = q[1], q[2], q[3], q[5], q[6], q[7]
     gp = g.copy()
     R = np.empty((16, 6))
     m = 0
     for i in range(1, n):
-        u = Y[i, 1]                # events.root_functions, the operations of compiled_roots
-        g[0], g[1], g[2] = u - ln_start, u - ln_end, u - ln_e
-        g[3] = c * Y[i, 0] - d * (u + beta * Y[i, 2])
+        compiled_roots(q, q[_LN_10ES], q[_LN_ES], q[_LN_E], Y[i], g)
         first = m
         for k in range(4):
             a, b = gp[k], g[k]
@@ -123,13 +122,13 @@ class _GridStepper(_LsodaStepper):
     def __init__(self, algorithm: NumbaLSODAGrid, nd, budget=None):
         super().__init__(algorithm, nd, budget)
         m = algorithm.points_per_half_period or default_points(algorithm.rtol)
-        self._dg = math.pi / math.sqrt(nd.c) / m
-        self._two_speed = nd.tau_fast > 0.0 and nd.e_fast != nd.e_slow
+        self._dg = nd.grid_tau / m
+        self._two_speed = nd.two_speed
 
     def start(self, tau0, z0, e, t_bound):
         self._e = float(e)
-        self._data[_E] = self._q[4] = self._e
-        self._q[7] = math.log(self._e)
+        self._data[_E] = self._q[_E] = self._e
+        self._q[_LN_E] = ln_load_rate(self._e)
         z0 = np.array(z0, dtype=float)
         g0 = np.empty(4)
         _roots(self._q, z0, g0)

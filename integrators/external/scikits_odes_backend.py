@@ -33,8 +33,9 @@ from scikits_odes_sundials import cvode as _cvode_module
 from integrators.core.registry import AdaptiveAlgorithm, register
 from integrators.core.segments import Advance, directional_roots
 from integrators.core.solution import ReturnCode, Stats
-from problems.formulations import (DAE_DIFFERENTIAL, dae_initial, dae_jacobian, dae_residual,
-                                   ode_jacobian, ode_rhs)
+from problems.formulations import (dae_differential, dae_initial, dae_jacobian, dae_residual,
+                                   form_vector, ode_jacobian, ode_rhs, peak_function)
+from problems.loading import ln_load_rate
 
 __all__ = ["OdesCVODEBDF", "OdesCVODEAdams", "OdesIDA"]
 
@@ -125,10 +126,14 @@ class _Stepper:
     def _set_loading(self, e: float) -> None:
         nd = self.nd
         self._e = e
-        self._args = (nd.law_code, nd.beta, nd.c, nd.d, e)
-        # the constants of events.root_functions, hoisted out of the callback
-        self._g_const = (math.log(10.0 * nd.e_slow), math.log(nd.e_slow), math.log(e),
+        self._args = (form_vector(nd, e),)
+        # the constants of events.root_functions, hoisted out of the callback; the peak function
+        # inline as C h − D η where that is what it is (with mass, no damping), else called
+        self._g_const = (math.log(10.0 * nd.e_slow), math.log(nd.e_slow), ln_load_rate(e),
                          nd.c, nd.d, nd.beta)
+        plain = not nd.quasi_static and nd.g == 0.0
+        self._peak = None if plain else (peak_function if self._tier == "numba"
+                                         else peak_function.py_func)
 
     def _roots_into(self, y, g) -> None:
         """events.root_functions on y[:3], written into g, kept at least _TINY away from 0.
@@ -143,7 +148,8 @@ class _Stepper:
         l10, l1, le, c, d, beta = self._g_const
         u = y[1]
         g0, g1, g2 = u - l10, u - l1, u - le
-        g3 = c * y[0] - d * (u + beta * y[2])
+        g3 = (c * y[0] - d * (u + beta * y[2]) if self._peak is None
+              else self._peak(self._args[0], y))
         g[0] = g0 if abs(g0) >= _TINY else math.copysign(_TINY, g0)
         g[1] = g1 if abs(g1) >= _TINY else math.copysign(_TINY, g1)
         g[2] = g2 if abs(g2) >= _TINY else math.copysign(_TINY, g2)
@@ -325,7 +331,7 @@ class _IdaStepper(_Stepper):
     def _init(self, tau0, z0, t_bound):
         a = self.algorithm
         if self._solver is None:
-            algebraic = [int(i) for i in np.flatnonzero(DAE_DIFFERENTIAL == 0.0)]
+            algebraic = [int(i) for i in np.flatnonzero(dae_differential(self.nd) == 0.0)]
             # compute_initcond="yp0" is what hands the id vector to IDA (IDASetId) and runs
             # IDACalcIC(IDA_YA_YDP_INIT); from dae_initial's consistent values it converges at
             # once, so it checks consistency rather than changes anything. max_steps=1: one
@@ -402,7 +408,7 @@ class OdesCVODEAdams(_Odes):
 class OdesIDA(_Odes):
     """SUNDIALS IDA, variable-order variable-step BDF (orders 1–5), on the index-1 DAE form.
 
-    Adaptive. y = (h, u, s, η) with u algebraic (``DAE_DIFFERENTIAL`` as the id vector), Newton
+    Adaptive. y = (h, u, s, η) with u algebraic (``dae_differential`` as the id vector), Newton
     iteration on the analytic iteration matrix ∂F/∂y + cj ∂F/∂y' (``dae_jacobian``), consistent
     initial values from ``dae_initial`` at every restart; root functions on y[:3]. Needs ``rtol``
     and ``atol``. Reference: Hindmarsh et al. (2005), ACM TOMS 31, 363–396; Brenan, Campbell &

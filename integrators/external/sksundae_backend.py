@@ -28,8 +28,9 @@ from integrators.core.events import DIRECTIONS
 from integrators.core.registry import AdaptiveAlgorithm, register
 from integrators.core.segments import Advance, directional_roots
 from integrators.core.solution import ReturnCode, Stats
-from problems.formulations import (DAE_DIFFERENTIAL, dae_initial, dae_jacobian, dae_residual,
-                                   ode_jacobian, ode_rhs)
+from problems.formulations import (dae_differential, dae_initial, dae_jacobian, dae_residual,
+                                   form_vector, ode_jacobian, ode_rhs, peak_function)
+from problems.loading import ln_load_rate
 
 __all__ = ["SundaeCVODE", "SundaeIDA"]
 
@@ -79,10 +80,14 @@ class _OneStepper:
     def _set_loading(self, e: float) -> None:
         nd = self.nd
         self._e = e
-        self._args = (nd.law_code, nd.beta, nd.c, nd.d, e)
-        # the constants of events.root_functions, hoisted out of the callback
-        self._g_const = (math.log(10.0 * nd.e_slow), math.log(nd.e_slow), math.log(e),
+        self._args = (form_vector(nd, e),)
+        # the constants of events.root_functions, hoisted out of the callback; the peak function
+        # inline as C h − D η where that is what it is (with mass, no damping), else called
+        self._g_const = (math.log(10.0 * nd.e_slow), math.log(nd.e_slow), ln_load_rate(e),
                          nd.c, nd.d, nd.beta)
+        plain = not nd.quasi_static and nd.g == 0.0
+        self._peak = None if plain else (peak_function if self._tier == "numba"
+                                         else peak_function.py_func)
 
     def _roots_into(self, y, g) -> None:
         """events.root_functions on y[:3], written into g (same expressions), an exact zero
@@ -97,7 +102,8 @@ class _OneStepper:
         g[0] = u - l10
         g[1] = u - l1
         g[2] = u - le
-        g[3] = c * y[0] - d * (u + beta * y[2])
+        g[3] = (c * y[0] - d * (u + beta * y[2]) if self._peak is None
+                else self._peak(self._args[0], y))
         for k in range(4):
             if g[k] == 0.0:
                 g[k] = _TINY
@@ -323,7 +329,7 @@ class _IdaStepper(_OneStepper):
 
         self._eventsfn = self._with_directions(eventsfn)
         a = self.algorithm
-        algebraic = [int(i) for i in np.flatnonzero(DAE_DIFFERENTIAL == 0.0)]
+        algebraic = [int(i) for i in np.flatnonzero(dae_differential(self.nd) == 0.0)]
         return sksundae.ida.IDA(resfn, rtol=a.rtol, atol=a.atol, linsolver="dense",
                                 algebraic_idx=algebraic, jacfn=jacfn, eventsfn=self._eventsfn,
                                 num_events=len(DIRECTIONS))
@@ -354,7 +360,7 @@ class SundaeCVODE(_Sundae):
 class SundaeIDA(_Sundae):
     """SUNDIALS IDA, variable-order variable-step BDF (orders 1–5), on the index-1 DAE form.
 
-    Adaptive. y = (h, u, s, η) with u algebraic (``DAE_DIFFERENTIAL``), Newton iteration on the
+    Adaptive. y = (h, u, s, η) with u algebraic (``dae_differential``), Newton iteration on the
     analytic iteration matrix ∂F/∂y + cj ∂F/∂y' (``dae_jacobian``), consistent initial values
     from ``dae_initial`` at every restart; root functions on y[:3] with their directions. Needs
     ``rtol`` and ``atol``. Reference: Hindmarsh et al. (2005), ACM TOMS 31, 363–396; Brenan,

@@ -47,8 +47,9 @@ from integrators.core.events import DIRECTIONS, compiled_roots
 from integrators.core.registry import AdaptiveAlgorithm, register
 from integrators.core.segments import Advance, directional_roots
 from integrators.core.solution import ReturnCode, Stats
-from problems.formulations import (DAE_DIFFERENTIAL, dae_initial, dae_jacobian, dae_residual,
-                                   ode_jacobian, ode_rhs)
+from problems.formulations import (N_Q, Q_E, dae_differential, dae_initial, dae_jacobian,
+                                   dae_residual, form_vector, ode_jacobian, ode_rhs)
+from problems.loading import ln_load_rate
 
 __all__ = ["SundialsCVODEBDF", "SundialsCVODEAdams", "SundialsIDA", "SundialsARKodeIMEX",
            "SundialsARKodeERK"]
@@ -69,8 +70,10 @@ _MXSTEP = 500
 #: on, and the state it moves may even cross roots, all at one t) before the run stops
 _STALLED_STEPS = 10
 #: the parameter array handed to the callbacks as user_data
-(_LAW, _BETA, _C, _D, _E, _LN_10ES, _LN_ES, _LN_E) = range(8)
-_N_P = 8
+#: the problem vector q of problems.formulations, then the root functions' levels
+(_LN_10ES, _LN_ES, _LN_E) = range(N_Q, N_Q + 3)
+_E = Q_E
+_N_P = N_Q + 3
 #: the error handler's buffer: the last code (int32 in the first 4 bytes), then the message
 _EH_SIZE = 1024
 
@@ -87,7 +90,7 @@ _I4 = types.int32
 def _rhs(t, y, ydot, user_data):
     q = carray(user_data, _N_P)
     out = carray(ydot[0][2], 3)
-    ode_rhs(int(q[_LAW]), q[_BETA], q[_C], q[_D], q[_E], carray(y[0][2], 3), out)
+    ode_rhs(q, carray(y[0][2], 3), out)
     # a non-finite rate (e^u of an overshooting trial) is a recoverable failure: CVODE retries
     # with a smaller step
     return 0 if math.isfinite(out[0] + out[1] + out[2]) else 1
@@ -98,7 +101,7 @@ def _rhs(t, y, ydot, user_data):
 def _jac(t, y, fy, jmat, user_data, tmp1, tmp2, tmp3):
     q = carray(user_data, _N_P)
     jac = farray(jmat[0][2], (3, 3))            # column-major: J(i, j) = data[i + 3 j]
-    ode_jacobian(int(q[_LAW]), q[_BETA], q[_C], q[_D], q[_E], carray(y[0][2], 3), jac)
+    ode_jacobian(q, carray(y[0][2], 3), jac)
     return 0
 
 
@@ -106,7 +109,7 @@ def _jac(t, y, fy, jmat, user_data, tmp1, tmp2, tmp3):
 def _roots(t, y, gout, user_data):
     q = carray(user_data, _N_P)
     g = carray(gout, 4)
-    compiled_roots(q[_BETA], q[_C], q[_D], q[_LN_10ES], q[_LN_ES], q[_LN_E], carray(y[0][2], 3),
+    compiled_roots(q, q[_LN_10ES], q[_LN_ES], q[_LN_E], carray(y[0][2], 3),
                    g)
     for k in range(4):
         if g[k] == 0.0:
@@ -129,7 +132,7 @@ def _rhs_implicit(t, y, ydot, user_data):
     the eigenvalue −D/w)."""
     q = carray(user_data, _N_P)
     out = carray(ydot[0][2], 3)
-    ode_rhs(int(q[_LAW]), q[_BETA], q[_C], q[_D], q[_E], carray(y[0][2], 3), out)
+    ode_rhs(q, carray(y[0][2], 3), out)
     out[0] = 0.0
     return 0 if math.isfinite(out[1] + out[2]) else 1
 
@@ -140,7 +143,7 @@ def _jac_implicit(t, y, fy, jmat, user_data, tmp1, tmp2, tmp3):
     """∂(implicit part)/∂z: the ODE form's Jacobian without its first row."""
     q = carray(user_data, _N_P)
     jac = farray(jmat[0][2], (3, 3))
-    ode_jacobian(int(q[_LAW]), q[_BETA], q[_C], q[_D], q[_E], carray(y[0][2], 3), jac)
+    ode_jacobian(q, carray(y[0][2], 3), jac)
     jac[0, 0], jac[0, 1], jac[0, 2] = 0.0, 0.0, 0.0
     return 0
 
@@ -149,7 +152,7 @@ def _jac_implicit(t, y, fy, jmat, user_data, tmp1, tmp2, tmp3):
 def _res(t, yy, yp, rr, user_data):
     q = carray(user_data, _N_P)
     out = carray(rr[0][2], 4)
-    dae_residual(int(q[_LAW]), q[_BETA], q[_C], q[_D], q[_E], carray(yy[0][2], 4),
+    dae_residual(q, carray(yy[0][2], 4),
                  carray(yp[0][2], 4), out)
     return 0 if math.isfinite(out[0] + out[1] + out[2] + out[3]) else 1
 
@@ -159,7 +162,7 @@ def _res(t, yy, yp, rr, user_data):
 def _res_jac(t, cj, yy, yp, rr, jmat, user_data, tmp1, tmp2, tmp3):
     q = carray(user_data, _N_P)
     jac = farray(jmat[0][2], (4, 4))
-    dae_jacobian(int(q[_LAW]), q[_BETA], q[_C], q[_D], q[_E], carray(yy[0][2], 4), cj, jac)
+    dae_jacobian(q, carray(yy[0][2], 4), cj, jac)
     return 0
 
 
@@ -167,7 +170,7 @@ def _res_jac(t, cj, yy, yp, rr, jmat, user_data, tmp1, tmp2, tmp3):
 def _res_roots(t, yy, yp, gout, user_data):
     q = carray(user_data, _N_P)
     g = carray(gout, 4)
-    compiled_roots(q[_BETA], q[_C], q[_D], q[_LN_10ES], q[_LN_ES], q[_LN_E],
+    compiled_roots(q, q[_LN_10ES], q[_LN_ES], q[_LN_E],
                    carray(yy[0][2], 3), g)
     for k in range(4):
         if g[k] == 0.0:
@@ -370,8 +373,9 @@ class _Stepper:
         self._tret, self._count = ctypes.c_double(0.0), ctypes.c_long(0)
         self._ctx = self._mem = self._vec = self._mat = self._ls = None
         self._live = False
-        self._p[:] = (nd.law_code, nd.beta, nd.c, nd.d, nd.e_slow, math.log(10.0 * nd.e_slow),
-                      math.log(nd.e_slow), math.log(nd.e_slow))
+        self._p[:N_Q] = form_vector(nd, nd.e_slow)
+        self._p[N_Q:] = (math.log(10.0 * nd.e_slow), math.log(nd.e_slow),
+                         ln_load_rate(nd.e_slow))
 
     # --- set-up ---------------------------------------------------------------------------------
     def _check(self, what: str, flag: int) -> None:
@@ -416,7 +420,7 @@ class _Stepper:
     def start(self, tau0, z0, e, t_bound):
         self._close_segment()
         self._e = e
-        self._p[_E], self._p[_LN_E] = e, math.log(e)
+        self._p[_E], self._p[_LN_E] = e, ln_load_rate(e)
         self._t, self._z = float(tau0), np.array(z0, dtype=float)
         self._set_state(self._z)
         self._eh[:] = 0
@@ -562,7 +566,7 @@ class _Ida(_Stepper):
     def __init__(self, algorithm, nd, budget=None):
         super().__init__(algorithm, nd, budget)
         self._yp = np.empty(4)               # IDA's y' vector wraps this array's memory
-        self._id = DAE_DIFFERENTIAL.copy()
+        self._id = dae_differential(nd)
 
     def _new_memory(self, tau0) -> int:
         self._ypvec, self._idvec = self._vector(self._yp), self._vector(self._id)

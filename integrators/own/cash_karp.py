@@ -65,7 +65,7 @@ def _f(p, h, u, s, ws):
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _attempt(p, hs, ws, z, f, z1, f1, D):
-    rtol, atol = p[5], p[6]
+    rtol, atol = p[engine.P_RTOL], p[engine.P_ATOL]
     z0, z1_, z2, f0, f1_, f2 = z[0], z[1], z[2], f[0], f[1], f[2]
     a0, a1, a2 = _f(p, z0 + hs * B21 * f0, z1_ + hs * B21 * f1_, z2 + hs * B21 * f2, ws)
     b0, b1, b2 = _f(p, z0 + hs * (B31 * f0 + B32 * a0), z1_ + hs * (B31 * f1_ + B32 * a1),

@@ -89,8 +89,8 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
         grid = grid_t / nd.time_scale
         grid[-1] = nd.tau_end
         deadline = budget.deadline() if budget is not None else math.inf
-        st, p, Z, G = E.new_state(nd, problem.loading.two_speed, self.rtol, self.atol,
-                                  self.constants, self.max_steps, deadline)
+        st, p, Z, G = E.new_state(nd, self.rtol, self.atol, self.constants, self.max_steps,
+                                  deadline)
         saved, ev = np.empty((len(grid), 3)), np.empty((_EVENTS_START, 8))
         saved[0] = Z[E.ZROW["ZC"]]
         st[E.ST["NEXT_SAVE"]] = 1
@@ -142,12 +142,15 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
         """The per-point inputs (P, Z0, C) of :mod:`integrators.own.batch` for ``problems``."""
         from problems.stability import growth_rate
         n = len(problems)
-        P, Z0, C = np.empty((n, E.N_P)), np.empty((n, 3)), np.empty((n, B.N_C))
+        width = E.N_P + max((len(p.nondimensional().history) for p in problems), default=0)
+        # a shorter history is padded with zeros: its piece count says where it ends
+        P, Z0, C = np.zeros((n, width)), np.empty((n, 3)), np.empty((n, B.N_C))
         budget = math.inf if wall_budget is None else wall_budget
         for i, problem in enumerate(problems):
             nd = problem.nondimensional()
-            _, P[i], Z, _ = E.new_state(nd, problem.loading.two_speed, self.rtol, self.atol,
-                                        self.constants, self.max_steps, math.inf)
+            _, p, Z, _ = E.new_state(nd, self.rtol, self.atol, self.constants, self.max_steps,
+                                     math.inf)
+            P[i, :len(p)] = p
             Z0[i] = Z[E.ZROW["ZC"]]
             law = problem.law
             C[i] = (nd.time_scale, problem.f0, nd.force_h, law.v0, law.lc, problem.normal_force,
@@ -174,5 +177,6 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
         """``n`` equal steps over ``span`` (τ) from z0 under the slow loading, every one
         accepted, no error control (order studies: :func:`benchmarks.convergence.
         fixed_step_orders`): z at the end."""
-        _, p, _, _ = E.new_state(nd, False, np.inf, np.inf, self.constants, 0, math.inf)
+        _, p, _, _ = E.new_state(nd._replace(tau_fast=0.0), np.inf, np.inf, self.constants, 0,
+                                 math.inf)
         return type(self).fixed(p, np.asarray(z0, dtype=float), span / n, n)

@@ -48,7 +48,8 @@ from integrators.core.clock import monotonic
 from integrators.core.events import (AT_ROOT, END, H_EXTREMUM, PEAK, REC_SIZE, carry_signs,
                                      compiled_roots, new_recorder, observe, record, sign_change)
 from integrators.core.events import N_EVENTS as _REC_N
-from problems.formulations import ode_jacobian, ode_rhs
+from problems.formulations import N_Q, Q_BETA, Q_C, Q_D, Q_E, Q_LAW, ode_jacobian, ode_rhs
+from problems.loading import H_TAU_FAST, LN_E_HOLD, load_segment
 
 __all__ = ["run", "scratch", "NO_NRT", "fixed_steps", "rhs", "jacobian", "hermite", "new_state",
            "P", "ST", "ZROW", "DONE", "CHUNK", "GROW", "NONFINITE", "UNDERFLOW", "MAX_STEPS",
@@ -77,18 +78,21 @@ N_ST = ROOTS + 4
 ZROW = dict(Z=0, F=1, ZO=2, FO=3, D1=4, D2=5, D3=6, ZR=7, LRZ=8, ZC=9)
 _Z, _F, _ZO, _FO, _D1, _D2, _D3, _ZR, _LRZ, _ZC = range(10)
 N_Z = 10
-#: p: the problem (law code, β, C, D and the loading rate E of the current segment), the
-#: tolerances, the root functions' thresholds ln(10 E_slow), ln E_slow, ln E; the run (E_slow,
-#: E_fast, τ_end, τ_fast, two-speed flag, step budget, wall deadline); the method
-#: (exponent of the initial-step guess, controller order q, stick_peaks, fsal, hermite, f
-#: evaluations per attempt)
-P = dict(LAW=0, BETA=1, C=2, D=3, E=4, RTOL=5, ATOL=6, LN_10E_SLOW=7, LN_E_SLOW=8, LN_E=9,
-         E_SLOW=10, E_FAST=11, TAU_END=12, TAU_FAST=13, TWO_SPEED=14, MAX_STEPS=15,
-         DEADLINE=16, INIT_EXPONENT=17, Q=18, STICK_PEAKS=19, FSAL=20, HERMITE=21, STAGES=22)
-(_LAW, _BETA, _C, _D, _E, _RTOL, _ATOL, _LN_10ES, _LN_ES, _LN_E, _E_SLOW, _E_FAST, _TAU_END,
- _TAU_FAST, _TWO_SPEED, _MAX_STEPS, _DEADLINE, _INIT_EXPONENT, _Q, _STICK_PEAKS, _FSAL,
- _HERMITE, _STAGES) = range(23)
-N_P = 23
+#: p: the problem vector q of :mod:`problems.formulations` (its E is the current segment's), the
+#: tolerances, the root functions' thresholds ln(10 E_slow), ln E_slow, ln E; the run (τ_end,
+#: two-speed flag, step budget, wall deadline); the method (exponent of the initial-step guess,
+#: controller order q, stick_peaks, fsal, hermite, f evaluations per attempt); from N_P on, the
+#: load-point history (:func:`problems.loading.history_vector`)
+P = dict(LAW=Q_LAW, BETA=Q_BETA, C=Q_C, D=Q_D, E=Q_E, RTOL=N_Q, ATOL=N_Q + 1,
+         LN_10E_SLOW=N_Q + 2, LN_E_SLOW=N_Q + 3, LN_E=N_Q + 4, TAU_END=N_Q + 5,
+         TWO_SPEED=N_Q + 6, MAX_STEPS=N_Q + 7, DEADLINE=N_Q + 8, INIT_EXPONENT=N_Q + 9,
+         Q=N_Q + 10, STICK_PEAKS=N_Q + 11, FSAL=N_Q + 12, HERMITE=N_Q + 13, STAGES=N_Q + 14)
+(_RTOL, _ATOL, _LN_10ES, _LN_ES, _LN_E, _TAU_END, _TWO_SPEED, _MAX_STEPS, _DEADLINE,
+ _INIT_EXPONENT, _Q, _STICK_PEAKS, _FSAL, _HERMITE, _STAGES) = range(N_Q, N_Q + 15)
+_E = Q_E
+N_P = N_Q + 15
+#: where a method's ``attempt`` reads the tolerances
+P_RTOL, P_ATOL = _RTOL, _ATOL
 
 #: what :func:`run` returns
 DONE, CHUNK, GROW, NONFINITE, UNDERFLOW, MAX_STEPS, WALL_TIME = range(7)
@@ -111,20 +115,20 @@ rhs, jacobian = ode_rhs, ode_jacobian
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def f_of(p, z, out):
     """f(z) into ``out`` under the current segment's loading."""
-    rhs(int(p[_LAW]), p[_BETA], p[_C], p[_D], p[_E], z, out)
+    rhs(p, z, out)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def roots(p, z, g):
     """The four root functions of :mod:`integrators.core.events` at z, into g."""
-    compiled_roots(p[_BETA], p[_C], p[_D], p[_LN_10ES], p[_LN_ES], p[_LN_E], z, g)
+    compiled_roots(p, p[_LN_10ES], p[_LN_ES], p[_LN_E], z, g)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def prepare_jacobian(p, z0, f0, ws):
     """A ``prepare`` for linearly implicit methods: the exact Jacobian at the step's start into
     ws[0]."""
-    jacobian(int(p[_LAW]), p[_BETA], p[_C], p[_D], p[_E], z0, ws[0])
+    jacobian(p, z0, ws[0])
     return 1
 
 
@@ -351,7 +355,8 @@ def start(st, p, Z, G, tau0, z0, e, t_bound, w):
     root just reported the root's sign after its crossing is kept (H_EXTREMUM only if the
     loading is unchanged: u − ln E moves with E)."""
     rtol, atol = p[_RTOL], p[_ATOL]
-    p[_E], p[_LN_E] = e, math.log(e)
+    p[_E] = e
+    p[_LN_E] = math.log(e) if e > 0.0 else LN_E_HOLD
     z, f = Z[_Z], Z[_F]
     trial, f1, scale = w[0], w[1], w[2]
     for i in range(3):
@@ -490,6 +495,7 @@ def run(prepare, attempt, reject, accept, ws, sc, st, p, Z, G, dirs, grid, saved
     z0, f0, z1, f1, D, scan_w, g, zt = sc
     z_now, g_cur = Z[_Z], G[0]
     tau_end, two_speed = p[_TAU_END], p[_TWO_SPEED] != 0.0
+    hist = p[N_P:]
     stick_peaks = p[_STICK_PEAKS] != 0.0
     tiny = 1e-12 * tau_end
     rec = st[REC:REC + REC_SIZE]
@@ -499,9 +505,7 @@ def run(prepare, attempt, reject, accept, ws, sc, st, p, Z, G, dirs, grid, saved
             tau = st[LAST_T]
             if tau >= tau_end - tiny:
                 return DONE
-            fast = two_speed and st[FAST_UNTIL] - tau > tiny
-            e = p[_E_FAST] if fast else p[_E_SLOW]
-            t_bound = min(tau_end, st[FAST_UNTIL]) if fast else tau_end
+            e, t_bound = load_segment(hist, tau, st[FAST_UNTIL], tau_end, tiny)
             st[LOAD0] = st[LOAD0] + p[_E] * (tau - st[TAU0])     # the load at τ
             st[TAU0] = tau
             start(st, p, Z, G, tau, Z[_ZC], e, t_bound, D)
@@ -528,7 +532,7 @@ def run(prepare, attempt, reject, accept, ws, sc, st, p, Z, G, dirs, grid, saved
                 _copy(G[1], G[2])
                 _hand_on(st, Z, t_ret, _ZR)
                 if ended and two_speed:
-                    st[FAST_UNTIL] = t_ret + p[_TAU_FAST]
+                    st[FAST_UNTIL] = t_ret + hist[H_TAU_FAST]
                     st[NEED_START] = 1.0
                 continue
             _hand_on(st, Z, st[TAU], _Z)
@@ -586,20 +590,23 @@ def fixed_steps(prepare, attempt, workspace, p, z0, hs, n):
     return z
 
 
-def new_state(nd, two_speed: bool, rtol: float, atol: float, constants: dict, max_steps: int,
-              deadline: float):
+def new_state(nd, rtol: float, atol: float, constants: dict, max_steps: int, deadline: float):
     """The arrays (st, p, Z, G) of a solve of the nondimensional problem ``nd`` at τ = 0;
     ``constants``: the method's INIT_EXPONENT, Q, STICK_PEAKS, FSAL, HERMITE, STAGES."""
-    from problems.formulations import check_law_code, to_ode_state
-    check_law_code(nd.law_code)
+    from problems.formulations import form_vector, to_ode_state
+    from problems.loading import ln_load_rate
+    q = form_vector(nd, nd.e_slow)
     st, Z, G = np.zeros(N_ST), np.zeros((N_Z, 3)), np.zeros((3, 4))
-    ln_e = math.log(nd.e_slow)
-    p = np.array([nd.law_code, nd.beta, nd.c, nd.d, nd.e_slow, rtol, atol,
-                  math.log(10.0 * nd.e_slow), ln_e, ln_e, nd.e_slow, nd.e_fast, nd.tau_end,
-                  nd.tau_fast, float(two_speed), max_steps, deadline, 0.0, 0.0, 0.0, 0.0, 0.0,
-                  0.0])
+    p = np.zeros(N_P + len(nd.history))
+    p[:N_Q] = q
+    p[_RTOL], p[_ATOL] = rtol, atol
+    p[_LN_10ES], p[_LN_ES] = math.log(10.0 * nd.e_slow), math.log(nd.e_slow)
+    p[_LN_E] = ln_load_rate(nd.e_slow)
+    p[_TAU_END], p[_TWO_SPEED] = nd.tau_end, float(nd.two_speed)
+    p[_MAX_STEPS], p[_DEADLINE] = max_steps, deadline
     for key, value in constants.items():
         p[P[key]] = value
+    p[N_P:] = nd.history
     st[REC:REC + REC_SIZE] = new_recorder(nd.x0[0])
     st[FAST_UNTIL] = -math.inf
     st[NEED_START] = 1.0

@@ -33,6 +33,7 @@ from integrators.own import etd_kernel as K
 from integrators.core.registry import Algorithm, register
 from integrators.core.solution import RawRun, ReturnCode, Stats
 from problems._validate import check_count, check_positive
+from problems.formulations import form_vector
 from problems.loading import event_thresholds
 
 __all__ = ["ETD1", "ETD2", "ETDIterated"]
@@ -76,12 +77,19 @@ class _ETD(Algorithm):
     def iterations(self) -> int:
         return self.n_iter
 
+    def check_problem(self, problem) -> None:
+        if problem.quasi_static:
+            raise ValueError(
+                f"{self.name} needs a slider with mass: the paper's ETD relaxes the friction η on "
+                "the inertial time scale w/D (D = A Lc/(m v0²)), which has no meaning at m = 0 "
+                "(the quasi-static limit); use an adaptive method (Rodas5P, CVODE, LSODA)")
+
     def run(self, problem, output, budget, progress) -> RawRun:
         nd = problem.nondimensional()
         v0 = problem.law.v0
         w_start, w_end = (v / v0 for v in event_thresholds(problem.loading))
-        p = np.array([nd.law_code, nd.beta, nd.c, nd.d, nd.e_slow, nd.e_fast, nd.tau_fast,
-                      nd.tau_end, w_start, w_end, float(problem.loading.two_speed)])
+        p = np.concatenate([form_vector(nd, nd.e_slow),
+                            [nd.tau_end, w_start, w_end, float(nd.two_speed)], nd.history])
         save_dtau = output.interval(problem.t_end) / nd.time_scale
         o = np.array([self.dtau_max, self.dtau_cnst, self.v_max / v0, self.iterations(), save_dtau,
                       self.rule_ratio_max])

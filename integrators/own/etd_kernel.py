@@ -21,7 +21,8 @@ import math
 import numpy as np
 from numba import njit
 
-from problems.formulations import etd_targets, ln_slip_rate
+from problems.formulations import N_Q, Q_BETA, Q_D, Q_E, Q_G, Q_LAW, etd_targets, ln_slip_rate
+from problems.loading import H_TAU_FAST, load_segment
 
 # --- layout of the loop state ``st`` -------------------------------------------------------
 S_TAU, S_H, S_ETA, S_PSI = 0, 1, 2, 3
@@ -45,9 +46,10 @@ S_RULE_MAX = 20       # the largest step-rule ratio of the run (diagnostic)
 S_SIZE = 21
 
 # --- layout of the parameters ``p`` --------------------------------------------------------
-P_LAW, P_BETA, P_C, P_D, P_E_SLOW, P_E_FAST, P_TAU_FAST, P_TAU_END = 0, 1, 2, 3, 4, 5, 6, 7
-P_W_START, P_W_END, P_TWO_SPEED = 8, 9, 10
-P_SIZE = 11
+#: the problem vector q of :mod:`problems.formulations` (its E set per step), the end of the run,
+#: the event thresholds, the two-speed flag; from P_SIZE on the load-point history
+P_TAU_END, P_W_START, P_W_END, P_TWO_SPEED = N_Q, N_Q + 1, N_Q + 2, N_Q + 3
+P_SIZE = N_Q + 4
 
 # --- layout of the options ``o`` -----------------------------------------------------------
 O_DTAU_MAX, O_DTAU_CNST, O_W_MAX, O_N_ITER, O_SAVE_DTAU, O_RULE_MAX = 0, 1, 2, 3, 4, 5
@@ -68,15 +70,20 @@ def log_slip_rate(law, beta, eta, psi):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def coefficients(law, beta, c, d, h, eta, psi):
-    """Frozen coefficients at (h, η, Ψ): w, ηss, D/w (rate of η), Ψss, w (rate of Ψ).
+def coefficients(q, h, eta, psi):
+    """Frozen coefficients at (h, η, Ψ) under the problem vector q: w, ηss, D/w (rate of η),
+    Ψss, the rate of Ψ.
 
-    Eqs. 36–40 (slip law) and 63–65 (aging law): :func:`problems.formulations.etd_targets`.
+    Eqs. 36–40 (slip law) and 63–65 (aging law): :func:`problems.formulations.etd_targets`;
+    radiation damping moves ηss by −G w/D (η' = (C h − D η)/w − G + β s').
     """
-    lnw = ln_slip_rate(law, beta, eta, psi)
+    lnw = ln_slip_rate(int(q[Q_LAW]), q[Q_BETA], eta, psi)
     w = math.exp(lnw)
-    eta_ss, psi_ss = etd_targets(law, beta, c, d, h, lnw, w, psi)
-    return w, eta_ss, d / w, psi_ss, w
+    d = q[Q_D]
+    eta_ss, psi_ss, psi_rate = etd_targets(q, h, lnw, w, psi)
+    if q[Q_G] != 0.0:
+        eta_ss -= q[Q_G] * w / d
+    return w, eta_ss, d / w, psi_ss, psi_rate
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -86,13 +93,15 @@ def _relax(y0, y_ss, rate, s):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def etd_step(law, beta, c, d, e, h0, eta0, psi0, s, n_iter):
-    """One ETD step of length s: first order for ``n_iter`` = 0 (Eqs. 33–41), the paper's
-    second-order scheme for 1 (Eqs. 42–52), further re-evaluations for more.
+def etd_step(q, h0, eta0, psi0, s, n_iter):
+    """One ETD step of length s under the problem vector q (loading rate E = q[Q_E]): first
+    order for ``n_iter`` = 0 (Eqs. 33–41), the paper's second-order scheme for 1 (Eqs. 42–52),
+    further re-evaluations for more.
 
     Returns the end state and the largest slip rate w at which coefficients were evaluated (the
     start, the starred state, each iterate): the step-rule check of :func:`etd_advance`."""
-    w0, ess0, re0, pss0, rp0 = coefficients(law, beta, c, d, h0, eta0, psi0)
+    e = q[Q_E]
+    w0, ess0, re0, pss0, rp0 = coefficients(q, h0, eta0, psi0)
     w_seen = w0
     h1 = h0 + (e - w0) * s
     eta1 = _relax(eta0, ess0, re0, s)
@@ -103,7 +112,7 @@ def etd_step(law, beta, c, d, e, h0, eta0, psi0, s, n_iter):
         eta_half = _relax(eta0, ess0, re0, half)
         psi_half = _relax(psi0, pss0, rp0, half)
         for _ in range(n_iter):
-            w1, ess1, re1, pss1, rp1 = coefficients(law, beta, c, d, h1, eta1, psi1)
+            w1, ess1, re1, pss1, rp1 = coefficients(q, h1, eta1, psi1)
             if w1 > w_seen:
                 w_seen = w1
             h1 = h_half + (e - w1) * half
@@ -132,9 +141,11 @@ def etd_advance(st, p, o, save_buf, ev_buf, max_steps):
     fastest state it evaluated (the ratio is in ``st[S_RULE]``); ``st`` then still holds the state
     before that step.
     """
-    law = int(p[P_LAW])
-    beta, c, d = p[P_BETA], p[P_C], p[P_D]
-    e_slow, e_fast, tau_fast, tau_end = p[P_E_SLOW], p[P_E_FAST], p[P_TAU_FAST], p[P_TAU_END]
+    law = int(p[Q_LAW])
+    beta = p[Q_BETA]
+    tau_end = p[P_TAU_END]
+    hist = p[P_SIZE:]
+    tau_fast = hist[H_TAU_FAST]
     ln_w_start, ln_w_end = math.log(p[P_W_START]), math.log(p[P_W_END])
     two_speed = p[P_TWO_SPEED] > 0.5
     dtau_max, dtau_cnst, w_max = o[O_DTAU_MAX], o[O_DTAU_CNST], o[O_W_MAX]
@@ -155,13 +166,11 @@ def etd_advance(st, p, o, save_buf, ev_buf, max_steps):
             return BUFFER_FULL
         lnw = log_slip_rate(law, beta, eta, psi)
         w = math.exp(lnw)
-        fast = two_speed and st[S_FAST_UNTIL] - tau > tiny
-        e = e_fast if fast else e_slow
+        e, bound = load_segment(hist, tau, st[S_FAST_UNTIL], tau_end, tiny)
+        p[Q_E] = e
         s = min(dtau_max, dtau_cnst * w_max / w)          # Eq. 53
-        if fast:
-            s = min(s, st[S_FAST_UNTIL] - tau)
-        s = min(s, tau_end - tau)
-        h1, eta1, psi1, w_seen = etd_step(law, beta, c, d, e, h, eta, psi, s, n_iter)
+        s = min(s, bound - tau)                           # land on a switch of the loading
+        h1, eta1, psi1, w_seen = etd_step(p, h, eta, psi, s, n_iter)
         st[S_STEPS] += 1
         st[S_EVALS] += evals_per_step
         lnw1 = log_slip_rate(law, beta, eta1, psi1)
@@ -195,7 +204,7 @@ def etd_advance(st, p, o, save_buf, ev_buf, max_steps):
             if two_speed and f < 1.0:
                 # land on the event end so that the loading switches at a step boundary
                 s = f * s
-                h1, eta1, psi1, w_seen = etd_step(law, beta, c, d, e, h, eta, psi, s, n_iter)
+                h1, eta1, psi1, w_seen = etd_step(p, h, eta, psi, s, n_iter)
                 st[S_STEPS] += 1
                 st[S_EVALS] += evals_per_step
                 st[S_REDONE] += 1

@@ -40,7 +40,7 @@ def exprb_workspace():
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _attempt(p, hs, ws, z, f, out, f1, D):
     J, P, half, w = ws
-    rtol, atol = p[5], p[6]
+    rtol, atol = p[engine.P_RTOL], p[engine.P_ATOL]
     for i in range(3):
         for j in range(3):
             half[i, j] = J[i, j] * hs

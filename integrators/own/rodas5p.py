@@ -74,7 +74,7 @@ def _workspace():
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _attempt(p, hs, ws, z0, f0, z1, f1, D):
     J, M, piv, K, u, fb = ws
-    rtol, atol = p[5], p[6]
+    rtol, atol = p[engine.P_RTOL], p[engine.P_ATOL]
     hg = hs * G5P
     regular = factor(hg, J, M, piv)
     for s in range(8):

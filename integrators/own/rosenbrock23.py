@@ -45,7 +45,7 @@ def _workspace():
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _attempt(p, hs, ws, z0, f0, z1, f1, D):
     J, M, piv, K, u, fb = ws
-    rtol, atol = p[5], p[6]
+    rtol, atol = p[engine.P_RTOL], p[engine.P_ATOL]
     regular = factor(hs * D23, J, M, piv)
     for i in range(3):
         K[0, i] = f0[i]

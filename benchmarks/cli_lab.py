@@ -1,0 +1,169 @@
+"""``rsfbench lab``: a velocity step or a slide-hold-slide test, and what it measures.
+
+    rsfbench lab step --law aging --v1 1e-6 --v2 1e-5 --json
+    rsfbench lab shs --law nagata --holds 1 10 100 --out results/lab
+
+The apparatus is that of Marone's code as distributed with rsfmodel (problems.presets.LAB:
+a = 0.005, b = 0.01, Dc = 10 µm, k = 1e7 N/m on 10 kN, V0 = 1 µm/s), quasi-static unless
+--mass is given; --problem FILE runs your own apparatus and history instead (TOML or JSON).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from benchmarks.cli_args import (RunStopped, in_file, non_negative, out_dir, positive, say,
+                                 show_progress)
+
+__all__ = ["add_parsers"]
+
+DEFAULT_INTEGRATOR, DEFAULT_TOL = "Rodas5P", 1e-8
+#: saved points per run: the peaks are read off the saved trajectory (benchmarks.lab)
+SAVED_POINTS = 100_000
+
+
+def _problem(args):
+    from problems import load_problem, slide_hold_slide_test, velocity_step_test
+    if args.problem is not None:
+        given = [f for f in ("law", "mass", "radiation_damping", "c", "stiffness")
+                 if getattr(args, f) is not None]
+        if given:
+            raise ValueError(f"--{given[0].replace('_', '-')} applies to the built-in "
+                             "apparatus; a problem file states it")
+        return load_problem(args.problem)
+    kw = dict(law=args.law or "aging", mass=args.mass or 0.0,
+              radiation_damping=args.radiation_damping or 0.0, c=args.c,
+              stiffness=args.stiffness)
+    if kw["c"] is not None and kw["law"] != "nagata":
+        raise ValueError("--c is the Nagata law's stress coefficient: it needs --law nagata")
+    if args.test == "step":
+        return velocity_step_test(v1=args.v1, v2=args.v2, t_step=args.t_step,
+                                  t_end=args.t_step + args.after, **kw)
+    return slide_hold_slide_test(holds=tuple(args.holds), v=args.v, slide=args.slide,
+                                 first_slide=args.first_slide, **kw)
+
+
+def cmd_lab(args) -> int:
+    from benchmarks.lab import healing, healing_rate, step_response
+    from benchmarks.report import jsonable
+    from integrators import make_algorithm, solve
+    problem = _problem(args)
+    name = args.integrator or DEFAULT_INTEGRATOR
+    tol = args.rtol if args.rtol is not None else (None if args.integrator else DEFAULT_TOL)
+    algorithm = make_algorithm(name, rtol=tol, atol=args.atol if args.atol is not None else tol)
+    out = args.out
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)          # before the work: a bad --out fails now
+    sol = solve(problem, algorithm, save_every=problem.t_end / (SAVED_POINTS - 1),
+                progress=show_progress(args))
+    if not sol.success:
+        raise RunStopped(f"{algorithm.name} stopped at t = {sol.t_reached:.6g} s of "
+                            f"{problem.t_end:g} s ({sol.retcode.value}: {sol.message})"
+                            + (": without mass nor damping an instability runs away (v → ∞ in "
+                               "finite time); add --mass or --radiation-damping"
+                               if problem.quasi_static and not problem.radiation_damping
+                               and sol.retcode.value == "StepUnderflow" else ""))
+    hist = problem.loading.history
+    steps, heal = step_response(sol), healing(sol)
+    doc = {"problem": problem.name, "law": problem.law.name, "mass_kg": problem.mass,
+           "radiation_damping_N_s_per_m": problem.radiation_damping,
+           "velocities_m_s": list(hist.velocities), "switch_times_s": list(hist.switch_times),
+           "integrator": algorithm.name, "options": algorithm.options(),
+           "retcode": sol.retcode.value, "wall_s": sol.stats.wall_s, "steps": sol.stats.steps,
+           "nfev": sol.stats.nfev, "steps_response": steps.to_dict(orient="records"),
+           "healing": heal.to_dict(orient="records"),
+           "healing_per_decade": healing_rate(heal)}
+    if out is not None:
+        steps.to_csv(out / "lab_steps.csv", index=False)
+        heal.to_csv(out / "lab_healing.csv", index=False)
+        import pandas as pd
+        pd.DataFrame({"t_s": sol.t, "v_m_s": sol.v, "mu": sol.fs / problem.normal_force,
+                      "theta": sol.theta}).to_csv(out / "lab_trajectory.csv", index=False)
+        _plot(sol, heal, out / "lab.png")
+        doc["out"] = str(out)
+    if args.json:
+        say(json.dumps(jsonable(doc), indent=2))
+        return 0
+    say(f"{problem.name}: {algorithm.name}, {sol.stats.steps} steps, {sol.stats.wall_s:.3g} s")
+    if len(steps):
+        say(steps.to_string(index=False))
+    if len(heal):
+        say(heal.to_string(index=False))
+        say(f"healing: {doc['healing_per_decade']:.4g} in μ per decade of hold time")
+    if out is not None:
+        say(f"wrote lab_steps.csv, lab_healing.csv, lab_trajectory.csv and lab.png to {out}")
+    return 0
+
+
+def _plot(sol, heal, path: Path) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    n = 3 if len(heal) >= 2 else 2
+    fig, axes = plt.subplots(1, n, figsize=(4.5 * n, 3.8))
+    mu = sol.fs / sol.problem.normal_force
+    axes[0].plot(sol.t, mu, lw=0.8)
+    axes[0].set_xlabel("t (s)")
+    axes[0].set_ylabel("μ = Fs/Fn")
+    axes[1].semilogy(sol.t, sol.v, lw=0.8)
+    axes[1].set_xlabel("t (s)")
+    axes[1].set_ylabel("slip rate (m/s)")
+    if n == 3:
+        axes[2].semilogx(heal.hold_s, heal.delta_mu_peak, "o-")
+        axes[2].set_xlabel("hold time (s)")
+        axes[2].set_ylabel("Δμ_peak")
+        axes[2].grid(True, which="both", alpha=0.3)
+    fig.suptitle(sol.problem.name, fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def add_parsers(sub) -> None:
+    lab = sub.add_parser("lab", help="a velocity step or a slide-hold-slide test and what it "
+                         "measures (peaks, healing)", description=__doc__.split("\n\n")[0])
+    lab.add_argument("test", choices=("step", "shs"),
+                     help="step: a velocity step; shs: a slide-hold-slide sequence")
+    lab.add_argument("--problem", type=in_file, metavar="FILE",
+                     help="your own apparatus and load-point history (TOML or JSON, "
+                          "docs/problem-family.md); default: the built-in apparatus")
+    lab.add_argument("--law", choices=("slip", "aging", "nagata"),
+                     help="friction law of the built-in apparatus (default: aging)")
+    lab.add_argument("--c", type=non_negative, help="the Nagata law's stress coefficient "
+                     "(default: 2)")
+    lab.add_argument("--mass", type=non_negative, metavar="KG",
+                     help="slider mass in kg (default: 0, quasi-static)")
+    lab.add_argument("--radiation-damping", type=non_negative, metavar="N_S_PER_M",
+                     help="radiation damping ηr in N s/m (default: 0)")
+    lab.add_argument("--stiffness", type=positive, metavar="N_PER_M",
+                     help="spring stiffness in N/m (default: 1e7, on a 10 kN normal force)")
+    lab.add_argument("--v1", type=positive, default=1e-6, metavar="M_S",
+                     help="step: load-point velocity before the step, m/s (default: 1e-6)")
+    lab.add_argument("--v2", type=positive, default=1e-5, metavar="M_S",
+                     help="step: after the step, m/s (default: 1e-5)")
+    lab.add_argument("--t-step", type=positive, default=10.0, metavar="S",
+                     help="step: time of the step, s (default: 10)")
+    lab.add_argument("--after", type=positive, default=30.0, metavar="S",
+                     help="step: simulated time after the step, s (default: 30)")
+    lab.add_argument("--holds", type=positive, nargs="+", default=[1.0, 10.0, 100.0],
+                     metavar="S", help="shs: hold times, s (default: 1 10 100)")
+    lab.add_argument("--v", type=positive, default=1e-6, metavar="M_S",
+                     help="shs: sliding velocity, m/s (default: 1e-6)")
+    lab.add_argument("--slide", type=positive, default=100.0, metavar="S",
+                     help="shs: sliding after each hold, s (default: 100)")
+    lab.add_argument("--first-slide", type=positive, default=10.0, metavar="S",
+                     help="shs: sliding before the first hold, s (default: 10)")
+    lab.add_argument("--integrator", metavar="NAME",
+                     help=f"registry name (default: {DEFAULT_INTEGRATOR} at rtol = atol = "
+                          f"{DEFAULT_TOL:g}; results/family_wp.md compares them)")
+    lab.add_argument("--rtol", type=positive, help=f"relative tolerance (default: "
+                     f"{DEFAULT_TOL:g} with the default integrator; required with --integrator "
+                     "NAME of an adaptive method)")
+    lab.add_argument("--atol", type=positive, help="absolute tolerance (default: --rtol)")
+    lab.add_argument("--out", type=out_dir, metavar="DIR",
+                     help="write lab_steps.csv, lab_healing.csv, lab_trajectory.csv and lab.png "
+                          "there (default: print only)")
+    lab.add_argument("--json", action="store_true", help="print one JSON object")
+    lab.add_argument("--no-progress", action="store_true", help="no progress bar")
+    lab.set_defaults(func=cmd_lab)
