@@ -274,9 +274,9 @@ STEPS = (
          _problem_family, minutes=0.5),
     Step("family", "which integrator for a velocity step, a slide-hold-slide test, the "
          "quasi-dynamic and the damped slider (work-precision)", _family, full=True,
-         timed=True, minutes=16),
+         timed=True, minutes=15),
     Step("mass-limit", "where the paper's ETD advantage goes as the mass goes", _mass_limit,
-         full=True, timed=True, minutes=3),
+         full=True, timed=True, minutes=4.5),
     Step("probe", "the reliability probe, slow cases included", _probe,
          data=("results/wp_quick.csv",), modules=("benchmarks.cli",), minutes=1.4),
 )
