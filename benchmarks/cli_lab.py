@@ -1,4 +1,4 @@
-"""``rsfbench lab``: a velocity step or a slide-hold-slide test, and what it measures.
+"""rsfbench lab: a velocity step or a slide-hold-slide test, and what it measures.
 
     rsfbench lab step --law aging --v1 1e-6 --v2 1e-5 --json
     rsfbench lab shs --law nagata --holds 1 10 100 --out results/lab
@@ -23,29 +23,53 @@ DEFAULT_INTEGRATOR, DEFAULT_TOL = "Rodas5P", 1e-8
 SAVED_POINTS = 100_000
 
 
+#: the options of each test, with their defaults (None on the command line: "not given")
+STEP_OPTIONS = {"v1": 1e-6, "v2": 1e-5, "t_step": 10.0, "after": 30.0}
+SHS_OPTIONS = {"holds": [1.0, 10.0, 100.0], "v": 1e-6, "slide": 100.0, "first_slide": 10.0}
+
+
+def _flag(name: str) -> str:
+    return "--" + name.replace("_", "-")
+
+
 def _problem(args):
     from problems import load_problem, slide_hold_slide_test, velocity_step_test
+    own, other = ((STEP_OPTIONS, SHS_OPTIONS) if args.test == "step"
+                  else (SHS_OPTIONS, STEP_OPTIONS))
+    wrong = [k for k in other if getattr(args, k) is not None]
+    if wrong:
+        raise ValueError(f"{_flag(wrong[0])} is an option of `lab "
+                         f"{'shs' if args.test == 'step' else 'step'}`, not of `lab {args.test}`")
     if args.problem is not None:
-        given = [f for f in ("law", "mass", "radiation_damping", "c", "stiffness")
+        given = [f for f in ("law", "mass", "radiation_damping", "c", "stiffness", *own)
                  if getattr(args, f) is not None]
         if given:
-            raise ValueError(f"--{given[0].replace('_', '-')} applies to the built-in "
-                             "apparatus; a problem file states it")
-        return load_problem(args.problem)
+            raise ValueError(f"{_flag(given[0])} applies to the built-in apparatus; a problem "
+                             "file states it")
+        problem = load_problem(args.problem)
+        hist = problem.loading.history
+        pairs = list(zip(hist.velocities, hist.velocities[1:]))
+        if args.test == "step" and not any(v1 > 0 and v2 > 0 for v1, v2 in pairs):
+            raise ValueError(f"{args.problem}: its load-point history has no velocity step")
+        if args.test == "shs" and not any(v1 == 0 and v2 > 0 for v1, v2 in pairs):
+            raise ValueError(f"{args.problem}: its load-point history has no hold followed by "
+                             "sliding")
+        return problem
+    opt = {k: d if getattr(args, k) is None else getattr(args, k) for k, d in own.items()}
     kw = dict(law=args.law or "aging", mass=args.mass or 0.0,
               radiation_damping=args.radiation_damping or 0.0, c=args.c,
               stiffness=args.stiffness)
     if kw["c"] is not None and kw["law"] != "nagata":
         raise ValueError("--c is the Nagata law's stress coefficient: it needs --law nagata")
     if args.test == "step":
-        return velocity_step_test(v1=args.v1, v2=args.v2, t_step=args.t_step,
-                                  t_end=args.t_step + args.after, **kw)
-    return slide_hold_slide_test(holds=tuple(args.holds), v=args.v, slide=args.slide,
-                                 first_slide=args.first_slide, **kw)
+        return velocity_step_test(v1=opt["v1"], v2=opt["v2"], t_step=opt["t_step"],
+                                  t_end=opt["t_step"] + opt["after"], **kw)
+    return slide_hold_slide_test(holds=tuple(opt["holds"]), v=opt["v"], slide=opt["slide"],
+                                 first_slide=opt["first_slide"], **kw)
 
 
 def cmd_lab(args) -> int:
-    from benchmarks.lab import healing, healing_rate, step_response
+    from benchmarks.lab import PeakNotReached, healing, healing_rate, step_response
     from benchmarks.report import jsonable
     from integrators import make_algorithm, solve
     problem = _problem(args)
@@ -65,7 +89,10 @@ def cmd_lab(args) -> int:
                                if problem.quasi_static and not problem.radiation_damping
                                and sol.retcode.value == "StepUnderflow" else ""))
     hist = problem.loading.history
-    steps, heal = step_response(sol), healing(sol)
+    try:
+        steps, heal = step_response(sol), healing(sol)
+    except PeakNotReached as exc:
+        raise ValueError(f"{exc} (--after for a step, --slide for a hold)") from None
     doc = {"problem": problem.name, "law": problem.law.name, "mass_kg": problem.mass,
            "radiation_damping_N_s_per_m": problem.radiation_damping,
            "velocities_m_s": list(hist.velocities), "switch_times_s": list(hist.switch_times),
@@ -88,9 +115,14 @@ def cmd_lab(args) -> int:
     say(f"{problem.name}: {algorithm.name}, {sol.stats.steps} steps, {sol.stats.wall_s:.3g} s")
     if len(steps):
         say(steps.to_string(index=False))
+    if len(steps) and not steps.settled.all():
+        say("(not settled: μ still drifts at the end of a piece; lengthen --after)")
     if len(heal):
         say(heal.to_string(index=False))
-        say(f"healing: {doc['healing_per_decade']:.4g} in μ per decade of hold time")
+        if len(heal) >= 2:
+            say(f"healing: {doc['healing_per_decade']:.4g} in μ per decade of hold time")
+    if hist.velocities[-1] == 0.0:
+        say("(the run ends in a hold: no reloading, no healing for it)")
     if out is not None:
         say(f"wrote lab_steps.csv, lab_healing.csv, lab_trajectory.csv and lab.png to {out}")
     return 0
@@ -138,21 +170,21 @@ def add_parsers(sub) -> None:
                      help="radiation damping ηr in N s/m (default: 0)")
     lab.add_argument("--stiffness", type=positive, metavar="N_PER_M",
                      help="spring stiffness in N/m (default: 1e7, on a 10 kN normal force)")
-    lab.add_argument("--v1", type=positive, default=1e-6, metavar="M_S",
+    lab.add_argument("--v1", type=positive, metavar="M_S",
                      help="step: load-point velocity before the step, m/s (default: 1e-6)")
-    lab.add_argument("--v2", type=positive, default=1e-5, metavar="M_S",
+    lab.add_argument("--v2", type=positive, metavar="M_S",
                      help="step: after the step, m/s (default: 1e-5)")
-    lab.add_argument("--t-step", type=positive, default=10.0, metavar="S",
+    lab.add_argument("--t-step", type=positive, metavar="S",
                      help="step: time of the step, s (default: 10)")
-    lab.add_argument("--after", type=positive, default=30.0, metavar="S",
+    lab.add_argument("--after", type=positive, metavar="S",
                      help="step: simulated time after the step, s (default: 30)")
-    lab.add_argument("--holds", type=positive, nargs="+", default=[1.0, 10.0, 100.0],
+    lab.add_argument("--holds", type=positive, nargs="+",
                      metavar="S", help="shs: hold times, s (default: 1 10 100)")
-    lab.add_argument("--v", type=positive, default=1e-6, metavar="M_S",
+    lab.add_argument("--v", type=positive, metavar="M_S",
                      help="shs: sliding velocity, m/s (default: 1e-6)")
-    lab.add_argument("--slide", type=positive, default=100.0, metavar="S",
+    lab.add_argument("--slide", type=positive, metavar="S",
                      help="shs: sliding after each hold, s (default: 100)")
-    lab.add_argument("--first-slide", type=positive, default=10.0, metavar="S",
+    lab.add_argument("--first-slide", type=positive, metavar="S",
                      help="shs: sliding before the first hold, s (default: 10)")
     lab.add_argument("--integrator", metavar="NAME",
                      help=f"registry name (default: {DEFAULT_INTEGRATOR} at rtol = atol = "
@@ -160,7 +192,8 @@ def add_parsers(sub) -> None:
     lab.add_argument("--rtol", type=positive, help=f"relative tolerance (default: "
                      f"{DEFAULT_TOL:g} with the default integrator; required with --integrator "
                      "NAME of an adaptive method)")
-    lab.add_argument("--atol", type=positive, help="absolute tolerance (default: --rtol)")
+    lab.add_argument("--atol", type=positive, help="absolute tolerance on (h, ln w, Ψ or ln Ψ), "
+                     "nondimensional (default: --rtol)")
     lab.add_argument("--out", type=out_dir, metavar="DIR",
                      help="write lab_steps.csv, lab_healing.csv, lab_trajectory.csv and lab.png "
                           "there (default: print only)")

@@ -136,8 +136,9 @@ def end_state(solution) -> EndState:
     p = solution.problem
     law, fn = p.law, p.normal_force
     log_v, state, force = cycles.end_offsets(
-        law.code, law.a, law.b, law.lc, law.v0, fn, p.f0, p.loading.v_slow,
-        float(solution.v[-1]), float(solution.fs[-1]), float(solution.theta[-1]))
+        law.code, law.a, law.b, law.lc, law.v0, fn, p.f0, p.steady_velocity,
+        float(solution.v[-1]), float(solution.fs[-1]), float(solution.theta[-1]),
+        p.radiation_damping)
     return EndState(log_v=log_v, state_offset=state, force_offset=force,
                     growth_rate=growth_rate(p))
 

@@ -32,6 +32,7 @@ from benchmarks.errors import ERROR_COLUMNS, errors
 from benchmarks.provenance import provenance
 from benchmarks.reference import reference
 from integrators import REGISTRY, solve
+from integrators.core.registry import ProblemNotSupported
 from problems import paper_example, window
 
 __all__ = ["Ladder", "FULL", "QUICK", "study_problems", "settings", "measure", "work_precision",
@@ -112,15 +113,18 @@ def measure(problem, algorithm, ref, ladder: Ladder, error_of=errors,
     problem at all (``check_problem``) is a row with retcode ``Refused`` and its reason."""
     try:
         algorithm.check_problem(problem)
-    except ValueError as exc:
+    except ProblemNotSupported as exc:
         return {"retcode": REFUSED, "message": str(exc), **dict.fromkeys(ERROR_COLUMNS, math.nan)}
     save = problem.t_end / (len(ref.grid_t) - 1)
     grid = solve(problem, algorithm, wall_budget=ladder.wall_budget, save_every=save)
     sol, timings = grid, [grid.stats.wall_s]
     if grid.success and gridded_timing:
         while min(timings) < ladder.repeat_below and len(timings) < ladder.repeats:
-            timings.append(solve(problem, algorithm, wall_budget=ladder.wall_budget,
-                                 save_every=save).stats.wall_s)
+            again = solve(problem, algorithm, wall_budget=ladder.wall_budget, save_every=save)
+            if not again.success:               # a repeat that fails (its budget): that row
+                sol, grid = again, again
+                break
+            timings.append(again.stats.wall_s)
     elif grid.success:
         sol = solve(problem, algorithm, wall_budget=ladder.wall_budget, max_points=2)
         timings = [sol.stats.wall_s]

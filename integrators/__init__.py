@@ -10,8 +10,8 @@
   reason in :data:`UNAVAILABLE`).
 """
 
-from integrators.core.registry import (REGISTRY, UNAVAILABLE, Algorithm, algorithm_class,
-                                       make_algorithm, register)
+from integrators.core.registry import (REGISTRY, UNAVAILABLE, Algorithm, ProblemNotSupported,
+                                       algorithm_class, make_algorithm, register)
 from integrators.core.solution import EVENT_COLUMNS, Output, ReturnCode, Solution, Stats
 from integrators.core.solve import Budget, solve
 from integrators.own.etd import ETD1, ETD2, ETDIterated
@@ -53,7 +53,8 @@ def __getattr__(name: str):
     raise AttributeError(f"module 'integrators' has no attribute {name!r}")
 
 
-__all__ = ["REGISTRY", "UNAVAILABLE", "EXTERNAL", "Algorithm", "algorithm_class", "make_algorithm",
+__all__ = ["REGISTRY", "UNAVAILABLE", "EXTERNAL", "Algorithm", "ProblemNotSupported",
+           "algorithm_class", "make_algorithm",
            "register", "EVENT_COLUMNS", "Output", "ReturnCode", "Solution", "Stats", "Budget",
            "solve", "ETD1", "ETD2", "ETDIterated", "CashKarp45", "Exprb32", "Exprb43",
            "Rosenbrock23", "Rodas5P", *_CLASSES]

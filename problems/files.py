@@ -75,7 +75,8 @@ def problem_from_dict(data, default_name: str = "") -> SpringSlider:
     table = _table(data, "the file")
     _keys(table, _TOP, _REQUIRED, "the file")
     law = _table(table["law"], "[law]")
-    allowed = {"name", "a", "b", "lc", "v0"} | ({"c"} if law.get("name") == "nagata" else set())
+    nagata = isinstance(law.get("name"), str) and law["name"].lower() == "nagata"
+    allowed = {"name", "a", "b", "lc", "v0"} | ({"c"} if nagata else set())
     _keys(law, allowed, ("name", "a", "b", "lc"), "[law]")
     if not isinstance(law["name"], str):
         raise ValueError(f"[law] name must be \"slip\", \"aging\" or \"nagata\", got "

@@ -69,7 +69,7 @@ LOG_STATE_LAWS = frozenset({AGING_LAW, NAGATA_LAW})
 def check_law_code(code) -> int:
     """``code`` if it is a friction-law code the compiled forms know, else ValueError."""
     if isinstance(code, bool) or not isinstance(code, (int, np.integer, float, np.floating)) \
-            or code != int(code) or int(code) not in LAW_CODES:
+            or not np.isfinite(code) or code != int(code) or int(code) not in LAW_CODES:
         raise ValueError(f"unknown friction-law code {code!r}: the compiled forms know "
                          f"{dict(LAW_CODES)} (docs/adding-a-law.md says how to add one)")
     return int(code)
@@ -136,7 +136,11 @@ def _nagata_partials(q, u, s, w):
 def _nagata_targets(q, h, lnw, w, psi):
     beta = q[Q_BETA]
     r = w + q[Q_LAWP] * (q[Q_E] - w)
-    return (q[Q_C] * h + beta * w * (1.0 / psi - r)) / q[Q_D], 1.0 / r, r
+    eta_ss = (q[Q_C] * h + beta * w * (1.0 / psi - r)) / q[Q_D]
+    # r changes sign where w = γE/(γ − 1) (γ > 1); at r = 0 exactly 1/r is inf and the relaxation
+    # inf·0: a tiny r of the same sign gives the limit Ψ0 + s instead
+    rr = r if abs(r) >= 1e-300 else (1e-300 if r >= 0.0 else -1e-300)
+    return eta_ss, 1.0 / rr, rr
 
 
 # The dispatchers: one line per law; an unknown code gives NaN.

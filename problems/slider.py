@@ -113,9 +113,9 @@ class Nondimensional(NamedTuple):
     run. ``c``, ``d``, ``g`` are C, D, G with mass and K, 0, R without (``quasi_static``;
     :mod:`problems.formulations`); ``law_param`` is the law's γ; ``history`` the loading's
     compiled form (:func:`problems.loading.history_vector`); ``grid_tau`` a time over which the
-    slow phase changes by O(1) (half an inertial period π/√C with mass, the time to load one Lc at
-    the fastest load-point speed without), which backends without dense root finding use to space
-    their scans.
+    slow phase changes by O(1) (half an inertial period π/√C with mass; without, the shortest of
+    the time to load one Lc at the fastest load-point speed, the relaxation time 1/(K E) there
+    and R/K), which backends without dense root finding use to space their scans.
     """
 
     law_code: int
@@ -194,11 +194,17 @@ class SpringSlider:
                              f"{ini.theta!r}")
         if self.mass == 0:
             balance = float(self.friction(ini.v, ini.theta)) + self.radiation_damping * ini.v
-            if abs(ini.fs - balance) > 1e-9 * (abs(balance) + self.law.a * self.normal_force):
+            # rounding of Fs only: a larger offset would be kept by the ODE form (K h − η is
+            # its invariant) and projected away by IDA, two different problems
+            if abs(ini.fs - balance) > 1e-12 * (abs(balance) + self.law.a * self.normal_force):
                 raise ValueError(
                     f"initial fs = {ini.fs!r} N does not balance friction and damping "
                     f"(Ft + ηr v = {balance!r} N): without mass (quasi-static) the force balance "
                     "is a constraint; start from problems.balanced_initial_state or BalancedStart")
+        late = [t for t in self.loading.history.switch_times if t >= self.t_end]
+        if late:
+            raise ValueError(f"the loading switches at t = {late[0]:g} s, at or after t_end = "
+                             f"{self.t_end:g} s: shorten the history or lengthen t_end")
         tau_end = self.t_end * self.law.v0 / self.law.lc
         if tau_end > TAU_END_MAX:
             raise ValueError(f"t_end = {self.t_end:g} s is {tau_end:.3g} in τ = v0 t/Lc (Lc = "
@@ -240,6 +246,14 @@ class SpringSlider:
     def friction(self, v, theta):
         """Friction force Ft (N)."""
         return self.law.friction(v, theta, self.normal_force, self.f0)
+
+    @property
+    def steady_velocity(self) -> float:
+        """The load point's speed at the end of the run (m/s): the history's last piece, or
+        the reference speed if the history ends with a hold. Steady sliding, the stability of
+        steady sliding and a run's end state are taken at it."""
+        last = self.loading.history.velocities[-1]
+        return last if last > 0 else self.loading.v_slow
 
     @property
     def quasi_static(self) -> bool:
@@ -286,7 +300,10 @@ class SpringSlider:
             grid_tau = math.pi / math.sqrt(c)
         else:
             c, d, g = k * lc / A, 0.0, eta_r * v0 / A
-            grid_tau = v0 / max(self.loading.history.velocities + (self.loading.v_fast,))
+            # the time to load one Lc at the fastest speed, the relaxation time A/(k V) there,
+            # and with damping R/K, the shortest an event can last (v ≲ Δη/R)
+            e_max = max(self.loading.history.velocities + (self.loading.v_fast,)) / v0
+            grid_tau = min(1.0 / e_max, 1.0 / (c * e_max), g / c if g > 0 else math.inf)
         law_param = law.stress_coefficient / law.b * k * lc / fn if law.stress_coefficient else 0.0
         loading = self.loading.history
         return Nondimensional(

@@ -26,13 +26,14 @@ __all__ = ["critical_stiffness", "neutral_frequency", "characteristic_roots", "g
 
 
 def _velocity(problem: SpringSlider, v: float | None) -> float:
-    return problem.loading.v_slow if v is None else v
+    return problem.steady_velocity if v is None else v
 
 
 def characteristic_polynomial(problem: SpringSlider, v: float | None = None,
                               stiffness: float | None = None) -> np.ndarray:
     """Coefficients (highest power first) of the characteristic polynomial at steady sliding
-    speed ``v`` (default: the slow loading speed), at ``stiffness`` (default: the problem's)."""
+    speed ``v`` (default: the load speed at the end of the run, ``steady_velocity``), at
+    ``stiffness`` (default: the problem's)."""
     law, fn, v = problem.law, problem.normal_force, _velocity(problem, v)
     m, eta = problem.mass, problem.radiation_damping
     k = problem.stiffness if stiffness is None else stiffness
@@ -42,7 +43,7 @@ def characteristic_polynomial(problem: SpringSlider, v: float | None = None,
 
 
 def critical_stiffness(problem: SpringSlider, v: float | None = None) -> float:
-    """kcr (N/m) at steady sliding speed ``v`` (default: the slow loading speed): the stiffness
+    """kcr (N/m) at steady sliding speed ``v`` (default: ``steady_velocity``): the stiffness
     at which the Routh–Hurwitz condition a2 a1 > a3 a0 of the polynomial turns."""
     law, fn, v = problem.law, problem.normal_force, _velocity(problem, v)
     m, eta = problem.mass, problem.radiation_damping

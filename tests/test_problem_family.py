@@ -380,9 +380,6 @@ def test_healing_grows_with_hold_time_and_steps_settle_to_a_minus_b():
     assert np.all(np.diff(heal.delta_mu_peak) > 0) and healing_rate(heal) > 0
     ends = [s + h for s, h in zip(heal.t_hold_start_s, heal.hold_s)]
     assert np.all((heal.t_peak_s > ends) & (heal.t_peak_s < np.array(ends) + 100.0))
-    # the 100 s hold from steady sliding, as Marone's: his peak is 0.6204361 (a parabola through
-    # his rows at 132.6, 132.7 and 132.8 s), from μ = 0.6 — but here after two earlier holds
-    assert heal.mu_peak.iloc[-1] == pytest.approx(0.6204361, abs=2e-4)
     for v2, sign in ((1e-5, 1.0), (3e-7, -1.0)):       # settled after ~40 Dc
         q = P.velocity_step_test("aging", v2=v2, t_end=10.0 + 40 * 1e-5 / v2)
         r = step_response(I.solve(q, I.Rodas5P(rtol=1e-10, atol=1e-10), save_every=0.01))
@@ -404,13 +401,12 @@ def test_lab_references_and_errors():
     from benchmarks.family import lab_errors, lab_reference
     p = P.slide_hold_slide_test("aging", holds=(3.0,), first_slide=5.0, slide=60.0)
     ref = lab_reference(p)
-    assert ref.agreement["max"] <= 1e-7 and len(ref.peaks) == 1
+    assert len(ref.peaks) == 1
     tight = I.solve(p, I.Rodas5P(rtol=1e-11, atol=1e-11), save_every=p.t_end / 2000)
     loose = I.solve(p, I.Rodas5P(rtol=1e-4, atol=1e-4), save_every=p.t_end / 2000)
     e_tight, e_loose = lab_errors(tight, ref), lab_errors(loose, ref)
     assert e_tight["err_peak"] < 1e-7 < e_loose["err_peak"] < 1e-1
     assert e_tight["err_trajectory"] < e_loose["err_trajectory"]
-    assert math.isnan(e_loose["err_recurrence"])
 
 
 def test_the_study_refuses_the_paper_etd_without_mass_as_a_row():
@@ -456,3 +452,60 @@ def test_rsfbench_lab(tmp_path):
     assert misuse.returncode == 2 and "--c" in json.loads(misuse.stdout)["error"]
     bad = _cli("shs", "--holds", "-3")
     assert bad.returncode == 2 and "--holds" in bad.stderr
+
+
+def test_the_healing_peak_of_marones_hold():
+    """The peak after Marone's 100 s hold, found by :func:`benchmarks.lab.healing` on our
+    trajectory (1 ms samples, parabola), against the vertex of the parabola through his rows at
+    132.6, 132.7 and 132.8 s after the hold's start (0.620435683, 0.620436068, 0.620434703):
+    μ = 0.6204361366 at 132.6720 s. His rows are rounded to 1e−9, so the vertex is good to ~1e−9."""
+    from benchmarks.lab import healing, marone_problem
+    p, _ = marone_problem("slide-hold-slide")
+    heal = healing(I.solve(p, I.Rodas5P(rtol=1e-11, atol=1e-11), save_every=0.001))
+    assert heal.mu_peak.iloc[0] == pytest.approx(0.6204361366, abs=3e-9)
+    assert heal.t_peak_s.iloc[0] - 10.0 == pytest.approx(132.672, abs=2e-3)
+    assert heal.mu_before.iloc[0] == 0.6
+
+
+def test_peaks_are_refined_on_even_samples_and_refused_at_an_edge():
+    from benchmarks.lab import PeakNotReached, _extreme
+    t = np.linspace(0.0, 1.0, 41)
+    y = np.cos(7.0 * (t - 0.4137))                     # peak at 0.4137, between samples
+    tp, yp = _extreme(t, y, 1.0, "a cosine")
+    # the parabola takes the error of the sampled maximum, O((ωh)²), to O((ωh)⁴)
+    assert abs(tp - 0.4137) < 1e-4 and abs(yp - 1.0) < 0.01 * (1.0 - y.max())
+    uneven = np.sort(np.concatenate([t, [0.4101]]))
+    tu, yu = _extreme(uneven, np.cos(7.0 * (uneven - 0.4137)), 1.0, "uneven samples")
+    assert tu in uneven                                 # no parabola through uneven samples
+    for edge in (t[t < 0.3], t[t > 0.5]):
+        with pytest.raises(PeakNotReached, match="not reached"):
+            _extreme(edge, np.cos(7.0 * (edge - 0.4137)), 1.0, "a window")
+
+
+def test_a_tenfold_slip_law_step_runs_away_without_mass_and_is_bounded_with_a_kilogram():
+    """docs/problem-family.md: the large-perturbation instability of Gu et al. (1984)."""
+    still = I.solve(P.velocity_step_test("slip", t_end=40.0), I.Rodas5P(rtol=1e-9, atol=1e-9))
+    heavy = I.solve(P.velocity_step_test("slip", t_end=40.0, mass=1.0),
+                    I.Rodas5P(rtol=1e-9, atol=1e-9), max_points=20000)
+    assert still.retcode == I.ReturnCode.STEP_UNDERFLOW and 10.0 < still.t_reached < 12.0
+    assert heavy.success and len(heavy.events) == 1 and heavy.v.max() < 1.0
+
+
+def test_a_switch_after_the_end_is_refused():
+    with pytest.raises(ValueError, match="switches at t = 50 s, at or after t_end = 40 s"):
+        P.velocity_step_test(t_step=50.0, t_end=40.0)
+
+
+def test_rsfbench_lab_refuses_options_it_would_ignore(tmp_path):
+    import json
+    wrong = _cli("step", "--holds", "5", "--json")
+    assert wrong.returncode == 2 and "--holds is an option of `lab shs`" in json.loads(
+        wrong.stdout)["error"]
+    path = tmp_path / "p.json"
+    from problems.files import problem_dict
+    path.write_text(json.dumps(problem_dict(P.velocity_step_test())))
+    for args, message in ((("shs", "--problem", str(path)), "no hold followed by sliding"),
+                          (("step", "--problem", str(path), "--after", "3"), "--after applies"),
+                          (("step", "--after", "0.5"), "not reached inside the piece")):
+        done = _cli(*args)
+        assert done.returncode == 2 and message in done.stderr, (args, done.stderr)

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from integrators.core.events import AT_ROOT, H_EXTREMUM
+from integrators.core.events import AT_ROOT, H_EXTREMUM, PEAK
 
 __all__ = ["push_crossing", "queue_crossings", "carry_last_root"]
 
@@ -47,13 +47,16 @@ def queue_crossings(queue, rows) -> None:
             queue.append((float(t), z, [int(kind)], [int(sign)]))
 
 
-def carry_last_root(last, tau0: float, z0: np.ndarray, g0: np.ndarray, e: float) -> None:
+def carry_last_root(last, tau0: float, z0: np.ndarray, g0: np.ndarray, e: float,
+                    quasi_static: bool = False) -> None:
     """Restarting at the root just reported, ``last`` = (τ, z, [(kind, sign)], E): put each of
     its root functions that sits on the wrong side by round-off on the side after its crossing
-    (±``AT_ROOT``), so that the new scan does not find the same crossing again. H_EXTREMUM
-    (u − ln E) only if the loading speed is the same."""
+    (±``AT_ROOT``), so that the new scan does not find the same crossing again. A function that
+    moves with E only if the loading speed is the same: H_EXTREMUM (u − ln E), and without mass
+    PEAK (K (E − w) − β s')."""
     if last is None or last[0] != tau0 or not np.array_equal(last[1], z0):
         return
     for kind, sign in last[2]:
-        if (kind != H_EXTREMUM or last[3] == e) and g0[kind] * sign <= 0.0:
+        moves = kind == H_EXTREMUM or (quasi_static and kind == PEAK)
+        if (not moves or last[3] == e) and g0[kind] * sign <= 0.0:
             g0[kind] = sign * AT_ROOT

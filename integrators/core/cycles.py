@@ -17,6 +17,8 @@ import math
 import numpy as np
 from numba import njit
 
+from problems.formulations import SLIP_LAW
+
 __all__ = ["CLASSIFICATIONS", "CYCLES", "OUTCOMES", "PERIODIC", "OSCILLATING", "NO_EVENTS",
            "STOPPED", "TOO_FEW", "NOT_REPEATING", "F", "N_F", "find_cycle", "classify",
            "end_offsets", "LOCKED_SLIP_RATE", "STEADY_LOG_TOLERANCE"]
@@ -144,15 +146,17 @@ def classify(outcome, period, growth_rate, log_v, state_offset, force_offset):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def end_offsets(law_code, a, b, lc, v0, fn, f0, v_slow, v, fs, theta):
-    """How far the end state (v, Fs, θ) is from steady sliding at vLs: ln(v/vLs), and the
-    state's friction term and the spring force off their steady values in units of A = a·Fn
-    (the friction laws' formulas, :mod:`problems.friction`)."""
+def end_offsets(law_code, a, b, lc, v0, fn, f0, v_ref, v, fs, theta, damping):
+    """How far the end state (v, Fs, θ) is from steady sliding at ``v_ref`` (the load point's
+    speed at the end of the run): ln(v/v_ref), and the state's friction term and the spring
+    force off their steady values (Fs = Ft,ss + ηr v_ref, ``damping`` = ηr) in units of
+    A = a·Fn (the friction laws' formulas, :mod:`problems.friction`: the slip law's state is
+    its friction term; the aging and Nagata laws' is B ln(v0 θ/Lc))."""
     amp = a * fn
-    ft_ss = f0 + (a - b) * fn * math.log(v_slow / v0)
-    if law_code == 0:            # slip law: θ is the state term itself, θss = −B ln(vLs/v0)
-        state, state_ss = theta, -b * fn * math.log(v_slow / v0)
-    else:                        # aging law: B ln(v0 θ/Lc), θss = Lc/vLs
+    ft_ss = f0 + (a - b) * fn * math.log(v_ref / v0) + damping * v_ref
+    if law_code == SLIP_LAW:     # θ is the state term itself, θss = −B ln(v_ref/v0)
+        state, state_ss = theta, -b * fn * math.log(v_ref / v0)
+    else:                        # B ln(v0 θ/Lc), θss = Lc/v_ref
         state = b * fn * math.log(v0 * theta / lc)
-        state_ss = b * fn * math.log(v0 * (lc / v_slow) / lc)
-    return math.log(v / v_slow), abs(state - state_ss) / amp, abs(fs - ft_ss) / amp
+        state_ss = b * fn * math.log(v0 * (lc / v_ref) / lc)
+    return math.log(v / v_ref), abs(state - state_ss) / amp, abs(fs - ft_ss) / amp

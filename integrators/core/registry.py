@@ -15,8 +15,13 @@ from typing import ClassVar
 
 from problems._validate import check_count, check_positive
 
-__all__ = ["Algorithm", "AdaptiveAlgorithm", "REGISTRY", "Registry", "UNAVAILABLE", "register",
+__all__ = ["Algorithm", "AdaptiveAlgorithm", "ProblemNotSupported", "REGISTRY", "Registry", "UNAVAILABLE", "register",
            "algorithm_class", "make_algorithm"]
+
+
+class ProblemNotSupported(ValueError):
+    """A method that cannot integrate a problem at all (the paper's ETD without mass): raised by
+    :meth:`Algorithm.check_problem` before any work."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -45,8 +50,8 @@ class Algorithm:
         raise NotImplementedError
 
     def check_problem(self, problem) -> None:
-        """ValueError, before any work, if the method cannot integrate ``problem`` at all (the
-        paper's ETD without mass, say); nothing for a method that can."""
+        """:class:`ProblemNotSupported`, before any work, if the method cannot integrate
+        ``problem`` at all (the paper's ETD without mass, say); nothing for a method that can."""
 
     def options(self) -> dict:
         return dataclasses.asdict(self)

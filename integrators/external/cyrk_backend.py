@@ -299,7 +299,7 @@ class _CyRKStepper:
         z0 = np.array(z0, dtype=float)
         g0 = np.empty(4)
         compiled_roots(self._q, self._q[_LN_10ES], self._q[_LN_ES], self._q[_LN_E], z0, g0)
-        carry_last_root(self._last_root, tau0, z0, g0, self._e)
+        carry_last_root(self._last_root, tau0, z0, g0, self._e, self.nd.quasi_static)
         self._free()
         self._T, self._Y, self._g = np.array([float(tau0)]), z0[None, :], g0
         self._queue = deque()

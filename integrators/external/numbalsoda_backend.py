@@ -419,7 +419,7 @@ class _LsodaStepper:
         z0 = np.array(z0, dtype=float)
         g0 = np.empty(4)
         _roots(self._q, z0, g0)
-        carry_last_root(self._last_root, tau0, z0, g0, self._e)
+        carry_last_root(self._last_root, tau0, z0, g0, self._e, self.nd.quasi_static)
         self._T, self._Y, self._G = np.array([float(tau0)]), z0[None, :], g0[None, :]
         self._cross = np.empty(0, dtype=int)
         self._k = 0

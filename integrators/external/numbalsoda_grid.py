@@ -132,7 +132,7 @@ class _GridStepper(_LsodaStepper):
         z0 = np.array(z0, dtype=float)
         g0 = np.empty(4)
         _roots(self._q, z0, g0)
-        carry_last_root(self._last_root, tau0, z0, g0, self._e)
+        carry_last_root(self._last_root, tau0, z0, g0, self._e, self.nd.quasi_static)
         self._T, self._Y, self._g = np.array([float(tau0)]), z0[None, :], g0
         self._queue = deque()
         self._t_bound = float(t_bound)

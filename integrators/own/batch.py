@@ -25,6 +25,7 @@ from integrators.core import cycles
 from integrators.core.clock import monotonic
 from integrators.core.events import H0, H_MAX, IN_EVENT, N_EVENTS, REC_SIZE
 from integrators.own import engine as E
+from problems.formulations import SLIP_LAW
 
 __all__ = ["C", "N_C", "R", "N_R", "BATCH", "SERIAL", "run_batch", "run_serial", "CYCLE_RTOL", "CYCLE_MAX_PERIOD",
            "CYCLE_MIN_REPEATS"]
@@ -33,11 +34,13 @@ __all__ = ["C", "N_C", "R", "N_R", "BATCH", "SERIAL", "run_batch", "run_serial",
 BATCH = dict(cache=True, nogil=True, parallel=True, error_model="numpy")
 SERIAL = dict(cache=True, nogil=True, error_model="numpy")
 #: C, per point: seconds per unit of τ, F0 (N), newtons per unit of h (k Lc), v0 (m/s), Lc (m),
-#: Fn (N), a, b, vLs (m/s), t_end (s), the growth rate of steady sliding (1/s), the wall budget (s)
+#: Fn (N), a, b, vLs (m/s), t_end (s), the growth rate of steady sliding at the end's load speed
+#: (1/s), the wall budget (s), the load point's speed at the end (m/s), radiation damping (N s/m)
 C = dict(TS=0, F0=1, FORCE_H=2, V0=3, LC=4, FN=5, A=6, B=7, V_SLOW=8, T_END=9, GROWTH=10,
-         BUDGET=11)
-_TS, _F0, _FORCE_H, _V0, _LC, _FN, _A, _B, _V_SLOW, _T_END, _GROWTH, _BUDGET = range(12)
-N_C = 12
+         BUDGET=11, V_END=12, DAMPING=13)
+(_TS, _F0, _FORCE_H, _V0, _LC, _FN, _A, _B, _V_SLOW, _T_END, _GROWTH, _BUDGET, _V_END,
+ _DAMPING) = range(14)
+N_C = 14
 #: R, per point: the engine's status, nfev, njev, accepted and rejected steps, (re)starts, the
 #: solve's wall time (s), the time reached (s), events, class (index in CLASSIFICATIONS), the end
 #: state's three offsets and the growth rate of steady sliding (C's), and find_cycle's output
@@ -77,13 +80,13 @@ def _summarize(law_code, beta, c, ev, n_ev, z_end, r):
     cycles.find_cycle(t0, t1, s0, s1, x, c[_T_END], CYCLE_RTOL, CYCLE_MAX_PERIOD,
                       CYCLE_MIN_REPEATS, c[_V_SLOW], found)
     h, u, s = z_end[0], z_end[1], z_end[2]
-    psi = s if law_code == 0 else math.exp(s)
+    psi = s if law_code == SLIP_LAW else math.exp(s)
     eta = u + beta * s
-    v = c[_V0] * math.exp(eta - beta * (psi if law_code == 0 else math.log(psi)))
+    v = c[_V0] * math.exp(eta - beta * (psi if law_code == SLIP_LAW else math.log(psi)))
     fs = f0 + fh * h
-    theta = psi * (c[_B] * c[_FN]) if law_code == 0 else psi * lc / c[_V0]
+    theta = psi * (c[_B] * c[_FN]) if law_code == SLIP_LAW else psi * lc / c[_V0]
     log_v, state, force = cycles.end_offsets(law_code, c[_A], c[_B], lc, c[_V0], c[_FN], f0,
-                                             c[_V_SLOW], v, fs, theta)
+                                             c[_V_END], v, fs, theta, c[_DAMPING])
     r[_LOG_V], r[_STATE_OFFSET], r[_FORCE_OFFSET] = log_v, state, force
     r[_CLASS] = cycles.classify(found[0], found[1], c[_GROWTH], log_v, state, force)
 

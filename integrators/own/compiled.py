@@ -155,7 +155,7 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
             law = problem.law
             C[i] = (nd.time_scale, problem.f0, nd.force_h, law.v0, law.lc, problem.normal_force,
                     law.a, law.b, problem.loading.v_slow, problem.t_end, growth_rate(problem),
-                    budget)
+                    budget, problem.steady_velocity, problem.radiation_damping)
         return P, Z0, C
 
     def solve_batch(self, problems, wall_budget: float | None = None,

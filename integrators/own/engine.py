@@ -48,7 +48,8 @@ from integrators.core.clock import monotonic
 from integrators.core.events import (AT_ROOT, END, H_EXTREMUM, PEAK, REC_SIZE, carry_signs,
                                      compiled_roots, new_recorder, observe, record, sign_change)
 from integrators.core.events import N_EVENTS as _REC_N
-from problems.formulations import N_Q, Q_BETA, Q_C, Q_D, Q_E, Q_LAW, ode_jacobian, ode_rhs
+from problems.formulations import (N_Q, Q_BETA, Q_C, Q_D, Q_E, Q_LAW, Q_QS, ode_jacobian,
+                                   ode_rhs)
 from problems.loading import H_TAU_FAST, LN_E_HOLD, load_segment
 
 __all__ = ["run", "scratch", "NO_NRT", "fixed_steps", "rhs", "jacobian", "hermite", "new_state",
@@ -353,7 +354,7 @@ def start(st, p, Z, G, tau0, z0, e, t_bound, w):
     Hairer's initial step (Hairer, Nørsett & Wanner I, §II.4, on the scale of the error test, as
     scipy's ``select_initial_step``), the root functions at τ0, the controller's memory cleared. At a
     root just reported the root's sign after its crossing is kept (H_EXTREMUM only if the
-    loading is unchanged: u − ln E moves with E)."""
+    loading is unchanged: u − ln E moves with E, and so does PEAK without mass)."""
     rtol, atol = p[_RTOL], p[_ATOL]
     p[_E] = e
     p[_LN_E] = math.log(e) if e > 0.0 else LN_E_HOLD
@@ -397,7 +398,9 @@ def start(st, p, Z, G, tau0, z0, e, t_bound, w):
             same &= Z[_LRZ, i] == z[i]
         for k in range(4):
             sign = G[2, k]
-            if (same and sign != 0.0 and (k != H_EXTREMUM or st[LR_E] == e)
+            # H_EXTREMUM (u − ln E) moves with E, and without mass PEAK (K (E − w) − β s')
+            moves = k == H_EXTREMUM or (k == PEAK and p[Q_QS] != 0.0)
+            if (same and sign != 0.0 and (not moves or st[LR_E] == e)
                     and G[0, k] * sign <= 0.0):
                 G[0, k] = sign * AT_ROOT
 

@@ -30,7 +30,7 @@ from typing import ClassVar
 import numpy as np
 
 from integrators.own import etd_kernel as K
-from integrators.core.registry import Algorithm, register
+from integrators.core.registry import Algorithm, ProblemNotSupported, register
 from integrators.core.solution import RawRun, ReturnCode, Stats
 from problems._validate import check_count, check_positive
 from problems.formulations import form_vector
@@ -79,7 +79,7 @@ class _ETD(Algorithm):
 
     def check_problem(self, problem) -> None:
         if problem.quasi_static:
-            raise ValueError(
+            raise ProblemNotSupported(
                 f"{self.name} needs a slider with mass: the paper's ETD relaxes the friction η on "
                 "the inertial time scale w/D (D = A Lc/(m v0²)), which has no meaning at m = 0 "
                 "(the quasi-static limit); use an adaptive method (Rodas5P, CVODE, LSODA)")
