@@ -477,6 +477,9 @@ def _collect(out: Path) -> dict:
         "inversion": read("inversion.md", "inversion"),
         "calibration": read("calibration.md", "calibration"),
         "solver_effect": read("solver_effect.md", "solver-effect").split("\n## ")[1],
+        "problem_family": read("problem_family.md", "problem-family"),
+        "family": read("family_advice.md", "family"),
+        "mass_limit": read("mass_limit_summary.md", "mass-limit"),
         "steps": markdown_table(pd.DataFrame(_step_states(out))),
     }
 
@@ -600,6 +603,25 @@ Every case of `benchmarks/probe_cases.py`, by kind and outcome (`rsfbench probe 
 Every window and law: `solver_effect.md`.
 
 ![solver effect](solver_effect.png)
+
+## The problem family: Marone's numbers, laboratory tests (`problem_family.*`)
+
+{r['problem_family'].split(chr(10), 2)[2]}
+![healing](problem_family_healing.png)
+
+## Which integrator for a lab test, without mass, with damping (`family_wp.*`)
+
+{r['family']}
+Every error level and the runner-up: `family_wp.md`.
+
+![family work-precision](family_wp.png)
+
+## Where the paper's ETD advantage goes as the mass goes (`mass_limit.*`)
+
+{r['mass_limit']}
+The table: `mass_limit.md`.
+
+![mass limit](mass_limit.png)
 
 ## What J2 sees (`j2_information.*`)
 

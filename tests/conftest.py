@@ -3,10 +3,25 @@ flushed after each test, while pytest still captures it."""
 
 import ctypes
 
+import numpy as np
 import pytest
 
 import integrators as I
 from problems import paper_example
+
+
+@pytest.fixture(scope="session")
+def fd_jacobian():
+    """Central finite differences of ``f`` at x (steps ε·max(1, |x_j|)): the check of every
+    analytic Jacobian."""
+    def jacobian(f, x, eps=1e-7):
+        jac = np.empty((len(f(x)), len(x)))
+        for j in range(len(x)):
+            dx = np.zeros(len(x))
+            dx[j] = eps * max(1.0, abs(x[j]))
+            jac[:, j] = (f(x + dx) - f(x - dx)) / (2 * dx[j])
+        return jac
+    return jacobian
 
 
 @pytest.fixture(scope="session")

@@ -21,23 +21,15 @@ def _aging_state(z):
     return (z[0], z[1], -z[2] if z[2] < 0 else -z[1] + 0.5)
 
 
-def _fd_jacobian(f, z, eps=1e-7):
-    jac = np.empty((len(f(z)), len(z)))
-    for j in range(len(z)):
-        dz = np.zeros(len(z))
-        dz[j] = eps * max(1.0, abs(z[j]))
-        jac[:, j] = (f(z + dz) - f(z - dz)) / (2 * dz[j])
-    return jac
-
 
 @pytest.mark.parametrize("law", ["slip", "aging"])
 @pytest.mark.parametrize("tier", ["numba", "python"])
 @pytest.mark.parametrize("state", STATES)
-def test_ode_jacobian_matches_finite_differences(law, tier, state):
+def test_ode_jacobian_matches_finite_differences(law, tier, state, fd_jacobian):
     nd = _nd(law)
     z = np.array(state if law == "slip" else _aging_state(state), dtype=float)
     form = OdeForm(nd, nd.e_fast, tier)
-    np.testing.assert_allclose(form.jac(0.0, z), _fd_jacobian(lambda x: form.f(0.0, x), z),
+    np.testing.assert_allclose(form.jac(0.0, z), fd_jacobian(lambda x: form.f(0.0, x), z),
                                rtol=1e-6, atol=1e-6 * np.abs(form.jac(0.0, z)).max())
 
 
@@ -72,7 +64,7 @@ def test_dae_initial_conditions_are_consistent_and_match_the_ode(law, tier):
 
 @pytest.mark.parametrize("law", ["slip", "aging"])
 @pytest.mark.parametrize("state", STATES)
-def test_dae_iteration_matrix_matches_finite_differences(law, state):
+def test_dae_iteration_matrix_matches_finite_differences(law, state, fd_jacobian):
     nd = _nd(law)
     z = np.array(state if law == "slip" else _aging_state(state), dtype=float)
     y = np.array([z[0], z[1], z[2], z[1] + nd.beta * z[2] + 0.3])   # off the constraint too
@@ -86,7 +78,7 @@ def test_dae_iteration_matrix_matches_finite_differences(law, state):
 
     jac = np.empty((4, 4))
     form.jacobian(0.0, y, cj, jac)
-    fd = _fd_jacobian(lambda x: residual(x, yp), y) + cj * _fd_jacobian(lambda x: residual(y, x), yp)
+    fd = fd_jacobian(lambda x: residual(x, yp), y) + cj * fd_jacobian(lambda x: residual(y, x), yp)
     np.testing.assert_allclose(jac, fd, rtol=1e-6, atol=1e-6 * np.abs(jac).max())
 
 

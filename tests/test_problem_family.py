@@ -60,17 +60,9 @@ def _states(nd):
     return out
 
 
-def _fd(f, x, eps=1e-7):
-    jac = np.empty((len(f(x)), len(x)))
-    for j in range(len(x)):
-        dx = np.zeros(len(x))
-        dx[j] = eps * max(1.0, abs(x[j]))
-        jac[:, j] = (f(x + dx) - f(x - dx)) / (2 * dx[j])
-    return jac
-
 
 @pytest.mark.parametrize("label", sorted(CASES))
-def test_ode_jacobian_matches_finite_differences(label):
+def test_ode_jacobian_matches_finite_differences(label, fd_jacobian):
     nd = CASES[label].nondimensional()
     for e in (nd.e_slow, 3.0 * nd.e_slow, 0.0):         # a hold too (E = 0)
         form = F.OdeForm(nd, e)
@@ -78,12 +70,12 @@ def test_ode_jacobian_matches_finite_differences(label):
             jac = form.jac(0.0, z)
             # central differences lose ~1e−16 |f|/ε to rounding, however small J is
             scale = max(np.abs(jac).max(), np.abs(form.f(0.0, z)).max())
-            np.testing.assert_allclose(jac, _fd(lambda x: form.f(0.0, x), z), rtol=1e-6,
+            np.testing.assert_allclose(jac, fd_jacobian(lambda x: form.f(0.0, x), z), rtol=1e-6,
                                        atol=1e-7 * scale)
 
 
 @pytest.mark.parametrize("label", sorted(CASES))
-def test_dae_iteration_matrix_matches_finite_differences(label):
+def test_dae_iteration_matrix_matches_finite_differences(label, fd_jacobian):
     nd = CASES[label].nondimensional()
     form, cj = F.DaeForm(nd, 2.0 * nd.e_slow), 37.0
     yp = np.array([0.1, -0.2, 0.3, 0.4])
@@ -95,7 +87,7 @@ def test_dae_iteration_matrix_matches_finite_differences(label):
             form.residual(0.0, y_, yp_, out)
             return out
 
-        expected = _fd(lambda x: res(x, yp), y) + cj * _fd(lambda x: res(y, x), yp)
+        expected = fd_jacobian(lambda x: res(x, yp), y) + cj * fd_jacobian(lambda x: res(y, x), yp)
         jac = np.empty((4, 4))
         form.jacobian(0.0, y, cj, jac)
         np.testing.assert_allclose(jac, expected, rtol=1e-6, atol=1e-7 * np.abs(jac).max())
