@@ -271,12 +271,12 @@ STEPS = (
     Step("solver-effect", "the solver's effect on the inferred (b, Lc): W1–W4, both laws",
          _solver_effect, full=True, timed=True, reads=("wp_full.csv",), minutes=101),
     Step("problem-family", "the problem family: Marone's numbers, velocity steps, healing",
-         _problem_family, minutes=0.5),
+         _problem_family, minutes=0.1),
     Step("family", "which integrator for a velocity step, a slide-hold-slide test, the "
          "quasi-dynamic and the damped slider (work-precision)", _family, full=True,
-         timed=True, minutes=15),
+         timed=True, minutes=17.5),
     Step("mass-limit", "where the paper's ETD advantage goes as the mass goes", _mass_limit,
-         full=True, timed=True, minutes=4.5),
+         full=True, timed=True, minutes=4),
     Step("probe", "the reliability probe, slow cases included", _probe,
          data=("results/wp_quick.csv",), modules=("benchmarks.cli",), minutes=1.4),
 )
