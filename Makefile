@@ -44,12 +44,13 @@ test-slow: setup numba-cache
 
 # the quick plan: reruns the quick steps whose inputs (code, package versions, settings, files
 # read, the machine for timings) changed, reuses the others and keeps the files of the full
-# steps; ~10 min on 2 cores when every quick step runs (docs/reproduce.md)
+# steps; ~15 min on 2 cores when every quick step runs (docs/reproduce.md)
 reproduce: setup numba-cache
 	$(VENV)/bin/rsfbench reproduce --out results
 
 # the full plan: also the quick work-precision study, issue 6's target on every study problem
-# and scipy's RK45 to its 600 s budget (about 1.25 h on 2 cores when every step runs)
+# and scipy's RK45 to its 600 s budget, the solver-effect and problem-family studies (about
+# 3.5 h on 2 cores when every step runs; `rsfbench reproduce --full --dry-run` says what would)
 reproduce-full: setup numba-cache
 	$(VENV)/bin/rsfbench reproduce --full --out results
 

@@ -463,7 +463,9 @@ def build_parser() -> Parser:
                     help="only say which blocks are out of date (exit status 1 if any)")
     rd.set_defaults(func=cmd_readme)
 
-    from benchmarks.reproduce import FULL_STEPS, QUICK_STEPS, STEP_NAMES
+    from benchmarks.reproduce import FULL_STEPS, QUICK_STEPS, STEP_NAMES, STEPS
+    quick_minutes = sum(s.minutes for s in STEPS if not s.full)
+    full_hours = sum(s.minutes for s in STEPS) / 60
     r = sub.add_parser("reproduce", help="bring results/ up to date (what `make reproduce` runs)",
                        description=REPRODUCE_HELP.format(quick=_listed(QUICK_STEPS),
                                                          full=_listed(FULL_STEPS)))
@@ -471,8 +473,8 @@ def build_parser() -> Parser:
                    help="directory of the results")
     r.add_argument("--full", action="store_true",
                    help="the full plan: also the long steps (" + ", ".join(FULL_STEPS) + "; "
-                        "about 1.5 h on 2 cores) (default: the quick plan, ~15 min when every "
-                        "quick step runs)")
+                        f"about {full_hours:.1f} h on 2 cores) (default: the quick plan, "
+                        f"~{quick_minutes:.0f} min when every quick step runs)")
     r.add_argument("--force", action="store_true",
                    help="rerun every step of the plan, reusing none (default: reuse the steps "
                         "whose inputs did not change)")
