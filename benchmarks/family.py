@@ -292,11 +292,18 @@ def _runaway_sentence(run: pd.DataFrame) -> str:
 
 
 def _refused(df: pd.DataFrame) -> str:
+    """One line per reason: the integrators and problems it covers, then the reason (the
+    message without the integrator's name that starts it)."""
     r = df[df.retcode == "Refused"].drop_duplicates(["problem", "integrator"])
     if not len(r):
         return "None."
-    return "\n".join(f"- {row.integrator} on {row.problem}: {row.message}"
-                     for row in r.itertuples())
+    reasons: dict[str, tuple[dict, dict]] = {}
+    for row in r.itertuples():
+        integrators, problems = reasons.setdefault(
+            row.message.removeprefix(row.integrator).strip(), ({}, {}))
+        integrators[row.integrator] = problems[row.problem] = None
+    return "\n".join(f"- {', '.join(i)} on {', '.join(p)}: {reason}"
+                      for reason, (i, p) in reasons.items())
 
 
 def _plot(df: pd.DataFrame, path: Path) -> None:

@@ -501,3 +501,17 @@ def test_rsfbench_lab_refuses_options_it_would_ignore(tmp_path):
                           (("step", "--after", "0.5"), "not reached inside the piece")):
         done = _cli(*args)
         assert done.returncode == 2 and message in done.stderr, (args, done.stderr)
+
+
+def test_the_refused_list_has_one_line_per_reason():
+    import pandas as pd
+    from benchmarks.family import _refused
+    why = "needs a slider with mass"
+    df = pd.DataFrame({
+        "integrator": ["ETD1", "ETD2", "ETD1", "ETD2", "X", "Rodas5P"],
+        "problem": ["p1", "p1", "p2", "p2", "p1", "p1"],
+        "retcode": ["Refused"] * 5 + ["Success"],
+        "message": ["ETD1 " + why, "ETD2 " + why, "ETD1 " + why, "ETD2 " + why,
+                    "X cannot", ""]})
+    assert _refused(df).splitlines() == [f"- ETD1, ETD2 on p1, p2: {why}", "- X on p1: cannot"]
+    assert _refused(df[df.retcode == "Success"]) == "None."
