@@ -246,3 +246,11 @@ def test_target_study_runs_every_stiff_adaptive_integrator_of_the_sides():
     assert not {"ETD2", "CashKarp45", "odes-CVODE-Adams", "sundials-CVODE-Adams",
                 "CyRK-RK45"} & set(names)
     assert all(any(n in g[side] for n in names) for side in ("own", "lsoda", "sundials", "cyrk"))
+
+
+def test_a_speedup_below_one_says_which_method_is_faster():
+    from benchmarks.speedup import _ratio
+    assert _ratio(43683.2) == "43,683" and _ratio(3.456) == "3.5"
+    # ETD2 13.7 ms against Rodas5P 0.55 ms (results/speedup.json) printed as "0.0" before
+    assert _ratio(0.0405) == "0.041 (the other method is 24.7× faster)"
+    assert _ratio(None) == ""
