@@ -44,7 +44,7 @@ from benchmarks.files import BadResultsFile, atomic_write
 __all__ = ["ROOT", "PACKAGES", "WHOLE_PACKAGES", "MANIFEST", "import_graph", "find_cycles",
            "step_inputs", "inputs_hash", "what_changed", "versions", "machine", "file_hash",
            "code_hash", "read_manifest", "write_manifest", "snapshot", "written_since", "reusable",
-           "make_record"]
+           "assign_outputs", "make_record"]
 
 ROOT = Path(__file__).resolve().parents[1]
 #: the project's packages: imports of these are followed
@@ -408,6 +408,34 @@ def written_since(before: dict, out: Path) -> dict[str, str]:
     after = snapshot(out)
     return {p: file_hash(Path(out) / p) for p, stamp in sorted(after.items())
             if before.get(p) != stamp}
+
+
+def assign_outputs(records: dict[str, dict], out: Path) -> None:
+    """Give each file that several records claim to the one that finished first after the file
+    was last written (1 s slack: ``finished`` is kept to the second), and drop it from the
+    others, in place. Two runs of different steps at once each see the other's files appear
+    (:func:`written_since` goes by what changed in ``out``), so each claims both; the file's
+    time says whose it is. A file written after every claimant finished stays with all of them:
+    it changed since, and they are all stale."""
+    claims: dict[str, list[str]] = {}
+    for name, r in records.items():
+        for p in r["outputs"]:
+            claims.setdefault(p, []).append(name)
+    for p, names in claims.items():
+        path = Path(out) / p
+        if len(names) < 2 or not path.is_file():
+            continue
+        written = path.stat().st_mtime
+        after = [n for n in names if _finished(records[n]) + 1 >= written]
+        if after:
+            owner = min(after, key=lambda n: _finished(records[n]))
+            for n in names:
+                if n != owner:
+                    del records[n]["outputs"][p]
+
+
+def _finished(record: dict) -> float:
+    return datetime.datetime.fromisoformat(record["finished"]).timestamp()
 
 
 def reusable(record: dict | None, inputs: dict, out: Path) -> tuple[bool, str]:

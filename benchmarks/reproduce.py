@@ -344,7 +344,9 @@ def run_steps(steps, out: Path, modes: dict[str, str], dry_run: bool = False,
     ``packages`` and ``whole``.
 
     The manifest on disk is read again before each step and before each record is written, so
-    that two runs of different steps (``--only``) at once keep each other's records."""
+    that two runs of different steps (``--only``) at once keep each other's records, and a file
+    both claim goes to the one that finished first after it was written
+    (:func:`benchmarks.manifest.assign_outputs`)."""
     said = []
 
     def current() -> dict[str, dict]:
@@ -392,6 +394,7 @@ def run_steps(steps, out: Path, modes: dict[str, str], dry_run: bool = False,
         records = current()
         records[step.name] = M.make_record(step.name, "full" if step.full else "quick", inputs,
                                            M.written_since(before, out), wall)
+        M.assign_outputs(records, out)
         M.write_manifest(out, records, order)
         rows.append({"step": step.name, "status": "ran", "why": why})
     return rows

@@ -316,3 +316,33 @@ def test_two_runs_at_once_keep_each_others_records(fake):
     steps = [RP.Step("make", "make a", make_while_clock_runs, settings={"n": 1})]
     assert fake.run({"make": "run"}, steps=steps) == {"make": "ran"}
     assert set(M.read_manifest(fake.out)) == {"make", "clock"}
+
+
+def test_a_file_claimed_by_two_runs_at_once_goes_to_the_one_that_wrote_it(tmp_path):
+    """Two `--only` runs at once each see the other's files appear; the file's time decides.
+    Here speedup (12:00–12:15) ran beside target-full (12:01–12:34), as on 2026-11-23, when
+    target-full's record claimed speedup's three files."""
+    import datetime
+    import os
+
+    def at(hhmmss):
+        return datetime.datetime.fromisoformat(f"2026-11-23T{hhmmss}")
+
+    def record(step, finished, outputs):
+        return {"step": step, "finished": at(finished).isoformat(), "outputs": dict.fromkeys(
+            outputs, "h")}
+
+    for name, written in (("speedup.md", "12:14:59"), ("wp_full.csv", "12:34:00"),
+                          ("later.md", "13:00:00")):
+        (tmp_path / name).write_text("x")
+        os.utime(tmp_path / name, (at(written).timestamp(),) * 2)
+    records = {"speedup": record("speedup", "12:15:00", ["speedup.md"]),
+               "target-full": record("target-full", "12:34:34",
+                                     ["speedup.md", "wp_full.csv", "later.md"]),
+               "work-precision": record("work-precision", "12:40:50",
+                                        ["wp_full.csv", "later.md"])}
+    M.assign_outputs(records, tmp_path)
+    assert list(records["speedup"]["outputs"]) == ["speedup.md"]
+    assert list(records["target-full"]["outputs"]) == ["wp_full.csv", "later.md"]
+    # written after both claimants finished: it changed since, both keep it and are stale
+    assert list(records["work-precision"]["outputs"]) == ["later.md"]
