@@ -425,17 +425,23 @@ def assign_outputs(records: dict[str, dict], out: Path) -> None:
         path = Path(out) / p
         if len(names) < 2 or not path.is_file():
             continue
+        finished = {n: _finished(records[n]) for n in names}
+        if None in finished.values():                # a record edited by hand keeps its claims
+            continue
         written = path.stat().st_mtime
-        after = [n for n in names if _finished(records[n]) + 1 >= written]
+        after = [n for n in names if finished[n] + 1 >= written]
         if after:
-            owner = min(after, key=lambda n: _finished(records[n]))
+            owner = min(after, key=finished.get)
             for n in names:
                 if n != owner:
                     del records[n]["outputs"][p]
 
 
-def _finished(record: dict) -> float:
-    return datetime.datetime.fromisoformat(record["finished"]).timestamp()
+def _finished(record: dict) -> float | None:
+    try:
+        return datetime.datetime.fromisoformat(record["finished"]).timestamp()
+    except (TypeError, ValueError):
+        return None
 
 
 def reusable(record: dict | None, inputs: dict, out: Path) -> tuple[bool, str]:

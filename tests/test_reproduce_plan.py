@@ -346,3 +346,8 @@ def test_a_file_claimed_by_two_runs_at_once_goes_to_the_one_that_wrote_it(tmp_pa
     assert list(records["target-full"]["outputs"]) == ["wp_full.csv", "later.md"]
     # written after both claimants finished: it changed since, both keep it and are stale
     assert list(records["work-precision"]["outputs"]) == ["later.md"]
+    # a record whose time cannot be read (edited by hand) keeps its claims, and nothing raises
+    records["speedup"]["finished"] = "yesterday"
+    records["target-full"]["outputs"]["speedup.md"] = "h"
+    M.assign_outputs(records, tmp_path)
+    assert "speedup.md" in records["target-full"]["outputs"]
