@@ -37,6 +37,9 @@ without a cycle, as :class:`~benchmarks.inversion.Misfit` defines).
 Cost: the mean wall time of one forward solve (the solves' own time over the fine grid, with as
 many solves at once as there are workers), and the cost of a 64,000-solve posterior on this
 machine: 64,000 × the fine map's wall time per node, all workers and the harness included.
+Each setting first solves a 2 × 2 map in this process, untimed, so that its compilation (and the
+numba cache its worker processes load) is not multiplied into a posterior's cost: a cold cache
+once put 16 s of compiling into W1/slip's first Rosenbrock23 and Exprb32 maps, 20× their cost.
 """
 
 from __future__ import annotations
@@ -191,7 +194,7 @@ def solver_effect(settings: list[Candidate], reference: Algorithm, floor: Algori
     check_n = check_n or max(n // 2, 5)
     everyone = [Candidate("reference", f"{reference.name} {_tol(reference)}", reference),
                 Candidate("floor", f"{floor.name} {_tol(floor)}", floor), *settings]
-    rows = []
+    rows, warmed = [], set()
     for law in laws:
         for name in windows:
             problem = preset(name, law=law, t_end=T_END[name])
@@ -209,6 +212,9 @@ def solver_effect(settings: list[Candidate], reference: Algorithm, floor: Algori
             for c in everyone:
                 say(f"{name}/{law}: {c.label}")
                 budget = None if c.family in ("reference", "floor") else wall_budget
+                if c.label not in warmed:         # compile out of the timed map (docstring)
+                    metric_map(problem, c.algorithm, *box_grid(*box, 2, 2), workers=1)
+                    warmed.add(c.label)
                 maps[c.label] = metric_map(problem, c.algorithm, *grid, wall_budget=budget,
                                            workers=workers)
                 checks[c.label] = metric_map(problem, c.algorithm, *check, wall_budget=budget,
