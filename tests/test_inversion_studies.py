@@ -392,3 +392,22 @@ def test_an_inversion_without_any_cycle_exits_1_and_an_unwritable_out_is_refused
     assert main(argv + ["--out", str(blocker / "sub")]) == 2
     err = capsys.readouterr().err
     assert "Traceback" not in err and len(err.strip().splitlines()) == 1
+
+
+def _timed_map(n_solves, run_wall_s):
+    z = np.zeros((1, 1))
+    return MetricMap(b=z[0], log10_lc=z[0], recurrence_s=z, friction_drop=z, cycle=z > 0,
+                     classification=z, algorithm="x", n_solves=n_solves, n_failed=0, nfev=0,
+                     wall_s=0.0, run_wall_s=run_wall_s)
+
+
+def test_the_posterior_cost_counts_an_ensembles_fixed_cost_once():
+    # 3 s to start an ensemble, 10 ms per solve: 4 solves take 3.04 s, 961 take 12.61 s; a
+    # 64,000-solve posterior is 3 + 640 s (64,000 × 12.61 / 961 = 839.8 s counted it 67 times)
+    small, big = _timed_map(4, 3.04), _timed_map(961, 12.61)
+    assert SE.posterior_cost(small, big) == pytest.approx(643.0)
+    assert SE.posterior_cost(small, big, solves=4) == pytest.approx(3.04)
+    # noise that makes the big map no slower than the small one costs no solves, not a negative
+    assert SE.posterior_cost(small, _timed_map(961, 3.0)) == pytest.approx(3.04)
+    with pytest.raises(ValueError, match="more solves"):
+        SE.posterior_cost(big, small)

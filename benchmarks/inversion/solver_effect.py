@@ -36,10 +36,13 @@ without a cycle, as :class:`~benchmarks.inversion.Misfit` defines).
 
 Cost: the mean wall time of one forward solve (the solves' own time over the fine grid, with as
 many solves at once as there are workers), and the cost of a 64,000-solve posterior on this
-machine: 64,000 × the fine map's wall time per node, all workers and the harness included.
-Each setting first solves a 2 × 2 map in this process, untimed, so that its compilation (and the
-numba cache its worker processes load) is not multiplied into a posterior's cost: a cold cache
-once put 16 s of compiling into W1/slip's first Rosenbrock23 and Exprb32 maps, 20× their cost.
+machine, all workers and the harness included (:func:`posterior_cost`): what one ensemble costs
+whatever its size (its workers' start, compiling that no cache keeps: numbalsoda's driver is
+``@njit`` without a cache), measured as a 2 × 2 map's wall time, plus 64,000 × the fine map's
+extra time per extra node. Each setting first solves a 2 × 2 map in this process, untimed, so
+that its compilation (and the numba cache its worker processes load) is not in either: a cold
+cache once put 16 s of compiling into W1/slip's first Rosenbrock23 and Exprb32 maps, and
+64,000 × the map's time per node (the rule then) made that 20× their cost.
 """
 
 from __future__ import annotations
@@ -61,7 +64,7 @@ from problems import preset
 
 __all__ = ["solver_effect", "solver_effect_study", "candidates", "Candidate", "recommendation",
            "compare", "same_inference", "SHIFT_SD",
-           "MIN_OVERLAP", "POSTERIOR_SOLVES"]
+           "MIN_OVERLAP", "POSTERIOR_SOLVES", "posterior_cost"]
 
 #: the largest shift of a posterior mean, in reference standard deviations, called no change
 SHIFT_SD = 0.1
@@ -160,6 +163,17 @@ def compare(ref: GridPosterior, post: GridPosterior) -> dict:
             "hpd_jaccard": float((post.hpd & ref.hpd).sum() / union)}
 
 
+def posterior_cost(small: MetricMap, big: MetricMap, solves: int = POSTERIOR_SOLVES) -> float:
+    """s for ``solves`` solves in one ensemble, from two maps of one setting: the small map's
+    wall time (what an ensemble costs whatever its size, with its few solves) plus the big
+    map's extra wall time per extra solve for the rest."""
+    if big.n_solves <= small.n_solves:
+        raise ValueError(f"the big map must have more solves than the small one, got "
+                         f"{big.n_solves} and {small.n_solves}")
+    per = max(big.run_wall_s - small.run_wall_s, 0.0) / (big.n_solves - small.n_solves)
+    return small.run_wall_s + (solves - small.n_solves) * per
+
+
 def same_inference(c: dict) -> bool:
     """The rule of the module docstring on :func:`compare`'s values (``overlap_box``: the
     whole-box overlap, NaN when the reference has no posterior on the whole-box grid)."""
@@ -208,13 +222,15 @@ def solver_effect(settings: list[Candidate], reference: Algorithm, floor: Algori
             grid, check = box_grid(*zoom, n, n), box_grid(*box, check_n, check_n)
             inside = ((check[0] >= zoom[0][0]) & (check[0] <= zoom[0][1]))[:, None] & (
                 (check[1] >= np.log10(zoom[1][0])) & (check[1] <= np.log10(zoom[1][1])))[None]
-            maps, checks = {}, {}
+            maps, checks, smalls = {}, {}, {}
             for c in everyone:
                 say(f"{name}/{law}: {c.label}")
                 budget = None if c.family in ("reference", "floor") else wall_budget
                 if c.label not in warmed:         # compile out of the timed map (docstring)
                     metric_map(problem, c.algorithm, *box_grid(*box, 2, 2), workers=1)
                     warmed.add(c.label)
+                smalls[c.label] = metric_map(problem, c.algorithm, *box_grid(*zoom, 2, 2),
+                                             wall_budget=budget, workers=workers)
                 maps[c.label] = metric_map(problem, c.algorithm, *grid, wall_budget=budget,
                                            workers=workers)
                 checks[c.label] = metric_map(problem, c.algorithm, *check, wall_budget=budget,
@@ -249,7 +265,7 @@ def solver_effect(settings: list[Candidate], reference: Algorithm, floor: Algori
                     row["n_cycle_nodes"] = int(m.cycle.sum())
                     row["n_failed"] = m.n_failed + checks[c.label].n_failed
                     row["wall_per_solve_ms"] = 1e3 * m.wall_s / m.n_solves
-                    row["posterior_cost_s"] = POSTERIOR_SOLVES * m.run_wall_s / m.n_solves
+                    row["posterior_cost_s"] = posterior_cost(smalls[c.label], m)
                     row["nfev_per_solve"] = m.nfev / m.n_solves
                     row["indistinguishable"] = bool(post.ok and ref.ok and same_inference(cmp))
                     if c.family == "floor":
@@ -370,7 +386,8 @@ def _solver_effect_markdown(table, advice, study_name, wall, shift_sd, min_overl
         f". Wall time of the study: {wall / 60:.0f} min.\n\n"
         "## The cheapest indistinguishable setting\n\n", markdown_table(a),
         "\nms per solve: the solves' own wall time, two at a time on 2 cores; s per posterior: "
-        "64,000 × the map's wall time per node (harness included).\n"]
+        "a 2 × 2 map's wall time (an ensemble's fixed cost) + 64,000 × the fine map's extra "
+        "time per extra node (harness included).\n"]
     for (w, law, data), g in table.groupby(["window", "law", "data"], sort=False):
         t = pd.DataFrame({
             "setting": g.setting, "ms/solve": [fmt(x, ".3g") for x in g.wall_per_solve_ms],
