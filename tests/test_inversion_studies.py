@@ -411,3 +411,11 @@ def test_the_posterior_cost_counts_an_ensembles_fixed_cost_once():
     assert SE.posterior_cost(small, _timed_map(961, 3.0)) == pytest.approx(3.04)
     with pytest.raises(ValueError, match="more solves"):
         SE.posterior_cost(big, small)
+
+
+@pytest.mark.parametrize("n", [2, 2.5, True])
+def test_solver_effect_refuses_a_grid_too_small_for_the_cost_before_any_work(n, monkeypatch):
+    monkeypatch.setattr(SE, "metric_map", lambda *a, **k: pytest.fail("work was done"))
+    with pytest.raises(ValueError, match="n must be an integer of at least 3"):
+        SE.solver_effect([], Rodas5P(rtol=1e-8, atol=1e-8), Rodas5P(rtol=1e-9, atol=1e-9),
+                         windows=("W4",), laws=("slip",), n=n)

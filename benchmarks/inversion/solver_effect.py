@@ -205,6 +205,9 @@ def solver_effect(settings: list[Candidate], reference: Algorithm, floor: Algori
     given a line of text per map, or None."""
     from benchmarks.paper_sweeps import GRID, T_END, best_fit, grid_around
     say = progress or (lambda text: None)
+    if isinstance(n, bool) or not isinstance(n, int) or n < 3:
+        # the posterior's cost compares the fine map with a 2 × 2 one: it must have more nodes
+        raise ValueError(f"n must be an integer of at least 3, got {n!r}")
     check_n = check_n or max(n // 2, 5)
     everyone = [Candidate("reference", f"{reference.name} {_tol(reference)}", reference),
                 Candidate("floor", f"{floor.name} {_tol(floor)}", floor), *settings]
@@ -227,7 +230,8 @@ def solver_effect(settings: list[Candidate], reference: Algorithm, floor: Algori
                 say(f"{name}/{law}: {c.label}")
                 budget = None if c.family in ("reference", "floor") else wall_budget
                 if c.label not in warmed:         # compile out of the timed map (docstring)
-                    metric_map(problem, c.algorithm, *box_grid(*box, 2, 2), workers=1)
+                    metric_map(problem, c.algorithm, *box_grid(*box, 2, 2), wall_budget=budget,
+                               workers=1)
                     warmed.add(c.label)
                 smalls[c.label] = metric_map(problem, c.algorithm, *box_grid(*zoom, 2, 2),
                                              wall_budget=budget, workers=workers)
