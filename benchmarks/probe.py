@@ -227,6 +227,13 @@ KIND_TITLES = {
     "corrupt-results": "results files that must not be trusted",
     "machine-output": "--json: exactly one JSON document on stdout",
     "misfit": "J2 sees the friction it fits",
+    "problem-files": "a user's own apparatus through every command",
+    "lab": "laboratory-test measures from the dense output",
+    "units": "dimensional inputs in an implausible unit",
+    "classification": "classifying runs at and near the edges of stability",
+    "integrators": "the own integrators where their peers succeed",
+    "store": "the store reads back only what it wrote",
+    "inversion": "inversions, their intervals and their commands",
 }
 
 

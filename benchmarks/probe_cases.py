@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks import probe_families
 from benchmarks.probe import Case, Observed, Wrong, cli, cli_outcome, one_json
 
 __all__ = ["cases", "fast_cases", "slow_cases"]
@@ -1151,7 +1152,8 @@ def cases() -> list[Case]:
     """Every case of the probe, fast and slow."""
     return (_api_input_cases() + _sweep_input_cases() + _cli_input_cases() + _paths_cases()
             + _budget_cases() + _physics_cases() + _idiom_cases() + _corrupt_point_cases()
-            + _corrupt_reference_cases() + _machine_output_cases() + _misfit_cases())
+            + _corrupt_reference_cases() + _machine_output_cases() + _misfit_cases()
+            + probe_families.cases())
 
 
 def fast_cases() -> list[Case]:

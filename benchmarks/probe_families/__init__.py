@@ -1,0 +1,16 @@
+"""The probe's case families added after its first catalogue (:mod:`benchmarks.probe_cases`),
+one module by area: each module's ``cases()`` returns its :class:`~benchmarks.probe.Case` list."""
+
+from __future__ import annotations
+
+from benchmarks.probe_families import (classification, etd, integrators, inversion, lab,
+                                       problem_files, store, units)
+
+__all__ = ["cases"]
+
+_MODULES = (problem_files, lab, units, classification, integrators, etd, store, inversion)
+
+
+def cases() -> list:
+    """Every case of every family, in a fixed order."""
+    return [case for module in _MODULES for case in module.cases()]
