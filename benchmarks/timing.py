@@ -2,13 +2,9 @@
 
 from __future__ import annotations
 
-import dataclasses
-
-from integrators import solve
+from integrators.core.solve import compile_ahead
 
 __all__ = ["warm_up"]
 
-
-def warm_up(problem, algorithm, fraction: float = 1e-3) -> None:
-    """Run ``algorithm`` on a short piece of ``problem`` so that numba has compiled it."""
-    solve(dataclasses.replace(problem, t_end=problem.t_end * fraction), algorithm, max_points=2)
+#: run ``algorithm`` on a short piece of ``problem`` so that numba has compiled it
+warm_up = compile_ahead
