@@ -38,8 +38,8 @@ from benchmarks.metrics import CYCLES
 from benchmarks.report import jsonable
 from benchmarks.sweep_exec import CONNECT_TIMEOUT_S, WORKER_TIMEOUT_S
 from problems import SpringSlider
-from problems._validate import (check_count, check_positive, units_checked_already,
-                                warn_implausible)
+from problems._validate import (check_count, check_positive, check_possible,
+                                units_checked_already, warn_implausible, warn_unit)
 
 __all__ = ["parse_b", "parse_lc", "check_grid", "Observations", "observations", "ASSUMED_SIGMA",
            "sweep", "SweepResult", "score", "summarize_sweep", "MAX_GRID_POINTS"]
@@ -136,7 +136,12 @@ def check_grid(b_values, lc_values, max_points: int = MAX_GRID_POINTS):
 class Observations:
     """What a point is scored against: observed means and standard deviations (Eq. 10), and
     optionally the observed slip-weakening curves (Eq. 11). The four numbers must be positive
-    and finite (ΔT̄ and its σ in s, Δμ̄ and its σ dimensionless)."""
+    and finite: ΔT̄ and its σ in s, Δμ̄ and its σ dimensionless (a fraction: W2's drop is 0.046).
+
+    A value implausible in its unit warns (:class:`~problems._validate.UnitWarning`: a drop in
+    percent, 8.4, or a σ in percent of a drop, ten times it); a drop of 10 or more, which no
+    friction coefficient allows, is refused. The observations of a sweep are made once, so a
+    sweep warns once."""
 
     recurrence_s: float
     sigma_recurrence_s: float
@@ -146,9 +151,19 @@ class Observations:
     assumed_sigma: bool = False        # σ not measured: 10 % of the mean, say so in the output
 
     def __post_init__(self) -> None:
-        for name in ("recurrence_s", "sigma_recurrence_s", "friction_drop",
-                     "sigma_friction_drop"):
-            check_positive(name, getattr(self, name))
+        for mean, sigma in (("recurrence_s", "sigma_recurrence_s"),
+                            ("friction_drop", "sigma_friction_drop")):
+            m = check_possible(mean, check_positive(mean, getattr(self, mean)))
+            s = check_possible(sigma, check_positive(sigma, getattr(self, sigma)))
+            # σ beyond 3 means (every point would fit) or below 0.1 % of it (none would) is
+            # a σ in another unit than its mean's: ms, percent
+            if not 1e-3 <= s / m < 3.0:
+                unit = "seconds" if mean == "recurrence_s" else "a fraction, not a percentage"
+                warn_unit(f"{sigma} = {s:g} is {s / m:.3g} × {mean} = {m:g}: implausible for "
+                          "a standard deviation (plausible: 0.001 to below 3 times the mean); "
+                          f"both are in one unit ({unit})", stacklevel=1)
+        if not isinstance(self.assumed_sigma, bool):
+            raise ValueError(f"assumed_sigma must be True or False, got {self.assumed_sigma!r}")
         if self.curves is not None:
             object.__setattr__(self, "curves", check_curves(self.curves, "obs.curves"))
 
@@ -162,12 +177,15 @@ def observations(preset_name: str, obs_recurrence=None, sigma_recurrence=None, o
     """Observations of a preset: a window's published means fill what is not given, and a
     missing σ is 10 % of its mean (``assumed_sigma`` says so)."""
     from problems import WINDOWS
+    if not isinstance(preset_name, str):
+        raise ValueError(f"preset_name must be a preset's name (a string), got {preset_name!r}")
     w = WINDOWS.get(preset_name.upper())
     obs_recurrence = obs_recurrence if obs_recurrence is not None else (w and w.observed_recurrence)
     obs_drop = obs_drop if obs_drop is not None else (w and w.observed_drop)
     for name, value in (("obs_recurrence", obs_recurrence), ("obs_drop", obs_drop)):
         if value is None:
             raise ValueError(f"{name} is required for {preset_name!r} (it has no observed means)")
+        check_positive(name, value)          # before a σ of 10 % is made of it
     assumed = sigma_recurrence is None or sigma_drop is None
     return Observations(
         recurrence_s=obs_recurrence,

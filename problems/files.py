@@ -25,8 +25,12 @@
     [initial]                  # optional: slowdown = 1.1 (the presets' rule, the default),
     slowdown = 1.1             # or v (m/s), theta (the law's units), fs (N)
 
-The same keys as JSON objects. Every key is checked: an unknown or missing one, a value that is
-not a number, or a value the problem refuses is a ``ValueError`` naming the file and the key.
+The same keys as JSON objects (a key given twice is refused, as TOML does). Every key is
+checked: an unknown or missing one, a value that is not a number, an overshoot's velocity
+without its duration (or the reverse), or a value the problem refuses is a ``ValueError`` naming
+the file and the key, in one line. A value implausible in its unit (a normal force in MPa, a
+speed in µm/s) is read with a :class:`~problems._validate.UnitWarning` naming the file, the key,
+the value and the unit expected.
 """
 
 from __future__ import annotations
@@ -34,6 +38,7 @@ from __future__ import annotations
 import json
 import math
 import tomllib
+import warnings
 from pathlib import Path
 
 from problems.friction import law_from_name
@@ -50,7 +55,8 @@ _REQUIRED = ("mass", "stiffness", "normal_force", "t_end", "law", "loading")
 
 
 def load_problem(path) -> SpringSlider:
-    """The :class:`SpringSlider` a TOML or JSON file describes (module docstring)."""
+    """The :class:`SpringSlider` a TOML or JSON file describes (module docstring). A unit
+    warning (:class:`~problems._validate.UnitWarning`) names the file too."""
     path = Path(path)
     if path.suffix.lower() not in PROBLEM_SUFFIXES:
         raise ValueError(f"problem file {path} must end in .toml or .json")
@@ -59,15 +65,34 @@ def load_problem(path) -> SpringSlider:
     except OSError as exc:
         raise ValueError(f"cannot read the problem file {path}: {exc.strerror}") from None
     try:
-        text = raw.decode("utf-8")
-        data = tomllib.loads(text) if path.suffix.lower() == ".toml" else json.loads(text)
-    except (tomllib.TOMLDecodeError, json.JSONDecodeError, UnicodeDecodeError) as exc:
+        text = raw.decode("utf-8-sig")          # a byte-order mark (Windows editors) is no error
+        data = (tomllib.loads(text) if path.suffix.lower() == ".toml"
+                else json.loads(text, object_pairs_hook=_unique_keys))
+    except (tomllib.TOMLDecodeError, ValueError) as exc:     # JSON, Unicode, a repeated key
         raise ValueError(f"problem file {path} is not valid {path.suffix[1:].upper()}: "
-                         f"{exc}") from None
-    try:
-        return problem_from_dict(data, default_name=path.stem)
-    except ValueError as exc:
-        raise ValueError(f"problem file {path}: {exc}") from None
+                         f"{' '.join(str(exc).split())}") from None
+    except RecursionError:
+        raise ValueError(f"problem file {path} is not valid {path.suffix[1:].upper()}: it nests "
+                         "deeper than any problem does") from None
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        try:
+            problem = problem_from_dict(data, default_name=path.stem)
+        except ValueError as exc:
+            raise ValueError(f"problem file {path}: {exc}") from None
+    for w in seen:           # said again with the file's name, from here (shown once a message)
+        warnings.warn(f"problem file {path}: {w.message}", w.category, stacklevel=1)
+    return problem
+
+
+def _unique_keys(pairs) -> dict:
+    """A JSON object, refused if a key repeats (json keeps the last silently; TOML refuses)."""
+    out = {}
+    for key, value in pairs:
+        if key in out:
+            raise ValueError(f"the key {key!r} appears twice in one object")
+        out[key] = value
+    return out
 
 
 def problem_from_dict(data, default_name: str = "") -> SpringSlider:
@@ -80,7 +105,7 @@ def problem_from_dict(data, default_name: str = "") -> SpringSlider:
     _keys(law, allowed, ("name", "a", "b", "lc"), "[law]")
     if not isinstance(law["name"], str):
         raise ValueError(f"[law] name must be \"slip\", \"aging\" or \"nagata\", got "
-                         f"{law['name']!r}")
+                         f"{_show(law['name'])}")
     law = law_from_name(law["name"], **{k: _number(law, k, "[law]") for k in law if k != "name"})
     loading = _table(table["loading"], "[loading]")
     if "vl" in loading:
@@ -89,11 +114,22 @@ def problem_from_dict(data, default_name: str = "") -> SpringSlider:
     elif "velocities" in loading:
         _keys(loading, {"velocities", "switch_times", *_HISTORY_SCALARS}, ("velocities",),
               "[loading] (a history)")
+        # one of the overshoot's two keys alone would be ignored (no duration) or refused
+        # without naming the missing key
+        given = [k for k in ("overshoot_velocity", "overshoot_duration") if k in loading]
+        if len(given) == 1:
+            other = ({"overshoot_velocity", "overshoot_duration"} - set(given)).pop()
+            raise ValueError(f"[loading] has {given[0]} without {other}: an overshoot needs "
+                             "both (m/s and s)")
         lists = {k: tuple(_number({f"{k}[{i}]": x}, f"{k}[{i}]", "[loading]")
                           for i, x in enumerate(_list(loading, k)))
                  for k in ("velocities", "switch_times") if k in loading}
         loading = LoadHistory(**lists, **{k: _number(loading, k, "[loading]")
                                           for k in _HISTORY_SCALARS if k in loading})
+    elif not set(loading) & {"vls", "vlf", "df"}:
+        raise ValueError(f"[loading] must be vl (m/s: constant), or vls, vlf, df (two speeds), "
+                         f"or velocities (m/s) with switch_times (s) (a history); got the keys "
+                         f"{', '.join(sorted(loading)) or 'none'}")
     else:
         _keys(loading, {"vls", "vlf", "df"}, ("vls", "vlf", "df"), "[loading] (or vl alone)")
         loading = TwoSpeedLoading(**{k: _number(loading, k, "[loading]") for k in loading})
@@ -105,7 +141,7 @@ def problem_from_dict(data, default_name: str = "") -> SpringSlider:
         initial = InitialState(**{k: _number(initial, k, "[initial]") for k in initial})
     name = table.get("name", default_name)
     if not isinstance(name, str):
-        raise ValueError(f"name must be a string, got {name!r}")
+        raise ValueError(f"name must be a string, got {_show(name)}")
     scalars = {k: _number(table, k, "the file") for k in ("mass", "stiffness", "normal_force",
                                                            "t_end", "mu0", "radiation_damping")
                if k in table}
@@ -125,16 +161,22 @@ def problem_dict(problem: SpringSlider) -> dict:
             "loading": loading, "initial": initial}
 
 
+def _show(value) -> str:
+    """``repr(value)``, cut short: a message is one line, whatever the file holds."""
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
 def _table(value, where: str) -> dict:
     if not isinstance(value, dict):
-        raise ValueError(f"{where} must be a table of keys, got {value!r}")
+        raise ValueError(f"{where} must be a table of keys, got {_show(value)}")
     return value
 
 
 def _keys(table: dict, allowed: set, required, where: str) -> None:
     unknown = sorted(set(table) - set(allowed))
     if unknown:
-        raise ValueError(f"unknown key {unknown[0]!r} in {where}; the keys are "
+        raise ValueError(f"unknown key {_show(unknown[0])} in {where}; the keys are "
                          f"{', '.join(sorted(allowed))}")
     missing = [k for k in required if k not in table]
     if missing:
@@ -144,12 +186,19 @@ def _keys(table: dict, allowed: set, required, where: str) -> None:
 def _list(table: dict, key: str) -> list:
     value = table[key]
     if not isinstance(value, list):
-        raise ValueError(f"{key} in [loading] must be a list of numbers, got {value!r}")
+        raise ValueError(f"{key} in [loading] must be a list of numbers, got {_show(value)}")
     return value
 
 
 def _number(table: dict, key: str, where: str) -> float:
     value = table[key]
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise ValueError(f"{key} in {where} must be a finite number, got {value!r}")
-    return float(value)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ValueError(f"{key} in {where} must be a finite number, got {_show(value)}")
+    try:
+        x = float(value)
+    except OverflowError:                    # an integer beyond the doubles
+        raise ValueError(f"{key} in {where} must be a finite number, got an integer of "
+                         f"{len(str(abs(value)))} digits") from None
+    if not math.isfinite(x):
+        raise ValueError(f"{key} in {where} must be a finite number, got {_show(value)}")
+    return x

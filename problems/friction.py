@@ -24,7 +24,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from problems._validate import check_non_negative, check_positive, warn_implausible
+from problems._validate import check_non_negative, check_positive, check_possible
 from problems.formulations import LAW_CODES, check_law_code
 
 __all__ = ["FrictionLaw", "SlipLaw", "AgingLaw", "NagataLaw", "LAWS", "law_from_name", "compiled_law_code"]
@@ -45,9 +45,10 @@ class FrictionLaw:
     code: ClassVar[int] = -1
 
     def __post_init__(self) -> None:
+        # a ≥ 1 or b ≥ 1 is refused (a percentage), a unit slip warned (problems._validate)
         for name, check in (("a", check_positive), ("b", check_non_negative),
                             ("lc", check_positive), ("v0", check_positive)):
-            warn_implausible(name, check(name, getattr(self, name)), stacklevel=5)
+            check_possible(name, check(name, getattr(self, name)))
 
     # --- the law itself -------------------------------------------------------------------
     def steady_state(self, v: float, fn: float) -> float:

@@ -69,7 +69,8 @@ class LoadHistory:
         if not isinstance(sw, tuple):
             raise ValueError(f"switch_times must be a tuple of numbers (s), got {sw!r}")
         for i, v in enumerate(vel):
-            warn_implausible("vl", check_non_negative(f"velocities[{i}]", v), stacklevel=5)
+            warn_implausible(f"velocities[{i}]", check_non_negative(f"velocities[{i}]", v),
+                             kind="velocity")
         if not any(v > 0 for v in vel):
             raise ValueError(f"velocities must include a positive one (all holds: nothing "
                              f"ever moves), got {vel!r}")
@@ -77,20 +78,22 @@ class LoadHistory:
             raise ValueError(f"a history needs one more velocity than switch times, got "
                              f"{len(vel)} velocities and {len(sw)} switch times")
         for i, t in enumerate(sw):
-            check_positive(f"switch_times[{i}]", t)
+            warn_implausible(f"switch_times[{i}]", check_positive(f"switch_times[{i}]", t),
+                             kind="time")
             if i and not t > sw[i - 1]:
                 raise ValueError(f"switch_times must be strictly increasing, got "
                                  f"switch_times[{i - 1}] = {sw[i - 1]!r} and switch_times[{i}] = "
                                  f"{t!r}")
-        check_non_negative("overshoot_duration", self.overshoot_duration)
+        warn_implausible("overshoot_duration",
+                         check_non_negative("overshoot_duration", self.overshoot_duration))
         if self.overshoot_duration > 0:
-            warn_implausible("vlf", check_positive("overshoot_velocity", self.overshoot_velocity),
-                             stacklevel=5)
+            warn_implausible("overshoot_velocity",
+                             check_positive("overshoot_velocity", self.overshoot_velocity))
         else:
             check_non_negative("overshoot_velocity", self.overshoot_velocity)
         if self.reference_velocity is not None:
-            warn_implausible("vls", check_positive("reference_velocity", self.reference_velocity),
-                             stacklevel=5)
+            warn_implausible("reference_velocity",
+                             check_positive("reference_velocity", self.reference_velocity))
 
     @property
     def history(self) -> "LoadHistory":
@@ -138,7 +141,7 @@ class ConstantLoading:
     vl: float
 
     def __post_init__(self) -> None:
-        warn_implausible("vl", check_positive("vl", self.vl), stacklevel=4)
+        warn_implausible("vl", check_positive("vl", self.vl))
 
     @property
     def history(self) -> LoadHistory:
@@ -174,9 +177,9 @@ class TwoSpeedLoading:
     df: float
 
     def __post_init__(self) -> None:
-        warn_implausible("vls", check_positive("vls", self.vls), stacklevel=4)
-        warn_implausible("vlf", check_positive("vlf", self.vlf), stacklevel=4)
-        check_non_negative("df", self.df)
+        warn_implausible("vls", check_positive("vls", self.vls))
+        warn_implausible("vlf", check_positive("vlf", self.vlf))
+        warn_implausible("df", check_non_negative("df", self.df))
 
     @property
     def history(self) -> LoadHistory:

@@ -27,8 +27,8 @@ from typing import NamedTuple, Union
 
 import numpy as np
 
-from problems._validate import check_finite, check_positive
-from problems._validate import check_non_negative
+from problems._validate import (PLAUSIBLE, check_finite, check_non_negative, check_positive,
+                                check_possible, warn_implausible, warn_unit)
 from problems.formulations import form_vector, ode_rhs, psi_rate, s_of_psi, to_ode_state
 from problems.friction import AgingLaw, FrictionLaw, compiled_law_code
 from problems.loading import LOADINGS, ConstantLoading, LoadHistory, TwoSpeedLoading, history_vector
@@ -54,7 +54,8 @@ class InitialState:
     def __post_init__(self) -> None:
         check_finite("initial theta", self.theta)
         check_finite("initial fs", self.fs)
-        check_positive("initial slip rate v", self.v)
+        warn_implausible("initial v", check_positive("initial slip rate v", self.v),
+                         kind="slip_rate")
 
 
 def steady_initial_state(law: FrictionLaw, fn: float, mu0: float, v_ss: float,
@@ -96,6 +97,32 @@ class BalancedStart:
         v = _initial_velocity(loading)
         return balanced_initial_state(law, fn, mu0, v, law.steady_state(v / self.slowdown, fn),
                                       damping)
+
+
+def _warn_implausible_start(law: FrictionLaw, fn: float, ini: InitialState) -> None:
+    """Warn if an explicit initial state is implausible in its units: θ the state of steady
+    sliding at a slip rate outside the plausible range (θ = Lc/v in s for the aging and Nagata
+    laws, −b Fn ln(v/v0) in N for the slip law), or a spring force outside 0.001 to 10 times
+    the normal force (a friction coefficient typed for a force, or a force in kN)."""
+    p = PLAUSIBLE["slip_rate"]
+    if isinstance(law, AgingLaw):
+        ln_v, form, unit = math.log(law.lc / ini.theta), "Lc/θ", "s (Lc/v at steady sliding)"
+    elif law.b > 0:
+        ln_v = math.log(law.v0) - ini.theta / (law.b * fn)
+        form, unit = "v0 exp(−θ/(b Fn))", "N (−b Fn ln(v/v0) at steady sliding)"
+    else:
+        ln_v = math.log(p.low)                        # b = 0: θ = 0, checked by the law
+    if not math.log(p.low) <= ln_v < math.log(p.high):
+        v = f"{math.exp(ln_v):.3g}" if abs(ln_v) < 700 else f"exp({ln_v:.4g})"
+        warn_unit(f"initial theta = {ini.theta:g} is the {law.name} law's state of steady "
+                  f"sliding at {form} = {v} m/s, implausible (plausible: {p.low:g} to below "
+                  f"{p.high:g} m/s): θ is in {unit}", stacklevel=1)
+    ratio = abs(ini.fs) / fn
+    if ini.fs != 0 and not 1e-3 <= ratio < 10.0:
+        warn_unit(f"initial fs = {ini.fs:g} N is {ratio:.3g} × normal_force = {fn:g} N, "
+                  f"implausible (plausible: 0.001 to below 10 times it): fs is the spring "
+                  f"force in newtons (μ Fn: 0.6 × {fn:g} N is {0.6 * fn:g} N), not a friction "
+                  "coefficient", stacklevel=1)
 
 
 def _initial_velocity(loading) -> float:
@@ -170,12 +197,11 @@ class SpringSlider:
     radiation_damping: float = 0.0
 
     def __post_init__(self) -> None:
-        check_non_negative("mass", self.mass)
-        check_non_negative("radiation_damping", self.radiation_damping)
-        check_positive("stiffness", self.stiffness)
-        check_positive("normal_force", self.normal_force)
-        check_positive("t_end", self.t_end)
-        check_finite("mu0", self.mu0)
+        # refused if impossible, warned if implausible in its unit (problems._validate)
+        for name, check in (("mass", check_non_negative), ("radiation_damping", check_non_negative),
+                            ("stiffness", check_positive), ("normal_force", check_positive),
+                            ("t_end", check_positive), ("mu0", check_non_negative)):
+            check_possible(name, check(name, getattr(self, name)))
         if not isinstance(self.name, str):
             raise ValueError(f"name must be a string, got {self.name!r}")
         if not isinstance(self.law, FrictionLaw):
@@ -192,6 +218,9 @@ class SpringSlider:
         if isinstance(self.law, AgingLaw) and ini.theta <= 0:
             raise ValueError(f"initial theta must be positive for the {self.law.name} law, got "
                              f"{ini.theta!r}")
+        self.law.psi(ini.theta, self.normal_force)     # the slip law with b = 0 needs θ = 0
+        if isinstance(self.initial, InitialState):
+            _warn_implausible_start(self.law, self.normal_force, ini)
         if self.mass == 0:
             balance = float(self.friction(ini.v, ini.theta)) + self.radiation_damping * ini.v
             # rounding of Fs only: a larger offset would be kept by the ODE form (K h − η is
