@@ -29,8 +29,9 @@ The same keys as JSON objects (a key given twice is refused, as TOML does). Ever
 checked: an unknown or missing one, a value that is not a number, an overshoot's velocity
 without its duration (or the reverse), or a value the problem refuses is a ``ValueError`` naming
 the file and the key, in one line. A value implausible in its unit (a normal force in MPa, a
-speed in µm/s) is read with a :class:`~problems._validate.UnitWarning` naming the file, the key,
-the value and the unit expected.
+speed in µm/s) is read with a :class:`~problems._validate.UnitWarning` naming the key, the value
+and the unit expected: the problem's own, word for word, so that a command shows it once however
+often the problem is varied afterwards.
 """
 
 from __future__ import annotations
@@ -38,7 +39,6 @@ from __future__ import annotations
 import json
 import math
 import tomllib
-import warnings
 from pathlib import Path
 
 from problems.friction import law_from_name
@@ -55,8 +55,7 @@ _REQUIRED = ("mass", "stiffness", "normal_force", "t_end", "law", "loading")
 
 
 def load_problem(path) -> SpringSlider:
-    """The :class:`SpringSlider` a TOML or JSON file describes (module docstring). A unit
-    warning (:class:`~problems._validate.UnitWarning`) names the file too."""
+    """The :class:`SpringSlider` a TOML or JSON file describes (module docstring)."""
     path = Path(path)
     if path.suffix.lower() not in PROBLEM_SUFFIXES:
         raise ValueError(f"problem file {path} must end in .toml or .json")
@@ -74,15 +73,10 @@ def load_problem(path) -> SpringSlider:
     except RecursionError:
         raise ValueError(f"problem file {path} is not valid {path.suffix[1:].upper()}: it nests "
                          "deeper than any problem does") from None
-    with warnings.catch_warnings(record=True) as seen:
-        warnings.simplefilter("always")
-        try:
-            problem = problem_from_dict(data, default_name=path.stem)
-        except ValueError as exc:
-            raise ValueError(f"problem file {path}: {exc}") from None
-    for w in seen:           # said again with the file's name, from here (shown once a message)
-        warnings.warn(f"problem file {path}: {w.message}", w.category, stacklevel=1)
-    return problem
+    try:
+        return problem_from_dict(data, default_name=path.stem)
+    except ValueError as exc:
+        raise ValueError(f"problem file {path}: {exc}") from None
 
 
 def _unique_keys(pairs) -> dict:

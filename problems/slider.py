@@ -28,7 +28,8 @@ from typing import NamedTuple, Union
 import numpy as np
 
 from problems._validate import (PLAUSIBLE, check_finite, check_non_negative, check_positive,
-                                check_possible, warn_implausible, warn_unit)
+                                check_possible, units_checked_already, warn_implausible,
+                                warn_unit)
 from problems.formulations import form_vector, ode_rhs, psi_rate, s_of_psi, to_ode_state
 from problems.friction import AgingLaw, FrictionLaw, compiled_law_code
 from problems.loading import LOADINGS, ConstantLoading, LoadHistory, TwoSpeedLoading, history_vector
@@ -388,7 +389,8 @@ def variant_fields(problem: SpringSlider) -> tuple[str, ...]:
 def variant(problem: SpringSlider, **changes: float) -> SpringSlider:
     """``problem`` with scalar fields replaced by name (:func:`variant_fields`), validated as any
     problem is: ``variant(p, b=0.0094, lc=3e-7, stiffness=1.2e8)``. ValueError names an unknown
-    field and the ones there are."""
+    field and the ones there are. A :class:`~problems._validate.UnitWarning` is given for the
+    changed values only (the base problem warned for its own when it was made)."""
     known = variant_fields(problem)
     unknown = [k for k in changes if k not in known]
     if unknown:
@@ -401,7 +403,18 @@ def variant(problem: SpringSlider, **changes: float) -> SpringSlider:
                 else "loading" if name in loading else "initial")
         parts[part][name.removeprefix("initial_")] = value
     top = dict(parts["problem"])
-    for part in ("law", "loading", "initial"):
-        if parts[part]:
-            top[part] = dataclasses.replace(getattr(problem, part), **parts[part])
-    return dataclasses.replace(problem, **top)
+    # a unit warning for what changes only: the base problem warned for its own values when it
+    # was made (a value refused is refused all the same)
+    with units_checked_already():
+        for part in ("law", "loading", "initial"):
+            if parts[part]:
+                top[part] = dataclasses.replace(getattr(problem, part), **parts[part])
+        out = dataclasses.replace(problem, **top)
+    for name, value in changes.items():
+        kind = "slip_rate" if name == "initial_v" else name
+        if kind in PLAUSIBLE:
+            warn_implausible(name, value, kind=kind)
+    if isinstance(out.initial, InitialState) and set(changes) & {
+            "initial_theta", "initial_fs", "normal_force", "b", "lc", "v0"}:
+        _warn_implausible_start(out.law, out.normal_force, out.initial_state)
+    return out
