@@ -1,26 +1,50 @@
 """What a laboratory user measures on a velocity step or a slide-hold-slide test, from a Solution.
 
-* :func:`healing`: for each hold of the load-point history, the peak friction on reloading (the
-  spring force, what the apparatus measures, over Fn) minus the friction at the last saved point
-  before the hold,
-  against the hold time: the healing Δμ_peak and its rate per decade of hold time;
-* :func:`step_response`: for each velocity step, the peak excursion after it and the change of
-  steady friction at the end of the piece (the analytic (a − b) ln(v2/v1) when it has settled).
+* :func:`step_response`: for each velocity step, the first extreme after it (the peak of a step
+  up, the trough of a step down), its time, and the change of steady friction, against the
+  analytic (a − b) ln(v2/v1) + ηr (v2 − v1)/Fn;
+* :func:`healing`: for each hold, the peak on reloading minus the friction when the hold began,
+  against the hold time: the healing Δμ_peak and (:func:`healing_rate`) its rate per decade.
 
-Peaks are read off the saved trajectory and refined by the parabola through the largest sample
-and its neighbours: save finely (``save_every``) across the reloads. The saved grid never changes
-the steps a method takes, so this costs output, not accuracy.
+**What is measured** is μ = Fs/Fn, the spring force over the normal force: what the load cell of
+an apparatus reads. With mass the friction Ft differs from Fs by m dv/dt (and by ηr v with
+radiation damping); a laboratory does not see Ft, and nothing here reports it.
+
+**Where an extreme is.** dFs/dt = k (vL − v), so within a piece of constant vL an extreme of Fs
+is exactly where v crosses vL: a peak where v rises through it, a trough where v falls. The
+measure is the first such crossing after the switch, located with the run's own method, never
+on its saved samples: from the state at the switch, the piece is re-solved over windows that
+start at the response's shortest time scale (Lc/v, a Fn/(k v), √(m/k), ηr/k at the faster of v
+at the switch and vL) and double, :data:`SAMPLES` samples each, until v crosses vL; the bracket
+is re-solved the same way until it is :data:`REFINE` of the time since the switch, and the
+crossing time and Fs are interpolated across it (Fs by the cubic whose end slopes are
+k (vL − v)). A state at a switch comes from the last saved state at or before it, carried there
+by a re-solve. Every re-solve is the run's algorithm with its options, from the run's own state:
+a measure carries the method's error, and none of the save grid's.
+
+**Settled.** A measure that reads a steady value reads it at the end of a piece, and that piece
+is checked: it has settled when there max(|μ − μss(vL)|, a |ln(v/vL)|) ≤ :data:`SETTLED` × the
+measure's scale (a |ln(v2/v1)| for a step, a for a hold), μss = (Ft,ss(vL) + ηr vL)/Fn. A step's
+``delta_mu_ss`` is NaN unless both the piece before it (its end is the baseline) and the piece
+after it (its end is the new steady value) have settled. A hold's ``delta_mu_peak`` is defined
+against μ when the hold began, steady or not, and ``settled_before`` says whether it was. Either
+way an :class:`UnsettledWarning` names a piece that has not settled.
+
+Histories with an overshoot (two-speed loading) are refused: there vL changes after each event,
+not at known times.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
+import warnings
 
 import numpy as np
 import pandas as pd
 
 __all__ = ["healing", "healing_rate", "step_response", "HEALING_COLUMNS", "STEP_COLUMNS",
-           "PeakNotReached",
+           "PeakNotReached", "ResolveFailed", "UnsettledWarning", "SAMPLES", "REFINE", "SETTLED",
            "MARONE_VELOCITY_STEP", "MARONE_SLIDE_HOLD_SLIDE", "marone_problem", "marone_check"]
 
 # μ(t) of Chris Marone's rate-and-state code, as distributed with rsfmodel (J. R. Leeman et al.,
@@ -74,107 +98,293 @@ def marone_check(names=("Rodas5P", "sundials-CVODE-BDF", "sundials-IDA"),
                                                           else math.nan)})
     return pd.DataFrame(rows)
 
+#: samples per re-solve while a crossing is searched for and refined
+SAMPLES = 64
+#: a crossing's bracket is refined to this fraction of the time since its switch
+REFINE = 1e-10
+#: a piece has settled when it is this close to steady sliding, as a fraction of the scale
+SETTLED = 1e-3
+
 HEALING_COLUMNS = ("hold_s", "t_hold_start_s", "mu_before", "t_peak_s", "mu_peak",
-                   "delta_mu_peak")
+                   "delta_mu_peak", "settled_before")
 STEP_COLUMNS = ("t_step_s", "v_before", "v_after", "mu_before", "mu_extreme", "t_extreme_s",
-                "mu_end", "delta_mu_end", "expected_delta_mu_ss", "settled")
-
-
-def _checked(solution):
-    if not solution.success:
-        raise ValueError(f"the run did not reach its end ({solution.retcode.value}: "
-                         f"{solution.message}): no laboratory measure is read off a failed run")
-    return solution.problem.loading.history
+                "mu_end", "delta_mu_end", "expected_delta_mu_ss", "delta_mu_ss",
+                "settled_before", "settled_after", "settled")
 
 
 class PeakNotReached(ValueError):
-    """The extreme of a piece is at its end: the piece is too short to show it."""
+    """The extreme after a switch cannot be located in its piece. ``too_short``: the piece ends
+    before it (a longer piece would show it); otherwise Fs turns the wrong way at the switch."""
+
+    def __init__(self, message: str, too_short: bool = True):
+        super().__init__(message)
+        self.too_short = too_short
 
 
-def _extreme(t, y, sign: float, what: str):
-    """(t, y) of the largest sign·y, refined by a parabola through it and its neighbours when
-    the samples are evenly spaced. :class:`PeakNotReached` if it is the first or last sample
-    (the peak lies outside the window: ``what`` says which)."""
-    if len(y) < 3:
-        raise ValueError(f"too few saved points ({len(y)}) in {what} to find its peak: save "
-                         "more often (solve's save_every)")
-    i = int(np.argmax(sign * y))
-    if i == 0 or i == len(y) - 1:
-        raise PeakNotReached(f"the {'peak' if sign > 0 else 'trough'} of {what} is at its "
-                             f"{'start' if i == 0 else 'end'} (t = {t[i]:.6g} s): it was not "
-                             "reached inside the piece; make the piece longer")
-    y0, y1, y2 = y[i - 1], y[i], y[i + 1]
-    curv = y0 + y2 - 2.0 * y1
-    even = abs((t[i + 1] - t[i]) - (t[i] - t[i - 1])) <= 1e-6 * (t[i + 1] - t[i - 1])
-    if curv != 0.0 and even:
-        x = 0.5 * (y0 - y2) / curv
-        if abs(x) <= 1.0:
-            return t[i] + x * (t[i] - t[i - 1]), y1 - 0.25 * (y0 - y2) * x
-    return float(t[i]), float(y1)
+class ResolveFailed(PeakNotReached):
+    """A re-solve that locates a measure failed (its retcode is in the message). A
+    :class:`PeakNotReached`, so that a study which skips an unlocated peak skips this one too."""
+
+    def __init__(self, message: str):
+        super().__init__(message, too_short=False)
 
 
-def _at_or_before(t, y, when: float) -> float:
-    """y at the last saved time ≤ ``when``: the value before a switch (after it, the trajectory
-    bends, and an interpolation across the switch would mix the two)."""
-    return float(y[max(int(np.searchsorted(t, when, side="right")) - 1, 0)])
+class UnsettledWarning(UserWarning):
+    """A piece whose end a measure reads as steady sliding had not settled."""
+
+
+@dataclasses.dataclass(frozen=True)
+class _State:
+    t: float
+    v: float
+    fs: float
+    theta: float
+
+
+def _checked(solution):
+    from integrators.core.solution import Solution
+    if not isinstance(solution, Solution):
+        raise ValueError(f"solution must be a Solution (integrators.solve), got "
+                         f"{type(solution).__name__}")
+    if not solution.reached_end:
+        raise ValueError(f"the run did not reach its end ({solution.retcode.value}: "
+                         f"{solution.message}): no laboratory measure is read off a failed run")
+    hist = solution.problem.loading.history
+    if hist.two_speed:
+        raise ValueError("loading has an overshoot (two-speed loading): the load point's "
+                         "velocity changes after each event, not at known times, and no "
+                         "laboratory measure is defined on it")
+    return hist
+
+
+def _edges(solution) -> tuple[float, ...]:
+    hist = solution.problem.loading.history
+    return (0.0,) + hist.switch_times + (solution.problem.t_end,)
+
+
+# --- re-solves from the run's own states ------------------------------------------------------
+def _sub_problem(problem, start: _State, t1: float):
+    """The problem from ``start`` to ``t1``: the history's pieces in between, shifted to t = 0."""
+    from problems import InitialState, LoadHistory, balanced_initial_state
+    from problems._validate import units_checked_already
+    hist = problem.loading.history
+    sw = np.asarray(hist.switch_times, dtype=float)
+    i0 = int(np.searchsorted(sw, start.t, side="right"))
+    i1 = int(np.searchsorted(sw, t1, side="left"))
+    span = t1 - start.t
+    times = [float(s - start.t) for s in hist.switch_times[i0:i1]]
+    vel = list(hist.velocities[i0:i1 + 1])
+    while times and times[-1] >= span:          # a switch that rounds onto the end is the end
+        times.pop()
+        vel.pop()
+    with units_checked_already():               # the run's problem has warned once already
+        if problem.quasi_static:                # Fs is tied to (v, θ): rebuilt, not carried
+            initial = balanced_initial_state(problem.law, problem.normal_force, problem.mu0,
+                                             start.v, start.theta, problem.radiation_damping)
+        else:
+            initial = InitialState(v=start.v, theta=start.theta, fs=start.fs)
+        loading = LoadHistory(tuple(vel), tuple(times), reference_velocity=hist.v_slow)
+        return dataclasses.replace(problem, loading=loading, initial=initial, t_end=span)
+
+
+def _resolve(solution, start: _State, t1: float, points: int, what: str) -> list[_State]:
+    """The run's algorithm from ``start`` to ``t1``, ``points`` samples (times of the run)."""
+    from integrators import solve
+    run = solve(_sub_problem(solution.problem, start, t1), solution.algorithm,
+                max_points=points)
+    if not run.reached_end:
+        raise ResolveFailed(f"re-solving {start.t:.9g}–{t1:.9g} s with {solution.algorithm.name} "
+                            f"to locate {what} failed ({run.retcode.value}: {run.message})")
+    return [_State(start.t + t, v, fs, th)
+            for t, v, fs, th in zip(run.t, run.v, run.fs, run.theta)]
+
+
+def _state_at(solution, t: float, what: str) -> _State:
+    """The state at ``t``: a saved one within 4 ulps, else the last saved one before it carried
+    to ``t`` by a re-solve. Inside a hold (no sliding piece to end a sub-problem on) the re-solve
+    runs as far again into the next piece and ``t`` is its middle sample."""
+    ts = solution.t
+    i = int(np.searchsorted(ts, t, side="right")) - 1
+    for j in (i, i + 1):
+        if 0 <= j < len(ts) and abs(ts[j] - t) <= 4 * np.spacing(t):
+            return _State(float(ts[j]), float(solution.v[j]), float(solution.fs[j]),
+                          float(solution.theta[j]))
+    start = _State(float(ts[i]), float(solution.v[i]), float(solution.fs[i]),
+                   float(solution.theta[i]))
+    if _pieces_slide(solution.problem.loading.history, start.t, t):
+        return _resolve(solution, start, t, 2, what)[-1]
+    middle = _resolve(solution, start, t + (t - start.t), 3, what)[1]
+    if abs(middle.t - t) > 4 * np.spacing(t):
+        raise ResolveFailed(f"{what}: {solution.algorithm.name} saved no state at t = {t:.9g} s "
+                            f"(its middle sample is at {middle.t:.9g} s)")
+    return middle
+
+
+def _pieces_slide(hist, t0: float, t1: float) -> bool:
+    """Does any piece between t0 and t1 slide?"""
+    sw = np.asarray(hist.switch_times, dtype=float)
+    i0, i1 = np.searchsorted(sw, t0, side="right"), np.searchsorted(sw, t1, side="left")
+    return any(v > 0 for v in hist.velocities[i0:i1 + 1])
+
+
+def _time_scale(problem, v: float) -> float:
+    """The shortest time over which the response at slip rate ~``v`` changes: slipping one Lc,
+    the direct effect's relaxation a Fn/(k v), the inertial √(m/k), the damping's ηr/k."""
+    scales = [problem.law.lc / v, problem.law.a * problem.normal_force / (problem.stiffness * v)]
+    if problem.mass > 0:
+        scales.append(math.sqrt(problem.mass / problem.stiffness))
+    if problem.radiation_damping > 0:
+        scales.append(problem.radiation_damping / problem.stiffness)
+    return min(scales)
+
+
+def _crossing(states: list[_State], vl: float, sign: float) -> int | None:
+    """The first index j ≥ 1 where sign·ln(v/vL) is ≥ 0 (it is < 0 at index 0), or None."""
+    f = sign * np.log(np.array([s.v for s in states]) / vl)
+    hits = np.flatnonzero(f[1:] >= 0.0)
+    return int(hits[0]) + 1 if len(hits) else None
+
+
+def _first_extreme(solution, start: _State, t_stop: float, vl: float, sign: float,
+                   what: str) -> tuple[float, float]:
+    """(t, Fs) at the first crossing of v through ``vl`` after the switch at ``start`` (upward,
+    a peak of Fs, for ``sign`` +1; downward, a trough, for −1), before ``t_stop``."""
+    kind = "peak" if sign > 0 else "trough"
+    if sign * math.log(start.v / vl) >= 0.0:
+        raise PeakNotReached(
+            f"no {kind} in {what}: at its start the slip rate ({start.v:.6g} m/s) is already "
+            f"{'above' if sign > 0 else 'below'} the load point's {vl:.6g} m/s, so the spring "
+            f"force {'falls' if sign > 0 else 'rises'} from there (the piece before has not "
+            "settled)", too_short=False)
+    a, length = start, _time_scale(solution.problem, max(start.v, vl))
+    while a.t < t_stop:
+        t_b = min(a.t + length, t_stop)
+        states = _resolve(solution, a, t_b, SAMPLES + 1, f"the {kind} of {what}")
+        j = _crossing(states, vl, sign)
+        if j is not None:
+            return _refine(solution, states[j - 1], states[j], start.t, t_stop, vl, sign,
+                           f"the {kind} of {what}")
+        a, length = dataclasses.replace(states[-1], t=t_b), 2.0 * length
+    raise PeakNotReached(f"the {kind} of {what} was not reached inside the piece (it ends at "
+                         f"t = {t_stop:.9g} s)")
+
+
+def _refine(solution, a: _State, b: _State, t_switch: float, t_stop: float, vl: float,
+            sign: float, what: str) -> tuple[float, float]:
+    """Shrink the bracket [a, b] of a crossing (module docstring), then interpolate. Each
+    re-solve runs over twice the bracket, so a crossing that moves by the method's error at
+    the bracket's end is still inside."""
+    for _ in range(64):
+        if b.t - a.t <= max(REFINE * (b.t - t_switch), 4 * np.spacing(b.t)):
+            break
+        states = _resolve(solution, a, min(a.t + 2.0 * (b.t - a.t), t_stop), SAMPLES + 1, what)
+        j = _crossing(states, vl, sign)
+        if j is None:
+            if states[-1].t < t_stop:
+                raise ResolveFailed(f"{what}: the crossing of v through {vl:.6g} m/s bracketed "
+                                    f"in {a.t:.12g}–{b.t:.12g} s is not there on a re-solve")
+            raise PeakNotReached(f"{what} is at the end of its piece (t = {t_stop:.6g} s)")
+        a, b = states[j - 1], states[j]
+    fa, fb = sign * math.log(a.v / vl), sign * math.log(b.v / vl)
+    x = fa / (fa - fb)
+    k, h = solution.problem.stiffness, b.t - a.t
+    da, db = k * (vl - a.v) * h, k * (vl - b.v) * h      # dFs/dx at the ends, x = (t − ta)/h
+    fs = ((2 * x**3 - 3 * x**2 + 1) * a.fs + (x**3 - 2 * x**2 + x) * da
+          + (-2 * x**3 + 3 * x**2) * b.fs + (x**3 - x**2) * db)
+    return a.t + x * h, float(fs)
+
+
+# --- settling -----------------------------------------------------------------------------------
+def _steady_mu(problem, vl: float) -> float:
+    return float(problem.law.steady_friction(vl, problem.normal_force, problem.f0)
+                 + problem.radiation_damping * vl) / problem.normal_force
+
+
+def _settled(problem, state: _State, vl: float, scale: float, piece: str) -> bool:
+    """Is ``state`` (a piece's end) steady sliding at ``vl``, to :data:`SETTLED` × ``scale`` in
+    μ? If not, an :class:`UnsettledWarning` names ``piece`` and how far off it is."""
+    off = max(abs(state.fs / problem.normal_force - _steady_mu(problem, vl)),
+              problem.law.a * abs(math.log(state.v / vl)))
+    if off <= SETTLED * scale:
+        return True
+    warnings.warn(f"{piece} has not settled at its end (t = {state.t:.6g} s): μ is {off:.3g} "
+                  f"from steady sliding at {vl:.6g} m/s, more than {SETTLED:g} × {scale:.3g} "
+                  "(lengthen the piece)", UnsettledWarning, stacklevel=3)
+    return False
+
+
+# --- the measures -------------------------------------------------------------------------------
+def step_response(solution) -> pd.DataFrame:
+    """One row per switch between two sliding pieces at different speeds (:data:`STEP_COLUMNS`):
+    μ at the step, the first extreme of μ after it and its time (module docstring), μ at the end
+    of the piece after it, ``delta_mu_end`` = μ_end − μ_before, the steady-state change it
+    should settle to, and ``delta_mu_ss`` (= ``delta_mu_end`` when the pieces before and after
+    the step have settled, else NaN). :class:`PeakNotReached` if a piece ends before its
+    extreme; ValueError for a failed run."""
+    hist = _checked(solution)
+    p, edges = solution.problem, _edges(solution)
+    rows = []
+    for i, ts in enumerate(hist.switch_times):
+        v1, v2 = hist.velocities[i], hist.velocities[i + 1]
+        if v1 == 0.0 or v2 == 0.0 or v1 == v2:
+            continue
+        what = f"the piece after the step at {ts:g} s"
+        before = _state_at(solution, ts, f"the state at the step at {ts:g} s")
+        t_ext, fs_ext = _first_extreme(solution, before, edges[i + 2], v2,
+                                       1.0 if v2 > v1 else -1.0, what)
+        end = _state_at(solution, edges[i + 2], f"the end of {what}")
+        scale = p.law.a * abs(math.log(v2 / v1))
+        settled_before = _settled(p, before, v1, scale, f"the piece before the step at {ts:g} s")
+        settled_after = _settled(p, end, v2, scale, what)
+        mu_before, mu_end = before.fs / p.normal_force, end.fs / p.normal_force
+        rows.append({"t_step_s": ts, "v_before": v1, "v_after": v2, "mu_before": mu_before,
+                     "mu_extreme": fs_ext / p.normal_force, "t_extreme_s": t_ext,
+                     "mu_end": mu_end, "delta_mu_end": mu_end - mu_before,
+                     "expected_delta_mu_ss": _steady_mu(p, v2) - _steady_mu(p, v1),
+                     "delta_mu_ss": (mu_end - mu_before if settled_before and settled_after
+                                     else math.nan),
+                     "settled_before": settled_before, "settled_after": settled_after,
+                     "settled": settled_before and settled_after})
+    return pd.DataFrame(rows, columns=list(STEP_COLUMNS))
 
 
 def healing(solution) -> pd.DataFrame:
-    """One row per hold followed by sliding (:data:`HEALING_COLUMNS`): its duration, the
-    friction μ = Fs/Fn at the last saved point before it, and the peak of μ in the slide after it
-    (before the next switch), located as in the module docstring; ``delta_mu_peak`` =
-    μ_peak − μ_before. A hold that ends the run has no reloading and no row;
-    :class:`PeakNotReached` if a slide ends before its peak."""
+    """One row per hold followed by sliding (:data:`HEALING_COLUMNS`): its duration, μ when it
+    began, the peak of μ on reloading (the first, module docstring) and its time, and
+    ``delta_mu_peak`` = μ_peak − μ_before, and ``settled_before``: had the slide before the hold
+    settled at its speed (a hold that opens the run is judged against the speed after it)? A
+    hold that ends the run has no reloading and no row; consecutive holds are one hold.
+    :class:`PeakNotReached` if a slide ends before its peak; ValueError for a failed run."""
     hist = _checked(solution)
-    t, mu = solution.t, solution.fs / solution.problem.normal_force
-    edges = (0.0,) + hist.switch_times + (math.inf,)
+    p, edges, vel = solution.problem, _edges(solution), hist.velocities
     rows = []
-    for i, v in enumerate(hist.velocities):
-        if v != 0.0 or i + 1 >= len(hist.velocities):
+    for i, v in enumerate(vel):
+        if v != 0.0 or (i > 0 and vel[i - 1] == 0.0):
             continue
-        start, end = edges[i], edges[i + 1]
-        reload_end = min(edges[i + 2], solution.t[-1])
-        before = _at_or_before(t, mu, start)
-        inside = (t >= end) & (t <= reload_end)
-        tp, mp = _extreme(t[inside], mu[inside], 1.0,
-                          f"the slide after the hold ending at {end:g} s")
-        rows.append({"hold_s": end - start, "t_hold_start_s": start, "mu_before": before,
-                     "t_peak_s": tp, "mu_peak": mp, "delta_mu_peak": mp - before})
+        j = i
+        while j + 1 < len(vel) and vel[j + 1] == 0.0:
+            j += 1
+        if j + 1 >= len(vel):
+            continue
+        start, end, vr = edges[i], edges[j + 1], vel[j + 1]
+        what = f"the slide after the hold ending at {end:g} s"
+        before = _state_at(solution, start, f"the state at the hold starting at {start:g} s")
+        reload = _state_at(solution, end, f"the state at the hold's end at {end:g} s")
+        t_peak, fs_peak = _first_extreme(solution, reload, edges[j + 2], vr, 1.0, what)
+        v_slid = vel[i - 1] if i > 0 else vr
+        settled = _settled(p, before, v_slid, p.law.a,
+                           f"the slide before the hold starting at {start:g} s")
+        mu_before, mu_peak = before.fs / p.normal_force, fs_peak / p.normal_force
+        rows.append({"hold_s": end - start, "t_hold_start_s": start, "mu_before": mu_before,
+                     "t_peak_s": t_peak, "mu_peak": mu_peak,
+                     "delta_mu_peak": mu_peak - mu_before,
+                     "settled_before": settled})
     return pd.DataFrame(rows, columns=list(HEALING_COLUMNS))
 
 
 def healing_rate(table: pd.DataFrame) -> float:
-    """The least-squares slope of Δμ_peak against log10(hold time): healing per decade."""
-    if len(table) < 2:
+    """The least-squares slope of Δμ_peak against log10(hold time): healing per decade. NaN
+    with fewer than two different hold times."""
+    if table.hold_s.nunique() < 2:
         return math.nan
     return float(np.polyfit(np.log10(table.hold_s), table.delta_mu_peak, 1)[0])
-
-
-def step_response(solution) -> pd.DataFrame:
-    """One row per switch between two sliding pieces (:data:`STEP_COLUMNS`): μ before the step,
-    the extreme of μ after it (the peak of a step up, the trough of a step down), μ at the end
-    of the piece, the steady-state change (a − b) ln(v2/v1) it should settle to, and whether it
-    has: ``settled`` when at the piece's end μ drifts by less than 1e−3 of the direct effect
-    a |ln(v2/v1)| per Lc of further slip (|dμ/dt| Lc/v2). :class:`PeakNotReached` if the piece
-    ends before its extreme."""
-    hist = _checked(solution)
-    p = solution.problem
-    t, mu = solution.t, solution.fs / p.normal_force
-    edges = hist.switch_times + (solution.t[-1],)
-    rows = []
-    for i, ts in enumerate(hist.switch_times):
-        v1, v2 = hist.velocities[i], hist.velocities[i + 1]
-        if v1 == 0.0 or v2 == 0.0:
-            continue
-        inside = (t >= ts) & (t <= edges[i + 1])
-        te, me = _extreme(t[inside], mu[inside], 1.0 if v2 > v1 else -1.0,
-                          f"the piece after the step at {ts:g} s")
-        tw, mw = t[inside], mu[inside]
-        before, end = _at_or_before(t, mu, ts), mw[-1]
-        drift = abs(mw[-1] - mw[-2]) / (tw[-1] - tw[-2]) * p.law.lc / v2
-        rows.append({"t_step_s": ts, "v_before": v1, "v_after": v2, "mu_before": before,
-                     "mu_extreme": me, "t_extreme_s": te, "mu_end": end,
-                     "delta_mu_end": end - before,
-                     "expected_delta_mu_ss": (p.law.a - p.law.b) * math.log(v2 / v1),
-                     "settled": bool(drift < 1e-3 * p.law.a * abs(math.log(v2 / v1)))})
-    return pd.DataFrame(rows, columns=list(STEP_COLUMNS))
