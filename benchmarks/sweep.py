@@ -39,7 +39,8 @@ from benchmarks.report import jsonable
 from benchmarks.sweep_exec import CONNECT_TIMEOUT_S, WORKER_TIMEOUT_S
 from problems import SpringSlider
 from problems._validate import (check_count, check_positive, check_possible,
-                                units_checked_already, warn_implausible, warn_unit)
+                                implausible_message, units_checked_already, warn_implausible,
+                                warn_unit)
 
 __all__ = ["parse_b", "parse_lc", "check_grid", "Observations", "observations", "ASSUMED_SIGMA",
            "sweep", "SweepResult", "score", "summarize_sweep", "MAX_GRID_POINTS"]
@@ -156,8 +157,10 @@ class Observations:
             m = check_possible(mean, check_positive(mean, getattr(self, mean)))
             s = check_possible(sigma, check_positive(sigma, getattr(self, sigma)))
             # σ beyond 3 means (every point would fit) or below 0.1 % of it (none would) is
-            # a σ in another unit than its mean's: ms, percent
-            if not 1e-3 <= s / m < 3.0:
+            # a σ in another unit than its mean's: ms, percent (said once: not again when σ or
+            # the mean was warned for already)
+            plausible = all(implausible_message(k, v) is None for k, v in ((mean, m), (sigma, s)))
+            if plausible and not 1e-3 <= s / m < 3.0:
                 unit = "seconds" if mean == "recurrence_s" else "a fraction, not a percentage"
                 warn_unit(f"{sigma} = {s:g} is {s / m:.3g} × {mean} = {m:g}: implausible for "
                           "a standard deviation (plausible: 0.001 to below 3 times the mean); "

@@ -48,6 +48,8 @@ from problems.slider import BalancedStart, InitialState, SpringSlider
 __all__ = ["load_problem", "problem_dict", "PROBLEM_SUFFIXES"]
 
 PROBLEM_SUFFIXES = (".toml", ".json")
+#: a problem file is a few hundred bytes; a history of 10⁴ pieces is ~300 kB
+MAX_FILE_BYTES = 10_000_000
 _TOP = {"mass", "stiffness", "normal_force", "t_end", "mu0", "name", "law", "loading", "initial",
         "radiation_damping"}
 _HISTORY_SCALARS = ("overshoot_velocity", "overshoot_duration", "reference_velocity")
@@ -60,6 +62,12 @@ def load_problem(path) -> SpringSlider:
     if path.suffix.lower() not in PROBLEM_SUFFIXES:
         raise ValueError(f"problem file {path} must end in .toml or .json")
     try:
+        # a regular file only: reading a FIFO waits for a writer, a device never ends
+        if path.exists() and not path.is_file():
+            raise ValueError(f"the problem file {path} is not a regular file")
+        if path.exists() and path.stat().st_size > MAX_FILE_BYTES:
+            raise ValueError(f"the problem file {path} holds {path.stat().st_size} bytes, more "
+                             f"than any problem file ({MAX_FILE_BYTES} bytes)")
         raw = path.read_bytes()
     except OSError as exc:
         raise ValueError(f"cannot read the problem file {path}: {exc.strerror}") from None
@@ -128,6 +136,10 @@ def problem_from_dict(data, default_name: str = "") -> SpringSlider:
         _keys(loading, {"vls", "vlf", "df"}, ("vls", "vlf", "df"), "[loading] (or vl alone)")
         loading = TwoSpeedLoading(**{k: _number(loading, k, "[loading]") for k in loading})
     initial = _table(table.get("initial", {}), "[initial]")
+    _keys(initial, {"slowdown", "v", "theta", "fs"}, (), "[initial]")
+    if "slowdown" in initial and len(initial) > 1:
+        raise ValueError("[initial] is slowdown alone (the presets' rule) or v, theta, fs (an "
+                         f"explicit state), not both: got {', '.join(sorted(initial))}")
     if set(initial) <= {"slowdown"}:
         initial = BalancedStart(**{k: _number(initial, k, "[initial]") for k in initial})
     else:

@@ -26,7 +26,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from problems._validate import check_finite, check_non_negative, check_positive, warn_implausible
+from problems._validate import (check_finite, check_non_negative, check_positive,
+                                units_checked_already, warn_implausible)
 
 __all__ = ["ConstantLoading", "TwoSpeedLoading", "LoadHistory", "velocity_step",
            "slide_hold_slide", "EVENT_START_FACTOR", "event_thresholds", "history_vector",
@@ -145,7 +146,8 @@ class ConstantLoading:
 
     @property
     def history(self) -> LoadHistory:
-        return LoadHistory((self.vl,))
+        with units_checked_already():       # this loading warned for its values already
+            return LoadHistory((self.vl,))
 
     @property
     def v_slow(self) -> float:
@@ -183,9 +185,11 @@ class TwoSpeedLoading:
 
     @property
     def history(self) -> LoadHistory:
-        if not self.two_speed:
-            return LoadHistory((self.vls,))
-        return LoadHistory((self.vls,), overshoot_velocity=self.vlf, overshoot_duration=self.df)
+        with units_checked_already():       # this loading warned for its values already
+            if not self.two_speed:
+                return LoadHistory((self.vls,))
+            return LoadHistory((self.vls,), overshoot_velocity=self.vlf,
+                               overshoot_duration=self.df)
 
     @property
     def v_slow(self) -> float:

@@ -96,8 +96,9 @@ class BalancedStart:
     def resolve(self, law: FrictionLaw, fn: float, mu0: float, loading,
                 damping: float = 0.0) -> InitialState:
         v = _initial_velocity(loading)
-        return balanced_initial_state(law, fn, mu0, v, law.steady_state(v / self.slowdown, fn),
-                                      damping)
+        with units_checked_already():       # v is the loading's, which warned for it already
+            return balanced_initial_state(law, fn, mu0, v,
+                                          law.steady_state(v / self.slowdown, fn), damping)
 
 
 def _warn_implausible_start(law: FrictionLaw, fn: float, ini: InitialState) -> None:
