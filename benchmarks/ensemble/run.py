@@ -31,7 +31,8 @@ from tqdm.auto import tqdm
 from benchmarks.ensemble.points import MAX_POINTS, check_points, point_problems
 from benchmarks.ensemble.rows import batch_rows, compiled, failed_rows, point_rows
 from benchmarks.ensemble.store import ChunkStore, identity_of
-from benchmarks.sweep_exec import CONNECT_TIMEOUT_S, WORKER_TIMEOUT_S, connect, execute
+from benchmarks.sweep_exec import (CONNECT_TIMEOUT_S, WORKER_TIMEOUT_S, RunStopped, connect,
+                                   execute, quiet_distributed)
 from integrators import Algorithm, Output
 from problems._validate import check_count, check_positive
 
@@ -172,37 +173,58 @@ def ensemble(problem, algorithm, params, *, store=None, chunk_size: int | None =
                     threads=workers if own_threads else 1, curve_dt=curve_dt,
                     problems=tuple(problems[i:i + chunk_size]) if own_threads else None)
               for i in range(0, len(values), chunk_size)]
-    client = connect(scheduler, connect_timeout) if scheduler else None   # before any work
     chunk_store = (ChunkStore(store, identity_of(problem, algorithm, names, values, chunk_size,
                                                  wall_budget, curve_dt), reclaim_store)
                    if store is not None else None)
     start = time.perf_counter()
-    try:
-        with chunk_store or contextlib.nullcontext():
-            tables = {c.first: chunk_store.load(c.first, names, c.values) if chunk_store else None
-                      for c in chunks}
-            todo = [c for c in chunks if tables[c.first] is None]
-            n_resumed = len(values) - sum(len(c.values) for c in todo)
-            bar = tqdm(total=len(values), initial=n_resumed, unit="point", disable=not progress,
-                       desc=label or f"ensemble {problem.name or 'problem'}")
+    with contextlib.ExitStack() as stack:
+        client = None
+        if scheduler:                          # before any work; its logs quiet until closed
+            stack.enter_context(quiet_distributed())
+            client = connect(scheduler, connect_timeout)
+            stack.callback(_close, client)
+        if chunk_store is not None:
+            stack.enter_context(chunk_store)
+        tables = {c.first: chunk_store.load(c.first, names, c.values) if chunk_store else None
+                  for c in chunks}
+        if chunk_store is not None:
+            chunk_store.report_strays()
+        todo = [c for c in chunks if tables[c.first] is None]
+        n_resumed = n_kept = len(values) - sum(len(c.values) for c in todo)
+        bar = tqdm(total=len(values), initial=n_resumed, unit="point", disable=not progress,
+                   desc=label or f"ensemble {problem.name or 'problem'}")
+        try:
             with bar:
                 for chunk, table in _solve(todo, own_threads, workers, backend, client,
                                            worker_timeout):
                     if chunk_store is not None and not table.attrs.get("transient"):
                         chunk_store.save(chunk.first, chunk.values, table)
+                        n_kept += len(chunk.values)
                     tables[chunk.first] = table
                     bar.update(len(chunk.values))
-    finally:
-        if client is not None:
-            client.close()
+        except RunStopped as exc:             # the cluster is gone: say what is kept
+            kept = (f"{n_kept} of {len(values)} points are done and kept in {store}: run the "
+                    "same ensemble again to resume it" if chunk_store is not None else
+                    f"the {len(values)} points are lost (an ensemble resumes only with a store)")
+            raise type(exc)(f"{exc}; {kept}") from None
     table = pd.concat([tables[c.first] for c in chunks], ignore_index=True)
     table.attrs = {"n_points": len(values), "n_run": len(values) - n_resumed,
                    "n_resumed": n_resumed, "wall_s": time.perf_counter() - start,
                    "chunks": len(chunks), "chunk_size": chunk_size,
                    "workers": 1 if scheduler else workers, "backend": backend,
                    "scheduler": scheduler, "batched": batch,
-                   "bad_chunks": list(chunk_store.bad) if chunk_store else []}
+                   "bad_chunks": list(chunk_store.bad) if chunk_store else [],
+                   "stray_files": list(chunk_store.strays) if chunk_store else []}
     return table
+
+
+def _close(client) -> None:
+    """Close a Dask client; one whose scheduler is gone may fail to say goodbye, which changes
+    nothing for the run (its outcome is decided already)."""
+    try:
+        client.close()
+    except Exception:
+        pass
 
 
 def _solve(todo, own_threads, workers, backend, client, worker_timeout):
