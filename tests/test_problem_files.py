@@ -93,3 +93,83 @@ def test_cli_simulates_a_problem_file_with_b_replaced(capsys):
                  "--json"]) == 0
     s = json.loads(capsys.readouterr().out)
     assert s["problem"] == "W2, softer spring" and s["b"] == 0.0095 and s["lc_m"] == 3e-7
+
+
+# --- issue 29: files that hung, raised or were silently misread ----------------------------------
+
+BASE = problem_dict(window("W2", "slip", t_end=2.0))
+
+
+def _json(tmp_path, text, name="p.json"):
+    path = tmp_path / name
+    path.write_bytes(text) if isinstance(text, bytes) else path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize("text, match", [
+    (json.dumps(BASE).replace('"mass": 1100.0', '"mass": 1' + "0" * 400),
+     "mass in the file must be a finite number, got an integer of 401 digits"),
+    (json.dumps(BASE).replace('"mass": 1100.0', '"mass": 1100.0, "mass": 1.0'),
+     "the key 'mass' appears twice"),
+    ("[" * 100_000 + "]" * 100_000, "nests deeper than any problem"),
+    (json.dumps([BASE] * 50), r"must be a table of keys, got \[.{0,60}$"),
+    (json.dumps({**BASE, "loading": {"velocity": 1e-4}}), "a history\\); got the keys velocity"),
+    (json.dumps({**BASE, "initial": {"slowdown": 1.1, "v": 1e-4}}), "not both"),
+    (json.dumps({**BASE, "initial": {"slowdown": 1.1, "slowdwn": 1.0}}), "unknown key 'slowdwn'"),
+    (json.dumps({**BASE, "loading": {"velocities": [1e-4, 2e-4], "switch_times": [1.0],
+                                     "overshoot_velocity": 1e-3}}),
+     "overshoot_velocity without overshoot_duration"),
+    (json.dumps({**BASE, "mu0": 60.0}), "mu0 = 60 is impossible"),
+    (json.dumps({**BASE, "law": {**BASE["law"], "b": 0.0}, "initial": {
+        "v": 1e-4, "theta": 1.0, "fs": 6e5}}), "b = 0 needs theta = 0"),
+])
+def test_bad_json_is_refused_in_one_line(text, match, tmp_path):
+    path = _json(tmp_path, text)
+    with pytest.raises(ValueError, match=match) as caught:
+        load_problem(path)
+    assert "\n" not in str(caught.value) and str(path) in str(caught.value)
+
+
+def test_a_byte_order_mark_is_no_error(tmp_path):
+    path = _json(tmp_path, b"\xef\xbb\xbf" + json.dumps(BASE).encode())
+    assert load_problem(path) == window("W2", "slip", t_end=2.0)
+
+
+def test_a_fifo_a_directory_and_a_huge_file_are_refused_without_reading(tmp_path, monkeypatch):
+    import os
+    import problems.files as F
+    os.mkfifo(tmp_path / "pipe.toml")          # reading it would wait for a writer forever
+    (tmp_path / "dir.json").mkdir()
+    for name in ("pipe.toml", "dir.json"):
+        with pytest.raises(ValueError, match="is not a regular file"):
+            load_problem(tmp_path / name)
+    monkeypatch.setattr(F, "MAX_FILE_BYTES", 100)
+    with pytest.raises(ValueError, match="more than any problem file"):
+        load_problem(_json(tmp_path, json.dumps(BASE)))
+
+
+def test_a_unit_slip_in_a_file_warns_in_the_problems_words(tmp_path):
+    import warnings
+    from problems._validate import UnitWarning
+    path = _json(tmp_path, json.dumps({**BASE, "normal_force": 1.33}))
+    with pytest.warns(UnitWarning, match="normal_force = 1.33 N is implausibly small") as seen:
+        load_problem(path)
+    assert len([w for w in seen if issubclass(w.category, UnitWarning)]) == 1
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UnitWarning)
+        load_problem(EXAMPLE)
+
+
+def test_every_valid_kind_of_file_reads_back_in_toml_and_json(tmp_path):
+    """The probe's valid files (benchmarks/probe_families/problem_files.py), written by its TOML
+    writer and as JSON, read back equal, with the loading switches each has."""
+    from benchmarks.probe_families.problem_files import _valid_problems, toml_text
+    for name, (make, switches) in _valid_problems().items():
+        problem = make()
+        for suffix, text in ((".toml", toml_text(problem_dict(problem))),
+                             (".json", json.dumps(problem_dict(problem)))):
+            path = tmp_path / f"p{suffix}"
+            path.write_text(text)
+            got = load_problem(path)
+            assert got == problem, name
+            assert len(got.loading.history.switch_times) == switches, name

@@ -40,6 +40,12 @@ def _slider(**changes):
     (lambda: P.InitialState(v=1e-5, theta=float("nan"), fs=1.0), "initial theta", "nan"),
     (lambda: _slider(law=P.AgingLaw(a=0.008, b=0.01, lc=1e-6),
                      initial=P.InitialState(v=1e-4, theta=-1.0, fs=6e5)), "initial theta", "-1.0"),
+    # issue 29: impossible values, refused at construction (they ran, or failed mid-solve)
+    (lambda: _slider(mu0=-0.1), "mu0", "-0.1"),
+    (lambda: _slider(mu0=1e300), "mu0", "1e+300"),
+    (lambda: P.SlipLaw(a=1.0, b=0.0092, lc=1e-6), "a", "1"),
+    (lambda: P.AgingLaw(a=0.008, b=2.0, lc=1e-6), "b", "2"),
+    (lambda: _slider(law=P.SlipLaw(a=0.008, b=0.0, lc=0.5e-6)), "theta", "b = 0"),
 ])
 def test_bad_input_names_parameter_and_value(make, name, value):
     with pytest.raises(ValueError) as err:
