@@ -166,6 +166,10 @@ PLAUSIBLE: dict[str, Plausible] = {
     "radiation_damping": Plausible(
         1e-4, 1e12, "N s/m", "the unit is N s/m: ηr = G S/(2 cs) (4.1e6 for the paper's fault)",
         "the unit is N s/m: ηr = G S/(2 cs) (4.1e6 for the paper's fault), not per µm/s"),
+    # rock density (the shear-wave speed of radiation damping): from 1000 kg/m³ (porous
+    # sediment) to below 2e4 (denser than any rock); metagabbro is ~3000
+    "density": Plausible(1e3, 2e4, "kg/m³", "the unit is kg/m³, not g/cm³: 3 g/cm³ is 3000",
+                         "the unit is kg/m³: no rock is denser than 2e4 kg/m³"),
     # μ0: from 0.01 (lubricated contacts) to below 2 (clean metals); rock 0.1–0.85. A
     # friction coefficient of 10 no material has: refused
     "mu0": Plausible(

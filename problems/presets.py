@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from problems._validate import check_positive, warn_implausible
 from problems.friction import law_from_name
 from problems.loading import ConstantLoading, TwoSpeedLoading
 from problems.slider import BalancedStart, SpringSlider
@@ -194,5 +195,7 @@ ASSUMED_DENSITY = 3000.0
 def fault_radiation_damping(density: float = ASSUMED_DENSITY) -> float:
     """ηr = G S/(2 cs) (N s/m) of the paper's fault: the radiation damping of a fault of area S
     in an elastic medium of shear modulus G (Discussion: 39.3 GPa) and shear-wave speed
-    cs = sqrt(G/ρ), the quasi-dynamic approximation of QDYN and Rice (1993). ≈ 4.1e6 N s/m."""
+    cs = sqrt(G/ρ), the quasi-dynamic approximation of QDYN and Rice (1993). ≈ 4.1e6 N s/m.
+    ``density`` in kg/m³ (a value in g/cm³ warns)."""
+    warn_implausible("density", check_positive("density", density))
     return SHEAR_MODULUS * FAULT_AREA / (2.0 * math.sqrt(SHEAR_MODULUS / density))

@@ -59,6 +59,7 @@ def _holders() -> dict:
     from benchmarks.sweep import Observations
     from problems import (AgingLaw, ConstantLoading, InitialState, LoadHistory, NagataLaw,
                           SlipLaw, TwoSpeedLoading, paper_example, velocity_step_test)
+    from problems.presets import fault_radiation_damping
     law = dict(a=0.008, b=0.0092, lc=5e-7, v0=1e-5)
     two = dict(vls=1e-4, vlf=1e-3, df=0.04)
     hist = dict(velocities=(1e-4, 2e-4), switch_times=(1.0,), overshoot_velocity=1e-3,
@@ -98,6 +99,7 @@ def _holders() -> dict:
     out["t_end"] = [("SpringSlider", "t_end", lambda v: dataclasses.replace(lab, t_end=v))]
     for k in ("recurrence_s", "friction_drop", "sigma_recurrence_s", "sigma_friction_drop"):
         out[k] = [("Observations", k, lambda v, k=k: observations(k, v))]
+    out["density"] = [("fault_radiation_damping", "density", fault_radiation_damping)]
     return out
 
 
