@@ -14,8 +14,11 @@ has not settled is named in a warning, and its steady-state change is null.
 
 from __future__ import annotations
 
+import argparse
 import json
 from pathlib import Path
+
+import numpy as np
 
 from benchmarks.cli_args import (RunStopped, in_file, non_negative, out_dir, positive, say,
                                  show_progress)
@@ -30,6 +33,20 @@ SAVED_POINTS = 20_000
 #: the options of each test, with their defaults (None on the command line: "not given")
 STEP_OPTIONS = {"v1": 1e-6, "v2": 1e-5, "t_step": 10.0, "after": 30.0}
 SHS_OPTIONS = {"holds": [1.0, 10.0, 100.0], "v": 1e-6, "slide": 100.0, "first_slide": 10.0}
+
+
+def _in(kind, what: str):
+    """``kind`` (a checked number type), whose refusal also says the quantity and its unit."""
+    def check(text: str) -> float:
+        try:
+            return kind(text)
+        except argparse.ArgumentTypeError as exc:
+            raise argparse.ArgumentTypeError(f"{exc}; {what}") from None
+    check.__name__ = kind.__name__
+    return check
+
+
+SPEED, TIME = _in(positive, "a speed in m/s"), _in(positive, "a time in s")
 
 
 def _flag(name: str) -> str:
@@ -72,11 +89,16 @@ def _problem(args):
     if args.test == "step" and opt["v1"] == opt["v2"]:
         raise ValueError(f"--v2 = {opt['v2']:g} m/s equals --v1: a velocity step needs two "
                          "different speeds")
-    if args.test == "step":
-        return velocity_step_test(v1=opt["v1"], v2=opt["v2"], t_step=opt["t_step"],
-                                  t_end=opt["t_step"] + opt["after"], **kw)
-    return slide_hold_slide_test(holds=tuple(opt["holds"]), v=opt["v"], slide=opt["slide"],
-                                 first_slide=opt["first_slide"], **kw)
+    try:
+        if args.test == "step":
+            return velocity_step_test(v1=opt["v1"], v2=opt["v2"], t_step=opt["t_step"],
+                                      t_end=opt["t_step"] + opt["after"], **kw)
+        return slide_hold_slide_test(holds=tuple(opt["holds"]), v=opt["v"], slide=opt["slide"],
+                                     first_slide=opt["first_slide"], **kw)
+    except ValueError as exc:       # the problem names its field (t_end): say which flags set it
+        given = " ".join(f"{_flag(k)} {' '.join(f'{x:g}' for x in np.atleast_1d(getattr(args, k)))}"
+                         for k in own if getattr(args, k) is not None)
+        raise ValueError(f"lab {args.test} {given}: {exc}" if given else str(exc)) from None
 
 
 def _measures(sol, args):
@@ -189,37 +211,41 @@ def add_parsers(sub) -> None:
                           "docs/problem-family.md); default: the built-in apparatus")
     lab.add_argument("--law", choices=("slip", "aging", "nagata"),
                      help="friction law of the built-in apparatus (default: aging)")
-    lab.add_argument("--c", type=non_negative, help="the Nagata law's stress coefficient "
+    lab.add_argument("--c", type=_in(non_negative, "dimensionless"),
+                     help="the Nagata law's stress coefficient "
                      "(default: 2)")
-    lab.add_argument("--mass", type=non_negative, metavar="KG",
+    lab.add_argument("--mass", type=_in(non_negative, "a mass in kg"), metavar="KG",
                      help="slider mass in kg (default: 0, quasi-static)")
-    lab.add_argument("--radiation-damping", type=non_negative, metavar="N_S_PER_M",
+    lab.add_argument("--radiation-damping", type=_in(non_negative, "a damping in N s/m"),
+                     metavar="N_S_PER_M",
                      help="radiation damping ηr in N s/m (default: 0)")
-    lab.add_argument("--stiffness", type=positive, metavar="N_PER_M",
+    lab.add_argument("--stiffness", type=_in(positive, "a stiffness in N/m"), metavar="N_PER_M",
                      help="spring stiffness in N/m (default: 1e7, on a 10 kN normal force)")
-    lab.add_argument("--v1", type=positive, metavar="M_S",
+    lab.add_argument("--v1", type=SPEED, metavar="M_S",
                      help="step: load-point velocity before the step, m/s (default: 1e-6)")
-    lab.add_argument("--v2", type=positive, metavar="M_S",
+    lab.add_argument("--v2", type=SPEED, metavar="M_S",
                      help="step: after the step, m/s (default: 1e-5)")
-    lab.add_argument("--t-step", type=positive, metavar="S",
+    lab.add_argument("--t-step", type=TIME, metavar="S",
                      help="step: time of the step, s (default: 10)")
-    lab.add_argument("--after", type=positive, metavar="S",
+    lab.add_argument("--after", type=TIME, metavar="S",
                      help="step: simulated time after the step, s (default: 30)")
-    lab.add_argument("--holds", type=positive, nargs="+",
+    lab.add_argument("--holds", type=TIME, nargs="+",
                      metavar="S", help="shs: hold times, s (default: 1 10 100)")
-    lab.add_argument("--v", type=positive, metavar="M_S",
+    lab.add_argument("--v", type=SPEED, metavar="M_S",
                      help="shs: sliding velocity, m/s (default: 1e-6)")
-    lab.add_argument("--slide", type=positive, metavar="S",
+    lab.add_argument("--slide", type=TIME, metavar="S",
                      help="shs: sliding after each hold, s (default: 100)")
-    lab.add_argument("--first-slide", type=positive, metavar="S",
+    lab.add_argument("--first-slide", type=TIME, metavar="S",
                      help="shs: sliding before the first hold, s (default: 10)")
     lab.add_argument("--integrator", metavar="NAME",
                      help=f"registry name (default: {DEFAULT_INTEGRATOR} at rtol = atol = "
                           f"{DEFAULT_TOL:g}; results/family_wp.md compares them)")
-    lab.add_argument("--rtol", type=positive, help=f"relative tolerance (default: "
+    lab.add_argument("--rtol", type=_in(positive, "dimensionless"),
+                     help=f"relative tolerance (default: "
                      f"{DEFAULT_TOL:g} with the default integrator; required with --integrator "
                      "NAME of an adaptive method)")
-    lab.add_argument("--atol", type=positive, help="absolute tolerance on (h, ln w, Ψ or ln Ψ), "
+    lab.add_argument("--atol", type=_in(positive, "dimensionless"),
+                     help="absolute tolerance on (h, ln w, Ψ or ln Ψ), "
                      "nondimensional (default: --rtol)")
     lab.add_argument("--out", type=out_dir, metavar="DIR",
                      help="write lab_steps.csv, lab_healing.csv, lab_trajectory.csv and lab.png "

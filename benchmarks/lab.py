@@ -23,9 +23,9 @@ by a re-solve. Every re-solve is the run's algorithm with its options, from the 
 a measure carries the method's error, and none of the save grid's.
 
 **Settled.** A measure that reads a steady value reads it at the end of a piece, and that piece
-is checked: it has settled when there max(|μ − μss(vL)|, a |ln(v/vL)|) ≤ :data:`SETTLED` × the
-measure's scale (a |ln(v2/v1)| for a step, a for a hold), μss = (Ft,ss(vL) + ηr vL)/Fn. A step's
-``delta_mu_ss`` is NaN unless both the piece before it (its end is the baseline) and the piece
+is checked: it has settled when there max(|μ − μss(vL)|, a |ln(v/vL)|) ≤ :data:`SETTLED` ×
+the measure's scale (a |ln(v2/v1)| for a step, a for a hold), μss = (Ft,ss(vL) + ηr vL)/Fn. A
+step's ``delta_mu_ss`` is NaN unless both the piece before it (its end is the baseline) and the piece
 after it (its end is the new steady value) have settled. A hold's ``delta_mu_peak`` is defined
 against μ when the hold began, steady or not, and ``settled_before`` says whether it was. Either
 way an :class:`UnsettledWarning` names a piece that has not settled.
@@ -45,6 +45,7 @@ import pandas as pd
 
 __all__ = ["healing", "healing_rate", "step_response", "HEALING_COLUMNS", "STEP_COLUMNS",
            "PeakNotReached", "ResolveFailed", "UnsettledWarning", "SAMPLES", "REFINE", "SETTLED",
+           "STEP_REFERENCE", "step_reference",
            "MARONE_VELOCITY_STEP", "MARONE_SLIDE_HOLD_SLIDE", "marone_problem", "marone_check"]
 
 # μ(t) of Chris Marone's rate-and-state code, as distributed with rsfmodel (J. R. Leeman et al.,
@@ -97,6 +98,56 @@ def marone_check(names=("Rodas5P", "sundials-CVODE-BDF", "sundials-IDA"),
                                                           if ok and first is not None
                                                           else math.nan)})
     return pd.DataFrame(rows)
+
+#: The first extreme after a velocity step of the laboratory apparatus (problems.velocity_step_test,
+#: from steady sliding at 1 µm/s), by (law, mass in kg, v2/v1): (its time after the step in s,
+#: μ_extreme − μ_before). The slip law with 1 kg: quasi-static it runs away on a step up.
+#: Obtained by :func:`step_reference` (the maximum of ±Fs on 200,001 even samples, refined by the
+#: parabola through it: no root finding) with Rodas5P and with SUNDIALS CVODE-BDF at
+#: rtol = atol = 1e−10; the two agree to ≤ 3e−10 in μ and ≤ 7.4e−8 relative in time; the
+#: Rodas5P values. 1e5 and 1e6 (v2 = 0.1 and 1 m/s) are the issue's examples.
+STEP_REFERENCE = {
+    ("aging", 0.0, 1e-3): (165.9446622, -0.006624674353),
+    ("aging", 0.0, 1e-2): (54.98419266, -0.006000969864),
+    ("aging", 0.0, 0.1): (18.18004696, -0.00425032861),
+    ("aging", 0.0, 10.0): (1.294792853, 0.007843756951),
+    ("aging", 0.0, 100.0): (0.2328302622, 0.0182692286),
+    ("aging", 0.0, 1e3): (0.03457611969, 0.02957465055),
+    ("aging", 0.0, 1e5): (0.0005756523143, 0.05256521660),
+    ("aging", 0.0, 1e6): (6.907762472e-05, 0.06407762323),
+    ("slip", 1.0, 1e-3): (1117.915781, -0.01115813565),
+    ("slip", 1.0, 1e-2): (162.5999768, -0.008596784204),
+    ("slip", 1.0, 0.1): (27.79873382, -0.005067839329),
+    ("slip", 1.0, 10.0): (1.059801907, 0.006964052084),
+    ("slip", 1.0, 100.0): (0.1804651401, 0.01551016391),
+    ("slip", 1.0, 1e3): (0.02698295071, 0.02504327993)}
+
+
+def step_reference(law: str, mass: float, ratio: float, t_guess: float, solver: str,
+                   tol: float = 1e-10, points: int = 200_001) -> tuple[float, float]:
+    """(time after the step, μ_extreme − μ_before) of a step from steady sliding at 1 µm/s to
+    ``ratio`` µm/s on the laboratory apparatus, independently of :func:`step_response`: the run
+    starts at the step and lasts 2 ``t_guess``; the largest ±μ on ``points`` even samples is
+    refined by the parabola through it and its neighbours (:data:`STEP_REFERENCE`)."""
+    from integrators import make_algorithm, solve
+    from problems import ConstantLoading, SpringSlider, steady_initial_state, velocity_step_test
+    base = velocity_step_test(law, v2=1e-6 * ratio, mass=mass)
+    start = steady_initial_state(base.law, base.normal_force, base.mu0, 1e-6)
+    p = dataclasses.replace(base, loading=ConstantLoading(1e-6 * ratio), initial=start,
+                            t_end=2.0 * t_guess)
+    run = solve(p, make_algorithm(solver, tol, tol), max_points=points)
+    if not run.success:
+        raise ResolveFailed(f"{solver} failed on the reference: {run.message}")
+    sign = 1.0 if ratio > 1 else -1.0
+    y = sign * run.fs / p.normal_force
+    i = int(np.argmax(y))
+    if not 0 < i < len(y) - 1:
+        raise PeakNotReached(f"the reference's extreme is at an edge of 0–{p.t_end:g} s")
+    y0, y1, y2 = y[i - 1:i + 2]
+    x = 0.5 * (y0 - y2) / (y0 + y2 - 2.0 * y1)
+    return (float(run.t[i] + x * (run.t[i + 1] - run.t[i])),
+            float(sign * (y1 - 0.25 * (y0 - y2) * x) - start.fs / p.normal_force))
+
 
 #: samples per re-solve while a crossing is searched for and refined
 SAMPLES = 64
