@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import tomllib
 from pathlib import Path
 
@@ -58,6 +59,8 @@ _REQUIRED = ("mass", "stiffness", "normal_force", "t_end", "law", "loading")
 
 def load_problem(path) -> SpringSlider:
     """The :class:`SpringSlider` a TOML or JSON file describes (module docstring)."""
+    if not isinstance(path, (str, os.PathLike)):
+        raise ValueError(f"the problem file must be a path, got {_show(path)}")
     path = Path(path)
     if path.suffix.lower() not in PROBLEM_SUFFIXES:
         raise ValueError(f"problem file {path} must end in .toml or .json")

@@ -18,6 +18,7 @@ Fn and the reference friction F0 belong to the spring-slider and are passed in.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import ClassVar
@@ -187,6 +188,11 @@ def law_from_name(name: str, **params) -> FrictionLaw:
         cls = LAWS[name.lower()]
     except (KeyError, AttributeError):
         raise ValueError(f"law must be one of {sorted(LAWS)}, got {name!r}") from None
+    known = {f.name for f in dataclasses.fields(cls)}
+    unknown = sorted(set(params) - known)
+    if unknown:              # a TypeError from the constructor would be a traceback
+        raise ValueError(f"{unknown[0]!r} is not a parameter of the {cls.name} law; its "
+                         f"parameters are {', '.join(sorted(known))}")
     return cls(**params)
 
 

@@ -227,6 +227,8 @@ def slide_hold_slide(v: float, holds, slide: float, first_slide: float | None = 
     check_positive("v", v)
     check_positive("slide", slide)
     first = slide if first_slide is None else check_positive("first_slide", first_slide)
+    if isinstance(holds, (str, bytes)) or not hasattr(holds, "__iter__"):
+        raise ValueError(f"holds must be a sequence of hold times (s), got {holds!r}")
     holds = tuple(holds)
     if not holds:
         raise ValueError("holds must list at least one hold time (s)")

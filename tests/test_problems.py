@@ -188,3 +188,15 @@ def test_unknown_law_code_fails_loudly_at_every_entry_point():
     F.dae_residual(q, np.append(z, 0.0), np.zeros(4), res)
     assert np.isnan(res[2])
     assert np.isnan(coefficients(q, 0.1, 0.5, 1.0)).all()
+
+
+@pytest.mark.parametrize("make, match", [
+    (lambda: P.velocity_step_test("aging", c=2.0), "'c' is not a parameter of the aging law"),
+    (lambda: P.law_from_name("slip", a=0.008, b=0.01, lc=1e-6, Lc=1e-6), "'Lc' is not a param"),
+    (lambda: P.slide_hold_slide_test(holds=3), "holds must be a sequence"),
+    (lambda: P.load_problem(3), "the problem file must be a path"),
+])
+def test_misuse_is_a_value_error_not_a_type_error(make, match):
+    """Issue 29: these raised TypeError (a traceback on the command line)."""
+    with pytest.raises(ValueError, match=match):
+        make()
