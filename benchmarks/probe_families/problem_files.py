@@ -502,5 +502,21 @@ def _unit_cases() -> list[Case]:
     return out
 
 
+def _preset_only_cases() -> list[Case]:
+    """Commands whose --problem(s) names a preset, not a file: a file there is refused, not
+    read as a preset of another name."""
+    def run(tmp, args):
+        path = _write(tmp, _base())
+        return cli_outcome(cli(*[str(a).replace("{file}", str(path)).replace("{tmp}", str(tmp))
+                                 for a in args]))
+    commands = {"convergence --problem FILE": ("convergence", "--problem", "{file}", "--out",
+                                               "{tmp}/cv"),
+                "work-precision --problems FILE": ("work-precision", "--problems", "{file}",
+                                                   "--out", "{tmp}/wp")}
+    return [Case(KIND, f"{name} (a preset is meant)", lambda tmp, a=args: run(tmp, a), "refused",
+                 names="must be one of") for name, args in commands.items()]
+
+
 def cases() -> list[Case]:
-    return _valid_cases() + _bad_cases() + _path_cases() + _unit_cases()
+    return (_valid_cases() + _bad_cases() + _path_cases() + _unit_cases()
+            + _preset_only_cases())
