@@ -179,3 +179,18 @@ def test_observations_refuse_a_non_string_preset_and_a_string_mean():
         observations(3)
     with pytest.raises(ValueError, match="obs_recurrence must be a real number"):
         observations("", obs_recurrence="3", obs_drop=0.04)
+
+
+def test_docs_units_md_lists_every_range_as_the_code_has_it():
+    from pathlib import Path
+    text = (Path(__file__).parents[1] / "docs" / "units.md").read_text()
+    rows = {}
+    for line in text.splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if len(cells) == 5 and cells[0] and cells[1][:1].isdigit():
+            rows[cells[0].split(" ")[0]] = cells[1:]
+    assert set(rows) == set(PLAUSIBLE)
+    for key, (low, high, unit, refused) in rows.items():
+        p = PLAUSIBLE[key]
+        assert (float(low), float(high), unit) == (p.low, p.high, p.unit), key
+        assert (float(refused) if refused else math.inf) == p.impossible, key
