@@ -165,7 +165,7 @@ class Observations:
                 warn_unit(f"{sigma} = {s:g} is {s / m:.3g} × {mean} = {m:g}: implausible for "
                           "a standard deviation (plausible: 0.001 to below 3 times the mean); "
                           f"both are in one unit ({unit})", stacklevel=1)
-        if not isinstance(self.assumed_sigma, bool):
+        if not isinstance(self.assumed_sigma, (bool, np.bool_)):
             raise ValueError(f"assumed_sigma must be True or False, got {self.assumed_sigma!r}")
         if self.curves is not None:
             object.__setattr__(self, "curves", check_curves(self.curves, "obs.curves"))
