@@ -73,8 +73,9 @@ def cmd_sweep(args) -> int:
             say(f"best ({s['best_by']}): b = {s['best_b']:.5g}, Lc = {s['best_lc_m'] * 1e6:.4g} µm,"
                   f" J1 = {s['best_J1']:.3g}")
         say(f"classification: {s['classification']}")
-        say(f"written: {out / 'sweep.csv'}, {out / 'summary.json'}, {out / 'chunks'} (Parquet)"
-              + ("" if args.no_plot else f", {out / 'maps.png'}"))
+        say(f"written: {out / 'sweep.csv'}, {out / 'summary.json'}, {out / 'chunks'} (the "
+            "store: benchmarks.ensemble.read_store reads it)"
+            + ("" if args.no_plot else f", {out / 'maps.png'}"))
     return 0
 
 
@@ -187,7 +188,7 @@ def add_parsers(sub, preset_names) -> None:
     s.add_argument("--wall-budget", type=positive, metavar="S",
                    help="wall budget per point in s (default: none)")
     s.add_argument("--out", type=out_dir, metavar="DIR",
-                   help="directory of the Parquet chunks, table and maps (default: "
+                   help="directory of the store (DIR/chunks), table and maps (default: "
                         "./sweep_<preset or file name>_<law>)")
     s.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     s.add_argument("--no-progress", action="store_true", help="no progress bar")

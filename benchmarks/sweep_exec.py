@@ -108,10 +108,16 @@ def connect(scheduler: str, timeout: float = CONNECT_TIMEOUT_S):
     with quiet_distributed():
         try:
             return Client(scheduler, timeout=timeout)
-        except (OSError, TimeoutError, ValueError, TypeError) as exc:
-            reason = " ".join(f"{type(exc).__name__}: {exc}".split())[:200]
+        except (OSError, TimeoutError) as exc:
             raise ValueError(f"cannot reach the Dask scheduler at {scheduler!r} within "
-                             f"{timeout:g} s ({reason})") from None
+                             f"{timeout:g} s ({_one_line(exc)})") from None
+        except (ValueError, TypeError) as exc:     # distributed's parsing of the address
+            raise ValueError(f"scheduler {scheduler!r} is not a Dask scheduler address such as "
+                             f"tcp://host:8786 ({_one_line(exc)})") from None
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(f"{type(exc).__name__}: {exc}".split())[:200]
 
 
 @contextlib.contextmanager

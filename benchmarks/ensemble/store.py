@@ -57,6 +57,7 @@ SCHEMA = 2
 IDENTITY = "_ensemble.json"
 _LOCK, _README, _ASIDE = ".lock", "README.txt", ".bad-"
 _CHUNK = re.compile(r"_c(\d{9})-([0-9a-f]{24})\.parquet")
+_CHUNK_V1 = re.compile(r"c\d{9}-[0-9a-f]{24}\.parquet")        # layout 1's, cleared on reclaim
 _RETCODES = {r.value for r in ReturnCode}
 _README_TEXT = """\
 This directory is an rsfbench ensemble store, not a Parquet dataset.
@@ -222,7 +223,8 @@ class ChunkStore:
                     os.replace(p, p.with_name(_ASIDE + p.name))
                 else:
                     p.unlink(missing_ok=True)
-            elif not chunks_only and (p.name.startswith(_ASIDE) or p.name == IDENTITY):
+            elif not chunks_only and (p.name.startswith(_ASIDE) or p.name == IDENTITY
+                                      or _CHUNK_V1.fullmatch(p.name)):
                 p.unlink(missing_ok=True)
         self.listed = {}
 
