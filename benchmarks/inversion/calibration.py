@@ -21,9 +21,10 @@ when the count of covering seeds lies in that binomial's central 95 % interval, 
 Clopper–Pearson 95 % interval of the coverage says what else it is consistent with (80 % must be
 outside it, or the seeds were too few).
 
-The grid's answers are checked on ``check_seeds`` seeds against the continuous methods: emcee's
-posterior (mean and standard deviation of each parameter, in units of the grid posterior's) and
-the profile intervals of :func:`benchmarks.inversion.profile` refined between nodes.
+The grid's answers are checked on ``check_seeds`` seeds (0: none, and the report says the grid
+stands unchecked) against the continuous methods: emcee's posterior (mean and standard deviation
+of each parameter, in units of the grid posterior's) and the profile intervals of
+:func:`benchmarks.inversion.profile` refined between nodes.
 """
 
 from __future__ import annotations
@@ -86,8 +87,15 @@ def coverage(problem: SpringSlider, truth, algorithm: Algorithm, b_range, lc_ran
              workers: int | None = None, progress: bool = False) -> Calibration:
     """The coverage study of the module docstring for ``problem`` with (b, Lc) = ``truth``
     inside the prior box ``b_range`` × ``lc_range`` (Lc in m), on an ``n_b`` × ``n_lc`` grid."""
-    if not isinstance(seeds, int) or seeds < 1:
+    if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
         raise ValueError(f"seeds must be a positive integer, got {seeds!r}")
+    if (isinstance(check_seeds, bool) or not isinstance(check_seeds, int)
+            or not 0 <= check_seeds <= seeds):
+        raise ValueError(f"check_seeds must be an integer from 0 to seeds = {seeds}, got "
+                         f"{check_seeds!r}")
+    for name, n in (("n_b", n_b), ("n_lc", n_lc)):
+        if isinstance(n, bool) or not isinstance(n, int) or n < 5:
+            raise ValueError(f"{name} must be an integer ≥ 5 (grid nodes), got {n!r}")
     if not 0 < sigma_rel < 1:
         raise ValueError(f"sigma_rel must be in (0, 1), got {sigma_rel!r}")
     b_t, lc_t = float(truth[0]), float(truth[1])
@@ -124,7 +132,7 @@ def coverage(problem: SpringSlider, truth, algorithm: Algorithm, b_range, lc_ran
                             for k, v in REGIONS.items()])
     spacing = {"b": b[1] - b[0], "log10_lc": log10_lc[1] - log10_lc[0]}
     nodes = {k: float(table[f"std_{k}"].min() / spacing[k]) for k in spacing}
-    checks = _checks(problem, algorithm, grid_map, table, min(check_seeds, seeds), T0, M0,
+    checks = _checks(problem, algorithm, grid_map, table, check_seeds, T0, M0,
                      sigma_rel, check_walkers, check_steps, workers)
     return Calibration((b_t, lc_t), sigma_rel, table, summary, checks, grid_map, nodes)
 

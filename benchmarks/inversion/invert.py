@@ -2,12 +2,15 @@
 
 :func:`invert` chains the three estimates on one :class:`~benchmarks.inversion.Misfit`: the
 multi-start least-squares fit with its covariance, the profiles of b and of log10 Lc over the
-prior box, and emcee's posterior started at the fit. :func:`write_inversion` writes:
+prior box (the fit one of their points, so that it lies in its own intervals; an interval that is
+not resolved, or a profile that is jagged, comes with a warning in ``inversion.json`` and on the
+standard error), and emcee's posterior started at the fit. :func:`write_inversion` writes:
 
 * ``inversion.json``: the problem, the observations, the algorithm, the box and prior, the fit
   (with covariance), the profile intervals, the posterior's mean, standard deviation, 95 %
   intervals and diagnostics, the number of forward solves and the wall time of each stage;
-* ``fit_starts.csv``, ``profile_b.csv``, ``profile_log10_lc.csv``;
+* ``fit_starts.csv``, ``profile_b.csv``, ``profile_log10_lc.csv`` (each profile point, and
+  whether it is the grid's, the fit's or one added where the interval was not resolved);
 * ``posterior.csv``: the samples after burn-in, thinned to at most ``MAX_SAMPLES_SAVED`` rows
   (every k-th of the flattened chain; the summaries use all of them);
 * ``corner.png`` (the ``corner`` package) and ``profiles.png``.
@@ -28,7 +31,7 @@ from benchmarks.inversion.posterior import Posterior, check_sampler, sample
 from benchmarks.inversion.profile import CHI2_95_1DOF, profile
 from benchmarks.report import jsonable
 
-__all__ = ["invert", "Inversion", "write_inversion", "MAX_SAMPLES_SAVED"]
+__all__ = ["invert", "Inversion", "write_inversion", "check_box", "MAX_SAMPLES_SAVED"]
 
 #: rows of posterior.csv at most
 MAX_SAMPLES_SAVED = 4000
@@ -49,6 +52,29 @@ class Inversion:
     no_posterior: str = ""
 
 
+def check_box(problem, b_range, lc_range) -> None:
+    """Refuse a prior box that is not 0 ≤ b_lo < b_hi, 0 < Lc_lo < Lc_hi (finite), or whose
+    corners are problems the problem's own checks refuse (b ≥ 1, a t_end too long in units of
+    Lc/v0, …): ``ValueError`` naming the corner, before any solve."""
+    from problems import variant
+    try:
+        (b_lo, b_hi), (lc_lo, lc_hi) = (tuple(map(float, b_range)), tuple(map(float, lc_range)))
+    except (TypeError, ValueError):
+        raise ValueError(f"the box must be two pairs (b_lo, b_hi), (Lc_lo, Lc_hi) in m, got "
+                         f"b_range = {b_range!r}, lc_range = {lc_range!r}") from None
+    if not (np.isfinite([b_lo, b_hi, lc_lo, lc_hi]).all() and 0 <= b_lo < b_hi
+            and 0 < lc_lo < lc_hi):
+        raise ValueError(f"the box must have 0 ≤ b_lo < b_hi and 0 < lc_lo < lc_hi (finite, Lc "
+                         f"in m), got b_range = {b_range!r}, lc_range = {lc_range!r}")
+    for b in (b_lo, b_hi):
+        for lc in (lc_lo, lc_hi):
+            try:
+                variant(problem, b=b, lc=lc)
+            except ValueError as exc:
+                raise ValueError(f"the box's corner (b = {b:g}, Lc = {lc:g} m) is refused: "
+                                 f"{exc}") from None
+
+
 def invert(misfit: Misfit, b_range, lc_range, walkers: int = 32, steps: int = 2000,
            profile_points: int = 21, seed: int = 0, progress: bool = False,
            say=None) -> Inversion:
@@ -58,8 +84,13 @@ def invert(misfit: Misfit, b_range, lc_range, walkers: int = 32, steps: int = 20
     there is no posterior (``no_posterior`` says why), not a chain frozen at −inf. ``say``: a
     callable given a line of text as each stage starts."""
     say = say or (lambda text: None)
-    if not isinstance(profile_points, int) or profile_points < 3:
-        raise ValueError(f"profile_points must be an integer ≥ 3, got {profile_points!r}")
+    if (isinstance(profile_points, bool) or not isinstance(profile_points, int)
+            or not 3 <= profile_points <= 1001):
+        raise ValueError(f"profile_points must be an integer from 3 to 1001, got "
+                         f"{profile_points!r}")
+    if isinstance(steps, bool) or not isinstance(steps, int) or steps < 0:
+        raise ValueError(f"steps must be 0 (no posterior) or an integer ≥ 2, got {steps!r}")
+    check_box(misfit.problem, b_range, lc_range)
     if steps:                            # a bad chain is refused before the fit, not after it
         check_sampler(b_range, lc_range, walkers, steps)
     wall = {}
@@ -73,8 +104,10 @@ def invert(misfit: Misfit, b_range, lc_range, walkers: int = 32, steps: int = 20
             ("log10_lc", np.linspace(*np.log10(lc_range), profile_points), b_range)):
         t = time.perf_counter()
         say(f"profile of {name}")
-        profiles[name] = profile(misfit, name, values, other)
+        profiles[name] = profile(misfit, name, values, other,
+                                 best=(best.b, best.lc, best.J1) if np.isfinite(best.J1) else None)
         wall[f"profile_{name}"] = time.perf_counter() - t
+        _check_fit_inside(profiles[name], best)
     post, why = None, "not asked for (steps = 0)"
     if steps and not np.isfinite(best.J1):
         why = f"not sampled: {best.message} (no point of the box is known to have a cycle)"
@@ -89,6 +122,21 @@ def invert(misfit: Misfit, b_range, lc_range, walkers: int = 32, steps: int = 20
         wall["posterior"] = time.perf_counter() - t
         why = ""
     return Inversion(misfit, tuple(b_range), tuple(lc_range), best, profiles, post, wall, why)
+
+
+def _check_fit_inside(p, best: FitResult) -> None:
+    """The fit is a point of each profile, so it lies in its interval unless the profile found
+    a lower J1 elsewhere by more than the level: then the fit is a local minimum, and the
+    profile's warnings say so (nothing is read as if the fit were the global one)."""
+    if not np.isfinite(best.J1) or not np.isfinite(p.low):
+        return
+    x = best.b if p.parameter == "b" else float(np.log10(best.lc))
+    if not p.low <= x <= p.high:
+        label = "b" if p.parameter == "b" else "log10 Lc"
+        p.warnings.append(
+            f"the least-squares fit ({label} = {x:.6g}, J1 = {best.J1:.4g}) is outside the "
+            f"profile's 95 % interval [{p.low:.6g}, {p.high:.6g}]: the profile found J1 = "
+            f"{p.table.J1.min():.4g} elsewhere, so the fit is a local minimum")
 
 
 def _summary(inv: Inversion) -> dict:
@@ -109,6 +157,8 @@ def _summary(inv: Inversion) -> dict:
                 "message": f.message, "n_solves": f.n_solves},
         "profiles": {k: {"low": p.low, "high": p.high, "open_low": p.open_low,
                          "open_high": p.open_high, "n_solves": p.n_solves,
+                         "n_points": len(p.table), "resolved": p.resolved,
+                         "monotone": p.monotone, "warnings": list(p.warnings),
                          "level": f"ΔJ1 ≤ {CHI2_95_1DOF:.3f}"} for k, p in inv.profiles.items()},
         "wall_s": inv.wall_s}
     if inv.posterior is None:

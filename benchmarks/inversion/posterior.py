@@ -10,6 +10,10 @@ one ensemble batch (:func:`benchmarks.ensemble.ensemble`), one compiled call for
 Diagnostics reported: the mean acceptance fraction, the integrated autocorrelation time of each
 parameter (emcee's estimate, with ``tol=0``, and whether the chain is at least 50 τ long, emcee's
 rule of thumb for a reliable τ), and the effective number of samples, walkers × kept steps / τ.
+
+A Ctrl-C during a step is held until the step ends and then raised as ``KeyboardInterrupt``
+from :func:`sample`: emcee wraps the log-probability in a handler that prints a traceback for
+any exception, an interruption included.
 """
 
 from __future__ import annotations
@@ -22,7 +26,11 @@ import pandas as pd
 
 from benchmarks.inversion.misfit import Misfit
 
-__all__ = ["sample", "Posterior", "check_sampler"]
+__all__ = ["sample", "Posterior", "check_sampler", "MAX_POSTERIOR_SOLVES"]
+
+#: walkers × steps at most: each is a forward solve (hours at a few ms each on 2 cores), and
+#: emcee keeps every sample in memory
+MAX_POSTERIOR_SOLVES = 10_000_000
 
 
 @dataclass
@@ -49,10 +57,15 @@ def check_sampler(b_range, lc_range, walkers: int, steps: int, burn: int | None 
     if not (0 <= b_lo < b_hi and 0 < lc_lo < lc_hi):
         raise ValueError(f"the prior box must have 0 ≤ b_lo < b_hi and 0 < lc_lo < lc_hi, got "
                          f"b_range = {b_range!r}, lc_range = {lc_range!r}")
-    if walkers < 4 or steps < 2:
-        raise ValueError(f"walkers must be ≥ 4 and steps ≥ 2, got {walkers}, {steps}")
+    for name, n, least in (("walkers", walkers, 4), ("steps", steps, 2)):
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < least:
+            raise ValueError(f"walkers must be ≥ 4 and steps ≥ 2 (integers), got {name} = {n!r}")
+    if walkers * steps > MAX_POSTERIOR_SOLVES:
+        raise ValueError(f"walkers × steps = {walkers:,} × {steps:,} is over "
+                         f"{MAX_POSTERIOR_SOLVES:,} forward solves (each one a sample emcee "
+                         "keeps in memory): use fewer")
     burn = steps // 4 if burn is None else burn
-    if not 0 <= burn < steps:
+    if isinstance(burn, bool) or not isinstance(burn, (int, np.integer)) or not 0 <= burn < steps:
         raise ValueError(f"burn must be in [0, steps), got {burn}")
     return burn
 
@@ -70,12 +83,17 @@ def sample(misfit: Misfit, b_range, lc_range, start, walkers: int = 32, steps: i
     if not ((lo < x0) & (x0 < hi)).all():
         raise ValueError(f"start = {start!r} is outside the prior box")
     count = {"n": 0}
+    stopped = []
 
     def log_prob(x):                     # x: (walkers, 2); one ensemble batch a step
         inside = ((x > lo) & (x < hi)).all(axis=1)
         out = np.full(len(x), -np.inf)
-        if inside.any():
-            table = misfit.evaluate(x[inside, 0], 10.0 ** x[inside, 1])
+        if inside.any() and not stopped:
+            try:
+                table = misfit.evaluate(x[inside, 0], 10.0 ** x[inside, 1])
+            except KeyboardInterrupt:    # emcee would print its traceback: raised after the step
+                stopped.append(True)
+                return out
             count["n"] += int(inside.sum())
             out[inside] = table.log_likelihood.to_numpy()
         return out
@@ -86,7 +104,9 @@ def sample(misfit: Misfit, b_range, lc_range, start, walkers: int = 32, steps: i
     sampler = emcee.EnsembleSampler(walkers, 2, log_prob, vectorize=True)
     sampler.random_state = np.random.RandomState(int(rng.integers(2**31))).get_state()
     started = time.perf_counter()
-    sampler.run_mcmc(p0, steps, progress=progress)
+    for done, _ in enumerate(sampler.sample(p0, iterations=steps, progress=progress), 1):
+        if stopped:
+            raise KeyboardInterrupt(f"the posterior was interrupted at step {done} of {steps}")
     wall = time.perf_counter() - started
     chain = sampler.get_chain(discard=burn, flat=True)
     tau = sampler.get_autocorr_time(discard=burn, tol=0)

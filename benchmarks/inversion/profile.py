@@ -1,37 +1,61 @@
-"""Profile likelihoods of b and of log10 Lc (issue 17, item 2, second part).
+"""Profile likelihoods of b and of log10 Lc (issue 17, item 2, second part; issue 29).
 
-The profile of b is J1 minimised over log10 Lc at each b of a grid, and the profile of log10 Lc is
-J1 minimised over b; a point without a limit cycle everywhere along its line has no finite
-profile value (``inf``). The 95 % profile interval is where the profile is within
-:data:`CHI2_95_1DOF` of its minimum (−2 Δ log L ≤ 3.84 for one parameter, Wilks), read on the
-grid, linearly interpolated at its ends; an interval that reaches the end of the grid says so
-(``open_low``/``open_high``): the data do not bound the parameter there.
+The profile of b is J1 minimised over log10 Lc at each b, and the profile of log10 Lc is J1
+minimised over b; a value without a limit cycle anywhere along its line has no finite profile
+value (``inf``). The 95 % profile interval is where the profile is within :data:`CHI2_95_1DOF` of
+its minimum (−2 Δ log L ≤ 3.84 for one parameter, Wilks), its ends interpolated linearly between
+profile points; an interval that reaches the end of the grid says so (``open_low``/``open_high``):
+the data do not bound the parameter there.
 
-The lines are first scanned densely (``scan`` points each, every line of the profile in one
-ensemble batch: the band of stick–slip along a line can be narrow, and J1 jumps to the
-no-cycle value outside it); each line's minimum is then refined by a bounded 1-D minimisation
-(``scipy.optimize.minimize_scalar``) between the scan points on either side of its best one.
+Each line is first scanned densely (``scan`` points, every line of a round in one ensemble
+batch: the band of stick–slip along a line can be narrow, and J1 jumps to the no-cycle value
+outside it), then minimised by a bounded 1-D search (``scipy.optimize.minimize_scalar``) between
+the scan points on either side of its best one, to ``xrtol`` of the other parameter's range: an
+absolute tolerance in b once stopped the search of a bracket narrower than it at its start, and
+with a small σ the profile of log10 Lc read 55 → 1430 → 55 about a valley it had stepped over.
+
+A computed profile value is an upper bound of the true one (a minimum can be missed, never
+undershot). Three things make the interval trustworthy, for any σ and any number of points:
+
+* ``best``, a known point such as the least-squares fit, is a profile point: its value of the
+  parameter is profiled and its J1 bounds the profile there, so the fit lies inside its interval;
+* a **jagged** profile (rising, then falling again, beyond :data:`NOISE_J1`, on either side of
+  its minimum) is re-minimised at the high point from the optima of its neighbours along the
+  other parameter; what stays jagged is reported (``monotone`` False, a warning), and the interval
+  is then the hull of every point within the level, never just the piece about the minimum;
+* the interval is **resolved**: the cells in which the level is crossed are bisected (a round of
+  new lines at a time, at most ``refine`` rounds) until each is at most 1/:data:`CELLS` of the
+  interval's width. An interval that stays narrower than that is not reported as if resolved:
+  ``resolved`` is False, a warning says so, and its ends are the profile points outside the
+  level about it (what the profile can vouch for), not an interpolation inside one cell.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
 
 from benchmarks.inversion.misfit import Misfit
 
-__all__ = ["profile", "Profile", "CHI2_95_1DOF"]
+__all__ = ["profile", "Profile", "CHI2_95_1DOF", "NOISE_J1", "CELLS"]
 
 #: the 95 % quantile of χ² with one degree of freedom
 CHI2_95_1DOF = 3.841458820694124
+#: a profile falling by less than this (in J1, plus 1e−3 of the value) where it should rise is
+#: noise: it moves an interval's end by a few hundredths of the level at most
+NOISE_J1 = 0.05
+#: a resolved interval spans at least this many cells at each end (module docstring)
+CELLS = 4
 
 
 @dataclass
 class Profile:
-    """The profile of ``parameter`` (``"b"`` or ``"log10_lc"``): its grid, the minimum of J1 over
-    the other parameter at each value (``J1``) and where (``other``), and the 95 % interval."""
+    """The profile of ``parameter`` (``"b"`` or ``"log10_lc"``): its points (``table``: the value,
+    the minimum of J1 over the other parameter there and where, and ``point``: ``grid``, ``best``
+    or ``refined``), the 95 % interval, whether it is resolved and the profile monotone about its
+    minimum, and the warnings that say what is not."""
 
     parameter: str
     table: pd.DataFrame
@@ -40,18 +64,27 @@ class Profile:
     open_low: bool
     open_high: bool
     n_solves: int
+    resolved: bool = True
+    monotone: bool = True
+    warnings: list = field(default_factory=list)
 
 
 def profile(misfit: Misfit, parameter: str, values, other_range, scan: int = 41,
-            xatol: float = 1e-4) -> Profile:
+            xrtol: float = 1e-6, best=None, refine: int = 12) -> Profile:
     """The profile of ``parameter`` (``"b"``, or ``"log10_lc"`` with ``values`` in log10 m) over
-    ``values``, minimising over the other parameter within ``other_range`` (b, or Lc in m)."""
-    from scipy.optimize import minimize_scalar
+    ``values``, minimising over the other parameter within ``other_range`` (b, or Lc in m), to
+    ``xrtol`` of its range. ``best``: ``(b, Lc, J1)`` of a known point (a fit), or None.
+    ``refine``: rounds of bisection and repair at most (0: the grid only)."""
     if parameter not in ("b", "log10_lc"):
         raise ValueError(f"parameter must be 'b' or 'log10_lc', got {parameter!r}")
     values = np.asarray(values, dtype=float)
     if values.ndim != 1 or values.size < 2 or not np.isfinite(values).all():
         raise ValueError(f"values must be at least two finite numbers, got {values!r}")
+    for name, n, least in (("scan", scan, 2), ("refine", refine, 0)):
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < least:
+            raise ValueError(f"{name} must be an integer ≥ {least}, got {n!r}")
+    if not 0 < xrtol < 0.1:
+        raise ValueError(f"xrtol must be in (0, 0.1) (a fraction of the range), got {xrtol!r}")
     lo, hi = other_range
     if parameter == "b":                 # the other parameter is log10 Lc
         if not 0 < lo < hi:
@@ -59,56 +92,179 @@ def profile(misfit: Misfit, parameter: str, values, other_range, scan: int = 41,
         lo, hi = np.log10(lo), np.log10(hi)
     elif not 0 <= lo < hi:
         raise ValueError(f"other_range must be 0 ≤ b_lo < b_hi, got {other_range!r}")
+    lines = _Lines(misfit, parameter, np.linspace(lo, hi, scan), xrtol * (hi - lo))
+    points = {float(v): (J, w, "grid") for v, (J, w) in zip(values, lines.minimise(values))}
+    if best is not None and np.isfinite(best[2]):
+        v, w = (best[0], np.log10(best[1])) if parameter == "b" else (np.log10(best[1]), best[0])
+        (J, w_line), = lines.minimise([v], [[w]])
+        points[float(v)] = (J, w_line, "best") if J <= best[2] else (float(best[2]), w, "best")
+    tried = set()
+    for _ in range(refine):
+        x, J, w = _arrays(points)
+        jagged = _jagged(J)
+        suspects = [i for i in jagged if (x[i], _hints(x, w, i)) not in tried]
+        stuck = [i for i in jagged if i not in suspects]     # its neighbours' optima too far:
+        new = {float(0.5 * (x[a] + x[a + 1])) for i in stuck # come closer from either side
+               for a in (i - 1, i) if 0 <= a < len(x) - 1}
+        new = sorted(v for v in new.union(_cells_to_bisect(x, J)) if v not in points)
+        if not suspects and not new:
+            break
+        if suspects:                     # re-minimise a high point from its neighbours' optima
+            hints = [_hints(x, w, i) for i in suspects]
+            tried.update((x[i], h) for i, h in zip(suspects, hints))
+            again = lines.minimise(x[suspects], [list(h) for h in hints], scan=False)
+            for i, (Ji, wi) in zip(suspects, again):
+                if Ji < J[i]:
+                    points[x[i]] = (Ji, wi, points[x[i]][2])
+        if new:                          # a new line starts from its neighbours' optima too
+            hints = [[wk for wk in w[max(np.searchsorted(x, v) - 1, 0):np.searchsorted(x, v) + 1]
+                      if np.isfinite(wk)] for v in new]
+            for v, (Jv, wv) in zip(new, lines.minimise(new, hints)):
+                points[v] = (Jv, wv, "refined")
+    x, J, w = _arrays(points)
+    kinds = [points[v][2] for v in x]
+    table = pd.DataFrame({parameter: x, "J1": J, "b" if parameter == "log10_lc" else "log10_lc": w,
+                          "point": kinds})
+    low, high, open_low, open_high, resolved = _interval(x, J)
+    jagged = _jagged(J)
+    warnings = []
+    label = "b" if parameter == "b" else "log10 Lc"
+    if jagged:
+        i = jagged[0]
+        warnings.append(f"the profile of {label} is not monotone about its minimum at "
+                        f"{label} = {x[i]:.6g} (J1 {_triple(J, i)}) after re-minimising there "
+                        "from its neighbours' optima: its interval is the hull of every point "
+                        "within the level, and may be wider than the truth")
+    if not resolved:
+        warnings.append(f"the 95 % interval of {label} is not resolved by the profile's points "
+                        f"after {refine} rounds of bisection (it is narrower than {CELLS} cells "
+                        f"at an end): reported as the points about it, [{low:.6g}, {high:.6g}]")
+    return Profile(parameter, table, low, high, open_low, open_high, lines.n_solves,
+                   resolved=resolved, monotone=not jagged, warnings=warnings)
 
-    def point(v, w):                     # (b, Lc) of the profiled value v and the other w
-        return (v, 10.0 ** w) if parameter == "b" else (w, 10.0 ** v)
 
-    count = {"n": 0}
+class _Lines:
+    """Minima of J1 along lines of the profiled parameter, counting the forward solves."""
 
-    def j1(v, w):
-        count["n"] += 1
-        return misfit(*point(v, w))
+    def __init__(self, misfit: Misfit, parameter: str, grid: np.ndarray, xatol: float):
+        self.misfit, self.parameter, self.grid, self.xatol = misfit, parameter, grid, xatol
+        self.n_solves = 0
 
-    grid = np.linspace(lo, hi, scan)
-    pairs = [point(v, w) for v in values for w in grid]          # every line in one batch
-    coarse = misfit.evaluate(np.array([p[0] for p in pairs]), np.array([p[1] for p in pairs]))
-    count["n"] += len(coarse)
-    J_scan = np.where(np.isfinite(coarse.log_likelihood.to_numpy()), coarse.J1.to_numpy(),
-                      np.inf).reshape(len(values), scan)
-    rows = []
-    for v, line in zip(values, J_scan):
-        if not np.isfinite(line).any():
-            rows.append({parameter: v, "J1": np.inf, "other": np.nan})
-            continue
-        k = int(np.argmin(line))
-        left, right = grid[max(k - 1, 0)], grid[min(k + 1, scan - 1)]
-        res = minimize_scalar(lambda w: j1(v, w), bounds=(left, right), method="bounded",
-                              options={"xatol": xatol})
-        best_w, best = (res.x, res.fun) if res.fun <= line[k] else (grid[k], line[k])
-        rows.append({parameter: v, "J1": float(best), "other": float(best_w)})
-    table = pd.DataFrame(rows).rename(columns={"other": "log10_lc" if parameter == "b" else "b"})
-    low, high, open_low, open_high = _interval(values, table.J1.to_numpy())
-    return Profile(parameter, table, low, high, open_low, open_high, count["n"])
+    def point(self, v, w):               # (b, Lc) of the profiled value v and the other w
+        return (v, 10.0 ** w) if self.parameter == "b" else (w, 10.0 ** v)
+
+    def j1(self, v, w) -> float:
+        """J1 at one point, inf without a limit cycle (not the finite no-cycle value: a line's
+        minimum must be a cycle's)."""
+        row = self.misfit.evaluate([self.point(v, w)[0]], [self.point(v, w)[1]]).iloc[0]
+        self.n_solves += 1
+        return float(row.J1) if np.isfinite(row.log_likelihood) else np.inf
+
+    def minimise(self, values, hints=None, scan: bool = True) -> list[tuple[float, float]]:
+        """``(J1, other)`` at the minimum of each line: the scan's best point (``scan``: the
+        lines are scanned first, in one batch), refined between its neighbours, and about each of
+        the line's ``hints`` (values of the other parameter)."""
+        from scipy.optimize import minimize_scalar
+        grid, n = self.grid, len(self.grid)
+        scans = np.full((len(values), n), np.inf)
+        if scan:
+            pairs = [self.point(v, w) for v in values for w in grid]
+            table = self.misfit.evaluate(np.array([p[0] for p in pairs]),
+                                         np.array([p[1] for p in pairs]))
+            self.n_solves += len(table)
+            scans = np.where(np.isfinite(table.log_likelihood.to_numpy()), table.J1.to_numpy(),
+                             np.inf).reshape(len(values), n)
+        step = grid[1] - grid[0]
+        out = []
+        for v, line, extra in zip(values, scans, hints or [[]] * len(values)):
+            k = int(np.argmin(line))
+            found = [(line[k], grid[k])] if np.isfinite(line[k]) else []
+            brackets = [(grid[max(k - 1, 0)], grid[min(k + 1, n - 1)])] if found else []
+            brackets += [(max(grid[0], h - step), min(grid[-1], h + step)) for h in extra]
+            for a, c in brackets:
+                seen = {}
+
+                def f(w):                # no cycle is kept apart: the search sees a large number
+                    seen[w] = self.j1(v, w)
+                    return seen[w] if np.isfinite(seen[w]) else 1e30
+                minimize_scalar(f, bounds=(a, c), method="bounded",
+                                options={"xatol": self.xatol})
+                found += [(J, w) for w, J in seen.items() if np.isfinite(J)]
+            out.append(min(found) if found else (np.inf, np.nan))
+        return out
+
+
+def _arrays(points: dict):
+    x = np.array(sorted(points))
+    return x, np.array([points[v][0] for v in x]), np.array([points[v][1] for v in x])
+
+
+def _hints(x, w, i) -> tuple:
+    """The optima (other parameter) of the neighbours of point ``i`` that have one."""
+    return tuple(float(w[k]) for k in (i - 1, i + 1) if 0 <= k < len(x) and np.isfinite(w[k]))
+
+
+def _jagged(J: np.ndarray) -> list[int]:
+    """The points where the profile, walking away from its minimum, falls again beyond noise:
+    the higher point of each such pair (its minimum is the one likely missed)."""
+    if not np.isfinite(J).any():
+        return []
+    k = int(np.argmin(J))
+    out = []
+    for i in range(len(J)):
+        nearer = i + 1 if i < k else i - 1          # the neighbour towards the minimum
+        if i != k and J[i] < J[nearer] - NOISE_J1 - 1e-3 * abs(J[i]):
+            out.append(nearer)
+    return sorted(set(out))
+
+
+def _crossings(x, J):
+    """The indices of the hull of the points within the level, and the level."""
+    level = np.min(J) + CHI2_95_1DOF
+    inside = np.flatnonzero(J <= level)
+    return inside[0], inside[-1], level
+
+
+def _cells_to_bisect(x, J) -> list[float]:
+    """Midpoints of the cells where the level is crossed (or a cycle's band ends) that are wider
+    than 1/CELLS of the interval, and of the cells either side of the minimum that are."""
+    if not np.isfinite(J).any():
+        return []
+    i, j, _ = _crossings(x, J)
+    width = max(x[j] - x[i], 0.0)
+    k = int(np.argmin(J))
+    cells = {(a, a + 1) for a in (i - 1, j, k - 1, k) if 0 <= a < len(x) - 1}
+    out = []
+    for a, c in sorted(cells):
+        if x[c] - x[a] > (width / CELLS if width > 0 else 0) + 1e-12 * max(abs(x[a]), 1.0):
+            out.append(float(0.5 * (x[a] + x[c])))
+    return out
 
 
 def _interval(x: np.ndarray, J: np.ndarray):
-    """The 95 % interval of a profile on its grid: where J − min J ≤ CHI2_95_1DOF, the ends
-    interpolated linearly; open where it reaches the grid's end."""
+    """``(low, high, open_low, open_high, resolved)`` of a profile on its points (module
+    docstring): the hull of the points within the level, its ends interpolated linearly towards
+    the next point out (to that point's side's end of the cycle band when it has no cycle)."""
     if not np.isfinite(J).any():
-        return np.nan, np.nan, True, True
-    inside = J - np.min(J) <= CHI2_95_1DOF
-    k = int(np.argmin(J))
-    i, j = k, k
-    while i > 0 and inside[i - 1]:
-        i -= 1
-    while j < len(x) - 1 and inside[j + 1]:
-        j += 1
-    level = np.min(J) + CHI2_95_1DOF
+        return np.nan, np.nan, True, True, False
+    i, j, level = _crossings(x, J)
 
-    def cross(a, c):                     # where the line from grid point a to c meets the level
+    def cross(a, c):                     # where the line from point a (in) to c (out) meets it
         if not np.isfinite(J[c]):
             return x[a]
         return x[a] + (x[c] - x[a]) * (level - J[a]) / (J[c] - J[a])
-    low = x[0] if i == 0 else cross(i, i - 1)
-    high = x[-1] if j == len(x) - 1 else cross(j, j + 1)
-    return float(low), float(high), i == 0, j == len(x) - 1
+    open_low, open_high = i == 0, j == len(x) - 1
+    low = x[0] if open_low else cross(i, i - 1)
+    high = x[-1] if open_high else cross(j, j + 1)
+    width = x[j] - x[i]
+    resolved = all(x[c] - x[a] <= width / CELLS * (1 + 1e-9)
+                   for a, c, is_open in ((i - 1, i, open_low), (j, j + 1, open_high))
+                   if not is_open)
+    if not resolved:                     # what the points vouch for, not one cell's guess
+        low = x[0] if open_low else x[i - 1]
+        high = x[-1] if open_high else x[j + 1]
+    return float(low), float(high), bool(open_low), bool(open_high), bool(resolved)
+
+
+def _triple(J, i) -> str:
+    return " → ".join(f"{J[k]:.3g}" for k in range(max(i - 1, 0), min(i + 2, len(J))))
