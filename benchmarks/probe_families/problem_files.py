@@ -15,6 +15,7 @@ or the file, before any work.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import json
 import math
 import os
@@ -483,13 +484,20 @@ def _unit_cases() -> list[Case]:
         "mass in g (1.1e6)": (_with(base, None, "mass", 1.1e6), "mass"),
         "[law] a in percent (0.8)": (_with(base, "law", "a", 0.8), "a"),
     }
+    commands = {   # the run itself may be hard (a tiny Fn is a stiff problem): a budget bounds it
+        "simulate": ("simulate", "--problem", "{file}", "--t-end", "0.05", "--wall-budget", "2",
+                     *_TOL),
+        "sweep": ("sweep", "--problem", "{file}", "--b", "0.0094:0.0094:0.0001", "--lc",
+                  "3e-7:3e-7:1", "--t-end", "0.05", "--wall-budget", "2", "--obs-recurrence",
+                  "1", "--obs-drop", "0.04", "--workers", "1", "--no-plot", "--no-progress",
+                  "--out", "{tmp}/s", *_TOL),
+    }
     out = []
-    for name, (content, must) in slips.items():
-        def run(tmp, content=content, must=must):
+    for (name, (content, must)), command in itertools.product(slips.items(), commands):
+        def run(tmp, content=content, must=must, args=commands[command]):
             path = _write(tmp, content)
-            # the run itself may be hard (a tiny Fn is a stiff problem): a budget bounds it
-            got = cli("simulate", "--problem", path, "--t-end", "0.05", "--wall-budget", "2",
-                      *_TOL, "--json")
+            got = cli(*[str(a).replace("{file}", str(path)).replace("{tmp}", str(tmp))
+                        for a in args], "--json")
             outcome = cli_outcome(got, json_mode=True)
             one_json(got.out)
             warned = [x for x in got.err.splitlines() if "warning:" in x]
@@ -498,7 +506,7 @@ def _unit_cases() -> list[Case]:
             if outcome.outcome == "traceback":
                 return outcome
             return Observed("warned", warned[0])
-        out.append(Case(KIND, f"simulate warns: {name}", run, "warned", timeout=300))
+        out.append(Case(KIND, f"{command} warns once: {name}", run, "warned", timeout=300))
     return out
 
 
