@@ -161,6 +161,8 @@ DAMAGE = {
     "replaced by a chunk of another ensemble":
         lambda p, root, tmp: p.write_bytes(_other_ensemble_chunk(tmp).read_bytes()),
     "removed": lambda p, root, tmp: p.unlink(),
+    # an OSError on reading it, as a chunk without read permission gives (not testable as root)
+    "a directory under its name": lambda p, root, tmp: (p.unlink(), p.mkdir()),
 }
 
 

@@ -220,7 +220,7 @@ class ChunkStore:
         for p in self.root.iterdir():
             if _CHUNK.fullmatch(p.name):
                 if chunks_only:
-                    os.replace(p, p.with_name(_ASIDE + p.name))
+                    _aside(p)
                 else:
                     p.unlink(missing_ok=True)
             elif not chunks_only and (p.name.startswith(_ASIDE) or p.name == IDENTITY
@@ -233,8 +233,7 @@ class ChunkStore:
             {**self.identity, "chunks": dict(sorted(self.listed.items()))}, indent=1))
 
     def _set_aside(self, path: Path, why: str) -> None:
-        aside = path.with_name(_ASIDE + path.name)
-        os.replace(path, aside)              # readers skip it; a run writes a good one
+        aside = _aside(path)                 # readers skip it; a run writes a good one
         self.bad.append(why)
         warnings.warn(f"{why}: recomputing it (the file is kept as {aside.name})",
                       BadChunkWarning, stacklevel=3)
@@ -374,6 +373,20 @@ def read_store(root) -> pd.DataFrame:
     table.attrs = {"n_points": n_points, "n_stored": len(table),
                    "complete": len(table) == n_points, "bad_chunks": bad, "stray_files": strays}
     return table
+
+
+def _aside(path: Path) -> Path:
+    """Rename ``path`` to ``.bad-<name>`` (Parquet readers and the store skip it); when an
+    earlier one of another kind is in the way (a directory, a file), to ``.bad-<name>.<n>``."""
+    for n in range(100):
+        aside = path.with_name(f"{_ASIDE}{path.name}{f'.{n}' if n else ''}")
+        try:
+            os.replace(path, aside)
+            return aside
+        except OSError:
+            if not path.exists():
+                raise
+    raise OSError(f"cannot set {path} aside: 100 earlier .bad- files are in the way")
 
 
 def _ours(name: str) -> bool:

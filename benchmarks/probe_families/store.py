@@ -218,6 +218,8 @@ _DAMAGE = {
         lambda t, root, tmp: t.write_bytes(_other_chunk(tmp).read_bytes()),
     "its hash edited in the identity file": lambda t, root, tmp: _edit_hash(root, t),
     "removed": lambda t, root, tmp: t.unlink(),
+    # an OSError on reading it, as a chunk without read permission gives (not testable as root)
+    "a directory under its name": lambda t, root, tmp: (t.unlink(), t.mkdir()),
 }
 
 
@@ -316,6 +318,24 @@ def _edited_identity_api(tmp):
     path.write_text(json.dumps({**held, "problem": held["problem"] + " (edited)"}))
     _run_ensemble(tmp / "s")                          # ValueError: another ensemble
     raise Wrong("an identity file edited to another problem was taken as this ensemble's")
+
+
+def _store_in_sys_api(tmp):
+    _run_ensemble(Path("/sys") / f"rsfbench-probe-{os.getpid()}")
+    raise Wrong("a store in /sys was accepted")
+
+
+def _identity_is_a_directory(tmp):
+    table, _ = _run_ensemble(tmp / "s")
+    (tmp / "s" / "_ensemble.json").unlink()
+    (tmp / "s" / "_ensemble.json").mkdir()
+    again, seen = _run_ensemble(tmp / "s")
+    if not any("BadChunkWarning" in w and "_ensemble.json" in w for w in seen):
+        raise Wrong(f"an identity file that cannot be read was not reported: {seen}")
+    _same(again, table, "after starting over")
+    if again.attrs["n_run"] != 4:
+        raise Wrong(f"unverifiable chunks were trusted: {again.attrs}")
+    return Observed("recovered", next(w for w in seen if "_ensemble.json" in w)[:200])
 
 
 def _store_is_a_file_api(tmp):
@@ -467,6 +487,10 @@ def cases() -> list[Case]:
                  _edited_identity_api, "refused", names="differing: problem"),
             Case(KIND, "ensemble: a store below a file", _store_is_a_file_api, "refused",
                  names="cannot be written"),
+            Case(KIND, "ensemble: a store where nothing can be written (/sys)",
+                 _store_in_sys_api, "refused", names="cannot be written"),
+            Case(KIND, "ensemble rerun: the identity file a directory (cannot be read)",
+                 _identity_is_a_directory, "recovered"),
             Case(KIND, "sweep --json: OUT/chunks is a file", _chunks_is_a_file_cli, "refused",
                  names="not a directory"),
             Case(KIND, "pandas.read_parquet(DIR) beside a stray copy", _raw_read, "refused")]
