@@ -213,6 +213,26 @@ def test_a_chunk_written_but_not_listed_is_recomputed(store):
     _same(again, table)
 
 
+def test_a_stray_listed_by_hand_is_still_a_stray(store):
+    """Listing a copy (with its right hash) in the identity file does not make it a chunk: the
+    run reads only its own chunks' names, unlists the copy and reports it."""
+    import hashlib
+    root, table = store
+    copy = root / "c_copy.parquet"
+    shutil.copyfile(_chunks(root)[0], copy)
+    path = root / "_ensemble.json"
+    held = json.loads(path.read_text())
+    held["chunks"][copy.name] = hashlib.sha256(copy.read_bytes()).hexdigest()
+    path.write_text(json.dumps(held))
+    read, seen = _read(root)
+    assert _named(seen, BadChunkWarning, copy.name) and len(read) == 4
+    _same(read, table)
+    again, seen = _run(root)
+    assert _named(seen, StrayFileWarning, copy.name) and again.attrs["n_resumed"] == 4
+    assert copy.name not in json.loads(path.read_text())["chunks"]
+    _same(again, table)
+
+
 # --- the identity file ----------------------------------------------------------------------
 
 @pytest.mark.parametrize("text", ["{\"schema\": 2, \"code\"", "[1, 2]", "\x00\x01garbage"])

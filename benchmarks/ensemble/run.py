@@ -13,7 +13,10 @@ work, of storage and of scheduling:
   point), with the guarantees of :mod:`benchmarks.sweep_exec`.
 
 With ``store=DIR`` every finished chunk is written at once (:mod:`benchmarks.ensemble.store`),
-and a rerun with the same arguments reads the finished chunks back instead of running them.
+and a rerun with the same arguments reads the finished chunks back instead of running them
+(:func:`benchmarks.ensemble.read_store` reads a store back; a raw Parquet read of DIR does not).
+A cluster lost mid-run (its scheduler, or every worker) ends the run with a
+:class:`~benchmarks.sweep_exec.RunStopped` whose one line says how many points are kept.
 Every argument and every point's problem is checked before the first solve.
 """
 

@@ -276,8 +276,12 @@ class ChunkStore:
 
     def report_strays(self) -> list[str]:
         """Warn of every file that is not this store's (after the run's :meth:`load` calls):
-        ignored, never read nor deleted. Returns their names."""
-        self.strays = _strays(self.root, set(self.listed) | self._seen)
+        ignored, never read nor deleted. Returns their names. A listed name that is no chunk
+        of this ensemble (only a hand lists one) is unlisted first: its file is a stray too."""
+        if set(self.listed) - self._seen:
+            self.listed = {k: v for k, v in self.listed.items() if k in self._seen}
+            self._write_identity()
+        self.strays = _strays(self.root, self._seen)
         for name in self.strays:
             warnings.warn(f"{self.root / name} is not a chunk listed in the store's {IDENTITY}: "
                           "ignored", StrayFileWarning, stacklevel=2)

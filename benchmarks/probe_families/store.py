@@ -320,6 +320,27 @@ def _edited_identity_api(tmp):
     raise Wrong("an identity file edited to another problem was taken as this ensemble's")
 
 
+def _listed_by_hand(reader: str) -> Case:
+    """A copy listed in the identity file with its right hash is still no chunk: read_store
+    names it and leaves it out, a run unlists it and reports it as a stray."""
+    def run(tmp):
+        import hashlib
+        store = _Store(tmp, reader)
+        copy = store.root / "c_copy.parquet"
+        shutil.copyfile(_chunks(store.root)[0], copy)
+        path = store.root / "_ensemble.json"
+        held = json.loads(path.read_text())
+        held["chunks"][copy.name] = hashlib.sha256(copy.read_bytes()).hexdigest()
+        path.write_text(json.dumps(held))
+        table, seen, _ = store.read_back()
+        if not any(copy.name in w for w in seen):
+            raise Wrong(f"the copy listed by hand was not reported: {seen}")
+        _same(table, store.table, "with a copy listed by hand")
+        return Observed("warned", next(w for w in seen if copy.name in w)[:200])
+    return Case(KIND, f"{reader}: a copy listed by hand in the identity file", run, "warned",
+                timeout=180)
+
+
 def _store_in_sys_api(tmp):
     _run_ensemble(Path("/sys") / f"rsfbench-probe-{os.getpid()}")
     raise Wrong("a store in /sys was accepted")
@@ -479,6 +500,7 @@ def cases() -> list[Case]:
     for kind, text in _IDENTITY_DAMAGE.items():
         out += [_identity_case(kind, text, reader) for reader in _READERS]
     out += [_missing_identity_case(reader) for reader in _READERS]
+    out += [_listed_by_hand(reader) for reader in _READERS]
     out += [Case(KIND, "ensemble: another ensemble in the store's directory",
                  _another_ensemble_api, "refused", names="holds another ensemble"),
             Case(KIND, "sweep --json: another problem in the same --out", _another_problem_cli,
