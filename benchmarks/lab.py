@@ -25,10 +25,10 @@ a measure carries the method's error, and none of the save grid's.
 **Settled.** A measure that reads a steady value reads it at the end of a piece, and that piece
 is checked: it has settled when there max(|μ − μss(vL)|, a |ln(v/vL)|) ≤ :data:`SETTLED` ×
 the measure's scale (a |ln(v2/v1)| for a step, a for a hold), μss = (Ft,ss(vL) + ηr vL)/Fn. A
-step's ``delta_mu_ss`` is NaN unless both the piece before it (its end is the baseline) and the piece
-after it (its end is the new steady value) have settled. A hold's ``delta_mu_peak`` is defined
-against μ when the hold began, steady or not, and ``settled_before`` says whether it was. Either
-way an :class:`UnsettledWarning` names a piece that has not settled.
+step's ``delta_mu_ss`` is NaN unless both the piece before it (its end is the baseline) and the
+piece after it (its end is the new steady value) have settled. A hold's ``delta_mu_peak`` is
+defined against μ when the hold began, steady or not, and ``settled_before`` says whether it
+was. Either way an :class:`UnsettledWarning` names a piece that has not settled.
 
 Histories with an overshoot (two-speed loading) are refused: there vL changes after each event,
 not at known times.
@@ -241,8 +241,12 @@ def _sub_problem(problem, start: _State, t1: float):
 def _resolve(solution, start: _State, t1: float, points: int, what: str) -> list[_State]:
     """The run's algorithm from ``start`` to ``t1``, ``points`` samples (times of the run)."""
     from integrators import solve
-    run = solve(_sub_problem(solution.problem, start, t1), solution.algorithm,
-                max_points=points)
+    try:
+        sub = _sub_problem(solution.problem, start, t1)
+    except ValueError as exc:          # the run's own state is not a valid start (a loose run)
+        raise ResolveFailed(f"the run's state at t = {start.t:.9g} s cannot start the re-solve "
+                            f"that locates {what}: {exc}") from None
+    run = solve(sub, solution.algorithm, max_points=points)
     if not run.reached_end:
         raise ResolveFailed(f"re-solving {start.t:.9g}–{t1:.9g} s with {solution.algorithm.name} "
                             f"to locate {what} failed ({run.retcode.value}: {run.message})")
