@@ -15,16 +15,27 @@ inversion may fit (:data:`CYCLES`); every other class has NaN metrics and a ``re
 
 * ``stick-slip`` (p = 1) and ``multiple recurrence`` (p > 1, which the two-speed loading can
   cause): the metrics repeat, and between events the fault is locked;
-* ``oscillation about vL``: the metrics repeat and the slip rate crosses the event thresholds,
-  but between events the fault keeps slipping at a mean rate above :data:`LOCKED_SLIP_RATE` ×
-  vLs — a slip-rate oscillation that never locks, not stick–slip (the documented rule);
+* ``oscillation about vL``: a slip-rate oscillation that never locks, not stick–slip. Either
+  the metrics repeat and the slip rate crosses the event thresholds, but between events the
+  fault keeps slipping at a mean rate above :data:`LOCKED_SLIP_RATE` × vLs (the documented
+  rule); or, without a cycle of events, the run ended on a small oscillation about vL
+  (:func:`integrators.core.cycles.classify`) that the linear stability of steady sliding
+  (:func:`problems.stability.growth_rate`, σ) says has settled: steady sliding is unstable and
+  :data:`~integrators.core.cycles.SETTLE_EFOLDS` e-folds of growth passed without an event
+  (a small limit cycle), or σ is so close to 0 (k = kcr) that no run this problem allows
+  would see the oscillation grow or decay (a neutral, steady oscillation);
 * ``stable sliding``: no cycle (no events, a transient, or events that died out), the run ended
   close to steady sliding at vLs (:data:`STEADY_LOG_TOLERANCE`) *and* steady sliding is linearly
-  stable there (:func:`problems.stability.characteristic_roots`);
+  stable there (σ < 0);
 * ``not converged``: events still changing at the end of the run (run longer);
 * ``too short to classify``: no events, or too few to compare, and the end state does not show
-  stable sliding (still locked, or steady sliding is unstable): run longer;
+  stable sliding nor a settled oscillation (still locked, still decaying, still growing): the
+  reason says how long a run needs (the linear decay to within the tolerance, or the growth's
+  settling time, :func:`integrators.core.cycles.settle_time`) when the linear analysis knows;
 * ``failed``: the solve did not reach t_end (its retcode and message are the reason).
+
+Nothing here divides by σ or takes its logarithm unguarded: σ = 0 (neutral stability) and σ
+unknown (NaN: the characteristic roots could not be computed) are reasons, not crashes.
 """
 
 from __future__ import annotations
@@ -107,32 +118,52 @@ class EndState:
     """How a run ended, against steady sliding at the slow loading speed vLs: the slip rate
     ``log_v`` = ln(v/vLs), and the state's and the spring's distance from steady sliding in
     units of A = a·Fn (``state_offset``, ``force_offset``); whether steady sliding is linearly
-    stable (``growth_rate``, the largest real part of the characteristic roots, 1/s, < 0)."""
+    stable (``growth_rate`` σ, the largest real part of the characteristic roots, 1/s, < 0;
+    0 at neutral stability, NaN when it could not be computed); ``longest_run``, the longest
+    run (s) the problem allows (τ = ``TAU_END_MAX``; NaN when not known), which says whether
+    a promise to run longer can be kept."""
 
     log_v: float
     state_offset: float
     force_offset: float
     growth_rate: float
+    longest_run: float = float("nan")
 
     @property
     def stable(self) -> bool:
         return self.growth_rate < 0.0
 
     @property
+    def offset(self) -> float:
+        """The largest of the three offsets (A; |ln v/vLs| counts as one)."""
+        return max(abs(self.log_v), self.state_offset, self.force_offset)
+
+    @property
     def near_steady(self) -> bool:
-        return max(abs(self.log_v), self.state_offset, self.force_offset) < STEADY_LOG_TOLERANCE
+        return self.offset < STEADY_LOG_TOLERANCE
+
+    def stability(self) -> str:
+        """Steady sliding's linear stability in words (no division by a zero σ)."""
+        g = self.growth_rate
+        if g < 0.0:
+            return f"linearly stable (perturbations decay e-fold in {-1.0 / g:.3g} s)"
+        if g > 0.0:
+            return f"linearly unstable (perturbations grow e-fold in {1.0 / g:.3g} s)"
+        if g == 0.0:
+            return "neutrally stable (growth rate 0 to double precision: k = kcr)"
+        return "of unknown linear stability (its characteristic roots could not be computed)"
 
     def describe(self) -> str:
-        stability = ("linearly stable" if self.stable else "linearly unstable (perturbations "
-                     f"grow e-fold in {1 / self.growth_rate:.3g} s)")
-        return (f"the run ended at v = {np.exp(self.log_v):.3g} vLs (state {self.state_offset:.2g} "
+        with np.errstate(over="ignore"):
+            v = np.exp(self.log_v)
+        return (f"the run ended at v = {v:.3g} vLs (state {self.state_offset:.2g} "
                 f"A, spring {self.force_offset:.2g} A from steady sliding); steady sliding is "
-                f"{stability}")
+                f"{self.stability()}")
 
 
 def end_state(solution) -> EndState:
     """The :class:`EndState` of a Solution (its last saved state)."""
-    from problems.stability import growth_rate
+    from problems.slider import TAU_END_MAX
     p = solution.problem
     law, fn = p.law, p.normal_force
     log_v, state, force = cycles.end_offsets(
@@ -140,7 +171,20 @@ def end_state(solution) -> EndState:
         float(solution.v[-1]), float(solution.fs[-1]), float(solution.theta[-1]),
         p.radiation_damping)
     return EndState(log_v=log_v, state_offset=state, force_offset=force,
-                    growth_rate=growth_rate(p))
+                    growth_rate=_growth_rate(p), longest_run=TAU_END_MAX * law.lc / law.v0)
+
+
+def _growth_rate(problem) -> float:
+    """σ of ``problem``, NaN when the characteristic roots cannot be computed (coefficients
+    beyond the float range: a mass or stiffness near the float limits), so that classifying
+    such a run names the fact instead of raising."""
+    from problems.stability import growth_rate
+    try:
+        with np.errstate(all="ignore"):
+            g = growth_rate(problem)
+    except (ValueError, ArithmeticError):        # numpy's LinAlgError is a ValueError
+        return float("nan")
+    return g if np.isfinite(g) else float("nan")
 
 
 def interevent_slip_rate(events: pd.DataFrame) -> np.ndarray:
@@ -187,9 +231,13 @@ def cycle_from(found: np.ndarray, n: int, t_end: float, rtol: float, max_period:
     the reason a reader sees, for one run or for each point of an ensemble."""
     F = cycles.F
     outcome, p = int(found[F["OUTCOME"]]), found[F["PERIOD"]]
-    growth, offsets = ((end.growth_rate, (end.log_v, end.state_offset, end.force_offset))
-                       if end is not None else (np.nan, (np.nan,) * 3))
-    what = CLASSIFICATIONS[cycles.classify(outcome, p, growth, *offsets)]
+    quiet = float(found[F["GAP"]])
+    if end is not None:
+        growth, offsets = end.growth_rate, (end.log_v, end.state_offset, end.force_offset)
+        headroom = end.longest_run - t_end
+    else:
+        growth, offsets, headroom = np.nan, (np.nan,) * 3, np.nan
+    what = CLASSIFICATIONS[cycles.classify(outcome, p, growth, *offsets, quiet, headroom)]
     if what in CYCLES:
         p = int(p)
         return LimitCycle(
@@ -198,29 +246,67 @@ def cycle_from(found: np.ndarray, n: int, t_end: float, rtol: float, max_period:
             peak_velocity_m_s=float(found[F["PEAK_V"]]),
             cycles_to_converge=int(found[F["FIRST"]]) + p + 1, n_events=n, rtol=rtol,
             recurrence_values=[float(v) for v in found[F["VALUES"]:F["VALUES"] + p]])
-    if what == "oscillation about vL":
+    if what == "oscillation about vL" and outcome == cycles.OSCILLATING:
         return LimitCycle(
             what, period=int(p), n_events=n, rtol=rtol,
             reason=f"a periodic slip-rate oscillation (period {int(p)}, ΔT "
                    f"{found[F['RECURRENCE']]:.4g} s), but between events the fault slips at "
                    f"{found[F['RATIO']]:.2g} vLs on average (stick–slip needs ≤ "
                    f"{LOCKED_SLIP_RATE:g} vLs): it never locks")
+    if what == "oscillation about vL":
+        return LimitCycle(what, n_events=n, rtol=rtol,
+                          reason=_settled_reason(end, quiet, headroom, n))
     if what == "stable sliding":
         died = "no events" if n == 0 else f"the {n} events died out"
         return LimitCycle(what, n_events=n, rtol=rtol, reason=f"{died}; {end.describe()}")
     why = end.describe() if end is not None else "no end state to compare with steady sliding"
+    longer = _run_longer(end, quiet, headroom, t_end)
     if outcome == cycles.NO_EVENTS:
-        reason = f"no event in {t_end:g} s, and {why}: run longer"
+        reason = f"no event in {t_end:g} s, and {why}: {longer}"
     elif outcome == cycles.STOPPED:
-        reason = (f"no event in the last {found[F['GAP']]:.3g} s (more than 3 recurrence "
-                  f"intervals), and {why}: run longer")
+        reason = (f"no event in the last {quiet:.3g} s (more than 3 recurrence "
+                  f"intervals), and {why}: {longer}")
     elif outcome == cycles.TOO_FEW:
         reason = (f"{n} events in {t_end:g} s, too few to see a cycle repeat (at least "
-                  f"{2 * min_repeats + 1} are needed), and {why}: run longer")
+                  f"{2 * min_repeats + 1} are needed), and {why}: {longer}")
     else:
         reason = (f"the metrics of the last events do not repeat within {rtol:g} with any "
                   f"period up to {max_period}: run longer")
     return LimitCycle(what, n_events=n, rtol=rtol, reason=reason)
+
+
+def _settled_reason(end: EndState, quiet: float, headroom: float, n: int) -> str:
+    """Why a run without a cycle of events is an oscillation about vL (see
+    :func:`integrators.core.cycles.classify`)."""
+    g = end.growth_rate
+    since = "no event" if n == 0 else f"no event in the last {quiet:.3g} s"
+    if g > 0.0 and g * quiet >= cycles.SETTLE_EFOLDS:
+        return (f"a small limit cycle about vL, not stick–slip: {since} over {g * quiet:.3g} "
+                f"e-folds of the linear growth of steady sliding ({cycles.SETTLE_EFOLDS:g} "
+                f"turn any perturbation into an event), the growth has saturated; "
+                f"{end.describe()}")
+    wait = cycles.settle_time(g, end.offset, quiet)
+    return (f"a steady oscillation about vL at neutral stability (k = kcr to within the "
+            f"precision of the growth rate): {end.describe()}; it would take {wait:.3g} s "
+            f"more to grow or decay measurably, longer than any run of this problem can be "
+            f"({end.longest_run:.3g} s, τ = v0 t/Lc at its limit)")
+
+
+def _run_longer(end: EndState | None, quiet: float, headroom: float, t_end: float) -> str:
+    """How much longer to run, as far as the linear stability of steady sliding knows."""
+    if end is None or not np.isfinite(headroom) or not cycles.on_oscillation(
+            end.log_v, end.state_offset, end.force_offset):
+        return "run longer"
+    wait = cycles.settle_time(end.growth_rate, end.offset, quiet)
+    if not 0.0 < wait <= headroom:
+        return "run longer"
+    if end.growth_rate < 0.0:
+        what = (f"a decaying oscillation is then within {STEADY_LOG_TOLERANCE:g} of steady "
+                f"sliding")
+    else:
+        what = (f"{cycles.SETTLE_EFOLDS:g} e-folds of growth have then passed: it has events "
+                f"or has settled as a small limit cycle")
+    return f"run to t_end ≥ {t_end + wait:.4g} s ({what})"
 
 
 def summarize(solution, rtol: float = 1e-3) -> LimitCycle:
