@@ -7,9 +7,10 @@ The apparatus is that of Marone's code as distributed with rsfmodel (problems.pr
 a = 0.005, b = 0.01, Dc = 10 µm, k = 1e7 N/m on 10 kN, V0 = 1 µm/s), quasi-static unless
 --mass is given; --problem FILE runs your own apparatus and history instead (TOML or JSON).
 
-The peaks are located by re-solving from the run's states (benchmarks.lab), not read off the
-saved trajectory: the save grid (the trajectory file and plot) does not move them. A piece that
-has not settled is named in a warning, and its steady-state change is null.
+μ is the spring force over the normal force (what a load cell reads; with mass it is not the
+friction). The peaks are located by re-solving from the run's states (benchmarks.lab), not read
+off the saved trajectory: the save grid (the trajectory file and plot) does not move them. A
+piece that has not settled is named in a warning, and its steady-state change is null.
 """
 
 from __future__ import annotations

@@ -338,7 +338,8 @@ def _refine(solution, a: _State, b: _State, t_switch: float, t_stop: float, vl: 
             if states[-1].t < t_stop:
                 raise ResolveFailed(f"{what}: the crossing of v through {vl:.6g} m/s bracketed "
                                     f"in {a.t:.12g}–{b.t:.12g} s is not there on a re-solve")
-            raise PeakNotReached(f"{what} is at the end of its piece (t = {t_stop:.6g} s)")
+            raise PeakNotReached(f"{what} was not reached inside the piece: it is at its end "
+                                 f"(t = {t_stop:.9g} s)")
         a, b = states[j - 1], states[j]
     fa, fb = sign * math.log(a.v / vl), sign * math.log(b.v / vl)
     x = fa / (fa - fb)
