@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import warnings
 
 import pytest
 
@@ -185,3 +186,20 @@ def test_the_command_refuses_in_one_line(args, names):
     done = cli("lab", *args, "--json", "--no-progress")
     assert done.status == 2 and names in json.loads(done.out)["error"]
     assert cli_outcome(done, json_mode=True).outcome == "refused"   # one line, no traceback
+
+
+def test_pieces_without_a_saved_point_and_a_run_that_opens_with_holds():
+    """Three saved points over three pieces (the states at the switches come from re-solves
+    only) measure what 100,000 do; two holds that open a run are one hold, judged against the
+    speed after it."""
+    p = _history((1e-6, 1e-5, 1e-4), (10.0, 30.0), 50.0)
+    alg = I.Rodas5P(rtol=1e-9, atol=1e-9)
+    sparse, dense = (step_response(I.solve(p, alg, max_points=n)) for n in (3, 100_000))
+    for col in ("mu_before", "mu_extreme", "t_extreme_s", "mu_end"):
+        assert sparse[col].to_numpy() == pytest.approx(dense[col].to_numpy(), rel=1e-9)
+    held = _history((0.0, 0.0, 1e-6), (5.0, 10.0), 110.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UnsettledWarning)   # a healed start is not steady
+        heal = healing(I.solve(held, alg, max_points=3))
+    assert list(heal.hold_s) == [10.0] and heal.t_hold_start_s.iloc[0] == 0.0
+    assert heal.t_peak_s.iloc[0] > 10.0 and heal.delta_mu_peak.iloc[0] > 0

@@ -77,17 +77,15 @@ def _flag_cases() -> list[Case]:
         "lab drop": (("drop",), "drop"),
     }
     for name, (args, names) in more.items():
-        run = _refusal(*args, names=names)
-        if "--out" in args:
-            run = _with_file("f", run)
-        out.append(Case(KIND, name, run, "refused", names=names))
-        out.append(Case(KIND, name + " --json", _with_file("f", _refusal(
-            *args, names=names, json_mode=True)) if "--out" in args else _refusal(
-            *args, names=names, json_mode=True), "refused", names=names))
+        for json_mode in (False, True):
+            out.append(Case(KIND, name + (" --json" if json_mode else ""),
+                            _with_file("f", _refusal(*args, names=names, json_mode=json_mode)),
+                            "refused", names=names))
     return out
 
 
 def _with_file(name: str, run):
+    """``run`` with a plain file ``name`` in its directory (what ``--out {tmp}/f`` meets)."""
     def wrapped(tmp):
         (tmp / name).write_text("not a directory")
         return run(tmp)
@@ -271,6 +269,7 @@ def _api(make):
 
 def _api_cases() -> list[Case]:
     from benchmarks.lab import healing, step_response
+    from problems import window
 
     def solved(problem, **kw):
         from integrators import Rodas5P, solve
@@ -302,9 +301,7 @@ def _api_cases() -> list[Case]:
         Case(KIND, "healing of a run stopped by max_steps",
              _api(lambda: healing(solved(vs(), max_steps=5))), names="did not reach"),
         Case(KIND, "step_response of a two-speed (overshoot) run",
-             _api(lambda: step_response(solved(__import__("problems").window("W2",
-                                                                              t_end=0.2)))),
-             names="overshoot"),
+             _api(lambda: step_response(solved(window("W2", t_end=0.2)))), names="overshoot"),
         Case(KIND, "step_response with the peak after the end",
              _api(lambda: step_response(solved(vs(t_end=10.5)))), names="not reached"),
         Case(KIND, "step_response of a run that ran away (slip law, no mass)", retcode_run,
