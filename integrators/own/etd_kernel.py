@@ -7,6 +7,14 @@ The loop is resumable: its whole state lives in the float array ``st`` (layout `
 so the Python side can run it in chunks, empty the output buffers when they fill, report
 progress and enforce budgets, without the output growing with the run length.
 
+The step is Eq. 53's, bounded further by the loading: a step may change the spring force by at
+most ``o[O_LOAD_MAX]`` times A = a·Fn, i.e. s·(C/D)·|E − w| ≤ load_max (C/D = k Lc/A). Eq. 53
+bounds the slip of a step, not the load the spring takes on while the slider sticks (w ≪ E):
+there only Δτmax bounds the step, and a large one let a single frozen-coefficient step load the
+spring by many A, through the whole nucleation of an event, which the step never saw (its
+targets frozen at the start; ETD1 did not even see it at the step's end). At the paper's
+settings the bound never binds on the paper's problems (their load per step is at most 0.04 A).
+
 Event detection (SPEC §4) happens inside the loop: an event starts when w crosses 10·E_slow
 upwards and ends when w ≤ E_slow; both crossing times are located by linear interpolation of
 ln w within the step (second-order accurate). Under two-speed loading the step that crosses the
@@ -21,7 +29,8 @@ import math
 import numpy as np
 from numba import njit
 
-from problems.formulations import N_Q, Q_BETA, Q_D, Q_E, Q_G, Q_LAW, etd_targets, ln_slip_rate
+from problems.formulations import (N_Q, Q_BETA, Q_C, Q_D, Q_E, Q_G, Q_LAW, etd_targets,
+                                   ln_slip_rate)
 from problems.loading import H_TAU_FAST, load_segment
 
 # --- layout of the loop state ``st`` -------------------------------------------------------
@@ -43,7 +52,8 @@ S_NEVENTS = 17
 S_TAU_PEAK = 18
 S_RULE = 19           # the step-rule ratio of the step that left the rule (STEP_RULE), else 0
 S_RULE_MAX = 20       # the largest step-rule ratio of the run (diagnostic)
-S_SIZE = 21
+S_LOAD_BOUND = 21     # steps shortened by the loading bound (diagnostic)
+S_SIZE = 22
 
 # --- layout of the parameters ``p`` --------------------------------------------------------
 #: the problem vector q of :mod:`problems.formulations` (its E set per step), the end of the run,
@@ -52,15 +62,15 @@ P_TAU_END, P_W_START, P_W_END, P_TWO_SPEED = N_Q, N_Q + 1, N_Q + 2, N_Q + 3
 P_SIZE = N_Q + 4
 
 # --- layout of the options ``o`` -----------------------------------------------------------
-O_DTAU_MAX, O_DTAU_CNST, O_W_MAX, O_N_ITER, O_SAVE_DTAU, O_RULE_MAX = 0, 1, 2, 3, 4, 5
-O_SIZE = 6
+O_DTAU_MAX, O_DTAU_CNST, O_W_MAX, O_N_ITER, O_SAVE_DTAU, O_RULE_MAX, O_LOAD_MAX = range(7)
+O_SIZE = 7
 
 # --- event record columns ------------------------------------------------------------------
 E_TAU_START, E_TAU_END, E_HMAX, E_HMIN, E_WPEAK, E_SLIP_START, E_SLIP_END, E_TAU_PEAK = range(8)
 E_SIZE = 8
 
 # --- return codes of :func:`etd_advance` ---------------------------------------------------
-DONE, BUFFER_FULL, CHUNK_END, NONFINITE, STEP_RULE = 0, 1, 2, -1, -2
+DONE, BUFFER_FULL, CHUNK_END, NONFINITE, STEP_RULE, STALLED = 0, 1, 2, -1, -2, -3
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -136,8 +146,8 @@ def etd_advance(st, p, o, save_buf, ev_buf, max_steps):
 
     Writes saved points (τ, h, η, Ψ) to ``save_buf`` and completed events to ``ev_buf`` starting
     at the counts in ``st``. Returns DONE at τ_end, BUFFER_FULL when an output buffer is full,
-    CHUNK_END after ``max_steps`` steps, NONFINITE if a step produced a non-finite value, and
-    STEP_RULE if a step slipped more than ``o[O_RULE_MAX]`` times what Eq. 53 allows at the
+    CHUNK_END after ``max_steps`` steps, NONFINITE if a step produced a non-finite value,
+    STALLED if a step is too short to advance τ in floating point, and STEP_RULE if a step slipped more than ``o[O_RULE_MAX]`` times what Eq. 53 allows at the
     fastest state it evaluated (the ratio is in ``st[S_RULE]``); ``st`` then still holds the state
     before that step.
     """
@@ -151,6 +161,8 @@ def etd_advance(st, p, o, save_buf, ev_buf, max_steps):
     dtau_max, dtau_cnst, w_max = o[O_DTAU_MAX], o[O_DTAU_CNST], o[O_W_MAX]
     slip_bound = dtau_cnst * w_max          # Eq. 53: the slip per step, in Lc, at most
     rule_max = o[O_RULE_MAX]
+    load_max = o[O_LOAD_MAX]
+    stiffness = p[Q_C] / p[Q_D]             # C/D = k Lc/A: spring force per Lc, in A
     n_iter = int(o[O_N_ITER])
     save_dtau = o[O_SAVE_DTAU]
     evals_per_step = 1 + n_iter
@@ -169,7 +181,14 @@ def etd_advance(st, p, o, save_buf, ev_buf, max_steps):
         e, bound = load_segment(hist, tau, st[S_FAST_UNTIL], tau_end, tiny)
         p[Q_E] = e
         s = min(dtau_max, dtau_cnst * w_max / w)          # Eq. 53
+        load_rate = stiffness * abs(e - w)                # spring force change per τ, in A
+        if s * load_rate > load_max:
+            s = load_max / load_rate
+            st[S_LOAD_BOUND] += 1
         s = min(s, bound - tau)                           # land on a switch of the loading
+        if not tau + s > tau:
+            _store(st, tau, h, eta, psi, n_save, n_ev)
+            return STALLED
         h1, eta1, psi1, w_seen = etd_step(p, h, eta, psi, s, n_iter)
         st[S_STEPS] += 1
         st[S_EVALS] += evals_per_step
