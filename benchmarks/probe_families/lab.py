@@ -32,7 +32,7 @@ FLAGS = (("step", "--v1", "p"), ("step", "--v2", "p"), ("step", "--t-step", "p")
          ("step", "--after", "p"), ("shs", "--holds", "p"), ("shs", "--v", "p"),
          ("shs", "--slide", "p"), ("shs", "--first-slide", "p"), ("step", "--mass", "n"),
          ("step", "--radiation-damping", "n"), ("step", "--stiffness", "p"),
-         ("step", "--rtol", "p"), ("step", "--atol", "p"))
+         ("step", "--c", "n"), ("step", "--rtol", "p"), ("step", "--atol", "p"))
 #: (label, text, applies to p / n)
 BAD = (("negative", "-1", "pn"), ("zero", "0", "p"), ("nan", "nan", "pn"), ("inf", "inf", "pn"),
        ("text", "1e-6m", "pn"))
