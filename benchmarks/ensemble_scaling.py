@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from benchmarks.ensemble import ensemble, grid, point_problems, point_rows
+from benchmarks.ensemble import ensemble, grid, point_problems, point_rows, read_store
 from benchmarks.files import atomic_write
 from benchmarks.paper_sweeps import B_STEP, best_fit
 from benchmarks.provenance import provenance
@@ -131,7 +131,7 @@ def _time_big(n, kills, seed, progress):
             child.wait()
             at_kill.append(_chunks_in(killed_dir))
         resumed = _big_run(killed_dir, n, progress=progress)
-        stored = pd.read_parquet(killed_dir)
+        stored = read_store(killed_dir)
         names = ["b", "lc"]
         return {"n_points": len(whole), "wall_s": wall, "store_mb": size / 1e6,
                 "classes": whole.classification.value_counts().to_dict(),
@@ -146,7 +146,7 @@ def _time_big(n, kills, seed, progress):
 
 
 def _chunks_in(directory: Path) -> int:
-    return len(list(directory.glob("*.parquet"))) if directory.exists() else 0
+    return len(list(directory.glob("_c*.parquet"))) if directory.exists() else 0
 
 
 def _time_dask(n, progress):

@@ -4,8 +4,8 @@ A sweep is an ensemble (:mod:`benchmarks.ensemble`) of one problem — a preset 
 :class:`~problems.SpringSlider` — over the grid b × Lc, scored against observations. The
 ensemble engine runs it: the own compiled methods in compiled batches on numba's threads, any
 other backend point by point on a pool of processes, or chunks on a Dask cluster; finished chunks
-are kept in a Parquet store under ``DIR/chunks`` (``pandas.read_parquet(DIR/"chunks")`` reads the
-simulations back), so a sweep restarted with the same arguments runs only what is missing, and
+are kept in a Parquet store under ``DIR/chunks`` (``benchmarks.ensemble.read_store(DIR/"chunks")``
+reads the simulations back: the chunks its identity file lists, each checked by its hash), so a sweep restarted with the same arguments runs only what is missing, and
 changing only the observations (ΔT̄, σ) re-scores the stored simulations without running them
 again. Slip-weakening curves (J2) need each point's trajectory: such a sweep runs point by point.
 
@@ -243,7 +243,8 @@ def sweep(problem, b_values, lc_values, algorithm, obs: Observations, out,
     table = score(table.rename(columns={"lc": "lc_m"}), obs)
     summary = summarize_sweep(table, obs, algorithm, wall_s=run["wall_s"], n_run=run["n_run"],
                               n_resumed=run["n_resumed"], n_bad_files=len(run["bad_chunks"]),
-                              bad_files=run["bad_chunks"], workers=run["workers"],
+                              bad_files=run["bad_chunks"], stray_files=run["stray_files"],
+                              workers=run["workers"],
                               scheduler=scheduler, backend=run["backend"],
                               batched=run["batched"], chunks=run["chunks"],
                               store=str(out / "chunks"))

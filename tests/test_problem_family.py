@@ -459,21 +459,6 @@ def test_the_healing_peak_of_marones_hold():
     assert heal.mu_before.iloc[0] == 0.6
 
 
-def test_peaks_are_refined_on_even_samples_and_refused_at_an_edge():
-    from benchmarks.lab import PeakNotReached, _extreme
-    t = np.linspace(0.0, 1.0, 41)
-    y = np.cos(7.0 * (t - 0.4137))                     # peak at 0.4137, between samples
-    tp, yp = _extreme(t, y, 1.0, "a cosine")
-    # the parabola takes the error of the sampled maximum, O((ωh)²), to O((ωh)⁴)
-    assert abs(tp - 0.4137) < 1e-4 and abs(yp - 1.0) < 0.01 * (1.0 - y.max())
-    uneven = np.sort(np.concatenate([t, [0.4101]]))
-    tu, yu = _extreme(uneven, np.cos(7.0 * (uneven - 0.4137)), 1.0, "uneven samples")
-    assert tu in uneven                                 # no parabola through uneven samples
-    for edge in (t[t < 0.3], t[t > 0.5]):
-        with pytest.raises(PeakNotReached, match="not reached"):
-            _extreme(edge, np.cos(7.0 * (edge - 0.4137)), 1.0, "a window")
-
-
 def test_a_tenfold_slip_law_step_runs_away_without_mass_and_is_bounded_with_a_kilogram():
     """docs/problem-family.md: the large-perturbation instability of Gu et al. (1984)."""
     still = I.solve(P.velocity_step_test("slip", t_end=40.0), I.Rodas5P(rtol=1e-9, atol=1e-9))

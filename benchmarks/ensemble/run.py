@@ -25,7 +25,7 @@ from __future__ import annotations
 import contextlib
 import os
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
@@ -37,7 +37,8 @@ from benchmarks.ensemble.store import ChunkStore, identity_of
 from benchmarks.sweep_exec import (CONNECT_TIMEOUT_S, WORKER_TIMEOUT_S, RunStopped, connect,
                                    execute, quiet_distributed)
 from integrators import Algorithm, Output
-from problems._validate import check_count, check_positive
+from integrators.core.solve import short_piece
+from problems._validate import check_count, check_positive, units_checked_already
 
 __all__ = ["ensemble", "Chunk", "run_chunk", "batched", "auto_chunk_size", "CHUNK_SIZE",
            "BACKENDS"]
@@ -115,9 +116,10 @@ def _numba_threads(n: int | None):
 def warm_chunk(chunk: Chunk) -> None:
     """Compile (or load from numba's cache) what the chunk needs: its first point, briefly."""
     try:
-        first = point_problems(chunk.problem, chunk.names, chunk.values[:1])[0]
-        run_chunk(Chunk(replace(first, t_end=first.t_end * 1e-3), chunk.algorithm, (),
-                        np.empty((1, 0)), 0, threads=chunk.threads, curve_dt=chunk.curve_dt))
+        with units_checked_already():
+            first = short_piece(point_problems(chunk.problem, chunk.names, chunk.values[:1])[0])
+        run_chunk(Chunk(first, chunk.algorithm, (), np.empty((1, 0)), 0, threads=chunk.threads,
+                        curve_dt=chunk.curve_dt))
     except Exception:            # a failing point is reported by run_chunk, not here
         pass
 

@@ -3,12 +3,13 @@ one module by area: each module's ``cases()`` returns its :class:`~benchmarks.pr
 
 from __future__ import annotations
 
-from benchmarks.probe_families import (classification, etd, integrators, inversion, lab,
-                                       problem_files, store, units)
+from benchmarks.probe_families import (classification, etd, histories, integrators, inversion,
+                                       lab, problem_files, store, units)
 
 __all__ = ["cases"]
 
-_MODULES = (problem_files, lab, units, classification, integrators, etd, store, inversion)
+_MODULES = (problem_files, lab, units, classification, integrators, etd, histories, store,
+            inversion)
 
 
 def cases() -> list:

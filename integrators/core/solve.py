@@ -9,7 +9,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -17,7 +16,7 @@ import pandas as pd
 
 from integrators.core.registry import Algorithm
 from integrators.core.solution import EVENT_COLUMNS, Output, RawRun, ReturnCode, Solution, Stats
-from problems._validate import check_positive
+from problems._validate import check_positive, units_checked_already
 from problems.slider import SpringSlider
 
 __all__ = ["solve", "Budget", "compile_ahead", "short_piece"]
@@ -100,13 +99,13 @@ def short_piece(problem: SpringSlider, fraction: float = 1e-3) -> SpringSlider:
     t_end = problem.t_end * fraction
     hist = problem.loading.history
     kept = sum(1 for t in hist.switch_times if t < t_end)
-    if kept == len(hist.switch_times):
-        return dataclasses.replace(problem, t_end=t_end)
-    velocities = hist.velocities[:kept + 1]
-    if not any(v > 0 for v in velocities):       # a run that opens with a hold
-        velocities = velocities[:-1] + (hist.v_slow,)
-    with warnings.catch_warnings():             # the user's values were judged already
-        warnings.simplefilter("ignore")
+    # the user's values were judged already; the short end time is not theirs
+    with units_checked_already():
+        if kept == len(hist.switch_times):
+            return dataclasses.replace(problem, t_end=t_end)
+        velocities = hist.velocities[:kept + 1]
+        if not any(v > 0 for v in velocities):       # a run that opens with a hold
+            velocities = velocities[:-1] + (hist.v_slow,)
         loading = dataclasses.replace(hist, velocities=velocities,
                                       switch_times=hist.switch_times[:kept],
                                       reference_velocity=hist.v_slow)

@@ -1,0 +1,92 @@
+"""Probe cases: load-point histories (switches 1e−11 s to 1e−3 s apart, steps of 10³ up and down,
+a run that opens with a hold, a hundred switches) through every backend of the registry.
+
+Each case checks the spring force at the end against Rodas5P at rtol = atol = 1e−11, which
+SUNDIALS' CVODE-BDF at 1e−11 matched to 1e−11 relative on each of these histories: a success
+that disagrees by more than 1e−4 is ``wrong``; an honest failure (a failure retcode with its
+message) is acceptable, a hang (the driver asking for a segment's end for ever) is not.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+
+from benchmarks.probe import Case, Observed, Wrong
+
+__all__ = ["cases"]
+
+#: the largest relative difference of the final spring force a success may show at rtol 1e-8
+AGREE = 1e-4
+
+
+def _histories() -> dict:
+    from problems import LoadHistory, preset, velocity_step_test
+    step = velocity_step_test(t_step=10.0, t_end=20.0)
+    w2 = preset("W2", law="slip", t_end=8.0)
+    return {
+        "switches 1e-11 s apart": dataclasses.replace(
+            step, loading=LoadHistory((1e-6, 1e-5, 1e-6), (10.0, 10.0 + 1e-11))),
+        "switches 1e-9 s apart": dataclasses.replace(
+            step, loading=LoadHistory((1e-6, 1e-5, 1e-6), (10.0, 10.0 + 1e-9))),
+        "a step up by 1e3": dataclasses.replace(
+            step, loading=LoadHistory((1e-6, 1e-3), (10.0,))),
+        "a step down by 1e3 after a hold": dataclasses.replace(
+            step, loading=LoadHistory((0.0, 1e-6, 1e-9), (5.0, 10.0), reference_velocity=1e-6)),
+        "a hundred switches": dataclasses.replace(
+            step, loading=LoadHistory(tuple([1e-6, 1e-5] * 50),
+                                      tuple(0.1 + 0.2 * i for i in range(99)))),
+        "inertial slider, a step during stick-slip": dataclasses.replace(
+            w2, loading=LoadHistory((7.5e-5, 1.5e-4), (4.0,))),
+    }
+
+
+@functools.cache
+def _problem(name: str):
+    return _histories()[name]
+
+
+@functools.cache
+def _reference_fs(name: str) -> float:
+    from integrators import Rodas5P, solve
+    sol = solve(_problem(name), Rodas5P(rtol=1e-11, atol=1e-11), max_points=2)
+    if not sol.reached_end:
+        raise RuntimeError(f"the reference failed on {name}: {sol.message}")
+    return float(sol.fs[-1])
+
+
+def _case(history: str, method: str):
+    def run(tmp):
+        from integrators import REGISTRY, solve
+        cls = REGISTRY[method]
+        alg = cls(rtol=1e-8, atol=1e-8) if cls.adaptive else cls()
+        problem = _problem(history)
+        alg.check_problem(problem)               # ProblemNotSupported: refused, before any work
+        sol = solve(problem, alg, max_points=2, wall_budget=20.0)
+        if not sol.success:
+            if sol.reached_end:
+                raise Wrong(f"retcode {sol.retcode.value} but reached t_end")
+            return Observed("ok", f"honest failure: {sol.retcode.value}: {sol.message}")
+        if abs(sol.t[-1] - problem.t_end) > 1e-9 * problem.t_end:
+            raise Wrong(f"Success at t = {sol.t[-1]!r} of {problem.t_end}")
+        ref = _reference_fs(history)
+        err = abs(sol.fs[-1] - ref) / abs(ref)
+        if err > AGREE:
+            raise Wrong(f"final spring force {sol.fs[-1]!r} N, reference {ref!r} N "
+                        f"({err:.2e} relative)")
+        return Observed("ok", f"{len(sol.events)} events, final Fs within {err:.1e}")
+    return run
+
+
+def cases() -> list[Case]:
+    from integrators import REGISTRY
+    out = []
+    for history in _histories():
+        inertial = history.startswith("inertial")
+        for method in sorted(REGISTRY, key=str.lower):
+            expect = "ok"
+            if not inertial and method.startswith("ETD"):
+                expect = "refused"               # the paper's ETD needs mass
+            out.append(Case("load-histories", f"{method}: {history}", _case(history, method),
+                            expect, timeout=120))
+    return out
