@@ -104,8 +104,8 @@ def _fields(flag: str, spec: str, n: int) -> list[float]:
 
 def check_grid(b_values, lc_values, max_points: int = MAX_GRID_POINTS):
     """The grid as float arrays, or ``ValueError``: both axes non-empty, finite, b ≥ 0, Lc > 0,
-    no value repeated, at most ``max_points`` points in all. An Lc axis outside the plausible
-    range in metres warns once (:class:`~problems._validate.UnitWarning`), not once a point."""
+    no value repeated, at most ``max_points`` points in all. An axis whose ends are outside the
+    plausible range (b dimensionless, Lc in metres) warns once (:class:`~problems._validate.UnitWarning`), not once a point."""
     axes = []
     for name, values in (("b", b_values), ("lc", lc_values)):
         try:
@@ -128,8 +128,9 @@ def check_grid(b_values, lc_values, max_points: int = MAX_GRID_POINTS):
     if b.size * lc.size > limit:
         raise ValueError(f"the grid has {b.size} × {lc.size} = {b.size * lc.size} points, more "
                          f"than max_points = {limit}: raise it if you mean it")
-    for value in {lc.min(), lc.max()}:
-        warn_implausible("lc", value, stacklevel=3)
+    for name, axis in (("b", b), ("lc", lc)):
+        for value in {axis.min(), axis.max()}:
+            warn_implausible(name, value, stacklevel=3)
     return b, lc
 
 
