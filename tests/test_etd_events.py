@@ -15,8 +15,9 @@ import pytest
 
 import integrators as I
 import problems as P
-from benchmarks.probe_families.etd import (MISSED_BEFORE, TOLERANCE, WINDOWS, events_agree,
-                                           reference, window_problem)
+from benchmarks.probe_families.etd import (HISTORIES, MISSED_BEFORE, TOLERANCE, WINDOWS,
+                                           events_agree, history_problem, reference,
+                                           window_problem)
 from integrators.own import etd_kernel as K
 from integrators.own.etd import SLIP_PER_STEP_MAX
 
@@ -158,3 +159,14 @@ def test_a_tiny_dtau_cnst_stops_at_its_step_budget():
 def test_load_max_misuse_is_refused(value):
     with pytest.raises(ValueError, match="load_max"):
         I.ETD2(load_max=value)
+
+
+@pytest.mark.parametrize("history", list(HISTORIES))
+def test_load_histories_whose_switches_a_huge_step_would_straddle(history):
+    """Steps land on every switch of the loading (a hold, a step up), whatever dtau_max."""
+    p = history_problem(history)
+    ref = reference(p)
+    for make in METHODS:
+        sol = I.solve(p, make(dtau_max=1e6), max_points=2)
+        why = events_agree(sol, ref, TOLERANCE[make.name])
+        assert not why, f"{make.name}: {why}"

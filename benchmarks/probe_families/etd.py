@@ -22,7 +22,7 @@ import numpy as np
 from benchmarks.probe import Case, Observed, Wrong, cli, cli_outcome, one_json  # noqa: F401
 
 __all__ = ["cases", "WINDOWS", "TOLERANCE", "reference", "events_agree", "window_problem",
-           "MISSED_BEFORE"]
+           "MISSED_BEFORE", "HISTORIES", "history_problem"]
 
 #: (preset, law) → t_end (s): half-way between two of the reference's event starts (Rodas5P at
 #: 1e−9, see the module docstring), so that a run whose events drift by less than half an
@@ -49,6 +49,23 @@ TOLERANCE = {"ETD1": 0.35, "ETD2": 0.05, "ETDIterated": 0.02}
 #: 4.471 s only (one huge stick step loaded the spring through the nucleation), and at
 #: dtau_max = 1e6 stopped Unresolved; with it, 0.0066, 3.640 and 10.012 s
 MISSED_BEFORE = dict(law="aging", b=0.0092 * 1.1, lc=0.5e-6 * 0.3, t_end=12.0)
+
+
+#: W2 under load-point histories whose switches a huge step would straddle (steps land on them):
+#: name → (law, velocities m/s, switch times s, t_end s half-way between two reference events)
+HISTORIES = {
+    "a step up at 4 s": ("slip", (7.5e-5, 1.5e-4), (4.0,), 8.4),
+    "a hold from 2 to 3 s": ("slip", (7.5e-5, 0.0, 7.5e-5), (2.0, 3.0), 10.0),
+    "a hold from 2 to 3 s, aging law": ("aging", (7.5e-5, 0.0, 7.5e-5), (2.0, 3.0), 9.5),
+}
+
+
+def history_problem(name: str):
+    from problems import LoadHistory, preset
+    law, velocities, switches, t_end = HISTORIES[name]
+    return dataclasses.replace(preset("W2", law=law, t_end=t_end),
+                               loading=LoadHistory(velocities, switches,
+                                                   reference_velocity=velocities[0]))
 
 
 def window_problem(name: str, law: str):
@@ -160,6 +177,19 @@ def _damped_case(method: str, dtau_max: float):
     return run
 
 
+def _history_case(method: str, history: str):
+    def run(tmp):
+        from integrators import solve
+        p = history_problem(history)
+        ref = reference(p)
+        sol = solve(p, _method(method, dtau_max=1e6), max_points=2)
+        why = events_agree(sol, ref, TOLERANCE[method])
+        if why:
+            raise Wrong(why)
+        return Observed("ok", f"{len(sol.events)} events")
+    return run
+
+
 def _tiny_step_case(method: str):
     """dtau_cnst = 1e−300 (steps of ~1e−297): the step budget stops it with a retcode."""
     def run(tmp):
@@ -203,6 +233,9 @@ def cases() -> list[Case]:
                             _refused_case(method, dtau_cnst), "refused", names="dtau_cnst"))
         out.append(Case("integrators", f"{method} dtau_max=1e6 on W2/aging damped: the "
                         "reference's events", _damped_case(method, 1e6), "ok"))
+        for history in HISTORIES:
+            out.append(Case("integrators", f"{method} dtau_max=1e6 on W2 with {history}: the "
+                            "reference's events", _history_case(method, history), "ok"))
         out.append(Case("integrators", f"{method} dtau_cnst=1e-300 stops at its step budget",
                         _tiny_step_case(method), "retcode"))
         out.append(Case("integrators", f"{method} dtau_max=1e6 without mass is refused",
