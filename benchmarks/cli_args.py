@@ -66,7 +66,23 @@ class Parser(argparse.ArgumentParser):
         super().__init__(*args, **kwargs)
 
     def error(self, message):
-        raise UsageError(f"{self.prog}: {message} (see {self.prog} --help)")
+        raise UsageError(f"{self.prog}: {message}{self._unit_of(message)} (see {self.prog} --help)")
+
+    def _unit_of(self, message: str) -> str:
+        """"; in s" and the like for a refused value of a flag whose metavar is a unit."""
+        if not message.startswith("argument "):
+            return ""
+        flags = message[len("argument "):].split(":", 1)[0].split("/")
+        for action in self._actions:
+            if set(flags) & set(action.option_strings):
+                unit = _METAVAR_UNITS.get(action.metavar)
+                return f"; a value in {unit}" if unit and f" {unit}" not in message else ""
+        return ""
+
+
+#: the units that a flag's metavar names (``--t-end S``)
+_METAVAR_UNITS = {"S": "s", "M_S": "m/s", "KG": "kg", "N_PER_M": "N/m", "N_S_PER_M": "N s/m",
+                  "LC_M": "m"}
 
 
 class UsageError(ValueError):
