@@ -170,3 +170,10 @@ def test_load_histories_whose_switches_a_huge_step_would_straddle(history):
         sol = I.solve(p, make(dtau_max=1e6), max_points=2)
         why = events_agree(sol, ref, TOLERANCE[make.name])
         assert not why, f"{make.name}: {why}"
+
+
+def test_a_huge_v_max_is_refused_like_a_huge_dtau_cnst():
+    """The slip a step may take is dtau_cnst · v_max/v0: v_max = 5 m/s with the paper's
+    dtau_cnst is 5 Lc a step, refused, the message saying both ways out."""
+    with pytest.raises(I.ProblemNotSupported, match=r"slip 5 Lc.*or v_max smaller"):
+        I.solve(window_problem("W2", "slip"), I.ETD2(v_max=5.0))

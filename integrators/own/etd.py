@@ -125,7 +125,8 @@ class _ETD(Algorithm):
                 f"(dtau_cnst * v_max/v0, v_max = {self.v_max!r} m/s, v0 = {v0!r} m/s); a "
                 f"frozen-coefficient step resolves at most {SLIP_PER_STEP_MAX:g} Lc (beyond it "
                 f"events are missed or invented): dtau_cnst must be at most "
-                f"{SLIP_PER_STEP_MAX * v0 / self.v_max:.3g} here (nondimensional time v0 t/Lc)")
+                f"{SLIP_PER_STEP_MAX * v0 / self.v_max:.3g} here (nondimensional time v0 t/Lc), "
+                "or v_max smaller")
 
     def run(self, problem, output, budget, progress) -> RawRun:
         nd = problem.nondimensional()
