@@ -150,9 +150,10 @@ def cmd_invert(args) -> int:
         inv = invert(misfit, box_b, box_lc, walkers=args.walkers, steps=args.steps,
                      profile_points=args.profile_points, seed=args.seed, progress=not quiet,
                      say=progress)
+        stage[0] = "writing of its files"
+        summary = {**write_inversion(inv, out), "integrator_choice": why, "out": str(out)}
     except KeyboardInterrupt:
-        return _interrupted(args, "invert", f"during the {stage[0]}: nothing written to {out}")
-    summary = {**write_inversion(inv, out), "integrator_choice": why, "out": str(out)}
+        return _interrupted(args, "invert", f"during the {stage[0]}: {out} is incomplete")
     failed = not np.isfinite(inv.fit.J1)         # no point of the box had a limit cycle
     for p in summary["profiles"].values():       # on the standard error, also with --json
         for text in p["warnings"]:
@@ -180,9 +181,12 @@ def cmd_invert(args) -> int:
         say(f"posterior ({p['n_solves']:,} solves, {p['wall_s']:.1f} s): b = "
             f"{p['mean']['b']:.5g} ± {p['std']['b']:.2g}, log10 Lc = "
             f"{p['mean']['log10_lc']:.3f} ± {p['std']['log10_lc']:.2g}; acceptance "
-            f"{p['acceptance']:.2f}, τ = {max(p['tau'].values()):.1f} steps"
-            f"{'' if p['tau_reliable'] else ' (chain < 50 τ: run more --steps)'}, "
-            f"{p['effective_samples']:.0f} effective samples")
+            f"{p['acceptance']:.2f}, "
+            + (f"τ = {max(p['tau'].values()):.1f} steps"
+               f"{'' if p['tau_reliable'] else ' (chain < 50 τ: run more --steps)'}, "
+               f"{p['effective_samples']:.0f} effective samples"
+               if np.isfinite(p["effective_samples"]) else
+               "τ not estimable (a walker never moved: run more --steps)"))
         say(f"prior: {p['prior']}")
     say(f"written: {', '.join(summary['files'].values())}")
     return 0

@@ -10,6 +10,8 @@ one ensemble batch (:func:`benchmarks.ensemble.ensemble`), one compiled call for
 Diagnostics reported: the mean acceptance fraction, the integrated autocorrelation time of each
 parameter (emcee's estimate, with ``tol=0``, and whether the chain is at least 50 τ long, emcee's
 rule of thumb for a reliable τ), and the effective number of samples, walkers × kept steps / τ.
+A chain too short for a τ (a walker that never moved) has τ and the effective samples NaN and is
+not reliable: it is not given a number it does not have.
 
 A Ctrl-C during a step is held until the step ends and then raised as ``KeyboardInterrupt``
 from :func:`sample`: emcee wraps the log-probability in a handler that prints a traceback for
@@ -109,15 +111,17 @@ def sample(misfit: Misfit, b_range, lc_range, start, walkers: int = 32, steps: i
             raise KeyboardInterrupt(f"the posterior was interrupted at step {done} of {steps}")
     wall = time.perf_counter() - started
     chain = sampler.get_chain(discard=burn, flat=True)
-    tau = sampler.get_autocorr_time(discard=burn, tol=0)
+    with np.errstate(divide="ignore", invalid="ignore"):    # a walker that never moved
+        tau = sampler.get_autocorr_time(discard=burn, tol=0)    # has no τ: NaN, said below
     kept = steps - burn
     samples = pd.DataFrame({"b": chain[:, 0], "log10_lc": chain[:, 1]})
     return Posterior(
         samples=samples, mean=samples.mean().to_dict(), std=samples.std().to_dict(),
         acceptance=float(np.mean(sampler.acceptance_fraction)),
         tau={"b": float(tau[0]), "log10_lc": float(tau[1])},
-        tau_reliable=bool(kept >= 50 * np.max(tau)),
-        effective_samples=float(walkers * kept / np.max(tau)), n_solves=count["n"],
+        tau_reliable=bool(np.isfinite(tau).all() and kept >= 50 * np.max(tau)),
+        effective_samples=(float(walkers * kept / np.max(tau)) if np.isfinite(tau).all()
+                           else float("nan")), n_solves=count["n"],
         wall_s=wall,
         prior=f"uniform in b on [{b_lo:g}, {b_hi:g}] and in log10 Lc on "
               f"[{np.log10(lc_lo):g}, {np.log10(lc_hi):g}] (Lc in m)")

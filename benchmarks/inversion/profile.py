@@ -103,9 +103,10 @@ def profile(misfit: Misfit, parameter: str, values, other_range, scan: int = 41,
         x, J, w = _arrays(points)
         jagged = _jagged(J)
         suspects = [i for i in jagged if (x[i], _hints(x, w, i)) not in tried]
-        stuck = [i for i in jagged if i not in suspects]     # its neighbours' optima too far:
-        new = {float(0.5 * (x[a] + x[a + 1])) for i in stuck # come closer from either side
-               for a in (i - 1, i) if 0 <= a < len(x) - 1}
+        stuck = [i for i in jagged if i not in suspects]
+        # a point its neighbours' optima could not repair: come closer to it from either side
+        new = {float(0.5 * (x[a] + x[a + 1])) for i in stuck for a in (i - 1, i)
+               if 0 <= a < len(x) - 1}
         new = sorted(v for v in new.union(_cells_to_bisect(x, J)) if v not in points)
         if not suspects and not new:
             break
@@ -117,14 +118,14 @@ def profile(misfit: Misfit, parameter: str, values, other_range, scan: int = 41,
                 if Ji < J[i]:
                     points[x[i]] = (Ji, wi, points[x[i]][2])
         if new:                          # a new line starts from its neighbours' optima too
-            hints = [[wk for wk in w[max(np.searchsorted(x, v) - 1, 0):np.searchsorted(x, v) + 1]
-                      if np.isfinite(wk)] for v in new]
+            near = [w[max(k - 1, 0):k + 1] for k in np.searchsorted(x, new)]
+            hints = [[wk for wk in pair if np.isfinite(wk)] for pair in near]
             for v, (Jv, wv) in zip(new, lines.minimise(new, hints)):
                 points[v] = (Jv, wv, "refined")
     x, J, w = _arrays(points)
     kinds = [points[v][2] for v in x]
-    table = pd.DataFrame({parameter: x, "J1": J, "b" if parameter == "log10_lc" else "log10_lc": w,
-                          "point": kinds})
+    other = "b" if parameter == "log10_lc" else "log10_lc"
+    table = pd.DataFrame({parameter: x, "J1": J, other: w, "point": kinds})
     low, high, open_low, open_high, resolved = _interval(x, J)
     jagged = _jagged(J)
     warnings = []
@@ -213,7 +214,7 @@ def _jagged(J: np.ndarray) -> list[int]:
     out = []
     for i in range(len(J)):
         nearer = i + 1 if i < k else i - 1          # the neighbour towards the minimum
-        if i != k and J[i] < J[nearer] - NOISE_J1 - 1e-3 * abs(J[i]):
+        if i != k and np.isfinite(J[i]) and J[i] < J[nearer] - NOISE_J1 - 1e-3 * J[i]:
             out.append(nearer)
     return sorted(set(out))
 

@@ -121,7 +121,7 @@ def _interval(p: dict) -> str:
     """A profile interval, each end that is the box's end marked so."""
     lo = f"{p['low']:.5g}" + (" (box end)" if p["open_low"] else "")
     hi = f"{p['high']:.5g}" + (" (box end)" if p["open_high"] else "")
-    return f"[{lo}, {hi}]"
+    return f"[{lo}, {hi}]" + ("" if p.get("resolved", True) else " (not resolved)")
 
 
 def calibration_study(out, seeds: int = 1000, n: int = 121, sigma_rel: float = 0.05,

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from benchmarks.probe import Case, Observed, Wrong, cli, cli_outcome, one_json
+from benchmarks.probe import Case, Observed, Wrong, cli, cli_outcome
 
 __all__ = ["cases"]
 
@@ -57,7 +57,8 @@ _VALUES = {"p": ("0", "-5", "inf", "nan", "abc"), "c": ("0", "-1", "1.5", "abc")
 
 def _flag_cases():
     commands = {
-        "invert": (_INVERT, {"--walkers": ("c", "3", "100000"), "--steps": ("s", "1", "10000000"),
+        "invert": (_INVERT, {"--walkers": ("c", "3", "100000"),
+                             "--steps": ("s", "1", "10000000"),
                              "--profile-points": ("c", "2", "100000"), "--seed": ("s",),
                              "--workers": ("c", "100000"), "--t-end": ("p",),
                              "--wall-budget": ("p",), "--accuracy": ("p",),
