@@ -19,9 +19,10 @@ What a user must know (docs/etd.md explains each, with what was measured):
 
   - the slip a step may take (Eq. 53: Δτcnst·vmax/v0 critical distances) is refused above
     ``SLIP_PER_STEP_MAX`` = 0.5 Lc, ten times the paper's 0.05 Lc (``check_problem``, before
-    any work; the work-precision ladder's coarsest setting, 8×, stays accepted). Measured on the paper example and W1–W4 under both laws: up to 0.5 Lc the events
-    are the reference's (first-order timing drift for ETD1); at 1 Lc ETD2 stops ``Unresolved``;
-    from 2.5 Lc runs report Success with events invented (W1: 125 for 7) or none;
+    any work; the work-precision ladder's coarsest setting, 8×, stays accepted). Measured on
+    the paper example and W1–W4 under both laws: up to 0.5 Lc the events are the reference's
+    (first-order timing drift for ETD1); at 1 Lc ETD2 stops ``Unresolved``; from 2.5 Lc runs
+    report Success with events invented (W1: 125 for 7) or none;
   - the load a step may take: Eq. 53 bounds the slip of a step, not the spring's loading while
     the slider sticks (w ≪ E), where only Δτmax bounds the step — a huge Δτmax let one frozen
     step load the spring through a whole nucleation. So each step also changes the spring force

@@ -147,10 +147,11 @@ def etd_advance(st, p, o, save_buf, ev_buf, max_steps):
     Writes saved points (τ, h, η, Ψ) to ``save_buf`` and completed events to ``ev_buf`` starting
     at the counts in ``st``. Returns DONE at τ_end, BUFFER_FULL when an output buffer is full,
     CHUNK_END after ``max_steps`` steps, NONFINITE if a step produced a non-finite value,
-    STALLED if a step is too short to advance τ in floating point, and STEP_RULE if a step slipped more than ``o[O_RULE_MAX]`` times what Eq. 53 allows at the
-    fastest state it evaluated (the ratio is in ``st[S_RULE]``); ``st`` then still holds the state
-    before that step.
-    """
+    STALLED if a step is too short to advance τ in floating point, and STEP_RULE if a step
+    slipped more than ``o[O_RULE_MAX]`` times what Eq. 53 allows at the fastest state it
+    evaluated (the ratio is in ``st[S_RULE]``); ``st`` then still holds the state before that
+    step. Each step is Eq. 53's, shortened to change the spring force by at most
+    ``o[O_LOAD_MAX]`` A (module docstring; counted in ``st[S_LOAD_BOUND]``)."""
     law = int(p[Q_LAW])
     beta = p[Q_BETA]
     tau_end = p[P_TAU_END]
