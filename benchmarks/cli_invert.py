@@ -61,10 +61,10 @@ def steps(text: str) -> int:
 
 
 def fraction(text: str) -> float:
-    """A number in (0, 1): σ as a fraction of the true value."""
+    """A number in [1e-6, 1): σ as a fraction of the true value."""
     x = positive(text)
-    if not x < 1:
-        raise argparse.ArgumentTypeError(f"must be a fraction in (0, 1) of the true values "
+    if not 1e-6 <= x < 1:
+        raise argparse.ArgumentTypeError(f"must be a fraction in [1e-6, 1) of the true values "
                                          f"(0.05 is 5 %), got {text!r}")
     return x
 
@@ -153,7 +153,9 @@ def cmd_invert(args) -> int:
         stage[0] = "writing of its files"
         summary = {**write_inversion(inv, out), "integrator_choice": why, "out": str(out)}
     except KeyboardInterrupt:
-        return _interrupted(args, "invert", f"during the {stage[0]}: {out} is incomplete")
+        written = (f"{out} is incomplete" if stage[0].startswith("writing") else
+                   f"nothing written to {out}")
+        return _interrupted(args, "invert", f"during the {stage[0]}: {written}")
     failed = not np.isfinite(inv.fit.J1)         # no point of the box had a limit cycle
     for p in summary["profiles"].values():       # on the standard error, also with --json
         for text in p["warnings"]:
@@ -285,7 +287,8 @@ def add_parsers(sub, preset_names) -> None:
                    help=f"synthetic data sets, seeds 0..N-1, at most {MAX_SEEDS:,} "
                         "(default: 1000)")
     c.add_argument("--sigma", type=fraction, default=0.05, metavar="REL",
-                   help="noise σ as a fraction of the true ΔT and Δμ, in (0, 1) (default: 0.05)")
+                   help="noise σ as a fraction of the true ΔT and Δμ, 1e-6 to below 1 "
+                        "(default: 0.05)")
     c.add_argument("--n", type=bounded(5, MAX_NODES, "n² forward solves"), default=121,
                    metavar="N", help=f"grid nodes per parameter, 5 to {MAX_NODES} "
                                      "(default: 121)")

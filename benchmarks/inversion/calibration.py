@@ -41,7 +41,12 @@ from benchmarks.inversion.profile import CHI2_95_1DOF
 from integrators import Algorithm
 from problems import SpringSlider
 
-__all__ = ["coverage", "Calibration", "REGIONS", "binomial_check"]
+__all__ = ["coverage", "Calibration", "REGIONS", "binomial_check", "MIN_SIGMA_REL"]
+
+#: the smallest noise σ of a study, as a fraction of the true values: a thousand times the
+#: misfit's own floor (:data:`benchmarks.inversion.misfit.MIN_SIGMA_REL`), so that no seed's
+#: noisy mean puts its σ below that floor after the work has begun
+MIN_SIGMA_REL = 1e-6
 
 #: the regions checked, as the columns of the per-seed table that say whether each covers
 REGIONS = {"j1_region": "J1 ≤ 5.99 (χ²₂, 95 %)",
@@ -96,8 +101,8 @@ def coverage(problem: SpringSlider, truth, algorithm: Algorithm, b_range, lc_ran
     for name, n in (("n_b", n_b), ("n_lc", n_lc)):
         if isinstance(n, bool) or not isinstance(n, int) or n < 5:
             raise ValueError(f"{name} must be an integer ≥ 5 (grid nodes), got {n!r}")
-    if not 0 < sigma_rel < 1:
-        raise ValueError(f"sigma_rel must be in (0, 1), got {sigma_rel!r}")
+    if not MIN_SIGMA_REL <= sigma_rel < 1:      # below it a seed's σ could be refused mid-study
+        raise ValueError(f"sigma_rel must be in [{MIN_SIGMA_REL:g}, 1), got {sigma_rel!r}")
     b_t, lc_t = float(truth[0]), float(truth[1])
     if not (b_range[0] < b_t < b_range[1] and lc_range[0] < lc_t < lc_range[1]):
         raise ValueError(f"truth = {truth!r} is outside the box {b_range!r} × {lc_range!r}")

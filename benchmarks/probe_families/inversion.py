@@ -65,7 +65,7 @@ def _flag_cases():
                              "--obs-recurrence": ("p",), "--sigma-recurrence": ("p", "1e-15"),
                              "--obs-drop": ("p",), "--sigma-drop": ("p", "1e-15")}),
         "calibration": (("calibration", "--out", "{tmp}/i"),
-                        {"--seeds": ("c", "10000000"), "--sigma": ("p", "1", "1.5"),
+                        {"--seeds": ("c", "10000000"), "--sigma": ("p", "1", "1.5", "1e-9"),
                          "--n": ("c", "4", "100000"), "--check-seeds": ("s", "1000")}),
         "solver-effect": (("solver-effect", "--out", "{tmp}/i"), {"--n": ("c", "4", "100000")}),
     }
