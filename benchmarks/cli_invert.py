@@ -76,6 +76,8 @@ def workers(text: str) -> int:
                    "add start-up time and memory")(text)
 
 
+#: simulated cycles of the observed ΔT per forward solve at most (t_end / ΔT)
+MAX_CYCLES = 10_000
 #: emcee's steps per walker at most
 MAX_STEPS = 1_000_000
 #: emcee's walkers at most
@@ -130,6 +132,11 @@ def cmd_invert(args) -> int:
         flagged("--walkers/--steps", check_sampler, box_b, box_lc, args.walkers, args.steps)
     obs = observations_from_args(args, published)
     flagged("--sigma-recurrence/--sigma-drop", check_sigma, obs)
+    cycles = problem.t_end / obs.recurrence_s
+    if cycles > MAX_CYCLES:                  # each of thousands of solves would run for hours
+        raise ValueError(f"--t-end {problem.t_end:g} s simulates {cycles:,.0f} cycles of the "
+                         f"observed ΔT = {obs.recurrence_s:g} s per solve; a limit cycle is "
+                         f"read in tens: at most {MAX_CYCLES:,}")
     algorithm, why = integrator_from_args(args)
     name = args.preset if args.problem is None else Path(args.problem).stem
     out = Path(args.out or f"invert_{name}_{problem.law.name}")

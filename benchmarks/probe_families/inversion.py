@@ -84,6 +84,8 @@ def _flag_cases():
     out += [
         _cli_case("invert --walkers 5000 --steps 5000 (10⁷ solves and more)",
                   _INVERT + ("--walkers", "5000", "--steps", "5000"), names="--walkers"),
+        _cli_case("invert --t-end 1e6 (over 10,000 cycles a solve)",
+                  _INVERT + ("--t-end", "1e6"), names="--t-end"),
         _cli_case("calibration --check-seeds 5 --seeds 2",
                   ("calibration", "--out", "{tmp}/i", "--seeds", "2", "--check-seeds", "5"),
                   names="--check-seeds"),
