@@ -88,7 +88,7 @@ def _print_summary(s: dict) -> None:
 def cmd_simulate(args) -> int:
     problem = problem_from_args(args)
     algorithm, why = integrator_from_args(args)
-    warm_up(problem, algorithm)     # so that wall_s excludes numba compilation
+    warm_up(problem, algorithm, wall_budget=args.wall_budget)   # wall_s excludes compiling
     sol = solve(problem, algorithm, max_points=200_000 if args.plot else 20_000,
                 progress=args.progress, wall_budget=args.wall_budget)
     summary = {**simulate_summary(sol), "integrator_choice": why}

@@ -33,7 +33,8 @@ SAVED_POINTS = 20_000
 
 #: the options of each test, with their defaults (None on the command line: "not given")
 STEP_OPTIONS = {"v1": 1e-6, "v2": 1e-5, "t_step": 10.0, "after": 30.0}
-SHS_OPTIONS = {"holds": [1.0, 10.0, 100.0], "v": 1e-6, "slide": 100.0, "first_slide": 10.0}
+#: a slide of 300 s (30 Dc at 1 µm/s) settles after a 100 s hold to SETTLED of a (100 s did not)
+SHS_OPTIONS = {"holds": [1.0, 10.0, 100.0], "v": 1e-6, "slide": 300.0, "first_slide": 10.0}
 
 
 def _in(kind, what: str):
@@ -235,7 +236,7 @@ def add_parsers(sub) -> None:
     lab.add_argument("--v", type=SPEED, metavar="M_S",
                      help="shs: sliding velocity, m/s (default: 1e-6)")
     lab.add_argument("--slide", type=TIME, metavar="S",
-                     help="shs: sliding after each hold, s (default: 100)")
+                     help="shs: sliding after each hold, s (default: 300)")
     lab.add_argument("--first-slide", type=TIME, metavar="S",
                      help="shs: sliding before the first hold, s (default: 10)")
     lab.add_argument("--integrator", metavar="NAME",

@@ -66,3 +66,12 @@ def test_a_wall_budget_excludes_compiling_on_a_cold_cache(tmp_path):
                          timeout=600, check=True).stdout.split()
     assert out[0] == "WALL_TIME"
     assert float(out[1]) < 0.2 + 0.1        # the budget, plus the check's granularity
+
+
+def test_a_setting_that_crawls_cannot_hang_the_warm_up_of_a_budgeted_solve():
+    # a step rule of 1e-300 would take minutes to reach the step budget: the warm-up piece is
+    # bounded by the same wall budget, then the run by its own
+    from integrators import ETD2
+    sol = solve(preset("W2", law="slip"), ETD2(dtau_cnst=1e-300), wall_budget=0.5)
+    assert sol.retcode.name == "WALL_TIME"
+    assert sol.stats.wall_s < 0.5 + 1.0          # the budget, plus the check's granularity

@@ -73,7 +73,7 @@ def solve(problem: SpringSlider, algorithm: Algorithm, *, save_every: float | No
     output = Output(save_every=save_every, max_points=max_points)
     output.interval(problem.t_end)          # validates the decimation now, not mid-run
     if wall_budget is not None:
-        _compile_once(problem, algorithm)
+        _compile_once(problem, algorithm, wall_budget)
     budget = Budget(wall_s=wall_budget, start=time.perf_counter())
     bar = _progress_bar(problem, algorithm) if progress else None
     try:
@@ -112,22 +112,26 @@ def short_piece(problem: SpringSlider, fraction: float = 1e-3) -> SpringSlider:
         return dataclasses.replace(problem, loading=loading, t_end=t_end)
 
 
-def compile_ahead(problem: SpringSlider, algorithm: Algorithm, fraction: float = 1e-3) -> None:
-    """Run ``algorithm`` on :func:`short_piece` of ``problem``, unbudgeted and unsaved, so
-    that numba has compiled (or loaded from its cache) every kernel the run needs: the warm-up
-    before any clock is read (three saved points: one between steps, from the dense output). Its outcome is not looked at: the real run reports its own."""
-    solve(short_piece(problem, fraction), algorithm, max_points=3)
+def compile_ahead(problem: SpringSlider, algorithm: Algorithm, fraction: float = 1e-3,
+                  wall_budget: float | None = None) -> None:
+    """Run ``algorithm`` on :func:`short_piece` of ``problem``, unsaved, so that numba has
+    compiled (or loaded from its cache) every kernel the run needs: the warm-up before any clock
+    is read (three saved points: one between steps, from the dense output). ``wall_budget``
+    bounds the piece's run, not its compiling (a budget is first checked after the kernels
+    ran), so a setting that crawls cannot hang the warm-up. Its outcome is not looked at: the
+    real run reports its own."""
+    solve(short_piece(problem, fraction), algorithm, max_points=3, wall_budget=wall_budget)
 
 
-#: (method, law, with or without mass) pairs compiled in this process by a budgeted solve
+#: (method, law, with or without mass) compiled in this process by a budgeted solve
 _COMPILED: set = set()
 
 
-def _compile_once(problem: SpringSlider, algorithm: Algorithm) -> None:
+def _compile_once(problem: SpringSlider, algorithm: Algorithm, wall_budget: float) -> None:
     key = (type(algorithm), type(problem.law), problem.quasi_static)
     if key not in _COMPILED:
-        compile_ahead(problem, algorithm)
-        _COMPILED.add(key)
+        _COMPILED.add(key)              # first: the warm-up's own budgeted solve skips this
+        compile_ahead(problem, algorithm, wall_budget=wall_budget)
 
 
 def _solution(problem: SpringSlider, algorithm: Algorithm, raw: RawRun) -> Solution:
