@@ -40,6 +40,7 @@ unknown (NaN: the characteristic roots could not be computed) are reasons, not c
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
@@ -306,7 +307,14 @@ def _run_longer(end: EndState | None, quiet: float, headroom: float, t_end: floa
     else:
         what = (f"{cycles.SETTLE_EFOLDS:g} e-folds of growth have then passed: it has events "
                 f"or has settled as a small limit cycle")
-    return f"run to t_end ≥ {t_end + wait:.4g} s ({what})"
+    return f"run to t_end ≥ {_round_up(t_end + wait):.4g} s ({what})"
+
+
+def _round_up(x: float, digits: int = 4) -> float:
+    """``x`` rounded up to ``digits`` significant digits: a promised length printed with
+    ``:.4g`` is never shorter than the length computed."""
+    scale = 10.0 ** (math.floor(math.log10(x)) - digits + 1)
+    return math.ceil(x / scale * (1 - 1e-12)) * scale
 
 
 def summarize(solution, rtol: float = 1e-3) -> LimitCycle:
