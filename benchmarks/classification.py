@@ -101,14 +101,15 @@ def write_classification(table: pd.DataFrame, out: Path) -> str:
     """``classification.csv`` and ``.md`` in ``out``; returns the Markdown."""
     out.mkdir(parents=True, exist_ok=True)
     table.to_csv(out / "classification.csv", index=False)
-    periodic = table[table.classification.isin(["stick-slip", "multiple recurrence",
-                                                "oscillation about vL"])]
+    # a cycle of events: an oscillation about vL without events (a small limit cycle, or the
+    # neutral oscillation at k = kcr) has no gaps between events to compare
+    has_cycle = table.period.fillna(0) > 0
+    periodic = table[has_cycle]
     by_rule = periodic.mean_rate_over_vls <= LOCKED_SLIP_RATE
     by_trajectory = periodic.min_v_over_vls < LOCKED_V
     summary = (table.groupby("group", sort=False)
                .agg(runs=("problem", "size"),
-                    periodic=("classification", lambda c: int(c.isin(
-                        ["stick-slip", "multiple recurrence", "oscillation about vL"]).sum())),
+                    periodic=("period", lambda p: int((p.fillna(0) > 0).sum())),
                     rate_min=("mean_rate_over_vls", "min"), rate_max=("mean_rate_over_vls", "max"),
                     vmin_min=("min_v_over_vls", "min"), vmin_max=("min_v_over_vls", "max"))
                .reset_index())

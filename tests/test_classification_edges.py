@@ -145,3 +145,16 @@ def test_a_growth_rate_that_cannot_be_computed_is_a_reason(monkeypatch):
     sol = solve(paper_example(t_end=0.5), Rodas5P(rtol=1e-8, atol=1e-8), max_points=101)
     lc = summarize(sol)
     assert lc.classification == "too short to classify" and "unknown" in lc.reason
+
+
+def test_the_locking_study_compares_only_runs_with_a_cycle_of_events(tmp_path):
+    from benchmarks.classification import write_classification
+    row = dict(group="g", problem="p", b=0.01, lc_um=0.3, t_end_s=1.0, retcode="Success")
+    table = pd.DataFrame([
+        {**row, "classification": "stick-slip", "period": 1, "n_events": 10,
+         "mean_rate_over_vls": 0.01, "min_v_over_vls": 0.01},
+        # a small limit cycle without events: no gaps between events, nothing to compare
+        {**row, "classification": "oscillation about vL", "period": 0, "n_events": 0,
+         "mean_rate_over_vls": np.nan, "min_v_over_vls": np.nan}])
+    text = write_classification(table, tmp_path)
+    assert "Of 1 periodic runs" in text and "| g | 2 | 1 |" in text
