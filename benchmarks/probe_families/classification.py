@@ -13,6 +13,8 @@ Four families, each complete by construction:
 * a load switch at every distance from t_end (0, 1 ulp, 1e−15 … 1e−6 s, and at t = 0+),
   for every backend of the registry, at two run lengths: a switch to the same speed changes nothing, so every run
   must reach t_end, be classified, and end where the run without a switch ends;
+* degenerate inputs: no event, one event, events at one instant, a run of one step, with σ = 0,
+  −0 or unknown: never a cycle, always a reason;
 * an ensemble whose points sit on neutral stability: every chunk is stored, each point with
   its class and reason.
 """
@@ -335,5 +337,54 @@ def _ensemble_cases() -> list[Case]:
             for name in ("Rodas5P", "sundials-CVODE-BDF")]
 
 
+# --- degenerate inputs to the classification ------------------------------------------------
+
+def _events(starts, duration=0.01):
+    import pandas as pd
+    t = np.asarray(starts, dtype=float)
+    slip = np.arange(len(t)) * 1e-4
+    return pd.DataFrame({"t_start": t, "t_end": t + duration, "fs_max_before": 6.1e5,
+                         "fs_min": 6.0e5, "v_peak": 0.02, "t_peak": t + duration / 2,
+                         "slip_start": slip, "slip_end": slip + 1e-4})
+
+
+def _degenerate(starts, growth, longest=5e10):
+    """:func:`benchmarks.metrics.limit_cycle` of events starting at ``starts`` and an end 0.2 A
+    from steady sliding with growth rate ``growth``: never a cycle, always a reason."""
+    def run(tmp):
+        from benchmarks.metrics import CYCLES, EndState, limit_cycle
+        end = EndState(log_v=0.2, state_offset=0.2, force_offset=0.2, growth_rate=growth,
+                       longest_run=longest)
+        lc = limit_cycle(_events(starts), 1e6, 10.0, v_slow=1e-4, end=end)
+        if lc.classification in CYCLES or not lc.reason or not np.isnan(lc.recurrence_s):
+            raise Wrong(f"{lc.classification} ({lc.recurrence_s}) from {len(starts)} events: "
+                        f"{lc.reason}")
+        return Observed("retcode", f"{lc.classification}: {lc.reason}")
+    return run
+
+
+def _one_step(tmp):
+    """A run as short as one step (1 ns): classified, not raised."""
+    from benchmarks.metrics import summarize
+    from integrators import solve
+    from problems import paper_example
+    sol = solve(paper_example(t_end=1e-9), _rodas())
+    lc = summarize(sol)
+    if lc.classification != "too short to classify" or "no event in 1e-09 s" not in lc.reason:
+        raise Wrong(f"{lc.classification}: {lc.reason}")
+    return Observed("retcode", lc.reason)
+
+
+def _degenerate_cases() -> list[Case]:
+    out = [Case(KIND, "a run of one step (t_end = 1 ns)", _one_step, "retcode")]
+    for label, starts in (("no event", []), ("one event", [1.0]),
+                          ("eight events at one instant", [1.0] * 8),
+                          ("two events", [1.0, 2.0])):
+        for g_label, g in (("σ = 0", 0.0), ("σ unknown (NaN)", math.nan), ("σ = -0.0", -0.0)):
+            out.append(Case(KIND, f"{label}, {g_label}", _degenerate(starts, g), "retcode"))
+    return out
+
+
 def cases() -> list[Case]:
-    return _ladder_cases() + _extreme_cases() + _switch_cases() + _ensemble_cases()
+    return (_ladder_cases() + _extreme_cases() + _degenerate_cases() + _switch_cases()
+            + _ensemble_cases())
