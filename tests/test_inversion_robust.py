@@ -149,7 +149,7 @@ def test_w2_profiles_with_a_small_sigma_and_few_points_contain_the_fit_and_the_t
     from benchmarks.ensemble import ensemble
     algorithm = Rodas5P(rtol=1e-6, atol=1e-6)
     problem = preset("W2", law="slip", t_end=20.0)
-    c = ensemble(problem, algorithm, {"b": [0.0094], "lc": [3e-7]}).iloc[0]
+    c = ensemble(problem, algorithm, {"b": [0.0094], "lc": [3e-7]}, progress=False).iloc[0]
     rel = 0.002
     obs = Observations(c.recurrence_s * (1 + rel * 0.3), rel * c.recurrence_s,
                        c.friction_drop * (1 - rel * 0.5), rel * c.friction_drop)

@@ -314,7 +314,7 @@ def _w2_small_sigma(tmp):
     from problems import preset
     algorithm = Rodas5P(rtol=1e-6, atol=1e-6)
     problem = preset("W2", law="slip", t_end=20.0)
-    c = ensemble(problem, algorithm, {"b": [0.0094], "lc": [3e-7]}).iloc[0]
+    c = ensemble(problem, algorithm, {"b": [0.0094], "lc": [3e-7]}, progress=False).iloc[0]
     obs = Observations(c.recurrence_s * 1.0006, 0.002 * c.recurrence_s,
                        c.friction_drop * 0.999, 0.002 * c.friction_drop)    # +0.3 σ, −0.5 σ
     inv = invert(Misfit(problem, obs, algorithm), (0.0086, 0.0102), (3e-8, 3e-6), steps=0,
