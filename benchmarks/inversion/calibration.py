@@ -166,6 +166,8 @@ def _checks(problem, algorithm, grid_map: MetricMap, table, n, T0, M0, sigma_rel
         inside = grid_x[grid_J - grid_J.min() <= CHI2_95_1DOF]
         refined = profile(misfit, "b", grid_x[::4], lc_box, scan=len(log10_lc) // 4 + 1)
         row.update({"profile_b_grid_low": inside.min(), "profile_b_grid_high": inside.max(),
+                    "profile_b_grid_nodes": len(inside), "profile_b_refined_resolved":
+                    refined.resolved,
                     "profile_b_refined_low": refined.low, "profile_b_refined_high": refined.high})
         rows.append(row)
     return pd.DataFrame(rows)

@@ -215,10 +215,14 @@ def _checks_markdown(c: pd.DataFrame) -> str:
         "sd b ratio": [f"{x:.3f}" for x in c.std_b_ratio],
         "mean log10 Lc shift (grid sd)": [f"{x:+.3f}" for x in c.mean_log10_lc_shift_sd],
         "sd log10 Lc ratio": [f"{x:.3f}" for x in c.std_log10_lc_ratio],
-        "profile of b: grid nodes": [f"{a:.5f}–{b:.5f}" for a, b in
-                                     zip(c.profile_b_grid_low, c.profile_b_grid_high)],
-        "refined": [f"{a:.5f}–{b:.5f}" for a, b in
-                    zip(c.profile_b_refined_low, c.profile_b_refined_high)]})
+        # an interval within fewer than three nodes is narrower than the grid can say
+        "profile of b: grid nodes": [f"{a:.5f}–{b:.5f}" + ("" if k >= 3 else " (unresolved)")
+                                     for a, b, k in zip(c.profile_b_grid_low,
+                                                        c.profile_b_grid_high,
+                                                        c.profile_b_grid_nodes)],
+        "refined": [f"{a:.5f}–{b:.5f}" + ("" if ok else " (unresolved)") for a, b, ok in
+                    zip(c.profile_b_refined_low, c.profile_b_refined_high,
+                        c.profile_b_refined_resolved)]})
     return (
         "emcee (32 walkers, a quarter of the steps as burn-in, the prior box the grid's cells) "
         "against the grid posterior; the profile of b read on the grid's nodes against the one "
