@@ -232,7 +232,7 @@ KIND_TITLES = {
     "units": "dimensional inputs in an implausible unit",
     "classification": "classifying runs at and near the edges of stability",
     "integrators": "the own integrators where their peers succeed",
-    "load-histories": "load-point histories through every backend",
+    "load-histories": "load histories, no mass, damping, Nagata: every backend",
     "store": "the store reads back only what it wrote",
     "inversion": "inversions, their intervals and their commands",
 }

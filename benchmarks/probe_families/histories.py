@@ -1,10 +1,14 @@
 """Probe cases: load-point histories (switches 1e−11 s to 1e−3 s apart, steps of 10³ up and down,
-a run that opens with a hold, a hundred switches) through every backend of the registry.
+a run that opens with a hold, a hundred switches) and the problem family's limits (no mass with
+radiation damping, damping with mass, the Nagata law) through every backend of the registry.
 
 Each case checks the spring force at the end against Rodas5P at rtol = atol = 1e−11, which
-SUNDIALS' CVODE-BDF at 1e−11 matched to 1e−11 relative on each of these histories: a success
-that disagrees by more than 1e−4 is ``wrong``; an honest failure (a failure retcode with its
-message) is acceptable, a hang (the driver asking for a segment's end for ever) is not.
+SUNDIALS' CVODE-BDF at 1e−11 matched to 1e−11 relative on each of these histories (9.7e−10 on
+the stick–slip ones): a success that disagrees by more than ``AGREE`` (1e−4 for an adaptive
+method at rtol 1e−8; 1e−2 for the fixed-step ETD family, whose error at its default step is
+~1e−5–1e−3 here, while a missed or extra event moves Fs by the friction drop, ~5 %) is
+``wrong``; an honest failure (a failure retcode with its message) is acceptable, a hang (the
+driver asking for a segment's end for ever) is not.
 """
 
 from __future__ import annotations
@@ -16,14 +20,17 @@ from benchmarks.probe import Case, Observed, Wrong
 
 __all__ = ["cases"]
 
-#: the largest relative difference of the final spring force a success may show at rtol 1e-8
-AGREE = 1e-4
+#: the largest relative difference of the final spring force a success may show: adaptive
+#: methods at rtol 1e-8, the fixed-step ETD family at its default step (module docstring)
+AGREE = {True: 1e-4, False: 1e-2}
 
 
 def _histories() -> dict:
     from problems import LoadHistory, preset, velocity_step_test
+    from problems.presets import fault_radiation_damping
     step = velocity_step_test(t_step=10.0, t_end=20.0)
     w2 = preset("W2", law="slip", t_end=8.0)
+    w2_aging = preset("W2", law="aging", t_end=4.0)
     return {
         "switches 1e-11 s apart": dataclasses.replace(
             step, loading=LoadHistory((1e-6, 1e-5, 1e-6), (10.0, 10.0 + 1e-11))),
@@ -38,6 +45,12 @@ def _histories() -> dict:
                                       tuple(0.1 + 0.2 * i for i in range(99)))),
         "inertial slider, a step during stick-slip": dataclasses.replace(
             w2, loading=LoadHistory((7.5e-5, 1.5e-4), (4.0,))),
+        "no mass, radiation damping (W2 aging)": dataclasses.replace(
+            w2_aging, mass=0.0, radiation_damping=fault_radiation_damping()),
+        "inertial slider with radiation damping (W2 aging)": dataclasses.replace(
+            w2_aging, radiation_damping=fault_radiation_damping()),
+        "inertial slider, the Nagata law (W2, c = 2)": preset("W2", law="nagata", t_end=4.0),
+        "a velocity step, the Nagata law": velocity_step_test("nagata", t_end=20.0),
     }
 
 
@@ -71,7 +84,7 @@ def _case(history: str, method: str):
             raise Wrong(f"Success at t = {sol.t[-1]!r} of {problem.t_end}")
         ref = _reference_fs(history)
         err = abs(sol.fs[-1] - ref) / abs(ref)
-        if err > AGREE:
+        if err > AGREE[cls.adaptive]:
             raise Wrong(f"final spring force {sol.fs[-1]!r} N, reference {ref!r} N "
                         f"({err:.2e} relative)")
         return Observed("ok", f"{len(sol.events)} events, final Fs within {err:.1e}")
@@ -81,12 +94,13 @@ def _case(history: str, method: str):
 def cases() -> list[Case]:
     from integrators import REGISTRY
     out = []
-    for history in _histories():
-        inertial = history.startswith("inertial")
+    for history, problem in _histories().items():
         for method in sorted(REGISTRY, key=str.lower):
             expect = "ok"
-            if not inertial and method.startswith("ETD"):
+            if problem.quasi_static and method.startswith("ETD"):
                 expect = "refused"               # the paper's ETD needs mass
+            # an explicit method on the stiff inertial slider runs to its 20 s budget: slow
+            slow = not REGISTRY[method].stiff and not problem.quasi_static
             out.append(Case("load-histories", f"{method}: {history}", _case(history, method),
-                            expect, timeout=120))
+                            expect, slow=slow, timeout=120))
     return out
