@@ -85,9 +85,12 @@ def _attempt(p, hs, ws, z, f, z1, f1, D):
     z1[0] = z0 + hs * (C1 * f0 + C3 * b0 + C4 * c0 + C6 * g0)
     z1[1] = z1_ + hs * (C1 * f1_ + C3 * b1 + C4 * c1 + C6 * g1)
     z1[2] = z2 + hs * (C1 * f2 + C3 * b2 + C4 * c2 + C6 * g2)
-    return max(abs(e0) / (atol + rtol * (abs(z0) + abs(hs * f0))),
-               abs(e1) / (atol + rtol * (abs(z1_) + abs(hs * f1_))),
-               abs(e2) / (atol + rtol * (abs(z2) + abs(hs * f2))))
+    r0 = abs(e0) / (atol + rtol * (abs(z0) + abs(hs * f0)))
+    r1 = abs(e1) / (atol + rtol * (abs(z1_) + abs(hs * f1_)))
+    r2 = abs(e2) / (atol + rtol * (abs(z2) + abs(hs * f2)))
+    if r0 != r0 or r1 != r1 or r2 != r2:    # max() would drop a NaN and accept the trial
+        return np.inf
+    return max(r0, r1, r2)
 
 
 @njit(**engine.NO_NRT)

@@ -52,7 +52,9 @@ def failure(status: int, t_stop: float, max_steps: int, wall_s: float | None,
     at = f"t = {t_stop:.6g} s"
     return {
         E.NONFINITE: (ReturnCode.NON_FINITE, f"non-finite state at {at}"),
-        E.UNDERFLOW: (ReturnCode.STEP_UNDERFLOW, f"step size underflow (t + h == t) at {at}"),
+        E.UNDERFLOW: (ReturnCode.STEP_UNDERFLOW, f"step size underflow (t + h == t, or "
+                                                 f"{E.FLOOR_STEPS} steps in a row below "
+                                                 f"{E.FLOOR_REL:.1e} t) at {at}"),
         E.MAX_STEPS: (ReturnCode.MAX_STEPS, f"step budget of {max_steps} used up at {at}"),
         E.WALL_TIME: (ReturnCode.WALL_TIME, f"wall-time budget of {wall_s} s used up at {at} "
                                             f"of {t_end:g} s"),
@@ -131,7 +133,8 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
         stats = Stats(nfev=int(st[E.NFEV]), njev=int(st[E.NJEV]), steps=int(st[E.STEPS]),
                       rejected=int(st[E.REJECTED]))
         roots = st[E.ST["ROOTS"]:E.ST["ROOTS"] + 4].astype(int).tolist()
-        meta = {"starts": int(st[E.ST["STARTS"]]), "roots": dict(zip(ROOT_NAMES, roots))}
+        meta = {"starts": int(st[E.ST["STARTS"]]), "roots": dict(zip(ROOT_NAMES, roots)),
+                "arrests": int(st[E.ST["ARRESTS"]])}
         y = np.empty((len(t), 3))
         y[:, 0], y[:, 1], y[:, 2] = problem.dimensional_state(h, eta, psi)
         return RawRun(t=t, y=y,

@@ -35,6 +35,25 @@ would find the same crossing again. Methods at their stability limit in the stic
 explicit CashKarp45, the exponential Rosenbrock methods' undamped jitter) set ``stick_peaks``
 False: a PEAK crossing at w ≤ E_slow is not an event's peak (an event starts at w > 10 E_slow and
 ends at w ≤ E_slow) and is not reported.
+
+The arrest (a deep lock): with mass, w u' = L(u) = C h − D (u + β s) − G w. When an event ends
+with friction far above the spring force (b ≫ a, a small, a stiff or light slider), w falls
+linearly to nearly zero and u = ln w plunges to the rest point ue of L (ue ≈ −60 for W2 at
+b = 0.05) in a time ≈ w/|L|, which shrinks below the resolution of τ (one ulp) as w falls:
+every step-size control then underflows (the peers too: CVODE, Radau, BDF). No linearised step
+can jump the plunge either: ∂u'/∂u = −(D + L)/w is large and *positive* while u − ue > 1, so a
+Rosenbrock stage moves u the wrong way. The engine takes the plunge in its limit instead
+(:func:`_arrest`) when a step underflows, or FLOOR_STEPS steps in a row make no progress (each
+below FLOOR_REL·τ), with mass and u more than ARREST_MIN_DROP above ue: τ advanced by a bound
+T of the plunge's duration, h and s by T times their rates at the rest point, u set to the rest
+point there, and that step accepted only if its error (the rates' variation over T) passes the
+error test; then the controller restarts (nfev: 3 per arrest). A method that still cannot
+advance (an explicit one, whose stability limit w/D after the lock is ~1e−30 in τ) stops with
+UNDERFLOW. In the lock u' = L/w is rounding over w (~1e17 for w ~ 1e−27), so a step proposed
+below the resolution of τ is tried at it, and the cubic Hermite dense output falls back to the
+chord for a component whose slopes would bulge it off by more than its size (:func:`hermite`);
+that rounding also makes PEAK cross back and forth there (``Solution.meta["roots"]["peak"]``
+counts them; the events recorder reads a peak only within an event).
 """
 
 from __future__ import annotations
@@ -48,7 +67,7 @@ from integrators.core.clock import monotonic
 from integrators.core.events import (AT_ROOT, END, H_EXTREMUM, PEAK, REC_SIZE, carry_signs,
                                      compiled_roots, new_recorder, observe, record, sign_change)
 from integrators.core.events import N_EVENTS as _REC_N
-from problems.formulations import (N_Q, Q_BETA, Q_C, Q_D, Q_E, Q_LAW, Q_QS, ode_jacobian,
+from problems.formulations import (N_Q, Q_BETA, Q_C, Q_D, Q_E, Q_G, Q_LAW, Q_QS, ode_jacobian,
                                    ode_rhs)
 from problems.loading import H_TAU_FAST, LN_E_HOLD, load_segment
 
@@ -67,13 +86,15 @@ __all__ = ["run", "scratch", "NO_NRT", "fixed_steps", "rhs", "jacobian", "hermit
 ST = dict(TAU=0, TAU_OLD=1, H=2, CURSOR=3, T_RET=4, STEPS=5, REJECTED=6, NFEV=7, NJEV=8,
           HACC=9, ERRACC=10, NACC=11, REJECT=12, TAU0=13, LOAD0=14, T_BOUND=15, FAST_UNTIL=16,
           NEXT_SAVE=17, REC=18, LR_TAU=27, LR_E=28, LR_VALID=29, LAST_T=30, NEED_START=31,
-          STARTS=32, ROOTS=33)
+          STARTS=32, ROOTS=33, ARRESTS=37, FLOOR=38)
 (TAU, TAU_OLD, H, CURSOR, T_RET, STEPS, REJECTED, NFEV, NJEV, HACC, ERRACC, NACC, REJECT, TAU0,
  LOAD0, T_BOUND, FAST_UNTIL, NEXT_SAVE) = range(18)
 REC = 18                        # the events recorder's state (integrators.core.events), REC_SIZE
 (LR_TAU, LR_E, LR_VALID, LAST_T, NEED_START, STARTS,
  ROOTS) = range(REC + REC_SIZE, REC + REC_SIZE + 7)
-N_ST = ROOTS + 4
+ARRESTS = ROOTS + 4
+FLOOR = ARRESTS + 1             # accepted steps in a row at the resolution of τ
+N_ST = FLOOR + 1
 #: rows of Z: z and f at TAU, z and f at TAU_OLD, the dense output's D1–D3, the state at T_RET,
 #: the state at the last root, the state handed on last
 ZROW = dict(Z=0, F=1, ZO=2, FO=3, D1=4, D2=5, D3=6, ZR=7, LRZ=8, ZC=9)
@@ -101,6 +122,11 @@ _OK = -1
 #: crossings placed in one scan at most: each moves the cursor forward, so this only stops a
 #: pathological step (a root function at zero to the bit) from scanning for ever
 MAX_PASSES = 64
+#: a step of at most FLOOR_REL·τ (~4000 units in the last place of τ) makes no progress: from τ
+#: to 2τ would take 1e12 of them. After FLOOR_STEPS of them in a row the run is stuck (an
+#: explicit method in a deep lock, whose stability limit w/D is ~1e−30, "advances" an ulp or so
+#: a step; a plunge the steps follow down to the resolution of τ): treated as an underflow
+FLOOR_REL, FLOOR_STEPS = 2.0 ** -40, 100
 #: accepted steps between two readings of the clock (~20 ns each)
 CLOCK_EVERY = 256
 #: the numba options of a method's ``kernel``: no reference counting. With it, every array
@@ -223,11 +249,18 @@ def _copy(src, dst):
 # --- dense output, events ----------------------------------------------------------------------
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def hermite(hs, z0, f0, z1, f1, D):
-    """The cubic Hermite interpolant of (z, f) at both ends of a step, in the engine's form."""
+    """The cubic Hermite interpolant of (z, f) at both ends of a step, in the engine's form;
+    the chord for a component whose cubic would bulge off the chord by more than the larger of
+    its end values and 1 (module docstring: a slope that is rounding, not a rate)."""
     for i in range(3):
         dz = z1[i] - z0[i]
-        D[0, i] = hs * f0[i] - dz
-        D[1, i] = dz - hs * f1[i] - D[0, i]
+        d1 = hs * f0[i] - dz
+        d2 = dz - hs * f1[i] - d1
+        # x (1 − x)(D1 + x D2) is at most (|D1| + |D2|)/4 off the chord
+        if not 0.25 * (abs(d1) + abs(d2)) <= max(abs(z0[i]), abs(z1[i]), 1.0):
+            d1 = d2 = 0.0
+        D[0, i] = d1
+        D[1, i] = d2
         D[2, i] = 0.0
 
 
@@ -348,21 +381,13 @@ def _max_abs_ratio(a, b):
     return m
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def start(st, p, Z, G, tau0, z0, e, t_bound, w):
-    """(Re)start at τ0 from z0 under the loading rate ``e`` (``w``: 3 × 3 scratch): f(z0),
-    Hairer's initial step (Hairer, Nørsett & Wanner I, §II.4, on the scale of the error test, as
-    scipy's ``select_initial_step``), the root functions at τ0, the controller's memory cleared. At a
-    root just reported the root's sign after its crossing is kept (H_EXTREMUM only if the
-    loading is unchanged: u − ln E moves with E, and so does PEAK without mass)."""
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _initial_step(p, z, f, t_left, w):
+    """Hairer's initial step from (z, f = f(z)) (Hairer, Nørsett & Wanner I, §II.4, on the
+    scale of the error test, as scipy's ``select_initial_step``), at most ``t_left``; one f
+    evaluation (``w``: 3 × 3 scratch)."""
     rtol, atol = p[_RTOL], p[_ATOL]
-    p[_E] = e
-    p[_LN_E] = math.log(e) if e > 0.0 else LN_E_HOLD
-    z, f = Z[_Z], Z[_F]
     trial, f1, scale = w[0], w[1], w[2]
-    for i in range(3):
-        z[i] = z0[i]
-    f_of(p, z, f)
     for i in range(3):
         scale[i] = atol + rtol * abs(z[i])
     d0, d1 = _max_abs_ratio(z, scale), _max_abs_ratio(f, scale)
@@ -383,9 +408,25 @@ def start(st, p, Z, G, tau0, z0, e, t_bound, w):
     second = h1 if h1 > 0.0 else 1e-3 * h0
     if second < h:
         h = second
-    if t_bound - tau0 < h:
-        h = t_bound - tau0
-    st[H] = h
+    if t_left < h:
+        h = t_left
+    return h
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def start(st, p, Z, G, tau0, z0, e, t_bound, w):
+    """(Re)start at τ0 from z0 under the loading rate ``e`` (``w``: 3 × 3 scratch): f(z0),
+    Hairer's initial step (:func:`_initial_step`), the root functions at τ0, the controller's
+    memory cleared. At a root just reported the root's sign after its crossing is kept
+    (H_EXTREMUM only if the loading is unchanged: u − ln E moves with E, and so does PEAK
+    without mass)."""
+    p[_E] = e
+    p[_LN_E] = math.log(e) if e > 0.0 else LN_E_HOLD
+    z, f = Z[_Z], Z[_F]
+    for i in range(3):
+        z[i] = z0[i]
+    f_of(p, z, f)
+    st[H] = _initial_step(p, z, f, t_bound - tau0, w)
     st[TAU] = st[TAU_OLD] = st[CURSOR] = tau0
     st[NFEV] += 2.0
     st[STARTS] += 1.0
@@ -424,6 +465,10 @@ def _step(prepare, attempt, reject, accept, st, p, Z, ws, z0, f0, z1, f1, D, t_l
         z0[i], f0[i] = Z[_Z, i], Z[_F, i]
     st[NJEV] += prepare(p, z0, f0, ws)
     hs, last = (t_land - tau, True) if tau + h >= t_land else (h, False)
+    if tau + hs == tau:
+        # a proposal below the resolution of τ (Hairer's initial step where f is rounding over a
+        # tiny w, module docstring) is tried at it: only a trial rejected there underflows
+        hs = np.nextafter(tau, np.inf) - tau
     fsal, stages = p[_FSAL] != 0.0, p[_STAGES]
     attempts, errmax = 0, np.inf
     while True:
@@ -455,6 +500,92 @@ def _step(prepare, attempt, reject, accept, st, p, Z, ws, z0, f0, z1, f1, D, t_l
         for r in range(3):
             Z[_D1 + r, i] = D[r, i]
     return _OK, t_land if last else tau + hs, h_next, attempts
+
+
+#: an arrest (:func:`_arrest`) is taken only from this far (in u = ln w) above the rest point
+#: of the fast subsystem, a force excess of 4 A: its duration bound needs more than 2, and
+#: nearer the rest point the linearised steps are damped and take the approach themselves
+ARREST_MIN_DROP = 4.0
+#: ln(2^52): the e-folds of the last unit of u's approach to its rest point, down to rounding
+_LN_ULP = 36.05
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _rest_point(p, h, s):
+    """The rest point of u at frozen (h, s): L(u) = C h − D (u + β s) − G e^u = 0 (w u' = L).
+    L decreases with L' ≤ −D; with damping, Newton from the undamped root (where L ≤ 0, L
+    concave) descends monotonically to it."""
+    c, d, g, beta = p[Q_C], p[Q_D], p[Q_G], p[Q_BETA]
+    ue = c * h / d - beta * s
+    if g != 0.0:
+        for _ in range(200):
+            ge = g * math.exp(ue)
+            nxt = ue + (c * h - d * (ue + beta * s) - ge) / (d + ge)
+            if not nxt < ue:
+                break
+            ue = nxt
+    return ue
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _arrest(st, p, Z, z0, f0, z1, f1, D, t_land):
+    """The step that stops a slider with mass which the step control cannot resolve (the
+    module docstring's *arrest*): from (τ, z0) to τ + T, T a bound of the fall of u to its
+    rest point; then the controller restarts. Returns (τ + T, the next h), or (−1, 0) where it
+    does not apply: no mass, a fall of less than ARREST_MIN_DROP, a T past the segment's end, a
+    rest point outside the floating-point range, or an error test failed.
+    z0, f0: the state at τ and f there; z1, f1, D: scratch, left as the step's end and its
+    (linear) dense output."""
+    tau = st[TAU]
+    if p[Q_QS] != 0.0:
+        return -1.0, 0.0
+    h, u0, s = z0[0], z0[1], z0[2]
+    ue = _rest_point(p, h, s)
+    drop = u0 - ue
+    if not (drop > ARREST_MIN_DROP and np.isfinite(ue)):
+        return -1.0, 0.0
+    # the fall's duration: T = ∫ e^u du / |L(u)| from ue (to rounding) to u0, |L| ≥ D (u − ue):
+    # ∫ e^x/x over [1, Δ] ≤ (e^Δ/Δ + e^(Δ/2))/(1 − 2/Δ) (by parts), the last unit ≤ e·ln(2^52)
+    d = p[Q_D]
+    w0 = math.exp(u0)
+    fall = (w0 / (d * drop) + w0 * math.exp(-0.5 * drop) / d) / (1.0 - 2.0 / drop)
+    tau1 = tau + fall + math.e * _LN_ULP * math.exp(ue) / d
+    if not tau1 > tau:
+        tau1 = np.nextafter(tau, np.inf)
+    if not tau1 <= t_land:
+        return -1.0, 0.0
+    span = tau1 - tau
+    # h and s move on at their rates fe at the rest point (the aging law's healing, 1/Ψ, can
+    # be ~600); u sits at the rest point of the new (h, s). Over the span the rates differ
+    # from fe by terms in w ≤ w0 (h' = E − w, s' affine in w or, slip law, −w (u + s)): at
+    # most |f(z0) − fe| + w0 Δ; and by the change of (h, s) itself: |f1 − fe|. Their sum
+    # times the span is the step's error, tested as any step's.
+    fe = D[0]
+    z1[0], z1[1], z1[2] = h, ue, s
+    f_of(p, z1, fe)
+    z1[0], z1[2] = h + span * fe[0], s + span * fe[2]
+    z1[1] = _rest_point(p, z1[0], z1[2])
+    f_of(p, z1, f1)
+    st[NFEV] += 2.0
+    if not (_finite(z1) and _finite(f1) and _finite(fe)):
+        return -1.0, 0.0
+    rtol, atol = p[_RTOL], p[_ATOL]
+    err = 0.0
+    for i in (0, 2):
+        drift = abs(f0[i] - fe[i]) + w0 * drop + abs(f1[i] - fe[i])
+        r = span * drift / (atol + rtol * max(abs(z0[i]), abs(z1[i])))
+        if not r <= err:
+            err = r
+    if not err <= 1.0:
+        return -1.0, 0.0
+    for i in range(3):
+        Z[_ZO, i], Z[_FO, i], Z[_Z, i], Z[_F, i] = z0[i], f0[i], z1[i], f1[i]
+        for r in range(3):
+            Z[_D1 + r, i] = 0.0
+    st[NACC] = st[REJECT] = st[FLOOR] = 0.0
+    st[ARRESTS] += 1.0
+    st[NFEV] += 1.0
+    return tau1, _initial_step(p, z1, f1, t_land - tau1, D)
 
 
 # --- the driver: saves, events, loading ---------------------------------------------------------
@@ -550,13 +681,24 @@ def run(prepare, attempt, reject, accept, ws, sc, st, p, Z, G, dirs, grid, saved
             return CHUNK
         if n % CLOCK_EVERY == CLOCK_EVERY - 1 and monotonic() > p[_DEADLINE]:
             return WALL_TIME
-        status, tau, h, tried = _step(prepare, attempt, reject, accept, st, p, Z, ws,
-                                      z0, f0, z1, f1, D, st[T_BOUND])
+        if st[FLOOR] >= FLOOR_STEPS:            # stuck at the resolution of τ: an underflow
+            _copy(Z[_Z], z0)
+            _copy(Z[_F], f0)
+            status, tau, h, tried = UNDERFLOW, st[TAU], st[H], 0
+        else:
+            status, tau, h, tried = _step(prepare, attempt, reject, accept, st, p, Z, ws,
+                                          z0, f0, z1, f1, D, st[T_BOUND])
         st[REJECTED] += tried - (1 if status != UNDERFLOW else 0)
         if status == UNDERFLOW:
-            return UNDERFLOW
+            tau, h = _arrest(st, p, Z, z0, f0, z1, f1, D, st[T_BOUND])
+            if tau < 0.0:
+                return UNDERFLOW
         n += 1
         st[STEPS] += 1
+        if tau - st[TAU] <= FLOOR_REL * st[TAU]:
+            st[FLOOR] += 1.0
+        else:
+            st[FLOOR] = 0.0
         st[TAU_OLD], st[TAU], st[H] = st[TAU], tau, h
         roots(p, z_now, g)
         if not _crossed(G, g, dirs, stick_peaks):   # else the scan at the top places them

@@ -58,7 +58,9 @@ def _attempt(p, hs, ws, z, f, out, f1, D):
     for i in range(3):
         w[0, i] = 2.0 * hs * t[i]
         out[i] = u[i] + w[0, i]
-        errmax = max(errmax, abs(w[0, i]) / (atol + rtol * max(abs(z[i]), abs(out[i]))))
+        r = abs(w[0, i]) / (atol + rtol * max(abs(z[i]), abs(out[i])))
+        if not r <= errmax:         # max() would drop a NaN and accept the trial
+            errmax = r
     return errmax
 
 

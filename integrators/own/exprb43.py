@@ -63,7 +63,9 @@ def _attempt(p, hs, ws, z, f, out, f1, D):
     for i in range(3):
         w[0, i] *= hs
         out[i] = z[i] + hs * (v1[i] + t[i]) + w[0, i]
-        errmax = max(errmax, abs(w[0, i]) / (atol + rtol * max(abs(z[i]), abs(out[i]))))
+        r = abs(w[0, i]) / (atol + rtol * max(abs(z[i]), abs(out[i])))
+        if not r <= errmax:         # max() would drop a NaN and accept the trial
+            errmax = r
     return errmax
 
 

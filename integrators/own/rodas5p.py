@@ -97,7 +97,9 @@ def _attempt(p, hs, ws, z0, f0, z1, f1, D):
     errmax = 0.0
     for i in range(3):
         z1[i] = u[i] + K[7, i]
-        errmax = max(errmax, abs(K[7, i]) / (atol + rtol * max(abs(z0[i]), abs(z1[i]))))
+        r = abs(K[7, i]) / (atol + rtol * max(abs(z0[i]), abs(z1[i])))
+        if not r <= errmax:         # max() would drop a NaN and accept the trial
+            errmax = r
     if errmax <= 1.0:               # the dense output of an accepted step only
         for i in range(3):
             for r in range(3):
