@@ -124,6 +124,10 @@ def synthetic(recurrence_s: float, friction_drop: float, sigma_rel: float,
     each plus N(0, σ²) with σ = ``sigma_rel`` × its true value, from ``default_rng(seed)``."""
     if not 0 < sigma_rel < 1:
         raise ValueError(f"sigma_rel must be in (0, 1), got {sigma_rel!r}")
+    import warnings
+    from problems._validate import UnitWarning
     z = np.random.default_rng(seed).standard_normal(2)
     s_t, s_m = sigma_rel * recurrence_s, sigma_rel * friction_drop
-    return Observations(recurrence_s + s_t * z[0], s_t, friction_drop + s_m * z[1], s_m)
+    with warnings.catch_warnings():      # σ is a stated fraction of the truth, not a unit slip:
+        warnings.simplefilter("ignore", UnitWarning)     # a study would warn once per seed
+        return Observations(recurrence_s + s_t * z[0], s_t, friction_drop + s_m * z[1], s_m)
