@@ -157,8 +157,10 @@ def test_no_stick_phase_jitter(cls):
 def test_counters(cls):
     """nfev and njev as the module docstring counts them, on W2 (50 ms) with its two-speed
     restarts: Rosenbrock23 2 f per attempt, Rodas5P 7 per attempt and one per accepted step,
-    both 2 per start; one Jacobian per step."""
-    sol = I.solve(P.window("W2", "slip", t_end=0.05), cls(rtol=1e-5, atol=1e-5), max_points=2)
+    both 2 per start; one Jacobian per step. At rtol 1e−4 for Rosenbrock23 (5 rejected; at
+    1e−5 none since its error estimate is filtered in the stick phase), 1e−5 for Rodas5P."""
+    tol = 1e-4 if cls is I.Rosenbrock23 else 1e-5
+    sol = I.solve(P.window("W2", "slip", t_end=0.05), cls(rtol=tol, atol=tol), max_points=2)
     s, starts = sol.stats, sol.meta["starts"]
     assert sol.success and starts >= 2 and s.steps > 0 and s.rejected > 0
     per_step, per_rejected = (2, 2) if cls is I.Rosenbrock23 else (8, 7)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from numba import njit
 
-__all__ = ["lu3", "lu_solve3", "factor"]
+__all__ = ["lu3", "lu_solve3", "factor", "hurwitz3"]
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -59,3 +59,16 @@ def factor(hg, J, M, piv):
             M[i, j] = -hg * J[i, j]
         M[i, i] += 1.0
     return lu3(M, piv)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def hurwitz3(J):
+    """True if every eigenvalue of the 3×3 ``J`` has a negative real part (Routh–Hurwitz on
+    λ³ + a2 λ² + a1 λ + a0 = det(λI − J): a2 > 0, a0 > 0, a2 a1 > a0); False for NaN."""
+    a2 = -(J[0, 0] + J[1, 1] + J[2, 2])
+    a1 = ((J[0, 0] * J[1, 1] - J[0, 1] * J[1, 0]) + (J[0, 0] * J[2, 2] - J[0, 2] * J[2, 0])
+          + (J[1, 1] * J[2, 2] - J[1, 2] * J[2, 1]))
+    a0 = -(J[0, 0] * (J[1, 1] * J[2, 2] - J[1, 2] * J[2, 1])
+           - J[0, 1] * (J[1, 0] * J[2, 2] - J[1, 2] * J[2, 0])
+           + J[0, 2] * (J[1, 0] * J[2, 1] - J[1, 1] * J[2, 0]))
+    return a2 > 0.0 and a0 > 0.0 and a2 * a1 > a0

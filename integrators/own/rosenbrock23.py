@@ -8,13 +8,16 @@ With d = 1/(2 + √2), e32 = 6 + √2, M = I − d h J and J = ∂f/∂z at the 
     F2 = f(z1),           k3 = M⁻¹ (F2 − e32 (k2 − F1) − 2 (k1 − F0))
     err = M⁻¹ h/6 (k1 − 2 k2 + k3)
 
-Order 2 (propagated), L-stable, error estimate O(h³); F2 is the next step's F0 (FSAL). The
-estimate is filtered by M⁻¹ (Shampine's device, as Radau5's: Hairer & Wanner II, §IV.8, (8.20)):
-unfiltered, an offset δ of a stiff component from its slow manifold at the step's start, which
-the L-stable step removes, reads as an error of ≈ 1.6 δ at every step size (hλ → −∞: k1 ≈ −δ/(d
-h), k3 ≈ 3.24 δ/(d h)), and after a deep lock (u on its manifold to ~1e−6, integrators.own.engine)
-the step size fell to the floor; M⁻¹ leaves the non-stiff components' estimate as it was to
-O(h λ). Error scale atol + rtol·max(|z0|, |z1|); Hairer's RODAS controller with q = 3
+Order 2 (propagated), L-stable, error estimate O(h³); F2 is the next step's F0 (FSAL). Where
+every eigenvalue of J has a negative real part (Routh–Hurwitz, :func:`~integrators.own.linalg.
+hurwitz3`) the estimate is filtered by M⁻¹ (Shampine's device, as Radau5's: Hairer & Wanner II,
+§IV.8, (8.20)): unfiltered, an offset δ of a stiff component from its slow manifold at the
+step's start, which the L-stable step removes, reads as an error of ≈ 1.6 δ at every step size
+(hλ → −∞: k1 ≈ −δ/(d h), k3 ≈ 3.24 δ/(d h)), and after an aging-law deep lock (the manifold
+moving at ~7000 in u per unit τ, integrators.own.engine) the step size fell to the floor. M⁻¹
+leaves the non-stiff components' estimate as it was to O(h λ). Not where J has an unstable
+mode: there M⁻¹ would shrink a growing error too (before the plunge of a lock ∂u'/∂u ~ +1e15
+and a trial of h = 1e−3 that sends u up by 4, the wrong way, read as 6e−4 filtered). Error scale atol + rtol·max(|z0|, |z1|); Hairer's RODAS controller with q = 3
 (:func:`integrators.own.engine.rodas_accept`). Dense output: the cubic Hermite interpolant of
 (z, f) at both ends, one order better than ode23s' quadratic continuous extension, at no cost.
 Counters: nfev = 2 per attempt + 2 per start; njev = 1 per step.
@@ -32,7 +35,7 @@ from numba import njit
 from integrators.core.registry import register
 from integrators.own import batch, engine
 from integrators.own.compiled import CompiledAlgorithm
-from integrators.own.linalg import factor, lu_solve3
+from integrators.own.linalg import factor, hurwitz3, lu_solve3
 
 __all__ = ["Rosenbrock23"]
 
@@ -70,7 +73,8 @@ def _attempt(p, hs, ws, z0, f0, z1, f1, D):
     lu_solve3(M, piv, K, 2)
     for i in range(3):
         K[3, i] = hs / 6.0 * (K[0, i] - 2.0 * K[1, i] + K[2, i])
-    lu_solve3(M, piv, K, 3)                 # filtered (module docstring)
+    if hurwitz3(J):                         # filtered where the modes damp (docstring)
+        lu_solve3(M, piv, K, 3)
     errmax = 0.0
     for i in range(3):
         r = abs(K[3, i]) / (atol + rtol * max(abs(z0[i]), abs(z1[i])))
