@@ -560,6 +560,7 @@ def main(argv: list[str] | None = None) -> int:
     json_mode = wants_json(argv)
     with _library_output_to_stderr(keep=argv is None), warnings.catch_warnings():
         warnings.showwarning = _show_warning
+        args = None
         try:
             args = build_parser().parse_args(argv)
             return args.func(args)
@@ -567,9 +568,10 @@ def main(argv: list[str] | None = None) -> int:
             return _fail(_one_line(exc), 2, json_mode)
         except (RunStopped, OSError) as exc:      # the run could not go on: say why
             return _fail(_one_line(exc), 1, json_mode)
-        except KeyboardInterrupt:
-            return _fail("interrupted (a sweep keeps its finished points: run it again to "
-                         "resume)", 130, json_mode)
+        except KeyboardInterrupt as exc:          # a command may say what it kept
+            kept = (" (a sweep keeps its finished points: run it again to resume)"
+                    if getattr(args, "command", None) == "sweep" else "")
+            return _fail(_one_line(exc) if str(exc) else f"interrupted{kept}", 130, json_mode)
         except Exception as exc:                  # a bug: one line, the traceback on request
             if os.environ.get("RSFBENCH_DEBUG"):
                 raise

@@ -120,7 +120,6 @@ def _box(args, problem, published: bool):
 def cmd_invert(args) -> int:
     from benchmarks.inversion import Misfit
     from benchmarks.inversion.invert import check_box, invert, write_inversion
-    from benchmarks.inversion.misfit import check_sigma
     from benchmarks.inversion.posterior import check_sampler
     from problems import WINDOWS
     problem = problem_from_args(args, fields=("t_end",))
@@ -131,7 +130,6 @@ def cmd_invert(args) -> int:
     if args.steps:
         flagged("--walkers/--steps", check_sampler, box_b, box_lc, args.walkers, args.steps)
     obs = observations_from_args(args, published)
-    flagged("--sigma-recurrence/--sigma-drop", check_sigma, obs)
     cycles = problem.t_end / obs.recurrence_s
     if cycles > MAX_CYCLES:                  # each of thousands of solves would run for hours
         raise ValueError(f"--t-end {problem.t_end:g} s simulates {cycles:,.0f} cycles of the "

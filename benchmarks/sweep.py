@@ -134,6 +134,11 @@ def check_grid(b_values, lc_values, max_points: int = MAX_GRID_POINTS):
     return b, lc
 
 
+#: σ below this fraction of its observed mean is refused: no forward solver resolves a limit
+#: cycle's metrics that finely, and J1 = (Δ/σ)² would be the solver's noise (or overflow)
+MIN_SIGMA_REL = 1e-9
+
+
 @dataclass(frozen=True)
 class Observations:
     """What a point is scored against: observed means and standard deviations (Eq. 10), and
@@ -155,8 +160,14 @@ class Observations:
     def __post_init__(self) -> None:
         for mean, sigma in (("recurrence_s", "sigma_recurrence_s"),
                             ("friction_drop", "sigma_friction_drop")):
-            m = check_possible(mean, check_positive(mean, getattr(self, mean)))
-            s = check_possible(sigma, check_positive(sigma, getattr(self, sigma)))
+            m = check_positive(mean, getattr(self, mean))
+            s = check_positive(sigma, getattr(self, sigma))
+            if s < MIN_SIGMA_REL * m:           # refused before any warning about it
+                raise ValueError(f"{sigma} = {s:g} is below {MIN_SIGMA_REL:g} of the observed "
+                                 f"mean {mean} = {m:g}: no forward solver resolves a limit "
+                                 "cycle's metrics that finely (J1 would be the solver's noise, "
+                                 "or overflow)")
+            m, s = check_possible(mean, m), check_possible(sigma, s)
             # σ beyond 3 means (every point would fit) or below 0.1 % of it (none would) is
             # a σ in another unit than its mean's: ms, percent (said once: not again when σ or
             # the mean was warned for already)

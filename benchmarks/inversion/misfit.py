@@ -28,31 +28,14 @@ import pandas as pd
 from benchmarks.ensemble import ensemble
 from benchmarks.fitting import j1, j2_per_event
 from benchmarks.metrics import CYCLES
-from benchmarks.sweep import Observations
+from benchmarks.sweep import MIN_SIGMA_REL, Observations
 from integrators import Algorithm
 from problems import SpringSlider
 
-__all__ = ["Misfit", "NO_CYCLE_RESIDUAL", "synthetic", "check_sigma", "MIN_SIGMA_REL"]
+__all__ = ["Misfit", "NO_CYCLE_RESIDUAL", "synthetic", "MIN_SIGMA_REL"]
 
 #: the residual (in σ) of each observation at a point without a limit cycle
 NO_CYCLE_RESIDUAL = 1e3
-#: σ below this fraction of its observed mean is refused: no forward solver resolves a limit
-#: cycle's metrics that finely, and J1 = (Δ/σ)² would be the solver's noise (or overflow)
-MIN_SIGMA_REL = 1e-9
-
-
-def check_sigma(obs: Observations) -> None:
-    """Refuse a σ below :data:`MIN_SIGMA_REL` of its observed mean (``ValueError`` naming it)."""
-    for name, sigma, mean, unit in (("sigma_recurrence_s", obs.sigma_recurrence_s,
-                                     obs.recurrence_s, " s"),
-                                    ("sigma_friction_drop", obs.sigma_friction_drop,
-                                     obs.friction_drop, "")):
-        if not sigma >= MIN_SIGMA_REL * abs(mean):
-            raise ValueError(f"{name} = {sigma:g}{unit} is below {MIN_SIGMA_REL:g} of the "
-                             f"observed mean {mean:g}{unit}: no forward solver resolves the "
-                             "metrics that finely (the misfit would be the solver's noise)")
-
-
 @dataclass(frozen=True)
 class Misfit:
     """J(b, Lc) of ``problem`` against ``obs`` with ``algorithm`` (module docstring).
@@ -72,7 +55,6 @@ class Misfit:
                                   ("algorithm", self.algorithm, Algorithm)):
             if not isinstance(value, kind):
                 raise ValueError(f"{name} must be {kind.__name__}, got {value!r}")
-        check_sigma(self.obs)
 
     def evaluate(self, b, lc, progress: bool = False) -> pd.DataFrame:
         """One row per (b, Lc) pair (``b`` and ``lc`` broadcast together; Lc in m): the
