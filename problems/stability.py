@@ -74,5 +74,36 @@ def characteristic_roots(problem: SpringSlider, v: float | None = None) -> np.nd
 
 def growth_rate(problem: SpringSlider, v: float | None = None) -> float:
     """The largest real part of the characteristic roots (1/s): steady sliding is linearly
-    stable when it is negative."""
-    return float(np.max(characteristic_roots(problem, v).real))
+    stable when it is negative; 0.0 when it is below what double precision resolves.
+
+    The polynomial is taken in x = s/λ and divided by A λ² (coefficients μ = m V λ/A, 1, K =
+    k Lc/A, ηr V/A: O(1) for the paper's parameters), so that no coefficient overflows for a
+    mass or stiffness near the float limits; without its cubic term when μ is below the
+    round-off of the next one (the inertial root −(μ + 1)/μ is then beyond any other). The
+    complex pair's real part comes from the sum of the roots (−p2/p3 = r + 2 Re), with the real
+    root r polished by Newton: np.roots rounds Re away beside a huge Im (k → ∞)."""
+    law = problem.law
+    v = _velocity(problem, v)
+    A, lam = law.a * problem.normal_force, v / law.lc
+    mu = problem.mass * v * lam / A
+    g = problem.radiation_damping * v / A
+    K = problem.stiffness * law.lc / A
+    p2 = mu + 1.0 + g
+    p1 = K * (1.0 + law.stress_coefficient) - (law.b / law.a - 1.0) + g
+    with np.errstate(all="ignore"):
+        if not mu > 1e-17 * p2:
+            x = np.roots([p2, p1, K])
+            return lam * float(np.max(x.real))
+        a2, a1, a0 = p2 / mu, p1 / mu, K / mu
+        x = np.roots([1.0, a2, a1, a0])
+    if not np.all(np.isfinite(x)):
+        return math.nan
+    if not np.any(x.imag != 0.0):
+        return lam * float(np.max(x.real))
+    r = float(x[np.argmin(np.abs(x.imag))].real)
+    for _ in range(3):
+        d = (3.0 * r + 2.0 * a2) * r + a1
+        if d == 0.0:
+            break
+        r -= (((r + a2) * r + a1) * r + a0) / d
+    return lam * max(r, (-a2 - r) / 2.0)

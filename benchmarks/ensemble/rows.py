@@ -25,6 +25,7 @@ from integrators.core import cycles
 from integrators.own import batch as B
 from integrators.own import engine as E
 from integrators.own.compiled import CompiledAlgorithm, failure
+from problems.slider import TAU_END_MAX
 
 __all__ = ["RESULT_COLUMNS", "METRIC_COLUMNS", "COUNTER_COLUMNS", "CURVE_COLUMNS", "batch_rows",
            "point_rows", "failed_rows", "compiled", "columns_of"]
@@ -96,7 +97,8 @@ def batch_rows(problems, algorithm, names, values, wall_budget=None,
                 end = EndState(log_v=float(r[B.R["LOG_V"]]),
                                state_offset=float(r[B.R["STATE_OFFSET"]]),
                                force_offset=float(r[B.R["FORCE_OFFSET"]]),
-                               growth_rate=float(r[B.R["GROWTH"]]))
+                               growth_rate=float(r[B.R["GROWTH"]]),
+                               longest_run=TAU_END_MAX * problem.law.lc / problem.law.v0)
                 message = cycle_from(found[i], n_events, problem.t_end, B.CYCLE_RTOL,
                                      B.CYCLE_MAX_PERIOD, B.CYCLE_MIN_REPEATS, end).reason
         col["classification"][i], col["retcode"][i], col["message"][i] = (
@@ -120,11 +122,11 @@ def point_rows(problems, algorithm, names, values, wall_budget=None,
     for problem in problems:
         try:
             sol = solve(problem, algorithm, wall_budget=wall_budget, **save)
+            cycle = summarize(sol)
         except Exception as exc:       # checked before the ensemble started: a bug, or this
             rows.append(_failed(f"{type(exc).__name__}: {exc}", problem, algorithm, curve_dt))
             crashed = True             # machine's environment (a missing library): not stored
             continue
-        cycle = summarize(sol)
         row = {"classification": cycle.classification, "retcode": sol.retcode.value,
                "message": sol.message or cycle.reason, "n_events": len(sol.events),
                "kappa": problem.kappa, "nfev": sol.stats.nfev, "njev": sol.stats.njev,

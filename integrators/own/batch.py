@@ -26,6 +26,7 @@ from integrators.core.clock import monotonic
 from integrators.core.events import H0, H_MAX, IN_EVENT, N_EVENTS, REC_SIZE
 from integrators.own import engine as E
 from problems.formulations import SLIP_LAW
+from problems.slider import TAU_END_MAX
 
 __all__ = ["C", "N_C", "R", "N_R", "BATCH", "SERIAL", "run_batch", "run_serial", "CYCLE_RTOL", "CYCLE_MAX_PERIOD",
            "CYCLE_MIN_REPEATS"]
@@ -51,6 +52,8 @@ R = dict(STATUS=0, NFEV=1, NJEV=2, STEPS=3, REJECTED=4, STARTS=5, WALL_S=6, T_ST
 N_R = _FOUND + cycles.N_F
 #: the limit-cycle search of :func:`benchmarks.metrics.summarize` (its defaults)
 CYCLE_RTOL, CYCLE_MAX_PERIOD, CYCLE_MIN_REPEATS = 1e-3, 4, 2
+#: the time since the last event in a cycle search's result (no event for this long: quiet)
+_GAP = cycles.F["GAP"]
 _EVENTS_START = 64
 _NO_LIMIT = 1 << 62
 # the engine's layouts as plain ints (compiled code reads module-level ints as constants)
@@ -88,7 +91,8 @@ def _summarize(law_code, beta, c, ev, n_ev, z_end, r):
     log_v, state, force = cycles.end_offsets(law_code, c[_A], c[_B], lc, c[_V0], c[_FN], f0,
                                              c[_V_END], v, fs, theta, c[_DAMPING])
     r[_LOG_V], r[_STATE_OFFSET], r[_FORCE_OFFSET] = log_v, state, force
-    r[_CLASS] = cycles.classify(found[0], found[1], c[_GROWTH], log_v, state, force)
+    r[_CLASS] = cycles.classify(found[0], found[1], c[_GROWTH], log_v, state, force,
+                                found[_GAP], TAU_END_MAX * ts - c[_T_END])
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")

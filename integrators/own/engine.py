@@ -638,6 +638,14 @@ def run(prepare, attempt, reject, accept, ws, sc, st, p, Z, G, dirs, grid, saved
         if st[NEED_START] != 0.0:
             tau = st[LAST_T]
             if tau >= tau_end - tiny:
+                # a restart within tiny of the end (a load switch there): the save points
+                # left, the end's among them, take the state handed on
+                k = int(st[NEXT_SAVE])
+                while k < grid.shape[0] and grid[k] <= tau + tiny:
+                    for i in range(3):
+                        saved[k, i] = Z[_ZC, i]
+                    k += 1
+                st[NEXT_SAVE] = k
                 return DONE
             e, t_bound = load_segment(hist, tau, st[FAST_UNTIL], tau_end, tiny)
             st[LOAD0] = st[LOAD0] + p[_E] * (tau - st[TAU0])     # the load at τ
