@@ -311,7 +311,9 @@ def _first_extreme(solution, start: _State, t_stop: float, vl: float, sign: floa
             f"{'above' if sign > 0 else 'below'} the load point's {vl:.6g} m/s, so the spring "
             f"force {'falls' if sign > 0 else 'rises'} from there (the piece before has not "
             "settled)", too_short=False)
-    a, length = start, _time_scale(solution.problem, max(start.v, vl))
+    # a window shorter than a few ulps of t (a negligible damping or mass) cannot be re-solved
+    a, length = start, max(_time_scale(solution.problem, max(start.v, vl)),
+                           64 * np.spacing(max(start.t, t_stop)))
     while a.t < t_stop:
         t_b = min(a.t + length, t_stop)
         states = _resolve(solution, a, t_b, SAMPLES + 1, f"the {kind} of {what}")
@@ -342,7 +344,8 @@ def _refine(solution, a: _State, b: _State, t_switch: float, t_stop: float, vl: 
                                  f"(t = {t_stop:.9g} s)")
         a, b = states[j - 1], states[j]
     fa, fb = sign * math.log(a.v / vl), sign * math.log(b.v / vl)
-    x = fa / (fa - fb)
+    # v at vL at both ends (a step too small to move v off vL): the crossing is the bracket's start
+    x = fa / (fa - fb) if fa != fb else 0.0
     k, h = solution.problem.stiffness, b.t - a.t
     da, db = k * (vl - a.v) * h, k * (vl - b.v) * h      # dFs/dx at the ends, x = (t − ta)/h
     fs = ((2 * x**3 - 3 * x**2 + 1) * a.fs + (x**3 - 2 * x**2 + x) * da

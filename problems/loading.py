@@ -69,9 +69,12 @@ class LoadHistory:
             raise ValueError(f"velocities must be a non-empty tuple of numbers (m/s), got {vel!r}")
         if not isinstance(sw, tuple):
             raise ValueError(f"switch_times must be a tuple of numbers (s), got {sw!r}")
+        warned = set()
         for i, v in enumerate(vel):
-            warn_implausible(f"velocities[{i}]", check_non_negative(f"velocities[{i}]", v),
-                             kind="velocity")
+            check_non_negative(f"velocities[{i}]", v)
+            if v not in warned:                 # one warning a value, however often it recurs
+                warned.add(v)
+                warn_implausible(f"velocities[{i}]", v, kind="velocity")
         if not any(v > 0 for v in vel):
             raise ValueError(f"velocities must include a positive one (all holds: nothing "
                              f"ever moves), got {vel!r}")

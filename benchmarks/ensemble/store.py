@@ -46,6 +46,7 @@ import pandas as pd
 from benchmarks.files import _PREFIX as _TEMPORARY, atomic_write, remove_stale_temporaries
 from benchmarks.ensemble.rows import METRIC_COLUMNS, columns_of
 from benchmarks.metrics import CLASSIFICATIONS, CYCLES
+from benchmarks.sweep_exec import RunStopped
 from integrators import ReturnCode
 
 __all__ = ["ChunkStore", "read_store", "BadChunkWarning", "StrayFileWarning",
@@ -88,8 +89,9 @@ class IncompleteStoreWarning(UserWarning):
     """:func:`read_store` found fewer points than the ensemble has (an unfinished run)."""
 
 
-class StoreBusy(RuntimeError):
-    """Another run holds the store's lock."""
+class StoreBusy(RunStopped):
+    """Another run holds the store's lock: the run cannot go on (a command exits with status 1,
+    one line)."""
 
 
 @functools.cache

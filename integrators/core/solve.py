@@ -58,8 +58,9 @@ def solve(problem: SpringSlider, algorithm: Algorithm, *, save_every: float | No
       ``interpolate``; numbalsoda: LSODA's own interpolation at the requested times.
 
     ``wall_budget`` (s) stops a run that takes longer (retcode ``WallTime``); it counts the run
-    only, never compiling: the first budgeted solve of a method in a process first runs it
-    unbudgeted on a short piece of the problem (:func:`compile_ahead`), then starts the clock.
+    only, never compiling: the first budgeted solve of a method in a process first runs it on a
+    short piece of the problem (:func:`compile_ahead`; its running, not its compiling, bounded
+    by a tenth of the budget), then starts the clock.
     ``progress`` shows a progress bar. A numerical failure comes back as a Solution with a failure retcode (and
     ``Solution.reached_end`` false); misuse (bad arguments) raises ``ValueError`` before any work.
     """
@@ -123,15 +124,21 @@ def compile_ahead(problem: SpringSlider, algorithm: Algorithm, fraction: float =
     solve(short_piece(problem, fraction), algorithm, max_points=3, wall_budget=wall_budget)
 
 
-#: (method, law, with or without mass) compiled in this process by a budgeted solve
+#: (method, its right-hand-side tier, law, with or without mass) compiled in this process by a
+#: budgeted solve
 _COMPILED: set = set()
 
 
+#: the part of a run's wall budget its warm-up may spend running (not compiling)
+WARM_UP_SHARE = 0.1
+
+
 def _compile_once(problem: SpringSlider, algorithm: Algorithm, wall_budget: float) -> None:
-    key = (type(algorithm), type(problem.law), problem.quasi_static)
+    key = (type(algorithm), getattr(algorithm, "rhs", None), type(problem.law),
+           problem.quasi_static)
     if key not in _COMPILED:
         _COMPILED.add(key)              # first: the warm-up's own budgeted solve skips this
-        compile_ahead(problem, algorithm, wall_budget=wall_budget)
+        compile_ahead(problem, algorithm, wall_budget=WARM_UP_SHARE * wall_budget)
 
 
 def _solution(problem: SpringSlider, algorithm: Algorithm, raw: RawRun) -> Solution:
