@@ -96,7 +96,17 @@ def synthetic_curves(problem, algorithm, n_events: int = 3, n_points: int = 25,
                          f"({cycle.reason or sol.message}); no slip-weakening curves from it")
     if len(sol.events) < n_events:
         raise ValueError(f"the run has {len(sol.events)} events, fewer than --events {n_events}")
+    # the curves interpolate the saved trajectory: an event needs saved points inside it
+    shortest = float((sol.events.t_end - sol.events.t_start).iloc[-n_events:].min())
+    if curve_dt > shortest / CURVE_POINTS:
+        raise ValueError(f"--curve-dt = {curve_dt:g} s does not resolve the events (the shortest "
+                         f"of the last {n_events} lasts {shortest:.3g} s): use at most "
+                         f"{shortest / CURVE_POINTS:.2g} s ({CURVE_POINTS} saved points an event)")
     return sample_curves(sol, n_events, n_points, noise, seed)
+
+
+#: saved points an event needs at least for its slip-weakening curve
+CURVE_POINTS = 20
 
 
 def cmd_slip_weakening(args) -> int:
