@@ -359,13 +359,19 @@ def _steady_mu(problem, vl: float) -> float:
                  + problem.radiation_damping * vl) / problem.normal_force
 
 
-def _settled(problem, state: _State, vl: float, scale: float, piece: str) -> bool:
+def _settled(problem, state: _State, vl: float, scale: float, piece: str,
+             warned: set | None = None) -> bool:
     """Is ``state`` (a piece's end) steady sliding at ``vl``, to :data:`SETTLED` × ``scale`` in
-    μ? If not, an :class:`UnsettledWarning` names ``piece`` and how far off it is."""
+    μ? If not, an :class:`UnsettledWarning` names ``piece`` and how far off it is (once a piece:
+    not again for an end time in ``warned``, which it joins)."""
     off = max(abs(state.fs / problem.normal_force - _steady_mu(problem, vl)),
               problem.law.a * abs(math.log(state.v / vl)))
     if off <= SETTLED * scale:
         return True
+    if warned is not None:
+        if state.t in warned:          # the piece after one step is the piece before the next
+            return False
+        warned.add(state.t)
     warnings.warn(f"{piece} has not settled at its end (t = {state.t:.6g} s): μ is {off:.3g} "
                   f"from steady sliding at {vl:.6g} m/s, more than {SETTLED:g} × {scale:.3g} "
                   "(lengthen the piece)", UnsettledWarning, stacklevel=3)
@@ -382,7 +388,7 @@ def step_response(solution) -> pd.DataFrame:
     extreme; ValueError for a failed run."""
     hist = _checked(solution)
     p, edges = solution.problem, _edges(solution)
-    rows = []
+    rows, warned = [], set()
     for i, ts in enumerate(hist.switch_times):
         v1, v2 = hist.velocities[i], hist.velocities[i + 1]
         if v1 == 0.0 or v2 == 0.0 or v1 == v2:
@@ -393,8 +399,9 @@ def step_response(solution) -> pd.DataFrame:
                                        1.0 if v2 > v1 else -1.0, what)
         end = _state_at(solution, edges[i + 2], f"the end of {what}")
         scale = p.law.a * abs(math.log(v2 / v1))
-        settled_before = _settled(p, before, v1, scale, f"the piece before the step at {ts:g} s")
-        settled_after = _settled(p, end, v2, scale, what)
+        settled_before = _settled(p, before, v1, scale, f"the piece before the step at {ts:g} s",
+                                  warned)
+        settled_after = _settled(p, end, v2, scale, what, warned)
         mu_before, mu_end = before.fs / p.normal_force, end.fs / p.normal_force
         rows.append({"t_step_s": ts, "v_before": v1, "v_after": v2, "mu_before": mu_before,
                      "mu_extreme": fs_ext / p.normal_force, "t_extreme_s": t_ext,
