@@ -4,12 +4,12 @@ one module by area: each module's ``cases()`` returns its :class:`~benchmarks.pr
 from __future__ import annotations
 
 from benchmarks.probe_families import (classification, etd, histories, integrators, inversion,
-                                       lab, problem_files, store, units)
+                                       lab, problem_files, review, store, units)
 
 __all__ = ["cases"]
 
 _MODULES = (problem_files, lab, units, classification, integrators, etd, histories, store,
-            inversion)
+            inversion, review)
 
 
 def cases() -> list:
