@@ -279,8 +279,22 @@ def check_observation_options(args, problem, published: bool) -> None:
 def observations_from_args(args, published: bool, curves=None):
     """The observations of the options (a window's published means fill what is not given)."""
     from benchmarks.sweep import observations
-    return observations(args.preset if published else "", args.obs_recurrence,
-                        args.sigma_recurrence, args.obs_drop, args.sigma_drop, curves)
+    try:
+        return observations(args.preset if published else "", args.obs_recurrence,
+                            args.sigma_recurrence, args.obs_drop, args.sigma_drop, curves)
+    except ValueError as exc:       # name the flag of the value refused
+        text = str(exc)
+        for field, flag in _OBSERVATION_FLAGS:
+            if text.startswith(f"{field} ="):
+                raise ValueError(f"{flag}: {text}") from None
+        raise
+
+
+#: the fields of the observations and the flags that set them (sigmas first: their names
+#: contain the means')
+_OBSERVATION_FLAGS = (("sigma_recurrence_s", "--sigma-recurrence"),
+                      ("sigma_friction_drop", "--sigma-drop"),
+                      ("recurrence_s", "--obs-recurrence"), ("friction_drop", "--obs-drop"))
 
 
 def add_integrator_options(p, default: str | None = None) -> None:

@@ -16,6 +16,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import warnings
+from pathlib import Path
 
 from benchmarks.probe import Case, Observed, Wrong, cli, cli_outcome, one_json
 
@@ -212,7 +213,7 @@ def _apparatus_cases() -> list[Case]:
                           load_problem, paper_example, slide_hold_slide_test, velocity_step_test,
                           window)
     from problems.presets import fault_radiation_damping
-    from benchmarks.probe_cases import APPARATUS
+    apparatus = Path(__file__).resolve().parents[2] / "docs" / "examples" / "apparatus.toml"
 
     def slider(fn, k, m, vl, lc, t_end, a=0.01, b=0.015, v0=None, law="aging"):
         return lambda: SpringSlider(
@@ -230,7 +231,7 @@ def _apparatus_cases() -> list[Case]:
         "Marone's apparatus (rsfmodel): step and slide-hold-slide": lambda: [
             velocity_step_test(law) for law in ("slip", "aging", "nagata")] + [
             slide_hold_slide_test(law) for law in ("slip", "aging", "nagata")],
-        "docs/examples/apparatus.toml": lambda: load_problem(APPARATUS),
+        "docs/examples/apparatus.toml": lambda: load_problem(apparatus),
         # double-direct shear (BRAVA, Penn State): 2 × 5 cm × 5 cm at 20 MPa, 10 µm/s
         "double-direct shear, 1e5 N at 10 µm/s": slider(1e5, 5e8, 0.0, 1e-5, 1e-5, 100.0),
         # high-velocity rotary shear (SHIVA): 20 MPa on 1.5e-3 m², 6.5 m/s
