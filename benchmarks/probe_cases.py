@@ -654,9 +654,17 @@ def _start_and_wait_for_points(tmp, n=2):
                             stderr=subprocess.DEVNULL)
     deadline = time.time() + 240
     chunks = tmp / "s" / "chunks"              # one point a chunk on this grid
-    while time.time() < deadline and len(list(chunks.glob("*.parquet"))) < n:
+    while time.time() < deadline and _listed_chunks(chunks) < n:
         time.sleep(0.05)
     return proc
+
+
+def _listed_chunks(chunks: Path) -> int:
+    """The chunks a store's identity file lists (a chunk is stored once it is listed)."""
+    try:
+        return len(json.loads((chunks / "_ensemble.json").read_text())["chunks"])
+    except (OSError, ValueError, KeyError):      # not written yet, or being replaced
+        return 0
 
 
 def _kill_sweep(tmp):

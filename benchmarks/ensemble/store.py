@@ -37,6 +37,7 @@ import io
 import json
 import os
 import re
+import signal
 import warnings
 from pathlib import Path
 
@@ -301,9 +302,15 @@ class ChunkStore:
         pq.write_table(arrow, sink, compression="zstd", write_page_checksum=True)
         data = sink.getvalue()
         path = self.path(first, key)
-        atomic_write(path, data)
-        self.listed[path.name] = hashlib.sha256(data).hexdigest()
-        self._write_identity()
+        # a Ctrl-C between the chunk and its listing would leave a finished chunk unlisted (a
+        # stray, computed again): SIGINT waits until both are written (a kill cannot)
+        blocked = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+        try:
+            atomic_write(path, data)
+            self.listed[path.name] = hashlib.sha256(data).hexdigest()
+            self._write_identity()
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
         return path
 
     def _unlist(self, name: str) -> None:
