@@ -1,6 +1,6 @@
 # One command sets everything up and runs: `make test` (the test suite) or `make reproduce`
 # (brings results/ up to date). Both are idempotent: system packages are installed only if
-# missing, .venv is created once and re-synced when pyproject.toml changes.
+# missing, .venv is created once and re-synced when pyproject.toml or requirements.lock changes.
 
 PYTHON   ?= python3
 VENV     := .venv
@@ -22,10 +22,11 @@ system-packages:
 	  $$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq $$missing; \
 	fi
 
-$(STAMP): pyproject.toml | system-packages
+# every extra and the test group, at the versions of requirements.lock
+$(STAMP): pyproject.toml requirements.lock | system-packages
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip==26.3 setuptools==84.2.1 wheel==0.48.0
-	$(PY) -m pip install -q -e '.[inversion]'
+	$(PY) -m pip install -q -c requirements.lock -e '.[all]' --group test
 	touch $@
 
 # numba's on-disk cache of a function is keyed by its own file only, so a kernel would keep the

@@ -27,7 +27,7 @@ import warnings
 from pathlib import Path
 
 from benchmarks import metrics
-from benchmarks.cli_args import (Parser, RunStopped, add_integrator_options, add_problem_options, count,
+from benchmarks.cli_args import (Parser, RunStopped, ShowVersion, add_integrator_options, add_problem_options, count,
                                  flagged, in_file, integrator_from_args, out_dir, out_file,
                                  positive, preset_name, problem_from_args, say, show_progress,
                                  wants_json)
@@ -105,9 +105,10 @@ def cmd_simulate(args) -> int:
 
 
 def cmd_integrators(args) -> int:
-    rows = integrator_rows()
+    rows, missing = integrator_rows(), REGISTRY.unavailable()
     if args.json:
-        say(json.dumps(rows, indent=2))
+        say(json.dumps([{**r, "available": True} for r in rows]
+                       + [{**m, "available": False} for m in missing], indent=2))
     elif args.markdown:
         say(integrators_markdown(), end="")
     else:
@@ -115,6 +116,10 @@ def cmd_integrators(args) -> int:
         for r in rows:
             say(f"{r['name']:<22} {r['order']:>5}  {str(r['adaptive']):<8} {r['family']:<32} "
                   f"{r['library']} ({r['version']})")
+        if missing:
+            say("\nnot available here (the library did not import):")
+            for m in missing:
+                say(f"  {m['name']:<22} {m['install']}  [{m['reason']}]")
     return 0
 
 
@@ -337,6 +342,7 @@ def _listed(names) -> str:
 
 def build_parser() -> Parser:
     parser = Parser(prog="rsfbench", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--version", action=ShowVersion)
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     s = sub.add_parser("simulate", help="run one preset and summarise its limit cycle")

@@ -297,13 +297,25 @@ _OBSERVATION_FLAGS = (("sigma_recurrence_s", "--sigma-recurrence"),
                       ("recurrence_s", "--obs-recurrence"), ("friction_drop", "--obs-drop"))
 
 
+class ShowVersion(argparse.Action):
+    """``--version``: the package's version, the checkout's commit and Python's, then exit."""
+
+    def __init__(self, option_strings, dest, **kwargs):
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS,
+                         help="print the version (package, commit of a checkout, Python) and exit")
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        from benchmarks.provenance import version_line
+        print(version_line())
+        parser.exit(0)
+
+
 def add_integrator_options(p, default: str | None = None) -> None:
     """--integrator, --rtol, --atol, --rhs, --accuracy: named, or the study's recommendation."""
     p.add_argument("--integrator", default=default, metavar="NAME",
                    help=("registry name, see `rsfbench integrators`" + (
                        f" (default: {default})" if default else " (default: the integrator and "
-                       "tolerance the work-precision study recommends for --accuracy, from "
-                       "results/wp_quick.csv)")))
+                       "tolerance the quick work-precision study recommends for --accuracy)")))
     p.add_argument("--rtol", type=positive, help="relative tolerance of an adaptive integrator "
                    "(required with --integrator NAME of an adaptive method; no default accuracy)")
     p.add_argument("--atol", type=positive, help="absolute tolerance on (h, ln w, Ψ or ln Ψ), "
@@ -326,7 +338,7 @@ def flagged(flag: str, function, *args):
 
 def integrator_from_args(args):
     """``(algorithm, why)``: the named integrator with its options, or the recommendation."""
-    from benchmarks.work_precision import recommended_algorithm
+    from benchmarks.recommendation import recommended
     from integrators import algorithm_class, make_algorithm
     if args.integrator:
         cls = flagged("--integrator", algorithm_class, args.integrator)
@@ -335,7 +347,7 @@ def integrator_from_args(args):
     if args.rtol is not None or args.atol is not None or args.rhs is not None:
         raise ValueError("--rtol, --atol and --rhs need --integrator NAME (without it the "
                          "recommended integrator comes with its own tolerance)")
-    return recommended_algorithm(args.accuracy)
+    return recommended(args.accuracy)
 
 
 def wants_json(argv: list[str]) -> bool:

@@ -7,11 +7,10 @@ The inputs of a step (:func:`step_inputs`):
   or through other modules (imports inside functions count; a module of ``integrators`` or
   ``problems`` stands for its whole package). Source is hashed as what runs (:func:`code_hash`:
   its syntax tree without docstrings, comments and layout), so editing documentation reuses;
-* ``versions``: Python's and those of the packages pinned in ``pyproject.toml``, as installed:
-  every package of ``dependencies`` (any step may use one through another: pandas reads Parquet
-  with pyarrow), and a package of ``optional-dependencies`` (e.g. the inversions' emcee) only
-  for a step whose code imports it, so that pinning a leaf package for new steps leaves the
-  others' results reusable;
+* ``versions``: Python's and those of the packages ``pyproject.toml`` declares, as installed:
+  every package of ``dependencies``, and a package of an extra (the inversions' emcee, a peer
+  library, pyarrow) only for a step whose code imports it, so that adding a leaf package for
+  new steps leaves the others' results reusable;
 * ``settings``: its keyword arguments;
 * ``machine``: platform, CPU model and count, for a step whose numbers are timings;
 * ``reads``: the results files it reads (another step's output) and the project's data files.
@@ -230,16 +229,18 @@ def _code(fn, root: Path, packages, whole, extra=()) -> dict[str, str]:
 # --- versions and machine --------------------------------------------------------------------
 
 def _pinned(root: Path, optional: bool = False) -> list[str]:
-    """The names of the packages ``pyproject.toml`` pins (``name==version``): its
-    ``dependencies``, or with ``optional`` those of every ``optional-dependencies`` group."""
+    """The names of the packages ``pyproject.toml`` declares (their versions are pinned in
+    ``requirements.lock``): its ``dependencies``, or with ``optional`` those of every extra
+    (the project's own extras that name other extras left out)."""
     path = root / "pyproject.toml"
     if not path.exists():
         return []
     project = tomllib.loads(path.read_text(encoding="utf-8")).get("project", {})
     deps = ([d for group in project.get("optional-dependencies", {}).values() for d in group]
             if optional else project.get("dependencies", []))
-    return sorted(m.group(1) for d in deps if (m := re.match(r"\s*([A-Za-z0-9_.\-]+)", d))
-                  and "==" in d)
+    own = _normal(project.get("name", ""))
+    return sorted({m.group(1) for d in deps if (m := re.match(r"\s*([A-Za-z0-9_.\-]+)", d))
+                   and _normal(m.group(1)) != own})
 
 
 def _top_imports(sources) -> set[str]:

@@ -13,7 +13,7 @@ import platform
 import subprocess
 from pathlib import Path
 
-__all__ = ["provenance", "cpu_model", "git_commit"]
+__all__ = ["provenance", "cpu_model", "git_commit", "checkout", "version_line"]
 
 _PACKAGES = ("numpy", "scipy", "numba", "scikits-odes", "assimulo-testing", "scikit-sundae",
              "numbalsoda")
@@ -30,10 +30,19 @@ def cpu_model() -> str:
     return platform.processor() or platform.machine()
 
 
+def checkout() -> Path | None:
+    """The project's checkout the harness runs from, or None for an installed package."""
+    root = Path(__file__).resolve().parents[1]
+    return root if (root / "pyproject.toml").is_file() and (root / ".git").exists() else None
+
+
 @functools.cache
 def git_commit() -> str:
-    """The commit of the checkout the harness runs from, ``+dirty`` if it has local changes."""
-    root = Path(__file__).resolve().parents[1]
+    """The commit of the checkout the harness runs from, ``+dirty`` if it has local changes;
+    ``"unknown"`` for an installed package."""
+    root = checkout()
+    if root is None:
+        return "unknown"
     try:
         rev = subprocess.run(["git", "rev-parse", "--short=12", "HEAD"], cwd=root, text=True,
                              capture_output=True, check=True).stdout.strip()
@@ -49,6 +58,13 @@ def _version(package: str) -> str:
         return importlib.metadata.version(package)
     except importlib.metadata.PackageNotFoundError:
         return "missing"
+
+
+def version_line() -> str:
+    """``rsfbench --version``: the package's version, the commit of a checkout, Python's."""
+    commit = git_commit()
+    where = f", commit {commit}" if commit != "unknown" else ""
+    return f"rsfbench {_version('rsfbench')}{where} (Python {platform.python_version()})"
 
 
 def provenance() -> dict[str, str]:

@@ -95,9 +95,17 @@ class Reference:
 
 
 def cache_dir() -> Path:
-    """Where references are cached: ``$RSFBENCH_CACHE`` or ``results/cache/references``."""
+    """Where references are cached: ``$RSFBENCH_CACHE``; in a checkout
+    ``results/cache/references``; in an installed package ``$XDG_CACHE_HOME/rsfbench/references``
+    (``~/.cache`` by default)."""
     env = os.environ.get("RSFBENCH_CACHE")
-    return Path(env) if env else Path(__file__).resolve().parents[1] / "results" / "cache" / "references"
+    if env:
+        return Path(env)
+    root = Path(__file__).resolve().parents[1]
+    if (root / "pyproject.toml").exists():
+        return root / "results" / "cache" / "references"
+    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(base) / "rsfbench" / "references"
 
 
 def _solver_pair():

@@ -138,8 +138,12 @@ def _mass_limit(out: Path) -> None:
 
 def _work_precision(out: Path) -> None:
     from benchmarks.report import write_work_precision
-    from benchmarks.work_precision import QUICK, study_problems, work_precision
+    from benchmarks.work_precision import (QUICK, study_problems, work_precision,
+                                           write_recommendation)
     write_work_precision(work_precision(study_problems("quick"), QUICK), out, "quick")
+    from benchmarks.manifest import ROOT
+    if out.resolve() == (ROOT / "results").resolve():    # the commands' default integrator
+        print(f"wrote {write_recommendation(out / 'wp_quick.csv')}")
 
 
 def _target(out: Path) -> None:

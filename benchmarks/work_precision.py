@@ -37,7 +37,8 @@ from problems import paper_example, window
 
 __all__ = ["Ladder", "FULL", "QUICK", "study_problems", "settings", "measure", "work_precision",
            "WP_COLUMNS", "SKIPPED", "REFUSED", "reliable_error", "best_at_levels", "recommend",
-           "algorithm_at", "recommended_algorithm", "read_study", "STUDY_CSV"]
+           "algorithm_at", "recommended_algorithm", "read_study", "STUDY_CSV", "pareto_front",
+           "front_source", "write_recommendation"]
 
 SKIPPED = "Skipped"
 #: the retcode of a method that cannot integrate a problem at all (the paper's ETD without mass)
@@ -243,7 +244,7 @@ def recommend(df: pd.DataFrame, levels, error: str = "err_recurrence") -> pd.Dat
     return pd.DataFrame(rows)
 
 
-#: the committed quick study, which the sweep reads to choose its default integrator
+#: the committed quick study (the front of :mod:`benchmarks.recommendation` is written from it)
 STUDY_CSV = Path(__file__).resolve().parents[1] / "results" / "wp_quick.csv"
 
 
@@ -265,9 +266,28 @@ def read_study(path) -> pd.DataFrame:
                       hint="`rsfbench work-precision` writes one")
 
 
+def pareto_front(df: pd.DataFrame, error: str = "err_recurrence") -> pd.DataFrame:
+    """The study's front for one setting over the whole problem set: the (integrator, tier,
+    setting) rows of :func:`recommend`'s table (succeeded on every problem, reliable worst
+    error) that no faster row beats in worst error, fastest first. The fastest front row within
+    a level is :func:`recommend`'s choice for that level."""
+    n_problems = df.problem.nunique()
+    df = df.assign(**{error: reliable_error(df, error)})
+    keys = ["integrator", "rhs_tier", "setting"]
+    agg = df[df.retcode == "Success"].groupby(keys).agg(
+        worst_error=(error, "max"), total_wall_s=("wall_s", "sum"),
+        n=("problem", "nunique")).reset_index()
+    agg = agg[(agg.n == n_problems) & np.isfinite(agg.worst_error)]
+    agg = agg.sort_values(["total_wall_s", "worst_error"], kind="stable")
+    front = agg[agg.worst_error < agg.worst_error.cummin().shift(fill_value=math.inf)]
+    return front[["worst_error", "total_wall_s", *keys]].reset_index(drop=True)
+
+
 def recommended_algorithm(level: float, csv=STUDY_CSV, error: str = "err_recurrence"):
-    """``(algorithm, reason)``: the study's recommendation for ``level`` (see :func:`recommend`),
-    or ETD2 at the paper's settings when there is no study or it recommends nothing."""
+    """``(algorithm, reason)``: the study ``csv``'s recommendation for ``level`` (see
+    :func:`recommend`), or ETD2 at the paper's settings when there is no study or it recommends
+    nothing. The commands use the recommendation in code instead
+    (:func:`benchmarks.recommendation.recommended`, written from the committed study)."""
     from integrators import ETD2
     path = Path(csv)
     if not path.exists():
@@ -280,3 +300,35 @@ def recommended_algorithm(level: float, csv=STUDY_CSV, error: str = "err_recurre
     return alg, (f"{path.name}: fastest setting with worst {error} ≤ {level:g} over its problems "
                  f"(worst {advice.worst_error:.2g}): {advice.integrator} [{advice.rhs_tier}] at "
                  f"{advice.setting:g}")
+
+
+RECOMMENDATION_MODULE = Path(__file__).resolve().parent / "recommendation.py"
+_BEGIN, _END = "# --- written by the quick work-precision study", "# --- end of the written part"
+
+
+def front_source(csv) -> str:
+    """The written part of :mod:`benchmarks.recommendation` for the study ``csv``: its front as
+    Python literals and the study's provenance (commit, SHA-256)."""
+    import hashlib
+    df = read_study(csv)
+    front = pareto_front(df)
+    commit = str(df["git_commit"].iloc[0]) if "git_commit" in df else ""
+    lines = [f"{_BEGIN} (`rsfbench reproduce --only work-precision`); do not edit ---",
+             f"STUDY = {{\"file\": {Path(csv).name!r}, \"commit\": {commit!r},",
+             f"         \"sha256\": {hashlib.sha256(Path(csv).read_bytes()).hexdigest()!r}}}",
+             "#: (worst err_recurrence over the study problems, total wall s, integrator, rhs tier,",
+             "#: setting), fastest first",
+             "FRONT = ("]
+    lines += [f"    ({r.worst_error!r}, {r.total_wall_s!r}, {r.integrator!r}, {r.rhs_tier!r}, "
+              f"{r.setting!r})," for r in front.itertuples()]
+    lines += [")", _END + " ---"]
+    return "\n".join(lines) + "\n"
+
+
+def write_recommendation(csv, module: Path = RECOMMENDATION_MODULE) -> Path:
+    """Rewrite the written part of ``module`` from the study ``csv`` (the rest is kept)."""
+    text = module.read_text(encoding="utf-8")
+    begin, end = text.index(_BEGIN), text.index(_END)
+    end = text.index("\n", end) + 1
+    module.write_text(text[:begin] + front_source(csv) + text[end:], encoding="utf-8")
+    return module

@@ -39,8 +39,24 @@ EXTERNAL = {
     "integrators.external.cyrk_backend": ("CyRK-RK45", "CyRK-DOP853", "CyRK-Tsit5", "CyRK-BDF",
                                           "CyRK-Radau", "CyRK-LSODA"),
 }
+#: how to install what an adapter needs (the extras of pyproject.toml)
+INSTALL = {
+    "integrators.external.scipy_backend": "pip install scipy",
+    "integrators.external.numbalsoda_backend": "pip install 'rsfbench[numbalsoda]' (builds from "
+                                              "source: needs gfortran and cmake)",
+    "integrators.external.numbalsoda_grid": "pip install 'rsfbench[numbalsoda]' (builds from "
+                                            "source: needs gfortran and cmake)",
+    "integrators.external.scikits_odes_backend": "pip install 'rsfbench[sundials]' (builds "
+                                                 "against SUNDIALS 6: apt-get install "
+                                                 "libsundials-dev pkg-config)",
+    "integrators.external.assimulo_backend": "pip install 'rsfbench[assimulo]'",
+    "integrators.external.sksundae_backend": "pip install 'rsfbench[sundials]'",
+    "integrators.external.sundials_c": "the system's SUNDIALS 6 library (apt-get install "
+                                       "libsundials-dev)",
+    "integrators.external.cyrk_backend": "pip install 'rsfbench[cyrk]'",
+}
 for _module, _names in EXTERNAL.items():
-    REGISTRY.declare(_module, _names)
+    REGISTRY.declare(_module, _names, INSTALL[_module])
 
 #: classes of the adapters reachable as attributes (``integrators.ScipyRadau``), imported on use
 _CLASSES = {"ScipyRK45": "scipy-RK45", "ScipyDOP853": "scipy-DOP853", "ScipyRadau": "scipy-Radau",
@@ -53,7 +69,7 @@ def __getattr__(name: str):
     raise AttributeError(f"module 'integrators' has no attribute {name!r}")
 
 
-__all__ = ["REGISTRY", "UNAVAILABLE", "EXTERNAL", "Algorithm", "ProblemNotSupported",
+__all__ = ["REGISTRY", "UNAVAILABLE", "EXTERNAL", "INSTALL", "Algorithm", "ProblemNotSupported",
            "algorithm_class", "make_algorithm",
            "register", "EVENT_COLUMNS", "Output", "ReturnCode", "Solution", "Stats", "Budget",
            "solve", "ETD1", "ETD2", "ETDIterated", "CashKarp45", "Exprb32", "Exprb43",

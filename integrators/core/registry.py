@@ -133,9 +133,13 @@ class Registry(dict):
         super().__init__()
         self._declared: dict[str, str] = {}      # name → module, until the module is imported
         self.origin: dict[str, str] = {}         # name → the module declared for it
+        self.install: dict[str, str] = {}        # module → how to install what it needs
 
-    def declare(self, module: str, names) -> None:
-        """``module`` registers ``names`` when imported; import it on first use only."""
+    def declare(self, module: str, names, install: str = "") -> None:
+        """``module`` registers ``names`` when imported; import it on first use only.
+        ``install``: how to install what the module needs (said when it fails to import)."""
+        if install:
+            self.install[module] = install
         for name in names:
             self.origin[name] = module
             if not dict.__contains__(self, name):
@@ -169,6 +173,15 @@ class Registry(dict):
             return self[name]
         except KeyError:
             return default
+
+    def unavailable(self) -> list[dict]:
+        """Every declared name whose module did not import: ``name``, ``module``, ``reason`` and
+        ``install`` (how to get it); imports every declared module first."""
+        self.load_all()
+        return [{"name": name, "module": module, "reason": UNAVAILABLE[module],
+                 "install": self.install.get(module, "")}
+                for name, module in sorted(self.origin.items(), key=lambda kv: kv[0].lower())
+                if module in UNAVAILABLE and not dict.__contains__(self, name)]
 
     def names(self) -> list[str]:
         """Every registered or declared name, importing nothing."""
@@ -227,6 +240,8 @@ def algorithm_class(name: str) -> type[Algorithm]:
                 return REGISTRY[key]
             except KeyError:
                 module = REGISTRY.origin.get(key, "")
+                how = REGISTRY.install.get(module)
                 raise ValueError(f"integrator {key!r} is not available here: {module} did not "
-                                 f"import ({UNAVAILABLE.get(module, 'unknown reason')})") from None
+                                 f"import ({UNAVAILABLE.get(module, 'unknown reason')})"
+                                 + (f"; to install it: {how}" if how else "")) from None
     raise ValueError(f"unknown integrator {name!r}; known: {', '.join(sorted(REGISTRY))}")

@@ -1,0 +1,57 @@
+"""The commands' default integrator is a constant in code (benchmarks/recommendation.py), written
+from the committed quick work-precision study and checked against it here."""
+
+import hashlib
+import math
+
+import pandas as pd
+import pytest
+
+from benchmarks import recommendation
+from benchmarks.work_precision import (STUDY_CSV, front_source, pareto_front, read_study,
+                                       recommend)
+
+
+def test_the_constant_is_the_committed_study():
+    """Fails when results/wp_quick.csv changed without its front being rewritten
+    (`rsfbench reproduce --only work-precision` does both)."""
+    assert recommendation.STUDY["sha256"] == hashlib.sha256(STUDY_CSV.read_bytes()).hexdigest()
+    front = pareto_front(read_study(STUDY_CSV))
+    assert list(recommendation.FRONT) == [tuple(r) for r in front.itertuples(index=False)]
+    text = STUDY_CSV.parents[1].joinpath("benchmarks", "recommendation.py").read_text()
+    assert front_source(STUDY_CSV) in text
+
+
+@pytest.mark.parametrize("level", [1e-1, 1e-2, 3e-3, 1e-3, 1e-4, 1e-5, 1e-6, 1e-8, 1e-10])
+def test_the_front_recommends_what_the_study_does(level):
+    advice = recommend(read_study(STUDY_CSV), [level]).iloc[0]
+    algorithm, why = recommendation.recommended(level)
+    if pd.isna(advice.get("integrator")):
+        assert algorithm.name == "ETD2" and "recommends nothing" in why
+    else:
+        assert (algorithm.name, algorithm.rhs, algorithm.rtol) == (
+            advice.integrator, advice.rhs_tier, advice.setting)
+
+
+def test_pareto_front_keeps_only_rows_no_faster_row_beats():
+    # two problems; C is slower and less accurate than B, D only ran on one problem
+    rows = [("A", 1e-3, 1.0, 1e-2), ("B", 1e-3, 2.0, 1e-4), ("C", 1e-3, 3.0, 1e-3),
+            ("D", 1e-3, 0.1, 1e-9)]
+    df = pd.DataFrame([{"problem": p, "integrator": i, "rhs_tier": "numba", "setting": s,
+                        "wall_s": w, "retcode": "Success", "err_recurrence": e}
+                       for p in ("p1", "p2") for i, s, w, e in rows
+                       if not (i == "D" and p == "p2")])
+    front = pareto_front(df)
+    assert list(front.integrator) == ["A", "B"]
+    assert front.total_wall_s.tolist() == [2.0, 4.0] and math.isclose(front.worst_error[1], 1e-4)
+
+
+def test_the_commands_do_not_read_the_study_at_run_time(monkeypatch, tmp_path):
+    from argparse import Namespace
+
+    import benchmarks.work_precision as wp
+    from benchmarks.cli_args import integrator_from_args
+    monkeypatch.setattr(wp, "STUDY_CSV", tmp_path / "missing.csv")
+    algorithm, why = integrator_from_args(Namespace(integrator=None, rtol=None, atol=None,
+                                                    rhs=None, accuracy=1e-3))
+    assert algorithm == recommendation.recommended(1e-3)[0] and "quick work-precision" in why
