@@ -37,11 +37,11 @@ numba-cache:
 	find integrators problems benchmarks -name '*.nb[ic]' ! -newer "$$newest" -delete
 
 test: setup numba-cache
-	$(PY) -m pytest
+	$(PY) -m pytest --require-all
 
 # the slow probes: kills, Ctrl-C, subprocesses, a Dask cluster losing its workers (~1 min)
 test-slow: setup numba-cache
-	$(PY) -m pytest -m slow
+	$(PY) -m pytest --require-all -m slow
 
 # the quick plan: reruns the quick steps whose inputs (code, package versions, settings, files
 # read, the machine for timings) changed, reuses the others and keeps the files of the full

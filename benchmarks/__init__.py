@@ -1,1 +1,19 @@
-"""The accuracy-and-cost harness: limit-cycle metrics, studies, plots and the ``rsfbench`` CLI."""
+"""The accuracy-and-cost harness, in rooms by role, each importing only the rooms before it
+(``tests/test_layers.py``):
+
+* :mod:`benchmarks.records` — result files written whole and read back checked, provenance;
+* :mod:`benchmarks.physics` — a run read as physics: limit-cycle metrics, lab-test measures,
+  slip-weakening curves, plots;
+* :mod:`benchmarks.devtools` — references, achieved errors, work-precision and convergence
+  studies, the recommended integrator;
+* :mod:`benchmarks.ensemble` — one problem at many points, as one table;
+* :mod:`benchmarks.inversion` — observations, misfits, fits, profiles, posteriors, sweeps;
+* :mod:`benchmarks.studies` — one module per result in ``results/``;
+* :mod:`benchmarks.pipeline` — what ``make reproduce`` runs and may reuse;
+* :mod:`benchmarks.cli` — the ``rsfbench`` command line.
+
+The public names of each room are in its ``__all__`` and in ``docs/api.md``.
+"""
+
+__all__ = ["records", "physics", "devtools", "ensemble", "inversion", "studies", "pipeline",
+           "cli"]

@@ -241,7 +241,7 @@ KIND_TITLES = {
 def write_probe(table: pd.DataFrame, out: Path) -> str:
     """``reliability.csv`` (every case) and ``reliability.md`` (kinds × outcomes) in ``out``;
     returns the Markdown."""
-    from benchmarks.report import markdown_table
+    from benchmarks.records.report import markdown_table
     out.mkdir(parents=True, exist_ok=True)
     table.to_csv(out / "reliability.csv", index=False)
     columns = list(OUTCOMES) + list(BAD_OUTCOMES)

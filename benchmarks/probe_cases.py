@@ -63,8 +63,18 @@ _BAD = (("string", "0.01", "pnf"), ("nan", NAN, "pnf"), ("inf", INF, "pnf"), ("n
 def _builders():
     """(dataclass name, field, its kind: p positive / n non-negative / f finite, builder)."""
     from integrators import ETD2, ETDIterated, Rodas5P
-    from problems import (AgingLaw, BalancedStart, ConstantLoading, InitialState, LoadHistory,
-                          NagataLaw, SlipLaw, SpringSlider, TwoSpeedLoading, paper_example)
+    from problems import (
+        AgingLaw,
+        BalancedStart,
+        ConstantLoading,
+        InitialState,
+        LoadHistory,
+        NagataLaw,
+        SlipLaw,
+        SpringSlider,
+        TwoSpeedLoading,
+        paper_example,
+    )
     law = dict(a=0.008, b=0.0092, lc=5e-7, v0=1e-5)
     base = paper_example()
     slider = dict(mass=base.mass, stiffness=base.stiffness, normal_force=base.normal_force,
@@ -187,7 +197,7 @@ def _make(name, **kw):
 # --- sweep arguments (API) -------------------------------------------------------------------
 
 def _sweep(tmp, b=(0.0094,), lc=(3e-7,), **kw):
-    from benchmarks.sweep import observations, sweep
+    from benchmarks.inversion.sweep import observations, sweep
     from integrators import ETD2
     from problems import preset
     args = dict(t_end=1.0, workers=1, progress=False)
@@ -198,7 +208,7 @@ def _sweep(tmp, b=(0.0094,), lc=(3e-7,), **kw):
 
 
 def _observations(**kw):
-    from benchmarks.sweep import Observations
+    from benchmarks.inversion.sweep import Observations
     return Observations(**{**dict(recurrence_s=3.1, sigma_recurrence_s=0.31, friction_drop=0.046,
                                   sigma_friction_drop=0.0046), **kw})
 
@@ -558,7 +568,7 @@ def _budget_cases():
 
 
 def _not_physics(sol):
-    from benchmarks.metrics import summarize
+    from benchmarks.physics.metrics import summarize
     lc = summarize(sol)
     if lc.classification != "failed" or not math.isnan(lc.recurrence_s):
         raise Wrong(f"a {sol.retcode.value} run was classified {lc.classification}")
@@ -592,6 +602,7 @@ def _stall(name):
 def _stall_compiled(algorithm, nd):
     """:func:`_stall` for the compiled engine: its state arrays set to start at τ = 1e20."""
     import numpy as np
+
     from integrators.own import engine as E
     from problems.formulations import to_ode_state
     st, p, Z, G = E.new_state(nd._replace(tau_fast=0.0), algorithm.rtol, algorithm.atol,
@@ -738,7 +749,7 @@ def _dask_no_workers(tmp):
 # --- physics: answers that must not be read as physics ---------------------------------------
 
 def _classify(problem, algorithm, expect_class, **kw):
-    from benchmarks.metrics import CYCLES, summarize
+    from benchmarks.physics.metrics import CYCLES, summarize
     sol = _solve(problem, algorithm, **kw)
     lc = summarize(sol)
     if lc.classification != expect_class:
@@ -822,7 +833,7 @@ def _physics_cases():
         return run
 
     def compare_failed_rows(tmp):
-        from benchmarks.compare import compare_integrators
+        from benchmarks.devtools.compare import compare_integrators
         t = compare_integrators(window("W2", t_end=5.0), 1e-6, 1e-6, names=["CashKarp45"],
                                 wall_budget=0.3, progress=False)
         row = t.iloc[0]
@@ -832,7 +843,7 @@ def _physics_cases():
         return Observed("retcode", row.retcode)
 
     def windows_failed(tmp):
-        from benchmarks.windows import windows_table
+        from benchmarks.studies.windows import windows_table
         t = windows_table(laws=("slip",), names=("W2",), integrator=ETD2(max_steps=1000),
                           progress=False)
         if t.classification.iloc[0] != "failed" or not math.isnan(t.recurrence_s.iloc[0]):
@@ -1036,7 +1047,7 @@ def _corrupt_point_cases():
 
 
 def _corrupt_reference_cases():
-    from benchmarks.reference import BadReferenceWarning
+    from benchmarks.devtools.reference import BadReferenceWarning
     corruptions = {
         "{}": lambda p: p.write_text("{}"),
         "binary garbage": lambda p: p.write_bytes(bytes(range(256))),
@@ -1049,7 +1060,7 @@ def _corrupt_reference_cases():
     out = []
     for name, corrupt in corruptions.items():
         def run(tmp, corrupt=corrupt):
-            from benchmarks.reference import reference
+            from benchmarks.devtools.reference import reference
             from problems import window
             p = window("W4", t_end=1.5)
             good = reference(p, cache=tmp)
@@ -1067,7 +1078,7 @@ def _corrupt_reference_cases():
                         "recovered", timeout=120))
 
     def bad_study(tmp):
-        from benchmarks.work_precision import recommended_algorithm
+        from benchmarks.devtools.work_precision import recommended_algorithm
         (tmp / "wp.csv").write_text("integrator,setting\nRodas5P,1e-4\n")
         recommended_algorithm(1e-3, tmp / "wp.csv")
         raise Wrong("a study without its columns was trusted")
@@ -1134,7 +1145,7 @@ def _machine_output_cases():
 
 def _misfit_cases():
     def curve_is_friction(tmp):
-        from benchmarks.fitting import event_curve
+        from benchmarks.physics.curves import event_curve
         from integrators import Rodas5P
         from problems import window
         p = window("W2", "slip", t_end=10.0)

@@ -21,9 +21,15 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from benchmarks.errors import errors
-from benchmarks.reference import reference
-from benchmarks.work_precision import QUICK, measure, reliable_error, settings, study_problems
+from benchmarks.devtools.errors import errors
+from benchmarks.devtools.reference import reference
+from benchmarks.devtools.work_precision import (
+    QUICK,
+    measure,
+    reliable_error,
+    settings,
+    study_problems,
+)
 from integrators import REGISTRY, solve
 
 MATCHED_ERROR = 1e-4

@@ -1,7 +1,13 @@
 """Shared fixtures: reference solutions are computed once per test session; Fortran output is
-flushed after each test, while pytest still captures it."""
+flushed after each test, while pytest still captures it.
+
+Optional libraries (the peers, pyarrow and Dask, emcee and corner): a test that needs one says so
+with ``@pytest.mark.needs("module", ...)`` and is skipped where it is missing (``pip install .``
+without extras); ``make test`` passes ``--require-all``, which first checks that every optional
+library imports and stops the run, naming the missing ones, if one does not."""
 
 import ctypes
+import importlib.util
 
 import numpy as np
 import pytest
@@ -42,6 +48,35 @@ def _gfortran_runtimes():
     with open("/proc/self/maps") as maps:
         paths = {line.split()[-1] for line in maps if "libgfortran" in line}
     return [ctypes.CDLL(p) for p in sorted(paths)]
+
+
+#: the optional modules ``--require-all`` checks (besides every adapter of the registry)
+OPTIONAL = ("pyarrow", "dask", "distributed", "emcee", "corner", "pytest_benchmark")
+
+
+def pytest_addoption(parser):
+    parser.addoption("--require-all", action="store_true",
+                     help="every optional library must import: stop before any test, naming "
+                          "the missing ones (make test), instead of skipping the tests that "
+                          "need them")
+
+
+def pytest_configure(config):
+    config.addinivalue_line("markers", "needs(*modules): the optional modules a test needs; "
+                                       "skipped where one is missing")
+    if config.getoption("--require-all"):
+        missing = [m for m in OPTIONAL if importlib.util.find_spec(m) is None]
+        missing += [f"{module} ({why})" for module, why in sorted(I.UNAVAILABLE.items())]
+        if missing:
+            pytest.exit(f"--require-all: missing {', '.join(missing)}; `make setup` installs "
+                        f"every extra", returncode=3)
+
+
+def pytest_runtest_setup(item):
+    for mark in item.iter_markers("needs"):
+        missing = [m for m in mark.args if importlib.util.find_spec(m) is None]
+        if missing:
+            pytest.skip(f"needs {', '.join(missing)}, not installed (pip install '.[all]')")
 
 
 I.REGISTRY.load_all()                  # the adapters load on first use: load them all now

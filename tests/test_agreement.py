@@ -18,7 +18,7 @@ import pytest
 
 import integrators as I
 import problems as P
-from benchmarks.metrics import event_metrics
+from benchmarks.physics.metrics import event_metrics
 from integrators import REGISTRY
 
 REFERENCES = {

@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from benchmarks.metrics import EndState, limit_cycle, summarize
+from benchmarks.physics.metrics import EndState, limit_cycle, summarize
 from integrators import Rodas5P, solve
 from integrators.core import cycles
 from integrators.core.solution import EVENT_COLUMNS
@@ -148,7 +148,7 @@ def test_a_growth_rate_that_cannot_be_computed_is_a_reason(monkeypatch):
 
 
 def test_the_locking_study_compares_only_runs_with_a_cycle_of_events(tmp_path):
-    from benchmarks.classification import write_classification
+    from benchmarks.studies.classification import write_classification
     row = dict(group="g", problem="p", b=0.01, lc_um=0.3, t_end_s=1.0, retcode="Success")
     table = pd.DataFrame([
         {**row, "classification": "stick-slip", "period": 1, "n_events": 10,

@@ -5,8 +5,8 @@ import argparse
 
 import pytest
 
-from benchmarks.cli import build_parser
-from benchmarks.cli_args import HelpFormatter
+from benchmarks.cli.main import build_parser
+from benchmarks.cli.args import HelpFormatter
 
 #: options that carry a physical quantity, and the unit their help must name
 UNITS = {"--t-end": " s", "--wall-budget": " s", "--lc": "metres", "--scipy-budget": " s",

@@ -7,8 +7,8 @@ import pytest
 
 import integrators as I
 import problems as P
-from benchmarks.convergence import observed_order
-from benchmarks.metrics import event_metrics
+from benchmarks.devtools.convergence import observed_order
+from benchmarks.physics.metrics import event_metrics
 
 LADDER = (1.0, 0.5, 0.25, 0.125)      # factors applied to the paper's Δτmax and Δτcnst
 ETD_METHODS = [I.ETD1, I.ETD2, lambda **kw: I.ETDIterated(n_iterations=2, **kw)]

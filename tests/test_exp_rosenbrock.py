@@ -12,9 +12,9 @@ from scipy.integrate import solve_ivp
 
 import integrators as I
 import problems as P
-from benchmarks.convergence import observed_order
-from benchmarks.errors import errors
-from benchmarks.reference import reference
+from benchmarks.devtools.convergence import observed_order
+from benchmarks.devtools.errors import errors
+from benchmarks.devtools.reference import reference
 from integrators.own import phi as X
 from integrators.own.etd_kernel import etd_step
 from problems.formulations import form_vector
@@ -107,7 +107,7 @@ def test_observed_order_with_fixed_steps_on_a_stiff_segment(cls, law):
                          ids=lambda p: p.name)
 @pytest.mark.parametrize("cls", METHODS, ids=lambda c: c.name)
 def test_agrees_with_the_reference_at_tight_tolerance(cls, problem):
-    """rtol = atol = 1e−8 against the cached two-solver reference (benchmarks.reference):
+    """rtol = atol = 1e−8 against the cached two-solver reference (benchmarks.devtools.reference):
     recurrence interval and friction drop of the last complete event within 1e−6 (measured:
     exprb32 4e−8–1e−7, exprb43 1–2e−9), and that event's start and end times, located on the
     dense output, within 20·rtol relative (measured: exprb32 4e−8–1.2e−7, exprb43 2–4e−9)."""

@@ -11,12 +11,12 @@ import pytest
 
 import integrators as I
 import problems as P
-from benchmarks import reference as R
-from benchmarks.cli import main
-from benchmarks.convergence import observed_order
-from benchmarks.errors import ERROR_COLUMNS, HEADLINE_ERRORS, errors
-from benchmarks.metrics import event_metrics
-from benchmarks.work_precision import (WP_COLUMNS, Ladder, best_at_levels, recommend,
+from benchmarks.devtools import reference as R
+from benchmarks.cli.main import main
+from benchmarks.devtools.convergence import observed_order
+from benchmarks.devtools.errors import ERROR_COLUMNS, HEADLINE_ERRORS, errors
+from benchmarks.physics.metrics import event_metrics
+from benchmarks.devtools.work_precision import (WP_COLUMNS, Ladder, best_at_levels, recommend,
                                        work_precision)
 
 
@@ -218,7 +218,7 @@ def test_speedup_cli_json_keys_and_a_budget_stop_is_a_lower_bound(cache, monkeyp
 
 
 def test_target_table_compares_the_fastest_own_run_with_lsoda_and_sundials():
-    from benchmarks.target import target_table
+    from benchmarks.studies.target import target_table
     rows = [("Rodas5P", 1e-6, 1e-5, 1.0), ("Rodas5P", 1e-8, 1e-7, 3.0),
             ("numbalsoda-LSODA", 1e-6, 1e-5, 2.5), ("numbalsoda-LSODA", 1e-8, 1e-7, 5.0),
             ("odes-CVODE-BDF", 1e-8, 1e-7, 4.0)]
@@ -235,7 +235,7 @@ def test_target_table_compares_the_fastest_own_run_with_lsoda_and_sundials():
 
 
 def test_target_study_runs_every_stiff_adaptive_integrator_of_the_sides():
-    from benchmarks.target import groups, target_integrators
+    from benchmarks.studies.target import groups, target_integrators
     names, g = target_integrators(), groups()
     assert {"Rosenbrock23", "Rodas5P", "Exprb32", "Exprb43", "numbalsoda-LSODA", "odes-CVODE-BDF",
             "odes-IDA", "assimulo-CVode", "assimulo-IDA"} <= set(names)
@@ -249,7 +249,7 @@ def test_target_study_runs_every_stiff_adaptive_integrator_of_the_sides():
 
 
 def test_a_speedup_below_one_says_which_method_is_faster():
-    from benchmarks.speedup import _ratio
+    from benchmarks.studies.speedup import _ratio
     assert _ratio(43683.2) == "43,683" and _ratio(3.456) == "3.5"
     # ETD2 13.7 ms against Rodas5P 0.55 ms (results/speedup.json) printed as "0.0" before
     assert _ratio(0.0405) == "0.041 (the other method is 24.7× faster)"
@@ -258,7 +258,7 @@ def test_a_speedup_below_one_says_which_method_is_faster():
 
 def test_the_engine_speed_verdict_is_read_from_the_table():
     import pandas as pd
-    from benchmarks.engine_speed import _verdict
+    from benchmarks.studies.engine_speed import _verdict
     goals = pd.DataFrame({"target": ["a", "b", "c", "d"], "target_ms": [1.0, 1.0, 0.4, 1.0],
                           "fastest": ["Rodas5P 1e-08", "Exprb43 1e-02", "Rodas5P", "none"],
                           "wall_ms": [1.8, 0.5, 0.44, float("nan")],

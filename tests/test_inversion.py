@@ -7,9 +7,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from benchmarks.fitting import read_curves
+from benchmarks.physics.curves import read_curves
 from benchmarks.inversion import NO_CYCLE_RESIDUAL, Misfit
-from benchmarks.sweep import Observations, observations, sweep
+from benchmarks.inversion.sweep import Observations, observations, sweep
 from integrators import Rodas5P
 from problems import preset
 
@@ -84,7 +84,7 @@ def test_misuse_is_refused(w2):
 
 def _synthetic(problem, algorithm):
     """Noise-free observations of ``problem`` (its own limit cycle), σ = 10 % of each mean."""
-    from benchmarks.metrics import summarize
+    from benchmarks.physics.metrics import summarize
     from integrators import solve
     c = summarize(solve(problem, algorithm, max_points=2))
     assert c.classification == "stick-slip"

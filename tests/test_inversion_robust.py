@@ -16,10 +16,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from benchmarks.cli import main
+from benchmarks.cli.main import main
 from benchmarks.inversion import Misfit
 from benchmarks.inversion.profile import CELLS, CHI2_95_1DOF, profile
-from benchmarks.sweep import Observations
+from benchmarks.inversion.sweep import Observations
 from integrators import Rodas5P
 from problems import preset
 
@@ -215,7 +215,7 @@ def test_calibration_with_no_check_seeds_writes_its_report(monkeypatch, tmp_path
     """`--check-seeds 0` once crashed in the report after all the work (an empty table)."""
     from benchmarks.inversion import calibration as C
     from test_inversion_studies import linear_map, B0, L0
-    import benchmarks.inversion.studies as S
+    import benchmarks.studies.inversion as S
     monkeypatch.setattr(C, "metric_map", lambda *a, **k: linear_map(41))
     monkeypatch.setattr(S, "CALIBRATION_TRUTH", (B0, 10.0 ** L0))
     monkeypatch.setattr(C, "box_grid", lambda *a, **k: (linear_map(41).b,

@@ -13,13 +13,13 @@ import pandas as pd
 import pytest
 from scipy.stats import norm
 
-from benchmarks.cli import main
+from benchmarks.cli.main import main
 from benchmarks.inversion import (Misfit, MetricMap, NO_CYCLE_J1, box_grid, metric_map,
                                   synthetic)
 from benchmarks.inversion import calibration as C
 from benchmarks.inversion import solver_effect as SE
-from benchmarks.sweep import Observations
-from benchmarks.work_precision import algorithm_at
+from benchmarks.inversion.sweep import Observations
+from benchmarks.devtools.work_precision import algorithm_at
 from integrators import Rodas5P
 from problems import preset
 
@@ -217,7 +217,7 @@ def test_the_recommendation_is_the_cheapest_indistinguishable_setting():
 
 
 def test_the_candidates_cover_the_own_ladders_etd_and_the_peers():
-    from benchmarks.work_precision import read_study
+    from benchmarks.devtools.work_precision import read_study
     from pathlib import Path
     study = Path(__file__).resolve().parents[1] / "results" / "wp_full.csv"
     families = {c.family for c in SE.candidates(read_study(study) if study.exists() else None)}
@@ -292,7 +292,7 @@ def test_the_solver_effect_table_on_w4():
 
 def test_an_inversion_writes_its_files(tmp_path):
     from benchmarks.inversion.invert import invert, write_inversion
-    from benchmarks.sweep import observations
+    from benchmarks.inversion.sweep import observations
     misfit = Misfit(preset("W4", law="slip", t_end=15.0), observations("W4"),
                     Rodas5P(rtol=1e-4, atol=1e-4))
     inv = invert(misfit, (0.0095, 0.0111), (1e-8, 1e-6), walkers=8, steps=12,
@@ -311,7 +311,7 @@ def test_an_inversion_writes_its_files(tmp_path):
 
 def test_no_cycle_in_the_box_means_no_posterior_not_a_frozen_chain(tmp_path):
     from benchmarks.inversion.invert import invert, write_inversion
-    from benchmarks.sweep import observations
+    from benchmarks.inversion.sweep import observations
     misfit = Misfit(preset("W4", law="slip", t_end=15.0), observations("W4"),
                     Rodas5P(rtol=1e-4, atol=1e-4))
     inv = invert(misfit, (0.001, 0.002), (1e-8, 1e-6), walkers=8, steps=10,
@@ -324,7 +324,7 @@ def test_no_cycle_in_the_box_means_no_posterior_not_a_frozen_chain(tmp_path):
 
 def test_a_bad_chain_is_refused_before_the_fit():
     from benchmarks.inversion.invert import invert
-    from benchmarks.sweep import observations
+    from benchmarks.inversion.sweep import observations
     misfit = Misfit(preset("W4", law="slip", t_end=15.0), observations("W4"),
                     Rodas5P(rtol=1e-4, atol=1e-4))
     with pytest.raises(ValueError, match="walkers must be"):
@@ -361,9 +361,9 @@ def test_invert_json_prints_one_document(capsys, tmp_path):
 def test_joint_misfit_agrees_with_the_sweeps_j(tmp_path):
     """J at fixed weights is the sweep's J at its own weights (Eq. 12)."""
     from pathlib import Path
-    from benchmarks.fitting import read_curves
+    from benchmarks.physics.curves import read_curves
     from benchmarks.inversion.joint import joint_misfit
-    from benchmarks.sweep import observations, sweep
+    from benchmarks.inversion.sweep import observations, sweep
     curves = Path(__file__).parent / "data" / "W2_slip_weakening.csv"
     problem = preset("W2", law="slip", t_end=20.0)
     obs = observations("W2", curves=read_curves(curves))

@@ -10,8 +10,8 @@ import pytest
 
 import integrators as I
 import problems as P
-from benchmarks.cli import main
-from benchmarks.metrics import event_metrics, summarize
+from benchmarks.cli.main import main
+from benchmarks.physics.metrics import event_metrics, summarize
 
 
 @pytest.fixture(scope="module")

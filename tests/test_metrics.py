@@ -4,7 +4,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from benchmarks.metrics import EndState, event_metrics, limit_cycle
+from benchmarks.physics.metrics import EndState, event_metrics, limit_cycle
 from integrators.core.solution import EVENT_COLUMNS
 
 FN = 1e6

@@ -66,7 +66,7 @@ def test_wrong_suffix_and_missing_file_are_refused(tmp_path):
 
 
 def test_cli_sweeps_a_problem_file_and_marks_a_given_point(tmp_path, capsys):
-    from benchmarks.cli import main
+    from benchmarks.cli.main import main
     out = tmp_path / "s"
     assert main(["sweep", "--problem", str(EXAMPLE), "--b", "0.0093:0.0094:0.0001", "--lc",
                  "3e-7:3e-7:1", "--t-end", "10", "--obs-recurrence", "0.3", "--obs-drop",
@@ -79,7 +79,7 @@ def test_cli_sweeps_a_problem_file_and_marks_a_given_point(tmp_path, capsys):
 
 
 def test_cli_refuses_law_with_a_problem_file(tmp_path, capsys):
-    from benchmarks.cli import main
+    from benchmarks.cli.main import main
     status = main(["sweep", "--problem", str(EXAMPLE), "--law", "aging", "--b",
                    "0.0093:0.0094:0.0001", "--lc", "3e-7:3e-7:1", "--obs-recurrence", "0.3",
                    "--obs-drop", "0.04", "--out", str(tmp_path / "s"), "--json"])
@@ -88,7 +88,7 @@ def test_cli_refuses_law_with_a_problem_file(tmp_path, capsys):
 
 
 def test_cli_simulates_a_problem_file_with_b_replaced(capsys):
-    from benchmarks.cli import main
+    from benchmarks.cli.main import main
     assert main(["simulate", "--problem", str(EXAMPLE), "--b", "0.0095", "--t-end", "2",
                  "--json"]) == 0
     s = json.loads(capsys.readouterr().out)

@@ -1,10 +1,10 @@
-"""The README quotes results/ through generated blocks (benchmarks/readme.py): the committed
+"""The README quotes results/ through generated blocks (benchmarks/pipeline/readme.py): the committed
 README must match the committed results, and the blocks must render what their sources say."""
 
 import pandas as pd
 import pytest
 
-from benchmarks import readme
+from benchmarks.pipeline import readme
 
 
 def test_committed_readme_matches_committed_results():

@@ -1,14 +1,15 @@
-"""The commands' default integrator is a constant in code (benchmarks/recommendation.py), written
+"""The commands' default integrator is a constant in code (benchmarks/devtools/recommendation.py), written
 from the committed quick work-precision study and checked against it here."""
 
 import hashlib
 import math
+from pathlib import Path
 
 import pandas as pd
 import pytest
 
-from benchmarks import recommendation
-from benchmarks.work_precision import (STUDY_CSV, front_source, pareto_front, read_study,
+from benchmarks.devtools import recommendation
+from benchmarks.devtools.work_precision import (STUDY_CSV, front_source, pareto_front, read_study,
                                        recommend)
 
 
@@ -18,7 +19,7 @@ def test_the_constant_is_the_committed_study():
     assert recommendation.STUDY["sha256"] == hashlib.sha256(STUDY_CSV.read_bytes()).hexdigest()
     front = pareto_front(read_study(STUDY_CSV))
     assert list(recommendation.FRONT) == [tuple(r) for r in front.itertuples(index=False)]
-    text = STUDY_CSV.parents[1].joinpath("benchmarks", "recommendation.py").read_text()
+    text = Path(recommendation.__file__).read_text(encoding="utf-8")
     assert front_source(STUDY_CSV) in text
 
 
@@ -49,8 +50,8 @@ def test_pareto_front_keeps_only_rows_no_faster_row_beats():
 def test_the_commands_do_not_read_the_study_at_run_time(monkeypatch, tmp_path):
     from argparse import Namespace
 
-    import benchmarks.work_precision as wp
-    from benchmarks.cli_args import integrator_from_args
+    import benchmarks.devtools.work_precision as wp
+    from benchmarks.cli.args import integrator_from_args
     monkeypatch.setattr(wp, "STUDY_CSV", tmp_path / "missing.csv")
     algorithm, why = integrator_from_args(Namespace(integrator=None, rtol=None, atol=None,
                                                     rhs=None, accuracy=1e-3))

@@ -10,15 +10,15 @@ import textwrap
 import pandas as pd
 import pytest
 
-from benchmarks import manifest as M
-from benchmarks import reproduce as RP
+from benchmarks.pipeline import manifest as M
+from benchmarks.pipeline import reproduce as RP
 
 # --- layering ------------------------------------------------------------------------------
 
 
 def test_benchmarks_has_no_import_cycle():
     graph = M.import_graph(M.ROOT, ("benchmarks",))
-    assert "benchmarks.cli" in graph and "benchmarks.reproduce" in graph
+    assert "benchmarks.cli" in graph and "benchmarks.pipeline.reproduce" in graph
     assert M.find_cycles(graph) == []
 
 
@@ -271,16 +271,16 @@ def test_every_step_declares_inputs_that_resolve(tmp_path):
         assert any(k.startswith("integrators/") for k in inputs["code"]), step.name
         assert any(k.endswith(f"::{step.run.__name__}") for k in inputs["code"])
     code = RP._inputs(RP.STEPS[RP.STEP_NAMES.index("probe")], tmp_path)["code"]
-    assert {"benchmarks/cli.py", "benchmarks/probe_cases.py", "problems/presets.py"} <= set(code)
+    assert {"benchmarks/cli/main.py", "benchmarks/probe_cases.py", "problems/presets.py"} <= set(code)
     code = RP._inputs(RP.STEPS[RP.STEP_NAMES.index("windows")], tmp_path)["code"]
-    assert {"benchmarks/windows.py", "benchmarks/summary.py", "integrators/own/etd.py"} <= set(code)
-    assert "benchmarks/reproduce.py" not in code and "benchmarks/cli.py" not in code
+    assert {"benchmarks/studies/windows.py", "benchmarks/physics/summary.py", "integrators/own/etd.py"} <= set(code)
+    assert "benchmarks/pipeline/reproduce.py" not in code and "benchmarks/cli/main.py" not in code
     assert {"speedup", "work-precision", "target-full", "binding-overhead",
             "ensemble-scaling", "solver-effect", "family", "mass-limit"} == set(RP.FULL_STEPS)
 
 
 def test_the_command_line_refuses_misuse_in_one_line(capsys):
-    from benchmarks.cli import main
+    from benchmarks.cli.main import main
     assert main(["reproduce", "--scipy-budget", "5", "--out", "/tmp"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--full" in err and "Traceback" not in err
@@ -289,7 +289,7 @@ def test_the_command_line_refuses_misuse_in_one_line(capsys):
 
 
 def test_a_dry_run_says_what_would_run_and_writes_nothing(tmp_path, capsys):
-    from benchmarks.cli import main
+    from benchmarks.cli.main import main
     out = tmp_path / "results"
     assert main(["reproduce", "--dry-run", "--out", str(out)]) == 0
     text = capsys.readouterr().out

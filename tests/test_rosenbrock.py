@@ -10,9 +10,9 @@ from scipy.integrate import solve_ivp
 
 import integrators as I
 import problems as P
-from benchmarks.convergence import observed_order
-from benchmarks.errors import errors
-from benchmarks.reference import reference
+from benchmarks.devtools.convergence import observed_order
+from benchmarks.devtools.errors import errors
+from benchmarks.devtools.reference import reference
 from integrators.own import linalg
 from problems.formulations import OdeForm, to_ode_state
 
@@ -102,7 +102,7 @@ TIGHT = {"Rosenbrock23": 1e-10, "Rodas5P": 1e-9}
 @pytest.mark.parametrize("cls", METHODS, ids=IDS)
 def test_agrees_with_the_reference(cls, problem):
     """Recurrence interval and friction drop of the last complete event within 1e−6 of the
-    reference (benchmarks.reference: assimulo Radau5 and CVODE BDF at 1e−12, agreeing to
+    reference (benchmarks.devtools.reference: assimulo Radau5 and CVODE BDF at 1e−12, agreeing to
     ~1e−9), and its start and end times too (relative to themselves: the phase error
     accumulated over 8–15 cycles). Measured: Rosenbrock23 at 1e−10 ≤ 1.6e−7, Rodas5P at 1e−9
     ≤ 1.9e−8."""

@@ -329,7 +329,7 @@ def test_losing_the_dask_scheduler_stops_the_run_keeping_its_chunks(tmp_path):
     import threading
     import time
 
-    from benchmarks.sweep_exec import SchedulerLost
+    from benchmarks.ensemble.executors import SchedulerLost
     from integrators import ETD2
     dask = [sys.executable, "-m", "distributed.cli.dask_scheduler"]
     worker_cmd = [sys.executable, "-m", "distributed.cli.dask_worker"]

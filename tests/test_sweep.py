@@ -11,9 +11,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from benchmarks.cli_sweep import observations
-from benchmarks.fitting import j1, j2_per_event, joint_fit, read_curves
-from benchmarks.sweep import parse_b, parse_lc, sweep
+from benchmarks.cli.sweep import observations
+from benchmarks.physics.curves import read_curves
+from benchmarks.inversion.fitting import j1, j2_per_event, joint_fit
+from benchmarks.inversion.sweep import parse_b, parse_lc, sweep
 from integrators import ETD2, ETDIterated, Rodas5P
 from problems import preset
 
@@ -176,7 +177,7 @@ def test_dask_and_local_pools_give_the_same_table(tmp_path):
 
 
 def test_cli_sweep_json_has_the_promised_keys(tmp_path, capsys):
-    from benchmarks.cli import main
+    from benchmarks.cli.main import main
     assert main(["sweep", "--preset", "W3", "--b", "0.0097:0.0098:0.0001", "--lc",
                  "9e-7:9e-7:1", "--t-end", "20", "--workers", "1", "--out", str(tmp_path),
                  "--json", "--no-progress"]) == 0
@@ -191,7 +192,7 @@ def test_cli_sweep_json_has_the_promised_keys(tmp_path, capsys):
 
 
 def test_paper_grids_contain_the_published_best_fit():
-    from benchmarks.paper_sweeps import GRID, best_fit, grid_around
+    from benchmarks.inversion.published import GRID, best_fit, grid_around
     for law in ("slip", "aging"):
         b0, lc0 = best_fit("W2", law)
         b, lc = grid_around(b0, lc0, **GRID[law])

@@ -10,7 +10,7 @@ import warnings
 import pytest
 
 import problems as P
-from benchmarks.sweep import Observations, observations
+from benchmarks.inversion.sweep import Observations, observations
 from problems._validate import (PLAUSIBLE, UnitWarning, check_possible, implausible_message,
                                 units_checked_already)
 
@@ -122,7 +122,7 @@ def test_a_loading_warns_once_however_it_is_read():
 
 
 def test_the_command_line_shows_a_warning_as_one_line(capsys):
-    from benchmarks.cli import main
+    from benchmarks.cli.main import main
     status = main(["simulate", "--preset", "W2", "--lc", "0.3", "--t-end", "0.05",
                    "--wall-budget", "5", "--integrator", "Rodas5P", "--rtol", "1e-6",
                    "--atol", "1e-6", "--json"])
@@ -134,7 +134,7 @@ def test_the_command_line_shows_a_warning_as_one_line(capsys):
 
 
 def test_a_sweep_warns_once_not_once_a_point(tmp_path):
-    from benchmarks.sweep import sweep
+    from benchmarks.inversion.sweep import sweep
     from integrators import ETD2
 
     def run():

@@ -15,8 +15,14 @@ threads, processes or Dask).
 from benchmarks.ensemble.points import MAX_POINTS, check_points, grid, point_problems
 from benchmarks.ensemble.rows import RESULT_COLUMNS, batch_rows, point_rows
 from benchmarks.ensemble.run import CHUNK_SIZE, Chunk, ensemble, run_chunk
-from benchmarks.ensemble.store import (BadChunkWarning, ChunkStore, IncompleteStoreWarning,
-                                       StoreBusy, StrayFileWarning, read_store)
+from benchmarks.ensemble.store import (
+                                       BadChunkWarning,
+                                       ChunkStore,
+                                       IncompleteStoreWarning,
+                                       StoreBusy,
+                                       StrayFileWarning,
+                                       read_store,
+)
 
 __all__ = ["ensemble", "grid", "check_points", "point_problems", "batch_rows", "point_rows",
            "run_chunk", "Chunk", "ChunkStore", "read_store", "BadChunkWarning",

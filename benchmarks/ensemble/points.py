@@ -11,7 +11,12 @@ from __future__ import annotations
 import numpy as np
 
 from problems import SpringSlider, growth_rate, variant, variant_fields
-from problems._validate import PLAUSIBLE, check_count, units_checked_already, warn_implausible
+from problems._validate import (
+    PLAUSIBLE,
+    check_count,
+    units_checked_already,
+    warn_implausible,
+)
 
 __all__ = ["grid", "check_points", "point_problems", "MAX_POINTS"]
 

@@ -6,12 +6,12 @@ Two paths give the same columns (:data:`RESULT_COLUMNS`, after the parameter col
   numba call (:meth:`integrators.own.compiled.CompiledAlgorithm.solve_batch`), each summarised in
   compiled code; Python only names the classes and writes the messages;
 * :func:`point_rows`: any other backend, point by point through :func:`integrators.solve` and
-  :func:`benchmarks.metrics.summarize`.
+  :func:`benchmarks.physics.metrics.summarize`.
 
 Both classify with :func:`integrators.core.cycles.find_cycle` and word the reasons with
-:func:`benchmarks.metrics.cycle_from`, so an own method's rows are the same either way (the
+:func:`benchmarks.physics.metrics.cycle_from`, so an own method's rows are the same either way (the
 tests check it). A point that fails is a row with its retcode and message, never an exception;
-only a point with a limit cycle (:data:`benchmarks.metrics.CYCLES`) has metrics.
+only a point with a limit cycle (:data:`benchmarks.physics.metrics.CYCLES`) has metrics.
 """
 
 from __future__ import annotations
@@ -19,7 +19,13 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from benchmarks.metrics import CLASSIFICATIONS, CYCLES, EndState, cycle_from, summarize
+from benchmarks.physics.metrics import (
+    CLASSIFICATIONS,
+    CYCLES,
+    EndState,
+    cycle_from,
+    summarize,
+)
 from integrators import ReturnCode, solve
 from integrators.core import cycles
 from integrators.own import batch as B
@@ -39,7 +45,7 @@ RESULT_COLUMNS = ("classification", "retcode", "message", "n_events", *METRIC_CO
                   *COUNTER_COLUMNS, "wall_s", "integrator")
 _TEXT = ("classification", "retcode", "message", "integrator")
 #: with ``curve_dt``: the slip-weakening curve of the last complete event (slip in m, friction
-#: Ft/Fn; :func:`benchmarks.fitting.event_curve`), empty unless the point has a limit cycle
+#: Ft/Fn; :func:`benchmarks.physics.curves.event_curve`), empty unless the point has a limit cycle
 CURVE_COLUMNS = ("curve_slip", "curve_friction")
 
 
@@ -116,7 +122,7 @@ def point_rows(problems, algorithm, names, values, wall_budget=None,
     """The rows of ``problems`` solved one by one with :func:`integrators.solve` (any backend),
     as :func:`batch_rows` writes them; with ``curve_dt`` (s) the trajectory is saved that finely
     and each row has its slip-weakening curve (:data:`CURVE_COLUMNS`)."""
-    from benchmarks.fitting import event_curve
+    from benchmarks.physics.curves import event_curve
     save = dict(save_every=curve_dt) if curve_dt else dict(max_points=2)
     rows, crashed = [], False
     for problem in problems:

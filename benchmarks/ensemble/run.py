@@ -10,13 +10,13 @@ work, of storage and of scheduling:
   each chunk solved point by point (:func:`integrators.solve`) or, for an own method, as one
   single-threaded batch;
 * ``scheduler=ADDRESS``: chunks are Dask tasks on that cluster (a task per chunk, never per
-  point), with the guarantees of :mod:`benchmarks.sweep_exec`.
+  point), with the guarantees of :mod:`benchmarks.ensemble.executors`.
 
 With ``store=DIR`` every finished chunk is written at once (:mod:`benchmarks.ensemble.store`),
 and a rerun with the same arguments reads the finished chunks back instead of running them
 (:func:`benchmarks.ensemble.read_store` reads a store back; a raw Parquet read of DIR does not).
 A cluster lost mid-run (its scheduler, or every worker) ends the run with a
-:class:`~benchmarks.sweep_exec.RunStopped` whose one line says how many points are kept.
+:class:`~benchmarks.ensemble.executors.RunStopped` whose one line says how many points are kept.
 Every argument and every point's problem is checked before the first solve.
 """
 
@@ -31,11 +31,17 @@ import numpy as np
 import pandas as pd
 from tqdm.auto import tqdm
 
+from benchmarks.ensemble.executors import (
+    CONNECT_TIMEOUT_S,
+    WORKER_TIMEOUT_S,
+    RunStopped,
+    connect,
+    execute,
+    quiet_distributed,
+)
 from benchmarks.ensemble.points import MAX_POINTS, check_points, point_problems
 from benchmarks.ensemble.rows import batch_rows, compiled, failed_rows, point_rows
 from benchmarks.ensemble.store import ChunkStore, identity_of
-from benchmarks.sweep_exec import (CONNECT_TIMEOUT_S, WORKER_TIMEOUT_S, RunStopped, connect,
-                                   execute, quiet_distributed)
 from integrators import Algorithm, Output
 from integrators.core.solve import short_piece
 from problems._validate import check_count, check_positive, units_checked_already

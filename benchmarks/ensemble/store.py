@@ -5,7 +5,7 @@ makes the ensemble (the code that makes rows, the base problem, algorithm, wall 
 chunking: :func:`identity_of`) and lists every finished chunk with the SHA-256 of its file.
 Another ensemble there is refused (or, with ``reclaim`` — the harness's own caches — cleared).
 Each finished chunk is one file ``_c<first point>-<key>.parquet``, written to a temporary file,
-fsync'd and renamed (:func:`benchmarks.files.atomic_write`), then listed; the key hashes the
+fsync'd and renamed (:func:`benchmarks.records.files.atomic_write`), then listed; the key hashes the
 identity and the chunk's points, so a rerun with the same arguments finds its finished chunks
 and runs only the others. A killed run leaves whole listed chunks, and at most one chunk written
 but not yet listed (recomputed, like any unlisted file).
@@ -44,10 +44,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from benchmarks.files import _PREFIX as _TEMPORARY, atomic_write, remove_stale_temporaries
+from benchmarks.ensemble.executors import RunStopped
 from benchmarks.ensemble.rows import METRIC_COLUMNS, columns_of
-from benchmarks.metrics import CLASSIFICATIONS, CYCLES
-from benchmarks.sweep_exec import RunStopped
+from benchmarks.physics.metrics import CLASSIFICATIONS, CYCLES
+from benchmarks.records.files import _PREFIX as _TEMPORARY
+from benchmarks.records.files import atomic_write, remove_stale_temporaries
 from integrators import ReturnCode
 
 __all__ = ["ChunkStore", "read_store", "BadChunkWarning", "StrayFileWarning",
@@ -102,6 +103,7 @@ def code_version() -> str:
     store written by other code is another ensemble, so a fixed bug cannot hide in old rows.
     Read once a process: the code a process runs does not change under it."""
     import numba
+
     import benchmarks
     import integrators
     import problems

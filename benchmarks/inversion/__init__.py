@@ -5,11 +5,17 @@ posterior samples with emcee (:mod:`~benchmarks.inversion.posterior`), the forwa
 grid and the posteriors and profiles of any data set on it (:mod:`~benchmarks.inversion.grid`).
 Built on them: one inversion end to end (:mod:`~benchmarks.inversion.invert`), the coverage of
 the 95 % regions (:mod:`~benchmarks.inversion.calibration`), the solver's effect on the
-inference (:mod:`~benchmarks.inversion.solver_effect`) and the reproduce steps' studies
-(:mod:`~benchmarks.inversion.studies`)."""
+inference (:mod:`~benchmarks.studies.solver_effect`) and the reproduce steps' studies
+(:mod:`~benchmarks.studies.inversion`)."""
 
 from benchmarks.inversion.fit import FitResult, fit
-from benchmarks.inversion.grid import NO_CYCLE_J1, GridPosterior, MetricMap, box_grid, metric_map
+from benchmarks.inversion.grid import (
+           NO_CYCLE_J1,
+           GridPosterior,
+           MetricMap,
+           box_grid,
+           metric_map,
+)
 from benchmarks.inversion.misfit import NO_CYCLE_RESIDUAL, Misfit, synthetic
 from benchmarks.inversion.posterior import Posterior, sample
 from benchmarks.inversion.profile import CHI2_95_1DOF, Profile, profile

@@ -4,7 +4,7 @@ Observations are simulated at a known ``truth`` = (b, Lc): the limit cycle's ΔT
 plus Gaussian noise of standard deviation σ = ``sigma_rel`` × the true value, with the seeds
 0, 1, …, ``seeds`` − 1 (numpy's ``default_rng(seed)``, one draw of two normals each). The same
 algorithm simulates and inverts, so the check is of the statistics, not of the solver (the
-solver's effect is :mod:`benchmarks.inversion.solver_effect`'s question).
+solver's effect is :mod:`benchmarks.studies.solver_effect`'s question).
 
 For every seed, on one :class:`~benchmarks.inversion.grid.MetricMap` through the truth (the
 forward model does not depend on the seed, so one ensemble serves all of them), the truth is
@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from benchmarks.fitting import CHI2_95_2DOF
+from benchmarks.inversion.fitting import CHI2_95_2DOF
 from benchmarks.inversion.grid import MetricMap, box_grid, cell_box, metric_map
 from benchmarks.inversion.misfit import Misfit, synthetic
 from benchmarks.inversion.profile import CHI2_95_1DOF

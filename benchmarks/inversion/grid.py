@@ -3,7 +3,7 @@
 The limit-cycle metrics of a problem do not depend on the observations, so one ensemble over a
 grid (:func:`metric_map`) serves every data set scored against it: the published means, a
 thousand seeded synthetic sets (calibration), the same data under another solver (the solver's
-effect). From a :class:`MetricMap` and an :class:`~benchmarks.sweep.Observations`:
+effect). From a :class:`MetricMap` and an :class:`~benchmarks.inversion.sweep.Observations`:
 
 * :meth:`MetricMap.j1`: J1 (Eq. 10) on the grid, ``NO_CYCLE_J1`` where there is no limit cycle;
 * :meth:`MetricMap.posterior`: the posterior under the uniform prior in (b, log10 Lc) on the
@@ -30,8 +30,8 @@ import numpy as np
 
 from benchmarks.ensemble import ensemble
 from benchmarks.inversion.misfit import NO_CYCLE_RESIDUAL
-from benchmarks.metrics import CYCLES
-from benchmarks.sweep import Observations
+from benchmarks.inversion.sweep import Observations
+from benchmarks.physics.metrics import CYCLES
 from integrators import Algorithm
 from problems import SpringSlider
 

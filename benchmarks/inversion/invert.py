@@ -29,7 +29,7 @@ from benchmarks.inversion.fit import FitResult, fit
 from benchmarks.inversion.misfit import Misfit
 from benchmarks.inversion.posterior import Posterior, check_sampler, sample
 from benchmarks.inversion.profile import CHI2_95_1DOF, profile
-from benchmarks.report import jsonable
+from benchmarks.records.report import jsonable
 
 __all__ = ["invert", "Inversion", "write_inversion", "check_box", "MAX_SAMPLES_SAVED"]
 

@@ -1,6 +1,6 @@
 """The misfit of (b, Lc) as a function, for fits, profiles and samplers (issue 17, item 1).
 
-:class:`Misfit` binds one problem, its observations (:class:`benchmarks.sweep.Observations`) and
+:class:`Misfit` binds one problem, its observations (:class:`benchmarks.inversion.sweep.Observations`) and
 one algorithm. It evaluates any batch of (b, Lc) on the ensemble engine
 (:func:`benchmarks.ensemble.ensemble`: one compiled batch for the own methods) and returns, per
 point, the limit-cycle metrics, the residuals, J1 (Eq. 10), J2 (Eq. 11, when the observations
@@ -26,9 +26,9 @@ import numpy as np
 import pandas as pd
 
 from benchmarks.ensemble import ensemble
-from benchmarks.fitting import j1, j2_per_event
-from benchmarks.metrics import CYCLES
-from benchmarks.sweep import MIN_SIGMA_REL, Observations
+from benchmarks.inversion.fitting import j1, j2_per_event
+from benchmarks.inversion.sweep import MIN_SIGMA_REL, Observations
+from benchmarks.physics.metrics import CYCLES
 from integrators import Algorithm
 from problems import SpringSlider
 
@@ -107,6 +107,7 @@ def synthetic(recurrence_s: float, friction_drop: float, sigma_rel: float,
     if not 0 < sigma_rel < 1:
         raise ValueError(f"sigma_rel must be in (0, 1), got {sigma_rel!r}")
     import warnings
+
     from problems._validate import UnitWarning
     z = np.random.default_rng(seed).standard_normal(2)
     s_t, s_m = sigma_rel * recurrence_s, sigma_rel * friction_drop

@@ -3,8 +3,18 @@ one module by area: each module's ``cases()`` returns its :class:`~benchmarks.pr
 
 from __future__ import annotations
 
-from benchmarks.probe_families import (classification, etd, histories, integrators, inversion,
-                                       lab, problem_files, review, store, units)
+from benchmarks.probe_families import (
+    classification,
+    etd,
+    histories,
+    integrators,
+    inversion,
+    lab,
+    problem_files,
+    review,
+    store,
+    units,
+)
 
 __all__ = ["cases"]
 

@@ -65,7 +65,7 @@ def _hurwitz_stable(problem) -> bool:
 def _check_class(problem, sol, lc) -> str:
     """Raise :class:`Wrong` if the class of a run that reached its end contradicts the linear
     stability of steady sliding or breaks the promise rule; returns a short account."""
-    from benchmarks.metrics import CYCLES, end_state
+    from benchmarks.physics.metrics import CYCLES, end_state
     from problems.stability import growth_rate
     what, n = lc.classification, len(sol.events)
     if what in CYCLES:
@@ -102,7 +102,7 @@ def _on_band(end) -> bool:
 
 def _promise_kept(problem, lc, algorithm, cap: float) -> str:
     """If ``lc`` promises a length ≤ ``cap`` s, rerun there: it must be classified."""
-    from benchmarks.metrics import summarize
+    from benchmarks.physics.metrics import summarize
     from integrators import solve
     m = _PROMISE.search(lc.reason)
     if not m:
@@ -124,7 +124,7 @@ def _promise_kept(problem, lc, algorithm, cap: float) -> str:
 
 def _rung(law: str, factor: float, cap: float = PROMISE_CAP):
     def run(tmp):
-        from benchmarks.metrics import summarize
+        from benchmarks.physics.metrics import summarize
         from integrators import solve
         from problems import critical_stiffness, paper_example
         p = paper_example(law=law, t_end=T_END)
@@ -170,7 +170,7 @@ def _extreme(label: str, make, expect_classes):
     """A variant of the paper example run 0.5 s: no traceback, a class allowed by linear
     stability; a run the integrator cannot do is ``failed`` with NaN metrics (``retcode``)."""
     def run(tmp):
-        from benchmarks.metrics import summarize
+        from benchmarks.physics.metrics import summarize
         from integrators import solve
         problem = make()
         sol = solve(problem, _rodas(), max_points=2001, wall_budget=30)
@@ -260,7 +260,7 @@ def _algorithm(name: str):
 
 def _switch_ladder(name: str, t_end: float):
     def run(tmp):
-        from benchmarks.metrics import summarize
+        from benchmarks.physics.metrics import summarize
         from integrators import solve
         algorithm = _algorithm(name)
         ref = solve(_switch_problem(None, t_end), algorithm, wall_budget=20)
@@ -354,10 +354,10 @@ def _events(starts, duration=0.01):
 
 
 def _degenerate(starts, growth, longest=5e10):
-    """:func:`benchmarks.metrics.limit_cycle` of events starting at ``starts`` and an end 0.2 A
+    """:func:`benchmarks.physics.metrics.limit_cycle` of events starting at ``starts`` and an end 0.2 A
     from steady sliding with growth rate ``growth``: never a cycle, always a reason."""
     def run(tmp):
-        from benchmarks.metrics import CYCLES, EndState, limit_cycle
+        from benchmarks.physics.metrics import CYCLES, EndState, limit_cycle
         end = EndState(log_v=0.2, state_offset=0.2, force_offset=0.2, growth_rate=growth,
                        longest_run=longest)
         lc = limit_cycle(_events(starts), 1e6, 10.0, v_slow=1e-4, end=end)
@@ -370,7 +370,7 @@ def _degenerate(starts, growth, longest=5e10):
 
 def _one_step(tmp):
     """A run as short as one step (1 ns): classified, not raised."""
-    from benchmarks.metrics import summarize
+    from benchmarks.physics.metrics import summarize
     from integrators import solve
     from problems import paper_example
     sol = solve(paper_example(t_end=1e-9), _rodas())

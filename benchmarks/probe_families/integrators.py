@@ -19,7 +19,6 @@ by the elapsed time (aging law: θ' = 1 − vθ/Lc) — :func:`lock_end`.
 from __future__ import annotations
 
 import dataclasses
-import math
 
 from benchmarks.probe import Case, Observed, Wrong, cli, cli_outcome, one_json  # noqa: F401
 

@@ -250,10 +250,10 @@ def _invert(**kw):
 
 def _api_cases():
     from benchmarks.inversion.calibration import coverage
-    from benchmarks.inversion.profile import profile
-    from benchmarks.inversion.studies import prior_box
     from benchmarks.inversion.misfit import Misfit
-    from benchmarks.sweep import Observations
+    from benchmarks.inversion.profile import profile
+    from benchmarks.inversion.published import prior_box
+    from benchmarks.inversion.sweep import Observations
     box = ((0.008, 0.011), (1e-8, 1e-5))
     out = [Case("inversion", f"profile of an analytic valley: {n} points, σ_b = {sb:g}",
                 _closed_form(n, sb, sl), "ok")
@@ -306,10 +306,10 @@ def _rodas():
 # --- W2 with a small σ and few points, end to end (the defect's case) ---------------------------
 
 def _w2_small_sigma(tmp):
+    from benchmarks.ensemble import ensemble
     from benchmarks.inversion.invert import invert
     from benchmarks.inversion.misfit import Misfit
-    from benchmarks.ensemble import ensemble
-    from benchmarks.sweep import Observations
+    from benchmarks.inversion.sweep import Observations
     from integrators import Rodas5P
     from problems import preset
     algorithm = Rodas5P(rtol=1e-6, atol=1e-6)

@@ -68,8 +68,15 @@ def _write(tmp: Path, data, suffix: str = ".toml", name: str = "apparatus") -> P
 def _valid_problems() -> dict:
     """name: (a builder of the problem, its number of loading switches). Short runs: each
     command finishes in about a second once compiled."""
-    from problems import (InitialState, LoadHistory, slide_hold_slide_test, variant,
-                          velocity_step_test, window, paper_example)
+    from problems import (
+        InitialState,
+        LoadHistory,
+        paper_example,
+        slide_hold_slide_test,
+        variant,
+        velocity_step_test,
+        window,
+    )
     from problems.presets import fault_radiation_damping
 
     def steps_nagata():
@@ -192,7 +199,7 @@ def _valid_slip_weakening(make, switches):
                   tmp / "c.csv", *_TOL, "--json")
         out = cli_outcome(got, json_mode=True)
         # the API's classification of the same run must agree with the command's answer
-        from benchmarks.metrics import CYCLES, summarize
+        from benchmarks.physics.metrics import CYCLES, summarize
         from integrators import Rodas5P, solve
         cycle = summarize(solve(problem, Rodas5P(rtol=1e-6, atol=1e-6)))
         if out.outcome == "ok":

@@ -57,9 +57,18 @@ def _expect(make, name: str, unit: str, expect: str):
 def _holders() -> dict:
     """PLAUSIBLE key: [(the object that holds it, the name it is reported under, a builder of
     the object from a value)]: every law for a law's field, every slider field, every loading."""
-    from benchmarks.sweep import Observations
-    from problems import (AgingLaw, ConstantLoading, InitialState, LoadHistory, NagataLaw,
-                          SlipLaw, TwoSpeedLoading, paper_example, velocity_step_test)
+    from benchmarks.inversion.sweep import Observations
+    from problems import (
+        AgingLaw,
+        ConstantLoading,
+        InitialState,
+        LoadHistory,
+        NagataLaw,
+        SlipLaw,
+        TwoSpeedLoading,
+        paper_example,
+        velocity_step_test,
+    )
     from problems.presets import fault_radiation_damping
     law = dict(a=0.008, b=0.0092, lc=5e-7, v0=1e-5)
     two = dict(vls=1e-4, vlf=1e-3, df=0.04)
@@ -141,7 +150,7 @@ def _edge_cases() -> list[Case]:
 # --- the checks that are not one field against a range ----------------------------------------------
 
 def _derived_cases() -> list[Case]:
-    from benchmarks.sweep import Observations
+    from benchmarks.inversion.sweep import Observations
     from problems import InitialState, window
 
     def start(law, **kw):
@@ -208,10 +217,18 @@ def _expect_derived(make, name, unit, expect):
 # --- real apparatuses never warn ---------------------------------------------------------------------
 
 def _apparatus_cases() -> list[Case]:
-    from benchmarks.sweep import observations
-    from problems import (BalancedStart, ConstantLoading, SpringSlider, law_from_name,
-                          load_problem, paper_example, slide_hold_slide_test, velocity_step_test,
-                          window)
+    from benchmarks.inversion.sweep import observations
+    from problems import (
+        BalancedStart,
+        ConstantLoading,
+        SpringSlider,
+        law_from_name,
+        load_problem,
+        paper_example,
+        slide_hold_slide_test,
+        velocity_step_test,
+        window,
+    )
     from problems.presets import fault_radiation_damping
     apparatus = Path(__file__).resolve().parents[2] / "docs" / "examples" / "apparatus.toml"
 
@@ -259,7 +276,7 @@ def _no_warning(make):
 # --- warned once, not once a point ------------------------------------------------------------------
 
 def _sweep_once(tmp):
-    from benchmarks.sweep import Observations, sweep
+    from benchmarks.inversion.sweep import Observations, sweep
     from integrators import ETD2
     from problems import window
 

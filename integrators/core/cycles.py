@@ -1,5 +1,5 @@
 """The limit cycle of a run from its events, in compiled code: one implementation for one run
-(:func:`benchmarks.metrics.limit_cycle`) and for a batch of runs inside the ensemble kernel
+(:func:`benchmarks.physics.metrics.limit_cycle`) and for a batch of runs inside the ensemble kernel
 (:mod:`integrators.own.batch`), so that both classify a run the same way to the bit.
 
 :func:`find_cycle` looks for the shortest period p (in events) whose four metrics repeat event
@@ -7,7 +7,7 @@ to event within ``rtol`` over the last ``min_repeats``·p events, tests that the
 between events, and otherwise says why there is no cycle (:data:`OUTCOMES`).
 :func:`classify` turns that outcome and the end state into a class of
 :data:`CLASSIFICATIONS`. The rules, and the messages a reader sees, are
-:mod:`benchmarks.metrics`'.
+:mod:`benchmarks.physics.metrics`'.
 """
 
 from __future__ import annotations
@@ -36,10 +36,10 @@ CYCLES = ("stick-slip", "multiple recurrence")
 OUTCOMES = ("periodic", "oscillating", "no events", "stopped", "too few", "not repeating")
 PERIODIC, OSCILLATING, NO_EVENTS, STOPPED, TOO_FEW, NOT_REPEATING = range(len(OUTCOMES))
 #: stick–slip needs the mean slip rate between events at most this multiple of vLs
-#: (:data:`benchmarks.metrics.LOCKED_SLIP_RATE` says how it was chosen)
+#: (:data:`benchmarks.physics.metrics.LOCKED_SLIP_RATE` says how it was chosen)
 LOCKED_SLIP_RATE = 0.3
 #: a run ended in steady sliding when its three offsets are all below this
-#: (:data:`benchmarks.metrics.STEADY_LOG_TOLERANCE`)
+#: (:data:`benchmarks.physics.metrics.STEADY_LOG_TOLERANCE`)
 STEADY_LOG_TOLERANCE = 0.05
 #: linear growth by this many e-folds (e^40 ≈ 2·10^17, more than 1/ε of double precision) turns
 #: any perturbation of steady sliding, down to round-off, into one past the event threshold

@@ -50,7 +50,7 @@ R = dict(STATUS=0, NFEV=1, NJEV=2, STEPS=3, REJECTED=4, STARTS=5, WALL_S=6, T_ST
 (_STATUS, _NFEV, _NJEV, _STEPS, _REJECTED, _STARTS, _WALL_S, _T_STOP, _N_EVENTS, _CLASS, _LOG_V,
  _STATE_OFFSET, _FORCE_OFFSET, _R_GROWTH, _FOUND) = range(15)
 N_R = _FOUND + cycles.N_F
-#: the limit-cycle search of :func:`benchmarks.metrics.summarize` (its defaults)
+#: the limit-cycle search of :func:`benchmarks.physics.metrics.summarize` (its defaults)
 CYCLE_RTOL, CYCLE_MAX_PERIOD, CYCLE_MIN_REPEATS = 1e-3, 4, 2
 #: the time since the last event in a cycle search's result (no event for this long: quiet)
 _GAP = cycles.F["GAP"]

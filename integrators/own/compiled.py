@@ -178,7 +178,7 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
 
     def fixed_steps(self, nd, z0, span: float, n: int) -> np.ndarray:
         """``n`` equal steps over ``span`` (τ) from z0 under the slow loading, every one
-        accepted, no error control (order studies: :func:`benchmarks.convergence.
+        accepted, no error control (order studies: :func:`benchmarks.devtools.convergence.
         fixed_step_orders`): z at the end."""
         _, p, _, _ = E.new_state(nd._replace(tau_fast=0.0), np.inf, np.inf, self.constants, 0,
                                  math.inf)

@@ -1,0 +1,356 @@
+"""What every ``rsfbench`` command shares: checked argument types, the problem and integrator
+options, and a parser whose errors are one line.
+
+Every value is checked while the command line is parsed, before any work: a number is finite
+and in range (``--t-end 0`` and ``--wall-budget -1`` are refused), a path to write is writable,
+a file to read exists. ``--help`` states every option's default and unit.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+from pathlib import Path
+
+from benchmarks.ensemble.executors import RunStopped
+
+__all__ = ["say", "show_progress", "RunStopped", "Parser", "HelpFormatter", "positive",
+           "non_negative", "finite", "pair",
+           "count", "seed", "out_dir", "out_file", "in_file", "preset_name", "flagged",
+           "add_problem_options", "add_integrator_options", "integrator_from_args",
+           "problem_from_args", "add_problem_choice", "add_observation_options",
+           "check_observation_options", "observations_from_args", "ACCURACY"]
+
+#: the relative error in ΔT the default integrator must reach
+ACCURACY = 1e-3
+#: where :func:`say` writes while a command runs (set by :func:`benchmarks.cli.main`)
+_OUTPUT = None
+
+
+def show_progress(args) -> bool:
+    """Progress bars on the standard error: not with ``--json`` or ``--no-progress``, and not
+    when the standard error is not a terminal (a log file would fill with redrawn bars)."""
+    return (not getattr(args, "json", False) and not getattr(args, "no_progress", False)
+            and sys.stderr.isatty())
+
+
+def say(*args, **kwargs) -> None:
+    """``print`` to the command's own output: the standard output as it was when the command
+    started. Anything else written to the standard output while a command runs (a library's
+    messages, from Python or C) goes to the standard error (:func:`benchmarks.cli.main`)."""
+    print(*args, file=_OUTPUT or sys.stdout, **kwargs)
+
+
+class HelpFormatter(argparse.RawDescriptionHelpFormatter):
+    """Appends "(default: X)" to an option's help unless the help already says its default, the
+    option is a flag, or it has no default (then its help says what happens without it)."""
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        if ("default" in text or action.default is None or action.default is False
+                or action.default == argparse.SUPPRESS or action.required
+                or isinstance(action, argparse._HelpAction)):
+            return text
+        value = (" ".join(map(str, action.default)) if isinstance(action.default, list)
+                 else action.default)
+        return f"{text} (default: {value})"
+
+
+class Parser(argparse.ArgumentParser):
+    """An ``ArgumentParser`` whose errors are one line (no usage block), exit status 2."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs.setdefault("formatter_class", HelpFormatter)
+        super().__init__(*args, **kwargs)
+
+    def error(self, message):
+        raise UsageError(f"{self.prog}: {message}{self._unit_of(message)} (see {self.prog} --help)")
+
+    def _unit_of(self, message: str) -> str:
+        """"; in s" and the like for a refused value of a flag whose metavar is a unit."""
+        if not message.startswith("argument "):
+            return ""
+        flags = message[len("argument "):].split(":", 1)[0].split("/")
+        for action in self._actions:
+            if set(flags) & set(action.option_strings):
+                unit = _METAVAR_UNITS.get(action.metavar)
+                return f"; a value in {unit}" if unit and f" {unit}" not in message else ""
+        return ""
+
+
+#: the units that a flag's metavar names (``--t-end S``)
+_METAVAR_UNITS = {"S": "s", "M_S": "m/s", "KG": "kg", "N_PER_M": "N/m", "N_S_PER_M": "N s/m",
+                  "LC_M": "m"}
+
+
+class UsageError(ValueError):
+    """A command line that does not parse; the message is the one line to print."""
+
+
+def _number(text: str, what: str) -> float:
+    try:
+        x = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{what}, got {text!r}") from None
+    if not math.isfinite(x):
+        raise argparse.ArgumentTypeError(f"{what}, got {text!r}")
+    return x
+
+
+def positive(text: str) -> float:
+    """A finite number > 0."""
+    x = _number(text, "must be a finite positive number")
+    if x <= 0:
+        raise argparse.ArgumentTypeError(f"must be positive, got {text!r}")
+    return x
+
+
+def non_negative(text: str) -> float:
+    """A finite number ≥ 0."""
+    x = _number(text, "must be a finite number ≥ 0")
+    if x < 0:
+        raise argparse.ArgumentTypeError(f"must be ≥ 0, got {text!r}")
+    return x
+
+
+def pair(text: str, form: str, ok, need: str) -> tuple[float, float]:
+    """Two comma-separated finite numbers ``x,y`` with ``ok(x, y)``; otherwise an argparse error
+    saying the ``form`` (e.g. ``B,LC (two numbers, Lc in m)``) or what they ``need``."""
+    try:
+        x, y = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be {form}, got {text!r}") from None
+    if not (math.isfinite(x) and math.isfinite(y) and ok(x, y)):
+        raise argparse.ArgumentTypeError(f"needs {need}, got {text!r}")
+    return x, y
+
+
+def b_lc(text: str) -> tuple[float, float]:
+    """``B,LC``: b ≥ 0 and Lc > 0 in metres, e.g. ``0.0094,3e-7``."""
+    return pair(text, "B,LC (two numbers, Lc in m)", lambda b, lc: b >= 0 and lc > 0,
+                "b ≥ 0 and Lc > 0 (finite)")
+
+
+def finite(text: str) -> float:
+    """A finite number."""
+    return _number(text, "must be a finite number")
+
+
+def count(text: str, minimum: int = 1) -> int:
+    """An integer ≥ 1 (≥ ``minimum``)."""
+    try:
+        n = int(text)
+    except ValueError:
+        n = minimum - 1
+    if n < minimum:
+        raise argparse.ArgumentTypeError(f"must be an integer ≥ {minimum}, got {text!r}")
+    return n
+
+
+def seed(text: str) -> int:
+    """An integer ≥ 0 (a random seed)."""
+    return count(text, minimum=0)
+
+
+def _writable_dir(path: Path, what: str) -> None:
+    """``path`` is a directory that exists or can be made, and can be written in."""
+    probe = path
+    while not probe.exists():
+        if probe.parent == probe:
+            break
+        probe = probe.parent
+    if not probe.is_dir():
+        raise argparse.ArgumentTypeError(f"{what}: {probe} is not a directory")
+    if not os.access(probe, os.W_OK | os.X_OK):
+        raise argparse.ArgumentTypeError(f"{what}: {probe} is not writable")
+
+
+def out_dir(text: str) -> Path:
+    """A directory to write into: it exists or can be created, and is writable."""
+    path = Path(text)
+    if path.exists() and not path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text!r} exists and is not a directory")
+    _writable_dir(path, repr(text))
+    return path
+
+
+def out_file(*suffixes: str):
+    """A type: a file to write, with one of ``suffixes``, in a writable (or creatable) place."""
+    def check(text: str) -> Path:
+        path = Path(text)
+        if suffixes and path.suffix.lower() not in suffixes:
+            raise argparse.ArgumentTypeError(f"{text!r} must end in {' or '.join(suffixes)}")
+        if path.is_dir():
+            raise argparse.ArgumentTypeError(f"{text!r} is a directory, not a file")
+        if path.exists() and not os.access(path, os.W_OK):
+            raise argparse.ArgumentTypeError(f"{text!r} is not writable")
+        _writable_dir(path.parent, repr(text))
+        return path
+    check.__name__ = "file to write"
+    return check
+
+
+def in_file(text: str) -> Path:
+    """A file to read: it exists, is a file and is readable."""
+    path = Path(text)
+    if not path.exists():
+        raise argparse.ArgumentTypeError(f"{text!r} does not exist")
+    if not path.is_file():
+        raise argparse.ArgumentTypeError(f"{text!r} is not a file")
+    if not os.access(path, os.R_OK):
+        raise argparse.ArgumentTypeError(f"{text!r} is not readable")
+    return path
+
+
+def preset_name(text: str) -> str:
+    """A preset's name as the registry spells it: ``paper-example`` or ``W1``..``W4``."""
+    return "paper-example" if text.lower() == "paper-example" else text.upper()
+
+
+def add_problem_choice(p, preset_names, what: str) -> None:
+    """--preset NAME or --problem FILE (one of them required), and --law of a preset."""
+    which = p.add_mutually_exclusive_group(required=True)
+    which.add_argument("--preset", choices=preset_names, type=preset_name,
+                       help=f"{what} (no default: --preset or --problem is required)")
+    which.add_argument("--problem", type=in_file, metavar="FILE",
+                       help="or your own apparatus: a TOML or JSON file (mass, stiffness, "
+                            "normal_force, t_end, [law], [loading], [initial]; SI units; "
+                            "docs/examples/apparatus.toml is one; no default)")
+    p.add_argument("--law", choices=("slip", "aging", "nagata"),
+                   help="friction law of --preset (default: slip; nagata: the aging law's best "
+                        "fit with the Nagata law's c = 2)")
+
+
+def add_problem_options(p, preset_names, t_end_help: str = "simulated time in s (default: the "
+                        "preset's or the file's: 20 s for paper-example, 40 s for W1–W4)") -> None:
+    """--preset or --problem, --law, --b, --lc, --t-end: a problem with its friction parameters
+    replaced."""
+    add_problem_choice(p, preset_names, "the problem: the paper's speed-up example or a window "
+                       "of its Table 2")
+    p.add_argument("--b", type=non_negative, help="evolution parameter b, dimensionless "
+                   "(default: the preset's best fit, or the file's)")
+    p.add_argument("--lc", type=positive, metavar="LC_M", help="critical slip distance Lc in "
+                   "metres, e.g. 3e-7 for 0.3 µm (default: the preset's best fit, or the file's)")
+    p.add_argument("--t-end", type=positive, metavar="S", help=t_end_help)
+
+
+def problem_from_args(args, fields=("b", "lc", "t_end")):
+    """The problem of --preset (with --law) or --problem FILE, with the given options among
+    ``fields`` (--b, --lc, --t-end) replaced (ValueError for --law with a file: the file names
+    its law)."""
+    from problems import load_problem, preset, variant
+    given = {k: getattr(args, k, None) for k in fields}
+    changes = {k: v for k, v in given.items() if v is not None}
+    if getattr(args, "problem", None) is not None:
+        if args.law is not None:
+            raise ValueError("--law applies to --preset; a problem file names its law in [law]")
+        problem = load_problem(args.problem)
+        return variant(problem, **changes) if changes else problem
+    return preset(args.preset, law=args.law or "slip", **changes)
+
+
+def add_observation_options(p) -> None:
+    """--obs-recurrence, --sigma-recurrence, --obs-drop, --sigma-drop: the observed means and
+    their σ (a window's published means by default; σ 10 % of the mean, flagged, by default)."""
+    p.add_argument("--obs-recurrence", type=positive, metavar="S",
+                   help="observed mean ΔT in s (default: the window's published mean)")
+    p.add_argument("--sigma-recurrence", type=positive, metavar="S",
+                   help="σ of ΔT in s (default: 10 %% of the mean, flagged as an assumption)")
+    p.add_argument("--obs-drop", type=positive, metavar="X",
+                   help="observed mean friction drop Δμ, dimensionless (default: the window's "
+                        "published mean)")
+    p.add_argument("--sigma-drop", type=positive, metavar="X",
+                   help="σ of Δμ (default: 10 %% of the mean, flagged as an assumption)")
+
+
+def check_observation_options(args, problem, published: bool) -> None:
+    """Refuse a problem without published means when --obs-recurrence or --obs-drop is
+    missing."""
+    if not published:                      # the flags a window's published means fill
+        for flag, value in (("--obs-recurrence", args.obs_recurrence),
+                            ("--obs-drop", args.obs_drop)):
+            if value is None:
+                raise ValueError(f"{flag} is required for {problem.name or 'this problem'} (it "
+                                 "has no observed means)")
+
+
+def observations_from_args(args, published: bool, curves=None):
+    """The observations of the options (a window's published means fill what is not given)."""
+    from benchmarks.inversion.sweep import observations
+    try:
+        return observations(args.preset if published else "", args.obs_recurrence,
+                            args.sigma_recurrence, args.obs_drop, args.sigma_drop, curves)
+    except ValueError as exc:       # name the flag of the value refused
+        text = str(exc)
+        for field, flag in _OBSERVATION_FLAGS:
+            if text.startswith(f"{field} ="):
+                raise ValueError(f"{flag}: {text}") from None
+        raise
+
+
+#: the fields of the observations and the flags that set them (sigmas first: their names
+#: contain the means')
+_OBSERVATION_FLAGS = (("sigma_recurrence_s", "--sigma-recurrence"),
+                      ("sigma_friction_drop", "--sigma-drop"),
+                      ("recurrence_s", "--obs-recurrence"), ("friction_drop", "--obs-drop"))
+
+
+class ShowVersion(argparse.Action):
+    """``--version``: the package's version, the checkout's commit and Python's, then exit."""
+
+    def __init__(self, option_strings, dest, **kwargs):
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS,
+                         help="print the version (package, commit of a checkout, Python) and exit")
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        from benchmarks.records.provenance import version_line
+        print(version_line())
+        parser.exit(0)
+
+
+def add_integrator_options(p, default: str | None = None) -> None:
+    """--integrator, --rtol, --atol, --rhs, --accuracy: named, or the study's recommendation."""
+    p.add_argument("--integrator", default=default, metavar="NAME",
+                   help=("registry name, see `rsfbench integrators`" + (
+                       f" (default: {default})" if default else " (default: the integrator and "
+                       "tolerance the quick work-precision study recommends for --accuracy)")))
+    p.add_argument("--rtol", type=positive, help="relative tolerance of an adaptive integrator "
+                   "(required with --integrator NAME of an adaptive method; no default accuracy)")
+    p.add_argument("--atol", type=positive, help="absolute tolerance on (h, ln w, Ψ or ln Ψ), "
+                   "nondimensional (required with --rtol; no default accuracy)")
+    p.add_argument("--rhs", choices=("numba", "python"),
+                   help="right-hand side of an adaptive integrator: compiled or plain Python "
+                        "(default: numba)")
+    p.add_argument("--accuracy", type=positive, default=ACCURACY, metavar="REL",
+                   help="relative error in the recurrence interval the recommended integrator "
+                        "must reach, when no --integrator is named")
+
+
+def flagged(flag: str, function, *args):
+    """``function(*args)``, its ``ValueError`` prefixed by the flag whose value was wrong."""
+    try:
+        return function(*args)
+    except ValueError as exc:
+        raise ValueError(f"{flag}: {exc}") from None
+
+
+def integrator_from_args(args):
+    """``(algorithm, why)``: the named integrator with its options, or the recommendation."""
+    from benchmarks.devtools.recommendation import recommended
+    from integrators import algorithm_class, make_algorithm
+    if args.integrator:
+        cls = flagged("--integrator", algorithm_class, args.integrator)
+        return (make_algorithm(cls.name, rtol=args.rtol, atol=args.atol, rhs=args.rhs),
+                f"{cls.name}, as asked (--integrator)")
+    if args.rtol is not None or args.atol is not None or args.rhs is not None:
+        raise ValueError("--rtol, --atol and --rhs need --integrator NAME (without it the "
+                         "recommended integrator comes with its own tolerance)")
+    return recommended(args.accuracy)
+
+
+def wants_json(argv: list[str]) -> bool:
+    """Did the command line ask for one JSON document (``--json`` before any ``--``)?"""
+    argv = sys.argv[1:] if argv is None else argv
+    return "--json" in (argv[:argv.index("--")] if "--" in argv else argv)

@@ -1,0 +1,341 @@
+"""``rsfbench invert``, ``rsfbench calibration`` and ``rsfbench solver-effect``: inversions of
+(b, Lc) and what a solver's choice does to them.
+
+    rsfbench invert --preset W2 --law slip --out inv_W2     # fit, profiles, posterior, plots
+    rsfbench invert --problem my.toml --obs-recurrence 4.2 --obs-drop 0.03 \\
+        --b-range 0.008,0.012 --lc-range 1e-8,1e-5 --steps 1000 --json
+    rsfbench calibration --out results      # coverage of the 95 % regions over 1000 seeds
+    rsfbench solver-effect --out results    # the solver's effect over W1–W4, both laws (~100 min)
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from benchmarks.cli.args import (
+    add_integrator_options,
+    add_observation_options,
+    add_problem_choice,
+    check_observation_options,
+    count,
+    flagged,
+    in_file,
+    integrator_from_args,
+    observations_from_args,
+    out_dir,
+    pair,
+    positive,
+    problem_from_args,
+    say,
+    seed,
+    show_progress,
+)
+from benchmarks.records.report import jsonable
+
+__all__ = ["add_parsers"]
+
+
+def b_range(text: str):
+    """``LO,HI``: 0 ≤ LO < HI, the box of b."""
+    return pair(text, "LO,HI (two numbers)", lambda lo, hi: 0 <= lo < hi, "0 ≤ LO < HI (finite)")
+
+
+def lc_range(text: str):
+    """``LO,HI``: 0 < LO < HI in metres, the box of Lc."""
+    return pair(text, "LO,HI (two numbers, in m)", lambda lo, hi: 0 < lo < hi,
+                "0 < LO < HI (finite, in m)")
+
+
+def bounded(minimum: int, maximum: int, why: str):
+    """A type: an integer from ``minimum`` to ``maximum``; above it, ``why`` says what breaks."""
+    def check(text: str) -> int:
+        n = count(text, minimum)
+        if n > maximum:
+            raise argparse.ArgumentTypeError(f"must be an integer from {minimum} to "
+                                             f"{maximum:,} ({why}), got {text!r}")
+        return n
+    check.__name__ = "integer"
+    return check
+
+
+def steps(text: str) -> int:
+    """0 (no posterior) or an integer from 2 to MAX_STEPS (emcee's steps per walker)."""
+    n = count(text, 0)
+    if n == 1 or n > MAX_STEPS:
+        raise argparse.ArgumentTypeError(f"must be 0 (no posterior) or an integer from 2 to "
+                                         f"{MAX_STEPS:,}, got {text!r}")
+    return n
+
+
+def fraction(text: str) -> float:
+    """A number in [1e-6, 1): σ as a fraction of the true value."""
+    x = positive(text)
+    if not 1e-6 <= x < 1:
+        raise argparse.ArgumentTypeError(f"must be a fraction in [1e-6, 1) of the true values "
+                                         f"(0.05 is 5 %), got {text!r}")
+    return x
+
+
+def workers(text: str) -> int:
+    """An integer from 1 to 4 × the cores: more only adds start-up time and memory."""
+    most = 4 * (os.cpu_count() or 1)
+    return bounded(1, most, f"4 × this machine's {os.cpu_count()} cores; more workers only "
+                   "add start-up time and memory")(text)
+
+
+#: simulated cycles of the observed ΔT per forward solve at most (t_end / ΔT)
+MAX_CYCLES = 10_000
+#: emcee's steps per walker at most
+MAX_STEPS = 1_000_000
+#: emcee's walkers at most
+MAX_WALKERS = 10_000
+#: profile points per parameter at most (each is a line of ≥ 41 solves, then refined)
+MAX_PROFILE_POINTS = 1001
+#: calibration: seeds at most, grid nodes per parameter at most, checked seeds at most
+MAX_SEEDS, MAX_NODES, MAX_CHECK_SEEDS = 100_000, 1001, 100
+#: solver-effect: grid nodes per parameter at most (n² solves per setting, window and law)
+MAX_EFFECT_NODES = 301
+
+
+def _interrupted(args, command: str, where: str) -> int:
+    """Ctrl-C: one line (and with --json one JSON document), exit status 130."""
+    message = f"rsfbench: error: {command} interrupted (Ctrl-C) {where}"
+    print(message, file=sys.stderr)
+    if getattr(args, "json", False):
+        say(json.dumps({"error": message, "exit_status": 130}))
+    return 130
+
+
+def _box(args, problem, published: bool):
+    """The prior box: the options', or a window's paper sweep box (slip and aging laws only)."""
+    from benchmarks.inversion.published import GRID, prior_box
+    law = args.law or "slip"
+    if args.b_range is not None and args.lc_range is not None:
+        return args.b_range, args.lc_range
+    if not published:
+        raise ValueError("--b-range and --lc-range are required for a problem without a "
+                         "published fit (the prior box is yours to state)")
+    if law not in GRID:
+        raise ValueError(f"--law {law}: the paper publishes no fit of the {law} law to centre a "
+                         f"prior box on (it fits the {' and '.join(GRID)} laws): give --b-range "
+                         "and --lc-range")
+    box_b, box_lc = prior_box(args.preset.upper(), law)
+    return args.b_range or box_b, args.lc_range or box_lc
+
+
+def cmd_invert(args) -> int:
+    from benchmarks.inversion import Misfit
+    from benchmarks.inversion.invert import check_box, invert, write_inversion
+    from benchmarks.inversion.posterior import check_sampler
+    from problems import WINDOWS
+    problem = problem_from_args(args, fields=("t_end",))
+    published = args.problem is None and args.preset.upper() in WINDOWS
+    check_observation_options(args, problem, published)
+    box_b, box_lc = _box(args, problem, published)
+    flagged("--b-range/--lc-range", check_box, problem, box_b, box_lc)
+    if args.steps:
+        flagged("--walkers/--steps", check_sampler, box_b, box_lc, args.walkers, args.steps)
+    obs = observations_from_args(args, published)
+    cycles = problem.t_end / obs.recurrence_s
+    if cycles > MAX_CYCLES:                  # each of thousands of solves would run for hours
+        raise ValueError(f"--t-end {problem.t_end:g} s simulates {cycles:,.0f} cycles of the "
+                         f"observed ΔT = {obs.recurrence_s:g} s per solve; a limit cycle is "
+                         f"read in tens: at most {MAX_CYCLES:,}")
+    algorithm, why = integrator_from_args(args)
+    name = args.preset if args.problem is None else Path(args.problem).stem
+    out = Path(args.out or f"invert_{name}_{problem.law.name}")
+    out.mkdir(parents=True, exist_ok=True)               # before the work, not after it
+    misfit = Misfit(problem, obs, algorithm, wall_budget=args.wall_budget, workers=args.workers)
+    quiet = args.json or not show_progress(args)
+    if not args.json:
+        say(f"integrator: {why}")
+        if obs.assumed_sigma:
+            say("σ not given: assumed 10 % of the observed mean (an assumption, not data)")
+    stage = ["the start"]
+
+    def progress(text: str) -> None:
+        stage[0] = text
+        if not args.json:
+            say(f"… {text}")
+    try:
+        inv = invert(misfit, box_b, box_lc, walkers=args.walkers, steps=args.steps,
+                     profile_points=args.profile_points, seed=args.seed, progress=not quiet,
+                     say=progress)
+        stage[0] = "writing of its files"
+        summary = {**write_inversion(inv, out), "integrator_choice": why, "out": str(out)}
+    except KeyboardInterrupt:
+        written = (f"{out} is incomplete" if stage[0].startswith("writing") else
+                   f"nothing written to {out}")
+        return _interrupted(args, "invert", f"during the {stage[0]}: {written}")
+    failed = not np.isfinite(inv.fit.J1)         # no point of the box had a limit cycle
+    for p in summary["profiles"].values():       # on the standard error, also with --json
+        for text in p["warnings"]:
+            warnings.warn(text, stacklevel=1)
+    if args.json:
+        say(json.dumps(jsonable(summary), indent=2))
+        return 1 if failed else 0
+    f = summary["fit"]
+    if failed:
+        say(f"inversion failed: {f['message']} (failed solves, e.g. over --wall-budget, count "
+            f"as without a cycle); written: {summary['files']['summary']}")
+        return 1
+    say(f"least squares: b = {f['b']:.5g} ± {f['sigma_b']:.2g}, Lc = {f['lc_m'] * 1e6:.4g} µm "
+        f"(log10 Lc ± {f['sigma_log10_lc']:.2g}), J1 = {f['J1']:.3g}"
+        + ("" if f["success"] else f" — not converged: {f['message']}"))
+    for k, p in summary["profiles"].items():
+        opens = [e for e, o in (("low", p["open_low"]), ("high", p["open_high"])) if o]
+        say(f"profile of {k}: 95 % interval [{p['low']:.5g}, {p['high']:.5g}]"
+            + (f" (open at the {' and '.join(opens)} end of the box)" if opens else "")
+            + ("" if p["resolved"] else " (not resolved: the points about it)"))
+    if summary["posterior"] is None:
+        say(f"posterior: {summary['no_posterior']}")
+    else:
+        p = summary["posterior"]
+        say(f"posterior ({p['n_solves']:,} solves, {p['wall_s']:.1f} s): b = "
+            f"{p['mean']['b']:.5g} ± {p['std']['b']:.2g}, log10 Lc = "
+            f"{p['mean']['log10_lc']:.3f} ± {p['std']['log10_lc']:.2g}; acceptance "
+            f"{p['acceptance']:.2f}, "
+            + (f"τ = {max(p['tau'].values()):.1f} steps"
+               f"{'' if p['tau_reliable'] else ' (chain < 50 τ: run more --steps)'}, "
+               f"{p['effective_samples']:.0f} effective samples"
+               if np.isfinite(p["effective_samples"]) else
+               "τ not estimable (a walker never moved: run more --steps)"))
+        say(f"prior: {p['prior']}")
+    say(f"written: {', '.join(summary['files'].values())}")
+    return 0
+
+
+def cmd_calibration(args) -> int:
+    from benchmarks.studies.inversion import calibration_study
+    if args.check_seeds > args.seeds:
+        raise ValueError(f"--check-seeds {args.check_seeds} is more than --seeds {args.seeds}: "
+                         "the checked seeds are among the study's")
+    args.out.mkdir(parents=True, exist_ok=True)          # before the work, not after it
+    try:
+        summary = calibration_study(Path(args.out), seeds=args.seeds, n=args.n,
+                                    sigma_rel=args.sigma, check_seeds=args.check_seeds,
+                                    progress=show_progress(args))
+    except KeyboardInterrupt:
+        return _interrupted(args, "calibration", f"before its files were written to {args.out}")
+    if args.json:
+        say(json.dumps(jsonable(summary.to_dict(orient="records")), indent=2))
+    else:
+        say((Path(args.out) / "calibration.md").read_text())
+    return 0
+
+
+def cmd_solver_effect(args) -> int:
+    from benchmarks.studies.solver_effect import solver_effect_study
+    try:
+        table = solver_effect_study(Path(args.out), n=args.n, windows=args.windows,
+                                    laws=args.laws, study_csv=args.study,
+                                    progress=show_progress(args))
+    except KeyboardInterrupt:
+        return _interrupted(args, "solver-effect", f"before its files were written to "
+                            f"{args.out}")
+    if args.json:
+        import pandas as pd
+        advice = pd.read_csv(Path(args.out) / "solver_effect_recommendation.csv")
+        say(json.dumps(jsonable(advice.to_dict(orient="records")), indent=2))
+    else:
+        say((Path(args.out) / "solver_effect.md").read_text().split("\n## ")[1])
+    return 0 if len(table) else 1
+
+
+def add_parsers(sub, preset_names) -> None:
+    from benchmarks.inversion.invert import MAX_SAMPLES_SAVED
+    from benchmarks.inversion.posterior import MAX_POSTERIOR_SOLVES
+    i = sub.add_parser("invert", help="invert observed means for (b, Lc): least-squares fit with "
+                       "covariance, profiles of b and log10 Lc, emcee posterior, corner and "
+                       "profile plots")
+    add_problem_choice(i, preset_names, "the problem whose (b, Lc) is inferred")
+    add_observation_options(i)
+    i.add_argument("--b-range", type=b_range, metavar="LO,HI",
+                   help="the prior box of b (uniform): required for --problem; default for "
+                        "W1–W4: the paper sweep's, the published fit ± 0.0008 (slip law) or "
+                        "± 0.0015 (aging)")
+    i.add_argument("--lc-range", type=lc_range, metavar="LO,HI",
+                   help="the prior box of Lc in m (uniform in log10 Lc): required for "
+                        "--problem; default for W1–W4: the published fit ÷ and × 10 (slip "
+                        "law) or 30 (aging)")
+    i.add_argument("--t-end", type=positive, metavar="S",
+                   help="simulated time per solve in s (default: the preset's or the file's)")
+    add_integrator_options(i)
+    i.add_argument("--walkers", type=bounded(4, MAX_WALKERS, "each step solves every walker "
+                                             "at once"), default=32, metavar="N",
+                   help=f"emcee walkers, 4 to {MAX_WALKERS:,}; walkers × steps at most "
+                        f"{MAX_POSTERIOR_SOLVES:,} (default: 32)")
+    i.add_argument("--steps", type=steps, default=2000, metavar="N",
+                   help="emcee steps per walker, a quarter dropped as burn-in; 0: no posterior; "
+                        f"at most {MAX_STEPS:,} (default: 2000)")
+    i.add_argument("--profile-points", type=bounded(3, MAX_PROFILE_POINTS, "each is a line "
+                                                    "of at least 41 solves"),
+                   default=21, metavar="N",
+                   help="values of each profiled parameter across the box, 3 to "
+                        f"{MAX_PROFILE_POINTS}; the profile adds the fit's value and bisects "
+                        "where its interval's ends are not resolved (default: 21)")
+    i.add_argument("--seed", type=seed, default=0, help="seed of the walkers' start and moves "
+                   "(default: 0)")
+    i.add_argument("--workers", type=workers, metavar="N",
+                   help="threads (own methods) or processes per batch (default: all cores)")
+    i.add_argument("--wall-budget", type=positive, metavar="S",
+                   help="wall budget per forward solve in s; a solve over it counts as without "
+                        "a cycle (default: none)")
+    i.add_argument("--out", type=out_dir, metavar="DIR",
+                   help="where to write inversion.json, the CSVs (posterior.csv: at most "
+                        f"{MAX_SAMPLES_SAVED} samples) and PNGs (default: "
+                        "./invert_<preset or file name>_<law>)")
+    i.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    i.add_argument("--no-progress", action="store_true", help="no progress bar")
+    i.set_defaults(func=cmd_invert)
+
+    c = sub.add_parser("calibration", help="coverage of the 95 %% regions (J1, profiles, "
+                       "posterior) on seeded synthetic W2/slip data (~2 min)")
+    c.add_argument("--out", type=out_dir, default="results", metavar="DIR",
+                   help="where to write calibration.csv/.md/.json/.png (default: results)")
+    c.add_argument("--seeds", type=bounded(1, MAX_SEEDS, "a grid posterior each"),
+                   default=1000, metavar="N",
+                   help=f"synthetic data sets, seeds 0..N-1, at most {MAX_SEEDS:,} "
+                        "(default: 1000)")
+    c.add_argument("--sigma", type=fraction, default=0.05, metavar="REL",
+                   help="noise σ as a fraction of the true ΔT and Δμ, 1e-6 to below 1 "
+                        "(default: 0.05)")
+    c.add_argument("--n", type=bounded(5, MAX_NODES, "n² forward solves"), default=121,
+                   metavar="N", help=f"grid nodes per parameter, 5 to {MAX_NODES} "
+                                     "(default: 121)")
+    c.add_argument("--check-seeds", type=bounded(0, MAX_CHECK_SEEDS, "an emcee posterior of "
+                                                 "32,000 solves each"), default=2, metavar="N",
+                   help="seeds also inverted by emcee and refined profiles, 0 to "
+                        f"{MAX_CHECK_SEEDS} and at most --seeds (default: 2)")
+    c.add_argument("--json", action="store_true", help="print the coverage as one JSON array")
+    c.add_argument("--no-progress", action="store_true", help="no progress bar")
+    c.set_defaults(func=cmd_calibration)
+
+    e = sub.add_parser("solver-effect", help="does the solver change the inferred (b, Lc)? "
+                       "every candidate setting against a tight reference, W1–W4 and both laws "
+                       "(~100 min)")
+    e.add_argument("--out", type=out_dir, default="results", metavar="DIR",
+                   help="where to write solver_effect.csv/.md/.png (default: results)")
+    e.add_argument("--study", type=in_file, metavar="FILE.csv",
+                   help="the full work-precision study the LSODA and SUNDIALS settings come "
+                        "from (default: OUT/wp_full.csv; without one, only the own methods and "
+                        "ETD2)")
+    e.add_argument("--n", type=bounded(5, MAX_EFFECT_NODES, "n² solves per setting, window "
+                                       "and law"), default=31, metavar="N",
+                   help=f"grid nodes per parameter over the posterior's zoom, 5 to "
+                        f"{MAX_EFFECT_NODES} (default: 31)")
+    e.add_argument("--windows", nargs="+", default=["W1", "W2", "W3", "W4"],
+                   choices=["W1", "W2", "W3", "W4"], type=str.upper, help="windows")
+    e.add_argument("--laws", nargs="+", default=["slip", "aging"], choices=["slip", "aging"],
+                   help="friction laws")
+    e.add_argument("--json", action="store_true",
+                   help="print the recommendation as one JSON array")
+    e.add_argument("--no-progress", action="store_true", help="no progress lines")
+    e.set_defaults(func=cmd_solver_effect)

@@ -1,0 +1,677 @@
+"""``rsfbench``: the command line of the harness.
+
+    rsfbench simulate --preset W2 --law aging --json
+    rsfbench windows --out results          # W1–W4 limit cycles, both laws, CSV + Markdown
+    rsfbench integrators                    # the registry
+    rsfbench work-precision --study quick   # every integrator over a ladder of settings
+    rsfbench convergence --json             # observed orders of the fixed-step methods
+    rsfbench convergence --fixed-steps      # ... and of the compiled stiff methods, control off
+    rsfbench speedup --json                 # the paper's 1/10,000 claim, three ways
+    rsfbench target --csv results/wp_quick.csv   # own integrators against LSODA and SUNDIALS
+    rsfbench sweep --preset W2 --b 0.009:0.0098:0.0001 --lc 1e-7:1e-6:9log --json
+    rsfbench reproduce --out results        # what `make reproduce` runs (--full: reproduce-full)
+    rsfbench readme [--check]               # refill the README's numbers from results/
+    rsfbench lab shs --holds 1 10 100       # a slide-hold-slide test and its healing
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import io
+import json
+import os
+import sys
+import textwrap
+import warnings
+from pathlib import Path
+
+from benchmarks.cli.args import (
+    Parser,
+    RunStopped,
+    ShowVersion,
+    add_integrator_options,
+    add_problem_options,
+    count,
+    flagged,
+    in_file,
+    integrator_from_args,
+    out_dir,
+    out_file,
+    positive,
+    preset_name,
+    problem_from_args,
+    say,
+    show_progress,
+    wants_json,
+)
+from benchmarks.devtools.timing import warm_up
+from benchmarks.physics import metrics
+from benchmarks.physics.summary import (
+    integrator_rows,
+    integrators_markdown,
+    simulate_summary,
+)
+from benchmarks.records.report import jsonable as _jsonable
+from integrators import REGISTRY, algorithm_class, solve
+from problems import PRESET_NAMES, WINDOWS, preset
+
+__all__ = ["main"]
+
+REPRODUCE_HELP = """\
+Bring the results directory up to date, write its REPORT.md and, for the
+project's results/, refill the README's generated blocks.
+
+The quick plan (the default; `make reproduce`) runs the quick steps:
+{quick}
+The full plan (--full; `make reproduce-full`) also runs the long ones:
+{full}
+The quick plan keeps the files of the full steps and says which are stale.
+
+A step is reused, not rerun, when its code, the package versions, its
+settings, the files it reads and, for a timing, the machine are those of its
+last run, and the files it wrote are there unchanged (results/manifest.json).
+--force reruns every step of the plan; --only STEP reruns one step.
+See docs/reproduce.md."""
+
+
+def algorithm_name(name: str, flag: str = "--integrators") -> str:
+    """The registry's spelling of ``name`` (lookups are case-insensitive)."""
+    return flagged(flag, algorithm_class, name).name
+
+
+def _print_summary(s: dict) -> None:
+    lc = s["limit_cycle"]
+    say(f"{s['problem']}  (b = {s['b']:.5g}, Lc = {s['lc_m'] * 1e6:.4g} µm, {s['t_end']:g} s)")
+    say(f"  integrator  {s['integrator']}   {s['retcode']}  {s['message']}".rstrip())
+    if s.get("integrator_choice"):
+        say(f"              ({s['integrator_choice']})")
+    say(f"  cost        {s['steps']} steps, {s['nfev']} rhs evaluations, {s['wall_s']:.4g} s wall")
+    say(f"  events      {s['n_events']}   classification: {lc['classification']}")
+    if lc.get("reason"):
+        say(f"              ({lc['reason']})")
+    if lc["classification"] in metrics.CYCLES:
+        say(f"  limit cycle (period {lc['period']}, converged from event {lc['cycles_to_converge']}):")
+        say(f"    recurrence interval  {lc['recurrence_s']:.6g} s")
+        say(f"    friction drop        {lc['friction_drop']:.6g}")
+        say(f"    slip per event       {lc['slip_m'] * 1e3:.6g} mm")
+        say(f"    peak slip rate       {lc['peak_velocity_m_s']:.6g} m/s")
+    elif s["last_event"]:
+        e = s["last_event"]
+        recurrence = "n/a" if e["recurrence_s"] is None else f"{e['recurrence_s']:.6g} s"
+        say(f"  last event  at t = {e['t_start']:.6g} s: recurrence {recurrence}, "
+            f"friction drop {e['friction_drop']:.6g}, slip {e['slip_m'] * 1e3:.6g} mm, "
+            f"peak {e['peak_velocity_m_s']:.6g} m/s (not a limit cycle)")
+
+
+def cmd_simulate(args) -> int:
+    problem = problem_from_args(args)
+    algorithm, why = integrator_from_args(args)
+    warm_up(problem, algorithm, wall_budget=args.wall_budget)   # wall_s excludes compiling
+    sol = solve(problem, algorithm, max_points=200_000 if args.plot else 20_000,
+                progress=args.progress, wall_budget=args.wall_budget)
+    summary = {**simulate_summary(sol), "integrator_choice": why}
+    if args.plot:
+        from benchmarks.physics.plots import plot_solution
+        plot_solution(sol, args.plot)
+    if args.json:
+        say(json.dumps(summary, indent=2))
+    else:
+        _print_summary(summary)
+        if args.plot:
+            say(f"  figure      {args.plot}")
+    return 0 if sol.success else 1
+
+
+def cmd_integrators(args) -> int:
+    rows, missing = integrator_rows(), REGISTRY.unavailable()
+    if args.json:
+        say(json.dumps([{**r, "available": True} for r in rows]
+                       + [{**m, "available": False} for m in missing], indent=2))
+    elif args.markdown:
+        say(integrators_markdown(), end="")
+    else:
+        say(f"{'name':<22} {'order':>5}  {'adaptive':<8} {'family':<32} library")
+        for r in rows:
+            say(f"{r['name']:<22} {r['order']:>5}  {str(r['adaptive']):<8} {r['family']:<32} "
+                  f"{r['library']} ({r['version']})")
+        if missing:
+            say("\nnot available here (the library did not import):")
+            for m in missing:
+                say(f"  {m['name']:<22} {m['install']}  [{m['reason']}]")
+    return 0
+
+
+def cmd_windows(args) -> int:
+    from benchmarks.studies.windows import windows_table, write_windows
+    algorithm, why = integrator_from_args(args)
+    if not args.json:
+        say(f"integrator: {why}")
+    table = windows_table(laws=args.law, names=args.window, integrator=algorithm,
+                          t_end=args.t_end, wall_budget=args.wall_budget,
+                          progress=show_progress(args))
+    if args.out:
+        write_windows(table, Path(args.out))
+    if args.json:
+        say(table.to_json(orient="records", indent=2))
+    else:
+        say(table.to_string(index=False))
+    return 0
+
+
+def cmd_compare(args) -> int:
+    from benchmarks.devtools.compare import compare_integrators
+    from benchmarks.records.report import markdown_table
+    problem = preset(args.preset, law=args.law, t_end=args.t_end)
+    names = None if not args.integrators else [algorithm_name(n) for n in args.integrators]
+    table = compare_integrators(problem, args.rtol, args.atol, names=names,
+                                wall_budget=args.wall_budget, progress=show_progress(args))
+    if args.out:
+        table.to_csv(args.out, index=False)
+    if args.json:
+        say(table.to_json(orient="records", indent=2))
+    else:
+        shown = table.drop(columns=["library", "message"]).assign(
+            wall_s=table.wall_s.map("{:.4g}".format),
+            recurrence_s=table.recurrence_s.map(lambda x: f"{x:.8g}" if x == x and x is not None else ""),
+            friction_drop=table.friction_drop.map(lambda x: f"{x:.7g}" if x == x and x is not None else ""))
+        say(markdown_table(shown), end="")
+    return 0
+
+
+def _study_problem(spec: str, flag: str = "--problems"):
+    """``W2``, ``W2:aging`` or ``paper-example`` → the preset problem."""
+    name, _, law = spec.partition(":")
+    return flagged(flag, preset, preset_name(name), law or "slip")
+
+
+def cmd_work_precision(args) -> int:
+    from benchmarks.devtools.work_precision import (
+        FULL,
+        QUICK,
+        best_at_levels,
+        study_problems,
+        work_precision,
+    )
+    from benchmarks.devtools.wp_files import ERROR_LEVELS, write_work_precision
+    ladder = FULL if args.study == "full" else QUICK
+    if args.wall_budget is not None:
+        ladder = dataclasses.replace(ladder, wall_budget=args.wall_budget)
+    problems = ([_study_problem(x) for x in args.problems] if args.problems
+                else study_problems(args.study))
+    if args.t_end is not None:
+        problems = [dataclasses.replace(p, t_end=args.t_end) for p in problems]
+    names = None if not args.integrators else [algorithm_name(n) for n in args.integrators]
+    df = work_precision(problems, ladder, names=names, tiers=tuple(args.tiers),
+                        progress=show_progress(args))
+    paths = write_work_precision(df, Path(args.out), args.name or args.study, error=args.error)
+    pareto = best_at_levels(df, ERROR_LEVELS, args.error)
+    if args.json:
+        from benchmarks.devtools.work_precision import recommend
+        say(json.dumps(_jsonable({
+            "csv": str(paths["csv"]), "error": args.error,
+            "recommendation": recommend(df, ERROR_LEVELS, args.error).to_dict(orient="records"),
+            "pareto": pareto.to_dict(orient="records")}), indent=2))
+    else:
+        say(paths["pareto_md"].read_text())
+        say("written: " + ", ".join(str(p) for p in paths.values()))
+    return 0
+
+
+def cmd_convergence(args) -> int:
+    from benchmarks.devtools.convergence import (
+        convergence_study,
+        convergence_summary,
+        write_convergence,
+    )
+    names = None if not args.integrators else [algorithm_name(n) for n in args.integrators]
+    if args.fixed_steps:
+        return _fixed_step_orders(args, names)
+    problem = _study_problem(args.problem, "--problem")
+    if args.t_end:
+        problem = dataclasses.replace(problem, t_end=args.t_end)
+    table, orders = convergence_study(problem, names=names, progress=show_progress(args))
+    summary = (write_convergence(problem, table, orders, args.out) if args.out
+               else convergence_summary(problem, table, orders))
+    if args.json:
+        say(json.dumps(_jsonable(summary), indent=2))
+    else:
+        say(table[["integrator", "dtau_cnst", "steps", "wall_s", "err_recurrence", "err_drop",
+                     "fitted"]].to_string(index=False))
+        for name, order in orders.items():
+            say(f"{name}: observed order {order:.3f} (declared {REGISTRY[name].order}, on this "
+                  f"stiff problem {REGISTRY[name].stiff_order}); finest error "
+                  f"{summary['finest_error'][name]:.3g}")
+    return 0
+
+
+def _fixed_step_orders(args, names) -> int:
+    from benchmarks.devtools.convergence import (
+        fixed_step_orders,
+        write_fixed_step_orders,
+    )
+    table, orders = fixed_step_orders(names, progress=show_progress(args))
+    summary = (write_fixed_step_orders(table, orders, args.out) if args.out
+               else {"orders": orders})
+    if args.json:
+        say(json.dumps(_jsonable(summary), indent=2))
+    else:
+        say(table.to_string(index=False))
+        for key, order in orders.items():
+            name = key.split("/")[0]
+            say(f"{key}: observed order {order:.2f} (declared {REGISTRY[name].order})")
+    return 0
+
+
+def cmd_readme(args) -> int:
+    from benchmarks.pipeline.readme import refresh
+    stale = refresh(check=args.check)
+    verb = "out of date" if args.check else "refilled"
+    say(f"README blocks {verb}: {', '.join(stale)}" if stale else "README blocks up to date")
+    return 1 if stale and args.check else 0
+
+
+def cmd_speedup(args) -> int:
+    from benchmarks.studies.speedup import (
+        DEFAULT_SCIPY_BUDGET,
+        speedup,
+        speedup_markdown,
+        write_speedup,
+    )
+    problem = preset("paper-example", t_end=args.t_end)
+    budget = None if args.full else (args.scipy_budget or DEFAULT_SCIPY_BUDGET)
+    implicit = (None if not args.implicit
+                else [algorithm_name(n, "--implicit") for n in args.implicit])
+    summary, table = speedup(problem, rk_tol=args.rk_tol, scipy_budget=budget,
+                             compiled_budget=args.compiled_budget, implicit=implicit,
+                             progress=show_progress(args))
+    if args.out:
+        write_speedup(summary, table, args.out)
+    if args.json:
+        say(json.dumps(_jsonable(summary), indent=2))
+    else:
+        say(speedup_markdown(summary, table))
+    return 0
+
+
+def cmd_target(args) -> int:
+    from benchmarks.studies.target import write_target
+    table = write_target(args.csv, args.out)     # checks the study's columns first
+    if args.json:
+        say(json.dumps(_jsonable(table.to_dict(orient="records")), indent=2))
+    else:
+        name = Path(args.csv).stem.removeprefix("wp_")
+        say((Path(args.out) / f"target_{name}.md").read_text())
+    return 0
+
+
+def cmd_classification(args) -> int:
+    from benchmarks.studies.classification import (
+        classification_study,
+        write_classification,
+    )
+    table = classification_study(progress=show_progress(args))
+    text = write_classification(table, args.out) if args.out else None
+    if args.json:
+        say(table.to_json(orient="records", indent=2))
+    else:
+        say(text or table.to_string(index=False))
+    return 0
+
+
+def cmd_engine_speed(args) -> int:
+    from benchmarks.studies.engine_speed import write_engine_speed
+    if args.out:
+        args.out.mkdir(parents=True, exist_ok=True)        # before the work, not after it
+    goals, text = write_engine_speed(args.out, args.repeats)
+    if args.json:
+        say(goals.to_json(orient="records", indent=2))
+    else:
+        say(text)
+    return 0
+
+
+def cmd_binding_overhead(args) -> int:
+    from benchmarks.studies.binding_overhead import write_binding_overhead
+    if args.out:
+        args.out.mkdir(parents=True, exist_ok=True)        # before the work, not after it
+    table, text = write_binding_overhead(args.out, args.repeats, progress=not args.no_progress)
+    if args.json:
+        say(table.to_json(orient="records", indent=2))
+    else:
+        say(text)
+    return 0
+
+
+def cmd_probe(args) -> int:
+    from benchmarks.probe import BAD_OUTCOMES, run_probe, write_probe
+    from benchmarks.probe_cases import cases
+    chosen = [c for c in cases() if (args.slow or not c.slow)
+              and (not args.kind or c.kind in args.kind)
+              and (not args.match or args.match.lower() in c.id.lower())]
+    if not chosen:
+        raise ValueError("no probe case matches --kind/--match")
+    table = run_probe(chosen, progress=show_progress(args))
+    if args.out:
+        text = write_probe(table, args.out)
+    bad = table.observed.isin(BAD_OUTCOMES) | ~table.as_expected
+    if args.json:
+        say(table.to_json(orient="records", indent=2))
+    elif args.out:
+        say(text)
+    else:
+        say(f"{len(table)} cases, {int((~bad).sum())} as expected"
+            + ("" if not bad.any() else ":\n" + table[bad].to_string(index=False)))
+    return 1 if bad.any() else 0
+
+
+def cmd_reproduce(args) -> int:
+    from benchmarks.pipeline.reproduce import describe, reproduce, summary
+    rows = reproduce(Path(args.out), full=args.full, force=args.force, start=args.start,
+                     only=args.only, scipy_budget=args.scipy_budget, dry_run=args.dry_run)
+    if args.dry_run:
+        for row in rows:
+            say(describe(row))
+    say(summary(rows))
+    return 0
+
+
+def _listed(names) -> str:
+    return textwrap.fill(", ".join(names) + ".", 78, initial_indent="  ", subsequent_indent="  ")
+
+
+def build_parser() -> Parser:
+    parser = Parser(prog="rsfbench", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--version", action=ShowVersion)
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    s = sub.add_parser("simulate", help="run one preset and summarise its limit cycle")
+    add_problem_options(s, PRESET_NAMES)
+    add_integrator_options(s)
+    s.add_argument("--wall-budget", type=positive, metavar="S",
+                   help="stop after S seconds of wall time (default: no budget)")
+    s.add_argument("--json", action="store_true", help="print one JSON object")
+    s.add_argument("--plot", metavar="FILE.png", type=out_file(".png", ".pdf", ".svg"),
+                   help="draw v(t), μ(t) and the phase portrait (default: no figure)")
+    s.add_argument("--progress", action="store_true", help="show a progress bar")
+    s.set_defaults(func=cmd_simulate)
+
+    i = sub.add_parser("integrators", help="list the registry")
+    i.add_argument("--json", action="store_true", help="print one JSON array")
+    i.add_argument("--markdown", action="store_true", help="a Markdown table (for the README)")
+    i.set_defaults(func=cmd_integrators)
+
+    w = sub.add_parser("windows", help="limit cycles of W1–W4 against the observed means")
+    w.add_argument("--window", nargs="+", choices=sorted(WINDOWS), default=sorted(WINDOWS),
+                   type=str.upper, help="the windows to run")
+    w.add_argument("--law", nargs="+", choices=("slip", "aging"), default=["slip", "aging"],
+                   help="friction laws")
+    add_integrator_options(w)
+    w.add_argument("--t-end", type=positive, metavar="S",
+                   help="simulated time of each window in s (default: 40 s)")
+    w.add_argument("--wall-budget", type=positive, metavar="S",
+                   help="wall-time budget of each run in s (default: no budget)")
+    w.add_argument("--out", type=out_dir, metavar="DIR",
+                   help="directory for windows.csv and windows.md (default: write nothing)")
+    w.add_argument("--json", action="store_true", help="print one JSON array")
+    w.set_defaults(func=cmd_windows)
+
+    c = sub.add_parser("compare", help="every integrator on one preset, side by side")
+    c.add_argument("--preset", default="paper-example", choices=PRESET_NAMES, type=preset_name,
+                   help="the problem")
+    c.add_argument("--law", choices=("slip", "aging"), default="slip", help="friction law")
+    c.add_argument("--t-end", type=positive, metavar="S",
+                   help="simulated time in s (default: the preset's)")
+    c.add_argument("--rtol", type=positive, required=True,
+                   help="relative tolerance of every adaptive integrator")
+    c.add_argument("--atol", type=positive, required=True,
+                   help="absolute tolerance of every adaptive integrator (nondimensional)")
+    c.add_argument("--integrators", nargs="+", metavar="NAME",
+                   help="registry names (default: all)")
+    c.add_argument("--wall-budget", type=positive, default=120.0, metavar="S",
+                   help="per-solve wall-time budget in s")
+    c.add_argument("--out", type=out_file(".csv"), metavar="FILE.csv",
+                   help="write the table as CSV (default: print only)")
+    c.add_argument("--json", action="store_true", help="print one JSON array")
+    c.set_defaults(func=cmd_compare)
+
+    wp = sub.add_parser("work-precision", help="every integrator over a ladder of settings")
+    wp.add_argument("--study", choices=("quick", "full"), default="quick",
+                    help="quick: paper example + W2 aging, budget 10 s/run; full: paper example "
+                         "and W1–W4 under both laws, budget 120 s/run")
+    wp.add_argument("--problems", nargs="+", metavar="PRESET[:LAW]",
+                    help="instead of the study's problems, e.g. paper-example W2:aging "
+                         "(default: the study's)")
+    wp.add_argument("--t-end", type=positive, metavar="S",
+                    help="simulated time of every problem in s (default: each preset's own)")
+    wp.add_argument("--integrators", nargs="+", metavar="NAME",
+                    help="registry names (default: all)")
+    wp.add_argument("--tiers", nargs="+", choices=("numba", "python"), default=["numba", "python"],
+                    help="right-hand-side tiers")
+    wp.add_argument("--wall-budget", type=positive, metavar="S",
+                    help="per-run wall-time budget in s (default: the study's, 10 or 120 s)")
+    wp.add_argument("--error", default="err_recurrence",
+                    choices=("err_recurrence", "err_drop", "err_slip", "err_peak_velocity",
+                             "err_event_time", "err_trajectory"),
+                    help="the error of the Pareto summary and the plots")
+    wp.add_argument("--out", type=out_dir, default="results", metavar="DIR",
+                    help="directory for the CSV, the Pareto summary and the plots")
+    wp.add_argument("--name", help="file stem (default: the study's name)")
+    wp.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    wp.add_argument("--no-progress", action="store_true", help="no progress bar")
+    wp.set_defaults(func=cmd_work_precision)
+
+    cv = sub.add_parser("convergence", help="observed order of the fixed-step (ETD) methods")
+    cv.add_argument("--problem", default="paper-example", metavar="PRESET[:LAW]",
+                    help="the problem, e.g. W2:aging")
+    cv.add_argument("--t-end", type=positive, metavar="S",
+                    help="simulated time in s (default: the preset's)")
+    cv.add_argument("--integrators", nargs="+", metavar="NAME",
+                    help="fixed-step registry names (default: all; with --fixed-steps, the "
+                         "compiled stiff methods)")
+    cv.add_argument("--fixed-steps", action="store_true",
+                    help="the compiled stiff methods (Rosenbrock23, Rodas5P, Exprb32, Exprb43) "
+                         "with error control off, on a stiff stick-phase segment")
+    cv.add_argument("--out", type=out_dir, metavar="DIR",
+                    help="directory for the CSV, JSON and plot (default: write nothing)")
+    cv.add_argument("--json", action="store_true", help="print one JSON object")
+    cv.set_defaults(func=cmd_convergence)
+
+    sp = sub.add_parser("speedup", help="the paper's 1/10,000 claim: ETD2 against RK45 three ways")
+    sp.add_argument("--rk-tol", type=positive, default=1e-6,
+                    help="rtol = atol of both RK45 runs")
+    sp.add_argument("--scipy-budget", type=positive, metavar="S",
+                    help="wall budget of scipy's RK45 in s (default 600 s; the full run takes "
+                         "~40 min)")
+    sp.add_argument("--full", action="store_true", help="run scipy's RK45 to the end, no budget")
+    sp.add_argument("--compiled-budget", type=positive, metavar="S",
+                    help="wall budget of the compiled RK45 in s (default: none)")
+    sp.add_argument("--t-end", type=positive, metavar="S",
+                    help="simulated time in s (default: the paper's 20 s)")
+    sp.add_argument("--implicit", nargs="+", metavar="NAME",
+                    help="the implicit methods to search (default: every stiff adaptive one)")
+    sp.add_argument("--out", type=out_dir, metavar="DIR",
+                    help="directory for speedup.json, .csv and .md (default: write nothing)")
+    sp.add_argument("--json", action="store_true", help="print one JSON object")
+    sp.set_defaults(func=cmd_speedup)
+
+    t = sub.add_parser("target", help="issue 6's target: own integrators ≥ 2x faster than LSODA "
+                       "and SUNDIALS at each error level, from a work-precision CSV")
+    t.add_argument("--csv", type=in_file, default="results/wp_quick.csv", metavar="FILE.csv",
+                   help="a work-precision study (rsfbench work-precision writes one)")
+    t.add_argument("--out", type=out_dir, default="results", metavar="DIR",
+                   help="directory for target_<name>.csv and .md")
+    t.add_argument("--json", action="store_true", help="print one JSON array")
+    t.set_defaults(func=cmd_target)
+
+    rd = sub.add_parser("readme", help="refill the README's generated blocks from results/")
+    rd.add_argument("--check", action="store_true",
+                    help="only say which blocks are out of date (exit status 1 if any)")
+    rd.set_defaults(func=cmd_readme)
+
+    from benchmarks.pipeline.reproduce import FULL_STEPS, QUICK_STEPS, STEP_NAMES, STEPS
+    quick_minutes = sum(s.minutes for s in STEPS if not s.full)
+    full_hours = sum(s.minutes for s in STEPS) / 60
+    r = sub.add_parser("reproduce", help="bring results/ up to date (what `make reproduce` runs)",
+                       description=REPRODUCE_HELP.format(quick=_listed(QUICK_STEPS),
+                                                         full=_listed(FULL_STEPS)))
+    r.add_argument("--out", type=out_dir, default="results", metavar="DIR",
+                   help="directory of the results")
+    r.add_argument("--full", action="store_true",
+                   help="the full plan: also the long steps (" + ", ".join(FULL_STEPS) + "; "
+                        f"about {full_hours:.1f} h on 2 cores) (default: the quick plan, "
+                        f"~{quick_minutes:.0f} min when every quick step runs)")
+    r.add_argument("--force", action="store_true",
+                   help="rerun every step of the plan, reusing none (default: reuse the steps "
+                        "whose inputs did not change)")
+    r.add_argument("--dry-run", action="store_true",
+                   help="say which steps would run and why, run nothing")
+    r.add_argument("--scipy-budget", type=positive, metavar="S",
+                   help="wall budget of scipy's RK45 in the speedup step in s, with --full or "
+                        "--only speedup (default 600 s)")
+    which = r.add_mutually_exclusive_group()
+    which.add_argument("--from", dest="start", choices=STEP_NAMES, metavar="STEP",
+                       help="start at this step of the plan, leaving the earlier ones alone "
+                            f"(steps: {', '.join(STEP_NAMES)}; default: the first)")
+    which.add_argument("--only", choices=STEP_NAMES, metavar="STEP",
+                       help="rerun this step alone, quick or full, whatever its inputs "
+                            "(default: every step of the plan)")
+    r.set_defaults(func=cmd_reproduce)
+
+    pr = sub.add_parser("probe", help="the reliability probe: bad input, budgets, corrupt "
+                        "files, --json, classification, each case checked")
+    from benchmarks.probe import KIND_TITLES
+    pr.add_argument("--kind", nargs="+", choices=sorted(KIND_TITLES), metavar="KIND",
+                    help=f"only these kinds ({', '.join(KIND_TITLES)}; default: all)")
+    pr.add_argument("--match", metavar="TEXT", help="only cases whose name contains TEXT "
+                    "(default: all)")
+    pr.add_argument("--slow", action="store_true",
+                    help="also the slow cases (kills, subprocesses, a Dask cluster; minutes)")
+    pr.add_argument("--out", type=out_dir, metavar="DIR",
+                    help="write reliability.csv and reliability.md there (default: print only)")
+    pr.add_argument("--json", action="store_true", help="print every case as one JSON array")
+    pr.set_defaults(func=cmd_probe)
+
+    cl = sub.add_parser("classification", help="the locking rule of stick-slip against the "
+                        "trajectory's minimum slip rate, on fits, sweep points and oscillations")
+    cl.add_argument("--out", type=out_dir, metavar="DIR",
+                    help="write classification.csv and .md there (default: print only)")
+    cl.add_argument("--json", action="store_true", help="print every run as one JSON array")
+    cl.set_defaults(func=cmd_classification)
+
+    es = sub.add_parser("engine-speed", help="the own compiled engine against issue 14's targets "
+                        "(fastest reliable setting per error level, µs per step attempt, "
+                        "start-up) and numbalsoda's lsoda, timed in one run (~1.5 min)")
+    es.add_argument("--out", type=out_dir, metavar="DIR",
+                    help="write engine_speed.csv and .md there (default: print only)")
+    es.add_argument("--repeats", type=count, default=5, metavar="N",
+                    help="timed runs per setting after a warm-up; the minimum is kept "
+                         "(default: 5)")
+    es.add_argument("--json", action="store_true", help="print the targets as one JSON array")
+    es.set_defaults(func=cmd_engine_speed)
+
+    bo = sub.add_parser("binding-overhead", help="the same solver called compiled and from "
+                        "Python: SUNDIALS' CVODE and IDA from C against scikits-odes, "
+                        "scikit-sundae and assimulo, numbalsoda's LSODA against its plain grid "
+                        "call and ODEPACK's from scipy and assimulo; paper example and W2 aging "
+                        "at rtol = atol = 1e-6 and 1e-8, timed in one run (~5 min)")
+    bo.add_argument("--out", type=out_dir, metavar="DIR",
+                    help="write binding_overhead.csv and .md there (default: print only)")
+    bo.add_argument("--repeats", type=count, default=3, metavar="N",
+                    help="timed runs per setting after a warm-up; the minimum is kept "
+                         "(default: 3)")
+    bo.add_argument("--json", action="store_true", help="print every run as one JSON array")
+    bo.add_argument("--no-progress", action="store_true", help="no progress bar")
+    bo.set_defaults(func=cmd_binding_overhead)
+
+    from benchmarks.cli.sweep import add_parsers
+    add_parsers(sub, PRESET_NAMES)
+    from benchmarks.cli.invert import add_parsers as add_inversion_parsers
+    add_inversion_parsers(sub, PRESET_NAMES)
+    from benchmarks.cli.lab import add_parsers as add_lab_parsers
+    add_lab_parsers(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run one command; return its exit status: 0 done, 1 the run failed (its retcode, or one
+    line, says why), 2 a usage error (one line on stderr; with --json also one JSON document on
+    stdout), 3 an internal error, 130 interrupted.
+
+    Whatever a library writes to the standard output (assimulo's Fortran and SUNDIALS' warnings,
+    also from pool workers) goes to the standard error instead, so that the standard output holds
+    the command's own output only: with ``--json``, exactly one JSON document. Run as a program
+    (``argv`` None) the redirection is kept until exit, when Fortran flushes its buffers.
+    """
+    json_mode = wants_json(argv)
+    with _library_output_to_stderr(keep=argv is None), warnings.catch_warnings():
+        warnings.showwarning = _show_warning
+        args = None
+        try:
+            args = build_parser().parse_args(argv)
+            return args.func(args)
+        except ValueError as exc:                 # a user's mistake: say which, no traceback
+            return _fail(_one_line(exc), 2, json_mode)
+        except (RunStopped, OSError) as exc:      # the run could not go on: say why
+            return _fail(_one_line(exc), 1, json_mode)
+        except KeyboardInterrupt as exc:          # a command may say what it kept
+            kept = (" (a sweep keeps its finished points: run it again to resume)"
+                    if getattr(args, "command", None) == "sweep" else "")
+            return _fail(_one_line(exc) if str(exc) else f"interrupted{kept}", 130, json_mode)
+        except Exception as exc:                  # a bug: one line, the traceback on request
+            if os.environ.get("RSFBENCH_DEBUG"):
+                raise
+            return _fail(f"internal error: {type(exc).__name__}: {_one_line(exc)} (set "
+                         "RSFBENCH_DEBUG=1 for the traceback; please report it)", 3, json_mode)
+
+
+def _one_line(exc: BaseException) -> str:
+    text = str(exc) if str(exc) else type(exc).__name__
+    if isinstance(exc, OSError) and exc.filename is not None:
+        text = f"{exc.strerror or text}: {exc.filename}"
+    return " ".join(text.split())
+
+
+def _fail(message: str, status: int, json_mode: bool) -> int:
+    prefix = "" if message.startswith("rsfbench") else "rsfbench: error: "
+    print(f"{prefix}{message}", file=sys.stderr)
+    if json_mode:
+        say(json.dumps({"error": message, "exit_status": status}))
+    return status
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    print(f"rsfbench: warning: {' '.join(str(message).split())}", file=sys.stderr)
+
+
+@contextlib.contextmanager
+def _library_output_to_stderr(keep: bool):
+    """While a command runs, the standard output is the standard error — for Python code
+    (``sys.stdout``) and for C and Fortran (file descriptor 1) — and :func:`say` writes to the
+    standard output as it was. ``keep``: leave descriptor 1 on the standard error at the end (a
+    program exits next, and Fortran flushes unit 6 at exit)."""
+    from benchmarks.cli import args as cli_args
+    sys.stdout.flush()
+    saved = os.dup(1)
+    os.dup2(2, 1)
+    entry, mine = sys.stdout, None
+    if sys.stdout is sys.__stdout__:          # the real stdout: write to it by the saved copy
+        mine = io.TextIOWrapper(os.fdopen(os.dup(saved), "wb", buffering=0),
+                                encoding=entry.encoding, errors=entry.errors, line_buffering=True)
+    outer = cli_args._OUTPUT                  # a command run by a command (the probe)
+    cli_args._OUTPUT = mine or entry          # under a test's capture: the capture
+    sys.stdout = sys.stderr
+    try:
+        yield
+    finally:
+        sys.stdout = entry
+        cli_args._OUTPUT = outer
+        if mine is not None:
+            mine.close()
+        if not keep:
+            os.dup2(saved, 1)
+        os.close(saved)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,278 @@
+"""``rsfbench sweep`` and ``rsfbench slip-weakening``: the inversion side of the command line.
+
+    rsfbench sweep --preset W2 --law slip --b 0.0090:0.0098:0.0001 --lc 1e-7:1e-6:9log --json
+    rsfbench slip-weakening --preset W2 --law slip --events 3 --out tests/data/W2_slip_weakening.csv
+    rsfbench paper-sweeps --out results     # Sect. 4: W1–W4, both laws, around the best fits
+    rsfbench sweep-scaling --out results    # 21 x 21 on W2: serial, 2 processes, 2 threads
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pandas as pd
+
+from benchmarks.cli.args import (
+    add_integrator_options,
+    add_observation_options,
+    add_problem_choice,
+    add_problem_options,
+    b_lc,
+    check_observation_options,
+    count,
+    in_file,
+    integrator_from_args,
+    non_negative,
+    observations_from_args,
+    out_dir,
+    out_file,
+    positive,
+    problem_from_args,
+    say,
+    seed,
+    show_progress,
+)
+from benchmarks.inversion.sweep import observations
+from benchmarks.records.report import jsonable
+
+__all__ = ["add_parsers", "observations", "synthetic_curves"]
+
+def sweep_problem(args):
+    """The problem a sweep varies (``--preset`` with ``--law`` and ``--t-end``, or ``--problem
+    FILE``) and whether a window's published fit and observations apply."""
+    from problems import WINDOWS
+    problem = problem_from_args(args, fields=("t_end",))     # --b and --lc are the grid
+    return problem, args.problem is None and args.preset.upper() in WINDOWS
+
+
+def cmd_sweep(args) -> int:
+    from benchmarks.inversion.maps import plot_sweep
+    from benchmarks.inversion.sweep import parse_b, parse_lc, sweep
+    from benchmarks.physics.curves import read_curves
+    problem, published = sweep_problem(args)
+    check_observation_options(args, problem, published)
+    b_values = parse_b(args.b, args.max_points)
+    lc_values = parse_lc(args.lc, args.max_points)
+    curves = read_curves(args.slip_weakening) if args.slip_weakening else None
+    obs = observations_from_args(args, published, curves)
+    algorithm, why = integrator_from_args(args)
+    name = args.preset if args.problem is None else Path(args.problem).stem
+    out = Path(args.out or f"sweep_{name}_{problem.law.name}")
+    if not args.json:
+        say(f"integrator: {why}")
+        if obs.assumed_sigma:
+            say("σ not given: assumed 10 % of the observed mean (an assumption, not data)")
+    result = sweep(problem, b_values, lc_values, algorithm, obs, out, workers=args.workers,
+                   scheduler=args.scheduler, backend=args.backend, wall_budget=args.wall_budget,
+                   progress=show_progress(args), max_points=args.max_points,
+                   connect_timeout=args.connect_timeout, worker_timeout=args.worker_timeout,
+                   chunk_size=args.chunk_size)
+    s = {**result.summary, "integrator_choice": why, "out": str(out)}
+    if not args.no_plot:
+        # the published fit is marked only against the published observations it was fitted to
+        own_obs = args.obs_recurrence is not None or args.obs_drop is not None
+        mark, label = ((args.mark, "given") if args.mark is not None else
+                       ((problem.law.b, problem.law.lc), "published")
+                       if published and not own_obs else (None, ""))
+        plot_sweep(result.table, out / "maps.png", title=problem.name or name, mark=mark,
+                   mark_label=label,
+                   best=None if s["best_b"] is None else (s["best_b"], s["best_lc_m"]))
+        s["maps"] = str(out / "maps.png")
+    if args.json:
+        say(json.dumps(jsonable(s), indent=2))
+    else:
+        say(f"{s['n_points']} points ({s['n_resumed']} resumed, {s['n_failed']} failed) in "
+              f"{s['wall_s']:.1f} s; {s['n_in_region']} in the 95 % region J1 ≤ 5.99")
+        if s["best_b"] is not None:
+            say(f"best ({s['best_by']}): b = {s['best_b']:.5g}, Lc = {s['best_lc_m'] * 1e6:.4g} µm,"
+                  f" J1 = {s['best_J1']:.3g}")
+        say(f"classification: {s['classification']}")
+        say(f"written: {out / 'sweep.csv'}, {out / 'summary.json'}, {out / 'chunks'} (the "
+            "store: benchmarks.ensemble.read_store reads it)"
+            + ("" if args.no_plot else f", {out / 'maps.png'}"))
+    return 0
+
+
+def synthetic_curves(problem, algorithm, n_events: int = 3, n_points: int = 25,
+                     noise: float = 0.0, seed: int = 0, curve_dt: float = 5e-5,
+                     wall_budget: float | None = None) -> pd.DataFrame:
+    """Slip-weakening curves (friction Ft/Fn against slip) of the last ``n_events`` events of a
+    simulation, sampled as :func:`benchmarks.physics.curves.sample_curves` does. A run that fails, or
+    does not reach a limit cycle, makes no curves (``ValueError`` with its retcode or
+    classification)."""
+    from benchmarks.physics.curves import sample_curves
+    from benchmarks.physics.metrics import CYCLES, summarize
+    from integrators import solve
+    sol = solve(problem, algorithm, save_every=curve_dt, wall_budget=wall_budget)
+    cycle = summarize(sol)
+    if cycle.classification not in CYCLES:
+        raise ValueError(f"{problem.name} with {algorithm.name}: {cycle.classification} "
+                         f"({cycle.reason or sol.message}); no slip-weakening curves from it")
+    if len(sol.events) < n_events:
+        raise ValueError(f"the run has {len(sol.events)} events, fewer than --events {n_events}")
+    # the curves interpolate the saved trajectory: an event needs saved points inside it
+    shortest = float((sol.events.t_end - sol.events.t_start).iloc[-n_events:].min())
+    if curve_dt > shortest / CURVE_POINTS:
+        raise ValueError(f"--curve-dt = {curve_dt:g} s does not resolve the events (the shortest "
+                         f"of the last {n_events} lasts {shortest:.3g} s): use at most "
+                         f"{shortest / CURVE_POINTS:.2g} s ({CURVE_POINTS} saved points an event)")
+    return sample_curves(sol, n_events, n_points, noise, seed)
+
+
+#: saved points an event needs at least for its slip-weakening curve
+CURVE_POINTS = 20
+
+
+def cmd_slip_weakening(args) -> int:
+    from benchmarks.physics.curves import write_curves
+    problem = problem_from_args(args)
+    algorithm, why = integrator_from_args(args)
+    df = synthetic_curves(problem, algorithm, args.events, args.points, args.noise, args.seed,
+                          args.curve_dt, args.wall_budget)
+    write_curves(df, args.out)
+    summary = {"out": str(args.out), "events": int(df.event_id.nunique()), "samples": len(df),
+               "problem": problem.name, "b": problem.law.b, "lc_m": problem.law.lc,
+               "integrator": algorithm.name, "options": algorithm.options(),
+               "integrator_choice": why, "noise": args.noise, "seed": args.seed}
+    if args.json:
+        say(json.dumps(jsonable(summary), indent=2))
+    else:
+        say(f"{summary['events']} events, {len(df)} samples from {problem.name} "
+              f"(b = {problem.law.b:.5g}, Lc = {problem.law.lc:.4g} m; {why}): {args.out}")
+    return 0
+
+
+def cmd_paper_sweeps(args) -> int:
+    from benchmarks.studies.paper_sweeps import paper_sweeps
+    table = paper_sweeps(Path(args.out), windows=args.windows, laws=args.laws,
+                         workers=args.workers, progress=show_progress(args))
+    say((Path(args.out) / "sweeps.md").read_text())
+    return 0 if len(table) else 1
+
+
+def cmd_sweep_scaling(args) -> int:
+    from benchmarks.studies.paper_sweeps import sweep_scaling
+    summary = sweep_scaling(Path(args.out), n=args.n, t_end=args.t_end,
+                            progress=show_progress(args))
+    if args.json:
+        say(json.dumps(jsonable(summary), indent=2))
+    else:
+        say((Path(args.out) / "sweep_scaling.md").read_text())
+    return 0
+
+
+def cmd_ensemble_scaling(args) -> int:
+    from benchmarks.studies.ensemble_scaling import ensemble_scaling
+    summary = ensemble_scaling(Path(args.out), n=args.n, big=args.big, kills=args.kills,
+                               dask=args.dask, repeats=args.repeats, seed=args.seed,
+                               progress=show_progress(args))
+    if args.json:
+        say(json.dumps(jsonable(summary), indent=2))
+    else:
+        say((Path(args.out) / "ensemble_scaling.md").read_text())
+    return 0
+
+
+def add_parsers(sub, preset_names) -> None:
+    from benchmarks.ensemble.executors import CONNECT_TIMEOUT_S, WORKER_TIMEOUT_S
+    from benchmarks.inversion.sweep import MAX_GRID_POINTS
+    s = sub.add_parser("sweep", help="J1/J2/J over a (b, Lc) grid: parallel, resumable")
+    add_problem_choice(s, preset_names, "the problem whose (b, Lc) the grid replaces")
+    s.add_argument("--b", required=True, metavar="START:STOP:STEP",
+                   help="b values (dimensionless), STOP included")
+    s.add_argument("--lc", required=True, metavar="START:STOP:N[log]",
+                   help="Lc values in metres: N of them, log-spaced with the suffix 'log'")
+    s.add_argument("--max-points", type=count, default=MAX_GRID_POINTS, metavar="N",
+                   help="refuse a grid of more points than this (a typo in a step)")
+    add_observation_options(s)
+    s.add_argument("--slip-weakening", type=in_file, metavar="FILE.csv",
+                   help="observed curves, CSV with event_id, slip_m (m), friction (Ft/Fn): adds "
+                        "J2 and J (default: J1 only)")
+    s.add_argument("--t-end", type=positive, metavar="S",
+                   help="simulated time per point in s (default: the preset's or the file's)")
+    add_integrator_options(s)
+    where = s.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=count, metavar="N",
+                       help="local workers, N ≥ 1 (default: all cores)")
+    where.add_argument("--scheduler", metavar="ADDRESS",
+                       help="run on this Dask scheduler, e.g. tcp://host:8786 (default: local)")
+    s.add_argument("--backend", choices=("processes", "threads"),
+                   help="local parallelism (default: threads for the own compiled methods, one "
+                        "compiled batch a chunk; processes for the others)")
+    s.add_argument("--chunk-size", type=count, metavar="N",
+                   help="points per chunk, the unit of work and storage (default: 256 for "
+                        "compiled batches, about 1/64 of the grid for the others)")
+    s.add_argument("--mark", type=b_lc, metavar="B,LC",
+                   help="a point (b, Lc in m) to mark on the maps (default: a window's published "
+                        "fit, when scored against its published means)")
+    s.add_argument("--connect-timeout", type=positive, default=CONNECT_TIMEOUT_S, metavar="S",
+                   help="s the Dask scheduler has to answer before the sweep is refused")
+    s.add_argument("--worker-timeout", type=positive, default=WORKER_TIMEOUT_S, metavar="S",
+                   help="s a Dask cluster may have no worker before the sweep stops")
+    s.add_argument("--wall-budget", type=positive, metavar="S",
+                   help="wall budget per point in s (default: none)")
+    s.add_argument("--out", type=out_dir, metavar="DIR",
+                   help="directory of the store (DIR/chunks), table and maps (default: "
+                        "./sweep_<preset or file name>_<law>)")
+    s.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    s.add_argument("--no-progress", action="store_true", help="no progress bar")
+    s.add_argument("--no-plot", action="store_true", help="do not draw maps.png")
+    s.set_defaults(func=cmd_sweep)
+
+    c = sub.add_parser("slip-weakening", help="synthetic slip-weakening curves (CSV) from a run")
+    add_problem_options(c, preset_names)
+    add_integrator_options(c)
+    c.add_argument("--events", type=count, default=3, help="the last N complete events")
+    c.add_argument("--points", type=count, default=25, help="samples per event")
+    c.add_argument("--noise", type=non_negative, default=0.0,
+                   help="std of Gaussian noise added to the friction Ft/Fn")
+    c.add_argument("--seed", type=seed, default=0, help="seed of the noise, an integer ≥ 0")
+    c.add_argument("--curve-dt", type=positive, default=5e-5, metavar="S",
+                   help="s between saved points: the resolution of the curves")
+    c.add_argument("--wall-budget", type=positive, metavar="S",
+                   help="wall budget of the run in s (default: none)")
+    c.add_argument("--out", required=True, type=out_file(".csv"), metavar="FILE.csv",
+                   help="where to write the curves")
+    c.add_argument("--json", action="store_true", help="print a summary as one JSON object")
+    c.set_defaults(func=cmd_slip_weakening)
+
+    p = sub.add_parser("paper-sweeps", help="Sect. 4: J1 sweeps around the published best fits")
+    p.add_argument("--out", type=out_dir, default="results", metavar="DIR",
+                   help="directory for sweeps.csv/.md and sweeps/<W>_<law>/")
+    p.add_argument("--windows", nargs="+", default=["W1", "W2", "W3", "W4"],
+                   choices=["W1", "W2", "W3", "W4"], type=str.upper, help="windows")
+    p.add_argument("--laws", nargs="+", default=["slip", "aging"], choices=["slip", "aging"],
+                   help="friction laws")
+    p.add_argument("--workers", type=count, metavar="N", help="local workers (default: all cores)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_paper_sweeps)
+
+    g = sub.add_parser("sweep-scaling", help="time a 21 x 21 W2 sweep on 1 and 2 workers")
+    g.add_argument("--out", type=out_dir, default="results", metavar="DIR",
+                   help="directory for sweep_scaling.json and .md")
+    g.add_argument("--n", type=count, default=21, help="grid points per axis")
+    g.add_argument("--t-end", type=positive, default=40.0, metavar="S",
+                   help="simulated time per point in s")
+    g.add_argument("--json", action="store_true", help="print one JSON object")
+    g.add_argument("--no-progress", action="store_true", help="no progress bar")
+    g.set_defaults(func=cmd_sweep_scaling)
+
+    e = sub.add_parser("ensemble-scaling",
+                       help="issue 16's ensemble targets: 21 x 21, 10^5 points killed and "
+                            "resumed, 10^4 on a local Dask cluster")
+    e.add_argument("--out", type=out_dir, default="results", metavar="DIR",
+                   help="directory for ensemble_scaling.json and .md")
+    e.add_argument("--n", type=count, default=21, help="grid points per axis of the W2 grid")
+    e.add_argument("--big", type=seed, default=100_000, metavar="N",
+                   help="points of the killed-and-resumed run (0: skip it)")
+    e.add_argument("--kills", type=seed, default=3,
+                   help="SIGKILLs at random moments of the big run")
+    e.add_argument("--dask", type=seed, default=10_000, metavar="N",
+                   help="points on the local Dask cluster (0: skip it)")
+    e.add_argument("--repeats", type=count, default=3, help="runs of the grid; the minimum counts")
+    e.add_argument("--seed", type=seed, default=0, help="seed of the kill moments")
+    e.add_argument("--json", action="store_true", help="print one JSON object")
+    e.add_argument("--no-progress", action="store_true", help="no progress bar")
+    e.set_defaults(func=cmd_ensemble_scaling)
+

@@ -1,0 +1,18 @@
+"""Reading a run as physics: limit-cycle metrics and the classification of a run
+(:mod:`~benchmarks.physics.metrics`), what a laboratory user measures on a velocity step or a
+slide-hold-slide test (:mod:`~benchmarks.physics.lab`), slip-weakening curves
+(:mod:`~benchmarks.physics.curves`), figures (:mod:`~benchmarks.physics.plots`) and the summary
+of one run (:mod:`~benchmarks.physics.summary`). Nothing here reads a save grid for a measure."""
+
+from benchmarks._api import lazy_api
+
+__getattr__, __dir__, __all__ = lazy_api(__name__, {
+    "metrics": ("summarize", "limit_cycle", "event_metrics", "end_state", "LimitCycle",
+                "EndState", "METRICS", "CLASSIFICATIONS"),
+    "lab": ("step_response", "healing", "healing_rate", "step_reference", "UnsettledWarning",
+            "PeakNotReached"),
+    "curves": ("read_curves", "check_curves", "write_curves", "event_curve", "sample_curves",
+               "CURVE_COLUMNS"),
+    "plots": ("plot_solution", "plot_work_precision", "plot_convergence"),
+    "summary": ("simulate_summary",),
+})

@@ -1,0 +1,115 @@
+"""Slip-weakening curves: a run's, and the files observed ones are read from.
+
+Slip-weakening curves (observed or synthetic) are CSV files with one row per sample and the
+columns ``event_id`` (any label; rows of one event together), ``slip_m`` (slip since the start
+of that event, m) and ``friction`` (the shear force on the fault over the normal force, Ft/Fn).
+The synthetic curve of a simulation is its last complete event: the friction Ft/Fn against the
+slip since the event started; it is linearly interpolated at the observed slips and held at its
+end values outside its range (before the event the fault is stuck, after it the slip no longer
+grows).
+
+Why friction and not the spring force: Eq. 11 compares "the shear force divided by the normal
+force", which the experiments estimate as Ft = Fs − m·a. The spring force against slip is, during
+an event, the spring's unloading line Fs = Fs0 − k·slip (+ the slow load-point motion), of slope
+−k/Fn whatever (b, Lc): a J2 on Fs/Fn carries almost no information on the friction law. Ft/Fn
+against slip is the slip-weakening curve itself, whose shape (the weakening distance ∝ Lc, the
+drop ∝ b − a) is what J2 constrains.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+__all__ = ["CURVE_COLUMNS", "read_curves", "check_curves", "write_curves", "event_curve",
+           "event_window", "sample_curves"]
+
+CURVE_COLUMNS = ("event_id", "slip_m", "friction")
+
+
+def read_curves(path) -> pd.DataFrame:
+    """Observed slip-weakening curves from a CSV with :data:`CURVE_COLUMNS` (see the module doc),
+    or ``ValueError`` naming the file and what is wrong (:func:`check_curves`)."""
+    from benchmarks.records.files import read_table
+    df = read_table(path, CURVE_COLUMNS, what="slip-weakening file",
+                    hint="it needs the columns event_id, slip_m (m), friction (Ft/Fn)")
+    return check_curves(df, f"slip-weakening file {path}")
+
+
+def check_curves(df, source: str = "slip-weakening curves") -> pd.DataFrame:
+    """``df`` as curves (:data:`CURVE_COLUMNS`, numbers finite, every event_id given, at least
+    two samples per event), or ``ValueError`` naming ``source`` and what is wrong."""
+    if not isinstance(df, pd.DataFrame):
+        raise ValueError(f"{source} must be a DataFrame with columns {list(CURVE_COLUMNS)}, "
+                         f"got {type(df).__name__}")
+    missing = [c for c in CURVE_COLUMNS if c not in df.columns]
+    if missing:
+        raise ValueError(f"{source} lacks the columns {missing}; it needs {list(CURVE_COLUMNS)}")
+    df = df[list(CURVE_COLUMNS)].copy()
+    for c in ("slip_m", "friction"):
+        values = pd.to_numeric(df[c], errors="coerce").to_numpy(dtype=float)
+        bad = ~np.isfinite(values)
+        if bad.any():
+            raise ValueError(f"{source}: column {c} is not a finite number in row "
+                             f"{int(np.argmax(bad)) + 2}")
+        df[c] = values
+    if df.event_id.isna().any():
+        raise ValueError(f"{source}: event_id is empty in row "
+                         f"{int(np.argmax(df.event_id.isna().to_numpy())) + 2}")
+    sizes = df.groupby("event_id", sort=False).size()
+    if len(sizes) == 0 or (sizes < 2).any():
+        first = sizes.index[sizes < 2][0] if len(sizes) else None
+        raise ValueError(f"{source}: " + (f"event {first!r} has fewer than two samples"
+                                           if len(sizes) else "no curve"))
+    return df
+
+
+def write_curves(df: pd.DataFrame, path) -> None:
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    df[list(CURVE_COLUMNS)].to_csv(path, index=False)
+
+
+def event_curve(sol, index: int = -1) -> tuple[np.ndarray, np.ndarray]:
+    """Synthetic slip-weakening curve of event ``index`` (default: the last complete one): the
+    friction Ft/Fn against the slip since the event started (module docstring).
+
+    Uses the saved trajectory, so solve with a ``save_every`` that resolves the event. The slip
+    since the event started is Δu = vL·(t − t_start) − ΔFs/k, exact for the spring with the load
+    point at its slow speed (the fast phase of two-speed loading starts when an event ends).
+    Returns empty arrays when the run has no complete event.
+    """
+    if not len(sol.events):
+        return np.empty(0), np.empty(0)
+    t, slip, _ = event_window(sol, index)
+    return slip, np.interp(t, sol.t, sol.ft) / sol.problem.normal_force
+
+
+def event_window(sol, index: int = -1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The saved times inside event ``index`` with its start and end, the slip since its start
+    at those times (exact: see :func:`event_curve`) and the spring force there (N)."""
+    ev = sol.events.iloc[index]
+    p = sol.problem
+    inside = (sol.t > ev.t_start) & (sol.t < ev.t_end)
+    t = np.concatenate(([ev.t_start], sol.t[inside], [ev.t_end]))
+    fs = np.interp(t, sol.t, sol.fs)
+    return t, p.loading.v_slow * (t - t[0]) - (fs - fs[0]) / p.stiffness, fs
+
+
+def sample_curves(sol, n_events: int = 3, n_points: int = 25, noise: float = 0.0,
+                  seed: int = 0, curve=event_curve) -> pd.DataFrame:
+    """Curves in the format of :func:`read_curves` from the last ``n_events`` events of ``sol``
+    (``curve(sol, index)``: :func:`event_curve` by default), each sampled at ``n_points`` slips
+    spread over the inside of the event — at (j + ½)/n of its total slip: at both ends the curve
+    is vertical (the friction changes while the slip does not), where a sample would weigh the
+    slip at which a curve ends rather than its shape — plus Gaussian noise of std ``noise``."""
+    rng = np.random.default_rng(seed)
+    frames = []
+    for i in range(n_events):
+        slip, mu = curve(sol, index=len(sol.events) - n_events + i)
+        s = (np.arange(n_points) + 0.5) / n_points * slip[-1]
+        frames.append(pd.DataFrame({"event_id": i + 1, "slip_m": s,
+                                    "friction": np.interp(s, slip, mu)
+                                    + noise * rng.standard_normal(n_points)}))
+    return pd.concat(frames, ignore_index=True)

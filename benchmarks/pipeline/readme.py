@@ -1,0 +1,135 @@
+"""``rsfbench readme``: the README's numbers, refilled from ``results/``.
+
+Every number the README quotes sits in a generated block::
+
+    <!-- rsfbench: results/speedup.md -->
+    ...
+    <!-- /rsfbench -->
+
+whose body is its source, rendered: a results file verbatim (``results/X.md``), one of its
+tables (``results/X.md table 2``, counting from 1), the recommendation bullets
+(``recommendation``, from ``results/wp_quick.csv``) or the convergence bullets
+(``convergence``, from ``results/convergence_paper-example_slip.json``). ``make reproduce`` ends
+with it, and a test checks that the committed README matches the committed results, so the prose
+around the blocks carries no number of its own.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from pathlib import Path
+
+import pandas as pd
+
+__all__ = ["fill", "render", "refresh", "RECOMMENDATION_LEVELS"]
+
+ROOT = Path(__file__).resolve().parents[2]
+RECOMMENDATION_LEVELS = (1e-3, 1e-6)          # the issue's "to 1e−3, use X; to 1e−6, use Y"
+_BLOCK = re.compile(r"(<!-- rsfbench: (?P<source>[^>]*?) -->\n)(?P<body>.*?)(<!-- /rsfbench -->)",
+                    re.S)
+_SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
+
+
+def _power_of_ten(x: float) -> str:
+    """10⁻³ for 0.001; other values as ``%g``."""
+    e = math.log10(x)
+    return f"10{str(round(e)).translate(_SUPERSCRIPT)}" if abs(e - round(e)) < 1e-9 else f"{x:g}"
+
+
+def _ms(seconds: float) -> str:
+    return f"{seconds * 1e3:.3g} ms"
+
+
+def recommendation(root: Path = ROOT) -> str:
+    """The README's advice, one bullet per level of ``RECOMMENDATION_LEVELS``."""
+    from benchmarks.devtools.work_precision import recommend
+    from integrators import REGISTRY
+    advice = recommend(pd.read_csv(root / "results" / "wp_quick.csv"), RECOMMENDATION_LEVELS)
+    lines = []
+    for _, a in advice.iterrows():
+        head = f"* **for recurrence intervals to {_power_of_ten(a.level)}, "
+        if pd.isna(a.get("integrator")):
+            lines.append(head + "no setting of the study is reliably within the level.**")
+            continue
+        what = "rtol = atol" if REGISTRY[a.integrator].adaptive else "Δτcnst"
+        line = (head + f"use `{a.integrator}`** at {what} = {a.setting:g}: worst error "
+                f"{a.worst_error:.2g}, {_ms(a.total_wall_s)} for both problems")
+        if isinstance(a.next_integrator, str):
+            line += (f"; the next best method, {a.next_integrator}, takes "
+                     f"{_ms(a.next_total_wall_s)}")
+        lines.append(line + ";")
+    lines[-1] = lines[-1][:-1] + "."
+    return "\n".join(lines)
+
+
+def convergence(root: Path = ROOT, problem: str = "paper-example_slip") -> str:
+    """One bullet per ETD method: observed and declared order, error at the finest step."""
+    summary = json.loads((root / "results" / f"convergence_{problem}.json").read_text())
+    ladder = pd.read_csv(root / "results" / f"convergence_{problem}.csv")
+    lines = []
+    for name, order in summary["orders"].items():
+        d = summary["declared"][name]
+        declared = f"declared {d['order']}"
+        if d["stiff_order"] == 0:
+            declared += ", no clean order on this stiff problem"
+        elif d["stiff_order"] is not None and d["stiff_order"] != d["order"]:
+            declared += f", {d['stiff_order']} on this stiff problem"
+        finest = ladder[ladder.integrator == name].factor.min()
+        lines.append(f"* {name}: observed order {order:.2f} ({declared}); error "
+                     f"{summary['finest_error'][name]:.2g} at {_fraction(finest)} of the "
+                     f"paper's steps.")
+    return "\n".join(lines)
+
+
+def _fraction(factor: float) -> str:
+    return f"1/{round(1 / factor)}" if factor < 1 else f"{factor:g}×"
+
+
+def _table(text: str, n: int, source: str) -> str:
+    tables, current = [], []
+    for line in text.splitlines() + [""]:
+        if line.startswith("|"):
+            current.append(line)
+        elif current:
+            tables.append("\n".join(current))
+            current = []
+    if not 1 <= n <= len(tables):
+        raise ValueError(f"{source}: there is no table {n} (the file has {len(tables)})")
+    return tables[n - 1]
+
+
+def render(source: str, root: Path = ROOT) -> str:
+    """The body of a block with this source (see the module docstring)."""
+    if source == "recommendation":
+        return recommendation(root)
+    if source == "convergence":
+        return convergence(root)
+    m = re.fullmatch(r"(results/\S+\.md)(?: table (\d+))?", source)
+    if m is None:
+        raise ValueError(f"unknown README block source {source!r}: expected 'results/X.md', "
+                         f"'results/X.md table N', 'recommendation' or 'convergence'")
+    path = root / m.group(1)
+    if not path.exists():
+        raise FileNotFoundError(f"README block {source!r}: {path} does not exist (run `make "
+                                f"reproduce`)")
+    text = path.read_text()
+    return _table(text, int(m.group(2)), source) if m.group(2) else text.strip()
+
+
+def fill(readme: str, root: Path = ROOT) -> str:
+    """``readme`` with every generated block re-rendered."""
+    return _BLOCK.sub(lambda m: f"{m.group(1)}{render(m.group('source'), root)}\n{m.group(4)}",
+                      readme)
+
+
+def refresh(path: Path = ROOT / "README.md", check: bool = False) -> list[str]:
+    """Rewrite the README's blocks (or with ``check`` only compare); returns the sources of the
+    blocks that were out of date."""
+    old = path.read_text()
+    stale = [m.group("source") for m in _BLOCK.finditer(old)
+             if m.group("body").rstrip("\n") != render(m.group("source"), path.parent)]
+    if stale and not check:
+        path.write_text(fill(old, path.parent))
+    return stale

@@ -1,0 +1,227 @@
+"""The own compiled engine against issue 14's targets, with numbalsoda's LSODA as the yardstick.
+
+For each own adaptive method and tolerance (rtol = atol = 1e−2 … 1e−10) on the paper example and
+W2/aging (40 s, two-speed loading): the relative error of the recurrence interval ΔT against the
+cached two-solver reference (:mod:`benchmarks.devtools.reference`), the counters, and the wall time
+(``Solution.stats.wall_s``: the solve without building the ``Solution``), the minimum over
+``repeats`` runs after a warm-up, ``max_points=2``. A setting is *reliable* at a level when its
+error and the error of every tighter tolerance of the same method are at most that level (a
+lucky cancellation at a loose tolerance does not count). The yardstick, timed in the same run:
+numbalsoda's ``lsoda`` called once over a 20,001-point grid at rtol = atol = 1e−6 with a numba
+``cfunc`` right-hand side, as its users call it: no events, no restarts (so W2's two-speed
+loading is not followed: it measures the machine, not an answer).
+
+Start-up, in fresh processes: ``import integrators``, the first solve after it (Rodas5P on the
+paper example) and ``rsfbench simulate --preset paper-example --json``, with the numba cache
+warm (the minimum of 3) and, for the first two, cold (a copy of the sources with no cache: every
+kernel that solve needs is compiled).
+
+``rsfbench engine-speed --out results`` writes ``engine_speed.csv`` (every setting) and
+``engine_speed.md`` (the targets, met or missed, and the start-up times).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from benchmarks.devtools.errors import errors
+from benchmarks.devtools.reference import reference
+from benchmarks.records.files import atomic_write
+from integrators import REGISTRY, solve
+from problems import paper_example, window
+
+__all__ = ["engine_speed", "targets", "startup", "engine_speed_markdown", "write_engine_speed",
+           "METHODS", "TOLERANCES"]
+
+METHODS = ("Rosenbrock23", "Rodas5P", "Exprb32", "Exprb43")
+TOLERANCES = tuple(10.0 ** -k for k in range(2, 11))
+#: issue 14's targets: (problem, reliable ΔT error, wall time in ms)
+TARGETS = (("paper-example", 1e-3, 0.3), ("paper-example", 1e-7, 1.0), ("W2/aging", 1e-3, 1.0))
+#: the cost of a Rodas5P step attempt on the paper example, µs, events included
+ATTEMPT_TARGET_US = 0.4
+
+
+def _problems():
+    return {"paper-example": paper_example(), "W2/aging": window("W2", "aging")}
+
+
+def _lsoda_wall(problem, repeats: int) -> float:
+    """numbalsoda's ``lsoda`` once over 20,001 points at 1e−6, slow loading throughout (s)."""
+    import time
+
+    from numba import carray, cfunc
+    from numbalsoda import lsoda, lsoda_sig
+
+    from problems.formulations import N_Q, form_vector, ode_rhs, to_ode_state
+
+    @cfunc(lsoda_sig)
+    def rhs(t, u, du, data):
+        ode_rhs(carray(data, (N_Q,)), carray(u, (3,)), carray(du, (3,)))
+
+    nd = problem.nondimensional()
+    data = form_vector(nd, nd.e_slow)
+    z0, grid = to_ode_state(nd.law_code, nd.beta, nd.x0), np.linspace(0.0, nd.tau_end, 20_001)
+    walls = []
+    for _ in range(repeats + 1):
+        start = time.perf_counter()
+        _, ok = lsoda(rhs.address, z0, grid, data=data, rtol=1e-6, atol=1e-6)
+        walls.append(time.perf_counter() - start)
+        if not ok:
+            raise RuntimeError(f"numbalsoda's lsoda failed on {problem.name}")
+    return min(walls[1:])
+
+
+def _min_wall(problem, algorithm, repeats: int, **kw):
+    solve(problem, algorithm, **kw)                       # compiled, cache loaded
+    runs = [solve(problem, algorithm, **kw) for _ in range(repeats)]
+    return min(s.stats.wall_s for s in runs), runs[-1]
+
+
+def engine_speed(repeats: int = 5, progress: bool = False) -> tuple[pd.DataFrame, dict]:
+    """Every setting (a row each) and the yardstick's walls per problem (s)."""
+    rows, lsoda = [], {}
+    for pname, problem in _problems().items():
+        ref = reference(problem, progress=progress)
+        lsoda[pname] = _lsoda_wall(problem, repeats)
+        for name in METHODS:
+            for tol in TOLERANCES:
+                wall, sol = _min_wall(problem, REGISTRY[name](rtol=tol, atol=tol), repeats,
+                                      max_points=2)
+                err = errors(sol, ref)["err_recurrence"] if sol.reached_end else math.nan
+                s = sol.stats
+                rows.append(dict(problem=pname, method=name, tol=tol, err_dT=err,
+                                 steps=s.steps, rejected=s.rejected, nfev=s.nfev, njev=s.njev,
+                                 wall_ms=wall * 1e3,
+                                 us_per_attempt=wall * 1e6 / max(1, s.steps + s.rejected),
+                                 ratio_to_lsoda=wall / lsoda[pname]))
+    table = pd.DataFrame(rows)
+    # reliable at a level: this tolerance's error and every tighter one's are below it
+    table["err_reliable"] = (table.sort_values("tol").groupby(["problem", "method"])["err_dT"]
+                             .cummax().reindex(table.index))
+    return table, lsoda
+
+
+def targets(table: pd.DataFrame, lsoda: dict) -> pd.DataFrame:
+    """Issue 14's targets: the fastest reliable own setting per (problem, level), met or not."""
+    out = []
+    for pname, level, target_ms in TARGETS:
+        ok = table[(table.problem == pname) & (table.err_reliable <= level)]
+        best = ok.loc[ok.wall_ms.idxmin()] if len(ok) else None
+        out.append(dict(
+            target=f"{pname}, reliable ΔT error ≤ {level:g}", target_ms=target_ms,
+            fastest=(f"{best.method} {best.tol:.0e}" if best is not None else "none"),
+            wall_ms=best.wall_ms if best is not None else math.nan,
+            err_dT=best.err_dT if best is not None else math.nan,
+            lsoda_ms=lsoda[pname] * 1e3,
+            ratio_to_lsoda=best.ratio_to_lsoda if best is not None else math.nan,
+            attempts=int(best.steps + best.rejected) if best is not None else 0,
+            us_per_attempt=best.us_per_attempt if best is not None else math.nan,
+            met=bool(best is not None and best.wall_ms <= target_ms)))
+    rodas = table[(table.problem == "paper-example") & (table.method == "Rodas5P")]
+    out.append(dict(target="Rodas5P µs per step attempt, paper example (median over tolerances)",
+                    target_ms=ATTEMPT_TARGET_US, fastest="Rodas5P",
+                    wall_ms=float(np.median(rodas.us_per_attempt)), err_dT=math.nan,
+                    lsoda_ms=lsoda["paper-example"] * 1e3, ratio_to_lsoda=math.nan,
+                    attempts=0, us_per_attempt=math.nan,
+                    met=bool(np.median(rodas.us_per_attempt) <= ATTEMPT_TARGET_US)))
+    return pd.DataFrame(out)
+
+
+_STARTUP = ("import time; t0 = time.perf_counter(); import integrators as I, problems as P; "
+            "t1 = time.perf_counter(); I.solve(P.paper_example(), I.Rodas5P(rtol=1e-4, atol=1e-4)); "
+            "print(t1 - t0, time.perf_counter() - t1)")
+
+
+def startup(warm_repeats: int = 3) -> dict:
+    """Seconds: import, first solve (warm and cold) and the simulate command (warm)."""
+    import shutil
+    import subprocess
+    import sys
+    import tempfile
+    import time
+
+    root = Path(__file__).resolve().parent.parent
+
+    def once(cwd, env_path):
+        env = {**__import__("os").environ, "PYTHONPATH": str(env_path)}
+        out = subprocess.run([sys.executable, "-c", _STARTUP], cwd=cwd, env=env, check=True,
+                             capture_output=True, text=True).stdout.split()
+        return float(out[0]), float(out[1])
+
+    once(root, root)                                          # the cache filled
+    warm = [once(root, root) for _ in range(warm_repeats)]
+    with tempfile.TemporaryDirectory() as tmp:
+        for package in ("integrators", "problems", "benchmarks"):
+            shutil.copytree(root / package, Path(tmp) / package,
+                            ignore=shutil.ignore_patterns("__pycache__"))
+        cold = once(tmp, tmp)
+    simulate = []
+    for _ in range(warm_repeats):
+        start = time.perf_counter()
+        subprocess.run([sys.executable, "-m", "benchmarks.cli", "simulate", "--preset",
+                        "paper-example", "--json"], cwd=root, check=True, capture_output=True)
+        simulate.append(time.perf_counter() - start)
+    return {"import_warm": min(w[0] for w in warm), "first_solve_warm": min(w[1] for w in warm),
+            "import_cold": cold[0], "first_solve_cold": cold[1], "simulate_warm": min(simulate)}
+
+
+def _verdict(goals: pd.DataFrame) -> str:
+    """The targets in sentences read from the table: how many are met, and by how much each
+    missed one misses (for a wall-time target, what the setting's steps cost)."""
+    words = [f"{int(goals.met.sum())} of the {len(goals)} speed targets are met."]
+    for r in goals[~goals.met].itertuples():
+        if r.fastest == "none":
+            words.append(f"{r.target}: no own setting reaches it.")
+        elif r.attempts:
+            words.append(f"{r.target}: missed by {r.wall_ms / r.target_ms:.2g}×; {r.fastest} "
+                         f"takes {r.attempts:,} step attempts at {r.us_per_attempt:.2g} µs each.")
+        else:
+            words.append(f"{r.target}: missed by {r.wall_ms / r.target_ms:.2g}×.")
+    return " ".join(words)
+
+
+def engine_speed_markdown(goals: pd.DataFrame, t: dict, repeats: int) -> str:
+    """``engine_speed.md``: the targets table and the start-up times."""
+    lines = ["# The own compiled engine against issue 14's targets",
+             "",
+             f"`rsfbench engine-speed --out results` (min of {repeats} after a warm-up, "
+             "`max_points=2`, wall time of the solve without building the Solution; "
+             "numbalsoda's lsoda called once over a 20,001-point grid at 1e−6, no events, "
+             "timed in the same run). The last row's times are µs per step attempt.",
+             "",
+             "| target | goal (ms) | fastest reliable own setting | wall (ms) | ΔT error | "
+             "lsoda (ms) | ratio to lsoda | met |",
+             "|---|---|---|---|---|---|---|---|"]
+    for r in goals.itertuples():
+        lines.append(f"| {r.target} | {r.target_ms:g} | {r.fastest} | {r.wall_ms:.3g} | "
+                     f"{r.err_dT:.2g} | {r.lsoda_ms:.3g} | {r.ratio_to_lsoda:.2g} | "
+                     f"{'yes' if r.met else 'no'} |")
+    lines += ["", _verdict(goals), "",
+              "Start-up in a fresh process (`import integrators`; then the first solve, Rodas5P "
+              "on the paper example; the simulate command as a whole), warm numba cache (min of 3) "
+              "and cold (no cache: the kernels that solve needs are compiled):",
+              "",
+              "| | warm (s) | goal (s) | cold (s) |",
+              "|---|---|---|---|",
+              f"| `import integrators` | {t['import_warm']:.2f} | 1 | {t['import_cold']:.2f} |",
+              f"| first solve after it | {t['first_solve_warm']:.2f} | 0.5 | "
+              f"{t['first_solve_cold']:.1f} |",
+              f"| `rsfbench simulate --preset paper-example --json` | {t['simulate_warm']:.2f} | 2 "
+              "| – |"]
+    return "\n".join(lines) + "\n"
+
+
+def write_engine_speed(out: Path | None, repeats: int = 5) -> tuple[pd.DataFrame, str]:
+    """Measure; write ``engine_speed.csv`` and ``engine_speed.md`` in ``out`` (if given).
+    Returns the targets table and the Markdown."""
+    table, lsoda = engine_speed(repeats)
+    goals = targets(table, lsoda)
+    text = engine_speed_markdown(goals, startup(), repeats)
+    if out is not None:
+        atomic_write(out / "engine_speed.csv", table.to_csv(index=False))
+        atomic_write(out / "engine_speed.md", text)
+    return goals, text

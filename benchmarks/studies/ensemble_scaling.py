@@ -1,0 +1,247 @@
+"""Issue 16's targets for ensembles, measured: every figure reported, met or missed.
+
+* **21 × 21 on W2** (40 s a point, the study's recommended setting for ΔT to 1e−3): the ensemble
+  on 1 and 2 numba threads (minimum of ``repeats`` runs after a warm-up, no store), beside the
+  same points solved stand-alone, one :func:`integrators.solve` each (Σ of their own wall times).
+  Targets: ≤ 0.5 s on 2 cores, 2 threads ≥ 1.8× one, per-point wall on 2 threads within 1.2× of
+  the stand-alone solve divided by 2.
+* **10⁵ points** (W2, 20 s a point, the same setting) into a Parquet store, uninterrupted; then
+  the same ensemble in a fresh store, in a subprocess killed (SIGKILL) at ``kills`` random
+  moments of the work (after a random number of finished chunks, plus a random part of a
+  chunk's time) and restarted each time, then finished: the same table (every column but the wall
+  times), each point once. Targets: ≤ 3 min, store ≤ 50 MB.
+* **10⁴ points on a local Dask cluster** (a scheduler and 2 one-thread workers on 127.0.0.1,
+  started here and stopped after): the table against the local one, and the overhead per point.
+
+``rsfbench ensemble-scaling --out results`` writes ``ensemble_scaling.json`` and ``.md``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from benchmarks.devtools.work_precision import STUDY_CSV, recommended_algorithm
+from benchmarks.ensemble import ensemble, grid, point_problems, point_rows, read_store
+from benchmarks.inversion.published import B_STEP, best_fit
+from benchmarks.records.files import atomic_write
+from benchmarks.records.provenance import provenance
+from benchmarks.records.report import fmt, jsonable, markdown_table
+from problems import window
+
+__all__ = ["ensemble_scaling", "same_table", "TARGETS"]
+
+TARGETS = {"grid_wall_s": 0.5, "thread_speedup": 1.8, "per_point_ratio": 1.2,
+           "big_wall_s": 180.0, "big_store_mb": 50.0}
+
+
+def _grid21(n: int):
+    b0, lc0 = best_fit("W2", "slip")
+    b = np.round(b0 + B_STEP * np.arange(-(n // 2), n - n // 2), 12)
+    return grid(b=b, lc=np.geomspace(lc0 / 10, lc0 * 10, n))
+
+
+def _big_grid(n: int):
+    """n points (about √n × √n) over b 0.0084–0.0104 and Lc 0.03–3 µm (log) on W2."""
+    nb = max(1, int(round(np.sqrt(n))))
+    return grid(b=np.linspace(0.0084, 0.0104, nb), lc=np.geomspace(3e-8, 3e-6, -(-n // nb)))
+
+
+def same_table(a: pd.DataFrame, b: pd.DataFrame) -> bool:
+    """Are two ensemble tables the same, to the bit, in every column but the wall times?"""
+    cols = [c for c in a.columns if c != "wall_s"]
+    return (list(a.columns) == list(b.columns) and len(a) == len(b)
+            and all(a[c].equals(b[c]) for c in cols))
+
+
+def _time_grid(algorithm, n, repeats, progress):
+    base = window("W2", "slip", t_end=40.0)
+    points = _grid21(n)
+    ensemble(base, algorithm, {k: v[:2] for k, v in points.items()}, progress=False)   # warm
+    walls = {}
+    for workers in (1, 2):
+        runs = [ensemble(base, algorithm, points, workers=workers, progress=False)
+                for _ in range(repeats)]
+        walls[workers] = min(r.attrs["wall_s"] for r in runs)
+        table = runs[-1]
+    names, values = tuple(points), np.column_stack(list(points.values()))
+    single = point_rows(point_problems(base, names, values), algorithm, names, values)
+    n_points = len(table)
+    standalone = float(single.wall_s.sum())
+    per_point = walls[2] / n_points
+    return {"n_points": n_points, "wall_1_thread_s": walls[1], "wall_2_threads_s": walls[2],
+            "thread_speedup": walls[1] / walls[2],
+            "sum_batch_solve_s": float(table.wall_s.sum()),
+            "sum_standalone_solve_s": standalone,
+            "per_point_wall_2_threads_s": per_point,
+            "standalone_per_point_per_core_s": standalone / n_points / 2,
+            "per_point_ratio": per_point / (standalone / n_points / 2),
+            "classes": table.classification.value_counts().to_dict(),
+            "same_as_standalone": same_table(table, single)}
+
+
+_CHILD = """
+import sys
+from benchmarks.studies.ensemble_scaling import _big_run
+_big_run(sys.argv[1], int(sys.argv[2]), progress=False)
+"""
+
+
+def _big_run(store, n, progress=True, workers=2):
+    from benchmarks.devtools.work_precision import recommended_algorithm as rec
+    algorithm, _ = rec(1e-3)
+    return ensemble(window("W2", "slip", t_end=20.0), algorithm, _big_grid(n), store=store,
+                    workers=workers, progress=progress)
+
+
+def _time_big(n, kills, seed, progress):
+    rng = np.random.default_rng(seed)
+    with tempfile.TemporaryDirectory() as tmp:
+        whole_dir, killed_dir = Path(tmp) / "whole", Path(tmp) / "killed"
+        start = time.perf_counter()
+        whole = _big_run(whole_dir, n, progress=progress)
+        wall = time.perf_counter() - start
+        size = sum(f.stat().st_size for f in whole_dir.iterdir())
+        # a kill lands at a random moment of the work: once the store holds a random number of
+        # finished chunks (the kills' targets drawn without repeats, so each finds work left),
+        # plus a random part of a chunk's time, so that it hits a chunk in flight
+        n_chunks = whole.attrs["chunks"]
+        targets = np.sort(rng.choice(np.arange(1, n_chunks - 1), size=kills, replace=False))
+        per_chunk = wall / n_chunks
+        env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])}
+        at_kill, landed = [], []
+        for target in targets:
+            child = subprocess.Popen([sys.executable, "-c", _CHILD, str(killed_dir), str(n)],
+                                     env=env, stdout=subprocess.DEVNULL,
+                                     stderr=subprocess.DEVNULL)
+            while child.poll() is None and _chunks_in(killed_dir) < target:
+                time.sleep(0.01)
+            time.sleep(rng.uniform(0.0, per_chunk))
+            landed.append(child.poll() is None)          # still running: the kill hit it
+            child.send_signal(signal.SIGKILL)
+            child.wait()
+            at_kill.append(_chunks_in(killed_dir))
+        resumed = _big_run(killed_dir, n, progress=progress)
+        stored = read_store(killed_dir)
+        names = ["b", "lc"]
+        return {"n_points": len(whole), "wall_s": wall, "store_mb": size / 1e6,
+                "classes": whole.classification.value_counts().to_dict(),
+                "kill_targets_chunks": targets.tolist(), "kills_landed": landed,
+                "chunks_done_at_kills": at_kill,
+                "chunks": whole.attrs["chunks"],
+                "points_resumed_after_kills": resumed.attrs["n_resumed"],
+                "same_table_after_kills": same_table(resumed, whole),
+                "stored_rows": len(stored),
+                "stored_duplicates": int(stored.duplicated(subset=names).sum()),
+                "stored_equals_table": same_table(stored, whole)}
+
+
+def _chunks_in(directory: Path) -> int:
+    return len(list(directory.glob("_c*.parquet"))) if directory.exists() else 0
+
+
+def _time_dask(n, progress):
+    from distributed import LocalCluster
+    algorithm, _ = recommended_algorithm(1e-3)
+    base, points = window("W2", "slip", t_end=20.0), _big_grid(n)
+    local = ensemble(base, algorithm, points, workers=2, progress=progress)
+    with LocalCluster(n_workers=2, threads_per_worker=1, host="127.0.0.1", processes=True,
+                      dashboard_address=None) as cluster:
+        ensemble(base, algorithm, {k: v[:2] for k, v in points.items()}, progress=False,
+                 scheduler=cluster.scheduler_address)                       # warm the workers
+        on_dask = ensemble(base, algorithm, points, scheduler=cluster.scheduler_address,
+                           progress=progress)
+    wall = on_dask.attrs["wall_s"]
+    return {"n_points": len(on_dask), "wall_local_s": local.attrs["wall_s"], "wall_dask_s": wall,
+            "sum_solve_s": float(on_dask.wall_s.sum()),
+            "overhead_per_point_s": (2 * wall - float(on_dask.wall_s.sum())) / len(on_dask),
+            "chunks": on_dask.attrs["chunks"], "same_as_local": same_table(on_dask, local)}
+
+
+def ensemble_scaling(out, n: int = 21, big: int = 100_000, kills: int = 3, dask: int = 10_000,
+                     repeats: int = 3, seed: int = 0, progress: bool = True,
+                     study_csv=STUDY_CSV) -> dict:
+    """Measure the three targets (module docstring); write ``out/ensemble_scaling.json``, ``.md``."""
+    from benchmarks.ensemble import CHUNK_SIZE
+    n_chunks = -(-len(_big_grid(big)["b"]) // CHUNK_SIZE) if big else 0
+    if big and not kills <= n_chunks - 2:
+        raise ValueError(f"kills = {kills} need at least {kills + 2} chunks of {CHUNK_SIZE} "
+                         f"points, and big = {big} makes {n_chunks}: raise big or kill less")
+    algorithm, why = recommended_algorithm(1e-3, study_csv)
+    summary = {"integrator": algorithm.name, "integrator_choice": why, "targets": TARGETS,
+               "grid": _time_grid(algorithm, n, repeats, progress)}
+    if big:
+        summary["big"] = _time_big(big, kills, seed, progress)
+    if dask:
+        summary["dask"] = _time_dask(dask, progress)
+    summary["provenance"] = provenance()
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    atomic_write(out / "ensemble_scaling.json", json.dumps(jsonable(summary), indent=2))
+    atomic_write(out / "ensemble_scaling.md", scaling_markdown(summary))
+    return summary
+
+
+def _met(ok: bool) -> str:
+    return "met" if ok else "**missed**"
+
+
+def scaling_markdown(s: dict) -> str:
+    g, t = s["grid"], s["targets"]
+    rows = [
+        {"target": f"{g['n_points']} points (W2, 40 s each) on 2 cores",
+         "goal": f"≤ {t['grid_wall_s']} s", "measured": f"{fmt(g['wall_2_threads_s'])} s",
+         "": _met(g["wall_2_threads_s"] <= t["grid_wall_s"])},
+        {"target": "2 threads against 1", "goal": f"≥ {t['thread_speedup']}×",
+         "measured": f"{fmt(g['thread_speedup'])}× ({fmt(g['wall_1_thread_s'])} s on 1)",
+         "": _met(g["thread_speedup"] >= t["thread_speedup"])},
+        {"target": "per-point wall (2 threads) / (stand-alone solve / 2)",
+         "goal": f"≤ {t['per_point_ratio']}", "measured": fmt(g["per_point_ratio"]),
+         "": _met(g["per_point_ratio"] <= t["per_point_ratio"])},
+    ]
+    if "big" in s:
+        b = s["big"]
+        rows += [
+            {"target": f"{b['n_points']} points (W2, 20 s each) on 2 cores",
+             "goal": f"≤ {t['big_wall_s']:g} s", "measured": f"{fmt(b['wall_s'])} s",
+             "": _met(b["wall_s"] <= t["big_wall_s"])},
+            {"target": "its Parquet store", "goal": f"≤ {t['big_store_mb']:g} MB",
+             "measured": f"{fmt(b['store_mb'])} MB", "": _met(b["store_mb"] <= t["big_store_mb"])},
+            {"target": f"killed {sum(b['kills_landed'])}× mid-run (SIGKILL) and restarted",
+             "goal": "same table, each point once",
+             "measured": f"{'same' if b['same_table_after_kills'] else 'DIFFERENT'}; "
+                         f"{b['stored_rows']} rows stored, {b['stored_duplicates']} duplicated",
+             "": _met(b["same_table_after_kills"] and b["stored_equals_table"]
+                      and b["stored_duplicates"] == 0 and all(b["kills_landed"]))},
+        ]
+    if "dask" in s:
+        d = s["dask"]
+        rows.append({"target": f"{d['n_points']} points on a local Dask cluster (2 workers)",
+                     "goal": "the local table", "measured":
+                     f"{'same' if d['same_as_local'] else 'DIFFERENT'}; {fmt(d['wall_dask_s'])} s "
+                     f"(local {fmt(d['wall_local_s'])} s), overhead "
+                     f"{fmt(1e6 * d['overhead_per_point_s'])} µs/point",
+                     "": _met(d["same_as_local"])})
+    lines = [f"Integrator: {s['integrator_choice']}. Walls are the minimum of the repeats after "
+             "a warm-up (the grid) or one run (10⁵, Dask); \"stand-alone\" is one "
+             "`integrators.solve` per point, Σ of their own wall times "
+             f"({fmt(g['sum_standalone_solve_s'])} s for the grid; the batch's own per-point "
+             f"solves sum to {fmt(g['sum_batch_solve_s'])} s).", "",
+             markdown_table(pd.DataFrame(rows))]
+    if "big" in s:
+        b = s["big"]
+        lines += ["", f"Each kill came once the store held a random number of finished chunks "
+                  f"({', '.join(str(t) for t in b['kill_targets_chunks'])} of {b['chunks']}), "
+                  "plus a random part of a chunk's time; finished chunks when it landed: "
+                  f"{', '.join(str(c) for c in b['chunks_done_at_kills'])}. The final run "
+                  f"resumed {b['points_resumed_after_kills']} points and ran the rest."]
+    return "\n".join(lines) + "\n"
