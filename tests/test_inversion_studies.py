@@ -17,7 +17,7 @@ from benchmarks.cli.main import main
 from benchmarks.inversion import (Misfit, MetricMap, NO_CYCLE_J1, box_grid, metric_map,
                                   synthetic)
 from benchmarks.inversion import calibration as C
-from benchmarks.inversion import solver_effect as SE
+from benchmarks.studies import solver_effect as SE
 from benchmarks.inversion.sweep import Observations
 from benchmarks.devtools.work_precision import algorithm_at
 from integrators import Rodas5P
