@@ -61,3 +61,17 @@ def test_recommendation_bullets_follow_the_study(tmp_path):
         "error 0.0005, 3 ms for both problems;\n"
         "* **for recurrence intervals to 10⁻⁶, use `Rodas5P`** at rtol = atol = 1e-07: worst "
         "error 9e-07, 9 ms for both problems.")
+
+
+def test_a_block_says_which_run_it_comes_from_and_whether_it_is_stale(tmp_path):
+    """The committed manifest names the study and commit; a block is stale exactly when the
+    study's inputs (the machine aside) differ from those of that run."""
+    from benchmarks.pipeline import manifest as M
+    from benchmarks.pipeline.reproduce import _inputs, study_named
+    line = readme.origin("results/windows.md")
+    record = M.read_manifest(readme.ROOT / "results")["windows"]
+    assert f"the study `windows` at commit `{record['git_commit'][:12]}`" in line
+    now = _inputs(study_named("windows"), readme.ROOT / "results")
+    same = M.inputs_hash({**record["inputs"], "machine": now["machine"]}) == M.inputs_hash(now)
+    assert ("**Stale**" not in line) == same
+    assert readme.origin("results/x.md", _root(tmp_path)) == ""       # no manifest: no line

@@ -52,38 +52,45 @@ def test_the_import_graph_counts_imports_inside_functions_and_relative_ones(tmp_
 
 # --- reuse, on fake steps ------------------------------------------------------------------
 
-STEPS_PY = """
-from pathlib import Path
+def _study(name, call, writes, **kw):
+    return f"""
+from benchmarks.studies.study import Study
 
 
-def make(out, n=1):
-    from fakeplan.lib import value
-    (out / "a.txt").write_text(value() * n)
+def run(out{", n=1" if "settings" in kw else ""}):
+    {call}
 
 
-def shout(out):
-    (out / "b.txt").write_text((out / "a.txt").read_text().upper())
-
-
-def clock(out):
-    (out / "c.txt").write_text("fast")
+STUDY = Study({name!r}, {name + " it"!r}, {len(name)}, run, writes=({writes!r},),
+              minutes=0.1, {", ".join(f"{k}={v!r}" for k, v in kw.items())})
 """
+
+
+#: three fake studies, one module each: make writes a.txt (through a library module), shout
+#: reads it and writes b.txt, clock is timed
+STUDIES = {
+    "fakeplan/studies/make.py": _study("make", "from fakeplan.lib import value\n    "
+                                       "(out / 'a.txt').write_text(value() * n)", "a.txt",
+                                       settings={"n": 1}),
+    "fakeplan/studies/shout.py": _study("shout", "(out / 'b.txt').write_text((out / 'a.txt')"
+                                        ".read_text().upper())", "b.txt", reads=("a.txt",)),
+    "fakeplan/studies/clock.py": _study("clocks", "(out / 'c.txt').write_text('fast')", "c.txt",
+                                        timed=True),
+}
 
 
 @pytest.fixture
 def fake(tmp_path, monkeypatch):
-    """A project ``fakeplan`` (three steps, a library module, an unrelated one) and an empty
+    """A project ``fakeplan`` (three studies, a library module, an unrelated one) and an empty
     results directory."""
     root = tmp_path / "project"
-    _write(root, {"fakeplan/__init__.py": "",
+    _write(root, {"fakeplan/__init__.py": "", "fakeplan/studies/__init__.py": "",
                   "fakeplan/lib.py": "def value():\n    return 'v'\n",
-                  "fakeplan/other.py": "x = 1\n",
-                  "fakeplan/steps.py": STEPS_PY})
+                  "fakeplan/other.py": "x = 1\n", **STUDIES})
     monkeypatch.syspath_prepend(str(root))
     monkeypatch.setattr(sys, "dont_write_bytecode", True)
     for name in [m for m in sys.modules if m.split(".")[0] == "fakeplan"]:
         monkeypatch.delitem(sys.modules, name)
-    steps = importlib.import_module("fakeplan.steps")
     out = tmp_path / "results"
     out.mkdir()
 
@@ -91,10 +98,8 @@ def fake(tmp_path, monkeypatch):
         pass
 
     f = Fake()
-    f.root, f.out, f.module = root, out, steps
-    f.steps = [RP.Step("make", "make a", steps.make, settings={"n": 1}),
-               RP.Step("shout", "shout a", steps.shout, reads=("a.txt",)),
-               RP.Step("clock", "time it", steps.clock, timed=True)]
+    f.root, f.out = root, out
+    f.steps = list(RP.studies.__wrapped__("fakeplan.studies"))
 
     def run(modes="check", steps=None, **kw):
         steps = steps or f.steps
@@ -109,16 +114,17 @@ def fake(tmp_path, monkeypatch):
 
 
 def test_a_step_runs_once_then_is_reused(fake, capsys):
-    assert fake.run() == {"make": "ran", "shout": "ran", "clock": "ran"}
+    assert fake.run() == {"make": "ran", "shout": "ran", "clocks": "ran"}
     assert (fake.out / "b.txt").read_text() == "V"
-    assert fake.run() == {"make": "reused", "shout": "reused", "clock": "reused"}
+    assert fake.run() == {"make": "reused", "shout": "reused", "clocks": "reused"}
     assert "make: reused (inputs unchanged)" in capsys.readouterr().out
 
 
 def test_the_manifest_is_json_pandas_reads(fake):
     fake.run()
     table = pd.read_json(fake.out / "manifest.json")
-    assert list(table.step) == ["make", "shout", "clock"]
+    assert list(table.step) == ["make", "shout", "clocks"]
+    assert table.set_index("step").loc["make"].plan == "quick"
     row = table.set_index("step").loc["make"]
     assert set(row.outputs) == {"a.txt"} and len(row.inputs_hash) == 64
     assert set(row.inputs) == {"code", "versions", "settings", "machine", "reads"}
@@ -129,19 +135,23 @@ def test_the_manifest_is_json_pandas_reads(fake):
 
 def test_a_step_reruns_when_code_it_imports_changes(fake, capsys):
     fake.run()
-    (fake.root / "fakeplan/other.py").write_text("x = 2\n")       # imported by no step
+    (fake.root / "fakeplan/other.py").write_text("x = 2\n")       # imported by no study
     assert set(fake.run().values()) == {"reused"}
+    # a study's own module counts whole: its helpers too
+    (fake.root / "fakeplan/studies/clock.py").write_text(
+        STUDIES["fakeplan/studies/clock.py"] + "\n\ndef helper():\n    return 1\n")
+    assert fake.run() == {"make": "reused", "shout": "reused", "clocks": "ran"}
     # documentation is not code: a docstring, a comment, the layout
     (fake.root / "fakeplan/lib.py").write_text(
         'def value():\n    """The value."""\n\n    return  \'v\'  # same\n')
     assert set(fake.run().values()) == {"reused"}
     (fake.root / "fakeplan/lib.py").write_text("def value():\n    return 'v' + ''\n")
     # make reruns; it writes the same a.txt, so shout, which reads it, is reused
-    assert fake.run() == {"make": "ran", "shout": "reused", "clock": "reused"}
+    assert fake.run() == {"make": "ran", "shout": "reused", "clocks": "reused"}
     assert "inputs changed: code (fakeplan/lib.py)" in capsys.readouterr().out
     (fake.root / "fakeplan/lib.py").write_text("def value():\n    return 'w'\n")
     del sys.modules["fakeplan.lib"]            # a new process would import it afresh
-    assert fake.run() == {"make": "ran", "shout": "ran", "clock": "reused"}
+    assert fake.run() == {"make": "ran", "shout": "ran", "clocks": "reused"}
     assert (fake.out / "b.txt").read_text() == "W"
 
 
@@ -177,34 +187,34 @@ def test_an_optional_pin_counts_only_for_the_code_that_imports_it(tmp_path):
 def test_a_step_gets_an_optional_pin_it_imports_through_other_modules():
     """The inversion step imports emcee four modules down, inside a function; the windows step
     never does."""
-    steps = {s.name: s for s in RP.STEPS}
-    inversion = M.step_inputs(steps["inversion"].run, {}, M.ROOT / "results")
-    windows = M.step_inputs(steps["windows"].run, {}, M.ROOT / "results")
+    inversion = RP._inputs(RP.study_named("inversion"), M.ROOT / "results")
+    windows = RP._inputs(RP.study_named("windows"), M.ROOT / "results")
     assert "emcee" in inversion["versions"] and "corner" in inversion["versions"]
     assert "emcee" not in windows["versions"] and "numpy" in windows["versions"]
 
 
 def test_a_step_reruns_when_its_settings_change(fake):
     fake.run()
-    steps = [RP.Step("make", "make a", fake.module.make, settings={"n": 2})] + fake.steps[1:]
-    assert fake.run(steps=steps) == {"make": "ran", "shout": "ran", "clock": "reused"}
+    import dataclasses
+    steps = [dataclasses.replace(fake.steps[0], settings={"n": 2})] + fake.steps[1:]
+    assert fake.run(steps=steps) == {"make": "ran", "shout": "ran", "clocks": "reused"}
     assert (fake.out / "b.txt").read_text() == "VV"
 
 
 def test_only_a_timed_step_reruns_on_another_machine(fake, monkeypatch):
     fake.run()
     monkeypatch.setattr(M, "machine", lambda: {"cpu": "another", "n_cpus": 64})
-    assert fake.run() == {"make": "reused", "shout": "reused", "clock": "ran"}
+    assert fake.run() == {"make": "reused", "shout": "reused", "clocks": "ran"}
 
 
 def test_a_step_reruns_when_its_output_was_deleted_or_modified(fake, capsys):
     fake.run()
     (fake.out / "b.txt").unlink()
-    assert fake.run() == {"make": "reused", "shout": "ran", "clock": "reused"}
+    assert fake.run() == {"make": "reused", "shout": "ran", "clocks": "reused"}
     assert "outputs missing: b.txt" in capsys.readouterr().out
     (fake.out / "a.txt").write_text("edited by hand")
     # make rewrites a.txt as it was, so shout's input is what it last read
-    assert fake.run() == {"make": "ran", "shout": "reused", "clock": "reused"}
+    assert fake.run() == {"make": "ran", "shout": "reused", "clocks": "reused"}
     assert "outputs changed since: a.txt" in capsys.readouterr().out
     assert (fake.out / "a.txt").read_text() == "v"
 
@@ -213,10 +223,10 @@ def test_run_keep_and_dry_run(fake, capsys):
     fake.run()
     assert fake.run({"make": "run"}) == {"make": "ran"}              # --only / --force
     (fake.root / "fakeplan/lib.py").write_text("def value():\n    return 'x'\n")
-    assert fake.run("keep") == {"make": "stale", "shout": "reused", "clock": "reused"}
+    assert fake.run("keep") == {"make": "stale", "shout": "reused", "clocks": "reused"}
     assert "make: kept, a step of the full plan (inputs changed" in capsys.readouterr().out
     before = (fake.out / "manifest.json").read_text()
-    assert fake.run(dry_run=True) == {"make": "would run", "shout": "reused", "clock": "reused"}
+    assert fake.run(dry_run=True) == {"make": "would run", "shout": "reused", "clocks": "reused"}
     assert (fake.out / "a.txt").read_text() == "v"
     assert (fake.out / "manifest.json").read_text() == before
 
@@ -234,27 +244,32 @@ def test_a_bad_manifest_means_every_step_reruns(fake, capsys):
 def test_the_plans(fake, monkeypatch):
     """The quick plan keeps the full steps, --full runs them, --only reruns one step, --from
     starts later; misuse is one clear error."""
-    steps = (fake.steps[0], RP.Step("shout", "shout a", fake.module.shout, full=True,
-                                    reads=("a.txt",)), fake.steps[2])
-    monkeypatch.setattr(RP, "STEPS", steps)
-    monkeypatch.setattr(RP, "STEP_NAMES", tuple(s.name for s in steps))
-    monkeypatch.setattr(RP, "_collect", lambda out: {})
-    monkeypatch.setattr(RP, "_report_markdown", lambda r: "report\n")
+    import dataclasses
+    steps = (fake.steps[0], dataclasses.replace(fake.steps[1], plan="full"), fake.steps[2])
+    monkeypatch.setattr(RP, "studies", lambda: steps)
+    monkeypatch.setattr(RP, "report_markdown", lambda plan, out: "report\n")
+    real = RP.run_steps
+    monkeypatch.setattr(RP, "run_steps", lambda *a, **kw: real(
+        *a, root=fake.root, packages=("fakeplan",), whole=(), **kw))
 
     def plan(**kw):
         return {r["step"]: r["status"] for r in RP.reproduce(fake.out, **kw)}
 
-    assert plan() == {"make": "ran", "shout": "stale", "clock": "ran"}
+    assert plan() == {"make": "ran", "shout": "stale", "clocks": "ran"}
     assert not (fake.out / "b.txt").exists()
-    assert plan(full=True) == {"make": "reused", "shout": "ran", "clock": "reused"}
-    assert plan() == {"make": "reused", "shout": "reused", "clock": "reused"}
-    assert plan(only="clock") == {"clock": "ran"}
-    assert plan(start="shout", full=True) == {"shout": "reused", "clock": "reused"}
-    assert plan(force=True) == {"make": "ran", "shout": "reused", "clock": "ran"}
+    assert plan(full=True) == {"make": "reused", "shout": "ran", "clocks": "reused"}
+    assert plan() == {"make": "reused", "shout": "reused", "clocks": "reused"}
+    assert plan(only="clocks") == {"clocks": "ran"}
+    assert plan(start="shout", full=True) == {"shout": "reused", "clocks": "reused"}
+    assert plan(force=True) == {"make": "ran", "shout": "reused", "clocks": "ran"}
     assert (fake.out / "REPORT.md").read_text() == "report\n"
-    with pytest.raises(ValueError, match="only='x'"):
+    with pytest.raises(ValueError, match="unknown study 'x'"):
         plan(only="x")
-    with pytest.raises(ValueError, match="step 'shout' is in the full plan only"):
+    with pytest.raises(ValueError, match="no setting m; its settings: n"):
+        plan(only="make", settings={"m": 2})
+    assert plan(only="make", settings={"n": 3}) == {"make": "ran"}
+    assert (fake.out / "a.txt").read_text() == "vvv"
+    with pytest.raises(ValueError, match="study 'shout' is in the full plan only"):
         plan(start="shout")
     with pytest.raises(ValueError, match="scipy budget"):
         plan(scipy_budget=5.0)
@@ -262,21 +277,81 @@ def test_the_plans(fake, monkeypatch):
 
 # --- the real steps ------------------------------------------------------------------------
 
-def test_every_step_declares_inputs_that_resolve(tmp_path):
+def test_every_study_declares_inputs_that_resolve(tmp_path):
     import inspect
-    for step in RP.STEPS:
-        assert list(inspect.signature(step.run).parameters)[1:] == list(step.settings), step.name
-        inputs = RP._inputs(step, tmp_path)
-        assert (inputs["machine"] is not None) == step.timed
-        assert any(k.startswith("integrators/") for k in inputs["code"]), step.name
-        assert any(k.endswith(f"::{step.run.__name__}") for k in inputs["code"])
-    code = RP._inputs(RP.STEPS[RP.STEP_NAMES.index("probe")], tmp_path)["code"]
-    assert {"benchmarks/cli/main.py", "benchmarks/probe_cases.py", "problems/presets.py"} <= set(code)
-    code = RP._inputs(RP.STEPS[RP.STEP_NAMES.index("windows")], tmp_path)["code"]
-    assert {"benchmarks/studies/windows.py", "benchmarks/physics/summary.py", "integrators/own/etd.py"} <= set(code)
+    plan = RP.studies()
+    assert len(plan) == 26
+    for study in plan:
+        assert list(inspect.signature(study.run).parameters)[1:] == list(study.settings), \
+            study.name
+        inputs = RP._inputs(study, tmp_path)
+        assert (inputs["machine"] is not None) == study.timed
+        assert any(k.startswith("integrators/") for k in inputs["code"]), study.name
+        assert any(k.endswith(f"::{study.run.__name__}") for k in inputs["code"])
+        assert inspect.getsourcefile(study.run).endswith(
+            f"{study.run.__module__.replace('.', '/')}.py")
+    code = RP._inputs(RP.study_named("probe"), tmp_path)["code"]
+    assert {"benchmarks/cli/main.py", "benchmarks/probe_cases.py", "problems/presets.py"} <= set(
+        code)
+    code = RP._inputs(RP.study_named("windows"), tmp_path)["code"]
+    assert {"benchmarks/studies/windows.py", "benchmarks/physics/summary.py",
+            "integrators/own/etd.py"} <= set(code)
     assert "benchmarks/pipeline/reproduce.py" not in code and "benchmarks/cli/main.py" not in code
-    assert {"speedup", "work-precision", "target-full", "binding-overhead",
-            "ensemble-scaling", "solver-effect", "family", "mass-limit"} == set(RP.FULL_STEPS)
+    assert {s.name for s in plan if s.full} == {
+        "speedup", "work-precision", "target-full", "binding-overhead", "ensemble-scaling",
+        "solver-effect", "family", "mass-limit"}
+
+
+def test_each_committed_result_file_belongs_to_one_study():
+    """Every file of results/ that a study wrote matches the patterns of exactly one study."""
+    records = M.read_manifest(M.ROOT / "results")
+    plan = RP.studies()
+    for name, record in records.items():
+        for path in record["outputs"]:
+            owners = [s.name for s in plan if s.declares(path)]
+            assert owners == [name], (path, owners)
+
+
+def test_a_plan_that_reads_what_no_earlier_study_writes_is_refused(fake):
+    import dataclasses
+    make, shout, clocks = fake.steps
+    with pytest.raises(ValueError, match="shout reads a.txt, which no earlier study writes"):
+        RP.check_plan([shout, make])
+    with pytest.raises(ValueError, match="share a name"):
+        RP.check_plan([make, dataclasses.replace(make, order=99)])
+
+
+def test_a_study_that_writes_what_it_does_not_declare_fails(fake):
+    import dataclasses
+    make = fake.steps[0]
+    stray = dataclasses.replace(make, writes=("z.txt",))
+    with pytest.raises(RuntimeError, match="declares z.txt but wrote no such file"):
+        fake.run(steps=[stray])
+    both = dataclasses.replace(make, writes=("a.txt", "z.txt"))
+    with pytest.raises(RuntimeError, match="declares z.txt"):
+        fake.run(steps=[both])
+
+    def extra(out, n=1):
+        make.run(out, n)
+        (out / "undeclared.txt").write_text("x")
+    with pytest.raises(RuntimeError, match="wrote undeclared.txt .* which no study declares"):
+        fake.run(steps=[dataclasses.replace(make, run=extra)])
+
+
+def test_the_report_has_a_section_per_study_with_its_commit_and_staleness(fake):
+    import dataclasses
+    fake.run()
+    code = {"root": fake.root, "packages": ("fakeplan",), "whole": ()}
+    text = RP.report_markdown(fake.steps, fake.out, **code)
+    assert "## make it" not in text                     # the fake studies give no section
+    steps = [dataclasses.replace(s, report=lambda out, s=s: f"body of {s.name}\n")
+             for s in fake.steps]
+    text = RP.report_markdown(steps, fake.out, **code)
+    assert "## make it\n\n*From the run at commit" in text and "body of make" in text
+    (fake.root / "fakeplan/lib.py").write_text("def value():\n    return 'w'\n")
+    del sys.modules["fakeplan.lib"]
+    text = RP.report_markdown(steps, fake.out, **code)
+    assert "**Stale**: inputs changed: code (fakeplan/lib.py)" in text
 
 
 def test_the_command_line_refuses_misuse_in_one_line(capsys):
@@ -294,7 +369,7 @@ def test_a_dry_run_says_what_would_run_and_writes_nothing(tmp_path, capsys):
     assert main(["reproduce", "--dry-run", "--out", str(out)]) == 0
     text = capsys.readouterr().out
     assert "windows: would run (not in the manifest; ~9 s)" in text
-    assert "steps would run (~" in text
+    assert "steps would run (~" in text and "probe: would run" in text
     assert "speedup: kept, a step of the full plan (not in the manifest" in text
     assert not out.exists()
 
@@ -309,47 +384,13 @@ def test_two_runs_at_once_keep_each_others_records(fake):
     """Two ``--only`` runs of different steps at once: each reads the manifest again before it
     writes a record, so neither drops the other's (here the second finishes during the first's
     step; before, the first wrote the records it had read at its start)."""
-    module = fake.module
+    import dataclasses
+    make = fake.steps[0]
 
     def make_while_clock_runs(out, n):
-        fake.run({"clock": "run"})
-        module.make(out, n)
+        fake.run({"clocks": "run"})
+        make.run(out, n)
 
-    steps = [RP.Step("make", "make a", make_while_clock_runs, settings={"n": 1})]
+    steps = [dataclasses.replace(make, run=make_while_clock_runs), *fake.steps[1:]]
     assert fake.run({"make": "run"}, steps=steps) == {"make": "ran"}
-    assert set(M.read_manifest(fake.out)) == {"make", "clock"}
-
-
-def test_a_file_claimed_by_two_runs_at_once_goes_to_the_one_that_wrote_it(tmp_path):
-    """Two `--only` runs at once each see the other's files appear; the file's time decides.
-    Here speedup (12:00–12:15) ran beside target-full (12:01–12:34), as on 2026-11-23, when
-    target-full's record claimed speedup's three files."""
-    import datetime
-    import os
-
-    def at(hhmmss):
-        return datetime.datetime.fromisoformat(f"2026-11-23T{hhmmss}")
-
-    def record(step, finished, outputs):
-        return {"step": step, "finished": at(finished).isoformat(), "outputs": dict.fromkeys(
-            outputs, "h")}
-
-    for name, written in (("speedup.md", "12:14:59"), ("wp_full.csv", "12:34:00"),
-                          ("later.md", "13:00:00")):
-        (tmp_path / name).write_text("x")
-        os.utime(tmp_path / name, (at(written).timestamp(),) * 2)
-    records = {"speedup": record("speedup", "12:15:00", ["speedup.md"]),
-               "target-full": record("target-full", "12:34:34",
-                                     ["speedup.md", "wp_full.csv", "later.md"]),
-               "work-precision": record("work-precision", "12:40:50",
-                                        ["wp_full.csv", "later.md"])}
-    M.assign_outputs(records, tmp_path)
-    assert list(records["speedup"]["outputs"]) == ["speedup.md"]
-    assert list(records["target-full"]["outputs"]) == ["wp_full.csv", "later.md"]
-    # written after both claimants finished: it changed since, both keep it and are stale
-    assert list(records["work-precision"]["outputs"]) == ["later.md"]
-    # a record whose time cannot be read (edited by hand) keeps its claims, and nothing raises
-    records["speedup"]["finished"] = "yesterday"
-    records["target-full"]["outputs"]["speedup.md"] = "h"
-    M.assign_outputs(records, tmp_path)
-    assert "speedup.md" in records["target-full"]["outputs"]
+    assert set(M.read_manifest(fake.out)) == {"make", "clocks"}

@@ -62,17 +62,21 @@ REPRODUCE_HELP = """\
 Bring the results directory up to date, write its REPORT.md and, for the
 project's results/, refill the README's generated blocks.
 
-The quick plan (the default; `make reproduce`) runs the quick steps:
-{quick}
-The full plan (--full; `make reproduce-full`) also runs the long ones:
-{full}
-The quick plan keeps the files of the full steps and says which are stale.
+The quick plan (the default; `make reproduce`) runs the quick studies; the
+full plan (--full; `make reproduce-full`) also the long ones. The quick plan
+keeps the files of the full studies and says which are stale. `rsfbench study
+--list` lists the studies, their plan, minutes and files.
 
-A step is reused, not rerun, when its code, the package versions, its
+A study is reused, not rerun, when its code, the package versions, its
 settings, the files it reads and, for a timing, the machine are those of its
 last run, and the files it wrote are there unchanged (results/manifest.json).
---force reruns every step of the plan; --only STEP reruns one step.
-See docs/reproduce.md."""
+--force reruns every study of the plan; --only STUDY (or `rsfbench study
+STUDY`) reruns one. See docs/reproduce.md."""
+
+STUDY_HELP = """\
+Run one study of the pipeline, whatever its inputs, as `rsfbench reproduce
+--only NAME` does: it writes its declared files to --out, records them in
+the manifest and rewrites REPORT.md. --list lists the studies."""
 
 
 def algorithm_name(name: str, flag: str = "--integrators") -> str:
@@ -376,6 +380,46 @@ def cmd_reproduce(args) -> int:
     return 0
 
 
+def cmd_study(args) -> int:
+    from benchmarks.pipeline.reproduce import describe, list_markdown, reproduce, studies, summary
+    if args.list:
+        if args.name or args.settings:
+            raise ValueError("--list takes no study name or --set")
+        if args.json:
+            say(json.dumps([{"name": s.name, "title": s.title, "plan": s.plan,
+                             "minutes": s.minutes, "reads": list(s.reads),
+                             "writes": list(s.writes), "settings": s.settings,
+                             "timed": s.timed} for s in studies()], indent=2))
+        else:
+            say(list_markdown(), end="")
+        return 0
+    if not args.name:
+        raise ValueError("name a study (`rsfbench study --list` lists them)")
+    if args.json:
+        raise ValueError("--json goes with --list")
+    settings = dict(_setting(text) for text in args.settings)
+    rows = reproduce(Path(args.out), only=args.name, dry_run=args.dry_run,
+                     settings=settings or None)
+    if args.dry_run:
+        for row in rows:
+            say(describe(row))
+    say(summary(rows))
+    return 0
+
+
+def _setting(text: str) -> tuple[str, object]:
+    """``KEY=VALUE`` of ``--set``: the value as an int, a float or the word itself."""
+    key, sep, value = text.partition("=")
+    if not sep or not key.isidentifier():
+        raise ValueError(f"--set: expected KEY=VALUE, got {text!r}")
+    for kind in (int, float):
+        try:
+            return key, kind(value)
+        except ValueError:
+            pass
+    return key, value
+
+
 def _listed(names) -> str:
     return textwrap.fill(", ".join(names) + ".", 78, initial_indent="  ", subsequent_indent="  ")
 
@@ -509,34 +553,43 @@ def build_parser() -> Parser:
                     help="only say which blocks are out of date (exit status 1 if any)")
     rd.set_defaults(func=cmd_readme)
 
-    from benchmarks.pipeline.reproduce import FULL_STEPS, QUICK_STEPS, STEP_NAMES, STEPS
-    quick_minutes = sum(s.minutes for s in STEPS if not s.full)
-    full_hours = sum(s.minutes for s in STEPS) / 60
     r = sub.add_parser("reproduce", help="bring results/ up to date (what `make reproduce` runs)",
-                       description=REPRODUCE_HELP.format(quick=_listed(QUICK_STEPS),
-                                                         full=_listed(FULL_STEPS)))
+                       description=REPRODUCE_HELP)
     r.add_argument("--out", type=out_dir, default="results", metavar="DIR",
                    help="directory of the results")
     r.add_argument("--full", action="store_true",
-                   help="the full plan: also the long steps (" + ", ".join(FULL_STEPS) + "; "
-                        f"about {full_hours:.1f} h on 2 cores) (default: the quick plan, "
-                        f"~{quick_minutes:.0f} min when every quick step runs)")
+                   help="the full plan: also the long studies (about 3.5 h on 2 cores; "
+                        "`rsfbench study --list` says which) (default: the quick plan)")
     r.add_argument("--force", action="store_true",
-                   help="rerun every step of the plan, reusing none (default: reuse the steps "
-                        "whose inputs did not change)")
+                   help="rerun every study of the plan, reusing none (default: reuse the "
+                        "studies whose inputs did not change)")
     r.add_argument("--dry-run", action="store_true",
-                   help="say which steps would run and why, run nothing")
+                   help="say which studies would run and why, run nothing")
     r.add_argument("--scipy-budget", type=positive, metavar="S",
-                   help="wall budget of scipy's RK45 in the speedup step in s, with --full or "
+                   help="wall budget of scipy's RK45 in the speedup study in s, with --full or "
                         "--only speedup (default 600 s)")
     which = r.add_mutually_exclusive_group()
-    which.add_argument("--from", dest="start", choices=STEP_NAMES, metavar="STEP",
-                       help="start at this step of the plan, leaving the earlier ones alone "
-                            f"(steps: {', '.join(STEP_NAMES)}; default: the first)")
-    which.add_argument("--only", choices=STEP_NAMES, metavar="STEP",
-                       help="rerun this step alone, quick or full, whatever its inputs "
-                            "(default: every step of the plan)")
+    which.add_argument("--from", dest="start", metavar="STUDY",
+                       help="start at this study of the plan, leaving the earlier ones alone "
+                            "(default: the first)")
+    which.add_argument("--only", metavar="STUDY",
+                       help="rerun this study alone, quick or full, whatever its inputs "
+                            "(default: every study of the plan)")
     r.set_defaults(func=cmd_reproduce)
+
+    st = sub.add_parser("study", help="run one study of the pipeline (or --list them)",
+                        description=STUDY_HELP)
+    st.add_argument("name", nargs="?", metavar="NAME", help="the study (see --list)")
+    st.add_argument("--list", action="store_true",
+                    help="list the studies: plan, expected minutes, files read and written")
+    st.add_argument("--out", type=out_dir, default="results", metavar="DIR",
+                    help="directory of the results (default: results)")
+    st.add_argument("--set", dest="settings", action="append", default=[], metavar="KEY=VALUE",
+                    help="a setting of the study, by name (a number or a word; repeatable; "
+                         "default: the study's own, which --list --json shows)")
+    st.add_argument("--dry-run", action="store_true", help="say what would run, run nothing")
+    st.add_argument("--json", action="store_true", help="with --list: one JSON array")
+    st.set_defaults(func=cmd_study)
 
     pr = sub.add_parser("probe", help="the reliability probe: bad input, budgets, corrupt "
                         "files, --json, classification, each case checked")

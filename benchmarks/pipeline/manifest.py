@@ -43,7 +43,7 @@ from benchmarks.records.files import BadResultsFile, atomic_write
 __all__ = ["ROOT", "PACKAGES", "WHOLE_PACKAGES", "MANIFEST", "import_graph", "find_cycles",
            "step_inputs", "inputs_hash", "what_changed", "versions", "machine", "file_hash",
            "code_hash", "read_manifest", "write_manifest", "snapshot", "written_since", "reusable",
-           "assign_outputs", "make_record"]
+           "make_record"]
 
 ROOT = Path(__file__).resolve().parents[2]
 #: the project's packages: imports of these are followed
@@ -195,10 +195,11 @@ def _without_docstrings(tree: ast.AST) -> ast.AST:
     return tree
 
 
+@functools.lru_cache(maxsize=4096)
 def code_hash(source: str) -> str:
     """The hash of Python source as what runs: its syntax tree without docstrings (comments and
     layout are not in the tree), so that a documentation edit does not make results stale.
-    Source that does not parse is hashed as text."""
+    Source that does not parse is hashed as text. (Cached by the source text.)"""
     try:
         tree = _without_docstrings(ast.parse(source))
     except SyntaxError:
@@ -246,18 +247,22 @@ def _pinned(root: Path, optional: bool = False) -> list[str]:
 def _top_imports(sources) -> set[str]:
     """The top-level names of the modules that the Python ``sources`` import (absolute imports,
     at module level or inside functions; a source that does not parse imports nothing)."""
+    return set().union(*map(_imports_of, sources))
+
+
+@functools.lru_cache(maxsize=4096)
+def _imports_of(text: str) -> frozenset[str]:
+    try:
+        tree = ast.parse(text)
+    except SyntaxError:
+        return frozenset()
     names = set()
-    for text in sources:
-        try:
-            tree = ast.parse(text)
-        except SyntaxError:
-            continue
-        for node in ast.walk(tree):
-            if isinstance(node, ast.Import):
-                names.update(a.name.split(".")[0] for a in node.names)
-            elif isinstance(node, ast.ImportFrom) and not node.level and node.module:
-                names.add(node.module.split(".")[0])
-    return names
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names.update(a.name.split(".")[0] for a in node.names)
+        elif isinstance(node, ast.ImportFrom) and not node.level and node.module:
+            names.add(node.module.split(".")[0])
+    return frozenset(names)
 
 
 def versions(root: Path = ROOT, sources=None) -> dict[str, str]:
@@ -409,40 +414,6 @@ def written_since(before: dict, out: Path) -> dict[str, str]:
     after = snapshot(out)
     return {p: file_hash(Path(out) / p) for p, stamp in sorted(after.items())
             if before.get(p) != stamp}
-
-
-def assign_outputs(records: dict[str, dict], out: Path) -> None:
-    """Give each file that several records claim to the one that finished first after the file
-    was last written (1 s slack: ``finished`` is kept to the second), and drop it from the
-    others, in place. Two runs of different steps at once each see the other's files appear
-    (:func:`written_since` goes by what changed in ``out``), so each claims both; the file's
-    time says whose it is. A file written after every claimant finished stays with all of them:
-    it changed since, and they are all stale."""
-    claims: dict[str, list[str]] = {}
-    for name, r in records.items():
-        for p in r["outputs"]:
-            claims.setdefault(p, []).append(name)
-    for p, names in claims.items():
-        path = Path(out) / p
-        if len(names) < 2 or not path.is_file():
-            continue
-        finished = {n: _finished(records[n]) for n in names}
-        if None in finished.values():                # a record edited by hand keeps its claims
-            continue
-        written = path.stat().st_mtime
-        after = [n for n in names if finished[n] + 1 >= written]
-        if after:
-            owner = min(after, key=finished.get)
-            for n in names:
-                if n != owner:
-                    del records[n]["outputs"][p]
-
-
-def _finished(record: dict) -> float | None:
-    try:
-        return datetime.datetime.fromisoformat(record["finished"]).timestamp()
-    except (TypeError, ValueError):
-        return None
 
 
 def reusable(record: dict | None, inputs: dict, out: Path) -> tuple[bool, str]:

@@ -6,7 +6,10 @@ Every number the README quotes sits in a generated block::
     ...
     <!-- /rsfbench -->
 
-whose body is its source, rendered: a results file verbatim (``results/X.md``), one of its
+whose body is a line saying where it comes from — the study that wrote the file, the commit and
+date of that run (``results/manifest.json``) and whether the study's inputs other than the
+machine have changed since (then the block is labelled stale) — and its source, rendered: a
+results file verbatim (``results/X.md``), one of its
 tables (``results/X.md table 2``, counting from 1), the recommendation bullets
 (``recommendation``, from ``results/wp_quick.csv``) or the convergence bullets
 (``convergence``, from ``results/convergence_paper-example_slip.json``). ``make reproduce`` ends
@@ -118,18 +121,59 @@ def render(source: str, root: Path = ROOT) -> str:
     return _table(text, int(m.group(2)), source) if m.group(2) else text.strip()
 
 
+_NOW: dict = {}          # a study's inputs now, computed once per fill or refresh
+
+
+def origin(source: str, root: Path = ROOT) -> str:
+    """The line that says where a block comes from (see the module docstring), or "" where the
+    results have no manifest or no study writes the file."""
+    from benchmarks.pipeline import manifest as M
+    from benchmarks.pipeline.reproduce import _inputs, studies
+    out = Path(root) / "results"
+    name = {"recommendation": "wp_quick.csv",
+            "convergence": "convergence_paper-example_slip.json"}.get(source)
+    name = name or source.split()[0].removeprefix("results/")
+    try:
+        records = M.read_manifest(out)
+    except M.BadResultsFile:
+        return ""
+    study = next((s for s in studies() if s.declares(name)), None)
+    record = records.get(study.name) if study is not None else None
+    if record is None:
+        return ""
+    key = (study.name, str(root))
+    if key not in _NOW:
+        _NOW[key] = _inputs(study, out, root=Path(root))
+    now = _NOW[key]
+    then = {**record["inputs"], "machine": now["machine"]}     # another machine is not staleness
+    when = f"the study `{study.name}` at commit `{record['git_commit'][:12]}`, " \
+           f"{record['finished'][:10]}"
+    if M.inputs_hash(then) == M.inputs_hash(now):
+        return f"<sub>From {when}; its inputs are unchanged since.</sub>\n\n"
+    kinds = [k for k in ("code", "versions", "settings", "reads") if then.get(k) != now.get(k)]
+    return (f"<sub>**Stale**: from {when}; its {' and '.join(kinds) or 'inputs'} changed since "
+            f"(`rsfbench reproduce --dry-run` says how): `rsfbench study {study.name}` reruns "
+            f"it.</sub>\n\n")
+
+
 def fill(readme: str, root: Path = ROOT) -> str:
     """``readme`` with every generated block re-rendered."""
-    return _BLOCK.sub(lambda m: f"{m.group(1)}{render(m.group('source'), root)}\n{m.group(4)}",
+    _NOW.clear()
+    return _BLOCK.sub(lambda m: f"{m.group(1)}{_body(m.group('source'), root)}\n{m.group(4)}",
                       readme)
+
+
+def _body(source: str, root: Path) -> str:
+    return origin(source, root) + render(source, root)
 
 
 def refresh(path: Path = ROOT / "README.md", check: bool = False) -> list[str]:
     """Rewrite the README's blocks (or with ``check`` only compare); returns the sources of the
     blocks that were out of date."""
     old = path.read_text()
+    _NOW.clear()
     stale = [m.group("source") for m in _BLOCK.finditer(old)
-             if m.group("body").rstrip("\n") != render(m.group("source"), path.parent)]
+             if m.group("body").rstrip("\n") != _body(m.group("source"), path.parent)]
     if stale and not check:
         path.write_text(fill(old, path.parent))
     return stale

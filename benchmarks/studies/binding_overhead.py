@@ -25,10 +25,11 @@ import pandas as pd
 from tqdm.auto import tqdm
 
 from benchmarks.records.files import atomic_write
+from benchmarks.studies.study import Study, markdown_file
 from integrators import REGISTRY, solve
 from problems import paper_example, window
 
-__all__ = ["PAIRS", "TOLERANCES", "binding_overhead", "binding_overhead_markdown",
+__all__ = ["STUDY", "PAIRS", "TOLERANCES", "binding_overhead", "binding_overhead_markdown",
            "write_binding_overhead"]
 
 #: compiled backend → the Python-bound backends of the same SUNDIALS solver
@@ -137,3 +138,12 @@ def write_binding_overhead(out: Path | None, repeats: int = 3, progress: bool = 
         atomic_write(Path(out) / "binding_overhead.csv", table.to_csv(index=False))
         atomic_write(Path(out) / "binding_overhead.md", text)
     return table, text
+
+
+def run(out: Path) -> None:
+    print(write_binding_overhead(out, progress=False)[1])
+
+
+STUDY = Study("binding-overhead", "What a way of calling costs (`binding_overhead.*`)", 190, run,
+              report=markdown_file("binding_overhead.md"), plan="full", timed=True,
+              writes=("binding_overhead.csv", "binding_overhead.md"), minutes=6)

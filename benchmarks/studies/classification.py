@@ -24,10 +24,11 @@ from tqdm.auto import tqdm
 
 from benchmarks.physics.metrics import LOCKED_SLIP_RATE, interevent_slip_rate, summarize
 from benchmarks.records.report import fmt, markdown_table
+from benchmarks.studies.study import Study, markdown_file
 from integrators import Rodas5P, solve
 from problems import preset
 
-__all__ = ["classification_study", "write_classification", "OSCILLATIONS"]
+__all__ = ["STUDY", "classification_study", "write_classification", "OSCILLATIONS"]
 
 #: runs found to oscillate about vL without locking: (preset, law, b, Lc m, t_end s)
 OSCILLATIONS = (
@@ -131,3 +132,12 @@ def write_classification(table: pd.DataFrame, out: Path) -> str:
             f"slip rate fell below it.\n")
     (out / "classification.md").write_text(text)
     return text
+
+
+def run(out: Path) -> None:
+    print(write_classification(classification_study(), out))
+
+
+STUDY = Study("classification", "Stick–slip needs the fault to lock (`classification.*`)", 150,
+              run, report=markdown_file("classification.md"),
+              writes=("classification.csv", "classification.md"), minutes=0.05)

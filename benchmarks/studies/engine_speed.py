@@ -31,10 +31,11 @@ import pandas as pd
 from benchmarks.devtools.errors import errors
 from benchmarks.devtools.reference import reference
 from benchmarks.records.files import atomic_write
+from benchmarks.studies.study import Study, markdown_file
 from integrators import REGISTRY, solve
 from problems import paper_example, window
 
-__all__ = ["engine_speed", "targets", "startup", "engine_speed_markdown", "write_engine_speed",
+__all__ = ["STUDY", "engine_speed", "targets", "startup", "engine_speed_markdown", "write_engine_speed",
            "METHODS", "TOLERANCES"]
 
 METHODS = ("Rosenbrock23", "Rodas5P", "Exprb32", "Exprb43")
@@ -225,3 +226,12 @@ def write_engine_speed(out: Path | None, repeats: int = 5) -> tuple[pd.DataFrame
         atomic_write(out / "engine_speed.csv", table.to_csv(index=False))
         atomic_write(out / "engine_speed.md", text)
     return goals, text
+
+
+def run(out: Path) -> None:
+    print(write_engine_speed(out)[1])
+
+
+STUDY = Study("engine-speed", "The own compiled engine against issue 14's targets "
+              "(`engine_speed.*`)", 180, run, report=markdown_file("engine_speed.md"),
+              timed=True, writes=("engine_speed.csv", "engine_speed.md"), minutes=0.6)

@@ -36,9 +36,10 @@ from benchmarks.inversion.published import B_STEP, best_fit
 from benchmarks.records.files import atomic_write
 from benchmarks.records.provenance import provenance
 from benchmarks.records.report import fmt, jsonable, markdown_table
+from benchmarks.studies.study import Study, markdown_file
 from problems import window
 
-__all__ = ["ensemble_scaling", "same_table", "TARGETS"]
+__all__ = ["STUDY", "ensemble_scaling", "same_table", "TARGETS"]
 
 TARGETS = {"grid_wall_s": 0.5, "thread_speedup": 1.8, "per_point_ratio": 1.2,
            "big_wall_s": 180.0, "big_store_mb": 50.0}
@@ -245,3 +246,13 @@ def scaling_markdown(s: dict) -> str:
                   f"{', '.join(str(c) for c in b['chunks_done_at_kills'])}. The final run "
                   f"resumed {b['points_resumed_after_kills']} points and ran the rest."]
     return "\n".join(lines) + "\n"
+
+
+def run(out: Path) -> None:
+    ensemble_scaling(out, study_csv=out / "wp_quick.csv", progress=False)
+
+
+STUDY = Study("ensemble-scaling", "Ensembles at kernel speed (`ensemble_scaling.*`)", 140, run,
+              report=markdown_file("ensemble_scaling.md"), plan="full", timed=True,
+              reads=("wp_quick.csv",), writes=("ensemble_scaling.json", "ensemble_scaling.md"),
+              minutes=4)

@@ -20,10 +20,11 @@ import pandas as pd
 from tqdm.auto import tqdm
 
 from benchmarks.records.report import fmt, markdown_table
+from benchmarks.studies.study import Study, markdown_file
 from integrators import ETD2, ETDIterated, Rodas5P, solve
 from problems import paper_example, preset
 
-__all__ = ["etd_validity", "write_etd_validity"]
+__all__ = ["STUDY", "etd_validity", "write_etd_validity"]
 
 
 def _problems():
@@ -86,3 +87,12 @@ def write_etd_validity(table: pd.DataFrame, out: Path) -> str:
             + markdown_table(stops))
     (out / "etd_validity.md").write_text(text)
     return text
+
+
+def run(out: Path) -> None:
+    print(write_etd_validity(etd_validity(), out))
+
+
+STUDY = Study("etd-validity", "The ETD family's step-rule check (`etd_validity.*`)", 160, run,
+              report=markdown_file("etd_validity.md"),
+              writes=("etd_validity.csv", "etd_validity.md"), minutes=3.7)

@@ -44,11 +44,12 @@ from benchmarks.devtools.reference import (
 )
 from benchmarks.devtools.work_precision import Ladder, best_at_levels, work_precision
 from benchmarks.physics.lab import PeakNotReached, healing, step_response
+from benchmarks.studies.study import Study
 from integrators import REGISTRY, solve
 from problems import slide_hold_slide_test, velocity_step_test, window
 from problems.presets import fault_radiation_damping
 
-__all__ = ["FAMILY", "family_problems", "LAB_PROBLEMS", "LabReference", "lab_reference",
+__all__ = ["STUDY", "FAMILY", "family_problems", "LAB_PROBLEMS", "LabReference", "lab_reference",
            "lab_errors", "family_study", "FAMILY_LADDER", "LEVELS", "summary", "runaway",
            "write_family", "write_lab_checks", "advice"]
 
@@ -401,3 +402,18 @@ def write_lab_checks(out: Path) -> dict:
     fig.savefig(out / "problem_family_healing.png", dpi=110)
     plt.close(fig)
     return {"marone": marone, "steps": steps, "healing": heal, "rates": rates}
+
+
+def run(out: Path) -> None:
+    print(summary(write_family(out, progress=False)).to_string(index=False))
+
+
+def report(out: Path) -> str:
+    return ((out / "family_advice.md").read_text() + "Every error level and the runner-up: "
+            "`family_wp.md`.\n\n![family work-precision](family_wp.png)\n")
+
+
+STUDY = Study("family", "Which integrator for a lab test, without mass, with damping "
+              "(`family_wp.*`)", 240, run, report=report, plan="full", timed=True,
+              writes=("family_advice.md", "family_wp.csv", "family_wp.md", "family_wp.png"),
+              minutes=17.5)

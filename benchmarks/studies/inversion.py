@@ -23,8 +23,9 @@ import numpy as np
 import pandas as pd
 
 from benchmarks.records.report import fmt, jsonable, markdown_table
+from benchmarks.studies.study import Study
 
-__all__ = ["prior_box", "posterior_target", "calibration_study", "TARGET_SOLVES",
+__all__ = ["STUDY", "prior_box", "posterior_target", "calibration_study", "TARGET_SOLVES",
            "TARGET_WALL_S", "CALIBRATION_TRUTH"]
 
 #: the issue's posterior target: at least this many forward solves …
@@ -240,3 +241,19 @@ def _plot_calibration(cal, path: Path) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def run(out: Path) -> None:
+    posterior_target(out, study_csv=out / "wp_quick.csv")
+    print((out / "inversion.md").read_text())
+
+
+def report(out: Path) -> str:
+    return (out / "inversion.md").read_text() + "![posterior](inversion_W2_slip/corner.png)\n"
+
+
+STUDY = Study("inversion", "An inversion: fit, profiles, posterior (`inversion.md`, "
+              "`inversion_W2_slip/`)", 200, run, report=report, timed=True,
+              reads=("wp_quick.csv",),
+              writes=("inversion.md", "inversion_W2_slip/*.png", "inversion_W2_slip/*.csv",
+                      "inversion_W2_slip/inversion.json"), minutes=0.9)

@@ -26,12 +26,13 @@ import pandas as pd
 
 from benchmarks.devtools.errors import errors
 from benchmarks.devtools.reference import reference
+from benchmarks.studies.study import Study
 from integrators import REGISTRY, solve
 from integrators.core.registry import ProblemNotSupported
 from problems import paper_example
 from problems.presets import fault_radiation_damping
 
-__all__ = ["MASS_FACTORS", "METHODS", "mass_problems", "mass_limit", "write_mass_limit"]
+__all__ = ["STUDY", "MASS_FACTORS", "METHODS", "mass_problems", "mass_limit", "write_mass_limit"]
 
 #: factors on the paper's 1100 kg
 MASS_FACTORS = (1.0, 1e-1, 1e-2, 1e-3, 1e-4, 0.0)
@@ -237,3 +238,19 @@ def _plot(df: pd.DataFrame, path: Path) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def run(out: Path) -> None:
+    write_mass_limit(out, progress=False)
+    print((out / "mass_limit.md").read_text().split("## ")[1])
+
+
+def report(out: Path) -> str:
+    return ((out / "mass_limit_summary.md").read_text()
+            + "The table: `mass_limit.md`.\n\n![mass limit](mass_limit.png)\n")
+
+
+STUDY = Study("mass-limit", "Where the paper's ETD advantage goes as the mass goes "
+              "(`mass_limit.*`)", 250, run, report=report, plan="full", timed=True,
+              writes=("mass_limit.csv", "mass_limit.md", "mass_limit.png",
+                      "mass_limit_summary.md"), minutes=4)

@@ -27,10 +27,11 @@ from benchmarks.physics.curves import (
 )
 from benchmarks.physics.metrics import summarize
 from benchmarks.records.report import fmt, markdown_table
+from benchmarks.studies.study import Study, markdown_file
 from integrators import Rodas5P, solve
 from problems import window
 
-__all__ = ["j2_information", "write_j2_information", "CURVES", "NOISE"]
+__all__ = ["STUDY", "j2_information", "write_j2_information", "CURVES", "NOISE"]
 
 CURVES = Path(__file__).resolve().parents[2] / "tests" / "data" / "W2_slip_weakening.csv"
 NOISE = 2e-4                      # the std of the noise in CURVES (tests/test_sweep.py)
@@ -88,3 +89,12 @@ def write_j2_information(table: pd.DataFrame, out: Path) -> str:
             + "\n".join(lines))
     (out / "j2_information.md").write_text(text)
     return text
+
+
+def run(out: Path) -> None:
+    print(write_j2_information(j2_information(), out))
+
+
+STUDY = Study("misfit", "What J2 sees (`j2_information.*`)", 170, run,
+              report=markdown_file("j2_information.md"), data=("tests/data/W2_slip_weakening.csv",),
+              writes=("j2_information.csv", "j2_information.md"), minutes=1.4)

@@ -30,10 +30,11 @@ from benchmarks.inversion.published import B_STEP, GRID, T_END, best_fit, grid_a
 from benchmarks.inversion.sweep import observations, sweep
 from benchmarks.records.provenance import provenance
 from benchmarks.records.report import fmt, jsonable, markdown_table
+from benchmarks.studies.study import Study
 from integrators import solve
 from problems import preset, window
 
-__all__ = ["paper_sweeps", "sweep_scaling"]
+__all__ = ["STUDY", "paper_sweeps", "sweep_scaling"]
 
 #: s per point: a point that takes longer is recorded as failed (WallTime) and the sweep goes on
 POINT_BUDGET = 5.0
@@ -155,3 +156,17 @@ def sweep_scaling(out, n: int = 21, t_end: float = 40.0, progress: bool = True,
         f"{summary['grid']}; integrator {why}. One stand-alone run at the best fit: "
         f"{single * 1e3:.1f} ms (min of 3, warm).\n\n" + markdown_table(md))
     return summary
+
+
+def run(out: Path) -> None:
+    paper_sweeps(out, study_csv=out / "wp_quick.csv")
+
+
+def report(out: Path) -> str:
+    return (out / "sweeps.md").read_text() + "Maps: `sweeps/<window>_<law>/maps.png`.\n"
+
+
+STUDY = Study("sweeps", "Section 4: (b, Lc) sweeps around the published best fits (`sweeps.*`, "
+              "`sweeps/`)", 120, run, report=report, reads=("wp_quick.csv",),
+              writes=("sweeps.csv", "sweeps.md", "sweeps/*/maps.png", "sweeps/*/summary.json",
+                      "sweeps/*/sweep.csv"), minutes=0.2)

@@ -59,10 +59,11 @@ from benchmarks.inversion.grid import GridPosterior, MetricMap, box_grid, metric
 from benchmarks.inversion.misfit import Misfit, synthetic
 from benchmarks.inversion.sweep import Observations, observations
 from benchmarks.records.report import fmt, markdown_table
+from benchmarks.studies.study import Study
 from integrators import Algorithm
 from problems import preset
 
-__all__ = ["solver_effect", "solver_effect_study", "candidates", "Candidate", "recommendation",
+__all__ = ["STUDY", "solver_effect", "solver_effect_study", "candidates", "Candidate", "recommendation",
            "compare", "same_inference", "SHIFT_SD",
            "MIN_OVERLAP", "POSTERIOR_SOLVES", "posterior_cost"]
 
@@ -456,3 +457,20 @@ def _plot_solver_effect(table, path: Path, min_overlap: float) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
+
+
+def run(out: Path) -> None:
+    solver_effect_study(out, study_csv=out / "wp_full.csv", progress=True)
+    print((out / "solver_effect.md").read_text().split("\n## ")[1])
+
+
+def report(out: Path) -> str:
+    section = (out / "solver_effect.md").read_text().split("\n## ")[1].split("\n", 1)[1]
+    return (f"{section}\nEvery window and law: `solver_effect.md`.\n\n"
+            "![solver effect](solver_effect.png)\n")
+
+
+STUDY = Study("solver-effect", "The solver's effect on the inferred (b, Lc) (`solver_effect.*`)",
+              220, run, report=report, plan="full", timed=True, reads=("wp_full.csv",),
+              writes=("solver_effect.csv", "solver_effect.md", "solver_effect.png",
+                      "solver_effect_recommendation.csv"), minutes=101)

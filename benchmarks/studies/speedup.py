@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from pathlib import Path
 
 import pandas as pd
 
@@ -34,10 +35,11 @@ from benchmarks.devtools.reference import reference
 from benchmarks.devtools.timing import warm_up
 from benchmarks.devtools.work_precision import Ladder, measure
 from benchmarks.physics.metrics import METRICS, event_metrics
+from benchmarks.studies.study import Study, markdown_file
 from integrators import ETD2, REGISTRY, solve
 from problems import paper_example
 
-__all__ = ["speedup", "speedup_markdown", "write_speedup", "cycles_agree", "best_implicit", "CYCLE_AGREEMENT",
+__all__ = ["STUDY", "speedup", "speedup_markdown", "write_speedup", "cycles_agree", "best_implicit", "CYCLE_AGREEMENT",
            "CLAIM", "DEFAULT_SCIPY_BUDGET"]
 
 CYCLE_AGREEMENT = 1e-3        # "almost identical": every metric of every shared event within 0.1 %
@@ -263,3 +265,15 @@ def write_speedup(summary: dict, table: pd.DataFrame, out) -> str:
     table.to_csv(out / "speedup.csv", index=False)
     (out / "speedup.md").write_text(text)
     return text
+
+
+def run(out: Path, scipy_budget: float) -> None:
+    """The claim on the paper example, scipy's RK45 stopped at ``scipy_budget`` s."""
+    from problems import paper_example
+    print(write_speedup(*speedup(paper_example(), scipy_budget=scipy_budget), out))
+
+
+STUDY = Study("speedup", "The paper's speed-up claim (`speedup.json`, `speedup.csv`)", 50, run,
+              report=markdown_file("speedup.md"), plan="full", timed=True,
+              settings={"scipy_budget": 600.0},
+              writes=("speedup.csv", "speedup.json", "speedup.md"), minutes=13)

@@ -18,9 +18,10 @@ import pandas as pd
 
 from benchmarks.devtools.work_precision import read_study, reliable_error
 from benchmarks.records.report import fmt, markdown_table
+from benchmarks.studies.study import Study
 from integrators import REGISTRY
 
-__all__ = ["TARGET_LEVELS", "TARGET_FACTOR", "TARGET_WALL_BUDGET", "groups", "target_integrators",
+__all__ = ["STUDY", "TARGET_LEVELS", "TARGET_FACTOR", "TARGET_WALL_BUDGET", "groups", "target_integrators",
            "target_table", "write_target", "full_target"]
 
 TARGET_LEVELS = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7)
@@ -133,3 +134,17 @@ def full_target(out, progress: bool = True) -> pd.DataFrame:
                         tiers=("numba",), progress=progress)
     paths = write_work_precision(df, Path(out), "full")
     return write_target(paths["csv"], out)
+
+
+def run(out: Path) -> None:
+    write_target(out / "wp_quick.csv", out)
+
+
+def report(out: Path) -> str:
+    return ("On the quick study's two problems (`target_quick.*`, from `wp_quick.csv`):\n\n"
+            + (out / "target_quick.md").read_text())
+
+
+STUDY = Study("target", "Issue 6's target on the quick study: own integrators against compiled "
+              "LSODA and SUNDIALS", 90, run, report=report, reads=("wp_quick.csv",),
+              writes=("target_quick.csv", "target_quick.md"), minutes=0.05)

@@ -10,10 +10,11 @@ from tqdm.auto import tqdm
 from benchmarks.devtools.timing import warm_up
 from benchmarks.physics.metrics import summarize
 from benchmarks.records.report import markdown_table
+from benchmarks.studies.study import Study, markdown_file
 from integrators import solve
 from problems import WINDOWS, window
 
-__all__ = ["windows_table", "write_windows"]
+__all__ = ["STUDY", "windows_table", "write_windows"]
 
 
 def windows_table(laws=("slip", "aging"), integrator=None, t_end: float | None = None,
@@ -62,3 +63,27 @@ def write_windows(table: pd.DataFrame, out: Path) -> None:
     )[["window", "law", "b", "lc_um", "kappa", "classification", "ΔT sim / obs (s)", "Δμ sim / obs",
        "slip sim / obs (mm)", "peak v sim / obs (m/s)", "integrator", "steps", "wall (s)"]]
     (out / "windows.md").write_text(markdown_table(md))
+
+
+def run(out: Path) -> None:
+    """``simulate_<window>_<law>.json`` for W1–W4 and both laws (ETD2 at the paper's settings),
+    and the table of :func:`windows_table` beside the observed means."""
+    import json
+
+    from benchmarks.devtools.timing import warm_up
+    from benchmarks.physics.summary import simulate_summary
+    from integrators import ETD2, solve
+    from problems import WINDOWS, window
+    algorithm = ETD2()
+    for name in WINDOWS:
+        for law in ("slip", "aging"):
+            problem = window(name, law)
+            warm_up(problem, algorithm)
+            summary = simulate_summary(solve(problem, algorithm))
+            (out / f"simulate_{name}_{law}.json").write_text(json.dumps(summary, indent=2) + "\n")
+    write_windows(windows_table(), out)
+
+
+STUDY = Study("windows", "W1–W4 limit cycles, ETD2 at the paper's settings (`windows.*`, "
+              "`simulate_*.json`)", 20, run, report=markdown_file("windows.md"),
+              writes=("windows.csv", "windows.md", "simulate_W*_*.json"), minutes=0.15)
