@@ -2,7 +2,6 @@
 command line imports it) and the plan's reuse of steps whose inputs did not change, on tiny fake
 steps in a temporary directory."""
 
-import importlib
 import json
 import sys
 import textwrap
