@@ -7,8 +7,9 @@ VENV     := .venv
 PY       := $(VENV)/bin/python
 APT_PKGS := gfortran libsundials-dev pkg-config cmake
 STAMP    := $(VENV)/.installed
+WARM     := $(VENV)/.compiled
 
-.PHONY: setup system-packages numba-cache test test-slow reproduce reproduce-full bench clean
+.PHONY: setup system-packages numba-cache warm test test-slow reproduce reproduce-full bench clean
 
 setup: $(STAMP)
 
@@ -36,29 +37,39 @@ numba-cache:
 	@newest=$$(ls -t $$(find integrators problems benchmarks -name '*.py') | head -1); \
 	find integrators problems benchmarks -name '*.nb[ic]' ! -newer "$$newest" -delete
 
-test: setup numba-cache
+# compile every kernel once into numba's cache (a fresh checkout has none; ~5 min on 2 cores),
+# again after a source file changed: the tests and a first run then pay no compiling
+warm: $(WARM)
+
+$(WARM): $(STAMP) $(shell find integrators problems benchmarks -name '*.py')
+	$(MAKE) --no-print-directory numba-cache
+	$(PY) -m integrators.core.warm
+	touch $@
+
+test: setup numba-cache warm
 	$(PY) -m pytest --require-all
 
 # the slow probes: kills, Ctrl-C, subprocesses, a Dask cluster losing its workers (~1 min)
-test-slow: setup numba-cache
+test-slow: setup numba-cache warm
 	$(PY) -m pytest --require-all -m slow
 
 # the quick plan: reruns the quick steps whose inputs (code, package versions, settings, files
 # read, the machine for timings) changed, reuses the others and keeps the files of the full
 # steps; ~15 min on 2 cores when every quick step runs (docs/reproduce.md)
-reproduce: setup numba-cache
+reproduce: setup numba-cache warm
 	$(VENV)/bin/rsfbench reproduce --out results
 
 # the full plan: also the quick work-precision study, issue 6's target on every study problem
 # and scipy's RK45 to its 600 s budget, the solver-effect and problem-family studies (about
 # 3.5 h on 2 cores when every step runs; `rsfbench reproduce --full --dry-run` says what would)
-reproduce-full: setup numba-cache
+reproduce-full: setup numba-cache warm
 	$(VENV)/bin/rsfbench reproduce --full --out results
 
 # the pytest-benchmark suite (benchmarks/test_*.py): timings at matched accuracy, as JSON
-bench: setup numba-cache
+bench: setup numba-cache warm
 	$(PY) -m pytest benchmarks --benchmark-json results/benchmarks.json \
 	  --benchmark-columns=min,median,rounds --benchmark-sort=min
 
 clean:
 	rm -rf $(VENV) build *.egg-info
+	find integrators problems benchmarks -name '*.nb[ic]' -delete

@@ -579,7 +579,8 @@ def build_parser() -> Parser:
 
     st = sub.add_parser("study", help="run one study of the pipeline (or --list them)",
                         description=STUDY_HELP)
-    st.add_argument("name", nargs="?", metavar="NAME", help="the study (see --list)")
+    st.add_argument("name", nargs="?", metavar="NAME",
+                    help="the study to run (default: none; --list lists them)")
     st.add_argument("--list", action="store_true",
                     help="list the studies: plan, expected minutes, files read and written")
     st.add_argument("--out", type=out_dir, default="results", metavar="DIR",

@@ -110,7 +110,8 @@ def code_version() -> str:
     here = Path(benchmarks.__file__).parent
     files = [*sorted(Path(integrators.__file__).parent.rglob("*.py")),
              *sorted(Path(problems.__file__).parent.rglob("*.py")),
-             here / "metrics.py", here / "fitting.py", here / "ensemble" / "rows.py"]
+             here / "physics" / "metrics.py", here / "physics" / "curves.py",
+             here / "ensemble" / "rows.py"]
     digest = hashlib.sha256(f"numba {numba.__version__} numpy {np.__version__}".encode())
     for f in files:
         digest.update(f.name.encode() + f.read_bytes())

@@ -1,0 +1,69 @@
+"""Compile every kernel once, into numba's on-disk cache: ``python -m integrators.core.warm``.
+
+numba compiles a method's kernels for each friction law and for the slider with and without mass
+the first time they run, and keeps them in its cache beside the sources (``__pycache__``). A
+fresh checkout has none: its first runs pay the compiling (tens of seconds per method and law).
+``make setup`` runs this module once after installing, so that neither the tests nor a user's
+first run pay it; every integrator of the registry runs a short piece (:func:`short_piece`) of
+the slider with mass, without it and with radiation damping, under each law. What a kernel
+computes is never looked at here: the tests do that.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+import time
+import warnings
+
+__all__ = ["problems_to_warm", "warm"]
+
+
+def problems_to_warm() -> list:
+    """One short problem per (law, formulation) the kernels are specialised for."""
+    from problems import preset, velocity_step_test
+    from problems.presets import fault_radiation_damping
+    out = []
+    for law in ("slip", "aging", "nagata"):
+        inertial = preset("W2", law=law, t_end=2.0)
+        out += [inertial, dataclasses.replace(inertial, mass=0.0),
+                dataclasses.replace(inertial, radiation_damping=fault_radiation_damping()),
+                velocity_step_test(law, t_end=20.0)]
+    return out
+
+
+def warm(names=None, progress: bool = True) -> dict[str, float]:
+    """Run every integrator of ``names`` (default: the registry) on :func:`problems_to_warm`;
+    return the seconds each took (its compiling, mostly)."""
+    from tqdm.auto import tqdm
+
+    from integrators import REGISTRY
+    from integrators.core.registry import ProblemNotSupported
+    from integrators.core.solve import compile_ahead
+    names = sorted(REGISTRY, key=str.lower) if names is None else list(names)
+    problems = problems_to_warm()
+    took = {}
+    with tqdm(total=len(names) * len(problems), desc="compiling kernels", unit="run",
+              disable=not progress) as bar:
+        for name in names:
+            cls = REGISTRY[name]
+            started = time.perf_counter()
+            for problem in problems:
+                algorithm = cls(rtol=1e-6, atol=1e-6) if cls.adaptive else cls()
+                try:
+                    algorithm.check_problem(problem)
+                except ProblemNotSupported:
+                    bar.update()
+                    continue
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")
+                    compile_ahead(problem, algorithm, wall_budget=1.0)
+                bar.update()
+            took[name] = time.perf_counter() - started
+    return took
+
+
+if __name__ == "__main__":
+    took = warm(progress=sys.stderr.isatty())
+    print(f"compiled the kernels of {len(took)} integrators in {sum(took.values()):.0f} s "
+          f"(slowest: {max(took, key=took.get)}, {max(took.values()):.0f} s)")
