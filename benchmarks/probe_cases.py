@@ -562,7 +562,9 @@ def _budget_cases():
              slow=True, timeout=300),
         Case("budgets", "sweep: Dask cluster with no workers fails after the timeout",
              _dask_no_workers, "retcode", slow=True, timeout=300),
-        Case("budgets", "sweep: wall budget per point", _sweep_point_budget, "ok", timeout=120),
+        Case("budgets", "sweep: wall budget per point", _sweep_point_budget, "ok", timeout=120,
+             slow=True),                               # 40 s on 2 cores
+
     ]
     return out
 

@@ -166,6 +166,7 @@ def test_convergence_cli_json(cache, monkeypatch, capsys):
     assert out["orders"]["ETD2"] == pytest.approx(1.0, abs=0.2)
 
 
+@pytest.mark.slow          # 15 s on 2 cores (pytest --durations, 2026-11-26)
 def test_fixed_step_order_cli_measures_the_declared_orders(tmp_path, capsys):
     # the compiled stiff methods with error control off on the paper example's stick phase;
     # measured 2.01, 4.91 (Rodas5P: 8–24 steps; finer ones reach the reference's ~3e-13)

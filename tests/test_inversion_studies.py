@@ -270,6 +270,7 @@ def test_the_zoom_holds_the_posterior_and_falls_back_to_the_whole_box():
     assert b_lo < m.b[0] and b_hi > m.b[-1]
 
 
+@pytest.mark.slow          # 69 s on 2 cores (pytest --durations, 2026-11-26)
 def test_the_solver_effect_table_on_w4():
     loose = SE.Candidate("own", "Rosenbrock23 0.01", algorithm_at("Rosenbrock23", "numba",
                                                                         1e-2))

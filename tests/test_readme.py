@@ -67,11 +67,11 @@ def test_a_block_says_which_run_it_comes_from_and_whether_it_is_stale(tmp_path):
     """The committed manifest names the study and commit; a block is stale exactly when the
     study's inputs (the machine aside) differ from those of that run."""
     from benchmarks.pipeline import manifest as M
-    from benchmarks.pipeline.reproduce import _inputs, study_named
+    from benchmarks.pipeline.plan import study_inputs, study_named
     line = readme.origin("results/windows.md")
     record = M.read_manifest(readme.ROOT / "results")["windows"]
     assert f"the study `windows` at commit `{record['git_commit'][:12]}`" in line
-    now = _inputs(study_named("windows"), readme.ROOT / "results")
+    now = study_inputs(study_named("windows"), readme.ROOT / "results")
     same = M.inputs_hash({**record["inputs"], "machine": now["machine"]}) == M.inputs_hash(now)
     assert ("**Stale**" not in line) == same
     assert readme.origin("results/x.md", _root(tmp_path)) == ""       # no manifest: no line

@@ -186,8 +186,8 @@ def test_an_optional_pin_counts_only_for_the_code_that_imports_it(tmp_path):
 def test_a_step_gets_an_optional_pin_it_imports_through_other_modules():
     """The inversion step imports emcee four modules down, inside a function; the windows step
     never does."""
-    inversion = RP._inputs(RP.study_named("inversion"), M.ROOT / "results")
-    windows = RP._inputs(RP.study_named("windows"), M.ROOT / "results")
+    inversion = RP.study_inputs(RP.study_named("inversion"), M.ROOT / "results")
+    windows = RP.study_inputs(RP.study_named("windows"), M.ROOT / "results")
     assert "emcee" in inversion["versions"] and "corner" in inversion["versions"]
     assert "emcee" not in windows["versions"] and "numpy" in windows["versions"]
 
@@ -283,16 +283,16 @@ def test_every_study_declares_inputs_that_resolve(tmp_path):
     for study in plan:
         assert list(inspect.signature(study.run).parameters)[1:] == list(study.settings), \
             study.name
-        inputs = RP._inputs(study, tmp_path)
+        inputs = RP.study_inputs(study, tmp_path)
         assert (inputs["machine"] is not None) == study.timed
         assert any(k.startswith("integrators/") for k in inputs["code"]), study.name
         assert any(k.endswith(f"::{study.run.__name__}") for k in inputs["code"])
         assert inspect.getsourcefile(study.run).endswith(
             f"{study.run.__module__.replace('.', '/')}.py")
-    code = RP._inputs(RP.study_named("probe"), tmp_path)["code"]
+    code = RP.study_inputs(RP.study_named("probe"), tmp_path)["code"]
     assert {"benchmarks/cli/main.py", "benchmarks/probe_cases.py", "problems/presets.py"} <= set(
         code)
-    code = RP._inputs(RP.study_named("windows"), tmp_path)["code"]
+    code = RP.study_inputs(RP.study_named("windows"), tmp_path)["code"]
     assert {"benchmarks/studies/windows.py", "benchmarks/physics/summary.py",
             "integrators/own/etd.py"} <= set(code)
     assert "benchmarks/pipeline/reproduce.py" not in code and "benchmarks/cli/main.py" not in code

@@ -128,7 +128,7 @@ def origin(source: str, root: Path = ROOT) -> str:
     """The line that says where a block comes from (see the module docstring), or "" where the
     results have no manifest or no study writes the file."""
     from benchmarks.pipeline import manifest as M
-    from benchmarks.pipeline.reproduce import _inputs, studies
+    from benchmarks.pipeline.plan import studies, study_inputs
     out = Path(root) / "results"
     name = {"recommendation": "wp_quick.csv",
             "convergence": "convergence_paper-example_slip.json"}.get(source)
@@ -143,7 +143,7 @@ def origin(source: str, root: Path = ROOT) -> str:
         return ""
     key = (study.name, str(root))
     if key not in _NOW:
-        _NOW[key] = _inputs(study, out, root=Path(root))
+        _NOW[key] = study_inputs(study, out, root=Path(root))
     now = _NOW[key]
     then = {**record["inputs"], "machine": now["machine"]}     # another machine is not staleness
     when = f"the study `{study.name}` at commit `{record['git_commit'][:12]}`, " \

@@ -21,13 +21,11 @@ When ``out`` is the project's ``results/``, the README's generated blocks are re
 from __future__ import annotations
 
 import dataclasses
-import functools
-import importlib
-import pkgutil
 import time
 from pathlib import Path
 
 from benchmarks.pipeline import manifest as M
+from benchmarks.pipeline.plan import check_plan, list_markdown, studies, study_inputs, study_named
 from benchmarks.records.files import BadResultsFile
 
 __all__ = ["reproduce", "run_steps", "describe", "summary", "studies", "study_named",
@@ -36,55 +34,6 @@ __all__ = ["reproduce", "run_steps", "describe", "summary", "studies", "study_na
 
 def _section(title: str) -> None:
     print(f"\n== {title} ==", flush=True)
-
-
-@functools.cache
-def studies(package: str = "benchmarks.studies") -> tuple:
-    """Every study declared in ``package`` (a module-level ``STUDY``), in their declared order;
-    checked by :func:`check_plan`."""
-    pkg = importlib.import_module(package)
-    found = []
-    for info in pkgutil.iter_modules(pkg.__path__):
-        study = getattr(importlib.import_module(f"{package}.{info.name}"), "STUDY", None)
-        if study is not None:
-            found.append(study)
-    found.sort(key=lambda s: s.order)
-    check_plan(found)
-    return tuple(found)
-
-
-def check_plan(plan) -> None:
-    """``ValueError`` unless the names and orders are unique and every file a study reads is
-    written by an earlier study."""
-    for what in ("name", "order"):
-        values = [getattr(s, what) for s in plan]
-        twice = sorted({v for v in values if values.count(v) > 1})
-        if twice:
-            raise ValueError(f"studies share a {what}: {twice}")
-    for i, study in enumerate(plan):
-        for read in study.reads:
-            if not any(earlier.declares(read) for earlier in plan[:i]):
-                raise ValueError(f"study {study.name} reads {read}, which no earlier study "
-                                 "writes")
-
-
-def study_named(name: str, plan=None):
-    """The study called ``name``, or ``ValueError`` naming the known ones."""
-    plan = studies() if plan is None else plan
-    for study in plan:
-        if study.name == name:
-            return study
-    raise ValueError(f"unknown study {name!r}: expected one of "
-                     f"{', '.join(s.name for s in plan)}")
-
-
-def list_markdown(plan=None) -> str:
-    """The studies as a Markdown table: name, plan, minutes, reads, writes, title."""
-    plan = studies() if plan is None else plan
-    rows = ["| study | plan | minutes | reads | writes | what |", "|---|---|---|---|---|---|"]
-    rows += [f"| `{s.name}` | {s.plan} | {s.minutes:g} | {', '.join(s.reads) or '–'} | "
-             f"{', '.join(s.writes)} | {s.title} |" for s in plan]
-    return "\n".join(rows) + "\n"
 
 
 def reproduce(out: Path, full: bool = False, force: bool = False, start: str | None = None,
@@ -107,7 +56,7 @@ def reproduce(out: Path, full: bool = False, force: bool = False, start: str | N
                              f"{', '.join(names)}")
     if only and start:
         raise ValueError("only and start exclude each other")
-    if start and not full and study_named(start).full:
+    if start and not full and study_named(start, plan).full:
         raise ValueError(f"study {start!r} is in the full plan only: add --full (full=True), or "
                          f"rerun it alone with --only {start}")
     if scipy_budget is not None and not (full or only == "speedup"):
@@ -118,7 +67,7 @@ def reproduce(out: Path, full: bool = False, force: bool = False, start: str | N
                          "NAME --set KEY=VALUE`)")
     overrides = {"speedup": {"scipy_budget": scipy_budget}} if scipy_budget is not None else {}
     if settings:
-        study = study_named(only)
+        study = study_named(only, plan)
         unknown = sorted(set(settings) - set(study.settings))
         if unknown:
             raise ValueError(f"study {only} has no setting {', '.join(unknown)}; its settings: "
@@ -174,7 +123,7 @@ def run_steps(steps, out: Path, modes: dict[str, str], dry_run: bool = False,
         mode = modes.get(step.name)
         if mode is None:
             continue
-        inputs = _inputs(step, out, **code)
+        inputs = study_inputs(step, out, **code)
         ok, why = M.reusable(current().get(step.name), inputs, out)
         if mode == "keep" or (mode == "check" and ok):
             row = {"step": step.name, "status": "reused" if ok else "stale",
@@ -254,16 +203,6 @@ def _steps(n: int) -> str:
     return f"{n} step" + ("" if n == 1 else "s")
 
 
-def _inputs(step, out: Path, **code) -> dict:
-    """A study's inputs: its module's code (the whole file: its run, report and helpers) and
-    what it imports, the modules it runs as programs, versions, settings, files read."""
-    own = step.run.__module__
-    project = M.import_graph(code.get("root", M.ROOT), code.get("packages", M.PACKAGES))
-    modules = (*step.modules, *([own] if own in project else []))
-    return M.step_inputs(step.run, step.settings, out, reads=step.reads, data=step.data,
-                         modules=modules, timed=step.timed, **code)
-
-
 def _step_states(plan, out: Path, **code) -> list[dict]:
     """One row per study: its plan, its last run (from the manifest) and whether its files are
     up to date with its inputs."""
@@ -274,7 +213,7 @@ def _step_states(plan, out: Path, **code) -> list[dict]:
     rows = []
     for step in plan:
         r = records.get(step.name)
-        ok, why = M.reusable(r, _inputs(step, out, **code), out)
+        ok, why = M.reusable(r, study_inputs(step, out, **code), out)
         rows.append({"step": step.name, "plan": "full" if step.full else "quick",
                      "last run": r["finished"] if r else "", "commit": r["git_commit"] if r else "",
                      "took": _duration(r["wall_s"]) if r else "",

@@ -1,0 +1,72 @@
+"""The plan: the studies :mod:`benchmarks.studies` declares, found and checked, and the inputs
+of each that decide whether its last run can be reused (:mod:`benchmarks.pipeline.manifest`)."""
+
+from __future__ import annotations
+
+import functools
+import importlib
+import pkgutil
+from pathlib import Path
+
+from benchmarks.pipeline import manifest as M
+
+__all__ = ["studies", "check_plan", "study_named", "list_markdown", "study_inputs"]
+
+
+@functools.cache
+def studies(package: str = "benchmarks.studies") -> tuple:
+    """Every study declared in ``package`` (a module-level ``STUDY``), in their declared order;
+    checked by :func:`check_plan`."""
+    pkg = importlib.import_module(package)
+    found = []
+    for info in pkgutil.iter_modules(pkg.__path__):
+        study = getattr(importlib.import_module(f"{package}.{info.name}"), "STUDY", None)
+        if study is not None:
+            found.append(study)
+    found.sort(key=lambda s: s.order)
+    check_plan(found)
+    return tuple(found)
+
+
+def check_plan(plan) -> None:
+    """``ValueError`` unless the names and orders are unique and every file a study reads is
+    written by an earlier study."""
+    for what in ("name", "order"):
+        values = [getattr(s, what) for s in plan]
+        twice = sorted({v for v in values if values.count(v) > 1})
+        if twice:
+            raise ValueError(f"studies share a {what}: {twice}")
+    for i, study in enumerate(plan):
+        for read in study.reads:
+            if not any(earlier.declares(read) for earlier in plan[:i]):
+                raise ValueError(f"study {study.name} reads {read}, which no earlier study "
+                                 "writes")
+
+
+def study_named(name: str, plan=None):
+    """The study called ``name``, or ``ValueError`` naming the known ones."""
+    plan = studies() if plan is None else plan
+    for study in plan:
+        if study.name == name:
+            return study
+    raise ValueError(f"unknown study {name!r}: expected one of "
+                     f"{', '.join(s.name for s in plan)}")
+
+
+def list_markdown(plan=None) -> str:
+    """The studies as a Markdown table: name, plan, minutes, reads, writes, title."""
+    plan = studies() if plan is None else plan
+    rows = ["| study | plan | minutes | reads | writes | what |", "|---|---|---|---|---|---|"]
+    rows += [f"| `{s.name}` | {s.plan} | {s.minutes:g} | {', '.join(s.reads) or '–'} | "
+             f"{', '.join(s.writes)} | {s.title} |" for s in plan]
+    return "\n".join(rows) + "\n"
+
+
+def study_inputs(step, out: Path, **code) -> dict:
+    """A study's inputs: its module's code (the whole file: its run, report and helpers) and
+    what it imports, the modules it runs as programs, versions, settings, files read."""
+    own = step.run.__module__
+    project = M.import_graph(code.get("root", M.ROOT), code.get("packages", M.PACKAGES))
+    modules = (*step.modules, *([own] if own in project else []))
+    return M.step_inputs(step.run, step.settings, out, reads=step.reads, data=step.data,
+                         modules=modules, timed=step.timed, **code)
