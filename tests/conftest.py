@@ -65,19 +65,41 @@ def pytest_configure(config):
     config.addinivalue_line("markers", "needs(*modules): the optional modules a test needs; "
                                        "skipped where one is missing")
     if config.getoption("--require-all"):
-        missing = [m for m in OPTIONAL if importlib.util.find_spec(m) is None]
+        missing = [m for m in OPTIONAL if _missing(m)]
         missing += [f"{module} ({why})" for module, why in sorted(I.UNAVAILABLE.items())]
         if missing:
             pytest.exit(f"--require-all: missing {', '.join(missing)}; `make setup` installs "
                         f"every extra", returncode=3)
 
 
+def _missing(module: str) -> bool:
+    try:
+        return importlib.util.find_spec(module) is None
+    except ModuleNotFoundError:          # a dotted name whose parent is not installed
+        return True
+
+
 def pytest_runtest_setup(item):
     for mark in item.iter_markers("needs"):
-        missing = [m for m in mark.args if importlib.util.find_spec(m) is None]
+        missing = [m for m in mark.args if _missing(m)]
         if missing:
             pytest.skip(f"needs {', '.join(missing)}, not installed (pip install '.[all]')")
 
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_call(item):
+    """A test that reaches an optional library that is not installed is skipped, naming it
+    (never under --require-all, where every one is installed)."""
+    try:
+        return (yield)
+    except ModuleNotFoundError as exc:
+        if (exc.name or "").split(".")[0] in OPTIONAL_ALL:
+            pytest.skip(f"needs {exc.name}, not installed: {exc}")
+        raise
+
+
+#: every optional top-level module: those above and the peers' libraries
+OPTIONAL_ALL = {*OPTIONAL, "scikits", "assimulo", "sksundae", "numbalsoda", "CyRK"}
 
 I.REGISTRY.load_all()                  # the adapters load on first use: load them all now
 _GFORTRAN = _gfortran_runtimes()

@@ -52,6 +52,7 @@ from benchmarks.physics.summary import (
     integrators_markdown,
     simulate_summary,
 )
+from benchmarks.records.optional import MissingExtra
 from benchmarks.records.report import jsonable as _jsonable
 from integrators import REGISTRY, algorithm_class, solve
 from problems import PRESET_NAMES, WINDOWS, preset
@@ -666,7 +667,7 @@ def main(argv: list[str] | None = None) -> int:
             return args.func(args)
         except ValueError as exc:                 # a user's mistake: say which, no traceback
             return _fail(_one_line(exc), 2, json_mode)
-        except (RunStopped, OSError) as exc:      # the run could not go on: say why
+        except (RunStopped, OSError, MissingExtra) as exc:   # the run could not go on: say why
             return _fail(_one_line(exc), 1, json_mode)
         except KeyboardInterrupt as exc:          # a command may say what it kept
             kept = (" (a sweep keeps its finished points: run it again to resume)"

@@ -104,7 +104,8 @@ def execute(run, warm, failed, tasks: list, workers: int, backend: str, client=N
 def connect(scheduler: str, timeout: float = CONNECT_TIMEOUT_S):
     """A Dask client of ``scheduler``, or ``ValueError`` saying it did not answer in time (or is
     no address)."""
-    from distributed import Client
+    from benchmarks.records.optional import require
+    Client = require("distributed", "ensemble", "a Dask scheduler (--scheduler)").Client
     with quiet_distributed():
         try:
             return Client(scheduler, timeout=timeout)

@@ -49,6 +49,7 @@ from benchmarks.ensemble.rows import METRIC_COLUMNS, columns_of
 from benchmarks.physics.metrics import CLASSIFICATIONS, CYCLES
 from benchmarks.records.files import _PREFIX as _TEMPORARY
 from benchmarks.records.files import atomic_write, remove_stale_temporaries
+from benchmarks.records.optional import require
 from integrators import ReturnCode
 
 __all__ = ["ChunkStore", "read_store", "BadChunkWarning", "StrayFileWarning",
@@ -137,6 +138,7 @@ class ChunkStore:
     untrustworthy (set aside, to be recomputed); ``strays``: the other files ignored."""
 
     def __init__(self, root, identity: dict, reclaim: bool = False) -> None:
+        require("pyarrow", "ensemble", "a store of an ensemble (Parquet chunks)")
         self.root = Path(root)
         self.identity = identity
         self.reclaim = reclaim

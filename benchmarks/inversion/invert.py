@@ -232,7 +232,8 @@ def _plot_profiles(inv: Inversion, path: Path) -> None:
 
 
 def _plot_corner(inv: Inversion, path: Path) -> None:
-    import corner
+    from benchmarks.records.optional import require
+    corner = require("corner", "inversion", "the corner plot of a posterior")
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt

@@ -1,0 +1,23 @@
+"""Optional libraries: a feature that needs one says which and how to install it, before any
+work, instead of failing half-way with Python's own ``ModuleNotFoundError``."""
+
+from __future__ import annotations
+
+import importlib
+
+__all__ = ["MissingExtra", "require"]
+
+
+class MissingExtra(ModuleNotFoundError):
+    """An optional library a feature needs is not installed (``name``: the module); the message
+    says which extra of the package installs it."""
+
+
+def require(module: str, extra: str, what: str):
+    """Import ``module`` and return it, or :class:`MissingExtra` saying that ``what`` needs it
+    and ``pip install 'rsfbench[extra]'`` installs it."""
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        raise MissingExtra(f"{what} needs {module}, which is not installed: pip install "
+                           f"'rsfbench[{extra}]'", name=module) from None
