@@ -79,11 +79,20 @@ def _missing(module: str) -> bool:
         return True
 
 
+@pytest.hookimpl(wrapper=True)
 def pytest_runtest_setup(item):
+    """A test marked ``needs`` is skipped where a module it names is missing; a fixture that
+    reaches a missing optional library skips its test, naming it."""
     for mark in item.iter_markers("needs"):
         missing = [m for m in mark.args if _missing(m)]
         if missing:
             pytest.skip(f"needs {', '.join(missing)}, not installed (pip install '.[all]')")
+    try:
+        return (yield)
+    except ModuleNotFoundError as exc:
+        if (exc.name or "").split(".")[0] in OPTIONAL_ALL:
+            pytest.skip(f"needs {exc.name}, not installed: {exc}")
+        raise
 
 
 @pytest.hookimpl(wrapper=True)

@@ -216,6 +216,7 @@ def test_the_recommendation_is_the_cheapest_indistinguishable_setting():
     assert pd.isna(advice.loc["all", "setting"]) and not advice.loc["all", "resolved"]
 
 
+@pytest.mark.needs("numbalsoda", "scikits.odes")
 def test_the_candidates_cover_the_own_ladders_etd_and_the_peers():
     from benchmarks.devtools.work_precision import read_study
     from pathlib import Path
@@ -349,6 +350,7 @@ def test_invert_misuse_is_one_line_and_exit_2(argv, match, capsys, tmp_path):
     assert match in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
 
 
+@pytest.mark.needs("emcee", "corner")
 def test_invert_json_prints_one_document(capsys, tmp_path):
     code = main(["invert", "--preset", "W4", "--t-end", "15", "--integrator", "Rodas5P",
                  "--rtol", "1e-4", "--atol", "1e-4", "--steps", "6", "--walkers", "8",

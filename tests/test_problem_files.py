@@ -65,6 +65,7 @@ def test_wrong_suffix_and_missing_file_are_refused(tmp_path):
         load_problem(tmp_path / "none.toml")
 
 
+@pytest.mark.needs("pyarrow")
 def test_cli_sweeps_a_problem_file_and_marks_a_given_point(tmp_path, capsys):
     from benchmarks.cli.main import main
     out = tmp_path / "s"

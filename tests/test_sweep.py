@@ -176,6 +176,7 @@ def test_dask_and_local_pools_give_the_same_table(tmp_path):
         pd.testing.assert_frame_equal(other[SAME], serial[SAME])
 
 
+@pytest.mark.needs("pyarrow")
 def test_cli_sweep_json_has_the_promised_keys(tmp_path, capsys):
     from benchmarks.cli.main import main
     assert main(["sweep", "--preset", "W3", "--b", "0.0097:0.0098:0.0001", "--lc",

@@ -105,7 +105,8 @@ def connect(scheduler: str, timeout: float = CONNECT_TIMEOUT_S):
     """A Dask client of ``scheduler``, or ``ValueError`` saying it did not answer in time (or is
     no address)."""
     from benchmarks.records.optional import require
-    Client = require("distributed", "ensemble", "a Dask scheduler (--scheduler)").Client
+    require("distributed", "ensemble", "a Dask scheduler (--scheduler)")
+    from distributed import Client
     with quiet_distributed():
         try:
             return Client(scheduler, timeout=timeout)

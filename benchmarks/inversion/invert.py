@@ -233,7 +233,8 @@ def _plot_profiles(inv: Inversion, path: Path) -> None:
 
 def _plot_corner(inv: Inversion, path: Path) -> None:
     from benchmarks.records.optional import require
-    corner = require("corner", "inversion", "the corner plot of a posterior")
+    require("corner", "inversion", "the corner plot of a posterior")
+    import corner
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt

@@ -78,7 +78,8 @@ def sample(misfit: Misfit, b_range, lc_range, start, walkers: int = 32, steps: i
     started in a small ball (1e−4 relative in b, 1e−3 in log10 Lc) around ``start`` = (b, Lc in
     m), e.g. a least-squares fit; the first ``burn`` steps (default: a quarter) are dropped."""
     from benchmarks.records.optional import require
-    emcee = require("emcee", "inversion", "a posterior sample")
+    require("emcee", "inversion", "a posterior sample")
+    import emcee
     burn = check_sampler(b_range, lc_range, walkers, steps, burn)
     (b_lo, b_hi), (lc_lo, lc_hi) = b_range, lc_range
     lo, hi = np.array([b_lo, np.log10(lc_lo)]), np.array([b_hi, np.log10(lc_hi)])

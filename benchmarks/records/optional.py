@@ -1,5 +1,9 @@
 """Optional libraries: a feature that needs one says which and how to install it, before any
-work, instead of failing half-way with Python's own ``ModuleNotFoundError``."""
+work, instead of failing half-way with Python's own ``ModuleNotFoundError``.
+
+Call :func:`require` first, then import the library with an ``import`` statement as usual: the
+pipeline finds a study's libraries by its import statements (their versions are inputs of its
+reuse), not by calls."""
 
 from __future__ import annotations
 
