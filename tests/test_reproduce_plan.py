@@ -266,6 +266,8 @@ def test_the_plans(fake, monkeypatch):
         plan(only="x")
     with pytest.raises(ValueError, match="no setting m; its settings: n"):
         plan(only="make", settings={"m": 2})
+    with pytest.raises(ValueError, match="setting n must be a number"):
+        plan(only="make", settings={"n": "two"})
     assert plan(only="make", settings={"n": 3}) == {"make": "ran"}
     assert (fake.out / "a.txt").read_text() == "vvv"
     with pytest.raises(ValueError, match="study 'shout' is in the full plan only"):
@@ -368,7 +370,7 @@ def test_a_dry_run_says_what_would_run_and_writes_nothing(tmp_path, capsys):
     assert main(["reproduce", "--dry-run", "--out", str(out)]) == 0
     text = capsys.readouterr().out
     assert "windows: would run (not in the manifest; ~9 s)" in text
-    assert "steps would run (~" in text and "probe: would run" in text
+    assert "studies would run (~" in text and "probe: would run" in text
     assert "speedup: kept, a step of the full plan (not in the manifest" in text
     assert not out.exists()
 

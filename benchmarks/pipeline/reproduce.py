@@ -72,6 +72,13 @@ def reproduce(out: Path, full: bool = False, force: bool = False, start: str | N
         if unknown:
             raise ValueError(f"study {only} has no setting {', '.join(unknown)}; its settings: "
                              f"{', '.join(f'{k} (default {v!r})' for k, v in study.settings.items()) or 'none'}")
+        for key, value in settings.items():
+            default = study.settings[key]
+            number = (int, float)
+            if isinstance(default, number) and not isinstance(default, bool) and (
+                    isinstance(value, bool) or not isinstance(value, number)):
+                raise ValueError(f"study {only}: setting {key} must be a number, as its default "
+                                 f"{default!r} is; got {value!r}")
         overrides.setdefault(only, {}).update(settings)
     steps = [dataclasses.replace(s, settings={**s.settings, **overrides[s.name]})
              if s.name in overrides else s for s in plan]
@@ -200,7 +207,7 @@ def summary(rows: list[dict]) -> str:
 
 
 def _steps(n: int) -> str:
-    return f"{n} step" + ("" if n == 1 else "s")
+    return f"{n} " + ("study" if n == 1 else "studies")
 
 
 def _step_states(plan, out: Path, **code) -> list[dict]:
