@@ -83,6 +83,20 @@ def _obs(curves=None, window="W2"):
     return observations(window, curves=curves)
 
 
+def test_without_pyarrow_a_sweep_keeps_no_store_and_says_so(tmp_path, monkeypatch):
+    """The core install has no pyarrow: a sweep still runs and scores, with no chunks on disk."""
+    import importlib.util
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec",
+                        lambda name, *a: None if name == "pyarrow" else real(name, *a))
+    with pytest.warns(UserWarning, match="pyarrow is not installed: this sweep keeps no chunks"):
+        res = sweep(preset("W2", law="slip", t_end=10.0), [0.0094], [3e-7],
+                    Rodas5P(rtol=1e-4, atol=1e-4), _obs(), tmp_path / "s", workers=1,
+                    progress=False)
+    assert res.summary["store"] is None and len(res.table) == 1
+    assert not (tmp_path / "s" / "chunks").exists() and (tmp_path / "s" / "sweep.csv").exists()
+
+
 def test_failed_points_never_score(tmp_path):
     # a step budget that W2 over 20 s fits at Lc = 0.3 µm (~200,000 ETD steps: τ spans
     # t·v0/Lc) but not at 0.1 µm (~600,000): two failed rows beside two scored ones

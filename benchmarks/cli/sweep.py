@@ -88,8 +88,9 @@ def cmd_sweep(args) -> int:
             say(f"best ({s['best_by']}): b = {s['best_b']:.5g}, Lc = {s['best_lc_m'] * 1e6:.4g} µm,"
                   f" J1 = {s['best_J1']:.3g}")
         say(f"classification: {s['classification']}")
-        say(f"written: {out / 'sweep.csv'}, {out / 'summary.json'}, {out / 'chunks'} (the "
-            "store: benchmarks.ensemble.read_store reads it)"
+        store = (f", {s['store']} (the store: benchmarks.ensemble.read_store reads it)"
+                 if s["store"] else "")
+        say(f"written: {out / 'sweep.csv'}, {out / 'summary.json'}{store}"
             + ("" if args.no_plot else f", {out / 'maps.png'}"))
     return 0
 

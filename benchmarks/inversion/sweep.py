@@ -23,8 +23,10 @@ the reason in its classification and message.
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import math
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -249,8 +251,13 @@ def sweep(problem, b_values, lc_values, algorithm, obs: Observations, out,
     check_positive("curve_dt", curve_dt)
     b_values, lc_values = check_grid(b_values, lc_values, max_points)
     out = Path(out)
+    store = out / "chunks"
+    if importlib.util.find_spec("pyarrow") is None:    # the core install: no Parquet store
+        warnings.warn("pyarrow is not installed: this sweep keeps no chunks and cannot resume "
+                      "(pip install 'rsfbench[ensemble]')", stacklevel=2)
+        store = None
     with units_checked_already():            # check_grid warned once for the Lc axis
-        table = ensemble(problem, algorithm, grid(b=b_values, lc=lc_values), store=out / "chunks",
+        table = ensemble(problem, algorithm, grid(b=b_values, lc=lc_values), store=store,
                          chunk_size=chunk_size, workers=workers, backend=backend,
                          scheduler=scheduler, wall_budget=wall_budget,
                          curve_dt=curve_dt if obs.curves is not None else None,
@@ -266,7 +273,8 @@ def sweep(problem, b_values, lc_values, algorithm, obs: Observations, out,
                               workers=run["workers"],
                               scheduler=scheduler, backend=run["backend"],
                               batched=run["batched"], chunks=run["chunks"],
-                              store=str(out / "chunks"))
+                              store=None if store is None else str(store))
+    out.mkdir(parents=True, exist_ok=True)
     remove_stale_temporaries(out)
     atomic_write(out / "sweep.csv", table.to_csv(index=False))
     atomic_write(out / "summary.json", json.dumps(jsonable(summary), indent=2))
