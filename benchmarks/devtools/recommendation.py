@@ -4,15 +4,16 @@ time.
 :data:`FRONT` is the quick work-precision study's front (``results/wp_quick.csv``): settings of
 one integrator for the whole problem set, each faster than every more accurate one, with its
 worst error in the recurrence interval over the study problems. The study writes it
-(:func:`benchmarks.devtools.work_precision.write_recommendation`); ``tests/test_recommendation.py`` checks
-it against the committed study. :func:`recommended` takes the fastest setting within a level.
+(:func:`benchmarks.devtools.work_precision.write_recommendation`);
+``tests/test_recommendation.py`` checks it against the committed study. :func:`recommended`
+takes the fastest setting within a level.
 """
 
 from __future__ import annotations
 
 __all__ = ["FRONT", "STUDY", "recommended"]
 
-# --- written by the quick work-precision study (`rsfbench reproduce --only work-precision`); do not edit ---
+# --- written by the quick work-precision study (`rsfbench study work-precision`); do not edit ---
 STUDY = {"file": 'wp_quick.csv', "commit": '8bdf12b6eb87+dirty',
          "sha256": '2c66ff958aa85f9a826b444cab45cd79cac217e1e34bc87762276d2cc932bd2c'}
 #: (worst err_recurrence over the study problems, total wall s, integrator, rhs tier,

@@ -313,7 +313,7 @@ def front_source(csv) -> str:
     df = read_study(csv)
     front = pareto_front(df)
     commit = str(df["git_commit"].iloc[0]) if "git_commit" in df else ""
-    lines = [f"{_BEGIN} (`rsfbench reproduce --only work-precision`); do not edit ---",
+    lines = [f"{_BEGIN} (`rsfbench study work-precision`); do not edit ---",
              f"STUDY = {{\"file\": {Path(csv).name!r}, \"commit\": {commit!r},",
              f"         \"sha256\": {hashlib.sha256(Path(csv).read_bytes()).hexdigest()!r}}}",
              "#: (worst err_recurrence over the study problems, total wall s, integrator, rhs tier,",

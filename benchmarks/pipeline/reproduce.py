@@ -67,19 +67,8 @@ def reproduce(out: Path, full: bool = False, force: bool = False, start: str | N
                          "NAME --set KEY=VALUE`)")
     overrides = {"speedup": {"scipy_budget": scipy_budget}} if scipy_budget is not None else {}
     if settings:
-        study = study_named(only, plan)
-        unknown = sorted(set(settings) - set(study.settings))
-        if unknown:
-            raise ValueError(f"study {only} has no setting {', '.join(unknown)}; its settings: "
-                             f"{', '.join(f'{k} (default {v!r})' for k, v in study.settings.items()) or 'none'}")
-        for key, value in settings.items():
-            default = study.settings[key]
-            number = (int, float)
-            if isinstance(default, number) and not isinstance(default, bool) and (
-                    isinstance(value, bool) or not isinstance(value, number)):
-                raise ValueError(f"study {only}: setting {key} must be a number, as its default "
-                                 f"{default!r} is; got {value!r}")
-        overrides.setdefault(only, {}).update(settings)
+        overrides.setdefault(only, {}).update(_checked_settings(study_named(only, plan),
+                                                                settings))
     steps = [dataclasses.replace(s, settings={**s.settings, **overrides[s.name]})
              if s.name in overrides else s for s in plan]
     if only:
@@ -101,6 +90,23 @@ def reproduce(out: Path, full: bool = False, force: bool = False, start: str | N
         stale = refresh()
         print(f"README blocks refilled: {', '.join(stale) or 'none changed'}")
     return rows
+
+
+def _checked_settings(study, settings: dict) -> dict:
+    """``settings`` for ``study``, or ``ValueError`` naming an unknown one or a word given for a
+    number."""
+    unknown = sorted(set(settings) - set(study.settings))
+    if unknown:
+        known = ", ".join(f"{k} (default {v!r})" for k, v in study.settings.items()) or "none"
+        raise ValueError(f"study {study.name} has no setting {', '.join(unknown)}; its "
+                         f"settings: {known}")
+    for key, value in settings.items():
+        default = study.settings[key]
+        if isinstance(default, (int, float)) and not isinstance(default, bool) and (
+                isinstance(value, bool) or not isinstance(value, (int, float))):
+            raise ValueError(f"study {study.name}: setting {key} must be a number, as its "
+                             f"default {default!r} is; got {value!r}")
+    return settings
 
 
 def run_steps(steps, out: Path, modes: dict[str, str], dry_run: bool = False,
