@@ -65,11 +65,27 @@ def pytest_configure(config):
     config.addinivalue_line("markers", "needs(*modules): the optional modules a test needs; "
                                        "skipped where one is missing")
     if config.getoption("--require-all"):
-        missing = [m for m in OPTIONAL if _missing(m)]
+        missing = [m for m in OPTIONAL if not _imports(m)]
         missing += [f"{module} ({why})" for module, why in sorted(I.UNAVAILABLE.items())]
         if missing:
             pytest.exit(f"--require-all: missing {', '.join(missing)}; `make setup` installs "
                         f"every extra", returncode=3)
+
+
+def _imports(module: str) -> bool:
+    """Does ``module`` import (not only exist: a broken install counts as missing here)?"""
+    try:
+        importlib.import_module(module)
+    except ImportError:
+        return False
+    return True
+
+
+def _absent(exc: ModuleNotFoundError, config) -> bool:
+    """Is ``exc`` an optional library that is not installed at all, outside --require-all?"""
+    top = (exc.name or "").split(".")[0]
+    return (top in OPTIONAL_ALL and not config.getoption("--require-all")
+            and _missing(top))
 
 
 def _missing(module: str) -> bool:
@@ -90,7 +106,7 @@ def pytest_runtest_setup(item):
     try:
         return (yield)
     except ModuleNotFoundError as exc:
-        if (exc.name or "").split(".")[0] in OPTIONAL_ALL:
+        if _absent(exc, item.config):
             pytest.skip(f"needs {exc.name}, not installed: {exc}")
         raise
 
@@ -102,7 +118,7 @@ def pytest_runtest_call(item):
     try:
         return (yield)
     except ModuleNotFoundError as exc:
-        if (exc.name or "").split(".")[0] in OPTIONAL_ALL:
+        if _absent(exc, item.config):
             pytest.skip(f"needs {exc.name}, not installed: {exc}")
         raise
 

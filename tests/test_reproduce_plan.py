@@ -332,6 +332,11 @@ def test_a_study_that_writes_what_it_does_not_declare_fails(fake):
     with pytest.raises(RuntimeError, match="declares z.txt"):
         fake.run(steps=[both])
 
+    fake.run({"make": "run"})                       # a.txt is there from this run
+    lazy = dataclasses.replace(make, run=lambda out, n=1: None)
+    with pytest.raises(RuntimeError, match="declares a.txt but wrote no such file .* this run"):
+        fake.run({"make": "run"}, steps=[lazy, *fake.steps[1:]])
+
     def extra(out, n=1):
         make.run(out, n)
         (out / "undeclared.txt").write_text("x")

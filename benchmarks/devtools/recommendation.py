@@ -48,7 +48,7 @@ def recommended(level: float):
     for worst, _wall, name, tier, setting in FRONT:
         if worst <= level and name in REGISTRY:
             return algorithm_at(name, tier, setting), (
-                f"the quick work-precision study ({STUDY['file']} at {STUDY['commit'][:7]}): "
+                f"the quick work-precision study ({STUDY['file']} at {STUDY['commit']}): "
                 f"fastest setting with worst err_recurrence ≤ {level:g} over its problems "
                 f"(worst {worst:.2g}): {name} [{tier}] at {setting:g}")
     return ETD2(), (f"the quick work-precision study recommends nothing for err_recurrence ≤ "

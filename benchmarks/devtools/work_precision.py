@@ -330,5 +330,7 @@ def write_recommendation(csv, module: Path = RECOMMENDATION_MODULE) -> Path:
     text = module.read_text(encoding="utf-8")
     begin, end = text.index(_BEGIN), text.index(_END)
     end = text.index("\n", end) + 1
-    module.write_text(text[:begin] + front_source(csv) + text[end:], encoding="utf-8")
+    new = text[:begin] + front_source(csv) + text[end:]
+    if new != text:                  # an unchanged file keeps its time (make's caches go by it)
+        module.write_text(new, encoding="utf-8")
     return module

@@ -145,15 +145,18 @@ def origin(source: str, root: Path = ROOT) -> str:
     if key not in _NOW:
         _NOW[key] = study_inputs(study, out, root=Path(root))
     now = _NOW[key]
-    then = {**record["inputs"], "machine": now["machine"]}     # another machine is not staleness
-    when = f"the study `{study.name}` at commit `{record['git_commit'][:12]}`, " \
+    now = {**now, "machine": record["inputs"].get("machine")}  # another machine: not stale
+    when = f"the study `{study.name}` at commit `{record['git_commit']}`, " \
            f"{record['finished'][:10]}"
-    if M.inputs_hash(then) == M.inputs_hash(now):
-        return f"<sub>From {when}; its inputs are unchanged since.</sub>\n\n"
+    ok, why = M.reusable(record, now, out)
+    if ok:
+        return f"<sub>From {when}; its inputs and files are unchanged since.</sub>\n\n"
+    then = record["inputs"]
     kinds = [k for k in ("code", "versions", "settings", "reads") if then.get(k) != now.get(k)]
-    return (f"<sub>**Stale**: from {when}; its {' and '.join(kinds) or 'inputs'} changed since "
-            f"(`rsfbench reproduce --dry-run` says how): `rsfbench study {study.name}` reruns "
-            f"it.</sub>\n\n")
+    what = (f"its {' and '.join(kinds)} changed since" if kinds
+            else f"its files changed since ({why})")
+    return (f"<sub>**Stale**: from {when}; {what} (`rsfbench reproduce --dry-run` says how): "
+            f"`rsfbench study {study.name}` reruns it.</sub>\n\n")
 
 
 def fill(readme: str, root: Path = ROOT) -> str:

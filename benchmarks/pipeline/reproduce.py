@@ -172,20 +172,26 @@ def run_steps(steps, out: Path, modes: dict[str, str], dry_run: bool = False,
 
 
 def _declared_outputs(study, plan, out: Path, before: dict) -> dict[str, str]:
-    """Relative path → hash of the files ``study`` declares; ``RuntimeError`` if a declared
-    pattern matched nothing or it wrote a file that no study of ``plan`` declares (a file
-    another study declares may be that study's, running at the same time)."""
-    outputs = study.outputs(out)
-    unmatched = [p for p in study.writes if not any(study.declares(o) for o in outputs
-                                                   if Path(o).match(p))]
+    """Relative path → hash of the files ``study`` wrote in this run that it declares;
+    ``RuntimeError`` if a declared pattern matched no file written in this run (a file left
+    from an earlier run does not count) or it wrote a file that no study of ``plan`` declares
+    (a file another study declares may be that study's, running at the same time)."""
+    written = M.written_since(before, out)
+    outputs = {p: h for p, h in written.items() if study.declares(p)}
+    unmatched = [pattern for pattern in study.writes
+                 if not any(_matches(p, pattern) for p in outputs)]
     if unmatched:
         raise RuntimeError(f"study {study.name} declares {', '.join(unmatched)} but wrote no "
-                           f"such file in {out}")
-    stray = [p for p in M.written_since(before, out) if not any(s.declares(p) for s in plan)]
+                           f"such file in {out} in this run")
+    stray = [p for p in written if not any(s.declares(p) for s in plan)]
     if stray:
         raise RuntimeError(f"study {study.name} wrote {', '.join(stray[:5])} in {out}, which no "
                            "study declares: add them to its STUDY.writes")
-    return {p: M.file_hash(Path(out) / p) for p in outputs}
+    return outputs
+
+
+def _matches(path: str, pattern: str) -> bool:
+    return len(Path(path).parts) == len(Path(pattern).parts) and Path(path).match(pattern)
 
 
 def describe(row: dict) -> str:
@@ -265,6 +271,9 @@ since (`manifest.json`); the last section lists the studies.
             body = study.report(out)
         except FileNotFoundError as exc:
             body = f"Not run yet ({exc.filename} is missing): `rsfbench study {study.name}`.\n"
+        except Exception as exc:      # one unreadable section must not lose the whole report
+            body = (f"This section could not be read back: {type(exc).__name__}: {exc} "
+                    f"(`rsfbench study {study.name}` rewrites its files).\n")
         mark = ("" if state["files"] == "up to date" else
                 f"**Stale**: {state['files']}; `rsfbench study {study.name}` reruns it.\n\n")
         origin = (f"*From the run at commit `{state['commit']}` ({state['last run']}).*\n\n"

@@ -19,9 +19,13 @@ class MissingExtra(ModuleNotFoundError):
 
 def require(module: str, extra: str, what: str):
     """Import ``module`` and return it, or :class:`MissingExtra` saying that ``what`` needs it
-    and ``pip install 'rsfbench[extra]'`` installs it."""
+    and ``pip install 'rsfbench[extra]'`` installs it. An installed library that fails to import
+    (a missing shared library, a module of its own missing) raises its own error."""
     try:
         return importlib.import_module(module)
-    except ImportError:
+    except ModuleNotFoundError as exc:
+        top = module.split(".")[0]
+        if exc.name not in (module, top):       # installed, but broken: say so, with the cause
+            raise
         raise MissingExtra(f"{what} needs {module}, which is not installed: pip install "
                            f"'rsfbench[{extra}]'", name=module) from None

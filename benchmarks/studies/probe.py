@@ -22,5 +22,6 @@ def report(out: Path) -> str:
 
 
 STUDY = Study("probe", "Reliability: the probe (`reliability.*`)", 260, run, report=report,
-              data=("results/wp_quick.csv",), modules=("benchmarks.cli",),
+              data=("results/wp_quick.csv", "docs/examples/apparatus.toml"),
+              modules=("benchmarks.cli",),
               writes=("reliability.csv", "reliability.md"), minutes=19)

@@ -57,6 +57,9 @@ class Study:
             if Path(pattern).is_absolute() or ".." in Path(pattern).parts:
                 raise ValueError(f"study {self.name}: {pattern!r} is not relative to the output "
                                  "directory")
+            if "**" in pattern:
+                raise ValueError(f"study {self.name}: {pattern!r}: a pattern names each level "
+                                 "of its path ('*' within one, not '**')")
         if not self.minutes > 0:
             raise ValueError(f"study {self.name}: expected minutes must be positive")
 
