@@ -70,8 +70,9 @@ def test_a_block_says_which_run_it_comes_from_and_whether_it_is_stale(tmp_path):
     from benchmarks.pipeline.plan import study_inputs, study_named
     line = readme.origin("results/windows.md")
     record = M.read_manifest(readme.ROOT / "results")["windows"]
-    assert f"the study `windows` at commit `{record['git_commit'][:12]}`" in line
+    assert f"the study `windows` at commit `{record['git_commit']}`" in line
     now = study_inputs(study_named("windows"), readme.ROOT / "results")
-    same = M.inputs_hash({**record["inputs"], "machine": now["machine"]}) == M.inputs_hash(now)
+    same, _ = M.reusable(record, {**now, "machine": record["inputs"].get("machine")},
+                         readme.ROOT / "results")
     assert ("**Stale**" not in line) == same
     assert readme.origin("results/x.md", _root(tmp_path)) == ""       # no manifest: no line

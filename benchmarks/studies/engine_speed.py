@@ -145,7 +145,7 @@ def startup(warm_repeats: int = 3) -> dict:
     import tempfile
     import time
 
-    root = Path(__file__).resolve().parent.parent
+    root = Path(__file__).resolve().parents[2]          # the checkout
 
     def once(cwd, env_path):
         env = {**__import__("os").environ, "PYTHONPATH": str(env_path)}
