@@ -6,6 +6,7 @@ with ``@pytest.mark.needs("module", ...)`` and is skipped where it is missing (`
 without extras); ``make test`` passes ``--require-all``, which first checks that every optional
 library imports and stops the run, naming the missing ones, if one does not."""
 
+import contextlib
 import ctypes
 import importlib.util
 
@@ -103,20 +104,22 @@ def pytest_runtest_setup(item):
         missing = [m for m in mark.args if _missing(m)]
         if missing:
             pytest.skip(f"needs {', '.join(missing)}, not installed (pip install '.[all]')")
-    try:
+    with _skipped_if_absent(item):
         return (yield)
-    except ModuleNotFoundError as exc:
-        if _absent(exc, item.config):
-            pytest.skip(f"needs {exc.name}, not installed: {exc}")
-        raise
 
 
 @pytest.hookimpl(wrapper=True)
 def pytest_runtest_call(item):
     """A test that reaches an optional library that is not installed is skipped, naming it
     (never under --require-all, where every one is installed)."""
-    try:
+    with _skipped_if_absent(item):
         return (yield)
+
+
+@contextlib.contextmanager
+def _skipped_if_absent(item):
+    try:
+        yield
     except ModuleNotFoundError as exc:
         if _absent(exc, item.config):
             pytest.skip(f"needs {exc.name}, not installed: {exc}")
