@@ -32,10 +32,13 @@ $(STAMP): pyproject.toml requirements.lock | system-packages
 
 # numba's on-disk cache of a function is keyed by its own file only, so a kernel would keep the
 # stale inlined code of a helper edited in another module: drop every cache older than the newest
-# source file (a fresh clone has none; after an edit numba recompiles, ~1 min)
+# source file it can inline from (the methods' and the model's kernels never inline the harness,
+# so editing benchmarks/ keeps them; a fresh clone has none; after an edit numba recompiles)
 numba-cache:
-	@newest=$$(ls -t $$(find integrators problems benchmarks -name '*.py') | head -1); \
-	find integrators problems benchmarks -name '*.nb[ic]' ! -newer "$$newest" -delete
+	@newest=$$(ls -t $$(find integrators problems -name '*.py') | head -1); \
+	find integrators problems -name '*.nb[ic]' ! -newer "$$newest" -delete; \
+	newest=$$(ls -t $$(find integrators problems benchmarks -name '*.py') | head -1); \
+	find benchmarks -name '*.nb[ic]' ! -newer "$$newest" -delete
 
 # compile every kernel once into numba's cache (a fresh checkout has none; ~5 min on 2 cores),
 # again after a source file changed: the tests and a first run then pay no compiling

@@ -9,8 +9,7 @@ from benchmarks.cli.main import build_parser
 from benchmarks.cli.args import HelpFormatter
 
 #: options that carry a physical quantity, and the unit their help must name
-UNITS = {"--t-end": " s", "--wall-budget": " s", "--lc": "metres", "--scipy-budget": " s",
-         "--compiled-budget": " s", "--curve-dt": " s", "--obs-recurrence": " s",
+UNITS = {"--t-end": " s", "--wall-budget": " s", "--lc": "metres", "--curve-dt": " s", "--obs-recurrence": " s",
          "--sigma-recurrence": " s", "--connect-timeout": " s", "--worker-timeout": " s"}
 
 

@@ -42,7 +42,7 @@ def test_the_warm_up_runs_problems_whose_loading_switches():
 
 
 def test_simulate_takes_a_problem_file_whose_loading_switches(tmp_path):
-    from benchmarks.probe import cli
+    from probe.harness import cli
     f = tmp_path / "step.toml"
     f.write_text("mass = 0.0\nstiffness = 1e9\nnormal_force = 1e6\nt_end = 800.0\n"
                  "[law]\nname = \"aging\"\na = 0.005\nb = 0.01\nlc = 1e-5\nv0 = 1e-6\n"

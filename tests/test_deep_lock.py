@@ -8,7 +8,7 @@ CVODE itself stops at the plunge (StepUnderflow, as Radau, BDF and IDA at tight 
 so past it the reference is CVODE's last state carried through the lock exactly: the slider stays
 stopped (v ~ 1e−30 m/s), the spring force grows by k times the load point's displacement and θ
 stays (slip law) or grows by the elapsed time (aging law)
-(:func:`benchmarks.probe_families.integrators.lock_end`).
+(:func:`probe.families.integrators.lock_end`).
 """
 
 import math
@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 import integrators as I
-from benchmarks.probe_families.integrators import before_plunge, check_against_peer, lock_end
+from probe.families.integrators import before_plunge, check_against_peer, lock_end
 from problems import preset
 
 STIFF = ["Rodas5P", "Rosenbrock23", "Exprb32", "Exprb43"]

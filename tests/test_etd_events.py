@@ -3,7 +3,7 @@
 A ladder of step bounds up to huge values on every preset under both laws: each setting is
 refused before any work or finds the reference's events (count in a window ending half-way
 between two reference events, event starts within the method's tolerance). The windows, the
-tolerances and the comparison are those of the probe family (:mod:`benchmarks.probe_families.etd`);
+tolerances and the comparison are those of the probe family (:mod:`probe.families.etd`);
 the reference is Rodas5P at rtol = atol = 1e−9, checked against scipy's Radau at 1e−10 below.
 """
 
@@ -15,7 +15,7 @@ import pytest
 
 import integrators as I
 import problems as P
-from benchmarks.probe_families.etd import (HISTORIES, MISSED_BEFORE, TOLERANCE, WINDOWS,
+from probe.families.etd import (HISTORIES, MISSED_BEFORE, TOLERANCE, WINDOWS,
                                            events_agree, history_problem, reference,
                                            window_problem)
 from integrators.own import etd_kernel as K

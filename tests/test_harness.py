@@ -200,14 +200,16 @@ def test_work_precision_cli_writes_the_study(cache, monkeypatch, tmp_path, capsy
 
 
 @pytest.mark.needs("scikits.odes")
-def test_speedup_cli_json_keys_and_a_budget_stop_is_a_lower_bound(cache, monkeypatch, capsys):
+def test_speedup_keys_and_a_budget_stop_is_a_lower_bound(cache, monkeypatch):
     """Paper example for 2 s (two events). scipy's RK45 gets 2 s of wall time, far too little
     (it needs ~70 s for this interval): its ratio must be flagged as a lower bound, with the
     simulated time it reached."""
+    from benchmarks.records.report import jsonable
+    from benchmarks.studies.speedup import speedup
     monkeypatch.setenv("RSFBENCH_CACHE", str(cache))
-    assert main(["speedup", "--t-end", "2", "--scipy-budget", "2", "--implicit", "odes-CVODE-BDF",
-                 "--json"]) == 0
-    out = json.loads(capsys.readouterr().out)
+    out, _ = speedup(P.preset("paper-example", t_end=2.0), scipy_budget=2.0,
+                     implicit=["odes-CVODE-BDF"], progress=False)
+    out = json.loads(json.dumps(jsonable(out)))
     for key in ("ratio_vs_scipy_rk45", "ratio_vs_compiled_rk45", "ratio_vs_best_implicit",
                 "cycles_agree"):
         assert key in out
@@ -274,3 +276,16 @@ def test_the_engine_speed_verdict_is_read_from_the_table():
     assert _verdict(goals) == ("1 of the 4 speed targets are met. a: missed by 1.8×; Rodas5P "
                                "1e-08 takes 4,662 step attempts at 0.39 µs each. c: missed by "
                                "1.1×. d: no own setting reaches it.")
+
+
+@pytest.mark.slow
+def test_the_engine_speed_start_up_times_run_the_checkout():
+    """The start-up timings run this checkout's packages (warm) and a copy without numba's cache
+    (cold: it compiles), and the simulate command; each is a positive time and the cold first
+    solve pays the compiling the warm one does not (~1 min: make test-slow)."""
+    from benchmarks.studies.engine_speed import startup
+    t = startup(warm_repeats=1)
+    assert set(t) == {"import_warm", "first_solve_warm", "import_cold", "first_solve_cold",
+                      "simulate_warm"}
+    assert all(0 < v < 600 for v in t.values())
+    assert t["first_solve_cold"] > t["first_solve_warm"]

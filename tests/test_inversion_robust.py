@@ -177,9 +177,9 @@ def test_w2_profiles_with_a_small_sigma_and_few_points_contain_the_fit_and_the_t
     (["invert", "--preset", "W2", "--walkers", "5000", "--steps", "5000"], "walkers × steps"),
     (["invert", "--preset", "W2", "--b-range", "0.001,1.5"], "b = 1.5"),
     (["invert", "--preset", "W2", "--sigma-recurrence", "1e-15"], "sigma_recurrence_s"),
-    (["calibration", "--check-seeds", "5", "--seeds", "2"], "--check-seeds 5"),
-    (["calibration", "--n", "100000"], "--n"),
-    (["solver-effect", "--n", "100000"], "--n"),
+    (["study", "calibration", "--set", "check_seeds=5", "--set", "seeds=2"], "check_seeds = 5"),
+    (["study", "calibration", "--set", "n=100000"], "n = 100000"),
+    (["study", "solver-effect", "--set", "n=100000"], "n = 100000"),
 ])
 def test_bad_values_are_one_line_and_exit_2_before_any_work(argv, match, capsys, tmp_path,
                                                              monkeypatch):

@@ -341,7 +341,7 @@ def test_a_bad_chain_is_refused_before_the_fit():
     (["invert", "--preset", "paper-example"], "--obs-recurrence is required"),
     (["invert", "--preset", "paper-example", "--obs-recurrence", "3", "--obs-drop", "0.04"],
      "--b-range and --lc-range are required"),
-    (["calibration", "--sigma", "1.5", "--out", "{tmp}"], "--sigma"),
+    (["study", "calibration", "--set", "sigma=1.5", "--out", "{tmp}"], "sigma = 1.5"),
 ])
 def test_invert_misuse_is_one_line_and_exit_2(argv, match, capsys, tmp_path):
     argv = [a.replace("{tmp}", str(tmp_path)) for a in argv]

@@ -14,7 +14,7 @@ import integrators as I
 import problems as P
 from benchmarks.physics.lab import (SETTLED, STEP_REFERENCE, PeakNotReached, UnsettledWarning, healing,
                             step_reference, step_response)
-from benchmarks.probe import cli, cli_outcome
+from probe.harness import cli, cli_outcome
 from problems.files import problem_dict
 
 LC, V1 = 1e-5, 1e-6        # the laboratory apparatus's Dc (m) and the CLI's default --v1 (m/s)

@@ -10,12 +10,9 @@ from benchmarks.pipeline.manifest import find_cycles, import_graph
 #: bottom to top: a room may import the rooms before it, never those after
 ROOMS = ("records", "physics", "devtools", "ensemble", "inversion", "studies", "pipeline", "cli")
 #: modules of ``benchmarks`` outside the rooms: the lazy-API helper, importable from any room;
-#: the reliability probe and the pytest-benchmark suite, which import anything and that only
-#: the probe's study, the pipeline and the command line may import (the probe is to move into
-#: tests/)
+#: the pytest-benchmark suite, which imports anything and which nothing imports
 BASE = {"benchmarks", "benchmarks._api"}
-OUTSIDE = ("benchmarks.probe", "benchmarks.probe_cases", "benchmarks.probe_families",
-           "benchmarks.test_speed")
+OUTSIDE = ("benchmarks.test_speed",)
 GRAPH = import_graph()
 
 
@@ -37,8 +34,6 @@ def test_every_module_is_in_a_room():
 def climbing(graph, room: str) -> dict[str, list[str]]:
     """The modules of ``room`` that import a room above it, with what they import."""
     allowed = set(ROOMS[:ROOMS.index(room) + 1]) | {None}
-    if room in ("studies", "pipeline", "cli"):
-        allowed.add("outside")
     wrong = {m: sorted(d for d in deps if _room(d) not in allowed)
              for m, deps in graph.items() if _room(m) == room}
     return {m: d for m, d in wrong.items() if d}

@@ -162,9 +162,9 @@ def test_a_unit_slip_in_a_file_warns_in_the_problems_words(tmp_path):
 
 
 def test_every_valid_kind_of_file_reads_back_in_toml_and_json(tmp_path):
-    """The probe's valid files (benchmarks/probe_families/problem_files.py), written by its TOML
+    """The probe's valid files (tests/probe/families/problem_files.py), written by its TOML
     writer and as JSON, read back equal, with the loading switches each has."""
-    from benchmarks.probe_families.problem_files import _valid_problems, toml_text
+    from probe.families.problem_files import _valid_problems, toml_text
     for name, (make, switches) in _valid_problems().items():
         problem = make()
         for suffix, text in ((".toml", toml_text(problem_dict(problem))),

@@ -7,7 +7,24 @@ import pytest
 from benchmarks.pipeline import readme
 
 
-def test_committed_readme_matches_committed_results():
+def _locked() -> bool:
+    """Is every package of requirements.lock installed at its locked version?"""
+    import importlib.metadata
+    for line in (readme.ROOT / "requirements.lock").read_text().splitlines():
+        name, sep, version = line.strip().partition("==")
+        if sep and not line.startswith("#"):
+            try:
+                if importlib.metadata.version(name) != version:
+                    return False
+            except importlib.metadata.PackageNotFoundError:
+                return False
+    return True
+
+
+def test_committed_readme_matches_committed_results(monkeypatch):
+    # in another environment than the lock's (pip install . without extras, newer releases) the
+    # blocks' labels are judged with the versions they were made with, not those installed
+    monkeypatch.setattr(readme, "RECORDED_VERSIONS", not _locked())
     stale = readme.refresh(check=True)
     assert stale == [], f"README blocks out of date (run `rsfbench readme`): {stale}"
 

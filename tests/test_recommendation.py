@@ -15,7 +15,7 @@ from benchmarks.devtools.work_precision import (STUDY_CSV, front_source, pareto_
 
 def test_the_constant_is_the_committed_study():
     """Fails when results/wp_quick.csv changed without its front being rewritten
-    (`rsfbench reproduce --only work-precision` does both)."""
+    (`rsfbench study work-precision` does both)."""
     assert recommendation.STUDY["sha256"] == hashlib.sha256(STUDY_CSV.read_bytes()).hexdigest()
     front = pareto_front(read_study(STUDY_CSV))
     assert list(recommendation.FRONT) == [tuple(r) for r in front.itertuples(index=False)]

@@ -5,6 +5,7 @@ steps in a temporary directory."""
 import json
 import sys
 import textwrap
+from pathlib import Path
 
 import pandas as pd
 import pytest
@@ -220,7 +221,7 @@ def test_a_step_reruns_when_its_output_was_deleted_or_modified(fake, capsys):
 
 def test_run_keep_and_dry_run(fake, capsys):
     fake.run()
-    assert fake.run({"make": "run"}) == {"make": "ran"}              # --only / --force
+    assert fake.run({"make": "run"}) == {"make": "ran"}              # rsfbench study NAME / --force
     (fake.root / "fakeplan/lib.py").write_text("def value():\n    return 'x'\n")
     assert fake.run("keep") == {"make": "stale", "shout": "reused", "clocks": "reused"}
     assert "make: kept, a step of the full plan (inputs changed" in capsys.readouterr().out
@@ -241,7 +242,7 @@ def test_a_bad_manifest_means_every_step_reruns(fake, capsys):
 
 
 def test_the_plans(fake, monkeypatch):
-    """The quick plan keeps the full steps, --full runs them, --only reruns one step, --from
+    """The quick plan keeps the full steps, --full runs them, `rsfbench study NAME` reruns one step, --from
     starts later; misuse is one clear error."""
     import dataclasses
     steps = (fake.steps[0], dataclasses.replace(fake.steps[1], plan="full"), fake.steps[2])
@@ -266,14 +267,13 @@ def test_the_plans(fake, monkeypatch):
         plan(only="x")
     with pytest.raises(ValueError, match="no setting m; its settings: n"):
         plan(only="make", settings={"m": 2})
-    with pytest.raises(ValueError, match="setting n must be a number"):
-        plan(only="make", settings={"n": "two"})
+    for bad in ("two", 2.5, float("nan")):
+        with pytest.raises(ValueError, match="setting n must be a whole number"):
+            plan(only="make", settings={"n": bad})
     assert plan(only="make", settings={"n": 3}) == {"make": "ran"}
     assert (fake.out / "a.txt").read_text() == "vvv"
     with pytest.raises(ValueError, match="study 'shout' is in the full plan only"):
         plan(start="shout")
-    with pytest.raises(ValueError, match="scipy budget"):
-        plan(scipy_budget=5.0)
 
 
 # --- the real steps ------------------------------------------------------------------------
@@ -291,9 +291,9 @@ def test_every_study_declares_inputs_that_resolve(tmp_path):
         assert any(k.endswith(f"::{study.run.__name__}") for k in inputs["code"])
         assert inspect.getsourcefile(study.run).endswith(
             f"{study.run.__module__.replace('.', '/')}.py")
-    code = RP.study_inputs(RP.study_named("probe"), tmp_path)["code"]
-    assert {"benchmarks/cli/main.py", "benchmarks/probe_cases.py", "problems/presets.py"} <= set(
-        code)
+    probe = RP.study_inputs(RP.study_named("probe"), tmp_path)
+    assert {"benchmarks/cli/main.py", "problems/presets.py"} <= set(probe["code"])
+    assert {"tests/probe/cases.py", "tests/probe/families/inversion.py"} <= set(probe["reads"])
     code = RP.study_inputs(RP.study_named("windows"), tmp_path)["code"]
     assert {"benchmarks/studies/windows.py", "benchmarks/physics/summary.py",
             "integrators/own/etd.py"} <= set(code)
@@ -320,6 +320,9 @@ def test_a_plan_that_reads_what_no_earlier_study_writes_is_refused(fake):
         RP.check_plan([shout, make])
     with pytest.raises(ValueError, match="share a name"):
         RP.check_plan([make, dataclasses.replace(make, order=99)])
+    with pytest.raises(ValueError, match="make and copy both declare a.txt"):
+        RP.check_plan([make, dataclasses.replace(make, name="copy", order=99,
+                                                 writes=("*.txt",))])
 
 
 def test_a_study_that_writes_what_it_does_not_declare_fails(fake):
@@ -362,9 +365,10 @@ def test_the_report_has_a_section_per_study_with_its_commit_and_staleness(fake):
 
 def test_the_command_line_refuses_misuse_in_one_line(capsys):
     from benchmarks.cli.main import main
-    assert main(["reproduce", "--scipy-budget", "5", "--out", "/tmp"]) == 2
+    assert main(["study", "speedup", "--set", "scipy_budget=0", "--out", "/tmp/nowhere"]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "--full" in err and "Traceback" not in err
+    assert err.count("\n") == 1 and "scipy_budget = 0" in err and "Traceback" not in err
+    assert not Path("/tmp/nowhere").exists()
     assert main(["reproduce", "--from", "target-full"]) == 2
     assert "in the full plan only" in capsys.readouterr().err
 
@@ -377,6 +381,11 @@ def test_a_dry_run_says_what_would_run_and_writes_nothing(tmp_path, capsys):
     assert "windows: would run (not in the manifest; ~9 s)" in text
     assert "studies would run (~" in text and "probe: would run" in text
     assert "speedup: kept, a step of the full plan (not in the manifest" in text
+    # the quick plan alone cannot make wp_quick.csv, which the full plan's work-precision writes
+    assert ("target: would fail (reads wp_quick.csv, which is not there and no earlier study of "
+            "this run writes)") in text and "would fail, a file they read missing: target" in text
+    assert main(["reproduce", "--dry-run", "--full", "--out", str(out)]) == 0
+    assert "would fail" not in capsys.readouterr().out
     assert not out.exists()
 
 
@@ -387,8 +396,8 @@ def test_a_step_refuses_to_run_without_the_file_it_reads(fake):
 
 
 def test_two_runs_at_once_keep_each_others_records(fake):
-    """Two ``--only`` runs of different steps at once: each reads the manifest again before it
-    writes a record, so neither drops the other's (here the second finishes during the first's
+    """Two ``rsfbench study NAME`` runs of different steps at once: each reads the manifest again
+    before it writes a record, so neither drops the other's (here the second finishes during the first's
     step; before, the first wrote the records it had read at its start)."""
     import dataclasses
     make = fake.steps[0]

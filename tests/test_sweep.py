@@ -13,7 +13,7 @@ import pytest
 
 from benchmarks.cli.sweep import observations
 from benchmarks.physics.curves import read_curves
-from benchmarks.inversion.fitting import j1, j2_per_event, joint_fit
+from benchmarks.inversion.fitting import NO_CYCLE_J1, j2_per_event, joint_fit, scores
 from benchmarks.inversion.sweep import parse_b, parse_lc, sweep
 from integrators import ETD2, ETDIterated, Rodas5P
 from problems import preset
@@ -42,12 +42,15 @@ def test_grid_specs_parse_inclusively_and_reject_bad_input():
             parse_lc(bad)
 
 
-def test_j1_by_hand():
-    # ((3.5 − 3)/0.5)² + ((0.04 − 0.05)/0.005)² = 1 + 4
-    assert j1(3.5, 0.04, 3.0, 0.5, 0.05, 0.005) == pytest.approx(5.0)
-    assert np.isnan(j1(np.nan, 0.04, 3.0, 0.5, 0.05, 0.005))
-    with pytest.raises(ValueError, match="sigma_drop"):
-        j1(3.5, 0.04, 3.0, 0.5, 0.05, 0.0)
+def test_j1_by_hand_and_the_three_views_of_a_point_without_a_cycle():
+    from benchmarks.inversion.sweep import Observations
+    obs = Observations(3.0, 0.5, 0.05, 0.005)
+    # ((3.5 − 3)/0.5)² + ((0.04 − 0.05)/0.005)² = 1 + 4; the second point has no limit cycle
+    s = scores([3.5, 3.5], [0.04, 0.04], [True, False], obs)
+    assert s.j1[0] == pytest.approx(5.0) and np.isnan(s.j1[1])                 # a table
+    assert s.j1_penalised[0] == pytest.approx(5.0) and s.j1_penalised[1] == NO_CYCLE_J1
+    assert [r[1] for r in s.penalised] == [1e3, 1e3]                          # least squares
+    assert s.log_likelihood[0] == pytest.approx(-2.5) and s.log_likelihood[1] == -np.inf
 
 
 def test_j2_by_hand_removes_the_offset_and_interpolates():

@@ -86,7 +86,7 @@ def test_the_impossible_is_refused_even_where_warnings_are_off(key):
 # --- no real apparatus warns --------------------------------------------------------------------
 
 def test_the_presets_the_laboratory_apparatus_and_the_example_file_never_warn():
-    from benchmarks.probe_cases import APPARATUS
+    from probe.cases import APPARATUS
     with warnings.catch_warnings():
         warnings.simplefilter("error", UnitWarning)
         for law in ("slip", "aging", "nagata"):

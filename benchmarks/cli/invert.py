@@ -1,11 +1,8 @@
-"""``rsfbench invert``, ``rsfbench calibration`` and ``rsfbench solver-effect``: inversions of
-(b, Lc) and what a solver's choice does to them.
+"""``rsfbench invert``: an inversion of (b, Lc).
 
     rsfbench invert --preset W2 --law slip --out inv_W2     # fit, profiles, posterior, plots
     rsfbench invert --problem my.toml --obs-recurrence 4.2 --obs-drop 0.03 \\
         --b-range 0.008,0.012 --lc-range 1e-8,1e-5 --steps 1000 --json
-    rsfbench calibration --out results      # coverage of the 95 % regions over 1000 seeds
-    rsfbench solver-effect --out results    # the solver's effect over W1–W4, both laws (~100 min)
 """
 
 from __future__ import annotations
@@ -26,7 +23,6 @@ from benchmarks.cli.args import (
     check_observation_options,
     count,
     flagged,
-    in_file,
     integrator_from_args,
     observations_from_args,
     out_dir,
@@ -98,10 +94,6 @@ MAX_STEPS = 1_000_000
 MAX_WALKERS = 10_000
 #: profile points per parameter at most (each is a line of ≥ 41 solves, then refined)
 MAX_PROFILE_POINTS = 1001
-#: calibration: seeds at most, grid nodes per parameter at most, checked seeds at most
-MAX_SEEDS, MAX_NODES, MAX_CHECK_SEEDS = 100_000, 1001, 100
-#: solver-effect: grid nodes per parameter at most (n² solves per setting, window and law)
-MAX_EFFECT_NODES = 301
 
 
 def _interrupted(args, command: str, where: str) -> int:
@@ -212,43 +204,6 @@ def cmd_invert(args) -> int:
     return 0
 
 
-def cmd_calibration(args) -> int:
-    from benchmarks.studies.inversion import calibration_study
-    if args.check_seeds > args.seeds:
-        raise ValueError(f"--check-seeds {args.check_seeds} is more than --seeds {args.seeds}: "
-                         "the checked seeds are among the study's")
-    args.out.mkdir(parents=True, exist_ok=True)          # before the work, not after it
-    try:
-        summary = calibration_study(Path(args.out), seeds=args.seeds, n=args.n,
-                                    sigma_rel=args.sigma, check_seeds=args.check_seeds,
-                                    progress=show_progress(args))
-    except KeyboardInterrupt:
-        return _interrupted(args, "calibration", f"before its files were written to {args.out}")
-    if args.json:
-        say(json.dumps(jsonable(summary.to_dict(orient="records")), indent=2))
-    else:
-        say((Path(args.out) / "calibration.md").read_text())
-    return 0
-
-
-def cmd_solver_effect(args) -> int:
-    from benchmarks.studies.solver_effect import solver_effect_study
-    try:
-        table = solver_effect_study(Path(args.out), n=args.n, windows=args.windows,
-                                    laws=args.laws, study_csv=args.study,
-                                    progress=show_progress(args))
-    except KeyboardInterrupt:
-        return _interrupted(args, "solver-effect", f"before its files were written to "
-                            f"{args.out}")
-    if args.json:
-        import pandas as pd
-        advice = pd.read_csv(Path(args.out) / "solver_effect_recommendation.csv")
-        say(json.dumps(jsonable(advice.to_dict(orient="records")), indent=2))
-    else:
-        say((Path(args.out) / "solver_effect.md").read_text().split("\n## ")[1])
-    return 0 if len(table) else 1
-
-
 def add_parsers(sub, preset_names) -> None:
     from benchmarks.inversion.invert import MAX_SAMPLES_SAVED
     from benchmarks.inversion.posterior import MAX_POSTERIOR_SOLVES
@@ -295,47 +250,3 @@ def add_parsers(sub, preset_names) -> None:
     i.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     i.add_argument("--no-progress", action="store_true", help="no progress bar")
     i.set_defaults(func=cmd_invert)
-
-    c = sub.add_parser("calibration", help="coverage of the 95 %% regions (J1, profiles, "
-                       "posterior) on seeded synthetic W2/slip data (~2 min)")
-    c.add_argument("--out", type=out_dir, default="results", metavar="DIR",
-                   help="where to write calibration.csv/.md/.json/.png (default: results)")
-    c.add_argument("--seeds", type=bounded(1, MAX_SEEDS, "a grid posterior each"),
-                   default=1000, metavar="N",
-                   help=f"synthetic data sets, seeds 0..N-1, at most {MAX_SEEDS:,} "
-                        "(default: 1000)")
-    c.add_argument("--sigma", type=fraction, default=0.05, metavar="REL",
-                   help="noise σ as a fraction of the true ΔT and Δμ, 1e-6 to below 1 "
-                        "(default: 0.05)")
-    c.add_argument("--n", type=bounded(5, MAX_NODES, "n² forward solves"), default=121,
-                   metavar="N", help=f"grid nodes per parameter, 5 to {MAX_NODES} "
-                                     "(default: 121)")
-    c.add_argument("--check-seeds", type=bounded(0, MAX_CHECK_SEEDS, "an emcee posterior of "
-                                                 "32,000 solves each"), default=2, metavar="N",
-                   help="seeds also inverted by emcee and refined profiles, 0 to "
-                        f"{MAX_CHECK_SEEDS} and at most --seeds (default: 2)")
-    c.add_argument("--json", action="store_true", help="print the coverage as one JSON array")
-    c.add_argument("--no-progress", action="store_true", help="no progress bar")
-    c.set_defaults(func=cmd_calibration)
-
-    e = sub.add_parser("solver-effect", help="does the solver change the inferred (b, Lc)? "
-                       "every candidate setting against a tight reference, W1–W4 and both laws "
-                       "(~100 min)")
-    e.add_argument("--out", type=out_dir, default="results", metavar="DIR",
-                   help="where to write solver_effect.csv/.md/.png (default: results)")
-    e.add_argument("--study", type=in_file, metavar="FILE.csv",
-                   help="the full work-precision study the LSODA and SUNDIALS settings come "
-                        "from (default: OUT/wp_full.csv; without one, only the own methods and "
-                        "ETD2)")
-    e.add_argument("--n", type=bounded(5, MAX_EFFECT_NODES, "n² solves per setting, window "
-                                       "and law"), default=31, metavar="N",
-                   help=f"grid nodes per parameter over the posterior's zoom, 5 to "
-                        f"{MAX_EFFECT_NODES} (default: 31)")
-    e.add_argument("--windows", nargs="+", default=["W1", "W2", "W3", "W4"],
-                   choices=["W1", "W2", "W3", "W4"], type=str.upper, help="windows")
-    e.add_argument("--laws", nargs="+", default=["slip", "aging"], choices=["slip", "aging"],
-                   help="friction laws")
-    e.add_argument("--json", action="store_true",
-                   help="print the recommendation as one JSON array")
-    e.add_argument("--no-progress", action="store_true", help="no progress lines")
-    e.set_defaults(func=cmd_solver_effect)

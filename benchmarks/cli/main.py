@@ -6,10 +6,10 @@
     rsfbench work-precision --study quick   # every integrator over a ladder of settings
     rsfbench convergence --json             # observed orders of the fixed-step methods
     rsfbench convergence --fixed-steps      # ... and of the compiled stiff methods, control off
-    rsfbench speedup --json                 # the paper's 1/10,000 claim, three ways
-    rsfbench target --csv results/wp_quick.csv   # own integrators against LSODA and SUNDIALS
     rsfbench sweep --preset W2 --b 0.009:0.0098:0.0001 --lc 1e-7:1e-6:9log --json
     rsfbench reproduce --out results        # what `make reproduce` runs (--full: reproduce-full)
+    rsfbench study --list                   # the studies behind results/, one by one:
+    rsfbench study speedup --set scipy_budget=3600   # the paper's 1/10,000 claim
     rsfbench readme [--check]               # refill the README's numbers from results/
     rsfbench lab shs --holds 1 10 100       # a slide-hold-slide test and its healing
 """
@@ -32,9 +32,7 @@ from benchmarks.cli.args import (
     ShowVersion,
     add_integrator_options,
     add_problem_options,
-    count,
     flagged,
-    in_file,
     integrator_from_args,
     out_dir,
     out_file,
@@ -71,13 +69,15 @@ keeps the files of the full studies and says which are stale. `rsfbench study
 A study is reused, not rerun, when its code, the package versions, its
 settings, the files it reads and, for a timing, the machine are those of its
 last run, and the files it wrote are there unchanged (results/manifest.json).
---force reruns every study of the plan; --only STUDY (or `rsfbench study
-STUDY`) reruns one. See docs/reproduce.md."""
+--force reruns every study of the plan; `rsfbench study NAME` reruns one.
+See docs/reproduce.md."""
 
 STUDY_HELP = """\
-Run one study of the pipeline, whatever its inputs, as `rsfbench reproduce
---only NAME` does: it writes its declared files to --out, records them in
-the manifest and rewrites REPORT.md. --list lists the studies."""
+Run one study of the pipeline, whatever its inputs: it writes its declared
+files to --out, records them in the manifest and rewrites REPORT.md. --set
+changes one of its settings (`--list --json` shows each study's settings,
+defaults and limits), and the next `rsfbench reproduce` reruns it at its
+defaults. --list lists the studies: plan, minutes, files read and written."""
 
 
 def algorithm_name(name: str, flag: str = "--integrators") -> str:
@@ -276,104 +276,10 @@ def cmd_readme(args) -> int:
     return 1 if stale and args.check else 0
 
 
-def cmd_speedup(args) -> int:
-    from benchmarks.studies.speedup import (
-        DEFAULT_SCIPY_BUDGET,
-        speedup,
-        speedup_markdown,
-        write_speedup,
-    )
-    problem = preset("paper-example", t_end=args.t_end)
-    budget = None if args.full else (args.scipy_budget or DEFAULT_SCIPY_BUDGET)
-    implicit = (None if not args.implicit
-                else [algorithm_name(n, "--implicit") for n in args.implicit])
-    summary, table = speedup(problem, rk_tol=args.rk_tol, scipy_budget=budget,
-                             compiled_budget=args.compiled_budget, implicit=implicit,
-                             progress=show_progress(args))
-    if args.out:
-        write_speedup(summary, table, args.out)
-    if args.json:
-        say(json.dumps(_jsonable(summary), indent=2))
-    else:
-        say(speedup_markdown(summary, table))
-    return 0
-
-
-def cmd_target(args) -> int:
-    from benchmarks.studies.target import write_target
-    table = write_target(args.csv, args.out)     # checks the study's columns first
-    if args.json:
-        say(json.dumps(_jsonable(table.to_dict(orient="records")), indent=2))
-    else:
-        name = Path(args.csv).stem.removeprefix("wp_")
-        say((Path(args.out) / f"target_{name}.md").read_text())
-    return 0
-
-
-def cmd_classification(args) -> int:
-    from benchmarks.studies.classification import (
-        classification_study,
-        write_classification,
-    )
-    table = classification_study(progress=show_progress(args))
-    text = write_classification(table, args.out) if args.out else None
-    if args.json:
-        say(table.to_json(orient="records", indent=2))
-    else:
-        say(text or table.to_string(index=False))
-    return 0
-
-
-def cmd_engine_speed(args) -> int:
-    from benchmarks.studies.engine_speed import write_engine_speed
-    if args.out:
-        args.out.mkdir(parents=True, exist_ok=True)        # before the work, not after it
-    goals, text = write_engine_speed(args.out, args.repeats)
-    if args.json:
-        say(goals.to_json(orient="records", indent=2))
-    else:
-        say(text)
-    return 0
-
-
-def cmd_binding_overhead(args) -> int:
-    from benchmarks.studies.binding_overhead import write_binding_overhead
-    if args.out:
-        args.out.mkdir(parents=True, exist_ok=True)        # before the work, not after it
-    table, text = write_binding_overhead(args.out, args.repeats, progress=not args.no_progress)
-    if args.json:
-        say(table.to_json(orient="records", indent=2))
-    else:
-        say(text)
-    return 0
-
-
-def cmd_probe(args) -> int:
-    from benchmarks.probe import BAD_OUTCOMES, run_probe, write_probe
-    from benchmarks.probe_cases import cases
-    chosen = [c for c in cases() if (args.slow or not c.slow)
-              and (not args.kind or c.kind in args.kind)
-              and (not args.match or args.match.lower() in c.id.lower())]
-    if not chosen:
-        raise ValueError("no probe case matches --kind/--match")
-    table = run_probe(chosen, progress=show_progress(args))
-    if args.out:
-        text = write_probe(table, args.out)
-    bad = table.observed.isin(BAD_OUTCOMES) | ~table.as_expected
-    if args.json:
-        say(table.to_json(orient="records", indent=2))
-    elif args.out:
-        say(text)
-    else:
-        say(f"{len(table)} cases, {int((~bad).sum())} as expected"
-            + ("" if not bad.any() else ":\n" + table[bad].to_string(index=False)))
-    return 1 if bad.any() else 0
-
-
 def cmd_reproduce(args) -> int:
     from benchmarks.pipeline.reproduce import describe, reproduce, summary
     rows = reproduce(Path(args.out), full=args.full, force=args.force, start=args.start,
-                     only=args.only, scipy_budget=args.scipy_budget, dry_run=args.dry_run)
+                     dry_run=args.dry_run)
     if args.dry_run:
         for row in rows:
             say(describe(row))
@@ -390,6 +296,7 @@ def cmd_study(args) -> int:
             say(json.dumps([{"name": s.name, "title": s.title, "plan": s.plan,
                              "minutes": s.minutes, "reads": list(s.reads),
                              "writes": list(s.writes), "settings": s.settings,
+                             "limits": s.limits,
                              "timed": s.timed} for s in studies()], indent=2))
         else:
             say(list_markdown(), end="")
@@ -522,33 +429,6 @@ def build_parser() -> Parser:
     cv.add_argument("--json", action="store_true", help="print one JSON object")
     cv.set_defaults(func=cmd_convergence)
 
-    sp = sub.add_parser("speedup", help="the paper's 1/10,000 claim: ETD2 against RK45 three ways")
-    sp.add_argument("--rk-tol", type=positive, default=1e-6,
-                    help="rtol = atol of both RK45 runs")
-    sp.add_argument("--scipy-budget", type=positive, metavar="S",
-                    help="wall budget of scipy's RK45 in s (default 600 s; the full run takes "
-                         "~40 min)")
-    sp.add_argument("--full", action="store_true", help="run scipy's RK45 to the end, no budget")
-    sp.add_argument("--compiled-budget", type=positive, metavar="S",
-                    help="wall budget of the compiled RK45 in s (default: none)")
-    sp.add_argument("--t-end", type=positive, metavar="S",
-                    help="simulated time in s (default: the paper's 20 s)")
-    sp.add_argument("--implicit", nargs="+", metavar="NAME",
-                    help="the implicit methods to search (default: every stiff adaptive one)")
-    sp.add_argument("--out", type=out_dir, metavar="DIR",
-                    help="directory for speedup.json, .csv and .md (default: write nothing)")
-    sp.add_argument("--json", action="store_true", help="print one JSON object")
-    sp.set_defaults(func=cmd_speedup)
-
-    t = sub.add_parser("target", help="issue 6's target: own integrators ≥ 2x faster than LSODA "
-                       "and SUNDIALS at each error level, from a work-precision CSV")
-    t.add_argument("--csv", type=in_file, default="results/wp_quick.csv", metavar="FILE.csv",
-                   help="a work-precision study (rsfbench work-precision writes one)")
-    t.add_argument("--out", type=out_dir, default="results", metavar="DIR",
-                   help="directory for target_<name>.csv and .md")
-    t.add_argument("--json", action="store_true", help="print one JSON array")
-    t.set_defaults(func=cmd_target)
-
     rd = sub.add_parser("readme", help="refill the README's generated blocks from results/")
     rd.add_argument("--check", action="store_true",
                     help="only say which blocks are out of date (exit status 1 if any)")
@@ -566,16 +446,9 @@ def build_parser() -> Parser:
                         "studies whose inputs did not change)")
     r.add_argument("--dry-run", action="store_true",
                    help="say which studies would run and why, run nothing")
-    r.add_argument("--scipy-budget", type=positive, metavar="S",
-                   help="wall budget of scipy's RK45 in the speedup study in s, with --full or "
-                        "--only speedup (default 600 s)")
-    which = r.add_mutually_exclusive_group()
-    which.add_argument("--from", dest="start", metavar="STUDY",
-                       help="start at this study of the plan, leaving the earlier ones alone "
-                            "(default: the first)")
-    which.add_argument("--only", metavar="STUDY",
-                       help="rerun this study alone, quick or full, whatever its inputs "
-                            "(default: every study of the plan)")
+    r.add_argument("--from", dest="start", metavar="STUDY",
+                   help="start at this study of the plan, leaving the earlier ones alone "
+                        "(default: the first)")
     r.set_defaults(func=cmd_reproduce)
 
     st = sub.add_parser("study", help="run one study of the pipeline (or --list them)",
@@ -592,52 +465,6 @@ def build_parser() -> Parser:
     st.add_argument("--dry-run", action="store_true", help="say what would run, run nothing")
     st.add_argument("--json", action="store_true", help="with --list: one JSON array")
     st.set_defaults(func=cmd_study)
-
-    pr = sub.add_parser("probe", help="the reliability probe: bad input, budgets, corrupt "
-                        "files, --json, classification, each case checked")
-    from benchmarks.probe import KIND_TITLES
-    pr.add_argument("--kind", nargs="+", choices=sorted(KIND_TITLES), metavar="KIND",
-                    help=f"only these kinds ({', '.join(KIND_TITLES)}; default: all)")
-    pr.add_argument("--match", metavar="TEXT", help="only cases whose name contains TEXT "
-                    "(default: all)")
-    pr.add_argument("--slow", action="store_true",
-                    help="also the slow cases (kills, subprocesses, a Dask cluster; minutes)")
-    pr.add_argument("--out", type=out_dir, metavar="DIR",
-                    help="write reliability.csv and reliability.md there (default: print only)")
-    pr.add_argument("--json", action="store_true", help="print every case as one JSON array")
-    pr.set_defaults(func=cmd_probe)
-
-    cl = sub.add_parser("classification", help="the locking rule of stick-slip against the "
-                        "trajectory's minimum slip rate, on fits, sweep points and oscillations")
-    cl.add_argument("--out", type=out_dir, metavar="DIR",
-                    help="write classification.csv and .md there (default: print only)")
-    cl.add_argument("--json", action="store_true", help="print every run as one JSON array")
-    cl.set_defaults(func=cmd_classification)
-
-    es = sub.add_parser("engine-speed", help="the own compiled engine against issue 14's targets "
-                        "(fastest reliable setting per error level, µs per step attempt, "
-                        "start-up) and numbalsoda's lsoda, timed in one run (~1.5 min)")
-    es.add_argument("--out", type=out_dir, metavar="DIR",
-                    help="write engine_speed.csv and .md there (default: print only)")
-    es.add_argument("--repeats", type=count, default=5, metavar="N",
-                    help="timed runs per setting after a warm-up; the minimum is kept "
-                         "(default: 5)")
-    es.add_argument("--json", action="store_true", help="print the targets as one JSON array")
-    es.set_defaults(func=cmd_engine_speed)
-
-    bo = sub.add_parser("binding-overhead", help="the same solver called compiled and from "
-                        "Python: SUNDIALS' CVODE and IDA from C against scikits-odes, "
-                        "scikit-sundae and assimulo, numbalsoda's LSODA against its plain grid "
-                        "call and ODEPACK's from scipy and assimulo; paper example and W2 aging "
-                        "at rtol = atol = 1e-6 and 1e-8, timed in one run (~5 min)")
-    bo.add_argument("--out", type=out_dir, metavar="DIR",
-                    help="write binding_overhead.csv and .md there (default: print only)")
-    bo.add_argument("--repeats", type=count, default=3, metavar="N",
-                    help="timed runs per setting after a warm-up; the minimum is kept "
-                         "(default: 3)")
-    bo.add_argument("--json", action="store_true", help="print every run as one JSON array")
-    bo.add_argument("--no-progress", action="store_true", help="no progress bar")
-    bo.set_defaults(func=cmd_binding_overhead)
 
     from benchmarks.cli.sweep import add_parsers
     add_parsers(sub, PRESET_NAMES)

@@ -2,8 +2,6 @@
 
     rsfbench sweep --preset W2 --law slip --b 0.0090:0.0098:0.0001 --lc 1e-7:1e-6:9log --json
     rsfbench slip-weakening --preset W2 --law slip --events 3 --out tests/data/W2_slip_weakening.csv
-    rsfbench paper-sweeps --out results     # Sect. 4: W1–W4, both laws, around the best fits
-    rsfbench sweep-scaling --out results    # 21 x 21 on W2: serial, 2 processes, 2 threads
 """
 
 from __future__ import annotations
@@ -144,37 +142,6 @@ def cmd_slip_weakening(args) -> int:
     return 0
 
 
-def cmd_paper_sweeps(args) -> int:
-    from benchmarks.studies.paper_sweeps import paper_sweeps
-    table = paper_sweeps(Path(args.out), windows=args.windows, laws=args.laws,
-                         workers=args.workers, progress=show_progress(args))
-    say((Path(args.out) / "sweeps.md").read_text())
-    return 0 if len(table) else 1
-
-
-def cmd_sweep_scaling(args) -> int:
-    from benchmarks.studies.paper_sweeps import sweep_scaling
-    summary = sweep_scaling(Path(args.out), n=args.n, t_end=args.t_end,
-                            progress=show_progress(args))
-    if args.json:
-        say(json.dumps(jsonable(summary), indent=2))
-    else:
-        say((Path(args.out) / "sweep_scaling.md").read_text())
-    return 0
-
-
-def cmd_ensemble_scaling(args) -> int:
-    from benchmarks.studies.ensemble_scaling import ensemble_scaling
-    summary = ensemble_scaling(Path(args.out), n=args.n, big=args.big, kills=args.kills,
-                               dask=args.dask, repeats=args.repeats, seed=args.seed,
-                               progress=show_progress(args))
-    if args.json:
-        say(json.dumps(jsonable(summary), indent=2))
-    else:
-        say((Path(args.out) / "ensemble_scaling.md").read_text())
-    return 0
-
-
 def add_parsers(sub, preset_names) -> None:
     from benchmarks.ensemble.executors import CONNECT_TIMEOUT_S, WORKER_TIMEOUT_S
     from benchmarks.inversion.sweep import MAX_GRID_POINTS
@@ -237,43 +204,3 @@ def add_parsers(sub, preset_names) -> None:
                    help="where to write the curves")
     c.add_argument("--json", action="store_true", help="print a summary as one JSON object")
     c.set_defaults(func=cmd_slip_weakening)
-
-    p = sub.add_parser("paper-sweeps", help="Sect. 4: J1 sweeps around the published best fits")
-    p.add_argument("--out", type=out_dir, default="results", metavar="DIR",
-                   help="directory for sweeps.csv/.md and sweeps/<W>_<law>/")
-    p.add_argument("--windows", nargs="+", default=["W1", "W2", "W3", "W4"],
-                   choices=["W1", "W2", "W3", "W4"], type=str.upper, help="windows")
-    p.add_argument("--laws", nargs="+", default=["slip", "aging"], choices=["slip", "aging"],
-                   help="friction laws")
-    p.add_argument("--workers", type=count, metavar="N", help="local workers (default: all cores)")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    p.set_defaults(func=cmd_paper_sweeps)
-
-    g = sub.add_parser("sweep-scaling", help="time a 21 x 21 W2 sweep on 1 and 2 workers")
-    g.add_argument("--out", type=out_dir, default="results", metavar="DIR",
-                   help="directory for sweep_scaling.json and .md")
-    g.add_argument("--n", type=count, default=21, help="grid points per axis")
-    g.add_argument("--t-end", type=positive, default=40.0, metavar="S",
-                   help="simulated time per point in s")
-    g.add_argument("--json", action="store_true", help="print one JSON object")
-    g.add_argument("--no-progress", action="store_true", help="no progress bar")
-    g.set_defaults(func=cmd_sweep_scaling)
-
-    e = sub.add_parser("ensemble-scaling",
-                       help="issue 16's ensemble targets: 21 x 21, 10^5 points killed and "
-                            "resumed, 10^4 on a local Dask cluster")
-    e.add_argument("--out", type=out_dir, default="results", metavar="DIR",
-                   help="directory for ensemble_scaling.json and .md")
-    e.add_argument("--n", type=count, default=21, help="grid points per axis of the W2 grid")
-    e.add_argument("--big", type=seed, default=100_000, metavar="N",
-                   help="points of the killed-and-resumed run (0: skip it)")
-    e.add_argument("--kills", type=seed, default=3,
-                   help="SIGKILLs at random moments of the big run")
-    e.add_argument("--dask", type=seed, default=10_000, metavar="N",
-                   help="points on the local Dask cluster (0: skip it)")
-    e.add_argument("--repeats", type=count, default=3, help="runs of the grid; the minimum counts")
-    e.add_argument("--seed", type=seed, default=0, help="seed of the kill moments")
-    e.add_argument("--json", action="store_true", help="print one JSON object")
-    e.add_argument("--no-progress", action="store_true", help="no progress bar")
-    e.set_defaults(func=cmd_ensemble_scaling)
-

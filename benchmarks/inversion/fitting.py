@@ -10,29 +10,75 @@ whose J̄2 is below min(J̄2 + σJ), σJ being the standard deviation of J2(i) o
 one simulation. The paper's sentence ("J̄2 less than the minimum value of J̄2 + σJ in all
 simulations") is read here as the minimum over simulations of J̄2 + σJ.
 
+J1 is the one likelihood of every inversion (Gaussian errors of the stated σ: log L = −J1/2).
+A point **without a limit cycle** (failed, not converged, too short, stable sliding, an
+oscillation that never locks) cannot make the observed events; :func:`scores` says so three ways,
+each for its reader: NaN in a table (``j1``: in no region), a finite penalty for least squares
+(``penalised``, ``j1_penalised``: each residual :data:`NO_CYCLE_RESIDUAL` σ, far above any
+point that makes stick–slip, so a fit can step away) and −inf for a sampler or a grid posterior
+(``log_likelihood``).
+
 The curves J2 compares are those of :mod:`benchmarks.physics.curves`.
 """
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 import pandas as pd
 
-__all__ = ["CHI2_95_2DOF", "j1", "j2_per_event", "JointFit", "joint_fit"]
+__all__ = ["CHI2_95_2DOF", "NO_CYCLE_RESIDUAL", "NO_CYCLE_J1", "Scores", "scores",
+           "j2_per_event", "JointFit", "joint_fit"]
 
 #: the 95 % quantile of χ² with two degrees of freedom: the paper's J1 threshold
 CHI2_95_2DOF = 5.99146
+#: the residual (in σ) of each observation at a point without a limit cycle, for least squares
+NO_CYCLE_RESIDUAL = 1e3
+#: J1 of a point without a limit cycle, for least squares (both residuals NO_CYCLE_RESIDUAL)
+NO_CYCLE_J1 = 2.0 * NO_CYCLE_RESIDUAL ** 2
 
 
-def j1(recurrence_s, friction_drop, obs_recurrence: float, sigma_recurrence: float,
-       obs_drop: float, sigma_drop: float):
-    """Eq. 10 for one point or arrays of points; NaN where a metric is NaN (no stick–slip)."""
-    for name, value in (("sigma_recurrence", sigma_recurrence), ("sigma_drop", sigma_drop)):
-        if not value > 0:
-            raise ValueError(f"{name} must be positive, got {value!r}")
-    dt = (np.asarray(recurrence_s, dtype=float) - obs_recurrence) / sigma_recurrence
-    dm = (np.asarray(friction_drop, dtype=float) - obs_drop) / sigma_drop
-    return dt * dt + dm * dm
+class Scores(NamedTuple):
+    """Eq. 10 at a set of points (module docstring): the residuals (ΔT − ΔT̄)/σT and
+    (Δμ − Δμ̄)/σμ, NaN where ``cycle`` is False."""
+
+    r_recurrence: np.ndarray
+    r_drop: np.ndarray
+    cycle: np.ndarray
+
+    @property
+    def j1(self) -> np.ndarray:
+        """J1; NaN without a limit cycle (a table's view: in no region)."""
+        return self.r_recurrence ** 2 + self.r_drop ** 2
+
+    @property
+    def penalised(self) -> tuple[np.ndarray, np.ndarray]:
+        """The residuals, :data:`NO_CYCLE_RESIDUAL` without a limit cycle (least squares)."""
+        return tuple(np.where(self.cycle, r, NO_CYCLE_RESIDUAL)
+                     for r in (self.r_recurrence, self.r_drop))
+
+    @property
+    def j1_penalised(self) -> np.ndarray:
+        """J1; :data:`NO_CYCLE_J1` without a limit cycle (least squares, profiles)."""
+        return np.where(self.cycle, self.j1, NO_CYCLE_J1)
+
+    @property
+    def log_likelihood(self) -> np.ndarray:
+        """−J1/2; −inf without a limit cycle (a sampler, a grid posterior)."""
+        return np.where(self.cycle, -0.5 * self.j1, -np.inf)
+
+
+def scores(recurrence_s, friction_drop, cycle, obs) -> Scores:
+    """Eq. 10 of points with limit-cycle metrics ``recurrence_s``, ``friction_drop`` (arrays
+    of one shape; a point scores only where ``cycle``) against ``obs`` (an
+    :class:`~benchmarks.inversion.sweep.Observations`: means and positive σ)."""
+    cycle = np.asarray(cycle, dtype=bool)
+    residual = [np.where(cycle, (np.asarray(x, dtype=float) - mean) / sigma, np.nan)
+                for x, mean, sigma in ((recurrence_s, obs.recurrence_s, obs.sigma_recurrence_s),
+                                       (friction_drop, obs.friction_drop,
+                                        obs.sigma_friction_drop))]
+    return Scores(*residual, cycle)
 
 
 def j2_per_event(curve_slip: np.ndarray, curve_friction: np.ndarray,

@@ -5,7 +5,8 @@ grid (:func:`metric_map`) serves every data set scored against it: the published
 thousand seeded synthetic sets (calibration), the same data under another solver (the solver's
 effect). From a :class:`MetricMap` and an :class:`~benchmarks.inversion.sweep.Observations`:
 
-* :meth:`MetricMap.j1`: J1 (Eq. 10) on the grid, ``NO_CYCLE_J1`` where there is no limit cycle;
+* :meth:`MetricMap.scores`: Eq. 10 on the grid (:func:`benchmarks.inversion.fitting.scores`), and
+  :meth:`MetricMap.j1`, J1 with ``NO_CYCLE_J1`` where there is no limit cycle;
 * :meth:`MetricMap.posterior`: the posterior under the uniform prior in (b, log10 Lc) on the
   box the grid's cells tile (:func:`box_grid` puts the nodes at the cells' centres;
   :func:`cell_box`), by the midpoint rule — every node carries the same prior mass and the
@@ -29,17 +30,15 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from benchmarks.ensemble import ensemble
-from benchmarks.inversion.misfit import NO_CYCLE_RESIDUAL
+from benchmarks.inversion.fitting import NO_CYCLE_J1, scores
 from benchmarks.inversion.sweep import Observations
 from benchmarks.physics.metrics import CYCLES
 from integrators import Algorithm
 from problems import SpringSlider
 
-__all__ = ["MetricMap", "GridPosterior", "metric_map", "box_grid", "cell_box", "NO_CYCLE_J1"]
+__all__ = ["MetricMap", "GridPosterior", "metric_map", "box_grid", "cell_box"]
 
 _SIDES = ("b_low", "b_high", "lc_low", "lc_high")
-#: J1 of a node without a limit cycle (both residuals at NO_CYCLE_RESIDUAL, as the Misfit's)
-NO_CYCLE_J1 = 2.0 * NO_CYCLE_RESIDUAL ** 2
 
 
 def box_grid(b_range, lc_range, n_b: int = 41, n_lc: int = 41, through=None):
@@ -123,20 +122,21 @@ class MetricMap:
 
     def j1(self, obs: Observations) -> np.ndarray:
         """J1 at every node against ``obs``; :data:`NO_CYCLE_J1` without a limit cycle."""
+        return self.scores(obs).j1_penalised
+
+    def scores(self, obs: Observations):
+        """Eq. 10 at every node (:func:`benchmarks.inversion.fitting.scores`)."""
         if not isinstance(obs, Observations):
             raise ValueError(f"obs must be Observations, got {obs!r}")
-        dt = (self.recurrence_s - obs.recurrence_s) / obs.sigma_recurrence_s
-        dm = (self.friction_drop - obs.friction_drop) / obs.sigma_friction_drop
-        return np.where(self.cycle, dt * dt + dm * dm, NO_CYCLE_J1)
+        return scores(self.recurrence_s, self.friction_drop, self.cycle, obs)
 
     def posterior(self, obs: Observations, level: float = 0.95) -> GridPosterior:
         """The grid posterior of ``obs`` (module docstring); ``level``: of the HPD set and of the
         marginal intervals."""
-        J = self.j1(obs)
-        log_w = np.where(self.cycle, -0.5 * J, -np.inf)
+        log_w = self.scores(obs).log_likelihood
         if not self.cycle.any():
             nan = {"b": np.nan, "log10_lc": np.nan}
-            return GridPosterior(np.zeros_like(J), np.zeros(J.shape, bool), nan, nan,
+            return GridPosterior(np.zeros(log_w.shape), np.zeros(log_w.shape, bool), nan, nan,
                                  {"b": (np.nan, np.nan), "log10_lc": (np.nan, np.nan)},
                                  np.nan, dict.fromkeys(_SIDES, np.nan), ok=False)
         w = np.exp(log_w - log_w.max())
@@ -152,11 +152,11 @@ class MetricMap:
             mean[name] = float(marginal @ x)
             std[name] = float(np.sqrt(max(marginal @ (x - mean[name]) ** 2, 0.0)))
             interval[name] = _quantiles(x, marginal, ((1 - level) / 2, (1 + level) / 2))
-        edge = np.zeros(J.shape, bool)
+        edge = np.zeros(log_w.shape, bool)
         edge[[0, -1], :] = edge[:, [0, -1]] = True
         sides = dict(zip(_SIDES, (mass[0].sum(), mass[-1].sum(), mass[:, 0].sum(),
                                   mass[:, -1].sum())))
-        return GridPosterior(mass, hpd.reshape(J.shape), mean, std, interval,
+        return GridPosterior(mass, hpd.reshape(log_w.shape), mean, std, interval,
                              float(mass[edge].sum()), {k: float(v) for k, v in sides.items()},
                              ok=True)
 

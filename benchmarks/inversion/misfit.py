@@ -6,14 +6,10 @@ one algorithm. It evaluates any batch of (b, Lc) on the ensemble engine
 point, the limit-cycle metrics, the residuals, J1 (Eq. 10), J2 (Eq. 11, when the observations
 have slip-weakening curves) and the log-likelihood.
 
-What an optimizer or a sampler sees at a point **without a limit cycle** (failed, not converged,
-too short, stable sliding, an oscillation that never locks) is defined, never NaN:
-
-* each residual is :data:`NO_CYCLE_RESIDUAL` (σ units), so J1 = 2·NO_CYCLE_RESIDUAL² — finite,
-  so that least squares can step away, and far above any point that makes stick–slip;
-* the log-likelihood is −inf: such a model cannot produce the observed events, and a sampler
-  rejects the move;
-* J2 is +inf.
+What an optimizer or a sampler sees at a point **without a limit cycle** is defined, never NaN
+(:func:`benchmarks.inversion.fitting.scores`): each residual is ``NO_CYCLE_RESIDUAL`` σ and J1
+``NO_CYCLE_J1`` (finite, so that least squares can step away), the log-likelihood −inf (a
+sampler rejects the move), J2 +inf.
 
 The class and the reason are in the table, so a fit can say why a region is excluded.
 """
@@ -26,16 +22,13 @@ import numpy as np
 import pandas as pd
 
 from benchmarks.ensemble import ensemble
-from benchmarks.inversion.fitting import j1, j2_per_event
+from benchmarks.inversion.fitting import NO_CYCLE_RESIDUAL, j2_per_event, scores
 from benchmarks.inversion.sweep import MIN_SIGMA_REL, Observations
 from benchmarks.physics.metrics import CYCLES
 from integrators import Algorithm
 from problems import SpringSlider
 
 __all__ = ["Misfit", "NO_CYCLE_RESIDUAL", "synthetic", "MIN_SIGMA_REL"]
-
-#: the residual (in σ) of each observation at a point without a limit cycle
-NO_CYCLE_RESIDUAL = 1e3
 @dataclass(frozen=True)
 class Misfit:
     """J(b, Lc) of ``problem`` against ``obs`` with ``algorithm`` (module docstring).
@@ -68,14 +61,9 @@ class Misfit:
                          progress=progress)
         o = self.obs
         cycle = table.classification.isin(CYCLES).to_numpy()
-        r_t = (table.recurrence_s.to_numpy() - o.recurrence_s) / o.sigma_recurrence_s
-        r_m = (table.friction_drop.to_numpy() - o.friction_drop) / o.sigma_friction_drop
-        table["r_recurrence"] = np.where(cycle, r_t, NO_CYCLE_RESIDUAL)
-        table["r_drop"] = np.where(cycle, r_m, NO_CYCLE_RESIDUAL)
-        table["J1"] = np.where(cycle, j1(table.recurrence_s, table.friction_drop, o.recurrence_s,
-                                         o.sigma_recurrence_s, o.friction_drop,
-                                         o.sigma_friction_drop),
-                               2.0 * NO_CYCLE_RESIDUAL ** 2)
+        s = scores(table.recurrence_s, table.friction_drop, cycle, o)
+        table["r_recurrence"], table["r_drop"] = s.penalised
+        table["J1"] = s.j1_penalised
         if o.curves is not None:
             table["J2"] = [float(np.mean(j2_per_event(np.asarray(s, dtype=float),
                                                       np.asarray(f, dtype=float), o.curves)))
@@ -83,7 +71,7 @@ class Misfit:
                            for c, s, f in zip(cycle, table.curve_slip, table.curve_friction)]
         else:
             table["J2"] = np.nan
-        table["log_likelihood"] = np.where(cycle, -0.5 * table.J1.to_numpy(), -np.inf)
+        table["log_likelihood"] = s.log_likelihood
         return table
 
     def residuals(self, b: float, lc: float) -> np.ndarray:
@@ -92,7 +80,7 @@ class Misfit:
         return np.array([row.r_recurrence, row.r_drop])
 
     def __call__(self, b: float, lc: float) -> float:
-        """J1 at one point (2·NO_CYCLE_RESIDUAL² without a limit cycle)."""
+        """J1 at one point (``NO_CYCLE_J1`` without a limit cycle)."""
         return float(self.evaluate([b], [lc]).J1.iloc[0])
 
     def log_likelihood(self, b: float, lc: float) -> float:

@@ -35,7 +35,7 @@ import pandas as pd
 
 from benchmarks.ensemble import ensemble, grid
 from benchmarks.ensemble.executors import CONNECT_TIMEOUT_S, WORKER_TIMEOUT_S
-from benchmarks.inversion.fitting import CHI2_95_2DOF, j1, j2_per_event, joint_fit
+from benchmarks.inversion.fitting import CHI2_95_2DOF, j2_per_event, joint_fit, scores
 from benchmarks.physics.curves import check_curves
 from benchmarks.physics.metrics import CYCLES
 from benchmarks.records.files import atomic_write, remove_stale_temporaries
@@ -290,8 +290,7 @@ def score(points: pd.DataFrame, obs: Observations) -> pd.DataFrame:
     table = points[list(POINT_COLUMNS)].copy()
     no_cycle = ~table.classification.isin(CYCLES)
     table.loc[no_cycle, list(_METRIC_COLUMNS)] = np.nan
-    table["J1"] = j1(table.recurrence_s, table.friction_drop, obs.recurrence_s,
-                     obs.sigma_recurrence_s, obs.friction_drop, obs.sigma_friction_drop)
+    table["J1"] = scores(table.recurrence_s, table.friction_drop, ~no_cycle, obs).j1
     if obs.curves is None:
         fit = joint_fit(table.J1.to_numpy())
     else:

@@ -61,7 +61,7 @@ CLASSIFICATIONS, CYCLES = cycles.CLASSIFICATIONS, cycles.CYCLES
 #: events-table form of "v falls below vLs/10 between events": over 296 runs (the paper's fits,
 #: 5×5 sweep subsamples of W1–W4 under both laws, 22 oscillations and 70 runs across the
 #: boundary) no run with ratio ≤ 0.3 kept v above vLs/10; the fits sit at 0.005–0.035, the
-#: oscillations at 0.33–2.7 (docs/reliability.md; ``rsfbench classification`` repeats a subset)
+#: oscillations at 0.33–2.7 (docs/reliability.md; ``rsfbench study classification`` repeats a subset)
 LOCKED_SLIP_RATE = cycles.LOCKED_SLIP_RATE
 #: a run ended in steady sliding when |ln(v/vLs)|, the state's friction term off its steady value
 #: and the spring force off steady friction (both in units of A = a·Fn: (b/a)|ln θ/θss| for the

@@ -9,6 +9,7 @@ import pkgutil
 from pathlib import Path
 
 from benchmarks.pipeline import manifest as M
+from benchmarks.studies.study import matches
 
 __all__ = ["studies", "check_plan", "study_named", "list_markdown", "study_inputs"]
 
@@ -29,13 +30,20 @@ def studies(package: str = "benchmarks.studies") -> tuple:
 
 
 def check_plan(plan) -> None:
-    """``ValueError`` unless the names and orders are unique and every file a study reads is
-    written by an earlier study."""
+    """``ValueError`` unless the names and orders are unique, no file is declared by two studies
+    (a pattern of one matching a pattern of another) and every file a study reads is written by
+    an earlier study."""
     for what in ("name", "order"):
         values = [getattr(s, what) for s in plan]
         twice = sorted({v for v in values if values.count(v) > 1})
         if twice:
             raise ValueError(f"studies share a {what}: {twice}")
+    for i, one in enumerate(plan):
+        for other in plan[i + 1:]:
+            both = [p for p in one.writes for q in other.writes if matches(p, q) or matches(q, p)]
+            if both:
+                raise ValueError(f"studies {one.name} and {other.name} both declare "
+                                 f"{', '.join(both)}: a file has one writer")
     for i, study in enumerate(plan):
         for read in study.reads:
             if not any(earlier.declares(read) for earlier in plan[:i]):
@@ -54,11 +62,19 @@ def study_named(name: str, plan=None):
 
 
 def list_markdown(plan=None) -> str:
-    """The studies as a Markdown table: name, plan, minutes, reads, writes, title."""
+    """The studies as a Markdown table: name, plan, minutes, settings (``--set``; default and
+    limits), reads, writes, title."""
     plan = studies() if plan is None else plan
-    rows = ["| study | plan | minutes | reads | writes | what |", "|---|---|---|---|---|---|"]
-    rows += [f"| `{s.name}` | {s.plan} | {s.minutes:g} | {', '.join(s.reads) or '–'} | "
-             f"{', '.join(s.writes)} | {s.title} |" for s in plan]
+
+    def setting(study, key):
+        low, high = study.limits.get(key, (None, None))
+        return f"{key}={study.settings[key]!r}" + (f" ({low:g}–{high:g})" if low is not None
+                                                    else "")
+    rows = ["| study | plan | minutes | settings | reads | writes | what |",
+            "|---|---|---|---|---|---|---|"]
+    rows += [f"| `{s.name}` | {s.plan} | {s.minutes:g} | "
+             f"{', '.join(setting(s, k) for k in s.settings) or '–'} | "
+             f"{', '.join(s.reads) or '–'} | {', '.join(s.writes)} | {s.title} |" for s in plan]
     return "\n".join(rows) + "\n"
 
 

@@ -122,6 +122,9 @@ def render(source: str, root: Path = ROOT) -> str:
 
 
 _NOW: dict = {}          # a study's inputs now, computed once per fill or refresh
+#: judge a block's staleness with the package versions of its record, not those installed (a
+#: check run in another environment than the lock file's, such as ``pip install .``)
+RECORDED_VERSIONS = False
 
 
 def origin(source: str, root: Path = ROOT) -> str:
@@ -146,6 +149,8 @@ def origin(source: str, root: Path = ROOT) -> str:
         _NOW[key] = study_inputs(study, out, root=Path(root))
     now = _NOW[key]
     now = {**now, "machine": record["inputs"].get("machine")}  # another machine: not stale
+    if RECORDED_VERSIONS:
+        now["versions"] = record["inputs"].get("versions")
     when = f"the study `{study.name}` at commit `{record['git_commit']}`, " \
            f"{record['finished'][:10]}"
     ok, why = M.reusable(record, now, out)

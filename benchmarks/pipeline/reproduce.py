@@ -27,6 +27,7 @@ from pathlib import Path
 from benchmarks.pipeline import manifest as M
 from benchmarks.pipeline.plan import check_plan, list_markdown, studies, study_inputs, study_named
 from benchmarks.records.files import BadResultsFile
+from benchmarks.studies.study import matches
 
 __all__ = ["reproduce", "run_steps", "describe", "summary", "studies", "study_named",
            "check_plan", "list_markdown"]
@@ -37,15 +38,14 @@ def _section(title: str) -> None:
 
 
 def reproduce(out: Path, full: bool = False, force: bool = False, start: str | None = None,
-              only: str | None = None, scipy_budget: float | None = None,
-              dry_run: bool = False, settings: dict | None = None) -> list[dict]:
+              only: str | None = None, dry_run: bool = False,
+              settings: dict | None = None) -> list[dict]:
     """Bring ``out`` up to date (see the module docstring) and write ``REPORT.md``; return one
     row per step considered (``step``, ``status``, ``why``).
 
     ``full``: the full plan. ``force``: rerun every step of the plan, reusing none. ``start``:
     begin at this step (the earlier ones are left alone). ``only``: rerun this step alone, quick
-    or full. ``scipy_budget``: the speed-up step's wall budget for scipy's RK45 in s.
-    ``settings``: values of the ``only`` study's settings, by name (a rerun with them is
+    or full. ``settings``: values of the ``only`` study's settings, by name (a rerun with them is
     recorded as such: the study reruns on the next plan). ``dry_run``: say what would run, run
     nothing, write nothing."""
     plan = studies()
@@ -58,19 +58,13 @@ def reproduce(out: Path, full: bool = False, force: bool = False, start: str | N
         raise ValueError("only and start exclude each other")
     if start and not full and study_named(start, plan).full:
         raise ValueError(f"study {start!r} is in the full plan only: add --full (full=True), or "
-                         f"rerun it alone with --only {start}")
-    if scipy_budget is not None and not (full or only == "speedup"):
-        raise ValueError("the scipy budget is a setting of the speedup study, which only the "
-                         "full plan runs: add --full (full=True), or --only speedup")
+                         f"rerun it alone with `rsfbench study {start}`")
     if settings and not only:
         raise ValueError("settings apply to one study: name it (only=NAME, `rsfbench study "
                          "NAME --set KEY=VALUE`)")
-    overrides = {"speedup": {"scipy_budget": scipy_budget}} if scipy_budget is not None else {}
-    if settings:
-        overrides.setdefault(only, {}).update(_checked_settings(study_named(only, plan),
-                                                                settings))
-    steps = [dataclasses.replace(s, settings={**s.settings, **overrides[s.name]})
-             if s.name in overrides else s for s in plan]
+    overrides = study_named(only, plan).checked(settings) if settings else {}
+    steps = [dataclasses.replace(s, settings={**s.settings, **overrides})
+             if s.name == only and overrides else s for s in plan]
     if only:
         modes = {only: "run"}
     else:
@@ -92,23 +86,6 @@ def reproduce(out: Path, full: bool = False, force: bool = False, start: str | N
     return rows
 
 
-def _checked_settings(study, settings: dict) -> dict:
-    """``settings`` for ``study``, or ``ValueError`` naming an unknown one or a word given for a
-    number."""
-    unknown = sorted(set(settings) - set(study.settings))
-    if unknown:
-        known = ", ".join(f"{k} (default {v!r})" for k, v in study.settings.items()) or "none"
-        raise ValueError(f"study {study.name} has no setting {', '.join(unknown)}; its "
-                         f"settings: {known}")
-    for key, value in settings.items():
-        default = study.settings[key]
-        if isinstance(default, (int, float)) and not isinstance(default, bool) and (
-                isinstance(value, bool) or not isinstance(value, (int, float))):
-            raise ValueError(f"study {study.name}: setting {key} must be a number, as its "
-                             f"default {default!r} is; got {value!r}")
-    return settings
-
-
 def run_steps(steps, out: Path, modes: dict[str, str], dry_run: bool = False,
               **code) -> list[dict]:
     """Take each step of ``steps`` named in ``modes`` in order: ``run`` reruns it, ``check``
@@ -118,7 +95,7 @@ def run_steps(steps, out: Path, modes: dict[str, str], dry_run: bool = False,
     ``packages`` and ``whole``.
 
     The manifest on disk is read again before each step and before each record is written, so
-    that two runs of different steps (``--only``) at once keep each other's records."""
+    that two runs of different steps (``rsfbench study NAME``) at once keep each other's records."""
     said = []
 
     def current() -> dict[str, dict]:
@@ -142,8 +119,14 @@ def run_steps(steps, out: Path, modes: dict[str, str], dry_run: bool = False,
             row = {"step": step.name, "status": "reused" if ok else "stale",
                    "why": why if ok else f"{why}; `make reproduce-full` reruns it"}
         elif dry_run:
-            row = {"step": step.name, "status": "would run",
-                   "why": "rerun as asked" if mode == "run" else why, "minutes": step.minutes}
+            written = [s for s in steps if any(r["step"] == s.name and r["status"] == "would run"
+                                               for r in rows)]
+            missing = [r for r in step.reads if not (out / r).is_file()
+                       and not any(s.declares(r) for s in written)]
+            row = ({"step": step.name, "status": "would fail", "why": f"reads {missing[0]}, "
+                    "which is not there and no earlier study of this run writes"} if missing else
+                   {"step": step.name, "status": "would run",
+                    "why": "rerun as asked" if mode == "run" else why, "minutes": step.minutes})
         else:
             row = None
         if row is not None:
@@ -179,7 +162,7 @@ def _declared_outputs(study, plan, out: Path, before: dict) -> dict[str, str]:
     written = M.written_since(before, out)
     outputs = {p: h for p, h in written.items() if study.declares(p)}
     unmatched = [pattern for pattern in study.writes
-                 if not any(_matches(p, pattern) for p in outputs)]
+                 if not any(matches(p, pattern) for p in outputs)]
     if unmatched:
         raise RuntimeError(f"study {study.name} declares {', '.join(unmatched)} but wrote no "
                            f"such file in {out} in this run")
@@ -188,10 +171,6 @@ def _declared_outputs(study, plan, out: Path, before: dict) -> dict[str, str]:
         raise RuntimeError(f"study {study.name} wrote {', '.join(stray[:5])} in {out}, which no "
                            "study declares: add them to its STUDY.writes")
     return outputs
-
-
-def _matches(path: str, pattern: str) -> bool:
-    return len(Path(path).parts) == len(Path(pattern).parts) and Path(path).match(pattern)
 
 
 def describe(row: dict) -> str:
@@ -206,14 +185,16 @@ def describe(row: dict) -> str:
 
 
 def summary(rows: list[dict]) -> str:
-    """One line: how many steps ran (or would, and for how long) and were reused, and which
-    full steps are stale."""
+    """One line: how many steps ran (or would, and for how long) and were reused, which would
+    fail for a file they read, and which full steps are stale."""
     would = [r["minutes"] for r in rows if r["status"] == "would run"]
     ran = [r["step"] for r in rows if r["status"] == "ran"]
     reused = [r["step"] for r in rows if r["status"] == "reused"]
     stale = [r["step"] for r in rows if r["status"] == "stale"]
+    fail = [r["step"] for r in rows if r["status"] == "would fail"]
     text = (f"{_steps(len(would))} would run (~{_duration(60 * sum(would))}), " if would
             else f"{_steps(len(ran))} ran, ") + f"{len(reused)} reused"
+    text += f"; would fail, a file they read missing: {', '.join(fail)}" if fail else ""
     return text + (f"; stale, kept from an earlier run: {', '.join(stale)} (`make "
                    "reproduce-full` reruns them)" if stale else "")
 

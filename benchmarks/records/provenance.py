@@ -38,7 +38,8 @@ def checkout() -> Path | None:
 
 @functools.cache
 def git_commit() -> str:
-    """The commit of the checkout the harness runs from, ``+dirty`` if it has local changes;
+    """The commit of the checkout the harness runs from, ``+dirty`` if it has local changes
+    outside ``results/`` (a run rewriting the results it records is not a change of what ran);
     ``"unknown"`` for an installed package."""
     root = checkout()
     if root is None:
@@ -46,7 +47,8 @@ def git_commit() -> str:
     try:
         rev = subprocess.run(["git", "rev-parse", "--short=12", "HEAD"], cwd=root, text=True,
                              capture_output=True, check=True).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=root,
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--", ".",
+                                ":!results"], cwd=root,
                                text=True, capture_output=True, check=True).stdout.strip()
         return rev + ("+dirty" if dirty else "")
     except (OSError, subprocess.CalledProcessError):

@@ -102,7 +102,7 @@ def binding_overhead(repeats: int = 3, tolerances=TOLERANCES, progress: bool = T
 def binding_overhead_markdown(table: pd.DataFrame, repeats: int) -> str:
     """The table, and per solver the range of the ratios that mean a binding's cost."""
     lines = ["# What a way of calling costs: the same solver called from Python and compiled", "",
-             f"`rsfbench binding-overhead` (min of {repeats} solves after a warm-up, "
+             f"`rsfbench study binding-overhead` (min of {repeats} solves after a warm-up, "
              "`max_points=2`, one run). Ratio = this way's wall time / the compiled reference's, "
              "same solver, problem and tolerance; shown only where both succeeded and took about "
              f"the same steps (within {STEPS_AGREE:g}×). LSODA's references are numbalsoda's "
@@ -140,10 +140,11 @@ def write_binding_overhead(out: Path | None, repeats: int = 3, progress: bool = 
     return table, text
 
 
-def run(out: Path) -> None:
-    print(write_binding_overhead(out, progress=False)[1])
+def run(out: Path, repeats: int) -> None:
+    print(write_binding_overhead(out, repeats, progress=False)[1])
 
 
 STUDY = Study("binding-overhead", "What a way of calling costs (`binding_overhead.*`)", 190, run,
               report=markdown_file("binding_overhead.md"), plan="full", timed=True,
+              settings={"repeats": 3}, limits={"repeats": (1, 100)},
               writes=("binding_overhead.csv", "binding_overhead.md"), minutes=6)

@@ -1,4 +1,4 @@
-"""Where the classification's locking rule comes from, measured: ``rsfbench classification``.
+"""Where the classification's locking rule comes from, measured: ``rsfbench study classification``.
 
 A run is stick–slip only if the fault locks between events. The trajectory says so directly —
 the slip rate falls below vLs/10 between events — but :func:`benchmarks.physics.metrics.limit_cycle`

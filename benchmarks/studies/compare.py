@@ -23,4 +23,5 @@ STUDY = Study("compare", f"Every integrator on the paper example at rtol = atol 
               "(`compare_paper_example.*`)", 110, run,
               report=markdown_file("compare_paper_example.md"), timed=True,
               settings={"rtol": COMPARE_RTOL, "wall_budget": 60.0},
+              limits={"rtol": (1e-14, 0.1), "wall_budget": (0.1, 86_400.0)},
               writes=("compare_paper_example.csv", "compare_paper_example.md"), minutes=3.6)

@@ -16,7 +16,7 @@ paper example) and ``rsfbench simulate --preset paper-example --json``, with the
 warm (the minimum of 3) and, for the first two, cold (a copy of the sources with no cache: every
 kernel that solve needs is compiled).
 
-``rsfbench engine-speed --out results`` writes ``engine_speed.csv`` (every setting) and
+``rsfbench study engine-speed`` writes ``engine_speed.csv`` (every setting) and
 ``engine_speed.md`` (the targets, met or missed, and the start-up times).
 """
 
@@ -189,7 +189,7 @@ def engine_speed_markdown(goals: pd.DataFrame, t: dict, repeats: int) -> str:
     """``engine_speed.md``: the targets table and the start-up times."""
     lines = ["# The own compiled engine against issue 14's targets",
              "",
-             f"`rsfbench engine-speed --out results` (min of {repeats} after a warm-up, "
+             f"`rsfbench study engine-speed` (min of {repeats} after a warm-up, "
              "`max_points=2`, wall time of the solve without building the Solution; "
              "numbalsoda's lsoda called once over a 20,001-point grid at 1e−6, no events, "
              "timed in the same run). The last row's times are µs per step attempt.",
@@ -228,11 +228,12 @@ def write_engine_speed(out: Path | None, repeats: int = 5) -> tuple[pd.DataFrame
     return goals, text
 
 
-def run(out: Path) -> None:
-    print(write_engine_speed(out)[1])
+def run(out: Path, repeats: int) -> None:
+    print(write_engine_speed(out, repeats)[1])
 
 
 STUDY = Study("engine-speed", "The own compiled engine against issue 14's targets "
               "(`engine_speed.*`)", 180, run, report=markdown_file("engine_speed.md"),
-              timed=True, modules=("benchmarks.cli",),   # it times the CLI's start-up
+              timed=True, modules=("benchmarks.cli",), settings={"repeats": 5},
+              limits={"repeats": (1, 100)},   # it times the CLI's start-up
               writes=("engine_speed.csv", "engine_speed.md"), minutes=0.6)

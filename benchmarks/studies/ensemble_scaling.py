@@ -13,7 +13,7 @@
 * **10⁴ points on a local Dask cluster** (a scheduler and 2 one-thread workers on 127.0.0.1,
   started here and stopped after): the table against the local one, and the overhead per point.
 
-``rsfbench ensemble-scaling --out results`` writes ``ensemble_scaling.json`` and ``.md``.
+``rsfbench study ensemble-scaling`` writes ``ensemble_scaling.json`` and ``.md``.
 """
 
 from __future__ import annotations
@@ -248,11 +248,16 @@ def scaling_markdown(s: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def run(out: Path) -> None:
-    ensemble_scaling(out, study_csv=out / "wp_quick.csv", progress=False)
+def run(out: Path, n: int, big: int, kills: int, dask: int, repeats: int, seed: int) -> None:
+    ensemble_scaling(out, n=n, big=big, kills=kills, dask=dask, repeats=repeats, seed=seed,
+                     study_csv=out / "wp_quick.csv", progress=False)
 
 
 STUDY = Study("ensemble-scaling", "Ensembles at kernel speed (`ensemble_scaling.*`)", 140, run,
               report=markdown_file("ensemble_scaling.md"), plan="full", timed=True,
+              settings={"n": 21, "big": 100_000, "kills": 3, "dask": 10_000, "repeats": 3,
+                        "seed": 0},
+              limits={"n": (2, 101), "big": (0, 10_000_000), "kills": (0, 100),
+                      "dask": (0, 1_000_000), "repeats": (1, 100), "seed": (0, 2**32 - 1)},
               reads=("wp_quick.csv",), writes=("ensemble_scaling.json", "ensemble_scaling.md"),
               minutes=4)

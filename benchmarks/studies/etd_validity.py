@@ -1,4 +1,4 @@
-"""How far the ETD family's runs are from its step-rule check: ``rsfbench reproduce --only
+"""How far the ETD family's runs are from its step-rule check: ``rsfbench study
 etd-validity``.
 
 Each ETD step checks Eq. 53 at the fastest state it evaluated (``integrators/own/etd.py``, module

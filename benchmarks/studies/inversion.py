@@ -25,7 +25,7 @@ import pandas as pd
 from benchmarks.records.report import fmt, jsonable, markdown_table
 from benchmarks.studies.study import Study
 
-__all__ = ["STUDY", "prior_box", "posterior_target", "calibration_study", "TARGET_SOLVES",
+__all__ = ["STUDY", "posterior_target", "calibration_study", "TARGET_SOLVES",
            "TARGET_WALL_S", "CALIBRATION_TRUTH"]
 
 #: the issue's posterior target: at least this many forward solves …
@@ -104,7 +104,7 @@ def _inversion_markdown(s: dict) -> str:
         f"{'met' if t['met'] else 'missed'}.\n\n"
         "Files: `inversion_W2_slip/` (inversion.json, fit_starts.csv, profile_b.csv, "
         "profile_log10_lc.csv, posterior.csv, corner.png, profiles.png). Command: `rsfbench "
-        "reproduce --only inversion`.\n")
+        "study inversion`.\n")
 
 
 def _interval(p: dict) -> str:
@@ -193,8 +193,7 @@ def _calibration_markdown(cal, info) -> str:
         "χ²₁ for the profiles nor a frequentist reading of the marginal credible intervals "
         "holds exactly.\n\n"
         "## The grid against the continuous methods\n\n" + check_text +
-        "\nCommand: `rsfbench calibration --out results` (`rsfbench reproduce --only "
-        "calibration`).\n")
+        "\nCommand: `rsfbench study calibration`.\n")
 
 
 def _checks_markdown(c: pd.DataFrame) -> str:

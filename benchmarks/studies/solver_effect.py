@@ -415,8 +415,8 @@ def _solver_effect_markdown(table, advice, study_name, wall, shift_sd, min_overl
                   f"{ref.zoom_lc_um} µm; the reference's failed solves: {ref.n_failed}; "
                   f"resolved: {'yes' if ref.resolved else '**no**'}.\n\n",
                   markdown_table(t)]
-    parts.append("\nCommand: `rsfbench solver-effect --out results` (`rsfbench reproduce "
-                 "--full --only solver-effect`).\n")
+    parts.append("\nCommand: `rsfbench study solver-effect` (a study of "
+                 "`make reproduce-full`).\n")
     return "".join(parts)
 
 
@@ -459,8 +459,8 @@ def _plot_solver_effect(table, path: Path, min_overlap: float) -> None:
     plt.close(fig)
 
 
-def run(out: Path) -> None:
-    solver_effect_study(out, study_csv=out / "wp_full.csv", progress=True)
+def run(out: Path, n: int) -> None:
+    solver_effect_study(out, n=n, study_csv=out / "wp_full.csv", progress=True)
     print((out / "solver_effect.md").read_text().split("\n## ")[1])
 
 
@@ -472,5 +472,6 @@ def report(out: Path) -> str:
 
 STUDY = Study("solver-effect", "The solver's effect on the inferred (b, Lc) (`solver_effect.*`)",
               220, run, report=report, plan="full", timed=True, reads=("wp_full.csv",),
+              settings={"n": 31}, limits={"n": (5, 301)},
               writes=("solver_effect.csv", "solver_effect.md", "solver_effect.png",
                       "solver_effect_recommendation.csv"), minutes=101)

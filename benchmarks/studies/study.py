@@ -6,7 +6,10 @@ name (``rsfbench study NAME``), the files it reads (another study's, in ``result
 it writes (glob patterns, relative to the output directory: the only files recorded as its
 outputs; writing any other is an error), its plan (``quick``: ``make reproduce``; ``full``:
 ``make reproduce-full`` only), its place in the plan and the report, and its expected minutes on
-2 cores. ``run(out, **settings)`` writes the files; ``report(out)`` returns the study's section of
+2 cores. ``settings`` are the keyword arguments of ``run`` with their defaults (numbers or words;
+``rsfbench study NAME --set KEY=VALUE`` changes one), ``limits`` the inclusive range of a numeric
+one; ``check(settings)`` refuses a combination of them (``ValueError``) before any work.
+``run(out, **settings)`` writes the files; ``report(out)`` returns the study's section of
 ``REPORT.md`` (Markdown, no heading), read back from its files so that a reused study reports too.
 
 Adding a study is one new file here; :func:`benchmarks.pipeline.reproduce.studies` finds it.
@@ -14,12 +17,13 @@ Adding a study is one new file here; :func:`benchmarks.pipeline.reproduce.studie
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
-__all__ = ["Study", "PLANS", "markdown_file"]
+__all__ = ["Study", "PLANS", "markdown_file", "matches"]
 
 #: the plans a study can be in
 PLANS = ("quick", "full")
@@ -28,8 +32,7 @@ PLANS = ("quick", "full")
 @dataclass(frozen=True, eq=False)
 class Study:
     """A study's declaration (see the module docstring). ``timed``: its numbers are timings (the
-    machine is an input of its reuse). ``settings``: the keyword arguments of ``run``.
-    ``data``: project files it reads, relative to the project. ``modules``: project modules it
+    machine is an input of its reuse). ``data``: project files it reads, relative to the project. ``modules``: project modules it
     runs without importing them (a command line run as a program)."""
 
     name: str
@@ -42,6 +45,8 @@ class Study:
     minutes: float = 0.0
     timed: bool = False
     settings: dict = field(default_factory=dict)
+    limits: dict = field(default_factory=dict)
+    check: Callable[[dict], None] | None = None
     reads: tuple[str, ...] = ()
     data: tuple[str, ...] = ()
     modules: tuple[str, ...] = ()
@@ -60,6 +65,9 @@ class Study:
             if "**" in pattern:
                 raise ValueError(f"study {self.name}: {pattern!r}: a pattern names each level "
                                  "of its path ('*' within one, not '**')")
+        if set(self.limits) - set(self.settings):
+            raise ValueError(f"study {self.name}: limits of unknown settings "
+                             f"{sorted(set(self.limits) - set(self.settings))}")
         if not self.minutes > 0:
             raise ValueError(f"study {self.name}: expected minutes must be positive")
 
@@ -68,25 +76,43 @@ class Study:
         """In the full plan only."""
         return self.plan == "full"
 
-    def outputs(self, out: Path) -> list[str]:
-        """The files in ``out`` that match the declared patterns, relative, sorted."""
-        out = Path(out)
-        return sorted({p.relative_to(out).as_posix() for pattern in self.writes
-                       for p in out.glob(pattern) if p.is_file()})
-
     def declares(self, relative: str) -> bool:
         """Does a declared pattern match the file ``relative`` (to the output directory)?"""
-        return any(Path(relative).match(pattern) and
-                   len(Path(relative).parts) == len(Path(pattern).parts)
-                   for pattern in self.writes)
+        return any(matches(relative, pattern) for pattern in self.writes)
+
+    def checked(self, settings: dict) -> dict:
+        """``settings`` (by name) if they are this study's and within its limits, else
+        ``ValueError`` naming the setting, the value and what is expected."""
+        unknown = sorted(set(settings) - set(self.settings))
+        if unknown:
+            known = ", ".join(f"{k} (default {v!r})" for k, v in self.settings.items())
+            raise ValueError(f"study {self.name} has no setting {', '.join(unknown)}; its "
+                             f"settings: {known or 'none'}")
+        for key, value in settings.items():
+            default, number = self.settings[key], (int, float)
+            if isinstance(default, number) and not isinstance(default, bool) and (
+                    isinstance(value, bool) or not isinstance(value, number)
+                    or isinstance(default, int) and not isinstance(value, int)):
+                kind = "a whole number" if isinstance(default, int) else "a number"
+                raise ValueError(f"study {self.name}: setting {key} must be {kind}, as its "
+                                 f"default {default!r} is; got {value!r}")
+            if isinstance(default, str):
+                continue
+            low, high = self.limits.get(key, (-math.inf, math.inf))
+            if not (math.isfinite(value) and low <= value <= high):
+                raise ValueError(f"study {self.name}: setting {key} = {value!r} is outside "
+                                 f"[{low:g}, {high:g}]")
+        if self.check is not None:
+            self.check({**self.settings, **settings})
+        return settings
 
 
-def markdown_file(name: str, part: int | None = None, drop_lines: int = 0):
-    """A ``report``: the Markdown file ``name`` of the output directory, or its ``part``-th
-    piece split at second-level headings, without its first ``drop_lines`` lines."""
-    def report(out: Path) -> str:
-        text = (Path(out) / name).read_text(encoding="utf-8")
-        if part is not None:
-            text = text.split("\n## ")[part]
-        return text.split("\n", drop_lines)[drop_lines] if drop_lines else text
-    return report
+def matches(relative: str, pattern: str) -> bool:
+    """Does the glob ``pattern`` match the file ``relative``, level by level?"""
+    return (len(Path(relative).parts) == len(Path(pattern).parts)
+            and Path(relative).match(pattern))
+
+
+def markdown_file(name: str):
+    """A ``report``: the Markdown file ``name`` of the output directory."""
+    return lambda out: (Path(out) / name).read_text(encoding="utf-8")

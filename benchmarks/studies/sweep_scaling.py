@@ -11,10 +11,11 @@ from benchmarks.studies.study import Study, markdown_file
 __all__ = ["STUDY"]
 
 
-def run(out: Path) -> None:
-    sweep_scaling(out, study_csv=out / "wp_quick.csv")
+def run(out: Path, n: int, t_end: float) -> None:
+    sweep_scaling(out, n=n, t_end=t_end, study_csv=out / "wp_quick.csv")
 
 
 STUDY = Study("sweep-scaling", "Sweep speed (`sweep_scaling.*`)", 130, run,
               report=markdown_file("sweep_scaling.md"), timed=True, reads=("wp_quick.csv",),
+              settings={"n": 21, "t_end": 40.0}, limits={"n": (2, 101), "t_end": (1.0, 1e4)},
               writes=("sweep_scaling.json", "sweep_scaling.md"), minutes=0.1)

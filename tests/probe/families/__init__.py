@@ -1,9 +1,9 @@
-"""The probe's case families added after its first catalogue (:mod:`benchmarks.probe_cases`),
-one module by area: each module's ``cases()`` returns its :class:`~benchmarks.probe.Case` list."""
+"""The probe's case families added after its first catalogue (:mod:`probe.cases`),
+one module by area: each module's ``cases()`` returns its :class:`~probe.harness.Case` list."""
 
 from __future__ import annotations
 
-from benchmarks.probe_families import (
+from probe.families import (
     classification,
     etd,
     histories,

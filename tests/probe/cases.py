@@ -1,4 +1,4 @@
-"""The catalogue of the reliability probe (:mod:`benchmarks.probe`): every case, by kind.
+"""The catalogue of the reliability probe (:mod:`probe.harness`): every case, by kind.
 
 Cases are built by small factories so that each family (every numeric parameter of every
 dataclass × every kind of bad value, every numeric flag of every command, every backend's
@@ -21,12 +21,12 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks import probe_families
-from benchmarks.probe import Case, Observed, Wrong, cli, cli_outcome, one_json
+from probe import families as probe_families
+from probe.harness import Case, Observed, Wrong, cli, cli_outcome, one_json
 
 __all__ = ["cases", "fast_cases", "slow_cases"]
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 NAN, INF = float("nan"), float("inf")
 
 
@@ -299,11 +299,6 @@ def _cli_input_cases():
         "compare": (("compare", "--atol", "1e-6", "--integrators", "ETD2"), {"--rtol": "p"}),
         "work-precision": (("work-precision", "--integrators", "ETD2", "--out", "{tmp}"),
                            {"--wall-budget": "p", "--t-end": "p"}),
-        "speedup": (("speedup",), {"--rk-tol": "p", "--scipy-budget": "p"}),
-        "sweep-scaling": (("sweep-scaling", "--out", "{tmp}"), {"--n": "c", "--t-end": "p"}),
-        "ensemble-scaling": (("ensemble-scaling", "--out", "{tmp}"),
-                             {"--n": "c", "--big": "s", "--kills": "s", "--dask": "s",
-                              "--repeats": "c", "--seed": "s"}),
     }
     values = {"p": ("0", "-5", "inf", "nan", "abc"), "n": ("-1", "inf", "abc"),
               "c": ("0", "-1", "1.5", "abc"), "s": ("-1", "1.5", "abc")}
@@ -312,6 +307,7 @@ def _cli_input_cases():
             for value in values[kind]:
                 out.append(_cli_case("cli-input", f"{command.strip()} {flag} {value}",
                                      base + (f"{flag}={value}",), names=flag))
+    out += _study_setting_cases()
     grids = {"--b": ("0.01:0.009:0.0001", "0.009:0.01:0", "a:b:c", "0.009:inf:0.0001",
                      "0.009:0.01:1e-9", "-0.001:0.001:0.0001", "0.009:0.01"),
              "--lc": ("0:1e-6:3log", "1e-6:1e-7:3", "1e-7:1e-6:xlog", "1e-7:1e-6:0",
@@ -372,11 +368,12 @@ def _cli_input_cases():
                                        "--integrators", "nope"),
         "compare without --rtol": ("compare", "--atol", "1e-6"),
         "reproduce --from nope": ("reproduce", "--from", "nope"),
-        "reproduce --from and --only": ("reproduce", "--from", "integrators", "--only",
-                                        "integrators"),
-        "speedup --implicit nope": ("speedup", "--implicit", "nope"),
-        "paper-sweeps --windows W9": ("paper-sweeps", "--windows", "W9"),
-        "paper-sweeps --workers 0": ("paper-sweeps", "--workers", "0"),
+        "study nope": ("study", "nope", "--out", "{tmp}"),
+        "study --set without a study": ("study", "--set", "n=3", "--out", "{tmp}"),
+        "study calibration --set bogus=1": ("study", "calibration", "--set", "bogus=1",
+                                            "--out", "{tmp}"),
+        "study calibration --set n": ("study", "calibration", "--set", "n", "--out", "{tmp}"),
+        "study --list --set n=3": ("study", "--list", "--set", "n=3"),
     }
     names = {"simulate --rtol without --integrator": "--integrator",
              "simulate Rodas5P without tolerances": "rtol", "simulate ETD2 with --rtol": "rtol",
@@ -385,7 +382,8 @@ def _cli_input_cases():
              "no command": "required", "unknown command": "simulte",
              "sweep --workers with --scheduler": "--scheduler",
              "convergence --t-end -1": "--t-end", "compare without --rtol": "--rtol",
-             "reproduce --from and --only": "--only", "paper-sweeps --workers 0": "--workers",
+             "study --set without a study": "name a study", "study calibration --set n": "--set",
+             "study calibration --set bogus=1": "bogus", "study --list --set n=3": "--set",
              "work-precision --problems W2:sliding": "sliding"}
     for name, args in others.items():
         # what the refusal must name: the flag, or the bad value the case gives
@@ -406,16 +404,36 @@ def _cli_input_cases():
         "compare --rtol 0": ("compare", "--rtol", "0", "--atol", "1e-6"),
         "work-precision --problems W9": ("work-precision", "--problems", "W9", "--out", "{tmp}"),
         "convergence --problem W9": ("convergence", "--problem", "W9"),
-        "speedup --rk-tol 0": ("speedup", "--rk-tol", "0"),
-        "target --csv missing": ("target", "--csv", "{tmp}/none.csv"),
         "integrators --bogus": ("integrators", "--bogus"),
-        "sweep-scaling --n 0": ("sweep-scaling", "--n", "0", "--out", "{tmp}"),
-        "ensemble-scaling --big -1": ("ensemble-scaling", "--big", "-1", "--out", "{tmp}"),
+        "study --list --set n=3": ("study", "--list", "--set", "n=3"),
+        "study calibration --set n=0": ("study", "calibration", "--set", "n=0", "--out", "{tmp}"),
     }
     for name, args in json_refusals.items():
         must = name.split()[1] if name.split()[1].startswith("--") else name.split()[-1]
+        must = must.split("=")[0]
         out.append(_cli_case("machine-output", f"--json refusal: {name}", args + ("--json",),
                              json_mode=True, names=must))
+    return out
+
+
+def _study_setting_cases():
+    """Every numeric setting of every study (``rsfbench study NAME --set KEY=VALUE``) with a
+    word, a non-finite number and a value beyond each end of its limits: refused, naming it."""
+    from benchmarks.pipeline.plan import studies
+    out = []
+    for study in studies():
+        for key, default in study.settings.items():
+            if isinstance(default, bool) or not isinstance(default, (int, float)):
+                continue
+            values = ["abc", "nan", "inf"] + (["1.5"] if isinstance(default, int) else [])
+            if key in study.limits:
+                low, high = study.limits[key]
+                step = 1 if isinstance(default, int) else abs(low) / 2 or 1.0
+                values += [f"{low - step:g}", f"{high * 2 if high > 0 else high + 1:g}"]
+            for value in values:
+                out.append(_cli_case("cli-input", f"study {study.name} --set {key}={value}",
+                                     ("study", study.name, "--set", f"{key}={value}",
+                                      "--out", "{tmp}"), names=key))
     return out
 
 
@@ -471,12 +489,8 @@ def _paths_cases():
         "sweep malformed --scheduler": _SWEEP_DASK + ("--scheduler", "not a url",
                                                       "--connect-timeout", "2", "--out",
                                                       "{tmp}/s"),
-        "target --csv missing": ("target", "--csv", "{tmp}/none.csv", "--out", "{tmp}"),
-        "target --csv a curves file": ("target", "--csv", "{tmp}/curves.csv", "--out", "{tmp}"),
-        "target --csv empty": ("target", "--csv", "{tmp}/empty.csv", "--out", "{tmp}"),
-        "target --csv binary": ("target", "--csv", "{tmp}/binary.csv", "--out", "{tmp}"),
-        "target --csv a directory": ("target", "--csv", "{tmp}/dir", "--out", "{tmp}"),
-        "target --out under a file": ("target", "--out", "{tmp}/file.txt/x"),
+        "study --out is a file": ("study", "integrators", "--out", "{tmp}/file.txt"),
+        "study --out under a file": ("study", "integrators", "--out", "{tmp}/file.txt/x"),
         "windows --out is a file": ("windows", "--window", "W2", "--out", "{tmp}/file.txt"),
         "compare --out .txt": ("compare", "--rtol", "1e-6", "--atol", "1e-6", "--out",
                                "{tmp}/t.txt"),
@@ -1104,8 +1118,7 @@ def _machine_output_cases():
         "sweep": _SWEEP + ("--out", "{tmp}/s", "--json"),
         "slip-weakening": ("slip-weakening", "--preset", "W2", "--t-end", "20", "--out",
                            "{tmp}/c.csv", "--json"),
-        "target": ("target", "--csv", str(ROOT / "results" / "wp_quick.csv"), "--out", "{tmp}",
-                   "--json"),
+        "study --list": ("study", "--list", "--json"),
     }
     for name, args in ok_json.items():
         out.append(_cli_case("machine-output", f"--json success: {name}", args, "ok",

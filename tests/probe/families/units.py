@@ -18,7 +18,7 @@ import math
 import warnings
 from pathlib import Path
 
-from benchmarks.probe import Case, Observed, Wrong, cli, cli_outcome, one_json
+from probe.harness import Case, Observed, Wrong, cli, cli_outcome, one_json
 
 __all__ = ["cases"]
 
@@ -230,7 +230,7 @@ def _apparatus_cases() -> list[Case]:
         window,
     )
     from problems.presets import fault_radiation_damping
-    apparatus = Path(__file__).resolve().parents[2] / "docs" / "examples" / "apparatus.toml"
+    apparatus = Path(__file__).resolve().parents[3] / "docs" / "examples" / "apparatus.toml"
 
     def slider(fn, k, m, vl, lc, t_end, a=0.01, b=0.015, v0=None, law="aging"):
         return lambda: SpringSlider(

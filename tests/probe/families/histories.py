@@ -16,7 +16,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 
-from benchmarks.probe import Case, Observed, Wrong
+from probe.harness import Case, Observed, Wrong
 
 __all__ = ["cases"]
 

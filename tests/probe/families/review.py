@@ -8,7 +8,7 @@ import fcntl
 import json
 import time
 
-from benchmarks.probe import Case, Observed, Wrong, cli, cli_outcome
+from probe.harness import Case, Observed, Wrong, cli, cli_outcome
 
 __all__ = ["cases"]
 

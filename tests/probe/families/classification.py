@@ -28,7 +28,7 @@ import re
 
 import numpy as np
 
-from benchmarks.probe import Case, Observed, Wrong, cli, cli_outcome, one_json  # noqa: F401
+from probe.harness import Case, Observed, Wrong, cli, cli_outcome, one_json  # noqa: F401
 
 __all__ = ["cases"]
 

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import dataclasses
 
-from benchmarks.probe import Case, Observed, Wrong, cli, cli_outcome, one_json  # noqa: F401
+from probe.harness import Case, Observed, Wrong, cli, cli_outcome, one_json  # noqa: F401
 
 __all__ = ["cases", "ladder", "check_against_peer", "before_plunge", "lock_end", "AGREE",
            "PEER", "PEER_RTOL", "RTOL"]

@@ -20,7 +20,7 @@ import json
 import math
 import warnings
 
-from benchmarks.probe import Case, Observed, Wrong, cli, cli_outcome, one_json
+from probe.harness import Case, Observed, Wrong, cli, cli_outcome, one_json
 
 __all__ = ["cases"]
 

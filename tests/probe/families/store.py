@@ -26,12 +26,12 @@ import time
 import warnings
 from pathlib import Path
 
-from benchmarks.probe import Case, Observed, Wrong, cli, cli_outcome, one_json
+from probe.harness import Case, Observed, Wrong, cli, cli_outcome, one_json
 
 __all__ = ["cases"]
 
 KIND = "store"
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 _READERS = ("read_store", "ensemble rerun", "sweep --json rerun")
 
 

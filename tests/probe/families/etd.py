@@ -19,7 +19,7 @@ import functools
 
 import numpy as np
 
-from benchmarks.probe import Case, Observed, Wrong, cli, cli_outcome, one_json  # noqa: F401
+from probe.harness import Case, Observed, Wrong, cli, cli_outcome, one_json  # noqa: F401
 
 __all__ = ["cases", "WINDOWS", "TOLERANCE", "reference", "events_agree", "window_problem",
            "MISSED_BEFORE", "HISTORIES", "history_problem"]

@@ -16,12 +16,12 @@ or a command line that printed one), ``hang`` (no answer within the case's time 
 ``wrong`` (an answer that the case's own check found silently wrong: physics from a failed run,
 a bad file trusted, a budget overrun, output that is not one JSON document).
 
-The catalogue is :mod:`benchmarks.probe_cases`; ``tests/test_reliability.py`` runs every case
-and ``rsfbench probe`` writes the table of kinds and outcomes (``results/reliability.md``).
+The catalogue is :mod:`probe.cases` and :mod:`probe.families`; ``test_reliability.py`` runs
+every case, and with ``--probe-report DIR`` writes the table of kinds and outcomes
+(:func:`write_probe`; ``rsfbench study probe`` writes ``results/reliability.md``).
 
 The probe runs the command line as a user does: the installed program ``rsfbench``, in this
-process by its entry point (:func:`cli`) or as a subprocess. It imports no part of the command
-line, which itself runs the probe (``rsfbench probe``).
+process by its entry point (:func:`cli`) or as a subprocess; it imports no part of it.
 """
 
 from __future__ import annotations
@@ -33,7 +33,6 @@ import json
 import os
 import signal
 import tempfile
-import time
 import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -41,8 +40,8 @@ from typing import Callable
 
 import pandas as pd
 
-__all__ = ["Case", "Observed", "CliRun", "run_case", "run_probe", "cli", "write_probe",
-           "OUTCOMES", "BAD_OUTCOMES", "Wrong"]
+__all__ = ["Case", "Observed", "CliRun", "run_case", "cli", "write_probe", "OUTCOMES",
+           "BAD_OUTCOMES", "Wrong"]
 
 OUTCOMES = ("refused", "retcode", "warned", "recovered", "ok")
 BAD_OUTCOMES = ("traceback", "hang", "wrong")
@@ -119,20 +118,6 @@ def _run(case: Case) -> Observed:
         except Exception as exc:
             return Observed("traceback", "".join(traceback.format_exception_only(exc)).strip())
     return got if isinstance(got, Observed) else Observed(got)
-
-
-def run_probe(cases, progress: bool = True) -> pd.DataFrame:
-    """Every case once: one row each (kind, name, expected, observed, detail, seconds)."""
-    from tqdm.auto import tqdm
-    rows = []
-    for case in tqdm(list(cases), desc="probe", unit="case", disable=not progress):
-        start = time.perf_counter()
-        got = run_case(case)
-        rows.append({"kind": case.kind, "case": case.name, "expected": case.expect,
-                     "observed": got.outcome, "as_expected": got.outcome == case.expect,
-                     "detail": got.detail, "slow": case.slow,
-                     "seconds": time.perf_counter() - start})
-    return pd.DataFrame(rows)
 
 
 # --- the command line, run in this process -------------------------------------------------

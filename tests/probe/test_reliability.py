@@ -1,12 +1,12 @@
-"""The reliability probe (benchmarks/probe_cases.py): every case must end as it is expected to —
+"""The reliability probe (tests/probe/cases.py): every case must end as it is expected to —
 refused with one clear line, a failure retcode, a warning, a recovered file, or a checked
 answer — and never as a traceback, a hang or a silently wrong result. The slow cases (kills,
 subprocesses, a Dask cluster) are marked ``slow``: ``make test-slow`` runs them."""
 
 import pytest
 
-from benchmarks.probe import BAD_OUTCOMES, OUTCOMES, run_case
-from benchmarks.probe_cases import cases
+from probe.harness import BAD_OUTCOMES, OUTCOMES, run_case
+from probe.cases import cases
 
 CASES = cases()
 
@@ -17,14 +17,14 @@ def _param(case):
 
 
 @pytest.mark.parametrize("case", [_param(c) for c in CASES])
-def test_probe_case(case):
-    got = run_case(case)
+def test_probe_case(case, observe):
+    got = observe(case)
     assert got.outcome not in BAD_OUTCOMES, f"{got.outcome}: {got.detail}"
     assert got.outcome == case.expect, f"expected {case.expect}, observed {got.outcome}: {got.detail}"
 
 
 def test_the_probe_is_at_least_300_cases_of_every_kind():
-    from benchmarks.probe import KIND_TITLES
+    from probe.harness import KIND_TITLES
     assert len(CASES) >= 300
     assert {c.kind for c in CASES} == set(KIND_TITLES)
     assert len({c.id for c in CASES}) == len(CASES)          # one id each
@@ -34,7 +34,7 @@ def test_the_probe_is_at_least_300_cases_of_every_kind():
 def test_the_probe_catches_what_it_should():
     """The probe's own verdicts: a traceback, a hang and a wrong answer are seen as such."""
     import time
-    from benchmarks.probe import Case, Wrong
+    from probe.harness import Case, Wrong
 
     def boom(tmp):
         raise KeyError("x")

@@ -21,7 +21,7 @@ import math
 import os
 from pathlib import Path
 
-from benchmarks.probe import Case, Observed, Wrong, cli, cli_outcome, one_json
+from probe.harness import Case, Observed, Wrong, cli, cli_outcome, one_json
 
 __all__ = ["cases", "toml_text"]
 

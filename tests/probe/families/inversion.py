@@ -1,5 +1,5 @@
-"""Probe cases: inversion — ``rsfbench invert``, ``calibration`` and ``solver-effect``, and the
-profile intervals they report (issue 29).
+"""Probe cases: inversion — ``rsfbench invert``, the ``calibration`` and ``solver-effect``
+studies, and the profile intervals they report.
 
 Families, complete by construction:
 
@@ -27,11 +27,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from benchmarks.probe import Case, Observed, Wrong, cli, cli_outcome
+from probe.harness import Case, Observed, Wrong, cli, cli_outcome
 
 __all__ = ["cases"]
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 Z95 = 1.959963984540054
 _FAST = ("--integrator", "Rodas5P", "--rtol", "1e-4", "--atol", "1e-4")
 _INVERT = ("invert", "--preset", "W4", "--t-end", "15", *_FAST, "--out", "{tmp}/i")
@@ -64,10 +64,6 @@ def _flag_cases():
                              "--wall-budget": ("p",), "--accuracy": ("p",),
                              "--obs-recurrence": ("p",), "--sigma-recurrence": ("p", "1e-15"),
                              "--obs-drop": ("p",), "--sigma-drop": ("p", "1e-15")}),
-        "calibration": (("calibration", "--out", "{tmp}/i"),
-                        {"--seeds": ("c", "10000000"), "--sigma": ("p", "1", "1.5", "1e-9"),
-                         "--n": ("c", "4", "100000"), "--check-seeds": ("s", "1000")}),
-        "solver-effect": (("solver-effect", "--out", "{tmp}/i"), {"--n": ("c", "4", "100000")}),
     }
     out = []
     for command, (base, flags) in commands.items():
@@ -86,21 +82,12 @@ def _flag_cases():
                   _INVERT + ("--walkers", "5000", "--steps", "5000"), names="--walkers"),
         _cli_case("invert --t-end 1e6 (over 10,000 cycles a solve)",
                   _INVERT + ("--t-end", "1e6"), names="--t-end"),
-        _cli_case("calibration --check-seeds 5 --seeds 2",
-                  ("calibration", "--out", "{tmp}/i", "--seeds", "2", "--check-seeds", "5"),
-                  names="--check-seeds"),
-        _cli_case("solver-effect --windows W9", ("solver-effect", "--out", "{tmp}/i",
-                                                 "--windows", "W9"), names="--windows"),
-        _cli_case("solver-effect --laws nagata (the study compares the paper's two laws)",
-                  ("solver-effect", "--out", "{tmp}/i", "--laws", "nagata"), names="--laws"),
-        _cli_case("solver-effect --study missing.csv", ("solver-effect", "--out", "{tmp}/i",
-                                                        "--study", "{tmp}/missing.csv"),
-                  names="--study"),
+        _cli_case("study calibration: check_seeds 5 > seeds 2",
+                  ("study", "calibration", "--out", "{tmp}/i", "--set", "seeds=2", "--set",
+                   "check_seeds=5"), names="check_seeds"),
     ]
     for name, args in (("invert --walkers 3 --json", _INVERT + ("--walkers", "3")),
-                       ("invert --law nagata --json", _INVERT + ("--law", "nagata")),
-                       ("calibration --sigma 1 --json", ("calibration", "--out", "{tmp}/i",
-                                                         "--sigma", "1"))):
+                       ("invert --law nagata --json", _INVERT + ("--law", "nagata"))):
         out.append(_cli_case(name, args + ("--json",), json_mode=True))
     return out
 
@@ -206,7 +193,7 @@ def _unrepairable(tmp):
     p = profile(Broken(3e-4, 0.05, c=0.0), "b", np.linspace(0.0086, 0.0102, 9), (1e-8, 1e-5),
                 refine=2)
     if p.monotone or not p.warnings:
-        raise Wrong(f"a profile with a spike of 50 among values < 2 is called monotone")
+        raise Wrong("a profile with a spike of 50 among values < 2 is called monotone")
     half = Z95 * 3e-4
     if not (p.low <= 0.0094 - 0.98 * half and p.high >= 0.0094 + 0.98 * half):
         raise Wrong(f"the jagged profile's interval [{p.low}, {p.high}] cuts the true one")
@@ -331,8 +318,8 @@ def _w2_small_sigma(tmp):
 
 
 def _calibration_no_checks(tmp):
-    got = cli_outcome(cli("calibration", "--out", tmp / "c", "--seeds", "3", "--n", "5",
-                          "--check-seeds", "0", "--json"), json_mode=True)
+    got = cli_outcome(cli("study", "calibration", "--out", tmp / "c", "--set", "seeds=3",
+                          "--set", "n=5", "--set", "check_seeds=0"))
     if got.outcome != "ok":
         return got
     text = (tmp / "c" / "calibration.md").read_text()
@@ -384,11 +371,10 @@ def _interrupt_cases():
     out += [Case("inversion", f"Ctrl-C during {name}",
                  _interrupt(args, lambda tmp, seen: (tmp / "o").exists(), settle=8.0), "retcode",
                  slow=True, timeout=900)
-            for name, args in (("calibration", ("calibration", "--out", "{tmp}/o", "--seeds",
-                                                "50", "--n", "21", "--no-progress")),
-                               ("solver-effect", ("solver-effect", "--out", "{tmp}/o", "--n",
-                                                  "5", "--windows", "W4", "--laws", "slip",
-                                                  "--no-progress")))]
+            for name, args in (("calibration", ("study", "calibration", "--out", "{tmp}/o",
+                                                "--set", "seeds=50", "--set", "n=21")),
+                               ("solver-effect", ("study", "solver-effect", "--out", "{tmp}/o",
+                                                  "--set", "n=5")))]
     return out
 
 
@@ -397,6 +383,6 @@ def cases() -> list[Case]:
             + [Case("inversion", "invert W2 with σ = 0.2 % and 5 profile points: the fit and "
                     "the truth in both intervals", _w2_small_sigma, "ok", slow=True,
                     timeout=900),
-               Case("inversion", "calibration --check-seeds 0 writes its report",
+               Case("inversion", "study calibration, check_seeds=0, writes its report",
                     _calibration_no_checks, "ok", slow=True, timeout=900)]
             + _interrupt_cases())
