@@ -9,7 +9,8 @@ import pytest
 
 from benchmarks.physics.curves import read_curves
 from benchmarks.inversion import NO_CYCLE_RESIDUAL, Misfit
-from benchmarks.inversion.sweep import Observations, observations, sweep
+from benchmarks.inversion.observations import Observations, observations
+from benchmarks.inversion.sweep import sweep
 from integrators import Rodas5P
 from problems import preset
 

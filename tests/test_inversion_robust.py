@@ -19,7 +19,7 @@ import pytest
 from benchmarks.cli.main import main
 from benchmarks.inversion import Misfit
 from benchmarks.inversion.profile import CELLS, CHI2_95_1DOF, profile
-from benchmarks.inversion.sweep import Observations
+from benchmarks.inversion.observations import Observations
 from integrators import Rodas5P
 from problems import preset
 

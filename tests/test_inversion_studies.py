@@ -18,7 +18,7 @@ from benchmarks.inversion import (Misfit, MetricMap, NO_CYCLE_J1, box_grid, metr
                                   synthetic)
 from benchmarks.inversion import calibration as C
 from benchmarks.studies import solver_effect as SE
-from benchmarks.inversion.sweep import Observations
+from benchmarks.inversion.observations import Observations
 from benchmarks.devtools.work_precision import algorithm_at
 from integrators import Rodas5P
 from problems import preset
@@ -294,7 +294,7 @@ def test_the_solver_effect_table_on_w4():
 
 def test_an_inversion_writes_its_files(tmp_path):
     from benchmarks.inversion.invert import invert, write_inversion
-    from benchmarks.inversion.sweep import observations
+    from benchmarks.inversion.observations import observations
     misfit = Misfit(preset("W4", law="slip", t_end=15.0), observations("W4"),
                     Rodas5P(rtol=1e-4, atol=1e-4))
     inv = invert(misfit, (0.0095, 0.0111), (1e-8, 1e-6), walkers=8, steps=12,
@@ -313,7 +313,7 @@ def test_an_inversion_writes_its_files(tmp_path):
 
 def test_no_cycle_in_the_box_means_no_posterior_not_a_frozen_chain(tmp_path):
     from benchmarks.inversion.invert import invert, write_inversion
-    from benchmarks.inversion.sweep import observations
+    from benchmarks.inversion.observations import observations
     misfit = Misfit(preset("W4", law="slip", t_end=15.0), observations("W4"),
                     Rodas5P(rtol=1e-4, atol=1e-4))
     inv = invert(misfit, (0.001, 0.002), (1e-8, 1e-6), walkers=8, steps=10,
@@ -326,7 +326,7 @@ def test_no_cycle_in_the_box_means_no_posterior_not_a_frozen_chain(tmp_path):
 
 def test_a_bad_chain_is_refused_before_the_fit():
     from benchmarks.inversion.invert import invert
-    from benchmarks.inversion.sweep import observations
+    from benchmarks.inversion.observations import observations
     misfit = Misfit(preset("W4", law="slip", t_end=15.0), observations("W4"),
                     Rodas5P(rtol=1e-4, atol=1e-4))
     with pytest.raises(ValueError, match="walkers must be"):
@@ -366,7 +366,8 @@ def test_joint_misfit_agrees_with_the_sweeps_j(tmp_path):
     from pathlib import Path
     from benchmarks.physics.curves import read_curves
     from benchmarks.inversion.joint import joint_misfit
-    from benchmarks.inversion.sweep import observations, sweep
+    from benchmarks.inversion.observations import observations
+    from benchmarks.inversion.sweep import sweep
     curves = Path(__file__).parent / "data" / "W2_slip_weakening.csv"
     problem = preset("W2", law="slip", t_end=20.0)
     obs = observations("W2", curves=read_curves(curves))

@@ -43,7 +43,7 @@ def test_grid_specs_parse_inclusively_and_reject_bad_input():
 
 
 def test_j1_by_hand_and_the_three_views_of_a_point_without_a_cycle():
-    from benchmarks.inversion.sweep import Observations
+    from benchmarks.inversion.observations import Observations
     obs = Observations(3.0, 0.5, 0.05, 0.005)
     # ((3.5 − 3)/0.5)² + ((0.04 − 0.05)/0.005)² = 1 + 4; the second point has no limit cycle
     s = scores([3.5, 3.5], [0.04, 0.04], [True, False], obs)

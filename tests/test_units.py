@@ -10,7 +10,7 @@ import warnings
 import pytest
 
 import problems as P
-from benchmarks.inversion.sweep import Observations, observations
+from benchmarks.inversion.observations import Observations, observations
 from problems._validate import (PLAUSIBLE, UnitWarning, check_possible, implausible_message,
                                 units_checked_already)
 

@@ -263,11 +263,20 @@ def add_observation_options(p) -> None:
                         "published mean)")
     p.add_argument("--sigma-drop", type=positive, metavar="X",
                    help="σ of Δμ (default: 10 %% of the mean, flagged as an assumption)")
+    p.add_argument("--observations", type=in_file, metavar="FILE.json",
+                   help="an observations file of `rsfbench observe`: its means, their σ and "
+                        "its curves, instead of the four options above (default: none)")
 
 
 def check_observation_options(args, problem, published: bool) -> None:
     """Refuse a problem without published means when --obs-recurrence or --obs-drop is
-    missing."""
+    missing, and an observations file with any of them."""
+    if getattr(args, "observations", None) is not None:
+        given = [flag for field, flag in _OBSERVATION_FLAGS
+                 if getattr(args, _DEST[field]) is not None]
+        if given:
+            raise ValueError(f"--observations holds the means and their σ: drop {given[0]}")
+        return
     if not published:                      # the flags a window's published means fill
         for flag, value in (("--obs-recurrence", args.obs_recurrence),
                             ("--obs-drop", args.obs_drop)):
@@ -277,8 +286,15 @@ def check_observation_options(args, problem, published: bool) -> None:
 
 
 def observations_from_args(args, published: bool, curves=None):
-    """The observations of the options (a window's published means fill what is not given)."""
-    from benchmarks.inversion.sweep import observations
+    """The observations of the options (a window's published means fill what is not given),
+    or of the observations file (``--observations``)."""
+    if getattr(args, "observations", None) is not None:
+        from benchmarks.inversion.observations import read_observations
+        try:
+            return read_observations(args.observations)
+        except ValueError as exc:
+            raise ValueError(f"--observations: {exc}") from None
+    from benchmarks.inversion.observations import observations
     try:
         return observations(args.preset if published else "", args.obs_recurrence,
                             args.sigma_recurrence, args.obs_drop, args.sigma_drop, curves)
@@ -295,6 +311,8 @@ def observations_from_args(args, published: bool, curves=None):
 _OBSERVATION_FLAGS = (("sigma_recurrence_s", "--sigma-recurrence"),
                       ("sigma_friction_drop", "--sigma-drop"),
                       ("recurrence_s", "--obs-recurrence"), ("friction_drop", "--obs-drop"))
+_DEST = {"sigma_recurrence_s": "sigma_recurrence", "sigma_friction_drop": "sigma_drop",
+         "recurrence_s": "obs_recurrence", "friction_drop": "obs_drop"}
 
 
 class ShowVersion(argparse.Action):

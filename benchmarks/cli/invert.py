@@ -135,6 +135,9 @@ def cmd_invert(args) -> int:
     if args.steps:
         flagged("--walkers/--steps", check_sampler, box_b, box_lc, args.walkers, args.steps)
     obs = observations_from_args(args, published)
+    if obs.curves is not None:                  # an observations file's: J1 is what inverts
+        import dataclasses
+        obs = dataclasses.replace(obs, curves=None)
     cycles = problem.t_end / obs.recurrence_s
     if cycles > MAX_CYCLES:                  # each of thousands of solves would run for hours
         raise ValueError(f"--t-end {problem.t_end:g} s simulates {cycles:,.0f} cycles of the "

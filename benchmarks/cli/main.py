@@ -12,6 +12,7 @@
     rsfbench study speedup --set scipy_budget=3600   # the paper's 1/10,000 claim
     rsfbench readme [--check]               # refill the README's numbers from results/
     rsfbench lab shs --holds 1 10 100       # a slide-hold-slide test and its healing
+    rsfbench observe rec.csv --columns rec.toml   # a recording in: observations.json out
 """
 
 from __future__ import annotations
@@ -472,6 +473,8 @@ def build_parser() -> Parser:
     add_inversion_parsers(sub, PRESET_NAMES)
     from benchmarks.cli.lab import add_parsers as add_lab_parsers
     add_lab_parsers(sub)
+    from benchmarks.cli.observe import add_parsers as add_observe_parsers
+    add_observe_parsers(sub)
     return parser
 
 

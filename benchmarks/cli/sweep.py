@@ -31,7 +31,7 @@ from benchmarks.cli.args import (
     seed,
     show_progress,
 )
-from benchmarks.inversion.sweep import observations
+from benchmarks.inversion.observations import observations
 from benchmarks.records.report import jsonable
 
 __all__ = ["add_parsers", "observations", "synthetic_curves"]
@@ -52,6 +52,8 @@ def cmd_sweep(args) -> int:
     check_observation_options(args, problem, published)
     b_values = parse_b(args.b, args.max_points)
     lc_values = parse_lc(args.lc, args.max_points)
+    if args.slip_weakening and args.observations:
+        raise ValueError("--slip-weakening: the --observations file holds its own curves")
     curves = read_curves(args.slip_weakening) if args.slip_weakening else None
     obs = observations_from_args(args, published, curves)
     algorithm, why = integrator_from_args(args)

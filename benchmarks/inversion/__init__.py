@@ -1,6 +1,8 @@
 """Inversions of (b, Lc) a solver can be chosen for: one likelihood, J1 of Eq. 10, with what a
 point without a limit cycle is to each reader (:func:`~benchmarks.inversion.fitting.scores`);
-the misfit as a function (:mod:`~benchmarks.inversion.misfit`), the multi-start least-squares fit with its covariance
+the observations, typed in or measured on a recording (:mod:`~benchmarks.inversion.observations`,
+:mod:`~benchmarks.inversion.observe`); the misfit as a function
+(:mod:`~benchmarks.inversion.misfit`), the multi-start least-squares fit with its covariance
 (:mod:`~benchmarks.inversion.fit`), profile likelihoods (:mod:`~benchmarks.inversion.profile`),
 posterior samples with emcee (:mod:`~benchmarks.inversion.posterior`), the forward model on a
 grid and the posteriors and profiles of any data set on it (:mod:`~benchmarks.inversion.grid`).
@@ -13,9 +15,18 @@ from benchmarks.inversion.fit import FitResult, fit
 from benchmarks.inversion.fitting import NO_CYCLE_J1, NO_CYCLE_RESIDUAL, Scores, scores
 from benchmarks.inversion.grid import GridPosterior, MetricMap, box_grid, metric_map
 from benchmarks.inversion.misfit import Misfit, synthetic
+from benchmarks.inversion.observations import read_observations, write_observations
 from benchmarks.inversion.posterior import Posterior, sample
 from benchmarks.inversion.profile import CHI2_95_1DOF, Profile, profile
 
 __all__ = ["Misfit", "NO_CYCLE_RESIDUAL", "synthetic", "fit", "FitResult", "profile", "Profile",
            "CHI2_95_1DOF", "sample", "Posterior", "metric_map", "MetricMap", "GridPosterior",
-           "box_grid", "NO_CYCLE_J1", "scores", "Scores"]
+           "box_grid", "NO_CYCLE_J1", "scores", "Scores", "read_observations",
+           "write_observations", "observe"]
+
+
+def __getattr__(name):                 # observe reads and plots a recording: imported on use
+    if name == "observe":
+        from benchmarks.inversion.observe import observe
+        return observe
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

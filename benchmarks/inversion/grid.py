@@ -30,8 +30,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from benchmarks.ensemble import ensemble
-from benchmarks.inversion.fitting import NO_CYCLE_J1, scores
-from benchmarks.inversion.sweep import Observations
+from benchmarks.inversion.fitting import scores
+from benchmarks.inversion.observations import Observations
 from benchmarks.physics.metrics import CYCLES
 from integrators import Algorithm
 from problems import SpringSlider

@@ -23,7 +23,7 @@ import pandas as pd
 
 from benchmarks.ensemble import ensemble
 from benchmarks.inversion.fitting import NO_CYCLE_RESIDUAL, j2_per_event, scores
-from benchmarks.inversion.sweep import MIN_SIGMA_REL, Observations
+from benchmarks.inversion.observations import MIN_SIGMA_REL, Observations
 from benchmarks.physics.metrics import CYCLES
 from integrators import Algorithm
 from problems import SpringSlider

@@ -36,7 +36,7 @@ import pandas as pd
 from benchmarks.ensemble import ensemble, grid
 from benchmarks.ensemble.executors import CONNECT_TIMEOUT_S, WORKER_TIMEOUT_S
 from benchmarks.inversion.fitting import CHI2_95_2DOF, j2_per_event, joint_fit, scores
-from benchmarks.physics.curves import check_curves
+from benchmarks.inversion.observations import Observations
 from benchmarks.physics.metrics import CYCLES
 from benchmarks.records.files import atomic_write, remove_stale_temporaries
 from benchmarks.records.report import jsonable
@@ -44,15 +44,12 @@ from problems import SpringSlider
 from problems._validate import (
     check_count,
     check_positive,
-    check_possible,
-    implausible_message,
     units_checked_already,
     warn_implausible,
-    warn_unit,
 )
 
-__all__ = ["parse_b", "parse_lc", "check_grid", "Observations", "observations", "ASSUMED_SIGMA",
-           "sweep", "SweepResult", "score", "summarize_sweep", "MAX_GRID_POINTS"]
+__all__ = ["parse_b", "parse_lc", "check_grid", "sweep", "SweepResult", "score",
+           "summarize_sweep", "MAX_GRID_POINTS"]
 
 #: the most grid points a sweep runs unless ``max_points`` allows more: a typo in a step must
 #: not start a sweep of 10⁸ points (at ~1 ms a point, 10⁴ points take seconds to minutes)
@@ -141,83 +138,6 @@ def check_grid(b_values, lc_values, max_points: int = MAX_GRID_POINTS):
         for value in {axis.min(), axis.max()}:
             warn_implausible(name, value, stacklevel=3)
     return b, lc
-
-
-#: σ below this fraction of its observed mean is refused: no forward solver resolves a limit
-#: cycle's metrics that finely, and J1 = (Δ/σ)² would be the solver's noise (or overflow)
-MIN_SIGMA_REL = 1e-9
-
-
-@dataclass(frozen=True)
-class Observations:
-    """What a point is scored against: observed means and standard deviations (Eq. 10), and
-    optionally the observed slip-weakening curves (Eq. 11). The four numbers must be positive
-    and finite: ΔT̄ and its σ in s, Δμ̄ and its σ dimensionless (a fraction: W2's drop is 0.046).
-
-    A value implausible in its unit warns (:class:`~problems._validate.UnitWarning`: a drop in
-    percent, 8.4, or a σ in percent of a drop, ten times it); a drop of 10 or more, which no
-    friction coefficient allows, is refused. The observations of a sweep are made once, so a
-    sweep warns once."""
-
-    recurrence_s: float
-    sigma_recurrence_s: float
-    friction_drop: float
-    sigma_friction_drop: float
-    curves: pd.DataFrame | None = None
-    assumed_sigma: bool = False        # σ not measured: 10 % of the mean, say so in the output
-
-    def __post_init__(self) -> None:
-        for mean, sigma in (("recurrence_s", "sigma_recurrence_s"),
-                            ("friction_drop", "sigma_friction_drop")):
-            m = check_positive(mean, getattr(self, mean))
-            s = check_positive(sigma, getattr(self, sigma))
-            if s < MIN_SIGMA_REL * m:           # refused before any warning about it
-                raise ValueError(f"{sigma} = {s:g} is below {MIN_SIGMA_REL:g} of the observed "
-                                 f"mean {mean} = {m:g}: no forward solver resolves a limit "
-                                 "cycle's metrics that finely (J1 would be the solver's noise, "
-                                 "or overflow)")
-            m, s = check_possible(mean, m), check_possible(sigma, s)
-            # σ beyond 3 means (every point would fit) or below 0.1 % of it (none would) is
-            # a σ in another unit than its mean's: ms, percent (said once: not again when σ or
-            # the mean was warned for already)
-            plausible = all(implausible_message(k, v) is None for k, v in ((mean, m), (sigma, s)))
-            if plausible and not 1e-3 <= s / m < 3.0:
-                unit = "seconds" if mean == "recurrence_s" else "a fraction, not a percentage"
-                warn_unit(f"{sigma} = {s:g} is {s / m:.3g} × {mean} = {m:g}: implausible for "
-                          "a standard deviation (plausible: 0.001 to below 3 times the mean); "
-                          f"both are in one unit ({unit})", stacklevel=1)
-        if not isinstance(self.assumed_sigma, (bool, np.bool_)):
-            raise ValueError(f"assumed_sigma must be True or False, got {self.assumed_sigma!r}")
-        if self.curves is not None:
-            object.__setattr__(self, "curves", check_curves(self.curves, "obs.curves"))
-
-
-#: σ assumed when none is given: 10 % of the observed mean (flagged in the output)
-ASSUMED_SIGMA = 0.10
-
-
-def observations(preset_name: str, obs_recurrence=None, sigma_recurrence=None, obs_drop=None,
-                 sigma_drop=None, curves=None) -> Observations:
-    """Observations of a preset: a window's published means fill what is not given, and a
-    missing σ is 10 % of its mean (``assumed_sigma`` says so)."""
-    from problems import WINDOWS
-    if not isinstance(preset_name, str):
-        raise ValueError(f"preset_name must be a preset's name (a string), got {preset_name!r}")
-    w = WINDOWS.get(preset_name.upper())
-    obs_recurrence = obs_recurrence if obs_recurrence is not None else (w and w.observed_recurrence)
-    obs_drop = obs_drop if obs_drop is not None else (w and w.observed_drop)
-    for name, value in (("obs_recurrence", obs_recurrence), ("obs_drop", obs_drop)):
-        if value is None:
-            raise ValueError(f"{name} is required for {preset_name!r} (it has no observed means)")
-        check_positive(name, value)          # before a σ of 10 % is made of it
-    assumed = sigma_recurrence is None or sigma_drop is None
-    return Observations(
-        recurrence_s=obs_recurrence,
-        sigma_recurrence_s=(sigma_recurrence if sigma_recurrence is not None
-                            else ASSUMED_SIGMA * obs_recurrence),
-        friction_drop=obs_drop,
-        sigma_friction_drop=sigma_drop if sigma_drop is not None else ASSUMED_SIGMA * obs_drop,
-        curves=curves, assumed_sigma=assumed)
 
 
 @dataclass

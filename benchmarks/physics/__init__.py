@@ -1,8 +1,10 @@
 """Reading a run as physics: limit-cycle metrics and the classification of a run
 (:mod:`~benchmarks.physics.metrics`), what a laboratory user measures on a velocity step or a
 slide-hold-slide test (:mod:`~benchmarks.physics.lab`), slip-weakening curves
-(:mod:`~benchmarks.physics.curves`), figures (:mod:`~benchmarks.physics.plots`) and the summary
-of one run (:mod:`~benchmarks.physics.summary`). Nothing here reads a save grid for a measure."""
+(:mod:`~benchmarks.physics.curves`), figures (:mod:`~benchmarks.physics.plots`), the summary
+of one run (:mod:`~benchmarks.physics.summary`), and a laboratory recording: read and checked
+(:mod:`~benchmarks.physics.recording`), measured (:mod:`~benchmarks.physics.record_analysis`),
+or made by the forward model (:mod:`~benchmarks.physics.synthetic_recording`). Nothing here reads a save grid for a measure."""
 
 from benchmarks._api import lazy_api
 
@@ -15,4 +17,7 @@ __getattr__, __dir__, __all__ = lazy_api(__name__, {
                "CURVE_COLUMNS"),
     "plots": ("plot_solution", "plot_work_precision", "plot_convergence"),
     "summary": ("simulate_summary",),
+    "recording": ("read_recording", "recording_from", "Recording", "CHANNELS", "UNITS"),
+    "record_analysis": ("analyse", "Analysis"),
+    "synthetic_recording": ("synthetic_recording",),
 })

@@ -45,7 +45,7 @@ def posterior_target(out, walkers: int = 32, steps: int = 2500, seed: int = 0,
     from benchmarks.inversion.invert import invert, write_inversion
     from benchmarks.inversion.misfit import Misfit
     from benchmarks.inversion.published import T_END, prior_box
-    from benchmarks.inversion.sweep import observations
+    from benchmarks.inversion.observations import observations
     from problems import preset
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

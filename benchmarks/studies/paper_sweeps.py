@@ -27,7 +27,8 @@ from benchmarks.devtools.work_precision import STUDY_CSV, recommended_algorithm
 from benchmarks.inversion.fitting import CHI2_95_2DOF
 from benchmarks.inversion.maps import plot_sweep
 from benchmarks.inversion.published import B_STEP, GRID, T_END, best_fit, grid_around
-from benchmarks.inversion.sweep import observations, sweep
+from benchmarks.inversion.observations import observations
+from benchmarks.inversion.sweep import sweep
 from benchmarks.records.provenance import provenance
 from benchmarks.records.report import fmt, jsonable, markdown_table
 from benchmarks.studies.study import Study

@@ -57,7 +57,7 @@ import pandas as pd
 from benchmarks.inversion.fit import fit
 from benchmarks.inversion.grid import GridPosterior, MetricMap, box_grid, metric_map
 from benchmarks.inversion.misfit import Misfit, synthetic
-from benchmarks.inversion.sweep import Observations, observations
+from benchmarks.inversion.observations import Observations, observations
 from benchmarks.records.report import fmt, markdown_table
 from benchmarks.studies.study import Study
 from integrators import Algorithm

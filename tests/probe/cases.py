@@ -197,7 +197,8 @@ def _make(name, **kw):
 # --- sweep arguments (API) -------------------------------------------------------------------
 
 def _sweep(tmp, b=(0.0094,), lc=(3e-7,), **kw):
-    from benchmarks.inversion.sweep import observations, sweep
+    from benchmarks.inversion.observations import observations
+    from benchmarks.inversion.sweep import sweep
     from integrators import ETD2
     from problems import preset
     args = dict(t_end=1.0, workers=1, progress=False)
@@ -208,7 +209,7 @@ def _sweep(tmp, b=(0.0094,), lc=(3e-7,), **kw):
 
 
 def _observations(**kw):
-    from benchmarks.inversion.sweep import Observations
+    from benchmarks.inversion.observations import Observations
     return Observations(**{**dict(recurrence_s=3.1, sigma_recurrence_s=0.31, friction_drop=0.046,
                                   sigma_friction_drop=0.0046), **kw})
 

@@ -220,6 +220,7 @@ KIND_TITLES = {
     "load-histories": "load histories, no mass, damping, Nagata: every backend",
     "store": "the store reads back only what it wrote",
     "inversion": "inversions, their intervals and their commands",
+    "observe": "a laboratory recording in, and the observations file out",
 }
 
 

@@ -10,6 +10,7 @@ from probe.families import (
     integrators,
     inversion,
     lab,
+    observe,
     problem_files,
     review,
     store,
@@ -19,7 +20,7 @@ from probe.families import (
 __all__ = ["cases"]
 
 _MODULES = (problem_files, lab, units, classification, integrators, etd, histories, store,
-            inversion, review)
+            inversion, review, observe)
 
 
 def cases() -> list:

@@ -240,7 +240,7 @@ def _api_cases():
     from benchmarks.inversion.misfit import Misfit
     from benchmarks.inversion.profile import profile
     from benchmarks.inversion.published import prior_box
-    from benchmarks.inversion.sweep import Observations
+    from benchmarks.inversion.observations import Observations
     box = ((0.008, 0.011), (1e-8, 1e-5))
     out = [Case("inversion", f"profile of an analytic valley: {n} points, σ_b = {sb:g}",
                 _closed_form(n, sb, sl), "ok")
@@ -296,7 +296,7 @@ def _w2_small_sigma(tmp):
     from benchmarks.ensemble import ensemble
     from benchmarks.inversion.invert import invert
     from benchmarks.inversion.misfit import Misfit
-    from benchmarks.inversion.sweep import Observations
+    from benchmarks.inversion.observations import Observations
     from integrators import Rodas5P
     from problems import preset
     algorithm = Rodas5P(rtol=1e-6, atol=1e-6)
@@ -353,10 +353,16 @@ def _interrupt(args, ready, settle=2.0):
         except subprocess.TimeoutExpired:
             proc.kill()
             raise Wrong("did not stop within 120 s of Ctrl-C") from None
-        lines = [x for x in err.strip().splitlines() if x.strip() and "warning:" not in x]
-        if "Traceback" in err or proc.returncode not in (130, 1) or len(lines) != 1:
-            raise Wrong(f"exit {proc.returncode}, stderr: {err[-400:]!r}")
-        return Observed("retcode", lines[0])
+        # a study prints its progress on stderr (the command's stdout is its summary): what
+        # must hold is one error line, the last, and no traceback
+        errors = [x for x in err.strip().splitlines() if x.startswith("rsfbench: error")]
+        last = err.strip().splitlines()[-1] if err.strip() else ""
+        if "Traceback" in err or proc.returncode not in (130, 1) or len(errors) != 1 \
+                or last != errors[0]:
+            at = err.find("Traceback")
+            shown = err[at:at + 600] + " ... " + err[-200:] if at >= 0 else err[-400:]
+            raise Wrong(f"exit {proc.returncode}, stderr: {shown!r}")
+        return Observed("retcode", errors[0])
     return run
 
 

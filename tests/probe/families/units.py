@@ -57,7 +57,7 @@ def _expect(make, name: str, unit: str, expect: str):
 def _holders() -> dict:
     """PLAUSIBLE key: [(the object that holds it, the name it is reported under, a builder of
     the object from a value)]: every law for a law's field, every slider field, every loading."""
-    from benchmarks.inversion.sweep import Observations
+    from benchmarks.inversion.observations import Observations
     from problems import (
         AgingLaw,
         ConstantLoading,
@@ -150,7 +150,7 @@ def _edge_cases() -> list[Case]:
 # --- the checks that are not one field against a range ----------------------------------------------
 
 def _derived_cases() -> list[Case]:
-    from benchmarks.inversion.sweep import Observations
+    from benchmarks.inversion.observations import Observations
     from problems import InitialState, window
 
     def start(law, **kw):
@@ -217,7 +217,7 @@ def _expect_derived(make, name, unit, expect):
 # --- real apparatuses never warn ---------------------------------------------------------------------
 
 def _apparatus_cases() -> list[Case]:
-    from benchmarks.inversion.sweep import observations
+    from benchmarks.inversion.observations import observations
     from problems import (
         BalancedStart,
         ConstantLoading,
@@ -276,7 +276,8 @@ def _no_warning(make):
 # --- warned once, not once a point ------------------------------------------------------------------
 
 def _sweep_once(tmp):
-    from benchmarks.inversion.sweep import Observations, sweep
+    from benchmarks.inversion.observations import Observations
+    from benchmarks.inversion.sweep import sweep
     from integrators import ETD2
     from problems import window
 

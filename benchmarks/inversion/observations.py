@@ -1,0 +1,188 @@
+"""What an inversion is scored against (Eq. 10, 11): observed means with their σ, and optionally
+the observed slip-weakening curves — typed in (``--obs-recurrence``, ``--obs-drop``, a window's
+published means) or measured on a recording by ``rsfbench observe`` and read back from its
+observations file.
+
+**The observations file** (``observations.json``, written by :func:`write_observations`) holds
+the number of events, the mean, standard deviation (``std``, over the events) and standard error
+of the mean (``sem`` = std/√n) of ΔT, Δμ, the slip per event and the peak slip rate, their
+per-event table, the correlation of ΔT and Δμ, the curves, the apparatus read from the record,
+the notes on what was assumed, and where it all came from (the recording's file and hash, the
+column mapping, the program's version and command).
+
+**Which σ.** J1 uses ``std`` by default, as the paper does (its σT, σμ are "the standard
+deviation of ΔTob and Δμ0ob"): the model's limit cycle is one deterministic cycle, and what it is
+compared with is the spread of the laboratory's events around their mean — event-to-event
+variability the model does not have, which does not shrink as more events are recorded. The
+standard error says how well the mean itself is known; with it, a long record would make the
+95 % region arbitrarily small around a model that cannot produce the scatter. The file records
+both; ``sigma="sem"`` (``--sigma sem``) reads the other.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from benchmarks.physics.curves import check_curves
+from problems._validate import check_positive, check_possible, implausible_message, warn_unit
+
+__all__ = ["Observations", "observations", "ASSUMED_SIGMA", "MIN_SIGMA_REL", "SIGMAS",
+           "write_observations", "read_observations", "OBSERVATIONS_FORMAT"]
+
+#: σ below this fraction of its observed mean is refused: no forward solver resolves a limit
+#: cycle's metrics that finely, and J1 = (Δ/σ)² would be the solver's noise (or overflow)
+MIN_SIGMA_REL = 1e-9
+
+
+@dataclass(frozen=True)
+class Observations:
+    """What a point is scored against: observed means and standard deviations (Eq. 10), and
+    optionally the observed slip-weakening curves (Eq. 11). The four numbers must be positive
+    and finite: ΔT̄ and its σ in s, Δμ̄ and its σ dimensionless (a fraction: W2's drop is 0.046).
+
+    A value implausible in its unit warns (:class:`~problems._validate.UnitWarning`: a drop in
+    percent, 8.4, or a σ in percent of a drop, ten times it); a drop of 10 or more, which no
+    friction coefficient allows, is refused. The observations of a sweep are made once, so a
+    sweep warns once."""
+
+    recurrence_s: float
+    sigma_recurrence_s: float
+    friction_drop: float
+    sigma_friction_drop: float
+    curves: pd.DataFrame | None = None
+    assumed_sigma: bool = False        # σ not measured: 10 % of the mean, say so in the output
+
+    def __post_init__(self) -> None:
+        for mean, sigma in (("recurrence_s", "sigma_recurrence_s"),
+                            ("friction_drop", "sigma_friction_drop")):
+            m = check_positive(mean, getattr(self, mean))
+            s = check_positive(sigma, getattr(self, sigma))
+            if s < MIN_SIGMA_REL * m:           # refused before any warning about it
+                raise ValueError(f"{sigma} = {s:g} is below {MIN_SIGMA_REL:g} of the observed "
+                                 f"mean {mean} = {m:g}: no forward solver resolves a limit "
+                                 "cycle's metrics that finely (J1 would be the solver's noise, "
+                                 "or overflow)")
+            m, s = check_possible(mean, m), check_possible(sigma, s)
+            # σ beyond 3 means (every point would fit) or below 0.1 % of it (none would) is
+            # a σ in another unit than its mean's: ms, percent (said once: not again when σ or
+            # the mean was warned for already)
+            plausible = all(implausible_message(k, v) is None for k, v in ((mean, m), (sigma, s)))
+            if plausible and not 1e-3 <= s / m < 3.0:
+                unit = "seconds" if mean == "recurrence_s" else "a fraction, not a percentage"
+                warn_unit(f"{sigma} = {s:g} is {s / m:.3g} × {mean} = {m:g}: implausible for "
+                          "a standard deviation (plausible: 0.001 to below 3 times the mean); "
+                          f"both are in one unit ({unit})", stacklevel=1)
+        if not isinstance(self.assumed_sigma, (bool, np.bool_)):
+            raise ValueError(f"assumed_sigma must be True or False, got {self.assumed_sigma!r}")
+        if self.curves is not None:
+            object.__setattr__(self, "curves", check_curves(self.curves, "obs.curves"))
+
+
+#: σ assumed when none is given: 10 % of the observed mean (flagged in the output)
+ASSUMED_SIGMA = 0.10
+
+
+def observations(preset_name: str, obs_recurrence=None, sigma_recurrence=None, obs_drop=None,
+                 sigma_drop=None, curves=None) -> Observations:
+    """Observations of a preset: a window's published means fill what is not given, and a
+    missing σ is 10 % of its mean (``assumed_sigma`` says so)."""
+    from problems import WINDOWS
+    if not isinstance(preset_name, str):
+        raise ValueError(f"preset_name must be a preset's name (a string), got {preset_name!r}")
+    w = WINDOWS.get(preset_name.upper())
+    obs_recurrence = obs_recurrence if obs_recurrence is not None else (w and w.observed_recurrence)
+    obs_drop = obs_drop if obs_drop is not None else (w and w.observed_drop)
+    for name, value in (("obs_recurrence", obs_recurrence), ("obs_drop", obs_drop)):
+        if value is None:
+            raise ValueError(f"{name} is required for {preset_name!r} (it has no observed means)")
+        check_positive(name, value)          # before a σ of 10 % is made of it
+    assumed = sigma_recurrence is None or sigma_drop is None
+    return Observations(
+        recurrence_s=obs_recurrence,
+        sigma_recurrence_s=(sigma_recurrence if sigma_recurrence is not None
+                            else ASSUMED_SIGMA * obs_recurrence),
+        friction_drop=obs_drop,
+        sigma_friction_drop=sigma_drop if sigma_drop is not None else ASSUMED_SIGMA * obs_drop,
+        curves=curves, assumed_sigma=assumed)
+
+
+#: the σ an observations file offers: the events' standard deviation, the mean's standard error
+SIGMAS = ("std", "sem")
+#: the format's name and version, the first keys of the file
+OBSERVATIONS_FORMAT = ("rsfbench observations", 1)
+_METRIC_UNITS = {"recurrence_s": "s", "friction_drop": "", "slip_m": "m",
+                 "peak_velocity_m_s": "m/s"}
+
+
+def write_observations(path, events: pd.DataFrame, curves: pd.DataFrame | None = None,
+                       apparatus: dict | None = None, how: dict | None = None, notes=(),
+                       recording: dict | None = None, sigma: str = "std",
+                       provenance: dict | None = None) -> dict:
+    """Write the observations file ``path`` (module docstring) from a per-event table
+    (``t_start``, ``t_end`` and the metrics) and return the document."""
+    from benchmarks.records.files import atomic_write
+    from benchmarks.records.report import jsonable
+    if sigma not in SIGMAS:
+        raise ValueError(f"sigma must be one of {SIGMAS}, got {sigma!r}")
+    metrics = {}
+    for name, unit in _METRIC_UNITS.items():
+        x = events[name].to_numpy(dtype=float) if name in events else np.array([])
+        x = x[np.isfinite(x)]
+        n = len(x)
+        std = float(np.std(x, ddof=1)) if n > 1 else math.nan
+        metrics[name] = {"n": n, "mean": float(np.mean(x)) if n else math.nan, "std": std,
+                         "sem": std / math.sqrt(n) if n > 1 else math.nan, "unit": unit}
+    both = events[["recurrence_s", "friction_drop"]].dropna()
+    corr = float(np.corrcoef(both.recurrence_s, both.friction_drop)[0, 1]) if len(both) > 2 \
+        else math.nan
+    doc = {"format": OBSERVATIONS_FORMAT[0], "version": OBSERVATIONS_FORMAT[1],
+           "n_events": int(len(events)), "sigma": sigma,
+           "sigma_means": ("std: the events' standard deviation (the paper's σ; the default) — "
+                           "sem: the standard error of the mean, std/√n"),
+           "metrics": metrics, "correlation_recurrence_drop": corr,
+           "events": events.to_dict(orient="list"),
+           "curves": None if curves is None else curves.to_dict(orient="list"),
+           "apparatus": apparatus or {}, "how": how or {}, "notes": list(notes),
+           "recording": recording or {}, "provenance": provenance or {}}
+    doc = jsonable(doc)
+    atomic_write(Path(path), json.dumps(doc, indent=1))
+    return doc
+
+
+def read_observations(path, sigma: str | None = None) -> Observations:
+    """The :class:`Observations` of an observations file: the means of ΔT and Δμ, with the σ
+    the file names (``std`` unless it says otherwise) or ``sigma``, and the curves if any; or
+    ``ValueError`` naming the file and what is wrong."""
+    from benchmarks.records.files import BadResultsFile, read_json_record
+    if sigma is not None and sigma not in SIGMAS:
+        raise ValueError(f"sigma must be one of {SIGMAS}, got {sigma!r}")
+    try:
+        doc = read_json_record(Path(path), ("format", "version", "metrics", "sigma"),
+                               what="observations file")
+    except BadResultsFile as exc:
+        raise ValueError(str(exc)) from None
+    if (doc.get("format"), doc.get("version")) != OBSERVATIONS_FORMAT:
+        raise ValueError(f"observations file {path}: not an rsfbench observations file of "
+                         f"version {OBSERVATIONS_FORMAT[1]} (format {doc.get('format')!r}, "
+                         f"version {doc.get('version')!r})")
+    which = sigma or doc["sigma"]
+    try:
+        m = {k: doc["metrics"][k] for k in ("recurrence_s", "friction_drop")}
+        values = [float(m["recurrence_s"]["mean"]), float(m["recurrence_s"][which]),
+                  float(m["friction_drop"]["mean"]), float(m["friction_drop"][which])]
+    except (KeyError, TypeError, ValueError):
+        raise ValueError(f"observations file {path}: its metrics lack the mean and {which} of "
+                         "recurrence_s and friction_drop") from None
+    if not all(math.isfinite(v) for v in values):
+        raise ValueError(f"observations file {path}: the mean or {which} of ΔT or Δμ is not a "
+                         f"number (from {doc['metrics']['recurrence_s'].get('n')} events: at "
+                         "least two are needed)")
+    curves = doc.get("curves")
+    curves = pd.DataFrame(curves) if curves else None
+    return Observations(*values, curves=curves)

@@ -1,0 +1,161 @@
+"""From a laboratory recording to the observations an inversion uses (``rsfbench observe``).
+
+:func:`observe` reads a recording (:mod:`benchmarks.physics.recording`), measures its events,
+the fault's friction and the apparatus (:mod:`benchmarks.physics.record_analysis`) and writes, in
+one directory:
+
+* ``observations.json`` — the observations file (:mod:`benchmarks.inversion.observations`):
+  what ``rsfbench invert --observations`` and ``rsfbench sweep --observations`` read, and
+  :func:`~benchmarks.inversion.observations.read_observations` in Python;
+* ``events.csv`` — one row per event: ``t_start``, ``t_end`` (s), ``recurrence_s``,
+  ``friction_drop``, ``slip_m``, ``peak_velocity_m_s``;
+* ``curves.csv`` — the slip-weakening curves (``event_id``, ``slip_m``, ``friction``: Ft/Fn),
+  when the record has accelerations and the mass is known;
+* ``apparatus.toml`` — a problem file of the apparatus as the record shows it (k, the loading,
+  m, Fn; the friction law's a, b, Lc are placeholders to be inverted), when k and vLs are known:
+  ``rsfbench simulate --problem`` runs it;
+* ``observe.png`` — the record with its events marked, the metrics event by event, the curves.
+
+A column file (TOML) maps the columns and gives the apparatus's constants::
+
+    [columns]                                # CHANNEL = "COLUMN" (SI unit) or a table
+    time = "Time(s)"
+    shear_force = {column = "Load", unit = "kN"}
+    acceleration = {column = "a1", unit = "g"}
+    slip = {column = "LDT", unit = "mm"}
+    table = {column = "Table", unit = "mm"}
+
+    [apparatus]
+    normal_force = 997500.0                  # N, when no column holds it
+    mass = 1100.0                            # kg: Ft = Fs − m·a
+    vls = 7.5e-5                             # m/s, optional (else from the table's position)
+    stiffness = 1.48e8                       # N/m, optional (else measured)
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import tomllib
+from pathlib import Path
+
+from benchmarks.inversion.observations import SIGMAS, write_observations
+
+__all__ = ["observe", "read_column_file", "apparatus_toml", "APPARATUS_KEYS"]
+
+#: the constants a column file's [apparatus] table may give, and their units
+APPARATUS_KEYS = {"normal_force": "N", "mass": "kg", "vls": "m/s", "stiffness": "N/m"}
+
+
+def read_column_file(path) -> tuple[dict, dict]:
+    """``(columns, apparatus)`` of a column file (module docstring): channel → (column, unit),
+    and the constants by name; or ``ValueError`` naming the file and the key."""
+    from benchmarks.physics.recording import CHANNELS, column_spec
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ValueError(f"column file {path} does not exist") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ValueError(f"column file {path} cannot be read: {exc}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"column file {path} is not TOML: {exc}") from None
+    unknown = sorted(set(data) - {"columns", "apparatus"})
+    if unknown:
+        raise ValueError(f"column file {path}: unknown table {unknown[0]!r} (expected "
+                         "[columns] and [apparatus])")
+    columns = {}
+    for channel, spec in data.get("columns", {}).items():
+        if isinstance(spec, dict):
+            extra = sorted(set(spec) - {"column", "unit"})
+            if extra or "column" not in spec:
+                raise ValueError(f"column file {path}: columns.{channel} needs column = "
+                                 f"\"NAME\" and optionally unit = \"UNIT\" (got {sorted(spec)})")
+            column, unit = str(spec["column"]), str(spec.get("unit", CHANNELS.get(channel, "")))
+        elif isinstance(spec, str):
+            column, unit = spec, CHANNELS.get(channel, "")
+        else:
+            raise ValueError(f"column file {path}: columns.{channel} must be a column name or "
+                             f"a table, got {spec!r}")
+        try:
+            channel, column, unit = column_spec(f"{channel}={column}:{unit}")
+        except ValueError as exc:
+            raise ValueError(f"column file {path}: {exc}") from None
+        columns[channel] = (column, unit)
+    apparatus = {}
+    for key, value in data.get("apparatus", {}).items():
+        if key not in APPARATUS_KEYS:
+            raise ValueError(f"column file {path}: unknown key apparatus.{key} (expected "
+                             f"{', '.join(APPARATUS_KEYS)})")
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not \
+                math.isfinite(value) or value <= 0:
+            raise ValueError(f"column file {path}: apparatus.{key} must be a positive number "
+                             f"in {APPARATUS_KEYS[key]}, got {value!r}")
+        apparatus[key] = float(value)
+    return columns, apparatus
+
+
+def observe(path, columns, out, normal_force: float | None = None, mass: float | None = None,
+            vls: float | None = None, stiffness: float | None = None, sigma: str = "std",
+            plot: bool = True, provenance: dict | None = None) -> dict:
+    """Measure the recording ``path`` and write the files of the module docstring to ``out``;
+    returns the observations document with the files written (``files``)."""
+    from benchmarks.physics.record_analysis import analyse
+    from benchmarks.physics.recording import column_map, read_recording
+    if sigma not in SIGMAS:
+        raise ValueError(f"sigma must be one of {SIGMAS}, got {sigma!r}")
+    rec = read_recording(path, columns, normal_force=normal_force)
+    found = analyse(rec, mass=mass, vls=vls, stiffness=stiffness)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    files = {"observations": out / "observations.json", "events": out / "events.csv"}
+    found.events.to_csv(files["events"], index=False)
+    if found.curves is not None:
+        files["curves"] = out / "curves.csv"
+        found.curves.to_csv(files["curves"], index=False)
+    recording = {"file": str(path), "sha256": rec.sha256, "rows": len(rec.t),
+                 "rate_hz": rec.rate, "duration_s": float(rec.t[-1] - rec.t[0]),
+                 "columns": {c: {"column": col, "unit": unit}
+                             for c, (col, unit) in column_map(columns).items()},
+                 "slip_from": found.slip_source, "noise": found.noise}
+    doc = write_observations(files["observations"], found.events, found.curves,
+                             found.apparatus, found.how, found.notes, recording, sigma,
+                             provenance)
+    text = apparatus_toml(found.apparatus, doc, Path(path).stem)
+    if text is not None:
+        files["apparatus"] = out / "apparatus.toml"
+        files["apparatus"].write_text(text, encoding="utf-8")
+    if plot:
+        from benchmarks.physics.record_plot import plot_recording
+        files["figure"] = out / "observe.png"
+        plot_recording(rec, found, files["figure"])
+    doc["files"] = {k: str(v) for k, v in files.items()}
+    return doc
+
+
+def apparatus_toml(apparatus: dict, doc: dict, name: str) -> str | None:
+    """A problem file of the apparatus the record shows (module docstring), or None when its
+    stiffness, slow loading speed, mass or normal force is unknown."""
+    need = ("stiffness", "vls", "mass", "normal_force")
+    if any(apparatus.get(k) is None for k in need):
+        return None
+    a = apparatus
+    recurrence = doc["metrics"]["recurrence_s"]["mean"]
+    t_end = 10.0 * recurrence if math.isfinite(recurrence) else 40.0
+    two_speed = a.get("df") and a.get("vlf") and a["df"] > 0
+    loading = (f"vls = {a['vls']:.6g}               # m/s, measured\n"
+               f"vlf = {a['vlf']:.6g}               # m/s, measured\n"
+               f"df = {a['df']:.6g}                 # s, measured\n" if two_speed else
+               f"vl = {a['vls']:.6g}                # m/s, measured\n")
+    return (f"# The apparatus of the recording {name!r}, as `rsfbench observe` measured it.\n"
+            "# k, the loading, m and Fn are the record's; the friction law's a, b and Lc are\n"
+            "# placeholders (the paper's W2 fit): `rsfbench invert --problem THIS --observations"
+            "\n# observations.json` estimates b and Lc. SI units.\n"
+            f"name = {json.dumps(name)}\n"
+            f"mass = {a['mass']:.6g}                 # kg, given\n"
+            f"stiffness = {a['stiffness']:.6g}       # N/m, measured\n"
+            f"normal_force = {a['normal_force']:.6g} # N\n"
+            f"t_end = {t_end:.6g}                    # s: ten mean recurrence intervals\n\n"
+            "[law]                    # placeholders: edit, or invert\n"
+            "name = \"slip\"\na = 0.008\nb = 0.0094\nlc = 3e-7\nv0 = 1e-5\n\n"
+            f"[loading]\n{loading}")

@@ -1,0 +1,587 @@
+"""What a laboratory recording says: its stick–slip events, their metrics, the fault's friction
+against slip, and the apparatus, measured as Urata et al. (2017, Sect. 2.2) measured them and on
+the conventions of the forward model, so that what is measured here is what a simulation is
+compared with.
+
+**Events.** Found first from the force alone: the drops of the load cell's force Fs, low-passed
+at ``DETECT_HZ``, that exceed a threshold far above the noise (a zigzag with hysteresis, robust
+to noise and to a slow drift). Where the slip rate can be had (a slip column, or accelerations),
+each event is then timed by the model's rule: it starts when the slip rate exceeds 10·vLs and
+ends when it falls back below vLs — or below the slip rate's noise, when that is larger. The
+first event (its stick began before the record did) and an event still running at the record's
+end are dropped.
+
+**Metrics per event**, as :func:`benchmarks.physics.metrics.event_metrics` defines them: ΔT from
+the previous event's start; Δμ = (largest Fs since the previous event ended − smallest Fs during
+the event)/Fn, each extremum the vertex of a parabola fitted to the raw samples around it (the
+samples within ``EXTREMUM_BAND`` of the drop from it), so that noise averages out instead of
+biasing the max and the min apart; slip from the start to the end (the slip column low-passed
+at ``DETECT_HZ``, or the accelerations integrated twice); the peak slip rate (a parabola's vertex
+on the slip rate).
+
+**Slip from accelerations**: a = a1 − a2 (or a1) low-passed at ``ACCELERATION_HZ`` and
+integrated over a window around each event; the drift is removed per event (the slip rate is a
+line through its values in the quiet stretches before and after the event, subtracted).
+
+**The fault's friction** Ft = Fs − m·a (Eq. 3), Fs low-passed at ``FORCE_HZ`` and a at
+``ACCELERATION_HZ`` (the paper's 400 Hz and 750 Hz), zero phase. Slip-weakening curves, one per
+event, are Ft/Fn against the slip since the event started, from its start to its end: the
+convention of :func:`benchmarks.physics.curves.event_curve`. A record without accelerations
+(or without a mass) has no curves: the load cell's force is not the fault's friction.
+
+**The apparatus**: the stiffness k from Fs against the spring's stretch l − u (the table's
+position minus the slip, Eq. 5) when both are recorded, else from dFs/dl during the slow part of
+the sticks (the paper's k = Ḟs/vLs, biased low by the creep during the stick), else from Ḟs/vLs
+with vLs given; vLs from the table's position over the middle of the sticks, vLf and df from
+its speed after each event: above half-way between vLs and its peak for df, its travel beyond
+vLs over that pulse (vLf − vLs)·df (Sect. 2.2.2).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+from numba import njit
+
+from benchmarks.physics.metrics import METRICS
+
+__all__ = ["Analysis", "analyse", "DETECT_HZ", "FORCE_HZ", "ACCELERATION_HZ", "EXTREMUM_BAND"]
+
+#: low-pass (Hz) of the force for finding events and of the slip for timing them
+DETECT_HZ = 50.0
+#: low-pass (Hz) of the force in the fault's friction (the paper's 400 Hz)
+FORCE_HZ = 400.0
+#: low-pass (Hz) of the accelerations (the paper's 750 Hz)
+ACCELERATION_HZ = 750.0
+#: an extremum is found again on the force smoothed at this (Hz), and its parabola fitted to
+#: the samples within ``EXTREMUM_BAND`` of the drop from it
+FINE_HZ = 500.0
+#: the slip column is smoothed at the first of these (Hz) quiet enough to time the events
+TIMING_HZ = (750.0, 300.0, 150.0, DETECT_HZ)
+#: the table's position is smoothed at this (Hz) for its speed (the fast loading lasts ~40 ms)
+TABLE_HZ = 50.0
+EXTREMUM_BAND = 0.002
+EXTREMUM_DEGREE = 4
+#: a force drop is an event when it exceeds this fraction of the larger drops (their 90th
+#: percentile) and many times the noise
+DROP_FRACTION = 0.3
+
+
+@dataclass
+class Analysis:
+    """The events of a recording (one row each: ``t_start``, ``t_end`` and the four
+    :data:`~benchmarks.physics.metrics.METRICS`, NaN where the record cannot give one), the
+    slip-weakening curves (``event_id``, ``slip_m``, ``friction``; None without accelerations),
+    the apparatus (``stiffness`` N/m, ``vls``, ``vlf`` m/s, ``df`` s, ``normal_force`` N,
+    ``mass`` kg, each None where it cannot be read) with how each was had (``how``), and the
+    assumptions made (``notes``)."""
+
+    events: pd.DataFrame = field(repr=False)
+    curves: pd.DataFrame | None = field(repr=False)
+    apparatus: dict
+    how: dict
+    notes: list[str]
+    noise: dict
+    slip_source: str
+
+
+def analyse(rec, mass: float | None = None, vls: float | None = None,
+            stiffness: float | None = None) -> Analysis:
+    """Measure the recording ``rec`` (:class:`benchmarks.physics.recording.Recording`).
+    ``mass`` (kg): the slider's, for Ft = Fs − m·a; ``vls`` (m/s) and ``stiffness`` (N/m)
+    stand for what the table's position would give (and are then not measured)."""
+    from problems._validate import check_positive
+    mass = None if mass is None else check_positive("mass", mass)
+    vls = None if vls is None else check_positive("vls", vls)
+    stiffness = None if stiffness is None else check_positive("stiffness", stiffness)
+    notes, how = [], {}
+    t, fs = rec.t, rec["shear_force"]
+    fs_smooth = _smooth(fs, DETECT_HZ, rec.rate)
+    noise = {"shear_force": _noise(fs)}
+    drops = _drops(fs_smooth, noise["shear_force"] * math.sqrt(2 * DETECT_HZ / rec.rate), rec)
+    _check_slip_against_table(rec)
+    acc = _acceleration(rec)
+    slip_source = ("slip column" if rec.has("slip") else "accelerations" if acc is not None
+                   else "force")
+    if vls is not None:
+        how["vls"] = "given"
+    elif rec.has("table"):
+        vls = _slow_speed(rec, drops)
+        how["vls"] = f"the slope of {rec.where('table')} over the middle of the sticks"
+    elif rec.has("slip"):
+        vls = float((rec["slip"][-1] - rec["slip"][0]) / (t[-1] - t[0]))
+        how["vls"] = "the record's mean slip rate (no table column, no vls given)"
+        notes.append("vLs is the record's mean slip rate (no table column, no vls given): the "
+                     "thresholds 10·vLs and vLs that time an event use it")
+    events = _events(rec, drops, fs_smooth, acc, vls, slip_source, noise, notes)
+    if slip_source == "accelerations" and rec.has("table"):
+        _check_events_against_table(rec, events)
+    vlf = df = None
+    if rec.has("table"):
+        vlf, df = _fast_phase(rec, events, vls)
+        how["vlf"] = how["df"] = (f"the speed of {rec.where('table')} after each event: "
+                                  "above half-way to its peak for df, its excess travel "
+                                  "(vLf − vLs)·df")
+    k, how["stiffness"] = _stiffness(rec, fs_smooth, drops, stiffness, vls)
+    if slip_source == "force" and k is not None and rec.has("table"):
+        events["slip_m"] = _force_slip(rec, fs_smooth, events, k)
+        notes.append("slip per event from the spring (Δl − ΔFs/k): the record has neither a "
+                     "slip column nor accelerations")
+    curves = None
+    if acc is not None and mass is not None:
+        curves = _curves(rec, events, acc, mass)
+    elif acc is None:
+        notes.append("no slip-weakening curves: the record has no accelerations, and the load "
+                     "cell's force is not the fault's friction (Ft = Fs − m·a)")
+    else:
+        notes.append("no slip-weakening curves: give the slider's mass (Ft = Fs − m·a)")
+    apparatus = {"stiffness": k, "vls": vls, "vlf": vlf, "df": df,
+                 "normal_force": float(np.median(rec["normal_force"])), "mass": mass}
+    keep = events.drop(columns=["_i0", "_i1", "_imax", "_imin", "_drop"])
+    keep.attrs = {}
+    return Analysis(keep, curves, apparatus, how, notes, noise, slip_source)
+
+
+# --- signals --------------------------------------------------------------------------------
+
+def _smooth(x: np.ndarray, cutoff: float, rate: float) -> np.ndarray:
+    """A near-Gaussian smoothing of standard deviation 1/(2π·``cutoff``) s: three passes of a
+    moving average. Its kernel is positive, so it never overshoots a sharp drop (a Butterworth
+    filter rings there, and its extremes would be the filter's, not the signal's); O(n)."""
+    from scipy.ndimage import uniform_filter1d
+    sigma = rate / (2.0 * math.pi * cutoff)
+    width = max(int(round(math.sqrt(4.0 * sigma * sigma + 1.0))), 1)
+    y = np.asarray(x, dtype=float)
+    if width < 2:
+        return y.copy()
+    for _ in range(3):
+        y = uniform_filter1d(y, width, mode="nearest")
+    return y
+
+
+def _lowpass(x: np.ndarray, cutoff: float, rate: float) -> np.ndarray:
+    """Zero-phase 4th-order Butterworth low-pass (unchanged when ``cutoff`` ≥ 0.45 × rate)."""
+    from scipy import signal
+    if cutoff >= 0.45 * rate:
+        return np.asarray(x, dtype=float)
+    sos = signal.butter(4, cutoff, fs=rate, output="sos")
+    return signal.sosfiltfilt(sos, x - x[0]) + x[0]
+
+
+def _noise(x: np.ndarray) -> float:
+    """The white noise's σ: the median absolute first difference over 0.6745·√2 (a smooth
+    signal sampled fast differs little from sample to sample)."""
+    d = np.diff(x)
+    return float(np.median(np.abs(d - np.median(d))) / (0.6745 * math.sqrt(2.0)))
+
+
+def _rate_gain(cutoff: float, rate: float) -> float:
+    """How much of a signal's white noise σ its rate carries, smoothed at ``cutoff``
+    (:func:`_smooth`, then the centred difference): the norm of that filter."""
+    n = int(8 * rate / (2 * math.pi * cutoff)) + 3
+    impulse = np.zeros(2 * n + 1)
+    impulse[n] = 1.0
+    response = np.gradient(_smooth(impulse, cutoff, rate), 1.0 / rate)
+    return float(np.sqrt(np.sum(response ** 2)))
+
+
+def _acceleration(rec):
+    """a1 − a2 (or a1), or None."""
+    if not rec.has("acceleration"):
+        return None
+    a = rec["acceleration"]
+    return a - rec["acceleration_lower"] if rec.has("acceleration_lower") else a
+
+
+# --- units: two channels that measure one thing ------------------------------------------------
+
+#: over a record the slider keeps up with the load point: their travels' ratio is near 1, and a
+#: ratio beyond these is a unit slip (10³ for mm read as m)
+TRAVEL_RATIO = (0.3, 3.0)
+
+
+def _check_slip_against_table(rec) -> None:
+    if not (rec.has("slip") and rec.has("table")):
+        return
+    slip, table = rec["slip"], rec["table"]
+    ratio = (slip[-1] - slip[0]) / (table[-1] - table[0])
+    if not TRAVEL_RATIO[0] <= ratio <= TRAVEL_RATIO[1]:
+        raise ValueError(f"{rec.source}: over the record {rec.where('slip')} advances "
+                         f"{ratio:.3g} times as far as {rec.where('table')}; the slider keeps up "
+                         "with the load point, so one of them is in another unit")
+
+
+def _check_events_against_table(rec, events) -> None:
+    t, table = rec.t, rec["table"]
+    span = np.interp([events.t_start.iloc[0], events.t_start.iloc[-1]], t, table)
+    ratio = events.slip_m.iloc[:-1].sum() / (span[1] - span[0])
+    if not TRAVEL_RATIO[0] <= ratio <= TRAVEL_RATIO[1]:
+        names = rec.where("acceleration") + (f" − {rec.where('acceleration_lower')}"
+                                             if rec.has("acceleration_lower") else "")
+        raise ValueError(f"{rec.source}: the events' slip integrated from {names} is {ratio:.3g} "
+                         f"times the travel of {rec.where('table')} between them; the slider "
+                         "keeps up with the load point, so one of them is in another unit")
+
+
+# --- events -----------------------------------------------------------------------------------
+
+def _drops(fs_smooth: np.ndarray, sigma: float, rec) -> list[tuple[int, int]]:
+    """(index of the maximum, index of the minimum) of each large drop of the smoothed force."""
+    h = max(10.0 * sigma, 1e-12 * float(np.max(np.abs(fs_smooth))))
+    extrema = list(_zigzag(np.ascontiguousarray(fs_smooth), h))
+    pairs = [(a, b) for a, b in zip(extrema, extrema[1:]) if fs_smooth[a] > fs_smooth[b]]
+    if not pairs:
+        raise ValueError(f"{rec.source}: no stick–slip event in {rec.where('shear_force')}: "
+                         "the force never drops above its noise")
+    size = np.array([fs_smooth[a] - fs_smooth[b] for a, b in pairs])
+    big = size >= DROP_FRACTION * np.percentile(size, 90)
+    return [p for p, keep in zip(pairs, big) if keep]
+
+
+@njit(cache=True)
+def _zigzag(x: np.ndarray, h: float) -> np.ndarray:
+    """Indices of alternating extrema of ``x``, each differing from the last by at least ``h``
+    (a reversal smaller than ``h`` is noise)."""
+    out = np.empty(len(x), np.int64)
+    n, i_ext, up = 0, 0, 0                   # up: 0 undecided, 1 rising, -1 falling
+    lo, hi, i_lo, i_hi = x[0], x[0], 0, 0
+    for i in range(1, len(x)):
+        xi = x[i]
+        if up == 0:
+            if xi > hi:
+                hi, i_hi = xi, i
+            if xi < lo:
+                lo, i_lo = xi, i
+            if hi - lo >= h:                  # the first swing: its start is an extremum
+                up = 1 if i_hi > i_lo else -1
+                out[n] = i_lo if up == 1 else i_hi
+                n += 1
+                i_ext = i_hi if up == 1 else i_lo
+        elif up == 1:
+            if xi > x[i_ext]:
+                i_ext = i
+            elif xi <= x[i_ext] - h:
+                out[n] = i_ext
+                n += 1
+                up, i_ext = -1, i
+        else:
+            if xi < x[i_ext]:
+                i_ext = i
+            elif xi >= x[i_ext] + h:
+                out[n] = i_ext
+                n += 1
+                up, i_ext = 1, i
+    return out[:n]
+
+
+def _crossing(t: np.ndarray, x: np.ndarray, level: float, i: int) -> float:
+    """The time where ``x`` crosses ``level`` between samples ``i − 1`` and ``i`` (linear)."""
+    if i <= 0:
+        return float(t[0])
+    x0, x1 = x[i - 1], x[i]
+    f = 0.0 if x1 == x0 else (level - x0) / (x1 - x0)
+    return float(t[i - 1] + min(max(f, 0.0), 1.0) * (t[i] - t[i - 1]))
+
+
+def _extremum(t: np.ndarray, x: np.ndarray, i: int, drop: float, sign: float, lo: int,
+              hi: int, rate: float, sigma: float) -> float:
+    """The extreme value of the raw samples ``x`` near index ``i`` (a maximum for ``sign`` +1,
+    a minimum for −1), searched within [lo, hi): found again on ``x`` smoothed at ``FINE_HZ``
+    within ``DETECT_HZ``'s reach of ``i`` (a coarse smoothing moves the extremum of a lopsided
+    peak), then the extreme of a cubic fitted to the raw samples whose finely smoothed value is
+    within ``EXTREMUM_BAND`` × ``drop`` of it, or within 3 σ (``sigma``, the noise's) if that
+    is wider: enough samples that the noise averages out rather than biasing the extreme. The
+    polynomial is of degree ``EXTREMUM_DEGREE``: an extremum of stick–slip is lopsided (a slow
+    rise, a fast drop), which a parabola fits badly."""
+    reach = int(3 * rate / (2 * math.pi * DETECT_HZ)) + 2
+    a0, b0 = max(lo, i - reach), min(hi, i + reach + 1)
+    fine = sign * _smooth(x[a0:b0], FINE_HZ, rate)
+    j = int(np.argmax(fine))
+    target = fine[j] - max(EXTREMUM_BAND * drop, 3.0 * sigma)
+    a, b = j, j + 1
+    while a > 0 and fine[a - 1] >= target:
+        a -= 1
+    while b < len(fine) and fine[b] >= target:
+        b += 1
+    if b - a < 2 * EXTREMUM_DEGREE + 1:        # too few samples for the polynomial: widen
+        a, b = max(0, j - EXTREMUM_DEGREE), min(len(fine), j + EXTREMUM_DEGREE + 1)
+    tt = (t[a0 + a:a0 + b] - t[a0 + j]) * rate              # in samples: well conditioned
+    coef = np.polyfit(tt, sign * x[a0 + a:a0 + b], EXTREMUM_DEGREE)
+    grid = np.linspace(tt[0], tt[-1], 8 * len(tt))
+    return float(sign * np.max(np.polyval(coef, grid)))
+
+
+def _peak_rate(t: np.ndarray, u: np.ndarray, v: np.ndarray, a: int, b: int) -> float:
+    """The peak slip rate in [a, b): where ``v`` (a smoothed slip rate) peaks, the largest slope
+    of a quartic fitted to the slip ``u`` over the samples where ``v`` is above half its peak
+    (and at least 9): the slip's noise averaged over them, not maximised."""
+    if b - a < 3:
+        return math.nan
+    i = a + int(np.argmax(v[a:b]))
+    lo, hi = i, i + 1
+    while lo > a and v[lo - 1] >= 0.5 * v[i]:
+        lo -= 1
+    while hi < b and v[hi] >= 0.5 * v[i]:
+        hi += 1
+    while hi - lo < 9:
+        lo, hi = max(0, lo - 1), min(len(u), hi + 1)
+    tt = t[lo:hi] - t[i]
+    scale = tt[-1] - tt[0]
+    coef = np.polyfit(tt / scale, u[lo:hi], 4)
+    grid = np.linspace(tt[0], tt[-1], 8 * (hi - lo)) / scale
+    return float(np.max(np.polyval(np.polyder(coef), grid)) / scale)
+
+
+def _integrated(t, acc_f, a: int, b: int, quiet_before: int, quiet_after: int):
+    """Slip rate and slip over samples [a, b) from the acceleration, the drift removed: a line
+    through the integrated rate's values in [a, quiet_before) and [quiet_after, b) is
+    subtracted. Returns (v, u, σ of v in the quiet stretches)."""
+    from scipy.integrate import cumulative_trapezoid
+    tt = t[a:b]
+    v = cumulative_trapezoid(acc_f[a:b], tt, initial=0.0)
+    quiet = np.zeros(b - a, bool)
+    quiet[:max(quiet_before - a, 2)] = True
+    quiet[min(quiet_after - a, b - a - 2):] = True
+    c1, c0 = np.polyfit(tt[quiet] - tt[0], v[quiet], 1)
+    v = v - (c0 + c1 * (tt - tt[0]))
+    sigma = float(np.std(v[quiet]))
+    return v, cumulative_trapezoid(v, tt, initial=0.0), sigma
+
+
+def _events(rec, drops, fs_smooth, acc, vls, slip_source, noise, notes) -> pd.DataFrame:
+    t, fs, fn, rate = rec.t, rec["shear_force"], rec["normal_force"], rec.rate
+    n = len(t)
+    if slip_source == "slip column":
+        # the least smoothing whose slip-rate noise is a fifth of the start's threshold: the
+        # events are timed as sharply as the noise allows (a heavy smoothing spreads a short
+        # event's slip beyond its start and end)
+        sigma_u = noise["slip"] = _noise(rec["slip"])
+        level = TIMING_HZ[-1]
+        for level in TIMING_HZ:
+            if sigma_u * _rate_gain(level, rate) <= 2.0 * (vls or 0.0):
+                break
+        u_s = _smooth(rec["slip"], level, rate)
+        v_s = np.gradient(u_s, t)
+        v_fast = np.gradient(_smooth(rec["slip"], TABLE_HZ * 4, rate), t)
+        sigma_v = sigma_u * _rate_gain(level, rate)
+        noise["slip_rate"] = sigma_v
+        noise["slip_timing_hz"] = level
+    acc_f = _lowpass(acc, ACCELERATION_HZ, rate) if acc is not None else None
+    rows, integrated = [], {}
+    quiet = max(int(0.01 * rate), 10)
+    for j, (imax, imin) in enumerate(drops):
+        prev_end = drops[j - 1][1] if j else 0
+        next_start = drops[j + 1][0] if j + 1 < len(drops) else n
+        drop = fs_smooth[imax] - fs_smooth[imin]
+        q = max(quiet, imin - imax)
+        a, b = max(prev_end, imax - q, 0), min(next_start, imin + q, n)
+        row = {"_imax": imax, "_imin": imin, "_drop": j}
+        if slip_source == "slip column" or (slip_source == "accelerations"):
+            if slip_source == "slip column":
+                v, u, sv = v_s, u_s, sigma_v
+                lo, hi, off = a, b, 0
+            else:
+                v, u, sv = _integrated(t, acc_f, a, b, imax, imin)
+                integrated[j] = (a, v, u)
+                lo, hi, off = 0, b - a, a
+            start_level, end_level = 10.0 * vls if vls else 10.0 * sv, max(vls or 0.0, 3.0 * sv)
+            peak = lo + int(np.argmax(v[lo:hi]))
+            i0 = peak
+            while i0 > lo and v[i0 - 1] >= start_level:
+                i0 -= 1
+            i1 = peak
+            while i1 < hi and v[i1] >= end_level:
+                i1 += 1
+            if i1 >= hi or i0 <= lo:
+                row.update(_i0=i0 + off, _i1=-1)            # not timed: an open event
+            else:
+                ts = _crossing(t[off:], v, start_level, i0)
+                te = _crossing(t[off:], v, end_level, i1)
+                row.update(_i0=i0 + off, _i1=i1 + off, t_start=ts, t_end=te,
+                           slip_m=float(np.interp(te, t[off:off + len(u)], u)
+                                        - np.interp(ts, t[off:off + len(u)], u)))
+                if slip_source == "slip column":
+                    row["peak_velocity_m_s"] = _peak_rate(t, rec["slip"], v_fast, i0, i1 + 1)
+                else:
+                    row["peak_velocity_m_s"] = _peak_rate(t[off:], u, v, i0, i1 + 1)
+        else:
+            row.update(_i0=imax, _i1=imin if imin < n - 1 else -1, t_start=float(t[imax]),
+                       t_end=float(t[imin]), slip_m=math.nan, peak_velocity_m_s=math.nan)
+        sigma = noise["shear_force"]
+        fs_max = _extremum(t, fs, imax, drop, 1.0, prev_end, imin, rate, sigma)
+        fs_min = _extremum(t, fs, imin, drop, -1.0, imax + 1, next_start, rate, sigma)
+        row["friction_drop"] = (fs_max - fs_min) / float(np.median(fn[imax:imin + 1]))
+        rows.append(row)
+    table = pd.DataFrame(rows)
+    for column in ("t_start", "t_end", "slip_m", "peak_velocity_m_s"):
+        if column not in table:
+            table[column] = math.nan
+    table["recurrence_s"] = table.t_start.diff()
+    # the first event's stick began before the record: dropped; so is one still open at the end
+    complete = (table.index > 0) & (table._i1 >= 0) & table.t_end.notna()
+    if slip_source == "force":
+        notes.append("events timed by the force alone (start at its maximum, end at its "
+                     "minimum): the record has neither a slip column nor accelerations")
+    table = table[complete].reset_index(drop=True)
+    if len(table) < 2:
+        raise ValueError(f"{rec.source}: {len(table)} complete stick–slip "
+                         f"event{'s' if len(table) != 1 else ''} (the first and any still "
+                         "open at the end are partial): a mean and its scatter need at least "
+                         "two")
+    out = table[["t_start", "t_end", *METRICS, "_i0", "_i1", "_imax", "_imin", "_drop"]].copy()
+    out.attrs["integrated"] = integrated
+    return out
+
+
+# --- the apparatus -----------------------------------------------------------------------------
+
+def _sticks(drops, n: int, rate: float, skip: float = 0.3, tail: float = 0.1):
+    """(start, end) of the middle of each stick between two drops: ``skip`` of it after the
+    drop (the fast loading, the healing) and ``tail`` before the next one (the creep) left out."""
+    out = []
+    for (_, imin), (imax, _) in zip(drops, drops[1:]):
+        length = imax - imin
+        a, b = imin + int(skip * length), imax - int(tail * length)
+        if b - a >= max(10, int(0.01 * rate)):
+            out.append((a, b))
+    return out
+
+
+def _slope(x: np.ndarray, y: np.ndarray) -> float:
+    """The least-squares slope of ``y`` on ``x``."""
+    xm = x - x.mean()                    # (elementwise sums: numpy's dot calls BLAS, whose
+    return float((xm * (y - y.mean())).sum() / (xm * xm).sum())      # threads cost more here)
+
+
+def _slow_speed(rec, drops) -> float | None:
+    """vLs: the median slope of the table's position over the middle of the sticks."""
+    table = _smooth(rec["table"], DETECT_HZ, rec.rate)
+    slopes = [_slope(rec.t[a:b], table[a:b]) for a, b in _sticks(drops, len(rec.t), rec.rate)]
+    if not slopes:
+        return None
+    v = float(np.median(slopes))
+    if not v > 0:
+        raise ValueError(f"{rec.source}: {rec.where('table')} does not advance during the "
+                         f"sticks (slope {v:.3g} m/s): the load point's position must increase")
+    return v
+
+
+def _fast_phase(rec, events, vls: float) -> tuple[float, float]:
+    """(vLf, df): after each event the table's speed (its position smoothed at ``TABLE_HZ`` and
+    differentiated) is above the half-way level between vLs and its peak for df, and its travel
+    over that pulse beyond vLs is (vLf − vLs)·df; the medians over the events. (vLs, 0) when no
+    pulse stands above the speed's noise."""
+    t, rate = rec.t, rec.rate
+    x = _smooth(rec["table"], TABLE_HZ, rate)
+    w = np.gradient(x, t)
+    margin = int(3 * rate / (2 * math.pi * TABLE_HZ)) + 1
+    sticks = _sticks_between(events, len(t))
+    quiet = np.concatenate([w[(a + b) // 2:b] for a, b in sticks]) if sticks else w
+    sigma_w = 1.4826 * float(np.median(np.abs(quiet - np.median(quiet))))
+    speeds, durations = [], []
+    for e, nxt in sticks:
+        a, b = max(e - margin, 0), e + int(0.4 * (nxt - e))
+        if b - a < 10:
+            continue
+        i = a + int(np.argmax(w[a:b]))
+        if w[i] - vls < 5.0 * sigma_w:
+            continue
+        half = vls + 0.5 * (w[i] - vls)
+        c0, c1 = i, i
+        while c0 > a and w[c0 - 1] >= half:
+            c0 -= 1
+        while c1 < b - 1 and w[c1 + 1] >= half:
+            c1 += 1
+        t0, t1 = _crossing(t, w, half, c0), _crossing(t, -w, -half, c1 + 1)
+        d = t1 - t0
+        lo, hi = max(c0 - margin, 0), min(c1 + 1 + margin, len(t) - 1)
+        excess = (x[hi] - x[lo]) - vls * (t[hi] - t[lo])
+        if d > 0:
+            speeds.append(vls + excess / d)
+            durations.append(d)
+    if not speeds:
+        return vls, 0.0
+    return float(np.median(speeds)), float(np.median(durations))
+
+
+def _sticks_between(events, n: int) -> list[tuple[int, int]]:
+    """(end of an event, start of the next) in samples, for each event."""
+    ends = events._i1.to_numpy()
+    starts = np.append(events._i0.to_numpy()[1:], n)
+    return [(int(e), int(s)) for e, s in zip(ends, starts) if s > e]
+
+
+def _stiffness(rec, fs, drops, given, vls) -> tuple[float | None, str]:
+    """k (N/m) and how it was had (module docstring)."""
+    from problems._validate import PLAUSIBLE
+    if given is not None:
+        return given, "given"
+    t, rate = rec.t, rec.rate
+    sticks = _sticks(drops, len(t), rate, skip=0.05, tail=0.05)
+    if rec.has("table") and rec.has("slip"):
+        stretch = _smooth(rec["table"] - rec["slip"], DETECT_HZ, rate)
+        k = float(np.median([_slope(stretch[a:b], fs[a:b]) for a, b in sticks]))
+        how = (f"Fs against the spring's stretch ({rec.columns['table']!r} − "
+               f"{rec.columns['slip']!r}) over the sticks (Eq. 5)")
+        names = f"{rec.where('table')} and {rec.where('slip')}"
+    elif rec.has("table"):
+        table = _smooth(rec["table"], DETECT_HZ, rate)
+        middle = _sticks(drops, len(t), rate)
+        k = float(np.median([_slope(table[a:b], fs[a:b]) for a, b in middle]))
+        how = (f"dFs/dl over the slow middle of the sticks ({rec.columns['table']!r}; the "
+               "paper's Ḟs/vLs: the creep during the stick makes it slightly low)")
+        names = rec.where("table")
+    elif vls is not None:
+        middle = _sticks(drops, len(t), rate)
+        k = float(np.median([_slope(t[a:b], fs[a:b]) for a, b in middle])) / vls
+        how = "Ḟs/vLs over the slow middle of the sticks (vLs given; the creep makes it low)"
+        names = "the given vls"
+    else:
+        return None, "not measured: the record has no table column and no vls was given"
+    plausible = PLAUSIBLE["stiffness"]
+    if not plausible.low <= k <= plausible.high:
+        raise ValueError(f"{rec.source}: the stiffness from {names} is {k:.4g} N/m, which no "
+                         "apparatus has (plausible: "
+                         f"{plausible.low:g} to {plausible.high:g} N/m): one of the columns is "
+                         "in another unit")
+    return k, how
+
+
+def _force_slip(rec, fs, events, k: float) -> np.ndarray:
+    """Slip per event from the spring: Δl − ΔFs/k (``fs`` smoothed) between the event's start
+    and end."""
+    t = rec.t
+    ts, te = events.t_start.to_numpy(), events.t_end.to_numpy()
+    if rec.has("table"):
+        table = _smooth(rec["table"], DETECT_HZ, rec.rate)
+        dl = np.interp(te, t, table) - np.interp(ts, t, table)
+    else:
+        dl = np.full(len(ts), np.nan)
+    return dl - (np.interp(te, t, fs) - np.interp(ts, t, fs)) / k
+
+
+def _curves(rec, events, acc, mass: float) -> pd.DataFrame:
+    """Ft/Fn against the slip since the start of each event, from its start to its end."""
+    t, rate = rec.t, rec.rate
+    ft = _lowpass(rec["shear_force"], FORCE_HZ, rate) - mass * _lowpass(acc, ACCELERATION_HZ,
+                                                                         rate)
+    mu = ft / rec["normal_force"]
+    integrated = events.attrs.get("integrated", {})
+    if rec.has("slip") and not integrated:
+        slip = _lowpass(rec["slip"], ACCELERATION_HZ, rate)
+    parts = []
+    for k, ev in events.iterrows():
+        i0, i1 = int(ev._i0), int(ev._i1)
+        inside = np.arange(i0, i1 + 1)
+        if int(ev._drop) in integrated:
+            a, _, u = integrated[int(ev._drop)]
+            u_at = np.interp(t[inside], t[a:a + len(u)], u)
+            u0 = np.interp(ev.t_start, t[a:a + len(u)], u)
+        else:
+            u_at, u0 = slip[inside], np.interp(ev.t_start, t, slip)
+        parts.append(pd.DataFrame({"event_id": k + 1, "slip_m": u_at - u0,
+                                   "friction": mu[inside]}))
+    return pd.concat(parts, ignore_index=True)

@@ -1,0 +1,283 @@
+"""A laboratory recording, read and checked before anything is measured on it.
+
+A recording is a table of samples (CSV, or Parquet with the ``ensemble`` extra) whose columns are
+mapped to **channels**, each in a stated unit and converted to SI on reading:
+
+=====================  ========  ==================================================================
+channel                SI unit   what it is
+=====================  ========  ==================================================================
+``time``               s         required: strictly increasing, evenly sampled
+``shear_force``        N         required: the load cell's force, the spring force Fs
+``normal_force``       N         a column, or the constant ``normal_force`` of the apparatus
+``acceleration``       m/s²      the slider's (the upper specimen's, a1)
+``acceleration_lower`` m/s²      the lower specimen's (a2): the slip accelerates at a1 − a2
+``slip``               m         the fault's slip, from a displacement transducer across it
+``table``              m         the load point's position (the shaking table, the actuator)
+=====================  ========  ==================================================================
+
+A column is named with its unit as ``CHANNEL=COLUMN:UNIT`` (the unit defaults to the SI one):
+``shear_force=Load:kN``, ``slip=LDT:mm``, ``acceleration=a1:g``. Units: s, ms, µs (us); N, kN,
+MN; m, mm, µm (um), nm; m/s2, mm/s2, g.
+
+What is refused before any measure, in one line naming the column and the row: a column that is
+missing or not a number, missing values (a run of NaN), times that do not increase, repeat, jump
+(a gap of over 1.5 sampling intervals) or are unevenly sampled, a channel stuck at its extreme
+(a saturated sensor), and a shear force whose ratio to the normal force no friction coefficient
+has (one of them in another unit). Other units slips are caught where two channels measure the
+same thing (:mod:`benchmarks.physics.record_analysis`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+__all__ = ["CHANNELS", "UNITS", "Recording", "read_recording", "column_spec", "recording_from",
+           "column_map"]
+
+#: each channel and its SI unit
+CHANNELS = {"time": "s", "shear_force": "N", "normal_force": "N", "acceleration": "m/s2",
+            "acceleration_lower": "m/s2", "slip": "m", "table": "m"}
+#: a unit: the SI unit it converts to and its factor
+UNITS = {"s": ("s", 1.0), "ms": ("s", 1e-3), "us": ("s", 1e-6), "µs": ("s", 1e-6),
+         "N": ("N", 1.0), "kN": ("N", 1e3), "MN": ("N", 1e6),
+         "m": ("m", 1.0), "mm": ("m", 1e-3), "um": ("m", 1e-6), "µm": ("m", 1e-6),
+         "nm": ("m", 1e-9), "m/s2": ("m/s2", 1.0), "m/s^2": ("m/s2", 1.0),
+         "mm/s2": ("m/s2", 1e-3), "g": ("m/s2", 9.80665)}
+#: a friction coefficient Fs/Fn beyond these is a unit slip (kN against N is 10³ off)
+MU_RANGE = (0.01, 3.0)
+#: samples at a channel's extreme value in a row that make it saturated
+SATURATED_RUN = 20
+_CLIPPED = ("shear_force", "normal_force", "acceleration", "acceleration_lower", "slip")
+
+
+@dataclass(frozen=True)
+class Recording:
+    """Samples in SI units: ``t`` (s) and one array per channel in ``channels``; ``columns``
+    names each channel's column in the file (for messages), ``source`` the file and ``sha256``
+    its hash. ``normal_force`` is a channel array even when the apparatus gave a constant."""
+
+    t: np.ndarray = field(repr=False)
+    channels: dict = field(repr=False)
+    columns: dict
+    source: str
+    sha256: str = ""
+
+    @property
+    def rate(self) -> float:
+        """Samples per second."""
+        return float((len(self.t) - 1) / (self.t[-1] - self.t[0]))
+
+    @property
+    def dt(self) -> float:
+        return 1.0 / self.rate
+
+    def has(self, channel: str) -> bool:
+        return channel in self.channels
+
+    def __getitem__(self, channel: str) -> np.ndarray:
+        return self.channels[channel]
+
+    def where(self, channel: str) -> str:
+        """How a message names a channel: its column and its channel."""
+        column = self.columns.get(channel)
+        return f"column {column!r} ({channel})" if column else channel
+
+
+def column_spec(text: str) -> tuple[str, str, str]:
+    """``CHANNEL=COLUMN[:UNIT]`` → (channel, column, unit), or ``ValueError`` naming what is
+    wrong. A column's own name may hold a colon: only a known unit after the last one counts."""
+    channel, sep, rest = str(text).partition("=")
+    channel = channel.strip()
+    if not sep or not rest:
+        raise ValueError(f"column mapping {text!r}: expected CHANNEL=COLUMN[:UNIT] "
+                         f"(channels: {', '.join(CHANNELS)})")
+    if channel not in CHANNELS:
+        raise ValueError(f"column mapping {text!r}: unknown channel {channel!r}; expected one "
+                         f"of {', '.join(CHANNELS)}")
+    column, sep, unit = rest.rpartition(":")
+    if not sep or unit not in UNITS:
+        column, unit = rest, CHANNELS[channel]
+    if UNITS[unit][0] != CHANNELS[channel]:
+        units = ", ".join(u for u, (si, _) in UNITS.items() if si == CHANNELS[channel])
+        raise ValueError(f"column mapping {text!r}: {unit} is not a unit of {channel} (in "
+                         f"{CHANNELS[channel]}: {units})")
+    return channel, column, unit
+
+
+def read_recording(path, columns, normal_force: float | None = None) -> Recording:
+    """The recording in ``path`` (``.csv``, ``.txt``, ``.tsv`` or ``.parquet``) with
+    ``columns`` (channel → ``(column, unit)``, or specs ``CHANNEL=COLUMN:UNIT``), checked (see
+    the module docstring); ``normal_force`` (N) stands for a normal-force column."""
+    mapping = column_map(columns)
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"recording {path} does not exist" if not path.exists()
+                         else f"recording {path} is not a file")
+    wanted = sorted({column for column, _ in mapping.values()})
+    table = _read(path, wanted)
+    digest = hashlib.sha256(path.read_bytes()).hexdigest()
+    return recording_from(table, mapping, normal_force, source=str(path), sha256=digest)
+
+
+def recording_from(table: pd.DataFrame, columns, normal_force: float | None = None,
+                   source: str = "table", sha256: str = "") -> Recording:
+    """A :class:`Recording` of a DataFrame already in memory (the checks of
+    :func:`read_recording`)."""
+    mapping = column_map(columns)
+    if "normal_force" in mapping and normal_force is not None:
+        raise ValueError("the normal force is a column or a constant, not both")
+    if "normal_force" not in mapping and normal_force is None:
+        raise ValueError("the normal force is needed: map a column to normal_force, or give "
+                         "the apparatus's constant normal_force (N)")
+    missing = [c for c, _ in mapping.values() if c not in table.columns]
+    if missing:
+        raise ValueError(f"{source} has no column {missing[0]!r}; its columns: "
+                         f"{', '.join(map(str, table.columns))}")
+    channels = {}
+    for channel, (column, unit) in mapping.items():
+        channels[channel] = _numbers(table[column], column, source) * UNITS[unit][1]
+    t = channels.pop("time")
+    names = {channel: column for channel, (column, _) in mapping.items()}
+    _check_time(t, names["time"], source)
+    if normal_force is not None:
+        from problems._validate import check_positive
+        channels["normal_force"] = np.full(len(t), check_positive("normal_force", normal_force))
+    for channel in _CLIPPED:
+        if channel in names and channel in channels:
+            _check_saturation(channels[channel], names[channel], channel, source)
+    _check_friction(channels["shear_force"], channels["normal_force"], names, source)
+    return Recording(t, channels, names, source, sha256)
+
+
+def column_map(columns) -> dict[str, tuple[str, str]]:
+    """channel → (column, unit) from a dict (channel → column or (column, unit)) or specs
+    ``CHANNEL=COLUMN[:UNIT]``, checked; time and shear_force must be mapped."""
+    if isinstance(columns, dict):
+        items = [(k, v if isinstance(v, tuple) else (v, CHANNELS.get(k, ""))) for k, v in
+                 columns.items()]
+        mapping = {}
+        for channel, (column, unit) in items:
+            channel, column, unit = column_spec(f"{channel}={column}:{unit}")
+            mapping[channel] = (column, unit)
+    else:
+        mapping = {}
+        for spec in columns:
+            channel, column, unit = column_spec(spec)
+            if channel in mapping:
+                raise ValueError(f"channel {channel} is mapped twice ({mapping[channel][0]!r} "
+                                 f"and {column!r})")
+            mapping[channel] = (column, unit)
+    for required in ("time", "shear_force"):
+        if required not in mapping:
+            raise ValueError(f"map a column to the {required} channel ({required}=COLUMN:UNIT)")
+    return mapping
+
+
+def _read(path: Path, wanted: list[str]) -> pd.DataFrame:
+    suffix = path.suffix.lower()
+    try:
+        if suffix == ".parquet":
+            from benchmarks.records.optional import require
+            require("pyarrow", "ensemble", "a Parquet recording")
+            import pyarrow.parquet as pq
+            names = pq.read_schema(path).names
+            _has(wanted, names, path)
+            return pd.read_parquet(path, columns=wanted)
+        if suffix not in (".csv", ".txt", ".tsv", ".dat"):
+            raise ValueError(f"recording {path}: expected a .csv, .txt, .tsv, .dat or .parquet "
+                             "file")
+        with open(path, encoding="utf-8", errors="replace") as f:
+            header = f.readline()
+        sep = "\t" if "\t" in header else ";" if header.count(";") > header.count(",") else ","
+        names = [n.strip() for n in header.rstrip("\r\n").split(sep)]
+        _has(wanted, names, path)
+        return pd.read_csv(path, sep=sep, usecols=lambda n: n.strip() in wanted,
+                           engine="c", skipinitialspace=True).rename(columns=str.strip)
+    except (UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
+        raise ValueError(f"recording {path} is not a readable table "
+                         f"({type(exc).__name__})") from None
+    except OSError as exc:
+        raise ValueError(f"recording {path} cannot be read: {exc.strerror or exc}") from None
+
+
+def _has(wanted, names, path) -> None:
+    missing = [c for c in wanted if c not in names]
+    if missing:
+        raise ValueError(f"recording {path} has no column {missing[0]!r}; its columns: "
+                         f"{', '.join(names)}")
+
+
+def _row(i: int) -> int:
+    """The file's row of sample ``i`` (1-based, after the header line)."""
+    return int(i) + 2
+
+
+def _numbers(series: pd.Series, column: str, source: str) -> np.ndarray:
+    values = pd.to_numeric(series, errors="coerce").to_numpy(dtype=float)
+    bad = ~np.isfinite(values)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raw = series.iloc[i]
+        if isinstance(raw, str) and raw.strip() and raw.strip().lower() not in ("nan", "na"):
+            raise ValueError(f"{source}: column {column!r} row {_row(i)} is not a number "
+                             f"({raw!r})")
+        run = int(np.argmax(~bad[i:])) if (~bad[i:]).any() else len(bad) - i
+        raise ValueError(f"{source}: column {column!r} has no value from row {_row(i)} "
+                         f"({run} sample{'s' if run > 1 else ''} missing): fill or cut them")
+    if len(values) < 3:
+        raise ValueError(f"{source}: {len(values)} rows; a recording needs many samples")
+    return values
+
+
+def _check_time(t: np.ndarray, column: str, source: str) -> None:
+    d = np.diff(t)
+    back = d <= 0
+    if back.any():
+        i = int(np.argmax(back)) + 1
+        what = "repeats" if d[i - 1] == 0 else "goes back to"
+        raise ValueError(f"{source}: column {column!r} row {_row(i)} {what} t = {t[i]:.9g} s "
+                         f"after t = {t[i - 1]:.9g} s: times must increase")
+    step = float(np.median(d))
+    gap = d > 1.5 * step
+    if gap.any():
+        i = int(np.argmax(gap))
+        raise ValueError(f"{source}: column {column!r}: a gap of {d[i]:.6g} s after row "
+                         f"{_row(i)} (t = {t[i]:.9g} s; the sampling interval is {step:.6g} s)")
+    uneven = d < 0.5 * step
+    if uneven.any():
+        i = int(np.argmax(uneven))
+        raise ValueError(f"{source}: column {column!r} row {_row(i + 1)}: samples "
+                         f"{d[i]:.6g} s apart where the sampling interval is {step:.6g} s: "
+                         "the recording must be evenly sampled")
+
+
+def _check_saturation(x: np.ndarray, column: str, channel: str, source: str) -> None:
+    for extreme, which in ((x.max(), "maximum"), (x.min(), "minimum")):
+        at = x == extreme
+        if at.sum() < SATURATED_RUN:
+            continue
+        # the longest run of samples at the extreme
+        edges = np.flatnonzero(np.diff(np.concatenate(([0], at.view(np.int8), [0]))))
+        starts, ends = edges[::2], edges[1::2]
+        k = int(np.argmax(ends - starts))
+        if ends[k] - starts[k] >= SATURATED_RUN:
+            raise ValueError(f"{source}: column {column!r} ({channel}) is stuck at its "
+                             f"{which} {extreme:.6g} from row {_row(starts[k])} for "
+                             f"{ends[k] - starts[k]} samples: a saturated sensor cannot be "
+                             "measured on")
+
+
+def _check_friction(fs: np.ndarray, fn: np.ndarray, names: dict, source: str) -> None:
+    with np.errstate(divide="ignore", invalid="ignore"):
+        mu = np.median(fs / fn)
+    if not MU_RANGE[0] <= mu <= MU_RANGE[1]:
+        normal = (f"column {names['normal_force']!r}" if "normal_force" in names
+                  else "the normal force")
+        raise ValueError(f"{source}: column {names['shear_force']!r} (shear_force) over "
+                         f"{normal} is {mu:.4g} (median): no friction coefficient is; one of "
+                         f"them is in another unit (a shear force in kN read as N is 10³ off)")

@@ -1,0 +1,336 @@
+"""``rsfbench observe``: from a laboratory recording to the observations of an inversion.
+
+Round trips: recordings made by the forward model (benchmarks/physics/synthetic_recording.py:
+sampled at 10 kHz, an anti-alias filter, white noise and a slow drift as fractions of what one
+event changes) from which the analysis must recover the model's own per-event metrics — those
+of its event table, which its integrator located by root finding — and the apparatus it was made
+with, within tolerances that shrink with the noise. Misuse: each a clear line naming the column
+and the row."""
+
+import json
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from benchmarks.inversion.observations import read_observations, write_observations
+from benchmarks.inversion.observe import observe, read_column_file
+from benchmarks.physics.record_analysis import analyse
+from benchmarks.physics.recording import column_spec, read_recording, recording_from
+from benchmarks.physics.synthetic_recording import synthetic_recording
+from problems import preset
+
+ALL = ("time", "shear_force", "acceleration", "slip", "table")
+W2 = preset("W2", law="slip", t_end=40.0)
+
+
+@pytest.fixture(scope="module")
+def records():
+    """W2, slip law, 40 s at 10 kHz from t = 10 s (8 complete events): clean and noisy."""
+    return {noise: synthetic_recording(W2, t_skip=10.0, noise=noise, drift=noise, seed=3)
+            for noise in (0.0, 0.003, 0.01)}
+
+
+def _measure(table, channels=ALL, problem=W2, **kw):
+    rec = recording_from(table, {c: c for c in channels}, normal_force=problem.normal_force)
+    return analyse(rec, mass=problem.mass, **kw)
+
+
+def _rel(measured, truth):
+    return abs(measured / truth - 1.0)
+
+
+# tolerances (relative) at noise n: the issue's targets at n = 1 % are ΔT and Δμ 0.5 %, slip
+# 2 %, k 1 %; with no noise what is left is the sampling (0.1 ms) and the fits' shapes
+TOL = {"recurrence_s": lambda n: 1e-5 + 0.05 * n, "friction_drop": lambda n: 1e-3 + 0.4 * n,
+       "slip_m": lambda n: 2e-3 + 1.8 * n, "peak_velocity_m_s": lambda n: 5e-3 + 1.0 * n}
+
+
+@pytest.mark.parametrize("noise", [0.0, 0.003, 0.01])
+@pytest.mark.parametrize("channels", [ALL, ("time", "shear_force", "acceleration", "table"),
+                                      ("time", "shear_force", "slip", "table")],
+                         ids=["all", "accelerations", "slip column"])
+def test_the_model_s_own_metrics_come_back(records, noise, channels):
+    table, truth = records[noise]
+    found = _measure(table, channels)
+    model = truth.events.iloc[1:]                 # the first recorded event's stick is cut
+    assert len(found.events) == len(model) == 8
+    # event by event: the same events, in order
+    assert np.allclose(found.events.t_start, model.t_start, atol=0.02)
+    for metric, tol in TOL.items():
+        assert _rel(found.events[metric].mean(), model[metric].mean()) <= tol(noise), metric
+    k_tol = 1e-3 + 0.9 * noise if "slip" in channels else 5e-3 + 0.9 * noise   # creep, see k's how
+    assert _rel(found.apparatus["stiffness"], truth.stiffness) <= k_tol
+    assert _rel(found.apparatus["vls"], truth.vls) <= 1e-3 + 0.2 * noise
+    assert _rel(found.apparatus["vlf"], truth.vlf) <= 2e-3 + 1.0 * noise
+    assert _rel(found.apparatus["df"], truth.df) <= 2e-3 + 1.5 * noise
+
+
+def test_the_force_alone_gives_the_recurrence_and_the_drop(records):
+    table, truth = records[0.01]
+    found = _measure(table, ("time", "shear_force", "table"))
+    model = truth.events.iloc[1:]
+    assert _rel(found.events.recurrence_s.mean(), model.recurrence_s.mean()) <= 1e-3
+    assert _rel(found.events.friction_drop.mean(), model.friction_drop.mean()) <= 5e-3
+    assert found.events.peak_velocity_m_s.isna().all() and found.curves is None
+    assert any("force alone" in n for n in found.notes)
+
+
+def test_curves_are_the_fault_s_friction_on_the_model_s_convention(records):
+    """The observed curve of an event against the model's (event_curve: Ft/Fn against the slip
+    since the start, from the event's start to its end), on the clean record."""
+    from benchmarks.physics.curves import event_curve
+    from integrators import Rodas5P, solve
+    table, truth = records[0.0]
+    found = _measure(table)
+    sol = solve(W2, Rodas5P(rtol=1e-10, atol=1e-10), save_every=1e-4, max_points=400_002)
+    slip, mu = event_curve(sol, -2)                  # the last complete event
+    last = found.curves[found.curves.event_id == found.curves.event_id.max()]
+    inside = (last.slip_m > 0.05 * slip[-1]) & (last.slip_m < 0.95 * slip[-1])
+    model = np.interp(last.slip_m[inside], slip, mu)
+    assert np.max(np.abs(last.friction[inside] - model)) < 2e-3       # Ft/Fn; the drop is 0.045
+    # the load cell's force is not the fault's friction: it would be off by far more
+    fs = np.interp(last.slip_m[inside], *_spring_curve(sol))
+    assert np.max(np.abs(fs - model)) > 5e-3
+
+
+def _spring_curve(sol):
+    from benchmarks.physics.curves import event_window
+    t, slip, fs = event_window(sol, -2)
+    return slip, fs / sol.problem.normal_force
+
+
+@pytest.mark.parametrize("name, law, t_end", [("W4", "slip", 8.0), ("W3", "aging", 40.0)])
+def test_other_windows_and_the_aging_law(name, law, t_end):
+    problem = preset(name, law=law, t_end=t_end)
+    table, truth = synthetic_recording(problem, t_skip=t_end / 4, noise=0.01, drift=0.01, seed=5)
+    found = _measure(table, problem=problem)
+    model = truth.events.iloc[1:]
+    assert len(found.events) == len(model) >= 3
+    for metric in ("recurrence_s", "friction_drop", "slip_m"):
+        assert _rel(found.events[metric].mean(), model[metric].mean()) <= TOL[metric](0.01)
+
+
+# --- the observations file --------------------------------------------------------------------
+
+def test_the_file_reads_back_with_either_sigma(records, tmp_path):
+    table, _ = records[0.01]
+    found = _measure(table)
+    path = tmp_path / "observations.json"
+    doc = write_observations(path, found.events, found.curves, found.apparatus, found.how,
+                             found.notes)
+    ev = found.events
+    assert doc["metrics"]["recurrence_s"]["std"] == pytest.approx(ev.recurrence_s.std())
+    assert doc["metrics"]["friction_drop"]["sem"] == pytest.approx(
+        ev.friction_drop.std() / math.sqrt(len(ev)))
+    with pytest.warns(UserWarning):                # the model's cycle hardly scatters
+        obs = read_observations(path)
+        sem = read_observations(path, sigma="sem")
+    assert obs.recurrence_s == pytest.approx(ev.recurrence_s.mean())
+    assert obs.sigma_friction_drop == pytest.approx(ev.friction_drop.std())
+    assert sem.sigma_friction_drop == pytest.approx(ev.friction_drop.std() / math.sqrt(len(ev)))
+    assert len(obs.curves) == len(found.curves)
+    back = pd.read_csv(path.with_name("events.csv")) if path.with_name("events.csv").exists() \
+        else None
+    assert back is None                            # write_observations writes the JSON only
+    doc["version"] = 99
+    path.write_text(json.dumps(doc))
+    with pytest.raises(ValueError, match="version 1"):
+        read_observations(path)
+
+
+def test_observe_writes_its_files_and_reads_units(records, tmp_path):
+    table, truth = records[0.003]
+    lab = table.assign(shear_force=table.shear_force / 1e3, slip=table.slip * 1e3,
+                       table=table.table * 1e3)
+    lab.columns = ["Time(s)", "Load", "a1", "LDT", "Table"]
+    lab.to_csv(tmp_path / "rec.csv", index=False)
+    (tmp_path / "columns.toml").write_text(
+        '[columns]\ntime = "Time(s)"\nshear_force = {column = "Load", unit = "kN"}\n'
+        'acceleration = "a1"\nslip = {column = "LDT", unit = "mm"}\n'
+        'table = {column = "Table", unit = "mm"}\n\n[apparatus]\nnormal_force = 997500.0\n'
+        'mass = 1100.0\n')
+    columns, constants = read_column_file(tmp_path / "columns.toml")
+    doc = observe(tmp_path / "rec.csv", columns, tmp_path / "out", **constants)
+    files = doc["files"]
+    assert set(files) == {"observations", "events", "curves", "apparatus", "figure"}
+    events = pd.read_csv(files["events"])
+    assert len(events) == 8 and list(events.columns)[:2] == ["t_start", "t_end"]
+    assert _rel(doc["apparatus"]["stiffness"], truth.stiffness) < 5e-3
+    from problems import load_problem
+    problem = load_problem(files["apparatus"])               # simulate runs it
+    assert problem.loading.two_speed and _rel(problem.stiffness, truth.stiffness) < 5e-3
+    assert doc["recording"]["columns"]["shear_force"] == {"column": "Load", "unit": "kN"}
+
+
+# --- misuse: one line, naming the column and the row ---------------------------------------------
+
+def _table(n=2000, rate=1000.0):
+    t = np.arange(n) / rate
+    saw = 0.6 + 0.04 * ((t / 0.3) % 1.0)           # a sawtooth: a drop every 0.3 s
+    return pd.DataFrame({"t": t, "Fs": saw * 1e6})
+
+
+@pytest.mark.parametrize("change, match", [
+    (lambda d: d.assign(t=d.t.where(d.index != 100, d.t[98])), "column 't' row 102 goes back"),
+    (lambda d: d.assign(t=d.t.where(d.index != 100, d.t[99])), "column 't' row 102 repeats"),
+    (lambda d: d.assign(t=d.t + (d.index >= 500) * 0.5), "a gap of 0.501 s after row 501"),
+    (lambda d: d.assign(Fs=d.Fs.where((d.index < 50) | (d.index > 59))),
+     "column 'Fs' has no value from row 52 \\(10 samples missing\\)"),
+    (lambda d: d.assign(Fs=d.Fs.astype(object).where(d.index != 7, "x")),
+     "column 'Fs' row 9 is not a number \\('x'\\)"),
+    (lambda d: d.assign(Fs=np.minimum(d.Fs, 6.3e5)), "column 'Fs' \\(shear_force\\) is stuck at "
+                                                      "its maximum 630000 from row"),
+    (lambda d: d.assign(Fs=d.Fs / 1e3), "column 'Fs' \\(shear_force\\) over the normal force is "
+                                        "0.000"),
+    (lambda d: d.assign(t=d.t - 0.0006 * (d.index >= 1000)), "row 1002: samples 0.0004 s apart"),
+])
+def test_bad_recordings_are_refused_in_one_line(change, match):
+    with pytest.raises(ValueError, match=match) as err:
+        rec = recording_from(change(_table()), {"time": "t", "shear_force": "Fs"},
+                             normal_force=1e6)
+        analyse(rec)
+    assert "\n" not in str(err.value)
+
+
+def test_a_record_without_events_or_with_one_is_refused():
+    flat = pd.DataFrame({"t": np.arange(3000) / 1e3,
+                         "Fs": 6e5 + np.random.default_rng(0).normal(0, 10, 3000)})
+    with pytest.raises(ValueError, match="no stick–slip event in column 'Fs'"):
+        analyse(recording_from(flat, {"time": "t", "shear_force": "Fs"}, normal_force=1e6))
+    t = np.arange(4000) / 1e3
+    one = pd.DataFrame({"t": t, "Fs": np.where(t < 2.0, 6.4e5 + 1e4 * t, 6.0e5 + 1e4 * t)})
+    with pytest.raises(ValueError, match="0 complete stick–slip events"):
+        analyse(recording_from(one, {"time": "t", "shear_force": "Fs"}, normal_force=1e6))
+
+
+def test_a_unit_slip_between_columns_is_named(records):
+    table, _ = records[0.0]
+    wrong = table.assign(slip=table.slip * 1e3)        # mm read as m
+    thousand = "(9\\d\\d|1e\\+03)"                      # 934 over this record's span
+    with pytest.raises(ValueError, match=f"column 'slip' \\(slip\\) advances {thousand} times "
+                                         "as far as column 'table' \\(table\\)"):
+        _measure(wrong)
+    with pytest.raises(ValueError, match="integrated from column 'acceleration' \\(acceleration"
+                                         f"\\) is {thousand} times the travel"):
+        _measure(table.assign(acceleration=table.acceleration * 1e3),
+                 ("time", "shear_force", "acceleration", "table"))
+
+
+@pytest.mark.parametrize("spec, match", [
+    ("force=Fs", "unknown channel 'force'"), ("shear_force", "expected CHANNEL=COLUMN"),
+    ("slip=LDT:kN", "kN is not a unit of slip"),
+])
+def test_column_specs_are_checked(spec, match):
+    with pytest.raises(ValueError, match=match):
+        column_spec(spec)
+
+
+def test_a_column_s_own_colon_is_kept():
+    assert column_spec("time=Time:s") == ("time", "Time", "s")
+    assert column_spec("time=t:raw") == ("time", "t:raw", "s")
+    assert column_spec("slip=LDT:mm") == ("slip", "LDT", "mm")
+
+
+def test_a_missing_file_and_column_are_named(tmp_path):
+    with pytest.raises(ValueError, match="does not exist"):
+        read_recording(tmp_path / "none.csv", ["time=t", "shear_force=Fs"], normal_force=1e6)
+    _table().to_csv(tmp_path / "r.csv", index=False)
+    with pytest.raises(ValueError, match="has no column 'Load'; its columns: t, Fs"):
+        read_recording(tmp_path / "r.csv", ["time=t", "shear_force=Load"], normal_force=1e6)
+
+
+# --- a recording made by an independent implementation ----------------------------------------
+
+def _independent_recording(t_end=30.0, rate=10_000.0):
+    """The W2 spring-slider (slip law, two-speed loading; Urata et al. 2017, Tables 2 and 4)
+    written here with scipy alone — its own equations, state (s = l − u, ln v, θ), integrator
+    (LSODA) and event rules — and its events measured on its dense output at 100 kHz, not by
+    the project's code. Returns the recording from t = 8 s and the per-event truth."""
+    from scipy.integrate import solve_ivp
+    m, k, fn, a, b, lc, v0 = 1100.0, 1.48e8, 997500.0, 0.008, 0.0094, 3e-7, 1e-5
+    vls, vlf, df = 7.5e-5, 1.9717e-3, 0.042
+
+    def rhs(t, y, vl):
+        s, lnv, th = y
+        v = math.exp(lnv)
+        ft_minus_f0 = a * fn * (lnv - math.log(v0)) + th        # Ft − F0
+        return [vl - v, (k * s - ft_minus_f0) / (m * v),
+                -v / lc * (th + b * fn * (lnv - math.log(v0)))]
+
+    def crossing(level, direction):
+        def g(t, y, vl):
+            return y[1] - math.log(level)
+        g.terminal, g.direction = True, direction
+        return g
+
+    v = vls / 1.1                                  # steady sliding 1.1× slower, Fs = Ft
+    th = -b * fn * math.log(v / v0)
+    y = [(a * fn * math.log(v / v0) + th) / k, math.log(v), th]
+    t, pieces, starts, ends = 0.0, [], [], []
+    while t < t_end:
+        # slow loading until an event starts and ends; then the fast loading for df
+        for vl, ev, until in ((vls, crossing(10 * vls, 1), t_end), (vls, crossing(vls, -1), t_end),
+                              (vlf, None, None)):
+            stop = t_end if until is not None else min(t + df, t_end)
+            sol = solve_ivp(rhs, (t, stop), y, method="LSODA", rtol=1e-10, atol=1e-12,
+                            dense_output=True, events=ev, args=(vl,))
+            pieces.append((t, sol.t[-1], vl, sol.sol))
+            if ev is not None and sol.t_events[0].size:
+                (starts if ev.direction > 0 else ends).append(sol.t_events[0][0])
+            t, y = sol.t[-1], sol.y[:, -1]
+            if t >= t_end:
+                break
+    # the trajectory: s, v and the load point's travel l (exact: piecewise constant vL)
+    fine = np.arange(0.0, t, 1e-5)
+    s_f, lnv_f, l_f = np.empty_like(fine), np.empty_like(fine), np.empty_like(fine)
+    travel = 0.0
+    for t0, t1, vl, dense in pieces:
+        inside = (fine >= t0) & (fine <= t1)
+        yy = dense(fine[inside])
+        s_f[inside], lnv_f[inside] = yy[0], yy[1]
+        l_f[inside] = travel + vl * (fine[inside] - t0)
+        travel += vl * (t1 - t0)
+    fs = k * s_f                                    # Fs − F0
+    u = l_f - s_f
+    rows = []
+    for i in range(1, len(ends)):
+        ts, te, prev_end = starts[i], ends[i], ends[i - 1]
+        before = (fine > prev_end) & (fine < ts)
+        during = (fine >= ts) & (fine <= te + 0.01)
+        rows.append({"t_start": ts, "recurrence_s": ts - starts[i - 1],
+                     "friction_drop": (fs[before].max() - fs[during].min()) / fn,
+                     "slip_m": np.interp(te, fine, u) - np.interp(ts, fine, u),
+                     "peak_velocity_m_s": float(np.exp(lnv_f[during].max()))})
+    step = int(round(1e5 / rate))
+    keep = slice(int(8.0 * 1e5), None, step)
+    fs_k, v_k = fs[keep], np.exp(lnv_f[keep])
+    acc = np.gradient(v_k, 1.0 / rate)
+    record = pd.DataFrame({"time": fine[keep], "shear_force": fs_k + 0.6 * fn,
+                           "acceleration": acc, "slip": u[keep], "table": l_f[keep]})
+    truth = pd.DataFrame(rows)
+    return record, truth[truth.t_start > 8.0 + 3.5].reset_index(drop=True)
+
+
+@pytest.mark.slow
+def test_an_independent_implementation_s_events_come_back():
+    """A recording made without the project's model or integrators (scipy's LSODA on the
+    equations written in this test), 1 % noise added here: the analysis recovers that model's
+    metrics, measured on its own dense output, to the targets (~15 s)."""
+    record, truth = _independent_recording()
+    rng = np.random.default_rng(11)
+    scale = {"shear_force": truth.friction_drop.mean() * 997500.0,
+             "acceleration": float(np.abs(record.acceleration).max()),
+             "slip": truth.slip_m.mean(), "table": 7.5e-5 * truth.recurrence_s.mean()}
+    noisy = record.assign(**{c: record[c] + 0.01 * s * rng.standard_normal(len(record))
+                             for c, s in scale.items()})
+    found = analyse(recording_from(noisy, {c: c for c in ALL}, normal_force=997500.0),
+                    mass=1100.0)
+    ev = found.events
+    matched = ev[ev.t_start > truth.t_start.iloc[0] - 0.5].reset_index(drop=True)
+    n = min(len(matched), len(truth))
+    assert n >= 5
+    for metric, tol in TOL.items():
+        assert _rel(matched[metric][:n].mean(), truth[metric][:n].mean()) <= tol(0.01), metric
+    assert _rel(found.apparatus["stiffness"], 1.48e8) <= 0.01
