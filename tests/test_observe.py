@@ -334,3 +334,18 @@ def test_an_independent_implementation_s_events_come_back():
     for metric, tol in TOL.items():
         assert _rel(matched[metric][:n].mean(), truth[metric][:n].mean()) <= tol(0.01), metric
     assert _rel(found.apparatus["stiffness"], 1.48e8) <= 0.01
+
+
+@pytest.mark.needs("pyarrow")
+@pytest.mark.parametrize("suffix, sep", [(".parquet", None), (".tsv", "\t"), (".csv", ";")])
+def test_parquet_and_other_separators_read_the_same(records, tmp_path, suffix, sep):
+    table, _ = records[0.0]
+    part = table.iloc[:50_000]
+    path = tmp_path / f"rec{suffix}"
+    if sep is None:
+        part.to_parquet(path)
+    else:
+        part.to_csv(path, sep=sep, index=False)
+    rec = read_recording(path, [f"{c}={c}" for c in ALL], normal_force=W2.normal_force)
+    assert np.array_equal(rec.t, part.time.to_numpy())
+    assert np.allclose(rec["slip"], part.slip.to_numpy(), rtol=1e-12, atol=1e-18)
