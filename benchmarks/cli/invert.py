@@ -137,7 +137,10 @@ def cmd_invert(args) -> int:
     obs = observations_from_args(args, published)
     if obs.curves is not None:                  # an observations file's: J1 is what inverts
         import dataclasses
-        obs = dataclasses.replace(obs, curves=None)
+
+        from problems._validate import units_checked_already
+        with units_checked_already():           # warned once when the file was read
+            obs = dataclasses.replace(obs, curves=None)
     cycles = problem.t_end / obs.recurrence_s
     if cycles > MAX_CYCLES:                  # each of thousands of solves would run for hours
         raise ValueError(f"--t-end {problem.t_end:g} s simulates {cycles:,.0f} cycles of the "
