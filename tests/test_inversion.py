@@ -170,6 +170,7 @@ def test_profile_misuse_is_refused(w2):
         profile(m, "b", [0.009, 0.01], (1e-6, 1e-7))
 
 
+@pytest.mark.slow          # ~10 s: make test-slow (make test stays under 8 min)
 def test_posterior_credible_intervals_contain_the_truth_for_seeded_noisy_data():
     """W2 at (0.0094, 0.3 µm), 10 % noise (seed 0), started from the least-squares fit: the
     central 95 % of both marginals contains the truth; the chain is reproducible by its seed and

@@ -139,6 +139,7 @@ def test_profile_misuse_is_refused():
 
 # --- W2 synthetic data with a small σ -----------------------------------------------------------
 
+@pytest.mark.slow          # ~10 s: make test-slow (make test stays under 8 min)
 def test_w2_profiles_with_a_small_sigma_and_few_points_contain_the_fit_and_the_truth():
     """W2/slip at (0.0094, 0.3 µm), data 0.3 σ and −0.5 σ off the truth with σ = 0.2 % (the
     defect's case: 5 profile points read log10 Lc's interval as [−6.61, −6.50], excluding the fit
@@ -193,6 +194,7 @@ def test_bad_values_are_one_line_and_exit_2_before_any_work(argv, match, capsys,
     assert not out.exists()                      # refused before the output was made
 
 
+@pytest.mark.slow          # ~9 s: make test-slow (make test stays under 8 min)
 def test_the_nagata_law_inverts_in_a_stated_box(capsys, tmp_path):
     """The paper fits no Nagata law, so its box is the user's (refused above without one);
     with one, W4/nagata inverts end to end and its fit lies in its profiles' intervals."""

@@ -154,6 +154,7 @@ def _listed(chunks) -> int:
         return 0
 
 
+@pytest.mark.slow          # ~10 s: make test-slow (make test stays under 8 min)
 def test_a_killed_sweep_resumes_to_the_same_table(tmp_path):
     whole = sweep(preset("W4", law="slip", t_end=10.0), parse_b("0.0101:0.0104:0.0001"),
                   parse_lc("1e-7:2e-7:3log"), ETD2(), _obs(window="W4"), tmp_path / "whole",
