@@ -446,14 +446,24 @@ def _dask_sweep(out, address, *extra):
             "--worker-timeout", "5", "--out", str(out), "--no-progress", "--no-plot", *extra]
 
 
+def _main_stack(err: str) -> str:
+    """The main thread's stack from a faulthandler dump in ``err``: its four innermost calls and
+    every call in the project's own code."""
+    frames = [x.strip() for x in err.rsplit("Current thread", 1)[-1].splitlines()[1:]]
+    ours = [x for x in frames[4:] if "/benchmarks/" in x]
+    return " | ".join(frames[:4] + ours) or repr(err[-400:])
+
+
 def _lost(what: str, json_mode: bool):
     def run(tmp):
         out = tmp / "s"
         address, scheduler, worker = _cluster()
         try:
+            # PYTHONFAULTHANDLER: a hung sweep is stopped with SIGABRT, which then prints where
+            # each of its threads was (the message below carries the main thread's stack)
             proc = subprocess.Popen(_dask_sweep(out, address, *(["--json"] if json_mode else [])),
                                     cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                    text=True)
+                                    text=True, env={**os.environ, "PYTHONFAULTHANDLER": "1"})
             deadline = time.time() + 180
             while time.time() < deadline and not _chunks(out / "chunks") \
                     and proc.poll() is None:
@@ -462,8 +472,10 @@ def _lost(what: str, json_mode: bool):
             try:
                 stdout, err = proc.communicate(timeout=120)
             except subprocess.TimeoutExpired:
-                proc.kill()
-                raise Wrong(f"the sweep hung for 120 s after losing its {what}") from None
+                proc.send_signal(signal.SIGABRT)
+                _, err = proc.communicate()
+                raise Wrong(f"the sweep hung for 120 s after losing its {what}: "
+                            f"{_main_stack(err)}") from None
         finally:
             _stop(scheduler, worker)
         if "Traceback" in err or proc.returncode != 1:
