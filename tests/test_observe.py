@@ -1,6 +1,6 @@
 """``rsfbench observe``: from a laboratory recording to the observations of an inversion.
 
-Round trips: recordings made by the forward model (benchmarks/physics/synthetic_recording.py:
+Round trips: recordings made by the forward model (benchmarks/physics/model_recording.py:
 sampled at 10 kHz, an anti-alias filter, white noise and a slow drift as fractions of what one
 event changes) from which the analysis must recover the model's own per-event metrics — those
 of its event table, which its integrator located by root finding — and the apparatus it was made
@@ -15,10 +15,10 @@ import pandas as pd
 import pytest
 
 from benchmarks.inversion.observations import read_observations, write_observations
-from benchmarks.inversion.observe import observe, read_column_file
+from benchmarks.inversion.observing import observe, read_column_file
 from benchmarks.physics.record_analysis import analyse
 from benchmarks.physics.recording import column_spec, read_recording, recording_from
-from benchmarks.physics.synthetic_recording import synthetic_recording
+from benchmarks.physics.model_recording import synthetic_recording
 from problems import preset
 
 ALL = ("time", "shear_force", "acceleration", "slip", "table")
@@ -93,6 +93,30 @@ def test_curves_are_the_fault_s_friction_on_the_model_s_convention(records):
     # the load cell's force is not the fault's friction: it would be off by far more
     fs = np.interp(last.slip_m[inside], *_spring_curve(sol))
     assert np.max(np.abs(fs - model)) > 5e-3
+
+
+def test_a_vibrating_lower_specimen_is_in_the_friction_not_the_slip(records):
+    """a2 ≠ 0 (synthetic_recording's ``shake``: the upper specimen carried along): the slip is
+    integrated from a1 − a2 and is the model's, but the fault's friction is Fs − m·a1 (Eq. 3),
+    the model's less m·a2. m·a2/Fn is 0.01 rms, a fifth of the drop: a reading with a1 − a2
+    in Eq. 3 would give the model's curve, off by that."""
+    shake = 0.01 * W2.normal_force / W2.mass
+    table, truth = synthetic_recording(W2, t_skip=10.0, shake=shake, seed=3)
+    assert np.std(table.acceleration_lower) == pytest.approx(shake, rel=0.01)
+    found = _measure(table, (*ALL, "acceleration_lower"))
+    still = _measure(records[0.0][0])
+    model = truth.events.iloc[1:]
+    assert len(found.events) == len(model) == 8
+    for metric, tol in TOL.items():
+        assert _rel(found.events[metric].mean(), model[metric].mean()) <= tol(0.0), metric
+    t, a2 = table.time.to_numpy(), table.acceleration_lower.to_numpy()
+    for k, ev in found.events.reset_index(drop=True).iterrows():
+        shaken = found.curves[found.curves.event_id == k + 1]
+        calm = still.curves[still.curves.event_id == k + 1]
+        assert np.allclose(shaken.slip_m, calm.slip_m, rtol=0, atol=1e-3 * ev.slip_m)
+        i0 = int(np.searchsorted(t, ev.t_start))          # the curve's first sample
+        expected = calm.friction.to_numpy() - W2.mass * a2[i0:i0 + len(calm)] / W2.normal_force
+        assert np.max(np.abs(shaken.friction.to_numpy() - expected)) < 1e-3
 
 
 def _spring_curve(sol):
@@ -239,6 +263,59 @@ def test_a_missing_file_and_column_are_named(tmp_path):
     _table().to_csv(tmp_path / "r.csv", index=False)
     with pytest.raises(ValueError, match="has no column 'Load'; its columns: t, Fs"):
         read_recording(tmp_path / "r.csv", ["time=t", "shear_force=Load"], normal_force=1e6)
+
+
+def test_what_is_no_saturation_is_not_refused():
+    """A held normal force, a slip at its extremes at the record's ends, and one flat peak of a
+    quantised force: none is a clipped sensor (two flat runs at the extreme inside the record
+    are)."""
+    d = _table()
+    d["Fn"] = 1e6                                         # a column of the held value
+    d["u"] = np.round(np.arange(len(d)) * 1e-6, 9)        # advances: its extremes at the ends
+    peak = int(d.Fs.idxmax())
+    d.loc[peak - 30:peak, "Fs"] = d.Fs[peak]              # one flat top, 31 samples
+    rec = recording_from(d, {"time": "t", "shear_force": "Fs", "normal_force": "Fn",
+                             "slip": "u"})
+    assert rec.has("normal_force") and rec.has("slip")
+
+
+def test_files_as_other_programs_write_them(tmp_path):
+    import csv
+    _table().to_csv(tmp_path / "q.csv", index=False, quoting=csv.QUOTE_ALL)   # R's write.csv
+    rec = read_recording(tmp_path / "q.csv", ["time=t", "shear_force=Fs"], normal_force=1e6)
+    assert len(rec.t) == 2000
+    with pytest.raises(ValueError, match="'kgf' in 'Fs:kgf' is not a known unit"):
+        read_recording(tmp_path / "q.csv", ["time=t", "shear_force=Fs:kgf"], normal_force=1e6)
+    durations = _table().assign(t=pd.to_timedelta(_table().t, unit="s"))
+    with pytest.raises(ValueError, match="column 't' holds timedelta64.* give it as numbers"):
+        recording_from(durations, {"time": "t", "shear_force": "Fs"}, normal_force=1e6)
+
+
+@pytest.mark.parametrize("text, match", [
+    ('columns = ["t"]\n', "columns must be a table"),
+    ('[columns]\ntime = "t"\nshear_force = {column = "Fs", unit = "kgf"}\n',
+     "column 'Fs' \\(shear_force\\): 'kgf' is not a known unit"),
+])
+def test_column_files_are_checked(tmp_path, text, match):
+    (tmp_path / "c.toml").write_text(text)
+    with pytest.raises(ValueError, match=match):
+        read_column_file(tmp_path / "c.toml")
+
+
+def test_observe_prints_a_record_of_the_force_alone(tmp_path, capsys):
+    """The text output of a record whose slip and peak slip rate are not measured (null in the
+    file): a dash, not a crash; a channel given twice is refused."""
+    from benchmarks.cli import main
+    _table(n=6000).to_csv(tmp_path / "r.csv", index=False)
+    args = ["observe", str(tmp_path / "r.csv"), "--column", "time=t", "--column",
+            "shear_force=Fs", "--normal-force", "1e6", "--out", str(tmp_path / "o"), "--no-plot"]
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    assert "peak slip rate       – " in out and "complete events" in out
+    doc = json.loads((tmp_path / "o" / "observations.json").read_text())
+    assert doc["provenance"]["command"].startswith("rsfbench observe ")
+    assert main([*args, "--column", "time=t"]) == 2
+    assert "channel time is mapped twice" in capsys.readouterr().err
 
 
 # --- a recording made by an independent implementation ----------------------------------------

@@ -8,6 +8,7 @@ loses the Dask scheduler of a running ensemble."""
 
 import json
 import shutil
+import time
 import warnings
 
 import numpy as np
@@ -317,6 +318,71 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
+def _cluster():
+    """A Dask scheduler and one worker, each in its own process group: (address, s, w)."""
+    import subprocess
+    import sys
+    port = _free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    quiet = dict(stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    s = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host",
+                          "127.0.0.1", "--port", str(port), "--no-dashboard"], **quiet)
+    w = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", address,
+                          "--nthreads", "1", "--no-dashboard"], **quiet)
+    return address, s, w
+
+
+def _stop(*procs) -> None:
+    import os
+    import signal
+    for p in procs:
+        try:
+            os.killpg(p.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        p.wait()
+
+
+@pytest.mark.slow
+def test_a_result_lost_with_its_worker_is_not_waited_for(tmp_path):
+    """Tasks that finished on a worker killed before their results were fetched: the fetch
+    would wait for ever (Future.result has no timeout; CI once hung there). The run must end
+    with ClusterGone once the cluster has had no worker for worker_timeout."""
+    import threading
+
+    from benchmarks.ensemble.executors import ClusterGone, connect, execute
+    address, s, w = _cluster()
+    ended = []
+    try:
+        client = connect(address, 30)
+        while not client.scheduler_info().get("workers"):
+            time.sleep(0.1)
+
+        def consume():
+            # abs: tasks done at once. After the first row, a pause lets all the others finish
+            # on the worker, so that the next wait finds them all done; the worker is killed
+            # as the first of those is taken, before the others' results are fetched
+            try:
+                rows = execute(abs, abs, None, list(range(200)), 1, "dask", client, 3.0)
+                for n, _ in enumerate(rows):
+                    if n == 0:
+                        time.sleep(2.0)
+                    elif n == 1:
+                        _stop(w)
+                        time.sleep(1.0)             # the scheduler has seen the worker go
+            except ClusterGone as exc:
+                ended.append(exc)
+        thread = threading.Thread(target=consume, daemon=True)
+        thread.start()
+        thread.join(90)
+        hung = thread.is_alive()
+        client.close()
+    finally:
+        _stop(s, w)
+    assert not hung, "the run waited for a result lost with its worker"
+    assert ended and "no worker for 3 s" in str(ended[0])
+
+
 @pytest.mark.slow
 def test_losing_the_dask_scheduler_stops_the_run_keeping_its_chunks(tmp_path):
     """The scheduler is SIGKILLed once a chunk is stored: the run stops with SchedulerLost (a
@@ -324,40 +390,15 @@ def test_losing_the_dask_scheduler_stops_the_run_keeping_its_chunks(tmp_path):
     cluster resumes the stored chunks and gives the table a local run gives."""
     import os
     import signal
-    import subprocess
-    import sys
     import threading
-    import time
 
     from benchmarks.ensemble.executors import SchedulerLost
     from integrators import ETD2
-    dask = [sys.executable, "-m", "distributed.cli.dask_scheduler"]
-    worker_cmd = [sys.executable, "-m", "distributed.cli.dask_worker"]
-
-    def cluster():
-        port = _free_port()
-        address = f"tcp://127.0.0.1:{port}"
-        quiet = dict(stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                     start_new_session=True)
-        s = subprocess.Popen([*dask, "--host", "127.0.0.1", "--port", str(port),
-                              "--no-dashboard"], **quiet)
-        w = subprocess.Popen([*worker_cmd, address, "--nthreads", "1", "--no-dashboard"],
-                             **quiet)
-        return address, s, w
-
-    def stop(*procs):
-        for p in procs:
-            try:
-                os.killpg(p.pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
-            p.wait()
-
     # 16 points of W4, 10 s each, ETD2 point by point: a few seconds of work, one point a chunk
     base = window("W4", "slip", t_end=10.0)
     points = grid(b=np.arange(0.0095, 0.0103, 0.0001), lc=[1e-7, 3e-7])
     store = tmp_path / "s"
-    address, s, w = cluster()
+    address, s, w = _cluster()
     try:
         def kill_when_stored():
             deadline = time.time() + 180
@@ -369,17 +410,17 @@ def test_losing_the_dask_scheduler_stops_the_run_keeping_its_chunks(tmp_path):
             ensemble(base, ETD2(), points, store=store, scheduler=address, progress=False,
                      connect_timeout=30)
     finally:
-        stop(s, w)
+        _stop(s, w)
     message = str(caught.value)
     assert "\n" not in message and "was lost" in message and str(store) in message
     kept = int(message.split("; ")[-1].split(" of ")[0])
     assert kept >= 1 and len(_chunks(store)) == kept      # one point a chunk
-    address, s, w = cluster()
+    address, s, w = _cluster()
     try:
         again = ensemble(base, ETD2(), points, store=store, scheduler=address, progress=False,
                          connect_timeout=30)
     finally:
-        stop(s, w)
+        _stop(s, w)
     assert again.attrs["n_resumed"] == kept
     local = ensemble(base, ETD2(), points, workers=1, progress=False)
     _same(again, local)

@@ -22,8 +22,8 @@ import dataclasses
 import io
 import json
 import os
+import shlex
 import sys
-import textwrap
 import warnings
 from pathlib import Path
 
@@ -329,10 +329,6 @@ def _setting(text: str) -> tuple[str, object]:
     return key, value
 
 
-def _listed(names) -> str:
-    return textwrap.fill(", ".join(names) + ".", 78, initial_indent="  ", subsequent_indent="  ")
-
-
 def build_parser() -> Parser:
     parser = Parser(prog="rsfbench", description=__doc__.split("\n\n")[0])
     parser.add_argument("--version", action=ShowVersion)
@@ -494,6 +490,8 @@ def main(argv: list[str] | None = None) -> int:
         args = None
         try:
             args = build_parser().parse_args(argv)
+            args.command_line = shlex.join(["rsfbench", *(sys.argv[1:] if argv is None
+                                                          else argv)])
             return args.func(args)
         except ValueError as exc:                 # a user's mistake: say which, no traceback
             return _fail(_one_line(exc), 2, json_mode)

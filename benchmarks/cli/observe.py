@@ -4,16 +4,16 @@
         --column acceleration=a1:g --column slip=LDT:mm --column table=Table:mm \\
         --normal-force 997500 --mass 1100 --out obs_run42
     rsfbench observe run42.parquet --columns run42.toml --json
-    rsfbench invert --problem obs_run42/apparatus.toml --observations obs_run42/observations.json
+    rsfbench invert --problem obs_run42/apparatus.toml \\
+        --observations obs_run42/observations.json --b-range 0.0086,0.0102 --lc-range 3e-8,3e-6
 
-See :mod:`benchmarks.inversion.observe` for the files written and the column file, and
+See :mod:`benchmarks.inversion.observing` for the files written and the column file, and
 :mod:`benchmarks.physics.record_analysis` for how each quantity is measured.
 """
 
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
 
 from benchmarks.cli.args import in_file, out_dir, positive, say
@@ -39,12 +39,16 @@ and the curves; the table's position gives vLs, vLf, df and the stiffness."""
 
 
 def cmd_observe(args) -> int:
-    from benchmarks.inversion.observe import observe, read_column_file
+    from benchmarks.inversion.observing import observe, read_column_file
     from benchmarks.records.provenance import provenance
+    from benchmarks.physics.recording import column_spec
     columns, constants = read_column_file(args.columns) if args.columns else ({}, {})
+    given = set()
     for spec in args.column:
-        from benchmarks.physics.recording import column_spec
         channel, column, unit = column_spec(spec)
+        if channel in given:
+            raise ValueError(f"--column {spec}: channel {channel} is mapped twice")
+        given.add(channel)
         columns[channel] = (column, unit)
     if not columns:
         raise ValueError("map the recording's columns: --column CHANNEL=COLUMN[:UNIT] "
@@ -53,7 +57,7 @@ def cmd_observe(args) -> int:
         if getattr(args, key) is not None:
             constants[key] = getattr(args, key)
     out = args.out or Path(f"observe_{Path(args.recording).stem}")
-    record = {**provenance(), "command": "rsfbench " + " ".join(sys.argv[1:])}
+    record = {**provenance(), "command": args.command_line}
     doc = observe(args.recording, columns, out, sigma=args.sigma, plot=not args.no_plot,
                   provenance=record, **constants)
     if args.json:
@@ -69,9 +73,8 @@ def cmd_observe(args) -> int:
                                      ("friction_drop", "friction drop", 1.0, ""),
                                      ("slip_m", "slip per event", 1e3, "mm"),
                                      ("peak_velocity_m_s", "peak slip rate", 1.0, "m/s")):
-        x = m[name]
-        say(f"  {label:20s} {x['mean'] * scale:.6g} {unit:3s} std {x['std'] * scale:.3g}, "
-            f"sem {x['sem'] * scale:.3g}")
+        x = {k: _scaled(m[name].get(k), scale) for k in ("mean", "std", "sem")}
+        say(f"  {label:20s} {x['mean']} {unit:3s} std {x['std']}, sem {x['sem']}")
     a = doc["apparatus"]
     for key, label, unit in (("stiffness", "stiffness k", "N/m"), ("vls", "vLs", "m/s"),
                              ("vlf", "vLf", "m/s"), ("df", "df", "s")):
@@ -84,6 +87,12 @@ def cmd_observe(args) -> int:
         f"  σ of an inversion: {doc['sigma']}")
     say(f"written: {', '.join(doc['files'].values())}")
     return 0
+
+
+def _scaled(value, scale: float) -> str:
+    """A metric of the file (None where it is not a number: not measured on this record, or
+    a spread of fewer than two events) for the text output."""
+    return "–" if value is None else f"{value * scale:.6g}"
 
 
 def add_parsers(sub) -> None:

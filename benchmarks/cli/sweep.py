@@ -71,7 +71,8 @@ def cmd_sweep(args) -> int:
     s = {**result.summary, "integrator_choice": why, "out": str(out)}
     if not args.no_plot:
         # the published fit is marked only against the published observations it was fitted to
-        own_obs = args.obs_recurrence is not None or args.obs_drop is not None
+        own_obs = (args.obs_recurrence is not None or args.obs_drop is not None
+                   or args.observations is not None)
         mark, label = ((args.mark, "given") if args.mark is not None else
                        ((problem.law.b, problem.law.lc), "published")
                        if published and not own_obs else (None, ""))

@@ -11,7 +11,12 @@ cluster, with the guarantees a long unattended run needs.
   gone: the client's futures come back cancelled, its calls raise ``CommClosedError``) with
   :class:`SchedulerLost`. Both are :class:`RunStopped`: the caller adds what is done and kept,
   and a command says it in one line with exit status 1. A task that merely crashed its workers
-  (``KilledWorker``) is the failed row of its task instead: the run goes on.
+  (``KilledWorker``) is the failed row of its task instead: the run goes on. A finished
+  task's result lives on the worker that computed it: when that worker is lost before the
+  result is fetched, the fetch would wait for ever for a recomputation that needs a worker
+  (``Future.result`` has no timeout of its own); it is given :data:`RESULT_TIMEOUT_S`, and the
+  task, with the others of its batch not yet fetched, goes back to the pending ones, which the
+  rule above then ends or a new worker computes.
 * **One line, not a log.** While a run uses the cluster, distributed's own loggers are raised to
   CRITICAL: a lost scheduler makes the client log each reconnection attempt with a traceback,
   which a command's standard error must not carry (the run says what happened itself).
@@ -28,7 +33,7 @@ import time
 
 __all__ = ["execute", "connect", "quiet_distributed", "RunStopped", "ClusterGone",
            "SchedulerLost", "PARENT_POLL_S", "CONNECT_TIMEOUT_S",
-           "WORKER_TIMEOUT_S"]
+           "WORKER_TIMEOUT_S", "RESULT_TIMEOUT_S"]
 
 #: s between two looks of a pool worker at its parent
 PARENT_POLL_S = 0.5
@@ -36,6 +41,9 @@ PARENT_POLL_S = 0.5
 CONNECT_TIMEOUT_S = 10.0
 #: s a Dask cluster may have no worker while points are pending
 WORKER_TIMEOUT_S = 60.0
+#: s to fetch a finished task's result (a chunk's table: milliseconds) before the task is taken
+#: for lost with its worker and waited for again
+RESULT_TIMEOUT_S = 10.0
 
 
 class RunStopped(RuntimeError):
@@ -165,10 +173,14 @@ def _on_dask(run, warm, failed, tasks, client, worker_timeout):
             done = set()
         except (CancelledError, OSError) as exc:
             raise lost(type(exc).__name__) from None
-        for fut in done:
+        done = list(done)
+        for i, fut in enumerate(done):
             task = index[fut.key]
             try:
-                row = fut.result()
+                row = fut.result(timeout=RESULT_TIMEOUT_S)
+            except TimeoutError:        # lost with its worker (module docstring), as are the
+                pending.update(done[i:])  # others it finished: not one timeout each
+                break
             except CancelledError as exc:
                 raise lost(type(exc).__name__) from None
             except Exception as exc:              # KilledWorker: the task crashed its workers

@@ -1,7 +1,7 @@
 """Inversions of (b, Lc) a solver can be chosen for: one likelihood, J1 of Eq. 10, with what a
 point without a limit cycle is to each reader (:func:`~benchmarks.inversion.fitting.scores`);
 the observations, typed in or measured on a recording (:mod:`~benchmarks.inversion.observations`,
-:mod:`~benchmarks.inversion.observe`); the misfit as a function
+:mod:`~benchmarks.inversion.observing`); the misfit as a function
 (:mod:`~benchmarks.inversion.misfit`), the multi-start least-squares fit with its covariance
 (:mod:`~benchmarks.inversion.fit`), profile likelihoods (:mod:`~benchmarks.inversion.profile`),
 posterior samples with emcee (:mod:`~benchmarks.inversion.posterior`), the forward model on a
@@ -27,6 +27,6 @@ __all__ = ["Misfit", "NO_CYCLE_RESIDUAL", "synthetic", "fit", "FitResult", "prof
 
 def __getattr__(name):                 # observe reads and plots a recording: imported on use
     if name == "observe":
-        from benchmarks.inversion.observe import observe
+        from benchmarks.inversion.observing import observe
         return observe
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -72,7 +72,7 @@ class Scores(NamedTuple):
 def scores(recurrence_s, friction_drop, cycle, obs) -> Scores:
     """Eq. 10 of points with limit-cycle metrics ``recurrence_s``, ``friction_drop`` (arrays
     of one shape; a point scores only where ``cycle``) against ``obs`` (an
-    :class:`~benchmarks.inversion.sweep.Observations`: means and positive σ)."""
+    :class:`~benchmarks.inversion.observations.Observations`: means and positive σ)."""
     cycle = np.asarray(cycle, dtype=bool)
     residual = [np.where(cycle, (np.asarray(x, dtype=float) - mean) / sigma, np.nan)
                 for x, mean, sigma in ((recurrence_s, obs.recurrence_s, obs.sigma_recurrence_s),

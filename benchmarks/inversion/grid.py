@@ -3,7 +3,7 @@
 The limit-cycle metrics of a problem do not depend on the observations, so one ensemble over a
 grid (:func:`metric_map`) serves every data set scored against it: the published means, a
 thousand seeded synthetic sets (calibration), the same data under another solver (the solver's
-effect). From a :class:`MetricMap` and an :class:`~benchmarks.inversion.sweep.Observations`:
+effect). From a :class:`MetricMap` and an :class:`~benchmarks.inversion.observations.Observations`:
 
 * :meth:`MetricMap.scores`: Eq. 10 on the grid (:func:`benchmarks.inversion.fitting.scores`), and
   :meth:`MetricMap.j1`, J1 with ``NO_CYCLE_J1`` where there is no limit cycle;

@@ -1,7 +1,7 @@
 """The misfit of (b, Lc) as a function, for fits, profiles and samplers (issue 17, item 1).
 
-:class:`Misfit` binds one problem, its observations (:class:`benchmarks.inversion.sweep.Observations`) and
-one algorithm. It evaluates any batch of (b, Lc) on the ensemble engine
+:class:`Misfit` binds one problem, its observations
+(:class:`benchmarks.inversion.observations.Observations`) and one algorithm. It evaluates any batch of (b, Lc) on the ensemble engine
 (:func:`benchmarks.ensemble.ensemble`: one compiled batch for the own methods) and returns, per
 point, the limit-cycle metrics, the residuals, J1 (Eq. 10), J2 (Eq. 11, when the observations
 have slip-weakening curves) and the log-likelihood.

@@ -174,8 +174,10 @@ def read_observations(path, sigma: str | None = None) -> Observations:
     which = sigma or doc["sigma"]
     try:
         m = {k: doc["metrics"][k] for k in ("recurrence_s", "friction_drop")}
-        values = [float(m["recurrence_s"]["mean"]), float(m["recurrence_s"][which]),
-                  float(m["friction_drop"]["mean"]), float(m["friction_drop"][which])]
+        # None: what write_observations makes of NaN (JSON has none), a spread of < 2 events
+        values = [math.nan if v is None else float(v) for v in (
+            m["recurrence_s"]["mean"], m["recurrence_s"][which], m["friction_drop"]["mean"],
+            m["friction_drop"][which])]
     except (KeyError, TypeError, ValueError):
         raise ValueError(f"observations file {path}: its metrics lack the mean and {which} of "
                          "recurrence_s and friction_drop") from None
@@ -184,5 +186,8 @@ def read_observations(path, sigma: str | None = None) -> Observations:
                          f"number (from {doc['metrics']['recurrence_s'].get('n')} events: at "
                          "least two are needed)")
     curves = doc.get("curves")
-    curves = pd.DataFrame(curves) if curves else None
-    return Observations(*values, curves=curves)
+    try:
+        curves = pd.DataFrame(curves) if curves else None
+        return Observations(*values, curves=curves)
+    except (ValueError, TypeError) as exc:
+        raise ValueError(f"observations file {path}: {exc}") from None

@@ -4,7 +4,7 @@ slide-hold-slide test (:mod:`~benchmarks.physics.lab`), slip-weakening curves
 (:mod:`~benchmarks.physics.curves`), figures (:mod:`~benchmarks.physics.plots`), the summary
 of one run (:mod:`~benchmarks.physics.summary`), and a laboratory recording: read and checked
 (:mod:`~benchmarks.physics.recording`), measured (:mod:`~benchmarks.physics.record_analysis`),
-or made by the forward model (:mod:`~benchmarks.physics.synthetic_recording`). Nothing here reads a save grid for a measure."""
+or made by the forward model (:mod:`~benchmarks.physics.model_recording`). Nothing here reads a save grid for a measure."""
 
 from benchmarks._api import lazy_api
 
@@ -19,5 +19,5 @@ __getattr__, __dir__, __all__ = lazy_api(__name__, {
     "summary": ("simulate_summary",),
     "recording": ("read_recording", "recording_from", "Recording", "CHANNELS", "UNITS"),
     "record_analysis": ("analyse", "Analysis"),
-    "synthetic_recording": ("synthetic_recording",),
+    "model_recording": ("synthetic_recording",),
 })

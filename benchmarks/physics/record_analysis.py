@@ -7,23 +7,26 @@ compared with.
 at ``DETECT_HZ``, that exceed a threshold far above the noise (a zigzag with hysteresis, robust
 to noise and to a slow drift). Where the slip rate can be had (a slip column, or accelerations),
 each event is then timed by the model's rule: it starts when the slip rate exceeds 10·vLs and
-ends when it falls back below vLs — or below the slip rate's noise, when that is larger. The
+ends when it falls back below vLs — or below 3 σ of the slip rate's noise, when that is larger. The
 first event (its stick began before the record did) and an event still running at the record's
 end are dropped.
 
 **Metrics per event**, as :func:`benchmarks.physics.metrics.event_metrics` defines them: ΔT from
 the previous event's start; Δμ = (largest Fs since the previous event ended − smallest Fs during
-the event)/Fn, each extremum the vertex of a parabola fitted to the raw samples around it (the
-samples within ``EXTREMUM_BAND`` of the drop from it), so that noise averages out instead of
-biasing the max and the min apart; slip from the start to the end (the slip column low-passed
-at ``DETECT_HZ``, or the accelerations integrated twice); the peak slip rate (a parabola's vertex
-on the slip rate).
+the event)/Fn, each extremum that of a polynomial of degree ``EXTREMUM_DEGREE`` fitted to the
+raw samples around it (those within ``EXTREMUM_BAND`` of the drop from it, or 3 σ of the noise),
+so that noise averages out instead of biasing the max and the min apart; slip from the start to
+the end (the slip column smoothed at the first of ``TIMING_HZ`` quiet enough to time the events,
+or the accelerations integrated twice); the peak slip rate (the largest slope of a quartic fitted
+to the slip where its rate is above half its peak).
 
 **Slip from accelerations**: a = a1 − a2 (or a1) low-passed at ``ACCELERATION_HZ`` and
 integrated over a window around each event; the drift is removed per event (the slip rate is a
 line through its values in the quiet stretches before and after the event, subtracted).
 
-**The fault's friction** Ft = Fs − m·a (Eq. 3), Fs low-passed at ``FORCE_HZ`` and a at
+**The fault's friction** Ft = Fs − m·a1 (Eq. 3: the upper specimen's own acceleration a1, not
+the slip's a1 − a2, as the upper specimen is what the spring and the fault push), Fs low-passed
+at ``FORCE_HZ`` and a1 at
 ``ACCELERATION_HZ`` (the paper's 400 Hz and 750 Hz), zero phase. Slip-weakening curves, one per
 event, are Ft/Fn against the slip since the event started, from its start to its end: the
 convention of :func:`benchmarks.physics.curves.event_curve`. A record without accelerations
@@ -56,8 +59,8 @@ DETECT_HZ = 50.0
 FORCE_HZ = 400.0
 #: low-pass (Hz) of the accelerations (the paper's 750 Hz)
 ACCELERATION_HZ = 750.0
-#: an extremum is found again on the force smoothed at this (Hz), and its parabola fitted to
-#: the samples within ``EXTREMUM_BAND`` of the drop from it
+#: an extremum is found again on the force smoothed at this (Hz), and a polynomial of degree
+#: ``EXTREMUM_DEGREE`` fitted to the samples within ``EXTREMUM_BAND`` of the drop from it
 FINE_HZ = 500.0
 #: the slip column is smoothed at the first of these (Hz) quiet enough to time the events
 TIMING_HZ = (750.0, 300.0, 150.0, DETECT_HZ)
@@ -120,19 +123,19 @@ def analyse(rec, mass: float | None = None, vls: float | None = None,
     if slip_source == "accelerations" and rec.has("table"):
         _check_events_against_table(rec, events)
     vlf = df = None
-    if rec.has("table"):
+    if rec.has("table") and vls is not None:
         vlf, df = _fast_phase(rec, events, vls)
         how["vlf"] = how["df"] = (f"the speed of {rec.where('table')} after each event: "
                                   "above half-way to its peak for df, its excess travel "
                                   "(vLf − vLs)·df")
-    k, how["stiffness"] = _stiffness(rec, fs_smooth, drops, stiffness, vls)
+    k, how["stiffness"] = _stiffness(rec, fs_smooth, drops, stiffness, vls, how.get("vls"))
     if slip_source == "force" and k is not None and rec.has("table"):
         events["slip_m"] = _force_slip(rec, fs_smooth, events, k)
         notes.append("slip per event from the spring (Δl − ΔFs/k): the record has neither a "
                      "slip column nor accelerations")
     curves = None
     if acc is not None and mass is not None:
-        curves = _curves(rec, events, acc, mass)
+        curves = _curves(rec, events, mass)
     elif acc is None:
         notes.append("no slip-weakening curves: the record has no accelerations, and the load "
                      "cell's force is not the fault's friction (Ft = Fs − m·a)")
@@ -291,9 +294,9 @@ def _extremum(t: np.ndarray, x: np.ndarray, i: int, drop: float, sign: float, lo
     """The extreme value of the raw samples ``x`` near index ``i`` (a maximum for ``sign`` +1,
     a minimum for −1), searched within [lo, hi): found again on ``x`` smoothed at ``FINE_HZ``
     within ``DETECT_HZ``'s reach of ``i`` (a coarse smoothing moves the extremum of a lopsided
-    peak), then the extreme of a cubic fitted to the raw samples whose finely smoothed value is
-    within ``EXTREMUM_BAND`` × ``drop`` of it, or within 3 σ (``sigma``, the noise's) if that
-    is wider: enough samples that the noise averages out rather than biasing the extreme. The
+    peak), then the extreme of a polynomial of degree ``EXTREMUM_DEGREE`` fitted to the raw
+    samples whose finely smoothed value is within ``EXTREMUM_BAND`` × ``drop`` of it, or within
+    3 σ (``sigma``, the noise's) if that is wider: enough samples that the noise averages out rather than biasing the extreme. The
     polynomial is of degree ``EXTREMUM_DEGREE``: an extremum of stick–slip is lopsided (a slow
     rise, a fast drop), which a parabola fits badly."""
     reach = int(3 * rate / (2 * math.pi * DETECT_HZ)) + 2
@@ -326,8 +329,10 @@ def _peak_rate(t: np.ndarray, u: np.ndarray, v: np.ndarray, a: int, b: int) -> f
         lo -= 1
     while hi < b and v[hi] >= 0.5 * v[i]:
         hi += 1
-    while hi - lo < 9:
+    while hi - lo < 9 and (lo > 0 or hi < len(u)):
         lo, hi = max(0, lo - 1), min(len(u), hi + 1)
+    if hi - lo < 9:                       # too few samples for the quartic
+        return math.nan
     tt = t[lo:hi] - t[i]
     scale = tt[-1] - tt[0]
     coef = np.polyfit(tt / scale, u[lo:hi], 4)
@@ -514,13 +519,17 @@ def _sticks_between(events, n: int) -> list[tuple[int, int]]:
     return [(int(e), int(s)) for e, s in zip(ends, starts) if s > e]
 
 
-def _stiffness(rec, fs, drops, given, vls) -> tuple[float | None, str]:
-    """k (N/m) and how it was had (module docstring)."""
+def _stiffness(rec, fs, drops, given, vls, vls_how) -> tuple[float | None, str]:
+    """k (N/m) and how it was had (module docstring); ``vls_how``: how vLs was had."""
     from problems._validate import PLAUSIBLE
     if given is not None:
         return given, "given"
     t, rate = rec.t, rec.rate
     sticks = _sticks(drops, len(t), rate, skip=0.05, tail=0.05)
+    middle = _sticks(drops, len(t), rate)
+    if not sticks or not middle:
+        return None, ("not measured: no stick is long enough (at least 10 samples and 10 ms "
+                      "between two drops)")
     if rec.has("table") and rec.has("slip"):
         stretch = _smooth(rec["table"] - rec["slip"], DETECT_HZ, rate)
         k = float(np.median([_slope(stretch[a:b], fs[a:b]) for a, b in sticks]))
@@ -529,16 +538,15 @@ def _stiffness(rec, fs, drops, given, vls) -> tuple[float | None, str]:
         names = f"{rec.where('table')} and {rec.where('slip')}"
     elif rec.has("table"):
         table = _smooth(rec["table"], DETECT_HZ, rate)
-        middle = _sticks(drops, len(t), rate)
         k = float(np.median([_slope(table[a:b], fs[a:b]) for a, b in middle]))
         how = (f"dFs/dl over the slow middle of the sticks ({rec.columns['table']!r}; the "
                "paper's Ḟs/vLs: the creep during the stick makes it slightly low)")
         names = rec.where("table")
     elif vls is not None:
-        middle = _sticks(drops, len(t), rate)
         k = float(np.median([_slope(t[a:b], fs[a:b]) for a, b in middle])) / vls
-        how = "Ḟs/vLs over the slow middle of the sticks (vLs given; the creep makes it low)"
-        names = "the given vls"
+        how = (f"Ḟs/vLs over the slow middle of the sticks (vLs: {vls_how}; the creep makes "
+               "it low)")
+        names = f"{rec.where('shear_force')} and vLs ({vls_how})"
     else:
         return None, "not measured: the record has no table column and no vls was given"
     plausible = PLAUSIBLE["stiffness"]
@@ -555,19 +563,16 @@ def _force_slip(rec, fs, events, k: float) -> np.ndarray:
     and end."""
     t = rec.t
     ts, te = events.t_start.to_numpy(), events.t_end.to_numpy()
-    if rec.has("table"):
-        table = _smooth(rec["table"], DETECT_HZ, rec.rate)
-        dl = np.interp(te, t, table) - np.interp(ts, t, table)
-    else:
-        dl = np.full(len(ts), np.nan)
+    table = _smooth(rec["table"], DETECT_HZ, rec.rate)        # the caller's: a table column
+    dl = np.interp(te, t, table) - np.interp(ts, t, table)
     return dl - (np.interp(te, t, fs) - np.interp(ts, t, fs)) / k
 
 
-def _curves(rec, events, acc, mass: float) -> pd.DataFrame:
+def _curves(rec, events, mass: float) -> pd.DataFrame:
     """Ft/Fn against the slip since the start of each event, from its start to its end."""
     t, rate = rec.t, rec.rate
-    ft = _lowpass(rec["shear_force"], FORCE_HZ, rate) - mass * _lowpass(acc, ACCELERATION_HZ,
-                                                                         rate)
+    ft = _lowpass(rec["shear_force"], FORCE_HZ, rate) - mass * _lowpass(
+        rec["acceleration"], ACCELERATION_HZ, rate)           # a1, not acc = a1 − a2 (Eq. 3)
     mu = ft / rec["normal_force"]
     integrated = events.attrs.get("integrated", {})
     if rec.has("slip") and not integrated:

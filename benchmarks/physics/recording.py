@@ -21,8 +21,10 @@ MN; m, mm, µm (um), nm; m/s2, mm/s2, g.
 
 What is refused before any measure, in one line naming the column and the row: a column that is
 missing or not a number, missing values (a run of NaN), times that do not increase, repeat, jump
-(a gap of over 1.5 sampling intervals) or are unevenly sampled, a channel stuck at its extreme
-(a saturated sensor), and a shear force whose ratio to the normal force no friction coefficient
+(a gap of over 1.5 sampling intervals) or are unevenly sampled, a time column of dates or
+durations (give seconds), a force or an acceleration clipped at its extreme (a saturated sensor:
+two separate runs of ``SATURATED_RUN`` samples or more at the channel's largest or smallest value,
+inside the record), and a shear force whose ratio to the normal force no friction coefficient
 has (one of them in another unit). Other units slips are caught where two channels measure the
 same thing (:mod:`benchmarks.physics.record_analysis`).
 """
@@ -36,8 +38,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-__all__ = ["CHANNELS", "UNITS", "Recording", "read_recording", "column_spec", "recording_from",
-           "column_map"]
+__all__ = ["CHANNELS", "UNITS", "Recording", "read_recording", "column_spec", "explicit_unit",
+           "recording_from", "column_map"]
 
 #: each channel and its SI unit
 CHANNELS = {"time": "s", "shear_force": "N", "normal_force": "N", "acceleration": "m/s2",
@@ -50,9 +52,12 @@ UNITS = {"s": ("s", 1.0), "ms": ("s", 1e-3), "us": ("s", 1e-6), "µs": ("s", 1e-
          "mm/s2": ("m/s2", 1e-3), "g": ("m/s2", 9.80665)}
 #: a friction coefficient Fs/Fn beyond these is a unit slip (kN against N is 10³ off)
 MU_RANGE = (0.01, 3.0)
-#: samples at a channel's extreme value in a row that make it saturated
+#: samples at a channel's extreme value in a row, in two separate places, that make it saturated
+#: (one such run is a peak of a quantised signal that is flat within one step)
 SATURATED_RUN = 20
-_CLIPPED = ("shear_force", "normal_force", "acceleration", "acceleration_lower", "slip")
+#: the channels that clip (a slip or a table position is at its extremes at the record's ends,
+#: a held normal force all along)
+_CLIPPED = ("shear_force", "acceleration", "acceleration_lower")
 
 
 @dataclass(frozen=True)
@@ -102,11 +107,25 @@ def column_spec(text: str) -> tuple[str, str, str]:
     column, sep, unit = rest.rpartition(":")
     if not sep or unit not in UNITS:
         column, unit = rest, CHANNELS[channel]
+        if sep and column.count(":") == 1 and unit.strip() and not unit[:1].isdigit() \
+                and len(unit) <= 6:
+            # the column named as COLUMN:UNIT with a unit that is none of ours (kgf, KN): the
+            # read names it if the file has no column of this whole name (_has)
+            column = _UnknownUnit(rest)
     if UNITS[unit][0] != CHANNELS[channel]:
         units = ", ".join(u for u, (si, _) in UNITS.items() if si == CHANNELS[channel])
         raise ValueError(f"column mapping {text!r}: {unit} is not a unit of {channel} (in "
                          f"{CHANNELS[channel]}: {units})")
     return channel, column, unit
+
+
+def explicit_unit(channel: str, column: str, unit: str) -> tuple[str, str, str]:
+    """(channel, column, unit) checked as :func:`column_spec` checks a spec, the unit given on
+    its own (so that one none of ours is refused by name, not taken as part of the column's)."""
+    if unit not in UNITS:
+        raise ValueError(f"column {column!r} ({channel}): {unit!r} is not a known unit (units: "
+                         f"{', '.join(UNITS)})")
+    return column_spec(f"{channel}={column}:{unit}")
 
 
 def read_recording(path, columns, normal_force: float | None = None) -> Recording:
@@ -162,7 +181,7 @@ def column_map(columns) -> dict[str, tuple[str, str]]:
                  columns.items()]
         mapping = {}
         for channel, (column, unit) in items:
-            channel, column, unit = column_spec(f"{channel}={column}:{unit}")
+            channel, column, unit = explicit_unit(channel, column, unit)
             mapping[channel] = (column, unit)
     else:
         mapping = {}
@@ -194,7 +213,8 @@ def _read(path: Path, wanted: list[str]) -> pd.DataFrame:
         with open(path, encoding="utf-8", errors="replace") as f:
             header = f.readline()
         sep = "\t" if "\t" in header else ";" if header.count(";") > header.count(",") else ","
-        names = [n.strip() for n in header.rstrip("\r\n").split(sep)]
+        # the names as pandas reads them (a quoted name loses its quotes)
+        names = [str(n).strip() for n in pd.read_csv(path, sep=sep, nrows=0).columns]
         _has(wanted, names, path)
         return pd.read_csv(path, sep=sep, usecols=lambda n: n.strip() in wanted,
                            engine="c", skipinitialspace=True).rename(columns=str.strip)
@@ -205,10 +225,20 @@ def _read(path: Path, wanted: list[str]) -> pd.DataFrame:
         raise ValueError(f"recording {path} cannot be read: {exc.strerror or exc}") from None
 
 
+class _UnknownUnit(str):
+    """A column name ``COLUMN:WORD`` whose suffix is no known unit: a column of that whole name
+    if the file has one, else the unit is named as unknown."""
+
+
 def _has(wanted, names, path) -> None:
     missing = [c for c in wanted if c not in names]
     if missing:
-        raise ValueError(f"recording {path} has no column {missing[0]!r}; its columns: "
+        c = missing[0]
+        if isinstance(c, _UnknownUnit):
+            column, unit = c.rsplit(":", 1)
+            raise ValueError(f"recording {path}: {unit!r} in {c!r} is not a known unit (units: "
+                             f"{', '.join(UNITS)}) and the file has no column {c!r}")
+        raise ValueError(f"recording {path} has no column {c!r}; its columns: "
                          f"{', '.join(names)}")
 
 
@@ -218,6 +248,10 @@ def _row(i: int) -> int:
 
 
 def _numbers(series: pd.Series, column: str, source: str) -> np.ndarray:
+    if pd.api.types.is_datetime64_any_dtype(series) or pd.api.types.is_timedelta64_dtype(series):
+        raise ValueError(f"{source}: column {column!r} holds {series.dtype} values (dates or "
+                         "durations); give it as numbers in a stated unit (seconds since the "
+                         "start, say)")
     values = pd.to_numeric(series, errors="coerce").to_numpy(dtype=float)
     bad = ~np.isfinite(values)
     if bad.any():
@@ -259,17 +293,18 @@ def _check_time(t: np.ndarray, column: str, source: str) -> None:
 def _check_saturation(x: np.ndarray, column: str, channel: str, source: str) -> None:
     for extreme, which in ((x.max(), "maximum"), (x.min(), "minimum")):
         at = x == extreme
-        if at.sum() < SATURATED_RUN:
+        if at.sum() < 2 * SATURATED_RUN:
             continue
-        # the longest run of samples at the extreme
+        # the runs of samples at the extreme, inside the record, long enough to be a clip
         edges = np.flatnonzero(np.diff(np.concatenate(([0], at.view(np.int8), [0]))))
         starts, ends = edges[::2], edges[1::2]
-        k = int(np.argmax(ends - starts))
-        if ends[k] - starts[k] >= SATURATED_RUN:
+        clip = (ends - starts >= SATURATED_RUN) & (starts > 0) & (ends < len(x))
+        if clip.sum() >= 2:
+            k = int(np.flatnonzero(clip)[0])
             raise ValueError(f"{source}: column {column!r} ({channel}) is stuck at its "
                              f"{which} {extreme:.6g} from row {_row(starts[k])} for "
-                             f"{ends[k] - starts[k]} samples: a saturated sensor cannot be "
-                             "measured on")
+                             f"{ends[k] - starts[k]} samples, and {int(clip.sum()) - 1} more "
+                             "time(s): a saturated sensor cannot be measured on")
 
 
 def _check_friction(fs: np.ndarray, fn: np.ndarray, names: dict, source: str) -> None:

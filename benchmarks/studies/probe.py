@@ -4,6 +4,7 @@ keeps its table of kinds and outcomes. It needs a checkout (the tests are not in
 
 from __future__ import annotations
 
+import importlib.util
 import subprocess
 import sys
 from pathlib import Path
@@ -19,6 +20,9 @@ SUITE = ROOT / "tests" / "probe"
 def run(out: Path) -> None:
     if not SUITE.is_dir():
         raise ValueError(f"the probe is the test suite {SUITE}, which only a checkout has")
+    if importlib.util.find_spec("pytest") is None:
+        raise ValueError("the probe runs the test suite with pytest, which is not installed: "
+                         "pip install --group test . (or make test)")
     for name in ("reliability.csv", "reliability.md"):     # the run's own, never an earlier one
         (out / name).unlink(missing_ok=True)
     done = subprocess.run([sys.executable, "-m", "pytest", str(SUITE), "-q", "-p",

@@ -99,8 +99,11 @@ class Study:
             if isinstance(default, str):
                 continue
             low, high = self.limits.get(key, (-math.inf, math.inf))
-            if not (math.isfinite(value) and low <= value <= high):
-                raise ValueError(f"study {self.name}: setting {key} = {value!r} is outside "
+            # an int compares with the limits as it is (math.isfinite of a 400-digit one
+            # would overflow); a float is also refused as NaN or infinite
+            if not (low <= value <= high and (isinstance(value, int) or math.isfinite(value))):
+                shown = f"{value!r}" if len(repr(value)) <= 30 else f"{repr(value)[:20]}…"
+                raise ValueError(f"study {self.name}: setting {key} = {shown} is outside "
                                  f"[{low:g}, {high:g}]")
         if self.check is not None:
             self.check({**self.settings, **settings})

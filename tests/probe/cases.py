@@ -3,7 +3,7 @@
 Cases are built by small factories so that each family (every numeric parameter of every
 dataclass × every kind of bad value, every numeric flag of every command, every backend's
 budget) is complete by construction. :func:`cases` returns them all; ``slow`` ones (kills,
-subprocesses, clusters) are run by ``make test-slow`` and ``rsfbench probe --slow``.
+subprocesses, clusters) are run by ``make test-slow`` (``pytest -m slow``).
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ import numpy as np
 from probe import families as probe_families
 from probe.harness import Case, Observed, Wrong, cli, cli_outcome, one_json
 
-__all__ = ["cases", "fast_cases", "slow_cases"]
+__all__ = ["cases"]
 
 ROOT = Path(__file__).resolve().parents[2]
 NAN, INF = float("nan"), float("inf")
@@ -1190,10 +1190,3 @@ def cases() -> list[Case]:
             + _corrupt_reference_cases() + _machine_output_cases() + _misfit_cases()
             + probe_families.cases())
 
-
-def fast_cases() -> list[Case]:
-    return [c for c in cases() if not c.slow]
-
-
-def slow_cases() -> list[Case]:
-    return [c for c in cases() if c.slow]

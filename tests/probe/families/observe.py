@@ -23,7 +23,7 @@ _MAP = ("--column", "time=t", "--column", "shear_force=Fs:kN", "--normal-force",
 def _good() -> pd.DataFrame:
     """W2 (slip law) recorded for 20 s from t = 5 s at 10 kHz with 1 % noise: Fs in kN, the
     slip and the table in mm, the acceleration in m/s²."""
-    from benchmarks.physics.synthetic_recording import synthetic_recording
+    from benchmarks.physics.model_recording import synthetic_recording
     from problems import preset
     table, _ = synthetic_recording(preset("W2", law="slip", t_end=20.0), t_skip=5.0,
                                    noise=0.01, drift=0.01, seed=9)
@@ -117,13 +117,38 @@ def _sweep_reads(tmp) -> Observed:
     return got
 
 
-def _bad_file(content: str, extra=()):
+def _invert_reads(tmp) -> Observed:
+    """invert --observations: the file's means and σ are what the inversion scores against."""
+    _observed(tmp)
+    path = tmp / "o" / "observations.json"
+    run = cli("invert", "--preset", "W2", "--t-end", "12", "--integrator", "Rodas5P", "--rtol",
+              "1e-4", "--atol", "1e-4", "--steps", "0", "--profile-points", "3", "--observations",
+              str(path), "--out", str(tmp / "i"), "--no-progress", "--json")
+    got = cli_outcome(run, json_mode=True)
+    seen = one_json(run.out).get("observations", {})
+    metrics = json.loads(path.read_text())["metrics"]
+    want = {"recurrence_s": metrics["recurrence_s"]["mean"],
+            "sigma_recurrence_s": metrics["recurrence_s"]["std"],
+            "friction_drop": metrics["friction_drop"]["mean"],
+            "sigma_friction_drop": metrics["friction_drop"]["std"]}
+    if got.outcome != "ok" or any(seen.get(k) != v for k, v in want.items()):
+        raise Wrong(f"{got.outcome}, observations {seen!r} against the file's {want!r}: "
+                    f"{run.err[-300:]}")
+    return got
+
+
+_BAD_FILE_RUNS = {
+    "sweep": ("sweep", "--preset", "W2", "--b", "0.0094:0.0094:0.0001", "--lc", "3e-7:3e-7:1"),
+    "invert": ("invert", "--preset", "W2", "--steps", "0", "--profile-points", "3"),
+}
+
+
+def _bad_file(content: str, extra=(), command="sweep"):
     def run(tmp):
         path = tmp / "observations.json"
         path.write_text(content)
-        return cli_outcome(cli("sweep", "--preset", "W2", "--b", "0.0094:0.0094:0.0001", "--lc",
-                               "3e-7:3e-7:1", "--observations", str(path), *extra, "--out",
-                               str(tmp / "s")))
+        return cli_outcome(cli(*_BAD_FILE_RUNS[command], "--observations", str(path), *extra,
+                               "--out", str(tmp / "s")))
     return run
 
 
@@ -143,4 +168,15 @@ def cases() -> list[Case]:
         Case(KIND, "--observations without the σ it names", _bad_file(
             good.replace('"std": 0.1', '"sem": 0.1')), names="--observations"),
         Case(KIND, "--observations that is not JSON", _bad_file("{"), names="--observations"),
+        Case(KIND, "invert --observations reads the file observe wrote", _invert_reads, "ok",
+             timeout=300),
+        Case(KIND, "invert --observations with --obs-drop", _bad_file(
+            good, ("--obs-drop", "0.04"), "invert"), names="--obs-drop"),
+        Case(KIND, "invert --observations that is not JSON", _bad_file("[1,", (), "invert"),
+             names="--observations"),
+        Case(KIND, "invert --observations from one event (σ not a number)", _bad_file(
+            good.replace('"std": 0.1', '"std": NaN'), (), "invert"), names="--observations"),
+        Case(KIND, "invert --observations whose curves' columns differ in length", _bad_file(
+            good[:-1] + ', "curves": {"event_id": [1, 1], "slip_m": [0.0], "friction": [0.6]}}',
+            (), "invert"), names="--observations"),
     ]

@@ -473,7 +473,11 @@ def _lost(what: str, json_mode: bool):
                 stdout, err = proc.communicate(timeout=120)
             except subprocess.TimeoutExpired:
                 proc.send_signal(signal.SIGABRT)
-                _, err = proc.communicate()
+                try:
+                    _, err = proc.communicate(timeout=30)
+                except subprocess.TimeoutExpired:
+                    proc.kill()
+                    _, err = proc.communicate()
                 raise Wrong(f"the sweep hung for 120 s after losing its {what}: "
                             f"{_main_stack(err)}") from None
         finally:

@@ -12,7 +12,15 @@ slow drift. ``noise`` and ``drift`` are fractions of each channel's **per-event 
 mean friction drop (in force) for Fs, the largest |a| for the acceleration, the mean slip per
 event for the slip, the load point's travel over a mean recurrence interval for the table — so
 that "1 % noise" means the same for every channel: σ = 0.01 × what one event changes. The drift
-grows linearly from 0 to ``drift`` × that scale at the record's end.
+grows linearly from 0 at t = 0 to ``drift`` × that scale at the record's end (a record that
+starts at ``t_skip`` starts with part of it).
+
+``shake`` (m/s², rms) adds a lower specimen that vibrates (the table's own jitter), as its
+accelerometer sees it, a2: a sum of sinusoids at ``SHAKE_HZ`` with random phases. The slip and
+the spring force stay the model's (the upper specimen is carried along: a1 = ü + a2, the slip
+accelerating at a1 − a2, and the displacement of the vibration, ∫∫a2 < a µm, is left out of the
+spring), so the fault's friction is the model's less m·a2: Ft = Fs − m·a1 (Eq. 1). A reading
+that put a1 − a2 into Eq. 3 would miss that m·a2.
 
 Returns the table and the truth it was made from (:class:`Truth`): the model's own per-event
 metrics of the recorded window (:func:`benchmarks.physics.metrics.event_metrics`) and the
@@ -21,12 +29,17 @@ apparatus (k, vLs, vLf, df, m, Fn).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
 
-__all__ = ["synthetic_recording", "Truth", "load_point_position"]
+__all__ = ["synthetic_recording", "Truth", "load_point_position", "SHAKE_HZ"]
+
+#: the frequencies (Hz) of the lower specimen's vibration (``shake``): inside the band the
+#: analysis keeps of the force (400 Hz) and the accelerations (750 Hz)
+SHAKE_HZ = (23.0, 61.0, 137.0)
 
 
 @dataclass(frozen=True)
@@ -63,11 +76,13 @@ def load_point_position(loading, t: np.ndarray, event_ends) -> np.ndarray:
 
 def synthetic_recording(problem, rate: float = 10_000.0, t_skip: float = 0.0,
                         noise: float = 0.0, drift: float = 0.0, anti_alias: float | None = 0.4,
-                        seed: int = 0, algorithm=None) -> tuple[pd.DataFrame, Truth]:
+                        seed: int = 0, shake: float = 0.0,
+                        algorithm=None) -> tuple[pd.DataFrame, Truth]:
     """The recording of ``problem`` (a SpringSlider with mass) from ``t_skip`` to its ``t_end``
     at ``rate`` samples per second (module docstring). Columns: ``time`` (s), ``shear_force``
-    (N), ``acceleration`` (m/s²), ``slip`` (m), ``table`` (m). ``algorithm``: the forward solver
-    (default Rodas5P at rtol = atol = 1e−10)."""
+    (N), ``acceleration`` (m/s²), ``slip`` (m), ``table`` (m), and ``acceleration_lower``
+    (m/s²) when ``shake`` > 0. ``algorithm``: the forward solver (default Rodas5P at
+    rtol = atol = 1e−10)."""
     from scipy import signal
 
     from benchmarks.physics.metrics import event_metrics
@@ -76,6 +91,8 @@ def synthetic_recording(problem, rate: float = 10_000.0, t_skip: float = 0.0,
         raise ValueError("a recording with accelerometers needs a slider with mass (mass > 0)")
     if not 0 <= t_skip < problem.t_end:
         raise ValueError(f"t_skip must be in [0, t_end = {problem.t_end:g}) s, got {t_skip!r}")
+    if not (math.isfinite(shake) and shake >= 0):
+        raise ValueError(f"shake must be a finite rms acceleration >= 0 in m/s², got {shake!r}")
     algorithm = algorithm or Rodas5P(rtol=1e-10, atol=1e-10)
     n = int(round(problem.t_end * rate))
     sol = solve(problem, algorithm, save_every=1.0 / rate, max_points=n + 2)
@@ -85,6 +102,12 @@ def synthetic_recording(problem, rate: float = 10_000.0, t_skip: float = 0.0,
     table = load_point_position(problem.loading, t, sol.events.t_end.to_numpy())
     clean = {"shear_force": sol.fs, "acceleration": (sol.fs - sol.ft) / problem.mass,
              "slip": table - (sol.fs - sol.fs[0]) / problem.stiffness, "table": table}
+    if shake > 0:                        # the module docstring
+        phases = np.random.default_rng([seed, 1]).uniform(0.0, 2 * np.pi, len(SHAKE_HZ))
+        a2 = sum(np.sin(2 * np.pi * f * t + p) for f, p in zip(SHAKE_HZ, phases))
+        a2 *= shake / np.sqrt(np.mean(a2 ** 2))
+        clean["acceleration"] = clean["acceleration"] + a2
+        clean["acceleration_lower"] = a2
     metrics = event_metrics(sol.events, problem.normal_force)
     inside = metrics.t_start.to_numpy() >= t_skip
     complete = sol.events.t_end.to_numpy() < t[-1]
@@ -92,6 +115,7 @@ def synthetic_recording(problem, rate: float = 10_000.0, t_skip: float = 0.0,
     cycle = metrics[complete].iloc[1:]
     scale = {"shear_force": float(np.nanmean(cycle.friction_drop)) * problem.normal_force,
              "acceleration": float(np.max(np.abs(clean["acceleration"]))),
+             "acceleration_lower": float(np.max(np.abs(clean["acceleration"]))),
              "slip": float(np.nanmean(cycle.slip_m)),
              "table": problem.loading.v_slow * float(np.nanmean(cycle.recurrence_s))}
     rng = np.random.default_rng(seed)

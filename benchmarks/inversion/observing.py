@@ -12,9 +12,12 @@ one directory:
 * ``curves.csv`` — the slip-weakening curves (``event_id``, ``slip_m``, ``friction``: Ft/Fn),
   when the record has accelerations and the mass is known;
 * ``apparatus.toml`` — a problem file of the apparatus as the record shows it (k, the loading,
-  m, Fn; the friction law's a, b, Lc are placeholders to be inverted), when k and vLs are known:
-  ``rsfbench simulate --problem`` runs it;
+  m, Fn; the friction law's a, b, Lc are placeholders to be inverted), when k, vLs, the mass
+  and Fn are known (the mass is given, ``--mass``): ``rsfbench simulate --problem`` runs it;
 * ``observe.png`` — the record with its events marked, the metrics event by event, the curves.
+
+An optional file this run does not write is removed from ``out`` if an earlier run left it
+there: every file in the directory is of the same observations.
 
 A column file (TOML) maps the columns and gives the apparatus's constants::
 
@@ -50,7 +53,7 @@ APPARATUS_KEYS = {"normal_force": "N", "mass": "kg", "vls": "m/s", "stiffness": 
 def read_column_file(path) -> tuple[dict, dict]:
     """``(columns, apparatus)`` of a column file (module docstring): channel → (column, unit),
     and the constants by name; or ``ValueError`` naming the file and the key."""
-    from benchmarks.physics.recording import CHANNELS, column_spec
+    from benchmarks.physics.recording import CHANNELS, explicit_unit
     path = Path(path)
     try:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
@@ -64,6 +67,10 @@ def read_column_file(path) -> tuple[dict, dict]:
     if unknown:
         raise ValueError(f"column file {path}: unknown table {unknown[0]!r} (expected "
                          "[columns] and [apparatus])")
+    for table in ("columns", "apparatus"):
+        if not isinstance(data.get(table, {}), dict):
+            raise ValueError(f"column file {path}: {table} must be a table ([{table}]), got "
+                             f"{data[table]!r}")
     columns = {}
     for channel, spec in data.get("columns", {}).items():
         if isinstance(spec, dict):
@@ -78,7 +85,7 @@ def read_column_file(path) -> tuple[dict, dict]:
             raise ValueError(f"column file {path}: columns.{channel} must be a column name or "
                              f"a table, got {spec!r}")
         try:
-            channel, column, unit = column_spec(f"{channel}={column}:{unit}")
+            channel, column, unit = explicit_unit(channel, column, unit)
         except ValueError as exc:
             raise ValueError(f"column file {path}: {exc}") from None
         columns[channel] = (column, unit)
@@ -93,6 +100,10 @@ def read_column_file(path) -> tuple[dict, dict]:
                              f"in {APPARATUS_KEYS[key]}, got {value!r}")
         apparatus[key] = float(value)
     return columns, apparatus
+
+
+#: the files ``observe`` writes only when the record allows (module docstring)
+OPTIONAL_FILES = {"curves": "curves.csv", "apparatus": "apparatus.toml", "figure": "observe.png"}
 
 
 def observe(path, columns, out, normal_force: float | None = None, mass: float | None = None,
@@ -129,6 +140,9 @@ def observe(path, columns, out, normal_force: float | None = None, mass: float |
         from benchmarks.physics.record_plot import plot_recording
         files["figure"] = out / "observe.png"
         plot_recording(rec, found, files["figure"])
+    for key, name in OPTIONAL_FILES.items():      # an earlier run's, of other observations
+        if key not in files:
+            (out / name).unlink(missing_ok=True)
     doc["files"] = {k: str(v) for k, v in files.items()}
     return doc
 
@@ -140,8 +154,8 @@ def apparatus_toml(apparatus: dict, doc: dict, name: str) -> str | None:
     if any(apparatus.get(k) is None for k in need):
         return None
     a = apparatus
-    recurrence = doc["metrics"]["recurrence_s"]["mean"]
-    t_end = 10.0 * recurrence if math.isfinite(recurrence) else 40.0
+    recurrence = doc["metrics"]["recurrence_s"]["mean"]   # None: not a number (jsonable)
+    t_end = 10.0 * recurrence if recurrence is not None and math.isfinite(recurrence) else 40.0
     two_speed = a.get("df") and a.get("vlf") and a["df"] > 0
     loading = (f"vls = {a['vls']:.6g}               # m/s, measured\n"
                f"vlf = {a['vlf']:.6g}               # m/s, measured\n"
@@ -150,7 +164,9 @@ def apparatus_toml(apparatus: dict, doc: dict, name: str) -> str | None:
     return (f"# The apparatus of the recording {name!r}, as `rsfbench observe` measured it.\n"
             "# k, the loading, m and Fn are the record's; the friction law's a, b and Lc are\n"
             "# placeholders (the paper's W2 fit): `rsfbench invert --problem THIS --observations"
-            "\n# observations.json` estimates b and Lc. SI units.\n"
+            "\n# observations.json --b-range 0.0086,0.0102 --lc-range 3e-8,3e-6` estimates b and"
+            "\n# Lc in that prior box (the placeholders ± 0.0008 and ÷× 10: choose your own).\n"
+            "# SI units.\n"
             f"name = {json.dumps(name)}\n"
             f"mass = {a['mass']:.6g}                 # kg, given\n"
             f"stiffness = {a['stiffness']:.6g}       # N/m, measured\n"
