@@ -84,7 +84,8 @@ def test_phi_functions_match_scipy_expm():
 
 
 @pytest.mark.parametrize("law", ["slip", "aging"])
-@pytest.mark.parametrize("cls", METHODS, ids=lambda c: c.name)
+@pytest.mark.parametrize("cls", [pytest.param(I.Exprb32, marks=pytest.mark.slow), I.Exprb43],
+                         ids=lambda c: c.name)          # Exprb32's: 8 s, to make test-slow
 def test_observed_order_with_fixed_steps_on_a_stiff_segment(cls, law):
     """Paper example, stick phase τ ∈ [5, 9] (hD/w from 1e5 to 1e7: stiff), 4 to 64 equal steps
     without error control: the error of z at τ = 9 against scipy Radau at rtol = atol = 1e−13

@@ -185,6 +185,7 @@ def test_fixed_step_order_cli_measures_the_declared_orders(tmp_path, capsys):
     assert "ETD2 has no fixed-step mode" in capsys.readouterr().err
 
 
+@pytest.mark.slow                        # 10 s
 @pytest.mark.needs("scikits.odes")
 def test_work_precision_cli_writes_the_study(cache, monkeypatch, tmp_path, capsys):
     monkeypatch.setenv("RSFBENCH_CACHE", str(cache))

@@ -130,6 +130,7 @@ def _noisy(exact: Observations, seed: int = 0) -> Observations:
                         exact.sigma_friction_drop)
 
 
+@pytest.mark.slow                        # 9 s
 def test_profile_intervals_contain_the_truth_for_seeded_noisy_data():
     """W2 at (0.0094, 0.3 µm), observations with 10 % Gaussian noise (seed 0): both 95 %
     profile intervals contain the truth. The data leave a long valley in (b, log Lc): the b

@@ -423,3 +423,28 @@ def test_solver_effect_refuses_a_grid_too_small_for_the_cost_before_any_work(n, 
     with pytest.raises(ValueError, match="n must be an integer of at least 3"):
         SE.solver_effect([], Rodas5P(rtol=1e-8, atol=1e-8), Rodas5P(rtol=1e-9, atol=1e-9),
                          windows=("W4",), laws=("slip",), n=n)
+
+
+def test_solver_effect_takes_an_observations_file(tmp_path):
+    """--set observations=FILE: the file's means and σ are the data set "yours" on every window
+    and law (its curves left out: the posteriors score J1); a file that cannot be read, or an
+    unknown window, is refused by the study's check before any work."""
+    from benchmarks.inversion.observations import write_observations
+    events = pd.DataFrame({"t_start": [0.0, 3.0, 6.0], "t_end": [0.01, 3.01, 6.01],
+                           "recurrence_s": [np.nan, 3.0, 3.1],
+                           "friction_drop": [0.045, 0.046, 0.044],
+                           "slip_m": [3e-4, 3e-4, 3e-4], "peak_velocity_m_s": [0.05] * 3})
+    path = tmp_path / "observations.json"
+    write_observations(path, events)
+    settings = {**SE.STUDY.settings, "observations": str(path), "windows": "W1",
+                "laws": "slip"}
+    SE.STUDY.checked(settings)
+    yours = Observations(3.05, 0.07, 0.045, 0.001, curves=pd.DataFrame(
+        {"event_id": [1, 1], "slip_m": [0.0, 1e-4], "friction": [0.6, 0.58]}))
+    data = SE._datasets("W1", "slip", None, None, yours)
+    assert set(data) == {"published", "yours"} and data["yours"].curves is None
+    assert data["yours"].recurrence_s == 3.05
+    with pytest.raises(ValueError, match="setting observations: observations file"):
+        SE.STUDY.checked({**settings, "observations": str(tmp_path / "none.json")})
+    with pytest.raises(ValueError, match="setting windows = 'W1,W9'"):
+        SE.STUDY.checked({**settings, "windows": "W1,W9"})

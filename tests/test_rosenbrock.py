@@ -53,7 +53,8 @@ def _fixed_errors(cls, nd, z0, t, ns, check_method):
     return t / np.array(ns, float), errs
 
 
-@pytest.mark.parametrize("cls", METHODS, ids=IDS)
+@pytest.mark.parametrize("cls", [pytest.param(I.Rosenbrock23, marks=pytest.mark.slow),
+                                 I.Rodas5P], ids=IDS)   # Rosenbrock23's: 7 s, make test-slow
 def test_classical_order_with_fixed_steps(cls):
     """Heavy slider (mass × 1e4: D ≈ 3.6, not stiff), τ ∈ [0, 10] from the initial state:
     the least-squares slope of error against step is the declared order (measured 2.00 and

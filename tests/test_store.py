@@ -18,6 +18,7 @@ import pytest
 from benchmarks.ensemble import (BadChunkWarning, IncompleteStoreWarning, StrayFileWarning,
                                  ensemble, grid, read_store)
 from integrators import Rodas5P
+from probe.harness import dask_cluster, stop_processes
 from problems import variant, window
 
 # 4 points in 2 chunks of 2, 2 s of W2 each: what is stored matters here, not the physics
@@ -311,38 +312,6 @@ def test_an_unfinished_store_reads_as_what_it_holds_with_a_warning(store):
 
 # --- a lost Dask scheduler (slow: a scheduler and a worker in their own processes) ----------
 
-def _free_port() -> int:
-    import socket
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def _cluster():
-    """A Dask scheduler and one worker, each in its own process group: (address, s, w)."""
-    import subprocess
-    import sys
-    port = _free_port()
-    address = f"tcp://127.0.0.1:{port}"
-    quiet = dict(stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
-    s = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host",
-                          "127.0.0.1", "--port", str(port), "--no-dashboard"], **quiet)
-    w = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", address,
-                          "--nthreads", "1", "--no-dashboard"], **quiet)
-    return address, s, w
-
-
-def _stop(*procs) -> None:
-    import os
-    import signal
-    for p in procs:
-        try:
-            os.killpg(p.pid, signal.SIGKILL)
-        except ProcessLookupError:
-            pass
-        p.wait()
-
-
 @pytest.mark.slow
 def test_a_result_lost_with_its_worker_is_not_waited_for(tmp_path):
     """Tasks that finished on a worker killed before their results were fetched: the fetch
@@ -351,7 +320,7 @@ def test_a_result_lost_with_its_worker_is_not_waited_for(tmp_path):
     import threading
 
     from benchmarks.ensemble.executors import ClusterGone, connect, execute
-    address, s, w = _cluster()
+    address, s, w = dask_cluster()
     ended = []
     try:
         client = connect(address, 30)
@@ -368,7 +337,7 @@ def test_a_result_lost_with_its_worker_is_not_waited_for(tmp_path):
                     if n == 0:
                         time.sleep(2.0)
                     elif n == 1:
-                        _stop(w)
+                        stop_processes(w)
                         time.sleep(1.0)             # the scheduler has seen the worker go
             except ClusterGone as exc:
                 ended.append(exc)
@@ -378,7 +347,7 @@ def test_a_result_lost_with_its_worker_is_not_waited_for(tmp_path):
         hung = thread.is_alive()
         client.close()
     finally:
-        _stop(s, w)
+        stop_processes(s, w)
     assert not hung, "the run waited for a result lost with its worker"
     assert ended and "no worker for 3 s" in str(ended[0])
 
@@ -398,7 +367,7 @@ def test_losing_the_dask_scheduler_stops_the_run_keeping_its_chunks(tmp_path):
     base = window("W4", "slip", t_end=10.0)
     points = grid(b=np.arange(0.0095, 0.0103, 0.0001), lc=[1e-7, 3e-7])
     store = tmp_path / "s"
-    address, s, w = _cluster()
+    address, s, w = dask_cluster()
     try:
         def kill_when_stored():
             deadline = time.time() + 180
@@ -410,17 +379,17 @@ def test_losing_the_dask_scheduler_stops_the_run_keeping_its_chunks(tmp_path):
             ensemble(base, ETD2(), points, store=store, scheduler=address, progress=False,
                      connect_timeout=30)
     finally:
-        _stop(s, w)
+        stop_processes(s, w)
     message = str(caught.value)
     assert "\n" not in message and "was lost" in message and str(store) in message
     kept = int(message.split("; ")[-1].split(" of ")[0])
     assert kept >= 1 and len(_chunks(store)) == kept      # one point a chunk
-    address, s, w = _cluster()
+    address, s, w = dask_cluster()
     try:
         again = ensemble(base, ETD2(), points, store=store, scheduler=address, progress=False,
                          connect_timeout=30)
     finally:
-        _stop(s, w)
+        stop_processes(s, w)
     assert again.attrs["n_resumed"] == kept
     local = ensemble(base, ETD2(), points, workers=1, progress=False)
     _same(again, local)

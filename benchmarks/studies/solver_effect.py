@@ -3,8 +3,13 @@
 For each window and law, the data are the published means with σ = 10 % of each (assumed, as in
 :mod:`benchmarks.studies.paper_sweeps`), and for W2/slip also one synthetic set (ΔT and Δμ of the
 reference at the published fit, plus noise of σ = 5 %, seed 0). The prior is uniform in
-(b, log10 Lc) on the paper sweep's box around the published fit. Every candidate setting
-inverts the same data, and is compared with the inversion by the tight ``reference`` setting:
+(b, log10 Lc) on the paper sweep's box around the published fit. With the setting
+``observations`` (``rsfbench study solver-effect --set observations=FILE``: an observations file
+of ``rsfbench observe``) one's own data are the data set ``yours`` beside them, on each window
+and law of the settings ``windows`` and ``laws`` (W2 and slip alone: ``--set windows=W2 --set
+laws=slip``) — the question for a recording of an apparatus that is one of the windows. Every
+candidate setting inverts the same data, and is compared with the inversion by the tight
+``reference`` setting:
 
 * the posterior on the **zoom** (:mod:`benchmarks.inversion.grid`): a coarse reference map of
   the box finds where any data set's posterior lives (nodes within 1e−6 of the maximum density),
@@ -47,6 +52,7 @@ cache once put 16 s of compiling into W1/slip's first Rosenbrock23 and Exprb32 m
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -116,9 +122,13 @@ def candidates(study: pd.DataFrame | None = None, own_ladders=None, etd_factors=
     return out
 
 
-def _datasets(name: str, law: str, reference_map: MetricMap, truth) -> dict[str, Observations]:
-    """The published means, and for W2/slip one synthetic set at ``truth`` (seed 0, σ 5 %)."""
+def _datasets(name: str, law: str, reference_map: MetricMap, truth,
+              yours: Observations | None = None) -> dict[str, Observations]:
+    """The published means, for W2/slip one synthetic set at ``truth`` (seed 0, σ 5 %), and
+    ``yours`` when given (its curves left out: J1 is what the posteriors here score)."""
     data = {"published": observations(name)}
+    if yours is not None:
+        data["yours"] = dataclasses.replace(yours, curves=None)
     if (name, law) == ("W2", "slip"):
         i = int(np.argmin(np.abs(reference_map.b - truth[0])))
         j = int(np.argmin(np.abs(reference_map.log10_lc - np.log10(truth[1]))))
@@ -198,9 +208,12 @@ def _best_fit(problem, obs, algorithm, m: MetricMap, box, workers, wall_budget):
 def solver_effect(settings: list[Candidate], reference: Algorithm, floor: Algorithm,
                   windows=("W1", "W2", "W3", "W4"), laws=("slip", "aging"), n: int = 31,
                   check_n: int | None = None, workers: int | None = None,
-                  wall_budget: float | None = 5.0, progress=None) -> pd.DataFrame:
+                  wall_budget: float | None = 5.0, progress=None,
+                  yours: Observations | None = None) -> pd.DataFrame:
     """One row per (window, law, data set, setting) with the comparison of the module
     docstring; ``floor``: a second tight setting of another method, compared like the others.
+    ``yours``: a data set of one's own (an observations file of ``rsfbench observe`` read),
+    inverted on every window and law beside the others as the data set ``yours``.
     ``check_n``: nodes per parameter of the whole-box grid (default n // 2). ``wall_budget``:
     s per solve of a candidate (a solve over it is a failed node). ``progress``: a callable
     given a line of text per map, or None."""
@@ -221,7 +234,7 @@ def solver_effect(settings: list[Candidate], reference: Algorithm, floor: Algori
             box = ((b_axis.min(), b_axis.max()), (lc_axis.min(), lc_axis.max()))
             coarse = metric_map(problem, reference, *box_grid(*box, n, n, through=(b0, lc0)),
                                 workers=workers)
-            data = _datasets(name, law, coarse, (b0, lc0))
+            data = _datasets(name, law, coarse, (b0, lc0), yours)
             zoom = _zoom(coarse, data)
             grid, check = box_grid(*zoom, n, n), box_grid(*box, check_n, check_n)
             inside = ((check[0] >= zoom[0][0]) & (check[0] <= zoom[0][1]))[:, None] & (
@@ -337,7 +350,8 @@ def _none() -> dict:
 
 def solver_effect_study(out, n: int = 31, windows=("W1", "W2", "W3", "W4"),
                         laws=("slip", "aging"), study_csv=None,
-                        progress: bool = False) -> pd.DataFrame:
+                        progress: bool = False, yours: Observations | None = None
+                        ) -> pd.DataFrame:
     """The solver-effect table (:func:`benchmarks.studies.solver_effect.solver_effect`) with
     the candidates of the full work-precision study ``study_csv`` (default
     ``out/wp_full.csv``), the reference Rodas5P and the floor Exprb43 at rtol = atol = 1e−9;
@@ -353,7 +367,7 @@ def solver_effect_study(out, n: int = 31, windows=("W1", "W2", "W3", "W4"),
            ) if progress else None
     table = solver_effect(candidates(study), Rodas5P(rtol=1e-9, atol=1e-9),
                           Exprb43(rtol=1e-9, atol=1e-9), windows=windows, laws=laws, n=n,
-                          progress=say)
+                          progress=say, yours=yours)
     wall = time.perf_counter() - started
     table.to_csv(out / "solver_effect.csv", index=False)
     advice = recommendation(table)
@@ -459,8 +473,11 @@ def _plot_solver_effect(table, path: Path, min_overlap: float) -> None:
     plt.close(fig)
 
 
-def run(out: Path, n: int) -> None:
-    solver_effect_study(out, n=n, study_csv=out / "wp_full.csv", progress=True)
+def run(out: Path, n: int, windows: str, laws: str, observations: str) -> None:
+    from benchmarks.inversion.observations import read_observations
+    yours = read_observations(observations) if observations else None
+    solver_effect_study(out, n=n, windows=_words(windows), laws=_words(laws), yours=yours,
+                        study_csv=out / "wp_full.csv", progress=True)
     print((out / "solver_effect.md").read_text().split("\n## ")[1])
 
 
@@ -470,8 +487,31 @@ def report(out: Path) -> str:
             "![solver effect](solver_effect.png)\n")
 
 
+def _words(text: str) -> tuple[str, ...]:
+    return tuple(w.strip() for w in text.split(",") if w.strip())
+
+
+def check(settings: dict) -> None:
+    """Refuse an unknown window or law, and an observations file that cannot be read, before
+    any work."""
+    from benchmarks.inversion.observations import read_observations
+    from problems import WINDOWS
+    for key, known in (("windows", WINDOWS), ("laws", ("slip", "aging"))):
+        words = _words(settings[key])
+        bad = [w for w in words if w not in known]
+        if bad or not words:
+            raise ValueError(f"study solver-effect: setting {key} = {settings[key]!r}: expected "
+                             f"some of {', '.join(known)}, joined by commas")
+    if settings["observations"]:
+        try:
+            read_observations(settings["observations"])
+        except ValueError as exc:
+            raise ValueError(f"study solver-effect: setting observations: {exc}") from None
+
+
 STUDY = Study("solver-effect", "The solver's effect on the inferred (b, Lc) (`solver_effect.*`)",
               220, run, report=report, plan="full", timed=True, reads=("wp_full.csv",),
-              settings={"n": 31}, limits={"n": (5, 301)},
+              settings={"n": 31, "windows": "W1,W2,W3,W4", "laws": "slip,aging",
+                        "observations": ""}, limits={"n": (5, 301)}, check=check,
               writes=("solver_effect.csv", "solver_effect.md", "solver_effect.png",
                       "solver_effect_recommendation.csv"), minutes=101)

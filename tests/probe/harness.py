@@ -41,6 +41,7 @@ from typing import Callable
 import pandas as pd
 
 __all__ = ["Case", "Observed", "CliRun", "run_case", "cli", "write_probe", "OUTCOMES",
+           "dask_cluster", "stop_processes",
            "BAD_OUTCOMES", "Wrong"]
 
 OUTCOMES = ("refused", "retcode", "warned", "recovered", "ok")
@@ -250,3 +251,33 @@ def write_probe(table: pd.DataFrame, out: Path) -> str:
             unexpected[["kind", "case", "expected", "observed", "detail"]])
     (out / "reliability.md").write_text(text)
     return text
+
+
+def dask_cluster():
+    """A Dask scheduler and one worker on this machine, each a process in its own process
+    group (so that :func:`stop_processes` kills a nanny with its worker): (address, scheduler,
+    worker)."""
+    import socket
+    import subprocess
+    import sys
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    quiet = dict(stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    address = f"tcp://127.0.0.1:{port}"
+    scheduler = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler",
+                                  "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
+                                 **quiet)
+    worker = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", address,
+                               "--nthreads", "1", "--no-dashboard"], **quiet)
+    return address, scheduler, worker
+
+
+def stop_processes(*procs) -> None:
+    """SIGKILL each process's group and reap it."""
+    for p in procs:
+        try:
+            os.killpg(p.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        p.wait()

@@ -169,7 +169,7 @@ def cases() -> list[Case]:
             good.replace('"std": 0.1', '"sem": 0.1')), names="--observations"),
         Case(KIND, "--observations that is not JSON", _bad_file("{"), names="--observations"),
         Case(KIND, "invert --observations reads the file observe wrote", _invert_reads, "ok",
-             timeout=300),
+             slow=True, timeout=300),
         Case(KIND, "invert --observations with --obs-drop", _bad_file(
             good, ("--obs-drop", "0.04"), "invert"), names="--obs-drop"),
         Case(KIND, "invert --observations that is not JSON", _bad_file("[1,", (), "invert"),

@@ -19,14 +19,14 @@ import json
 import os
 import shutil
 import signal
-import socket
 import subprocess
 import sys
 import time
 import warnings
 from pathlib import Path
 
-from probe.harness import Case, Observed, Wrong, cli, cli_outcome, one_json
+from probe.harness import (Case, Observed, Wrong, cli, cli_outcome, dask_cluster, one_json,
+                           stop_processes)
 
 __all__ = ["cases"]
 
@@ -410,33 +410,6 @@ def _read_store_no_store(what, names):
 
 # --- the Dask cluster lost mid-sweep (slow) -------------------------------------------------------
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def _cluster():
-    port = _free_port()
-    quiet = dict(stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
-    address = f"tcp://127.0.0.1:{port}"
-    scheduler = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler",
-                                  "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
-                                 **quiet)
-    worker = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", address,
-                               "--nthreads", "1", "--no-dashboard"], **quiet)
-    return address, scheduler, worker
-
-
-def _stop(*procs) -> None:
-    for p in procs:
-        try:
-            os.killpg(p.pid, signal.SIGKILL)
-        except ProcessLookupError:
-            pass
-        p.wait()
-
-
 def _dask_sweep(out, address, *extra):
     # 32 points of W4, 10 s each, ETD2 point by point: one point a chunk (auto_chunk_size), a
     # few seconds of work, long enough to lose the cluster half-way
@@ -457,7 +430,7 @@ def _main_stack(err: str) -> str:
 def _lost(what: str, json_mode: bool):
     def run(tmp):
         out = tmp / "s"
-        address, scheduler, worker = _cluster()
+        address, scheduler, worker = dask_cluster()
         try:
             # PYTHONFAULTHANDLER: a hung sweep is stopped with SIGABRT, which then prints where
             # each of its threads was (the message below carries the main thread's stack)
@@ -468,7 +441,7 @@ def _lost(what: str, json_mode: bool):
             while time.time() < deadline and not _chunks(out / "chunks") \
                     and proc.poll() is None:
                 time.sleep(0.05)
-            _stop(scheduler if what == "scheduler" else worker)
+            stop_processes(scheduler if what == "scheduler" else worker)
             try:
                 stdout, err = proc.communicate(timeout=120)
             except subprocess.TimeoutExpired:
@@ -481,7 +454,7 @@ def _lost(what: str, json_mode: bool):
                 raise Wrong(f"the sweep hung for 120 s after losing its {what}: "
                             f"{_main_stack(err)}") from None
         finally:
-            _stop(scheduler, worker)
+            stop_processes(scheduler, worker)
         if "Traceback" in err or proc.returncode != 1:
             raise Wrong(f"exit status {proc.returncode}: {err[-300:]!r}")
         lines = [x for x in err.splitlines() if x.startswith("rsfbench: error")]
@@ -492,12 +465,12 @@ def _lost(what: str, json_mode: bool):
         kept = int(lines[0].rsplit("; ", 1)[1].split(" of ")[0])
         if kept < 1 or len(_chunks(out / "chunks")) != kept:
             raise Wrong(f"{kept} points said kept, {len(_chunks(out / 'chunks'))} chunks stored")
-        address, scheduler, worker = _cluster()      # a new cluster: the rerun resumes
+        address, scheduler, worker = dask_cluster()      # a new cluster: the rerun resumes
         try:
             again = subprocess.run(_dask_sweep(out, address, "--json"), cwd=ROOT,
                                    capture_output=True, text=True, timeout=300)
         finally:
-            _stop(scheduler, worker)
+            stop_processes(scheduler, worker)
         summary = one_json(again.stdout)
         if again.returncode != 0 or summary.get("n_resumed", 0) < kept:
             raise Wrong(f"the rerun did not resume the {kept} kept points: {again.stderr[-300:]}")
