@@ -26,8 +26,9 @@ REFERENCES = {
     "W2": (3.0440933348, 0.04521408348),
 }
 STIFF_ADAPTIVE = sorted(n for n, c in REGISTRY.items() if c.adaptive and c.stiff)
-#: runs that take minutes, measured on 2 cores (pytest --durations, 2026-11-26): make test-slow
-SLOW = {("assimulo-LSODAR", "paper-example"): "637 s"}
+#: runs moved to make test-slow (pytest --durations on 2 cores) to keep make test under 8 min
+SLOW = {("assimulo-LSODAR", "paper-example"): "637 s", ("scipy-Radau", "W2"): "5 s",
+        ("scipy-Radau", "paper-example"): "4 s"}
 
 
 def _cases():

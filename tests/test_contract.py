@@ -117,7 +117,9 @@ def test_step_budget_is_a_retcode(name):
     assert sol.stats.steps <= 40 and sol.t_reached < 0.05 and sol.message
 
 
-@pytest.mark.parametrize("name", [n for n in NAMES if REGISTRY[n].adaptive])
+@pytest.mark.parametrize("name", [
+    pytest.param(n, marks=pytest.mark.slow) if n.startswith("assimulo-") else n
+    for n in NAMES if REGISTRY[n].adaptive])      # assimulo's Python tier: 4-6 s each
 def test_python_and_numba_rhs_tiers_agree(name):
     cls = REGISTRY[name]
     p = P.window("W2", "aging", t_end=0.05)

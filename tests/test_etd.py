@@ -47,6 +47,7 @@ def _last_cycle(sol):
     return event_metrics(sol.events, sol.problem.normal_force).iloc[-1]
 
 
+@pytest.mark.slow                        # its Radau reference alone: 10 s
 @pytest.mark.parametrize("make", ETD_METHODS, ids=["ETD1", "ETD2", "ETDIterated2"])
 def test_order_on_the_stick_slip_limit_cycle(make, paper_radau_reference):
     """Paper example (20 s, 8 events, converged cycle): relative error of the last recurrence

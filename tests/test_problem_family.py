@@ -314,7 +314,9 @@ def short_family_references():
             _short_family().items()}
 
 
-@pytest.mark.parametrize("name", sorted(I.REGISTRY))
+@pytest.mark.parametrize("name", [
+    pytest.param(n, marks=pytest.mark.slow) if n.startswith("assimulo-") else n
+    for n in sorted(I.REGISTRY)])                 # assimulo's: 4 s each, to make test-slow
 def test_every_backend_runs_a_history_without_mass_and_a_damped_nagata_slider(
         name, short_family_references):
     """Every registered integrator on a short slide-hold-slide without mass and on the paper's

@@ -138,7 +138,7 @@ def observe_markdown(accuracy: pd.DataFrame, speed: pd.DataFrame) -> str:
               f"{len(accuracy)} runs.", ""]
     lines += [f"Speed: `observe` on a 400 s record at 10 kHz ({speed.rows.iloc[0]:,} rows), "
               f"fastest of 3 runs after a warm-up (target ≤ {SPEED_TARGET_S:g} s):", "",
-              markdown_table(speed), ""]
+              markdown_table(speed.assign(wall_s=speed.wall_s.map(lambda x: f"{x:.2f}"))), ""]
     return "\n".join(lines)
 
 
