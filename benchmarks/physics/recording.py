@@ -107,11 +107,6 @@ def column_spec(text: str) -> tuple[str, str, str]:
     column, sep, unit = rest.rpartition(":")
     if not sep or unit not in UNITS:
         column, unit = rest, CHANNELS[channel]
-        if sep and column.count(":") == 1 and unit.strip() and not unit[:1].isdigit() \
-                and len(unit) <= 6:
-            # the column named as COLUMN:UNIT with a unit that is none of ours (kgf, KN): the
-            # read names it if the file has no column of this whole name (_has)
-            column = _UnknownUnit(rest)
     if UNITS[unit][0] != CHANNELS[channel]:
         units = ", ".join(u for u, (si, _) in UNITS.items() if si == CHANNELS[channel])
         raise ValueError(f"column mapping {text!r}: {unit} is not a unit of {channel} (in "
@@ -225,17 +220,12 @@ def _read(path: Path, wanted: list[str]) -> pd.DataFrame:
         raise ValueError(f"recording {path} cannot be read: {exc.strerror or exc}") from None
 
 
-class _UnknownUnit(str):
-    """A column name ``COLUMN:WORD`` whose suffix is no known unit: a column of that whole name
-    if the file has one, else the unit is named as unknown."""
-
-
 def _has(wanted, names, path) -> None:
     missing = [c for c in wanted if c not in names]
     if missing:
         c = missing[0]
-        if isinstance(c, _UnknownUnit):
-            column, unit = c.rsplit(":", 1)
+        unit = c.rsplit(":", 1)[1] if ":" in c else ""
+        if unit.strip() and unit not in UNITS:      # COLUMN:UNIT, the unit none of ours
             raise ValueError(f"recording {path}: {unit!r} in {c!r} is not a known unit (units: "
                              f"{', '.join(UNITS)}) and the file has no column {c!r}")
         raise ValueError(f"recording {path} has no column {c!r}; its columns: "
