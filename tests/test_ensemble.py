@@ -67,6 +67,36 @@ def test_batched_rows_equal_single_solves(base, points, method):
     assert (table.retcode == "Success").all()
 
 
+def test_batched_curves_are_the_dense_output_of_the_same_steps():
+    """A compiled batch's slip-weakening curves (a second solve of each point, saved at 257
+    times over its last event) are the single solve's curves from a trajectory saved every
+    10 µs (W2's events last ~9 ms): the friction at the batch's slips within 3e-4 (the
+    reference's linear interpolation between its samples, measured at 1.3e-4; a curve of
+    another event or time would be off by up to the drop, ~0.04); the other columns are the
+    batch's without curves, the counters doubled (two solves of every point with a cycle)."""
+    base = window("W2", "slip")                   # 40 s: three limit cycles, one oscillation
+    points = {"b": np.array([0.0094, 0.0096, 0.0094, 0.0088]),
+              "lc": np.array([3e-7, 3e-7, 6e-7, 3e-7])}
+    algorithm = Rodas5P(rtol=1e-6, atol=1e-6)
+    plain = ensemble(base, algorithm, points, progress=False, workers=2)
+    table = ensemble(base, algorithm, points, progress=False, workers=2, curve_dt=1e-5)
+    names, values = ("b", "lc"), np.column_stack([points["b"], points["lc"]])
+    single = point_rows(point_problems(base, names, values), algorithm, names, values,
+                        curve_dt=1e-5)
+    cycle = table.classification.isin(["stick-slip", "multiple recurrence"]).to_numpy()
+    assert cycle.tolist() == [True, True, True, False]
+    counters = ["nfev", "njev", "steps", "rejected"]
+    _same(table[plain.columns].drop(columns=counters), plain.drop(columns=counters))
+    np.testing.assert_array_equal(table.nfev, np.where(cycle, 2, 1) * plain.nfev)
+    for i in np.flatnonzero(cycle):
+        s, f = table.curve_slip[i], table.curve_friction[i]
+        ref_s, ref_f = single.curve_slip[i], single.curve_friction[i]
+        assert len(s) == 257 and s[0] == 0 and (np.diff(s) > 0).all()
+        assert s[-1] == pytest.approx(ref_s[-1], rel=1e-4)
+        np.testing.assert_allclose(f, np.interp(s, ref_s, ref_f), atol=3e-4, rtol=0)
+    assert len(table.curve_slip[3]) == 0
+
+
 def test_failures_are_rows_with_their_retcode(base, points):
     """A step budget that runs out is a row (retcode MaxSteps, its message, no metrics), in a
     batch as in a single solve; the batch goes on."""

@@ -33,7 +33,8 @@ from integrators.own import engine as E
 from integrators.own.compiled import CompiledAlgorithm, failure
 from problems.slider import TAU_END_MAX
 
-__all__ = ["RESULT_COLUMNS", "METRIC_COLUMNS", "COUNTER_COLUMNS", "CURVE_COLUMNS", "batch_rows",
+__all__ = ["RESULT_COLUMNS", "METRIC_COLUMNS", "COUNTER_COLUMNS", "CURVE_COLUMNS", "CURVE_POINTS",
+           "batch_rows",
            "point_rows", "failed_rows", "compiled", "columns_of"]
 
 #: the limit-cycle columns, NaN unless the point has a limit cycle
@@ -47,6 +48,9 @@ _TEXT = ("classification", "retcode", "message", "integrator")
 #: with ``curve_dt``: the slip-weakening curve of the last complete event (slip in m, friction
 #: Ft/Fn; :func:`benchmarks.physics.curves.event_curve`), empty unless the point has a limit cycle
 CURVE_COLUMNS = ("curve_slip", "curve_friction")
+#: samples of a curve made in a compiled batch: evenly spaced in time over the event, start and
+#: end included (a W2 event of 9 ms: one every 36 µs)
+CURVE_POINTS = 257
 
 
 def columns_of(names, curves: bool) -> list[str]:
@@ -76,10 +80,16 @@ def _frame(names, values, columns: dict) -> pd.DataFrame:
 
 
 def batch_rows(problems, algorithm, names, values, wall_budget=None,
-               parallel: bool = True) -> pd.DataFrame:
+               parallel: bool = True, curves: bool = False) -> pd.DataFrame:
     """The rows of ``problems`` (the points ``values`` of ``names``) solved in one compiled
-    batch of the own ``algorithm``, on numba's threads or (``parallel`` False) on this one."""
-    R = algorithm.solve_batch(problems, wall_budget, parallel)
+    batch of the own ``algorithm``, on numba's threads or (``parallel`` False) on this one;
+    with ``curves``, each row with a limit cycle has its slip-weakening curve
+    (:data:`CURVE_COLUMNS`) at :data:`CURVE_POINTS` times over its last event, from the
+    method's dense output (:mod:`integrators.own.batch`)."""
+    if curves:
+        R, states = algorithm.solve_batch(problems, wall_budget, parallel, CURVE_POINTS)
+    else:
+        R, states = algorithm.solve_batch(problems, wall_budget, parallel), None
     n = len(problems)
     col = {c: [None] * n for c in ("classification", "retcode", "message")}
     metrics = np.full((n, len(METRIC_COLUMNS)), np.nan)
@@ -114,7 +124,25 @@ def batch_rows(problems, algorithm, names, values, wall_budget=None,
                nfev=R[:, B.R["NFEV"]], njev=R[:, B.R["NJEV"]], steps=R[:, B.R["STEPS"]],
                rejected=R[:, B.R["REJECTED"]], wall_s=R[:, B.R["WALL_S"]],
                integrator=[algorithm.name] * n)
+    if curves:
+        col["curve_slip"], col["curve_friction"] = zip(*(
+            _curve(problem, z) if what in CYCLES else (np.empty(0), np.empty(0))
+            for problem, z, what in zip(problems, states, col["classification"])))
     return _frame(names, values, col)
+
+
+def _curve(problem, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The slip-weakening curve from the rows (τ, h, u, s) of :mod:`integrators.own.batch`'s
+    ``CURVE``: as :func:`benchmarks.physics.curves.event_curve` makes it from a trajectory."""
+    from problems.formulations import from_ode_state
+    if not np.isfinite(z).all():              # the second solve did not repeat the first
+        return np.empty(0), np.empty(0)
+    nd = problem.nondimensional()
+    h, eta, psi = from_ode_state(nd.law_code, nd.beta, z[:, 1:])
+    v, fs, theta = problem.dimensional_state(h, eta, psi)
+    t = z[:, 0] * nd.time_scale
+    slip = problem.loading.v_slow * (t - t[0]) - (fs - fs[0]) / problem.stiffness
+    return slip, problem.friction(v, theta) / problem.normal_force
 
 
 def point_rows(problems, algorithm, names, values, wall_budget=None,

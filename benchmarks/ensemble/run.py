@@ -73,19 +73,19 @@ class Chunk:
     problems: tuple | None = field(default=None, repr=False)
 
 
-def batched(algorithm, curve_dt=None) -> bool:
+def batched(algorithm) -> bool:
     """Does an ensemble of ``algorithm`` run compiled batches? The own methods on the compiled
-    engine do, unless slip-weakening curves are asked for (they need the trajectory, which a
-    batch does not keep)."""
-    return compiled(algorithm) and not curve_dt
+    engine do, slip-weakening curves or not (a batch makes them from a second solve of each
+    point: :func:`benchmarks.ensemble.rows.batch_rows`)."""
+    return compiled(algorithm)
 
 
-def auto_chunk_size(n: int, algorithm, curve_dt=None) -> int:
+def auto_chunk_size(n: int, algorithm) -> int:
     """The default chunk size: :data:`CHUNK_SIZE` for compiled batches; for point-by-point
     solves (seconds each, for some backends) about 64 chunks, at most :data:`CHUNK_SIZE` points
     each, so that a stopped run keeps most of its work. It depends on the points only, never on
     the workers: a rerun on other workers finds the same chunks."""
-    if batched(algorithm, curve_dt):
+    if batched(algorithm):
         return CHUNK_SIZE
     return int(min(CHUNK_SIZE, max(1, -(-n // 64))))
 
@@ -94,15 +94,16 @@ def run_chunk(chunk: Chunk) -> pd.DataFrame:
     """The rows of a chunk (never raises for a failing point: it is a row)."""
     problems = (list(chunk.problems) if chunk.problems is not None
                 else point_problems(chunk.problem, chunk.names, chunk.values, chunk.first))
-    if not batched(chunk.algorithm, chunk.curve_dt):
+    if not batched(chunk.algorithm):
         return point_rows(problems, chunk.algorithm, chunk.names, chunk.values,
                           chunk.wall_budget, chunk.curve_dt)
+    curves = bool(chunk.curve_dt)
     if chunk.threads == 1:               # a pool's process, a Dask worker: no OpenMP at all
         return batch_rows(problems, chunk.algorithm, chunk.names, chunk.values,
-                          chunk.wall_budget, parallel=False)
+                          chunk.wall_budget, parallel=False, curves=curves)
     with _numba_threads(chunk.threads):
         return batch_rows(problems, chunk.algorithm, chunk.names, chunk.values,
-                          chunk.wall_budget)
+                          chunk.wall_budget, curves=curves)
 
 
 @contextlib.contextmanager
@@ -158,7 +159,9 @@ def ensemble(problem, algorithm, params, *, store=None, chunk_size: int | None =
     all cores). ``backend``: ``"threads"`` or ``"processes"`` (default: threads for compiled
     batches, processes for the others, whose Python holds the GIL). ``chunk_size``: points per
     chunk (default :func:`auto_chunk_size`). ``curve_dt`` (s): also each point's slip-weakening
-    curve, from a trajectory saved that finely (point by point). ``reclaim_store``: a store of
+    curve — the own compiled methods: from their dense output at
+    :data:`~benchmarks.ensemble.rows.CURVE_POINTS` times over the last event (a second solve of
+    the point); the others: from a trajectory saved every ``curve_dt`` (point by point). ``reclaim_store``: a store of
     another ensemble is cleared, not refused (for the harness's own caches). With ``scheduler``
     the cluster decides the parallelism (``workers`` and ``backend`` do not apply). Misuse raises
     ``ValueError`` before any work (module docstring for the rest).
@@ -168,16 +171,16 @@ def ensemble(problem, algorithm, params, *, store=None, chunk_size: int | None =
     for name, value in (("wall_budget", wall_budget), ("curve_dt", curve_dt)):
         if value is not None:
             check_positive(name, value)
-    batch = batched(algorithm, curve_dt)
+    batch = batched(algorithm)
     backend = backend or ("threads" if batch else "processes")
     if backend not in BACKENDS:
         raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
     workers = os.cpu_count() or 1 if workers is None else check_count("workers", workers)
     names, values = check_points(problem, params, max_points)
-    chunk_size = (auto_chunk_size(len(values), algorithm, curve_dt) if chunk_size is None
+    chunk_size = (auto_chunk_size(len(values), algorithm) if chunk_size is None
                   else check_count("chunk_size", chunk_size))
     problems = point_problems(problem, names, values)     # every point valid, or say which
-    if curve_dt:                                          # the saved trajectory fits memory
+    if curve_dt and not batch:                            # the saved trajectory fits memory
         Output(save_every=curve_dt).interval(max(p.t_end for p in problems))
     own_threads = batch and backend == "threads" and scheduler is None
     chunks = [Chunk(problem, algorithm, names, values[i:i + chunk_size], i, wall_budget,

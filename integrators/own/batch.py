@@ -11,7 +11,10 @@ Inputs, one row per point: ``P`` the engine's parameters (:data:`integrators.own
 wall deadline is set when the point starts), ``Z0`` the ODE state at τ = 0, ``C`` the physics the
 summary needs (:data:`C`). Output: ``R`` (:data:`R`): the engine's status and counters, the solve's
 wall time, where it stopped, the events and the summary (with :func:`find_cycle`'s entries at
-``R[:, R["FOUND"]:]``).
+``R[:, R["FOUND"]:]``); ``CURVE`` (points × n × 4), with n > 1 for slip-weakening curves: τ and
+the ODE state (h, u, s) at n times spread evenly over the last event of each point with a limit cycle, from a
+second solve of that point that takes the same steps (its dense output at those times; the
+counters in ``R`` are both solves'), NaN for the others. n = 0: one solve per point.
 """
 
 from __future__ import annotations
@@ -61,6 +64,9 @@ _DEADLINE, _TAU_END, _LAW, _BETA = (E.P[k] for k in ("DEADLINE", "TAU_END", "LAW
 _FAST_UNTIL, _NEED_START, _NEXT_SAVE, _ST_STARTS = (
     E.ST[k] for k in ("FAST_UNTIL", "NEED_START", "NEXT_SAVE", "STARTS"))
 _ZC = E.ZROW["ZC"]
+# the classes with a limit cycle are the first ones (their curves are kept)
+_LAST_CYCLE = len(cycles.CYCLES) - 1
+assert cycles.CLASSIFICATIONS[:len(cycles.CYCLES)] == cycles.CYCLES
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -96,12 +102,9 @@ def _summarize(law_code, beta, c, ev, n_ev, z_end, r):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _one(kernel, workspace, p0, z0, c, dirs, r):
-    """One point: the solve as :meth:`integrators.own.compiled.CompiledAlgorithm.run` does it
-    with the save grid (0, t_end), then its summary, into ``r``."""
-    start = monotonic()
-    p = p0.copy()
-    p[_DEADLINE] = start + c[_BUDGET]
+def _run(kernel, workspace, p, z0, dirs, grid, saved):
+    """One solve from ``z0`` with the save grid ``grid`` (τ) into ``saved``, as
+    :meth:`integrators.own.compiled.CompiledAlgorithm.run` does it: ``(status, st, ev)``."""
     st, Z, G = np.zeros(E.N_ST), np.zeros((E.N_Z, 3)), np.zeros((3, 4))
     rec = E.REC
     for k in range(REC_SIZE):
@@ -111,9 +114,6 @@ def _one(kernel, workspace, p0, z0, c, dirs, r):
     st[_FAST_UNTIL], st[_NEED_START] = -np.inf, 1.0
     for i in range(3):
         Z[_ZC, i] = z0[i]
-    grid = np.array([0.0, p[_TAU_END]])
-    saved = np.empty((2, 3))
-    for i in range(3):
         saved[0, i] = z0[i]
     st[_NEXT_SAVE] = 1.0
     ev = np.empty((_EVENTS_START, 8))
@@ -127,6 +127,23 @@ def _one(kernel, workspace, p0, z0, c, dirs, r):
             ev = bigger
         elif status != E.CHUNK:
             break
+    return status, st, ev
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _one(kernel, workspace, p0, z0, c, dirs, r, curve):
+    """One point: the solve as :meth:`integrators.own.compiled.CompiledAlgorithm.run` does it
+    with the save grid (0, t_end), then its summary, into ``r``. With ``curve`` of n > 0 rows,
+    a point with a limit cycle is solved a second time, the same steps (the save grid never
+    changes them), saving its ODE state at n times spread evenly over its last event, start
+    and end included: the rows of ``curve`` are (τ, h, u, s) there (NaN otherwise)."""
+    start = monotonic()
+    p = p0.copy()
+    p[_DEADLINE] = start + c[_BUDGET]
+    grid = np.array([0.0, p[_TAU_END]])
+    saved = np.empty((2, 3))
+    status, st, ev = _run(kernel, workspace, p, z0, dirs, grid, saved)
+    rec = E.REC
     n_ev = int(st[rec + N_EVENTS])
     r[_STATUS], r[_NFEV], r[_NJEV] = status, st[E.NFEV], st[E.NJEV]
     r[_STEPS], r[_REJECTED], r[_STARTS] = st[E.STEPS], st[E.REJECTED], st[_ST_STARTS]
@@ -140,21 +157,43 @@ def _one(kernel, workspace, p0, z0, c, dirs, r):
         _summarize(int(p[_LAW]), p[_BETA], c, ev, n_ev, saved[1], r)
     else:
         r[_CLASS] = cycles.FAILED
+    n = curve.shape[0]
+    for j in range(n):
+        for i in range(4):
+            curve[j, i] = np.nan
+    if n > 1 and n_ev > 0 and r[_CLASS] <= _LAST_CYCLE:
+        tau_s, tau_e = ev[n_ev - 1, 0], ev[n_ev - 1, 1]
+        if 0.0 < tau_s < tau_e < p[_TAU_END]:
+            fine = np.empty(n + 2)
+            fine[0], fine[n + 1] = 0.0, p[_TAU_END]
+            for j in range(n):
+                fine[j + 1] = tau_s + (tau_e - tau_s) * j / (n - 1)
+            kept = np.empty((n + 2, 3))
+            again, st2, _ = _run(kernel, workspace, p, z0, dirs, fine, kept)
+            if again == E.DONE and st2[_NEXT_SAVE] == n + 2.0:
+                for j in range(n):
+                    curve[j, 0] = fine[j + 1]
+                    for i in range(3):
+                        curve[j, i + 1] = kept[j + 1, i]
+            r[_NFEV] += st2[E.NFEV]         # the counters are the work done: both passes
+            r[_NJEV] += st2[E.NJEV]
+            r[_STEPS] += st2[E.STEPS]
+            r[_REJECTED] += st2[E.REJECTED]
     r[_WALL_S] = monotonic() - start
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def run_serial(kernel, workspace, P, Z0, C, dirs, R):
+def run_serial(kernel, workspace, P, Z0, C, dirs, R, CURVE):
     """:func:`run_batch` on the calling thread, in order: for a process of a pool or a Dask
     worker (one thread each already). No OpenMP region is started, so it is also safe in a
     process forked from one that ran :func:`run_batch` (GNU OpenMP aborts a forked child that
     starts a parallel region)."""
     for i in range(P.shape[0]):
-        _one(kernel, workspace, P[i], Z0[i], C[i], dirs, R[i])
+        _one(kernel, workspace, P[i], Z0[i], C[i], dirs, R[i], CURVE[i])
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def run_batch(kernel, workspace, P, Z0, C, dirs, R, order):
+def run_batch(kernel, workspace, P, Z0, C, dirs, R, order, CURVE):
     """Every point of the batch (rows of ``P``, ``Z0``, ``C``) into its row of ``R``, in
     parallel, taken in the order ``order`` (a permutation): the body of each method's compiled
     ``batch`` entry point. numba's threading layer here (OpenMP) gives each thread one
@@ -163,4 +202,4 @@ def run_batch(kernel, workspace, P, Z0, C, dirs, R, order):
     threads where the grid's order would leave one thread with most of the work."""
     for k in prange(P.shape[0]):
         i = order[k]
-        _one(kernel, workspace, P[i], Z0[i], C[i], dirs, R[i])
+        _one(kernel, workspace, P[i], Z0[i], C[i], dirs, R[i], CURVE[i])

@@ -162,19 +162,25 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
         return P, Z0, C
 
     def solve_batch(self, problems, wall_budget: float | None = None,
-                    parallel: bool = True) -> np.ndarray:
+                    parallel: bool = True, curve_points: int = 0):
         """Solve and summarise every problem of ``problems`` in one compiled call, on numba's
         threads or (``parallel`` False) on this thread only (:mod:`integrators.own.batch`): one
         row of ``batch.R`` per problem. Each solve is the one :func:`integrators.solve` makes
-        with ``max_points=2`` and ``wall_budget``."""
+        with ``max_points=2`` and ``wall_budget``. With ``curve_points`` = n > 1, returns
+        ``(R, CURVE)``: also τ and the ODE state z = (h, u, s) at n times spread over the last
+        event of each point with a limit cycle (:mod:`integrators.own.batch`; NaN for the
+        others)."""
+        if curve_points == 1 or curve_points < 0:
+            raise ValueError(f"curve_points must be 0 or at least 2, got {curve_points!r}")
         P, Z0, C = self.batch_inputs(problems, wall_budget)
         out = np.empty((len(problems), B.N_R))
+        curve = np.empty((len(problems), curve_points, 4))
         if parallel:
             order = np.random.default_rng(0).permutation(len(problems))  # balance the threads
-            type(self).batch_kernel(P, Z0, C, _DIRS, out, order)
+            type(self).batch_kernel(P, Z0, C, _DIRS, out, order, curve)
         else:
-            type(self).batch_serial(P, Z0, C, _DIRS, out)
-        return out
+            type(self).batch_serial(P, Z0, C, _DIRS, out, curve)
+        return (out, curve) if curve_points else out
 
     def fixed_steps(self, nd, z0, span: float, n: int) -> np.ndarray:
         """``n`` equal steps over ``span`` (τ) from z0 under the slow loading, every one

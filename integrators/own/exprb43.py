@@ -81,13 +81,13 @@ def fixed(p, z0, hs, n):
 
 
 @njit(**batch.BATCH)
-def solve_batch(P, Z0, C, dirs, R, order):
-    batch.run_batch(kernel, exprb_workspace, P, Z0, C, dirs, R, order)
+def solve_batch(P, Z0, C, dirs, R, order, CURVE):
+    batch.run_batch(kernel, exprb_workspace, P, Z0, C, dirs, R, order, CURVE)
 
 
 @njit(**batch.SERIAL)
-def solve_batch_serial(P, Z0, C, dirs, R):
-    batch.run_serial(kernel, exprb_workspace, P, Z0, C, dirs, R)
+def solve_batch_serial(P, Z0, C, dirs, R, CURVE):
+    batch.run_serial(kernel, exprb_workspace, P, Z0, C, dirs, R, CURVE)
 
 
 @register
