@@ -103,7 +103,7 @@ def test_the_fit_recovers_a_known_point_from_noise_free_data():
                  b_range=(0.0086, 0.0101), lc_range=(1e-7, 1e-6))
     assert result.success, result.message
     assert abs(result.b / 0.0094 - 1) < 1e-3 and abs(result.lc / 3e-7 - 1) < 1e-3
-    assert result.J1 < 1e-6 and np.isfinite(result.covariance).all()
+    assert result.misfit < 1e-6 and np.isfinite(result.covariance).all()
     assert result.sigma_b > 0 and len(result.starts) == 3
 
 
@@ -147,8 +147,8 @@ def test_profile_intervals_contain_the_truth_for_seeded_noisy_data():
     assert pl.low < np.log10(3e-7) < pl.high
     assert pl.open_low and not pl.open_high          # Lc is not bounded from below
     for p in (pb, pl):
-        inside = p.table.J1 - p.table.J1.min() <= CHI2_95_1DOF
-        assert inside.any() and np.isfinite(p.table.J1[inside]).all()
+        inside = p.table.misfit - p.table.misfit.min() <= CHI2_95_1DOF
+        assert inside.any() and np.isfinite(p.table.misfit[inside]).all()
 
 
 def test_the_noise_free_profile_is_zero_at_the_truth():
@@ -158,7 +158,7 @@ def test_the_noise_free_profile_is_zero_at_the_truth():
     m = Misfit(problem, _synthetic(problem, algorithm), algorithm)
     p = profile(m, "b", [0.0093, 0.0094, 0.0095], (1e-7, 1e-6))
     at = p.table.set_index("b").loc[0.0094]      # the table also holds points added between
-    assert at.J1 < 1e-8
+    assert at.misfit < 1e-8
     assert abs(10 ** at.log10_lc / 3e-7 - 1) < 1e-2
 
 

@@ -46,7 +46,7 @@ class Valley:
         for h in self.holes:             # scan points only: the 41-point grid's spacing
             on_scan = np.abs(np.log10(lc) - l_valley) < self.width
             cycle &= ~(np.isclose(b, h, rtol=0, atol=1e-12) & on_scan & (b.size > 1))
-        return pd.DataFrame({"J1": np.where(cycle, J, 2e6),
+        return pd.DataFrame({"misfit": np.where(cycle, J, 2e6),
                              "log_likelihood": np.where(cycle, -0.5 * J, -np.inf)})
 
 
@@ -75,7 +75,7 @@ def test_the_best_fit_is_a_profile_point_and_inside_its_interval():
     best = (b_fit, 10 ** (-6.5 + 300.0 * 1e-7), (1e-7 / 1e-6) ** 2)
     p = profile(m, "b", np.linspace(0.0086, 0.0102, 3), (1e-8, 1e-5), best=best)
     row = p.table[p.table.point == "best"]
-    assert len(row) == 1 and row.b.iloc[0] == b_fit and row.J1.iloc[0] <= best[2]
+    assert len(row) == 1 and row.b.iloc[0] == b_fit and row.misfit.iloc[0] <= best[2]
     assert p.low <= b_fit <= p.high
 
 
@@ -87,12 +87,12 @@ def test_a_profile_whose_scan_misses_the_valley_is_repaired_from_its_neighbours(
     holes = (values[2], values[6])
     m = Valley(4e-4, 0.05, holes=holes, width=0.2)
     raw = profile(m, "b", values, (1e-8, 1e-5), refine=0)
-    spiky = raw.table.set_index("b").J1
+    spiky = raw.table.set_index("b").misfit
     exact = ((values - 0.0094) / 4e-4) ** 2
     assert (spiky.loc[list(holes)].to_numpy() > exact[[2, 6]] + 10).all()   # the defect
     assert not raw.monotone
     p = profile(m, "b", values, (1e-8, 1e-5))
-    got = p.table.set_index("b").J1.loc[values].to_numpy()
+    got = p.table.set_index("b").misfit.loc[values].to_numpy()
     np.testing.assert_allclose(got, exact, atol=1e-6)
     assert p.monotone and p.resolved and not p.warnings
 
@@ -106,10 +106,10 @@ def test_an_unrepairable_jagged_profile_is_reported_and_its_interval_is_the_hull
         def evaluate(self, b, lc):
             t = super().evaluate(b, lc)
             bad = np.isclose(np.atleast_1d(b), 0.0092, rtol=0, atol=1e-12)
-            t.loc[bad, "J1"] = 2e6
+            t.loc[bad, "misfit"] = 2e6
             t.loc[bad, "log_likelihood"] = np.where(
                 np.log10(np.atleast_1d(lc)[bad]) < -7.9, -0.5 * 50.0, -np.inf)
-            t.loc[bad & (np.log10(np.atleast_1d(lc)) < -7.9), "J1"] = 50.0
+            t.loc[bad & (np.log10(np.atleast_1d(lc)) < -7.9), "misfit"] = 50.0
             return t
     m = Broken(3e-4, 0.05, c=0.0)
     p = profile(m, "b", np.linspace(0.0086, 0.0102, 9), (1e-8, 1e-5), refine=2)
@@ -157,16 +157,16 @@ def test_w2_profiles_with_a_small_sigma_and_few_points_contain_the_fit_and_the_t
     m = Misfit(problem, obs, algorithm)
     box_b, box_lc = (0.0086, 0.0102), (3e-8, 3e-6)
     best = fit(m, box_b, box_lc)
-    assert best.success and best.J1 < 1e-6
+    assert best.success and best.misfit < 1e-6
     for name, values, other, fit_x, truth in (
             ("b", np.linspace(*box_b, 5), box_lc, best.b, 0.0094),
             ("log10_lc", np.linspace(*np.log10(box_lc), 5), box_b, np.log10(best.lc),
              np.log10(3e-7))):
-        p = profile(m, name, values, other, best=(best.b, best.lc, best.J1))
+        p = profile(m, name, values, other, best=(best.b, best.lc, best.misfit))
         assert p.resolved and p.monotone and not p.warnings, p.warnings
         assert p.low <= fit_x <= p.high and p.low < truth < p.high, (name, p.low, p.high)
         assert (p.table.point == "best").sum() == 1
-        inside = p.table[p.table.J1 - p.table.J1.min() <= CHI2_95_1DOF]
+        inside = p.table[p.table.misfit - p.table.misfit.min() <= CHI2_95_1DOF]
         assert len(inside) >= CELLS              # the interval spans several points
 
 
@@ -175,7 +175,7 @@ def test_w2_profiles_with_a_small_sigma_and_few_points_contain_the_fit_and_the_t
 @pytest.mark.parametrize("argv, match", [
     (["invert", "--preset", "W2", "--law", "nagata"], "--law nagata"),
     (["invert", "--preset", "W2", "--profile-points", "100000"], "--profile-points"),
-    (["invert", "--preset", "W2", "--walkers", "5000", "--steps", "5000"], "walkers × steps"),
+    (["invert", "--preset", "W2", "--method", "emcee", "--walkers", "5000", "--steps", "5000"], "walkers × steps"),
     (["invert", "--preset", "W2", "--b-range", "0.001,1.5"], "b = 1.5"),
     (["invert", "--preset", "W2", "--sigma-recurrence", "1e-15"], "sigma_recurrence_s"),
     (["study", "calibration", "--set", "check_seeds=5", "--set", "seeds=2"], "check_seeds = 5"),
@@ -234,7 +234,7 @@ def test_ctrl_c_during_the_posterior_is_one_line_and_exit_130(tmp_path):
     """Ctrl-C while emcee samples once printed emcee's traceback of the likelihood."""
     proc = subprocess.Popen(
         [sys.executable, "-m", "benchmarks.cli", "invert", "--preset", "W4", "--t-end", "15",
-         "--integrator", "Rodas5P", "--rtol", "1e-4", "--atol", "1e-4", "--steps", "100000",
+         "--integrator", "Rodas5P", "--rtol", "1e-4", "--atol", "1e-4", "--method", "emcee", "--steps", "100000",
          "--walkers", "8", "--profile-points", "3", "--out", str(tmp_path / "i"),
          "--no-progress"], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.time() + 600

@@ -297,7 +297,7 @@ def test_an_inversion_writes_its_files(tmp_path):
     from benchmarks.inversion.observations import observations
     misfit = Misfit(preset("W4", law="slip", t_end=15.0), observations("W4"),
                     Rodas5P(rtol=1e-4, atol=1e-4))
-    inv = invert(misfit, (0.0095, 0.0111), (1e-8, 1e-6), walkers=8, steps=12,
+    inv = invert(misfit, (0.0095, 0.0111), (1e-8, 1e-6), walkers=8, steps=12, method="emcee",
                  profile_points=3)
     summary = write_inversion(inv, tmp_path)
     on_disk = json.loads((tmp_path / "inversion.json").read_text())
@@ -316,7 +316,7 @@ def test_no_cycle_in_the_box_means_no_posterior_not_a_frozen_chain(tmp_path):
     from benchmarks.inversion.observations import observations
     misfit = Misfit(preset("W4", law="slip", t_end=15.0), observations("W4"),
                     Rodas5P(rtol=1e-4, atol=1e-4))
-    inv = invert(misfit, (0.001, 0.002), (1e-8, 1e-6), walkers=8, steps=10,
+    inv = invert(misfit, (0.001, 0.002), (1e-8, 1e-6), walkers=8, steps=10, method="emcee",
                  profile_points=3)                    # b < a: velocity strengthening
     assert not inv.fit.success and inv.posterior is None
     assert "no point of the" in inv.no_posterior
@@ -330,7 +330,7 @@ def test_a_bad_chain_is_refused_before_the_fit():
     misfit = Misfit(preset("W4", law="slip", t_end=15.0), observations("W4"),
                     Rodas5P(rtol=1e-4, atol=1e-4))
     with pytest.raises(ValueError, match="walkers must be"):
-        invert(misfit, (0.0095, 0.0111), (1e-8, 1e-6), walkers=2, steps=10)
+        invert(misfit, (0.0095, 0.0111), (1e-8, 1e-6), walkers=2, steps=10, method="emcee")
 
 
 @pytest.mark.parametrize("argv, match", [
@@ -353,7 +353,7 @@ def test_invert_misuse_is_one_line_and_exit_2(argv, match, capsys, tmp_path):
 @pytest.mark.needs("emcee", "corner")
 def test_invert_json_prints_one_document(capsys, tmp_path):
     code = main(["invert", "--preset", "W4", "--t-end", "15", "--integrator", "Rodas5P",
-                 "--rtol", "1e-4", "--atol", "1e-4", "--steps", "6", "--walkers", "8",
+                 "--rtol", "1e-4", "--atol", "1e-4", "--method", "emcee", "--steps", "6", "--walkers", "8",
                  "--profile-points", "3", "--out", str(tmp_path / "inv"), "--json"])
     assert code == 0
     doc = json.loads(capsys.readouterr().out)
@@ -440,7 +440,8 @@ def test_solver_effect_takes_an_observations_file(tmp_path):
                 "laws": "slip"}
     SE.STUDY.checked(settings)
     yours = Observations(3.05, 0.07, 0.045, 0.001, curves=pd.DataFrame(
-        {"event_id": [1, 1], "slip_m": [0.0, 1e-4], "friction": [0.6, 0.58]}))
+        {"event_id": [1, 1], "slip_m": [0.0, 1e-4], "friction": [0.6, 0.58]}),
+        curve_noise="none")
     data = SE._datasets("W1", "slip", None, None, yours)
     assert set(data) == {"published", "yours"} and data["yours"].curves is None
     assert data["yours"].recurrence_s == 3.05

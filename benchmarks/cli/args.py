@@ -291,7 +291,9 @@ def observations_from_args(args, published: bool, curves=None):
     if getattr(args, "observations", None) is not None:
         from benchmarks.inversion.observations import read_observations
         try:
-            return read_observations(args.observations)
+            return read_observations(args.observations,
+                                     curve_noise=getattr(args, "curve_noise", "none"),
+                                     curve_sigma=getattr(args, "curve_sigma", None))
         except ValueError as exc:
             raise ValueError(f"--observations: {exc}") from None
     from benchmarks.inversion.observations import observations

@@ -1,8 +1,9 @@
 """``rsfbench invert``: an inversion of (b, Lc).
 
-    rsfbench invert --preset W2 --law slip --out inv_W2     # fit, profiles, posterior, plots
-    rsfbench invert --problem my.toml --obs-recurrence 4.2 --obs-drop 0.03 \\
-        --b-range 0.008,0.012 --lc-range 1e-8,1e-5 --steps 1000 --json
+    rsfbench invert --preset W2 --law slip --out inv_W2     # posterior, fit, profiles, plots
+    rsfbench invert --problem my.toml --observations observations.json \\
+        --b-range 0.008,0.012 --lc-range 1e-8,1e-5 --json   # the means and the curves
+    rsfbench invert --preset W2 --method emcee --walkers 32 --steps 1000
 """
 
 from __future__ import annotations
@@ -132,15 +133,19 @@ def cmd_invert(args) -> int:
     check_observation_options(args, problem, published)
     box_b, box_lc = _box(args, problem, published)
     flagged("--b-range/--lc-range", check_box, problem, box_b, box_lc)
-    if args.steps:
-        flagged("--walkers/--steps", check_sampler, box_b, box_lc, args.walkers, args.steps)
+    if args.curve_sigma is not None and args.curve_noise != "sample":
+        raise ValueError(f"--curve-sigma is the σ per sample of --curve-noise sample, not of "
+                         f"{args.curve_noise}")
+    if args.method == "grid" and (args.walkers is not None or args.steps):
+        raise ValueError("--walkers and --steps are emcee's: add --method emcee (the grid "
+                         "posterior takes --grid; --steps 0: no posterior)")
+    if args.method == "emcee" and args.grid is not None:
+        raise ValueError("--grid is the grid posterior's first grid: drop it with --method emcee")
+    walkers = 32 if args.walkers is None else args.walkers
+    steps = 2000 if args.steps is None else args.steps
+    if args.method == "emcee" and steps:
+        flagged("--walkers/--steps", check_sampler, box_b, box_lc, walkers, steps)
     obs = observations_from_args(args, published)
-    if obs.curves is not None:                  # an observations file's: J1 is what inverts
-        import dataclasses
-
-        from problems._validate import units_checked_already
-        with units_checked_already():           # warned once when the file was read
-            obs = dataclasses.replace(obs, curves=None)
     cycles = problem.t_end / obs.recurrence_s
     if cycles > MAX_CYCLES:                  # each of thousands of solves would run for hours
         raise ValueError(f"--t-end {problem.t_end:g} s simulates {cycles:,.0f} cycles of the "
@@ -156,6 +161,10 @@ def cmd_invert(args) -> int:
         say(f"integrator: {why}")
         if obs.assumed_sigma:
             say("σ not given: assumed 10 % of the observed mean (an assumption, not data)")
+        if obs.curve_likelihood is not None:
+            say(obs.curve_likelihood.describe())
+        elif obs.curves is not None:
+            say("curves: in no likelihood (--curve-noise none)")
     stage = ["the start"]
 
     def progress(text: str) -> None:
@@ -163,16 +172,22 @@ def cmd_invert(args) -> int:
         if not args.json:
             say(f"… {text}")
     try:
-        inv = invert(misfit, box_b, box_lc, walkers=args.walkers, steps=args.steps,
+        inv = invert(misfit, box_b, box_lc, walkers=walkers, steps=steps,
                      profile_points=args.profile_points, seed=args.seed, progress=not quiet,
-                     say=progress)
+                     say=progress, method=args.method, grid=args.grid or 33)
         stage[0] = "writing of its files"
-        summary = {**write_inversion(inv, out), "integrator_choice": why, "out": str(out)}
+        record = {"command": args.command_line, "integrator_choice": why,
+                  "observations_file": (None if args.observations is None
+                                        else str(Path(args.observations).resolve())),
+                  "problem_file": (None if args.problem is None
+                                   else str(Path(args.problem).resolve()))}
+        summary = {**write_inversion(inv, out, record), "integrator_choice": why,
+                   "out": str(out)}
     except KeyboardInterrupt:
         written = (f"{out} is incomplete" if stage[0].startswith("writing") else
                    f"nothing written to {out}")
         return _interrupted(args, "invert", f"during the {stage[0]}: {written}")
-    failed = not np.isfinite(inv.fit.J1)         # no point of the box had a limit cycle
+    failed = not np.isfinite(inv.fit.misfit)         # no point of the box had a limit cycle
     for p in summary["profiles"].values():       # on the standard error, also with --json
         for text in p["warnings"]:
             warnings.warn(text, stacklevel=1)
@@ -185,7 +200,7 @@ def cmd_invert(args) -> int:
             f"as without a cycle); written: {summary['files']['summary']}")
         return 1
     say(f"least squares: b = {f['b']:.5g} ± {f['sigma_b']:.2g}, Lc = {f['lc_m'] * 1e6:.4g} µm "
-        f"(log10 Lc ± {f['sigma_log10_lc']:.2g}), J1 = {f['J1']:.3g}"
+        f"(log10 Lc ± {f['sigma_log10_lc']:.2g}), misfit = {f['misfit']:.3g}"
         + ("" if f["success"] else f" — not converged: {f['message']}"))
     for k, p in summary["profiles"].items():
         opens = [e for e, o in (("low", p["open_low"]), ("high", p["open_high"])) if o]
@@ -194,6 +209,18 @@ def cmd_invert(args) -> int:
             + ("" if p["resolved"] else " (not resolved: the points about it)"))
     if summary["posterior"] is None:
         say(f"posterior: {summary['no_posterior']}")
+    elif summary["posterior"]["method"] == "grid":
+        p = summary["posterior"]
+        ib, il = p["interval_95"]["b"], p["interval_95"]["log10_lc"]
+        say(f"posterior (grid, {p['n_cells']:,} cells in {p['levels']} levels, "
+            f"{p['n_solves']:,} solves, {p['wall_s']:.1f} s): b = {p['mean']['b']:.5g} ± "
+            f"{p['std']['b']:.2g} (95 %: {ib[0]:.5g} to {ib[1]:.5g}), log10 Lc = "
+            f"{p['mean']['log10_lc']:.3f} ± {p['std']['log10_lc']:.2g} (95 %: {il[0]:.3f} to "
+            f"{il[1]:.3f})" + ("" if p["settled"] else " — the refinement did not settle: "
+                               "see refinement in inversion.json"))
+        if p["edge_mass"] > 0.01:
+            say(f"{p['edge_mass']:.0%} of the posterior is on the box's edge: the box cuts it")
+        say(f"prior: {p['prior']}")
     else:
         p = summary["posterior"]
         say(f"posterior ({p['n_solves']:,} solves, {p['wall_s']:.1f} s): b = "
@@ -211,11 +238,12 @@ def cmd_invert(args) -> int:
 
 
 def add_parsers(sub, preset_names) -> None:
-    from benchmarks.inversion.invert import MAX_SAMPLES_SAVED
+    from benchmarks.inversion.curve_likelihood import CURVE_NOISES
+    from benchmarks.inversion.invert import MAX_SAMPLES_SAVED, METHODS
     from benchmarks.inversion.posterior import MAX_POSTERIOR_SOLVES
-    i = sub.add_parser("invert", help="invert observed means for (b, Lc): least-squares fit with "
-                       "covariance, profiles of b and log10 Lc, emcee posterior, corner and "
-                       "profile plots")
+    i = sub.add_parser("invert", help="invert observed means (and slip-weakening curves) for "
+                       "(b, Lc): posterior (refined grid or emcee), least-squares fit with "
+                       "covariance, profiles of b and log10 Lc, corner and profile plots")
     add_problem_choice(i, preset_names, "the problem whose (b, Lc) is inferred")
     add_observation_options(i)
     i.add_argument("--b-range", type=b_range, metavar="LO,HI",
@@ -229,13 +257,28 @@ def add_parsers(sub, preset_names) -> None:
     i.add_argument("--t-end", type=positive, metavar="S",
                    help="simulated time per solve in s (default: the preset's or the file's)")
     add_integrator_options(i)
+    i.add_argument("--method", choices=METHODS, default="grid",
+                   help="the posterior: on a grid refined where its mass is, or sampled with "
+                        "emcee (default: grid)")
+    i.add_argument("--grid", type=bounded(3, 1001, "the first grid is solved in one batch"),
+                   metavar="N", help="the grid posterior's first grid, N × N cells over the box "
+                                     "(default: 33)")
     i.add_argument("--walkers", type=bounded(4, MAX_WALKERS, "each step solves every walker "
-                                             "at once"), default=32, metavar="N",
-                   help=f"emcee walkers, 4 to {MAX_WALKERS:,}; walkers × steps at most "
-                        f"{MAX_POSTERIOR_SOLVES:,} (default: 32)")
-    i.add_argument("--steps", type=steps, default=2000, metavar="N",
-                   help="emcee steps per walker, a quarter dropped as burn-in; 0: no posterior; "
-                        f"at most {MAX_STEPS:,} (default: 2000)")
+                                             "at once"), metavar="N",
+                   help=f"emcee walkers (--method emcee), 4 to {MAX_WALKERS:,}; walkers × steps "
+                        f"at most {MAX_POSTERIOR_SOLVES:,} (default: 32)")
+    i.add_argument("--steps", type=steps, metavar="N",
+                   help="emcee steps per walker (--method emcee), a quarter dropped as burn-in; "
+                        f"at most {MAX_STEPS:,}; 0: no posterior, with either method "
+                        "(default: 2000)")
+    i.add_argument("--curve-noise", choices=(*CURVE_NOISES, "none"), default="scatter",
+                   help="the slip-weakening curves of an --observations file in the "
+                        "likelihood: 'scatter' (their covariance over the events, ≥ 3 events), "
+                        "'sample' (a σ per sample, --curve-sigma) or 'none' (the means only) "
+                        "(default: scatter)")
+    i.add_argument("--curve-sigma", type=positive, metavar="X",
+                   help="σ per sample of the curves' friction (Ft/Fn, dimensionless) for "
+                        "--curve-noise sample (default: none)")
     i.add_argument("--profile-points", type=bounded(3, MAX_PROFILE_POINTS, "each is a line "
                                                     "of at least 41 solves"),
                    default=21, metavar="N",

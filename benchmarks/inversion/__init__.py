@@ -1,16 +1,21 @@
-"""Inversions of (b, Lc) a solver can be chosen for: one likelihood, J1 of Eq. 10, with what a
-point without a limit cycle is to each reader (:func:`~benchmarks.inversion.fitting.scores`);
+"""Inversions of (b, Lc) a solver can be chosen for: one likelihood, J1 of Eq. 10 plus the
+slip-weakening curves' χ² under a stated noise model
+(:mod:`~benchmarks.inversion.curve_likelihood`), with what a point without a limit cycle is to
+each reader (:func:`~benchmarks.inversion.fitting.scores`);
 the observations, typed in or measured on a recording (:mod:`~benchmarks.inversion.observations`,
 :mod:`~benchmarks.inversion.observing`); the misfit as a function
 (:mod:`~benchmarks.inversion.misfit`), the multi-start least-squares fit with its covariance
 (:mod:`~benchmarks.inversion.fit`), profile likelihoods (:mod:`~benchmarks.inversion.profile`),
-posterior samples with emcee (:mod:`~benchmarks.inversion.posterior`), the forward model on a
+the posterior on a grid refined where its mass is (:mod:`~benchmarks.inversion.adaptive`) or
+sampled with emcee (:mod:`~benchmarks.inversion.posterior`), the forward model on a
 grid and the posteriors and profiles of any data set on it (:mod:`~benchmarks.inversion.grid`).
 Built on them: one inversion end to end (:mod:`~benchmarks.inversion.invert`), the coverage of
 the 95 % regions (:mod:`~benchmarks.inversion.calibration`), the solver's effect on the
 inference (:mod:`~benchmarks.studies.solver_effect`) and the reproduce steps' studies
 (:mod:`~benchmarks.studies.inversion`)."""
 
+from benchmarks.inversion.adaptive import CellPosterior, grid_posterior
+from benchmarks.inversion.curve_likelihood import CurveLikelihood
 from benchmarks.inversion.fit import FitResult, fit
 from benchmarks.inversion.fitting import NO_CYCLE_J1, NO_CYCLE_RESIDUAL, Scores, scores
 from benchmarks.inversion.grid import GridPosterior, MetricMap, box_grid, metric_map
@@ -22,7 +27,8 @@ from benchmarks.inversion.profile import CHI2_95_1DOF, Profile, profile
 __all__ = ["Misfit", "NO_CYCLE_RESIDUAL", "synthetic", "fit", "FitResult", "profile", "Profile",
            "CHI2_95_1DOF", "sample", "Posterior", "metric_map", "MetricMap", "GridPosterior",
            "box_grid", "NO_CYCLE_J1", "scores", "Scores", "read_observations",
-           "write_observations", "observe"]
+           "write_observations", "observe", "CurveLikelihood", "grid_posterior",
+           "CellPosterior"]
 
 
 def __getattr__(name):                 # observe reads and plots a recording: imported on use

@@ -1,9 +1,9 @@
-"""A multi-start least-squares fit of (b, Lc) with its covariance (issue 17, item 2, first part).
+"""A multi-start least-squares fit of (b, Lc) with its covariance.
 
 The parameters are x = (b, log10 Lc): Lc spans decades, and a step in log10 Lc is a relative
 step in Lc. The residuals are :meth:`benchmarks.inversion.Misfit.residuals`' (in units of the
 observations' σ), so at the optimum the covariance of x is (JᵀJ)⁻¹ with J the residuals'
-Jacobian there (Gauss–Newton; the residuals are already scaled by σ).
+Jacobian there (Gauss–Newton; the residuals are already scaled by σ, or whitened for curves).
 
 Starts: the misfit over a coarse grid of the box (one ensemble batch), the ``starts`` best points
 with a limit cycle. Each start runs ``scipy.optimize.least_squares`` (trust-region reflective,
@@ -26,13 +26,14 @@ __all__ = ["fit", "FitResult"]
 
 @dataclass
 class FitResult:
-    """The best fit (b, Lc in m, J1 there), the covariance of (b, log10 Lc) and the standard
+    """The best fit (b, Lc in m, the misfit there: J1, plus the curves' χ² with curves), the
+    covariance of (b, log10 Lc) and the standard
     errors of b and of log10 Lc (NaN where the Jacobian is singular and the covariance has no
     meaning), the number of forward solves, and every start's end point."""
 
     b: float
     lc: float
-    J1: float
+    misfit: float
     covariance: np.ndarray
     sigma_b: float
     sigma_log10_lc: float
@@ -62,7 +63,7 @@ def fit(misfit: Misfit, b_range=(0.005, 0.02), lc_range=(1e-8, 1e-5), grid: int 
                              indexing="ij")
         scan = misfit.evaluate(bb.ravel(), ll.ravel())
         n_solves = len(scan)
-        ok = scan[np.isfinite(scan.log_likelihood)].nsmallest(starts, "J1")
+        ok = scan[np.isfinite(scan.log_likelihood)].nsmallest(starts, "misfit")
     if ok.empty:
         return FitResult(np.nan, np.nan, np.nan, np.full((2, 2), np.nan), np.nan, np.nan,
                          n_solves, pd.DataFrame(), success=False,
@@ -78,13 +79,13 @@ def fit(misfit: Misfit, b_range=(0.005, 0.02), lc_range=(1e-8, 1e-5), grid: int 
         x0 = np.clip([start.b, np.log10(start.lc)], lo, hi)
         res = least_squares(residuals, x0, bounds=(lo, hi), diff_step=diff_step,
                             max_nfev=max_solves, x_scale="jac")
-        J1 = float(2.0 * res.cost)
+        value = float(2.0 * res.cost)
         rows.append({"b_start": start.b, "lc_start": start.lc, "b": res.x[0],
-                     "lc": 10.0 ** res.x[1], "J1": J1, "status": res.status,
+                     "lc": 10.0 ** res.x[1], "misfit": value, "status": res.status,
                      "message": res.message})
-        if best is None or J1 < best[1]:
-            best = (res, J1)
-    res, J1 = best
+        if best is None or value < best[1]:
+            best = (res, value)
+    res, value = best
     n_solves += count["n"]
     try:
         cov = np.linalg.inv(res.jac.T @ res.jac)
@@ -92,7 +93,7 @@ def fit(misfit: Misfit, b_range=(0.005, 0.02), lc_range=(1e-8, 1e-5), grid: int 
         cov = np.full((2, 2), np.inf)
     var = np.diag(cov)                    # a singular JᵀJ can invert to a negative diagonal
     sd = np.where(var >= 0, np.sqrt(np.abs(var)), np.nan)
-    return FitResult(b=float(res.x[0]), lc=float(10.0 ** res.x[1]), J1=J1, covariance=cov,
+    return FitResult(b=float(res.x[0]), lc=float(10.0 ** res.x[1]), misfit=value, covariance=cov,
                      sigma_b=float(sd[0]), sigma_log10_lc=float(sd[1]),
                      n_solves=n_solves, starts=pd.DataFrame(rows), success=bool(res.success),
                      message=res.message)

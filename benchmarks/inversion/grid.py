@@ -39,6 +39,9 @@ from problems import SpringSlider
 __all__ = ["MetricMap", "GridPosterior", "metric_map", "box_grid", "cell_box"]
 
 _SIDES = ("b_low", "b_high", "lc_low", "lc_high")
+#: s between saved points of a peer's trajectory when curves are made point by point (the own
+#: methods sample theirs from the dense output: :func:`benchmarks.ensemble.ensemble`)
+CURVE_DT = 5e-5
 
 
 def box_grid(b_range, lc_range, n_b: int = 41, n_lc: int = 41, through=None):
@@ -119,6 +122,36 @@ class MetricMap:
     nfev: int
     wall_s: float
     run_wall_s: float
+    #: each node's slip-weakening curve (slip m, friction Ft/Fn; empty without a cycle), when
+    #: the map was made with curves
+    curve_slip: np.ndarray | None = field(default=None, repr=False)
+    curve_friction: np.ndarray | None = field(default=None, repr=False)
+
+    def chi2_curves(self, obs: Observations) -> np.ndarray:
+        """The curves' χ² at every node against ``obs``' curves (0 everywhere when ``obs`` has
+        none; NaN without a cycle): :mod:`benchmarks.inversion.curve_likelihood`."""
+        like = obs.curve_likelihood
+        if like is None:
+            return np.where(self.cycle, 0.0, np.nan)
+        if self.curve_slip is None:
+            raise ValueError("the observations have slip-weakening curves but this map was "
+                             "made without them: make it with metric_map(..., curves=True)")
+        out = np.full(self.cycle.shape, np.nan)
+        for i, j in zip(*np.nonzero(self.cycle)):
+            out[i, j] = like.chi2(self.curve_slip[i, j], self.curve_friction[i, j])
+        return out
+
+    def misfit(self, obs: Observations) -> np.ndarray:
+        """J1 + the curves' χ² at every node; :data:`NO_CYCLE_J1` without a limit cycle (or
+        a cycle whose curve is missing)."""
+        from benchmarks.inversion.fitting import NO_CYCLE_J1
+        total = self.scores(obs).j1 + self.chi2_curves(obs)
+        return np.where(np.isfinite(total), total, NO_CYCLE_J1)
+
+    def log_likelihood(self, obs: Observations) -> np.ndarray:
+        """−misfit/2 at every node, −inf without a limit cycle."""
+        total = self.scores(obs).j1 + self.chi2_curves(obs)
+        return np.where(np.isfinite(total), -0.5 * total, -np.inf)
 
     def j1(self, obs: Observations) -> np.ndarray:
         """J1 at every node against ``obs``; :data:`NO_CYCLE_J1` without a limit cycle."""
@@ -133,8 +166,8 @@ class MetricMap:
     def posterior(self, obs: Observations, level: float = 0.95) -> GridPosterior:
         """The grid posterior of ``obs`` (module docstring); ``level``: of the HPD set and of the
         marginal intervals."""
-        log_w = self.scores(obs).log_likelihood
-        if not self.cycle.any():
+        log_w = self.log_likelihood(obs)
+        if not np.isfinite(log_w).any():
             nan = {"b": np.nan, "log10_lc": np.nan}
             return GridPosterior(np.zeros(log_w.shape), np.zeros(log_w.shape, bool), nan, nan,
                                  {"b": (np.nan, np.nan), "log10_lc": (np.nan, np.nan)},
@@ -161,11 +194,11 @@ class MetricMap:
                              ok=True)
 
     def profile(self, obs: Observations, parameter: str) -> tuple[np.ndarray, np.ndarray]:
-        """``(values, J1)``: the grid's values of ``parameter`` (``"b"`` or ``"log10_lc"``) and
-        J1 minimised over the other parameter's nodes at each."""
+        """``(values, misfit)``: the grid's values of ``parameter`` (``"b"`` or ``"log10_lc"``)
+        and the misfit minimised over the other parameter's nodes at each."""
         if parameter not in ("b", "log10_lc"):
             raise ValueError(f"parameter must be 'b' or 'log10_lc', got {parameter!r}")
-        J = self.j1(obs)
+        J = self.misfit(obs)
         return (self.b, J.min(axis=1)) if parameter == "b" else (self.log10_lc, J.min(axis=0))
 
 
@@ -180,8 +213,9 @@ def _quantiles(x: np.ndarray, mass: np.ndarray, qs) -> tuple[float, float]:
 
 def metric_map(problem: SpringSlider, algorithm: Algorithm, b, log10_lc,
                wall_budget: float | None = None, workers: int | None = None,
-               progress: bool = False) -> MetricMap:
-    """One ensemble over the grid ``b`` × ``log10_lc`` (1-D arrays, Lc in log10 m)."""
+               progress: bool = False, curves: bool = False) -> MetricMap:
+    """One ensemble over the grid ``b`` × ``log10_lc`` (1-D arrays, Lc in log10 m); with
+    ``curves``, each node's slip-weakening curve too (for observations with curves)."""
     import time
     b = np.asarray(b, dtype=float)
     log10_lc = np.asarray(log10_lc, dtype=float)
@@ -191,9 +225,15 @@ def metric_map(problem: SpringSlider, algorithm: Algorithm, b, log10_lc,
     bb, ll = np.meshgrid(b, log10_lc, indexing="ij")
     started = time.perf_counter()
     table = ensemble(problem, algorithm, {"b": bb.ravel(), "lc": 10.0 ** ll.ravel()},
-                     wall_budget=wall_budget, workers=workers, progress=progress)
+                     wall_budget=wall_budget, workers=workers, progress=progress,
+                     curve_dt=CURVE_DT if curves else None)
     run_wall = time.perf_counter() - started
     shape = bb.shape
+    curve = {}
+    if curves:
+        for c in ("curve_slip", "curve_friction"):
+            curve[c] = np.empty(shape, dtype=object)
+            curve[c].ravel()[:] = list(table[c])
     cycle = table.classification.isin(CYCLES).to_numpy().reshape(shape)
     return MetricMap(
         b=b, log10_lc=log10_lc,
@@ -202,4 +242,4 @@ def metric_map(problem: SpringSlider, algorithm: Algorithm, b, log10_lc,
         cycle=cycle, classification=table.classification.to_numpy().reshape(shape),
         algorithm=algorithm.name, n_solves=len(table),
         n_failed=int((table.retcode != "Success").sum()), nfev=int(table.nfev.sum()),
-        wall_s=float(table.wall_s.sum()), run_wall_s=run_wall)
+        wall_s=float(table.wall_s.sum()), run_wall_s=run_wall, **curve)

@@ -1,18 +1,25 @@
 """One inversion from start to end, as ``rsfbench invert`` runs it, and its files.
 
-:func:`invert` chains the three estimates on one :class:`~benchmarks.inversion.Misfit`: the
-multi-start least-squares fit with its covariance, the profiles of b and of log10 Lc over the
-prior box (the fit one of their points, so that it lies in its own intervals; an interval that is
-not resolved, or a profile that is jagged, comes with a warning in ``inversion.json`` and on the
-standard error), and emcee's posterior started at the fit. :func:`write_inversion` writes:
+:func:`invert` chains three estimates on one :class:`~benchmarks.inversion.Misfit` (the means'
+J1, plus the slip-weakening curves' χ² when the observations have curves): the posterior — on a
+grid refined where its mass is (:mod:`benchmarks.inversion.adaptive`, the default) or sampled
+with emcee —, the least-squares fit with its covariance (started from the grid's best cell, or
+multi-start), and the profiles of b and of log10 Lc over the prior box (the fit one of their
+points, so that it lies in its own intervals; an interval that is not resolved, or a profile
+that is jagged, comes with a warning in ``inversion.json`` and on the standard error).
+:func:`write_inversion` writes:
 
-* ``inversion.json``: the problem, the observations, the algorithm, the box and prior, the fit
-  (with covariance), the profile intervals, the posterior's mean, standard deviation, 95 %
-  intervals and diagnostics, the number of forward solves and the wall time of each stage;
+* ``inversion.json``: the problem, the observations, the likelihood and what it assumed, the
+  method and seed, the algorithm, the box and prior, the fit (with covariance), the profile
+  intervals, the posterior's mean, standard deviation, 95 % intervals and diagnostics, the number
+  of forward solves and the wall time of each stage, and the provenance (tool version and
+  commit, machine, packages, command line);
+* ``posterior_cells.csv`` (grid): every cell, its centre, widths, misfit and mass;
 * ``fit_starts.csv``, ``profile_b.csv``, ``profile_log10_lc.csv`` (each profile point, and
   whether it is the grid's, the fit's or one added where the interval was not resolved);
-* ``posterior.csv``: the samples after burn-in, thinned to at most ``MAX_SAMPLES_SAVED`` rows
-  (every k-th of the flattened chain; the summaries use all of them);
+* ``posterior.csv``: ``MAX_SAMPLES_SAVED`` draws from the grid's cells (seeded), or emcee's
+  samples after burn-in thinned to at most that many rows (every k-th of the flattened chain;
+  the summaries use all of them);
 * ``corner.png`` (the ``corner`` package) and ``profiles.png``.
 """
 
@@ -25,13 +32,14 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks.inversion.adaptive import CellPosterior
 from benchmarks.inversion.fit import FitResult, fit
 from benchmarks.inversion.misfit import Misfit
 from benchmarks.inversion.posterior import Posterior, check_sampler, sample
 from benchmarks.inversion.profile import CHI2_95_1DOF, profile
 from benchmarks.records.report import jsonable
 
-__all__ = ["invert", "Inversion", "write_inversion", "check_box", "MAX_SAMPLES_SAVED"]
+__all__ = ["invert", "Inversion", "write_inversion", "check_box", "MAX_SAMPLES_SAVED", "METHODS"]
 
 #: rows of posterior.csv at most
 MAX_SAMPLES_SAVED = 4000
@@ -47,9 +55,11 @@ class Inversion:
     lc_range: tuple
     fit: FitResult
     profiles: dict
-    posterior: Posterior | None
+    posterior: Posterior | CellPosterior | None
     wall_s: dict
     no_posterior: str = ""
+    method: str = "grid"
+    seed: int = 0
 
 
 def check_box(problem, b_range, lc_range) -> None:
@@ -75,15 +85,24 @@ def check_box(problem, b_range, lc_range) -> None:
                                  f"{exc}") from None
 
 
+#: the posterior's methods: the refined grid (the default) and emcee's sampler
+METHODS = ("grid", "emcee")
+
+
 def invert(misfit: Misfit, b_range, lc_range, walkers: int = 32, steps: int = 2000,
            profile_points: int = 21, seed: int = 0, progress: bool = False,
-           say=None) -> Inversion:
-    """Fit, profile (``profile_points`` values of each parameter across the box) and sample
-    (``walkers`` × ``steps``; ``steps`` = 0: no posterior) within ``b_range`` × ``lc_range``
-    (Lc in m). The sampler starts at the fit; when the fit found no point with a limit cycle
-    there is no posterior (``no_posterior`` says why), not a chain frozen at −inf. ``say``: a
-    callable given a line of text as each stage starts."""
+           say=None, method: str = "grid", grid: int = 33) -> Inversion:
+    """The posterior, the least-squares fit and the profiles within ``b_range`` × ``lc_range``
+    (Lc in m). ``method="grid"``: the posterior on a ``grid`` × ``grid`` grid refined where its
+    mass is (:func:`benchmarks.inversion.adaptive.grid_posterior`), then the fit started from
+    its best cell; ``"emcee"``: the fit from a coarse scan, then ``walkers`` × ``steps`` of
+    emcee started at it. ``steps`` = 0: no posterior (either method). The profiles take ``profile_points``
+    values of each parameter across the box, the fit one of them. A box without a limit cycle
+    has no posterior (``no_posterior`` says why). ``say``: a callable given a line of text as
+    each stage starts."""
     say = say or (lambda text: None)
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     if (isinstance(profile_points, bool) or not isinstance(profile_points, int)
             or not 3 <= profile_points <= 1001):
         raise ValueError(f"profile_points must be an integer from 3 to 1001, got "
@@ -91,12 +110,25 @@ def invert(misfit: Misfit, b_range, lc_range, walkers: int = 32, steps: int = 20
     if isinstance(steps, bool) or not isinstance(steps, int) or steps < 0:
         raise ValueError(f"steps must be 0 (no posterior) or an integer ≥ 2, got {steps!r}")
     check_box(misfit.problem, b_range, lc_range)
-    if steps:                            # a bad chain is refused before the fit, not after it
+    if method == "emcee" and steps:      # a bad chain is refused before the fit, not after it
         check_sampler(b_range, lc_range, walkers, steps)
     wall = {}
+    post, why = None, "not asked for (steps = 0)"
+    start = None
+    if method == "grid" and steps:
+        from benchmarks.inversion.adaptive import grid_posterior
+        t = time.perf_counter()
+        say(f"grid posterior ({grid} × {grid}, refined where its mass is)")
+        post = grid_posterior(misfit, b_range, lc_range, n=grid, progress=progress, say=say)
+        wall["posterior"] = time.perf_counter() - t
+        why = ""
+        if np.isfinite(post.best[2]):
+            start = post.best[:2]
+        else:
+            post, why = None, "no cell of the grid has a limit cycle"
     t = time.perf_counter()
-    say("least-squares fit (multi-start)")
-    best = fit(misfit, b_range, lc_range)
+    say("least-squares fit" + (" from the grid's best cell" if start else " (multi-start)"))
+    best = fit(misfit, b_range, lc_range, start=start)
     wall["fit"] = time.perf_counter() - t
     profiles = {}
     for name, values, other in (
@@ -105,13 +137,13 @@ def invert(misfit: Misfit, b_range, lc_range, walkers: int = 32, steps: int = 20
         t = time.perf_counter()
         say(f"profile of {name}")
         profiles[name] = profile(misfit, name, values, other,
-                                 best=(best.b, best.lc, best.J1) if np.isfinite(best.J1) else None)
+                                 best=(best.b, best.lc, best.misfit)
+                                 if np.isfinite(best.misfit) else None)
         wall[f"profile_{name}"] = time.perf_counter() - t
         _check_fit_inside(profiles[name], best)
-    post, why = None, "not asked for (steps = 0)"
-    if steps and not np.isfinite(best.J1):
+    if method == "emcee" and steps and not np.isfinite(best.misfit):
         why = f"not sampled: {best.message} (no point of the box is known to have a cycle)"
-    elif steps:
+    elif method == "emcee" and steps:
         t = time.perf_counter()
         say(f"posterior: {walkers} walkers × {steps} steps")
         lo, hi = np.array([b_range[0], np.log10(lc_range[0])]), np.array(
@@ -121,22 +153,23 @@ def invert(misfit: Misfit, b_range, lc_range, walkers: int = 32, steps: int = 20
                       steps=steps, seed=seed, progress=progress)
         wall["posterior"] = time.perf_counter() - t
         why = ""
-    return Inversion(misfit, tuple(b_range), tuple(lc_range), best, profiles, post, wall, why)
+    return Inversion(misfit, tuple(b_range), tuple(lc_range), best, profiles, post, wall, why,
+                     method=method, seed=seed)
 
 
 def _check_fit_inside(p, best: FitResult) -> None:
     """The fit is a point of each profile, so it lies in its interval unless the profile found
-    a lower J1 elsewhere by more than the level: then the fit is a local minimum, and the
+    a lower misfit elsewhere by more than the level: then the fit is a local minimum, and the
     profile's warnings say so (nothing is read as if the fit were the global one)."""
-    if not np.isfinite(best.J1) or not np.isfinite(p.low):
+    if not np.isfinite(best.misfit) or not np.isfinite(p.low):
         return
     x = best.b if p.parameter == "b" else float(np.log10(best.lc))
     if not p.low <= x <= p.high:
         label = "b" if p.parameter == "b" else "log10 Lc"
         p.warnings.append(
-            f"the least-squares fit ({label} = {x:.6g}, J1 = {best.J1:.4g}) is outside the "
-            f"profile's 95 % interval [{p.low:.6g}, {p.high:.6g}]: the profile found J1 = "
-            f"{p.table.J1.min():.4g} elsewhere, so the fit is a local minimum")
+            f"the least-squares fit ({label} = {x:.6g}, misfit = {best.misfit:.4g}) is outside "
+            f"the profile's 95 % interval [{p.low:.6g}, {p.high:.6g}]: the profile found "
+            f"misfit = {p.table.misfit.min():.4g} elsewhere, so the fit is a local minimum")
 
 
 def _summary(inv: Inversion) -> dict:
@@ -148,27 +181,44 @@ def _summary(inv: Inversion) -> dict:
                          "sigma_recurrence_s": o.sigma_recurrence_s,
                          "friction_drop": o.friction_drop,
                          "sigma_friction_drop": o.sigma_friction_drop,
-                         "sigma_assumed": o.assumed_sigma},
+                         "sigma_assumed": o.assumed_sigma,
+                         "curve_events": (None if o.curves is None
+                                          else int(o.curves.event_id.nunique()))},
+        "likelihood": {
+            "means": "J1 (Eq. 10): ΔT̄ and Δμ̄ Gaussian about the limit cycle's with the "
+                     "stated σ" + (" (σ assumed: 10 % of the mean)" if o.assumed_sigma else ""),
+            "curves": None if o.curve_likelihood is None else o.curve_likelihood.describe(),
+            "misfit": "−2 log L = J1" + ("" if o.curve_likelihood is None
+                                         else " + χ²_curves")},
+        "method": inv.method, "seed": inv.seed,
         "integrator": m.algorithm.name, "options": m.algorithm.options(),
         "b_range": list(inv.b_range), "lc_range_m": list(inv.lc_range),
         "fit": {"b": f.b, "lc_m": f.lc, "log10_lc": float(np.log10(f.lc)) if f.lc > 0 else None,
-                "J1": f.J1, "sigma_b": f.sigma_b, "sigma_log10_lc": f.sigma_log10_lc,
+                "misfit": f.misfit, "sigma_b": f.sigma_b, "sigma_log10_lc": f.sigma_log10_lc,
                 "covariance_b_log10_lc": f.covariance.tolist(), "success": f.success,
                 "message": f.message, "n_solves": f.n_solves},
         "profiles": {k: {"low": p.low, "high": p.high, "open_low": p.open_low,
                          "open_high": p.open_high, "n_solves": p.n_solves,
                          "n_points": len(p.table), "resolved": p.resolved,
                          "monotone": p.monotone, "warnings": list(p.warnings),
-                         "level": f"ΔJ1 ≤ {CHI2_95_1DOF:.3f}"} for k, p in inv.profiles.items()},
+                         "level": f"Δ misfit ≤ {CHI2_95_1DOF:.3f}"} for k, p in inv.profiles.items()},
         "wall_s": inv.wall_s}
     if inv.posterior is None:
         out["posterior"] = None
         out["no_posterior"] = inv.no_posterior
+    elif isinstance(inv.posterior, CellPosterior):
+        p = inv.posterior
+        out["posterior"] = {
+            "method": "grid", "prior": p.prior, "mean": p.mean, "std": p.std,
+            "interval_95": {k: list(v) for k, v in p.interval.items()},
+            "edge_mass": p.edge_mass, "levels": p.levels, "settled": p.settled,
+            "n_cells": len(p.cells), "n_solves": p.n_solves, "wall_s": p.wall_s,
+            "refinement": p.history}
     else:
         p = inv.posterior
         q = p.samples.quantile([0.025, 0.975])
         out["posterior"] = {
-            "prior": p.prior, "mean": p.mean, "std": p.std,
+            "method": "emcee", "prior": p.prior, "mean": p.mean, "std": p.std,
             "interval_95": {k: [float(q[k].iloc[0]), float(q[k].iloc[1])] for k in p.mean},
             "acceptance": p.acceptance, "tau": p.tau, "tau_reliable": p.tau_reliable,
             "effective_samples": p.effective_samples, "n_solves": p.n_solves,
@@ -176,12 +226,16 @@ def _summary(inv: Inversion) -> dict:
     return out
 
 
-def write_inversion(inv: Inversion, out: Path) -> dict:
+def write_inversion(inv: Inversion, out: Path, provenance: dict | None = None) -> dict:
     """Write the files of the module docstring to ``out``; return the summary (as written to
-    ``inversion.json``) with the paths written."""
+    ``inversion.json``) with the paths written. ``provenance``: what else to record of the run
+    (the command line, the integrator's choice, the observations' file), beside the machine's
+    and the packages' (:func:`benchmarks.records.provenance.provenance`)."""
+    from benchmarks.records.provenance import provenance as machine, version_line
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     summary = _summary(inv)
+    summary["provenance"] = {"tool": version_line(), **machine(), **(provenance or {})}
     files = {"summary": out / "inversion.json", "fit_starts": out / "fit_starts.csv",
              "profiles_plot": out / "profiles.png"}
     inv.fit.starts.to_csv(files["fit_starts"], index=False)
@@ -189,7 +243,14 @@ def write_inversion(inv: Inversion, out: Path) -> dict:
         files[f"profile_{name}"] = out / f"profile_{name}.csv"
         p.table.to_csv(files[f"profile_{name}"], index=False)
     _plot_profiles(inv, files["profiles_plot"])
-    if inv.posterior is not None:
+    if isinstance(inv.posterior, CellPosterior):
+        files["posterior_cells"] = out / "posterior_cells.csv"
+        inv.posterior.cells.to_csv(files["posterior_cells"], index=False)
+        files["posterior"] = out / "posterior.csv"
+        inv.posterior.sample(MAX_SAMPLES_SAVED, inv.seed).to_csv(files["posterior"], index=False)
+        files["corner"] = out / "corner.png"
+        _plot_corner(inv, files["corner"])
+    elif inv.posterior is not None:
         s = inv.posterior.samples
         stride = max(1, -(-len(s) // MAX_SAMPLES_SAVED))
         files["posterior"] = out / "posterior.csv"
@@ -207,12 +268,12 @@ def _plot_profiles(inv: Inversion, path: Path) -> None:
     import matplotlib.pyplot as plt
     fig, axes = plt.subplots(1, 2, figsize=(9, 3.6))
     for ax, (name, p) in zip(axes, inv.profiles.items()):
-        J = p.table.J1.to_numpy()
+        J = p.table.misfit.to_numpy()
         x = p.table[name].to_numpy()
         finite = np.isfinite(J)
         if finite.any():
             ax.plot(x[finite], J[finite] - J[finite].min(), "o-", ms=3)
-            ax.axhline(CHI2_95_1DOF, color="k", lw=0.8, ls="--", label="95 % (ΔJ1 = 3.84)")
+            ax.axhline(CHI2_95_1DOF, color="k", lw=0.8, ls="--", label="95 % (Δ misfit = 3.84)")
             if np.isfinite(p.low):
                 ax.axvspan(p.low, p.high, color="C1", alpha=0.2, label="95 % interval"
                            + (" (open)" if p.open_low or p.open_high else ""))
@@ -222,7 +283,7 @@ def _plot_profiles(inv: Inversion, path: Path) -> None:
                     transform=ax.transAxes)
         ax.xaxis.set_major_locator(plt.MaxNLocator(5))
         ax.set_xlabel("b" if name == "b" else "log10 Lc (m)")
-        ax.set_ylabel("J1 − min J1 (profile)")
+        ax.set_ylabel("misfit − its minimum (profile)")
         if ax.get_legend_handles_labels()[0]:
             ax.legend(fontsize=8)
     fig.suptitle(f"{inv.misfit.problem.name}: profiles ({inv.misfit.algorithm.name})", fontsize=10)
@@ -238,13 +299,14 @@ def _plot_corner(inv: Inversion, path: Path) -> None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    s = inv.posterior.samples
-    truths = ([inv.fit.b, np.log10(inv.fit.lc)] if np.isfinite(inv.fit.J1) and inv.fit.lc > 0
+    s = (inv.posterior.sample(20_000, inv.seed) if isinstance(inv.posterior, CellPosterior)
+         else inv.posterior.samples)
+    truths = ([inv.fit.b, np.log10(inv.fit.lc)] if np.isfinite(inv.fit.misfit) and inv.fit.lc > 0
               else None)
     fig = corner.corner(s[["b", "log10_lc"]].to_numpy(), labels=["b", "log10 Lc (m)"],
                         quantiles=[0.025, 0.5, 0.975], show_titles=True, title_fmt=".4g",
                         truths=truths, truth_color="C3")
-    fig.suptitle(f"{inv.misfit.problem.name}: posterior ({inv.misfit.algorithm.name}); red: "
-                 "least-squares fit", fontsize=9, y=1.02)
+    fig.suptitle(f"{inv.misfit.problem.name}: posterior ({inv.method}, "
+                 f"{inv.misfit.algorithm.name}); red: least-squares fit", fontsize=9, y=1.02)
     fig.savefig(path, dpi=110, bbox_inches="tight")
     plt.close(fig)

@@ -1,10 +1,11 @@
-"""The misfit of (b, Lc) as a function, for fits, profiles and samplers (issue 17, item 1).
+"""The misfit of (b, Lc) as a function, for fits, profiles and samplers.
 
 :class:`Misfit` binds one problem, its observations
 (:class:`benchmarks.inversion.observations.Observations`) and one algorithm. It evaluates any batch of (b, Lc) on the ensemble engine
 (:func:`benchmarks.ensemble.ensemble`: one compiled batch for the own methods) and returns, per
-point, the limit-cycle metrics, the residuals, J1 (Eq. 10), J2 (Eq. 11, when the observations
-have slip-weakening curves) and the log-likelihood.
+point, the limit-cycle metrics, the residuals, J1 (Eq. 10), and with slip-weakening curves their
+χ² (:mod:`benchmarks.inversion.curve_likelihood`) and J2 (Eq. 11, the paper's score); the
+misfit J1 + χ²_curves, which fits and profiles minimise, and the log-likelihood, −misfit/2.
 
 What an optimizer or a sampler sees at a point **without a limit cycle** is defined, never NaN
 (:func:`benchmarks.inversion.fitting.scores`): each residual is ``NO_CYCLE_RESIDUAL`` σ and J1
@@ -22,7 +23,7 @@ import numpy as np
 import pandas as pd
 
 from benchmarks.ensemble import ensemble
-from benchmarks.inversion.fitting import NO_CYCLE_RESIDUAL, j2_per_event, scores
+from benchmarks.inversion.fitting import NO_CYCLE_J1, NO_CYCLE_RESIDUAL, j2_per_event, scores
 from benchmarks.inversion.observations import MIN_SIGMA_REL, Observations
 from benchmarks.physics.metrics import CYCLES
 from integrators import Algorithm
@@ -51,8 +52,10 @@ class Misfit:
 
     def evaluate(self, b, lc, progress: bool = False) -> pd.DataFrame:
         """One row per (b, Lc) pair (``b`` and ``lc`` broadcast together; Lc in m): the
-        ensemble's columns, then ``r_recurrence``, ``r_drop`` (residuals in σ), ``J1``, ``J2``
-        (NaN without curves) and ``log_likelihood``."""
+        ensemble's columns, then ``r_recurrence``, ``r_drop`` (residuals in σ), ``J1``,
+        ``chi2_curves`` (the curves' χ², :mod:`benchmarks.inversion.curve_likelihood`; 0
+        without curves), ``misfit`` (−2 log L + const: J1 + χ²_curves), ``J2`` (Eq. 11's mean
+        over the events, the paper's score; NaN without curves) and ``log_likelihood``."""
         b, lc = np.broadcast_arrays(np.asarray(b, dtype=float), np.asarray(lc, dtype=float))
         table = ensemble(self.problem, self.algorithm, {"b": b.ravel(), "lc": lc.ravel()},
                          wall_budget=self.wall_budget,
@@ -64,27 +67,44 @@ class Misfit:
         s = scores(table.recurrence_s, table.friction_drop, cycle, o)
         table["r_recurrence"], table["r_drop"] = s.penalised
         table["J1"] = s.j1_penalised
+        chi2 = np.zeros(len(table))
         if o.curves is not None:
-            table["J2"] = [float(np.mean(j2_per_event(np.asarray(s, dtype=float),
-                                                      np.asarray(f, dtype=float), o.curves)))
-                           if c else np.inf
-                           for c, s, f in zip(cycle, table.curve_slip, table.curve_friction)]
+            like = o.curve_likelihood
+            curves = list(zip(cycle, table.curve_slip, table.curve_friction))
+            chi2 = np.array([like.chi2(x, y) if c else np.nan for c, x, y in curves])
+            table["J2"] = [float(np.mean(j2_per_event(np.asarray(x, dtype=float),
+                                                      np.asarray(y, dtype=float), o.curves)))
+                           if c else np.inf for c, x, y in curves]
         else:
             table["J2"] = np.nan
-        table["log_likelihood"] = s.log_likelihood
+        # a cycle whose curve could not be made (a second solve that differed) has no χ²
+        has = cycle & np.isfinite(chi2)
+        table["chi2_curves"] = np.where(has, chi2, np.nan)
+        table["misfit"] = np.where(has, s.j1_penalised + np.where(has, chi2, 0.0), NO_CYCLE_J1)
+        table["log_likelihood"] = np.where(has, -0.5 * table.misfit.to_numpy(), -np.inf)
         return table
 
     def residuals(self, b: float, lc: float) -> np.ndarray:
-        """(ΔT − ΔT̄)/σ and (Δμ − Δμ̄)/σ at one point, for least squares."""
+        """The residuals at one point whose squares sum to its misfit, for least squares:
+        (ΔT − ΔT̄)/σ, (Δμ − Δμ̄)/σ and, with curves, the curves' whitened residuals
+        (:data:`NO_CYCLE_RESIDUAL` each without a limit cycle or its curve)."""
         row = self.evaluate([b], [lc]).iloc[0]
-        return np.array([row.r_recurrence, row.r_drop])
+        out = [row.r_recurrence, row.r_drop]
+        like = self.obs.curve_likelihood
+        if like is None:
+            return np.array(out)
+        r = like.residuals(row.curve_slip, row.curve_friction)
+        if not np.isfinite(row.log_likelihood) or not np.isfinite(r).all():
+            return np.full(2 + len(r), NO_CYCLE_RESIDUAL)
+        return np.concatenate([out, r])
 
     def __call__(self, b: float, lc: float) -> float:
-        """J1 at one point (``NO_CYCLE_J1`` without a limit cycle)."""
-        return float(self.evaluate([b], [lc]).J1.iloc[0])
+        """The misfit at one point (``NO_CYCLE_J1`` without a limit cycle)."""
+        return float(self.evaluate([b], [lc]).misfit.iloc[0])
 
     def log_likelihood(self, b: float, lc: float) -> float:
-        """−J1/2 at one point (Gaussian errors of the stated σ), −inf without a limit cycle."""
+        """−misfit/2 at one point (Gaussian errors of the stated σ), −inf without a limit
+        cycle."""
         return float(self.evaluate([b], [lc]).log_likelihood.iloc[0])
 
 

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -57,6 +57,14 @@ class Observations:
     sigma_friction_drop: float
     curves: pd.DataFrame | None = None
     assumed_sigma: bool = False        # σ not measured: 10 % of the mean, say so in the output
+    #: the curves' noise model, σ per sample (model "sample") and reading (std or sem) of the
+    #: spread (model "scatter"): :mod:`benchmarks.inversion.curve_likelihood`; "none": the
+    #: curves enter no likelihood (the paper's J2 score only)
+    curve_noise: str = "scatter"
+    curve_sigma: float | None = None
+    curve_reading: str = "std"
+    #: the curves' likelihood (None without curves), made from the above
+    curve_likelihood: object = field(default=None, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         for mean, sigma in (("recurrence_s", "sigma_recurrence_s"),
@@ -80,8 +88,15 @@ class Observations:
                           f"both are in one unit ({unit})", stacklevel=1)
         if not isinstance(self.assumed_sigma, (bool, np.bool_)):
             raise ValueError(f"assumed_sigma must be True or False, got {self.assumed_sigma!r}")
+        from benchmarks.inversion.curve_likelihood import CURVE_NOISES, CurveLikelihood
+        if self.curve_noise not in (*CURVE_NOISES, "none"):
+            raise ValueError(f"curve_noise must be one of {(*CURVE_NOISES, 'none')}, got "
+                             f"{self.curve_noise!r}")
         if self.curves is not None:
             object.__setattr__(self, "curves", check_curves(self.curves, "obs.curves"))
+            if self.curve_noise != "none":
+                object.__setattr__(self, "curve_likelihood", CurveLikelihood.from_curves(
+                    self.curves, self.curve_noise, self.curve_sigma, self.curve_reading))
 
 
 #: σ assumed when none is given: 10 % of the observed mean (flagged in the output)
@@ -155,10 +170,12 @@ def write_observations(path, events: pd.DataFrame, curves: pd.DataFrame | None =
     return doc
 
 
-def read_observations(path, sigma: str | None = None) -> Observations:
+def read_observations(path, sigma: str | None = None, curve_noise: str = "none",
+                      curve_sigma: float | None = None) -> Observations:
     """The :class:`Observations` of an observations file: the means of ΔT and Δμ, with the σ
-    the file names (``std`` unless it says otherwise) or ``sigma``, and the curves if any; or
-    ``ValueError`` naming the file and what is wrong."""
+    the file names (``std`` unless it says otherwise) or ``sigma``, and the curves if any, in
+    the likelihood under ``curve_noise`` (:mod:`benchmarks.inversion.curve_likelihood`; the
+    curves' spread read as the same σ); or ``ValueError`` naming the file and what is wrong."""
     from benchmarks.records.files import BadResultsFile, read_json_record
     if sigma is not None and sigma not in SIGMAS:
         raise ValueError(f"sigma must be one of {SIGMAS}, got {sigma!r}")
@@ -188,6 +205,7 @@ def read_observations(path, sigma: str | None = None) -> Observations:
     curves = doc.get("curves")
     try:
         curves = pd.DataFrame(curves) if curves else None
-        return Observations(*values, curves=curves)
+        return Observations(*values, curves=curves, curve_noise=curve_noise,
+                            curve_sigma=curve_sigma, curve_reading=which)
     except (ValueError, TypeError) as exc:
         raise ValueError(f"observations file {path}: {exc}") from None

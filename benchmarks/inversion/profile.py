@@ -1,7 +1,8 @@
-"""Profile likelihoods of b and of log10 Lc (issue 17, item 2, second part; issue 29).
+"""Profile likelihoods of b and of log10 Lc.
 
-The profile of b is J1 minimised over log10 Lc at each b, and the profile of log10 Lc is J1
-minimised over b; a value without a limit cycle anywhere along its line has no finite profile
+The profile of b is the misfit (−2 log L: J1, plus the curves' χ² when they enter;
+:class:`benchmarks.inversion.Misfit`) minimised over log10 Lc at each b, and the profile of
+log10 Lc is it minimised over b; a value without a limit cycle anywhere along its line has no finite profile
 value (``inf``). The 95 % profile interval is where the profile is within :data:`CHI2_95_1DOF` of
 its minimum (−2 Δ log L ≤ 3.84 for one parameter, Wilks), its ends interpolated linearly between
 profile points; an interval that reaches the end of the grid says so (``open_low``/``open_high``):
@@ -18,8 +19,8 @@ A computed profile value is an upper bound of the true one (a minimum can be mis
 undershot). Three things make the interval trustworthy, for any σ and any number of points:
 
 * ``best``, a known point such as the least-squares fit, is a profile point: its value of the
-  parameter is profiled and its J1 bounds the profile there, so the fit lies inside its interval;
-* a **jagged** profile (rising, then falling again, beyond :data:`NOISE_J1`, on either side of
+  parameter is profiled and its misfit bounds the profile there, so the fit lies inside its interval;
+* a **jagged** profile (rising, then falling again, beyond :data:`NOISE_J1` of the misfit, on either side of
   its minimum) is re-minimised at the high point from the optima of its neighbours along the
   other parameter; what stays jagged is reported (``monotone`` False, a warning), and the interval
   is then the hull of every point within the level, never just the piece about the minimum;
@@ -43,7 +44,7 @@ __all__ = ["profile", "Profile", "CHI2_95_1DOF", "NOISE_J1", "CELLS"]
 
 #: the 95 % quantile of χ² with one degree of freedom
 CHI2_95_1DOF = 3.841458820694124
-#: a profile falling by less than this (in J1, plus 1e−3 of the value) where it should rise is
+#: a profile falling by less than this (in misfit, plus 1e−3 of the value) where it should rise is
 #: noise: it moves an interval's end by a few hundredths of the level at most
 NOISE_J1 = 0.05
 #: a resolved interval spans at least this many cells at each end (module docstring)
@@ -53,7 +54,7 @@ CELLS = 4
 @dataclass
 class Profile:
     """The profile of ``parameter`` (``"b"`` or ``"log10_lc"``): its points (``table``: the value,
-    the minimum of J1 over the other parameter there and where, and ``point``: ``grid``, ``best``
+    the minimum of the misfit over the other parameter there and where, and ``point``: ``grid``, ``best``
     or ``refined``), the 95 % interval, whether it is resolved and the profile monotone about its
     minimum, and the warnings that say what is not."""
 
@@ -73,7 +74,7 @@ def profile(misfit: Misfit, parameter: str, values, other_range, scan: int = 41,
             xrtol: float = 1e-6, best=None, refine: int = 12) -> Profile:
     """The profile of ``parameter`` (``"b"``, or ``"log10_lc"`` with ``values`` in log10 m) over
     ``values``, minimising over the other parameter within ``other_range`` (b, or Lc in m), to
-    ``xrtol`` of its range. ``best``: ``(b, Lc, J1)`` of a known point (a fit), or None.
+    ``xrtol`` of its range. ``best``: ``(b, Lc, misfit)`` of a known point (a fit), or None.
     ``refine``: rounds of bisection and repair at most (0: the grid only)."""
     if parameter not in ("b", "log10_lc"):
         raise ValueError(f"parameter must be 'b' or 'log10_lc', got {parameter!r}")
@@ -125,7 +126,7 @@ def profile(misfit: Misfit, parameter: str, values, other_range, scan: int = 41,
     x, J, w = _arrays(points)
     kinds = [points[v][2] for v in x]
     other = "b" if parameter == "log10_lc" else "log10_lc"
-    table = pd.DataFrame({parameter: x, "J1": J, other: w, "point": kinds})
+    table = pd.DataFrame({parameter: x, "misfit": J, other: w, "point": kinds})
     low, high, open_low, open_high, resolved = _interval(x, J)
     jagged = _jagged(J)
     warnings = []
@@ -133,7 +134,7 @@ def profile(misfit: Misfit, parameter: str, values, other_range, scan: int = 41,
     if jagged:
         i = jagged[0]
         warnings.append(f"the profile of {label} is not monotone about its minimum at "
-                        f"{label} = {x[i]:.6g} (J1 {_triple(J, i)}) after re-minimising there "
+                        f"{label} = {x[i]:.6g} (misfit {_triple(J, i)}) after re-minimising there "
                         "from its neighbours' optima: its interval is the hull of every point "
                         "within the level, and may be wider than the truth")
     if not resolved:
@@ -145,7 +146,7 @@ def profile(misfit: Misfit, parameter: str, values, other_range, scan: int = 41,
 
 
 class _Lines:
-    """Minima of J1 along lines of the profiled parameter, counting the forward solves."""
+    """Minima of the misfit along lines of the profiled parameter, counting the forward solves."""
 
     def __init__(self, misfit: Misfit, parameter: str, grid: np.ndarray, xatol: float):
         self.misfit, self.parameter, self.grid, self.xatol = misfit, parameter, grid, xatol
@@ -155,14 +156,14 @@ class _Lines:
         return (v, 10.0 ** w) if self.parameter == "b" else (w, 10.0 ** v)
 
     def j1(self, v, w) -> float:
-        """J1 at one point, inf without a limit cycle (not the finite no-cycle value: a line's
+        """The misfit at one point, inf without a limit cycle (not the finite no-cycle value: a line's
         minimum must be a cycle's)."""
         row = self.misfit.evaluate([self.point(v, w)[0]], [self.point(v, w)[1]]).iloc[0]
         self.n_solves += 1
-        return float(row.J1) if np.isfinite(row.log_likelihood) else np.inf
+        return float(row.misfit) if np.isfinite(row.log_likelihood) else np.inf
 
     def minimise(self, values, hints=None, scan: bool = True) -> list[tuple[float, float]]:
-        """``(J1, other)`` at the minimum of each line: the scan's best point (``scan``: the
+        """``(misfit, other)`` at the minimum of each line: the scan's best point (``scan``: the
         lines are scanned first, in one batch), refined between its neighbours, and about each of
         the line's ``hints`` (values of the other parameter)."""
         from scipy.optimize import minimize_scalar
@@ -173,7 +174,7 @@ class _Lines:
             table = self.misfit.evaluate(np.array([p[0] for p in pairs]),
                                          np.array([p[1] for p in pairs]))
             self.n_solves += len(table)
-            scans = np.where(np.isfinite(table.log_likelihood.to_numpy()), table.J1.to_numpy(),
+            scans = np.where(np.isfinite(table.log_likelihood.to_numpy()), table.misfit.to_numpy(),
                              np.inf).reshape(len(values), n)
         step = grid[1] - grid[0]
         out = []

@@ -98,18 +98,28 @@ def event_window(sol, index: int = -1) -> tuple[np.ndarray, np.ndarray, np.ndarr
 
 
 def sample_curves(sol, n_events: int = 3, n_points: int = 25, noise: float = 0.0,
-                  seed: int = 0, curve=event_curve) -> pd.DataFrame:
+                  seed: int = 0, curve=event_curve, spacing: str = "slip") -> pd.DataFrame:
     """Curves in the format of :func:`read_curves` from the last ``n_events`` events of ``sol``
-    (``curve(sol, index)``: :func:`event_curve` by default), each sampled at ``n_points`` slips
-    spread over the inside of the event — at (j + ½)/n of its total slip: at both ends the curve
-    is vertical (the friction changes while the slip does not), where a sample would weigh the
-    slip at which a curve ends rather than its shape — plus Gaussian noise of std ``noise``."""
+    (``curve(sol, index)``: :func:`event_curve` by default), each sampled at ``n_points`` points
+    inside the event, plus Gaussian noise of std ``noise``. ``spacing="slip"``: at (j + ½)/n of
+    its total slip; ``"time"``: at (j + ½)/n of its duration, as a recorder samples (many points
+    at the slow start, where the weakening over a few Lc happens), from the saved trajectory
+    (save finely). Not at the ends: there the curve is vertical (the friction changes while the
+    slip does not), where a sample would weigh the slip at which a curve ends, not its shape."""
+    if spacing not in ("slip", "time"):
+        raise ValueError(f"spacing must be 'slip' or 'time', got {spacing!r}")
     rng = np.random.default_rng(seed)
     frames = []
     for i in range(n_events):
-        slip, mu = curve(sol, index=len(sol.events) - n_events + i)
-        s = (np.arange(n_points) + 0.5) / n_points * slip[-1]
+        index = len(sol.events) - n_events + i
+        slip, mu = curve(sol, index=index)
+        if spacing == "slip":
+            s = (np.arange(n_points) + 0.5) / n_points * slip[-1]
+            f = np.interp(s, slip, mu)
+        else:
+            t, _, _ = event_window(sol, index)
+            at = t[0] + (np.arange(n_points) + 0.5) / n_points * (t[-1] - t[0])
+            s, f = np.interp(at, t, slip), np.interp(at, t, mu)
         frames.append(pd.DataFrame({"event_id": i + 1, "slip_m": s,
-                                    "friction": np.interp(s, slip, mu)
-                                    + noise * rng.standard_normal(n_points)}))
+                                    "friction": f + noise * rng.standard_normal(n_points)}))
     return pd.concat(frames, ignore_index=True)

@@ -79,7 +79,7 @@ def _flag_cases():
                                  names=flag))
     out += [
         _cli_case("invert --walkers 5000 --steps 5000 (10⁷ solves and more)",
-                  _INVERT + ("--walkers", "5000", "--steps", "5000"), names="--walkers"),
+                  _INVERT + ("--method", "emcee", "--walkers", "5000", "--steps", "5000"), names="--walkers"),
         _cli_case("invert --t-end 1e6 (over 10,000 cycles a solve)",
                   _INVERT + ("--t-end", "1e6"), names="--t-end"),
         _cli_case("study calibration: check_seeds 5 > seeds 2",
@@ -152,7 +152,7 @@ class _Valley:
         for h in self.holes:
             cycle &= ~(np.isclose(b, h, rtol=0, atol=1e-12) & (np.abs(l - valley) < self.width)
                        & (b.size > 1))
-        return pd.DataFrame({"J1": np.where(cycle, J, 2e6),
+        return pd.DataFrame({"misfit": np.where(cycle, J, 2e6),
                              "log_likelihood": np.where(cycle, -0.5 * J, -np.inf)})
 
 
@@ -187,8 +187,8 @@ def _unrepairable(tmp):
             t = super().evaluate(b, lc)
             bad = np.isclose(np.atleast_1d(b), 0.0092, rtol=0, atol=1e-12)
             low = np.log10(np.atleast_1d(lc)) < -7.9
-            t.loc[bad, ["J1", "log_likelihood"]] = [2e6, -np.inf]
-            t.loc[bad & low, ["J1", "log_likelihood"]] = [50.0, -25.0]
+            t.loc[bad, ["misfit", "log_likelihood"]] = [2e6, -np.inf]
+            t.loc[bad & low, ["misfit", "log_likelihood"]] = [50.0, -25.0]
             return t
     p = profile(Broken(3e-4, 0.05, c=0.0), "b", np.linspace(0.0086, 0.0102, 9), (1e-8, 1e-5),
                 refine=2)
@@ -263,9 +263,10 @@ def _api_cases():
         _api_refused("invert(profile_points=True)", lambda: _invert(profile_points=True),
                      "profile_points"),
         _api_refused("invert(steps=-1)", lambda: _invert(steps=-1), "steps"),
-        _api_refused("invert(walkers=3)", lambda: _invert(walkers=3), "walkers"),
+        _api_refused("invert(walkers=3)", lambda: _invert(walkers=3, method="emcee"), "walkers"),
         _api_refused("invert(walkers × steps > 10⁷)", lambda: _invert(walkers=10_000,
-                                                                      steps=10_000), "walkers"),
+                                                                      steps=10_000,
+                                                                      method="emcee"), "walkers"),
         _api_refused("invert(b_range up to 1.5)", lambda: _invert(b_range=(0.001, 1.5)),
                      "b = 1.5"),
         _api_refused("invert(lc_range from 1e-300 m)", lambda: _invert(lc_range=(1e-300, 1e-6)),
@@ -367,7 +368,7 @@ def _interrupt(args, ready, settle=2.0):
 
 
 def _interrupt_cases():
-    invert = ("invert", "--preset", "W4", "--t-end", "15", *_FAST, "--walkers", "8",
+    invert = ("invert", "--preset", "W4", "--t-end", "15", *_FAST, "--method", "emcee", "--walkers", "8",
               "--steps", "100000", "--profile-points", "5", "--out", "{tmp}/i", "--no-progress")
     out = [Case("inversion", f"Ctrl-C during invert's {phase}",
                 _interrupt(invert, lambda tmp, seen, text=text: text in seen), "retcode",

@@ -1,0 +1,171 @@
+"""The likelihood of observed slip-weakening curves, beside the means' J1.
+
+The observed curves are friction (Ft/Fn) against the slip since each event started, for n events
+(:mod:`benchmarks.physics.curves`); a model point's curve is its last event's. Every event's
+curve is compared up to an offset μ0 of its own, as Eq. 11 does (the friction level of a
+laboratory event drifts with wear and normal-force control; its shape is what Lc and b set).
+Two noise models, each stated in the output (:meth:`CurveLikelihood.describe`):
+
+* ``"scatter"`` (the default; at least :data:`MIN_EVENTS` events): the events scatter about the
+  model's curve. Each event is read (linearly interpolated) at K common slips, the (k + ½)/K
+  quantiles of all the observed slips up to the shortest event's end — where the samples are: a
+  recorder sampling in time puts many at the slow start of an event, where the weakening over a
+  few Lc happens — and projected on the K − 1 contrasts orthogonal to a constant (which removes the
+  offsets exactly). The events give a mean ȳ and a covariance of the contrasts; its estimate from
+  few events is singular or noisy, so it is shrunk towards a multiple of the identity with Ledoit
+  and Wolf's (2004) intensity (:func:`ledoit_wolf`). The curves' χ² of a model curve m is
+  (ȳ − m)ᵀ Q S⁻¹ Qᵀ (ȳ − m) with S that covariance (``reading="std"``: the model compared with a
+  typical event, as J1 uses the events' standard deviation) or S/n (``"sem"``: with the mean
+  curve). The correlation between the slips of one event is the covariance's; the events are
+  taken as independent of each other and of the means (their cross-correlation is not modelled);
+* ``"sample"``: a σ per sample is given (the friction measurement's noise, in units of μ): the
+  samples are independent Gaussian about the model's curve plus the event's offset, so the χ² is
+  Σ_i Σ_j (r_ij − r̄_i)² / σ² with r = model − observed at the observed slips (the offsets
+  profiled out exactly; this is Σ_i N_i J2(i) / σ², the paper's J2 made a likelihood). It
+  assumes that the model makes every event's curve: no event-to-event variability.
+
+The total misfit of an inversion is −2 log L = J1 + χ²_curves (up to a constant).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+__all__ = ["CurveLikelihood", "CURVE_NOISES", "COMMON_SLIPS", "MIN_EVENTS", "ledoit_wolf"]
+
+#: the noise models of the curves (module docstring)
+CURVE_NOISES = ("scatter", "sample")
+#: the common slips K at which each event is read under the scatter model
+COMMON_SLIPS = 12
+#: the scatter model's least number of events (a covariance needs a spread of several)
+MIN_EVENTS = 3
+
+
+def ledoit_wolf(x: np.ndarray) -> tuple[np.ndarray, float]:
+    """``(covariance, shrinkage)``: Ledoit and Wolf's (2004, J. Multivariate Anal. 88, 365)
+    estimate from the rows of ``x`` (samples × features): the sample covariance (÷ n, about the
+    mean) shrunk towards μ·I, μ its mean variance, by the intensity that minimises the expected
+    squared Frobenius error; the formula scikit-learn's ``ledoit_wolf`` computes."""
+    x = np.asarray(x, dtype=float)
+    n, p = x.shape
+    x = x - x.mean(axis=0)
+    emp = x.T @ x / n
+    mu = np.trace(emp) / p
+    x2 = x ** 2
+    delta_ = np.sum(emp ** 2)
+    beta_ = np.sum(x2.T @ x2) / n
+    beta = (beta_ - delta_) / (p * n)
+    delta = (delta_ - 2.0 * mu * np.trace(emp) + p * mu ** 2) / p
+    beta = min(beta, delta)
+    shrinkage = 0.0 if beta == 0 else beta / delta
+    cov = (1.0 - shrinkage) * emp
+    cov.flat[::p + 1] += shrinkage * mu
+    return cov, float(shrinkage)
+
+
+def _contrasts(k: int) -> np.ndarray:
+    """An orthonormal basis (k × k−1) of the vectors orthogonal to the constant one."""
+    q, _ = np.linalg.qr(np.column_stack([np.ones(k), np.eye(k)[:, :k - 1]]))
+    return q[:, 1:]
+
+
+@dataclass(frozen=True)
+class CurveLikelihood:
+    """The curves' χ² of a model curve against observed ``curves`` (module docstring):
+    :meth:`from_curves` builds it and refuses what it cannot use."""
+
+    noise: str
+    reading: str
+    n_events: int
+    dof: int
+    sigma: float | None = None
+    slips: np.ndarray | None = field(default=None, repr=False)
+    mean: np.ndarray | None = field(default=None, repr=False)
+    whiten: np.ndarray | None = field(default=None, repr=False)
+    shrinkage: float | None = None
+    observed: tuple | None = field(default=None, repr=False)
+
+    @classmethod
+    def from_curves(cls, curves: pd.DataFrame, noise: str = "scatter", sigma: float | None = None,
+                    reading: str = "std", points: int = COMMON_SLIPS) -> "CurveLikelihood":
+        """The likelihood of ``curves`` (:func:`benchmarks.physics.curves.check_curves`'
+        columns) under ``noise``; ``sigma``: the σ per sample of ``"sample"`` (units of μ);
+        ``reading``: ``"std"`` or ``"sem"`` (``"scatter"``); ``points``: K."""
+        if noise not in CURVE_NOISES:
+            raise ValueError(f"curve noise must be one of {CURVE_NOISES}, got {noise!r}")
+        if reading not in ("std", "sem"):
+            raise ValueError(f"reading must be 'std' or 'sem', got {reading!r}")
+        events = [g.sort_values("slip_m") for _, g in curves.groupby("event_id", sort=False)]
+        n = len(events)
+        if noise == "sample":
+            if sigma is None or not np.isfinite(sigma) or sigma <= 0:
+                raise ValueError(f"curve noise 'sample' needs σ per sample > 0 (friction, a "
+                                 f"fraction like μ), got {sigma!r}")
+            index = np.concatenate([np.full(len(g), i) for i, g in enumerate(events)])
+            slip = np.concatenate([g.slip_m.to_numpy() for g in events])
+            mu = np.concatenate([g.friction.to_numpy() for g in events])
+            return cls("sample", reading, n, len(slip) - n, sigma=float(sigma),
+                       observed=(slip, mu, index, np.bincount(index)))
+        if sigma is not None:
+            raise ValueError("a σ per sample is for curve noise 'sample'; the 'scatter' model "
+                             "estimates its covariance from the events")
+        if n < MIN_EVENTS:
+            raise ValueError(f"curve noise 'scatter' needs at least {MIN_EVENTS} events to "
+                             f"estimate their spread, the curves have {n}: give a σ per sample "
+                             "(noise 'sample') instead")
+        if isinstance(points, bool) or not isinstance(points, (int, np.integer)) or points < 3:
+            raise ValueError(f"points must be an integer ≥ 3, got {points!r}")
+        shortest = min(float(g.slip_m.max()) for g in events)
+        if not shortest > 0:
+            raise ValueError("an observed event has no slip (its slip_m never exceeds 0)")
+        pooled = np.concatenate([g.slip_m.to_numpy() for g in events])
+        slips = np.quantile(pooled[pooled <= shortest], (np.arange(points) + 0.5) / points)
+        if not (np.diff(slips) > 0).all():
+            raise ValueError(f"the observed curves have fewer than {points} distinct slips "
+                             f"up to the shortest event's end ({shortest:g} m)")
+        y = np.array([np.interp(slips, g.slip_m.to_numpy(), g.friction.to_numpy())
+                      for g in events])
+        q = _contrasts(points)
+        cov, shrinkage = ledoit_wolf(y @ q)
+        cov *= n / (n - 1.0)                       # the events' spread, as their std is (ddof 1)
+        if reading == "sem":
+            cov /= n
+        # χ² = |L⁻¹ Qᵀ (ȳ − m)|² with S = L Lᵀ: the whitened residuals least squares reads
+        whiten = np.linalg.inv(np.linalg.cholesky(cov)) @ q.T
+        return cls("scatter", reading, n, points - 1, slips=slips, mean=y.mean(axis=0),
+                   whiten=whiten, shrinkage=shrinkage)
+
+    def residuals(self, slip: np.ndarray, friction: np.ndarray) -> np.ndarray:
+        """The whitened residuals of one model curve, whose squares sum to its χ² (the
+        contrasts' for ``"scatter"``, every sample's less its event's mean for ``"sample"``);
+        NaN when the curve is empty."""
+        slip, friction = np.asarray(slip, dtype=float), np.asarray(friction, dtype=float)
+        if len(slip) < 2:
+            return np.full(self.dof if self.noise == "scatter" else len(self.observed[0]),
+                           np.nan)
+        if self.noise == "scatter":
+            return self.whiten @ (self.mean - np.interp(self.slips, slip, friction))
+        s, mu, index, sizes = self.observed
+        r = np.interp(s, slip, friction) - mu
+        return (r - (np.bincount(index, r) / sizes)[index]) / self.sigma
+
+    def chi2(self, slip, friction) -> float:
+        """The curves' χ² of one model curve (NaN when it is empty)."""
+        return float(np.sum(self.residuals(slip, friction) ** 2))
+
+    def describe(self) -> str:
+        """What the likelihood assumed, in a sentence for the output."""
+        if self.noise == "sample":
+            return (f"curves: {self.n_events} events, σ = {self.sigma:g} per sample (given), "
+                    "independent Gaussian about the model's curve with a free offset per event "
+                    f"({self.dof} degrees of freedom); no event-to-event variability")
+        return (f"curves: {self.n_events} events read at {len(self.slips)} common slips from "
+                f"{self.slips[0]:.3g} to {self.slips[-1]:.3g} m, offsets "
+                f"removed ({self.dof} contrasts); their covariance over the events "
+                f"(Ledoit–Wolf shrinkage {self.shrinkage:.2f}) "
+                + ("as the model's error (the events' spread, as σ = std)"
+                   if self.reading == "std" else "÷ n (the mean curve's error, σ = sem)")
+                + "; events independent, curves independent of the means")
