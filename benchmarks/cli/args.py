@@ -299,7 +299,9 @@ def observations_from_args(args, published: bool, curves=None):
     from benchmarks.inversion.observations import observations
     try:
         return observations(args.preset if published else "", args.obs_recurrence,
-                            args.sigma_recurrence, args.obs_drop, args.sigma_drop, curves)
+                            args.sigma_recurrence, args.obs_drop, args.sigma_drop, curves,
+                            getattr(args, "curve_noise", "none"),
+                            getattr(args, "curve_sigma", None))
     except ValueError as exc:       # name the flag of the value refused
         text = str(exc)
         for field, flag in _OBSERVATION_FLAGS:
@@ -368,6 +370,32 @@ def integrator_from_args(args):
         raise ValueError("--rtol, --atol and --rhs need --integrator NAME (without it the "
                          "recommended integrator comes with its own tolerance)")
     return recommended(args.accuracy)
+
+
+def add_solver_check_option(p) -> None:
+    """--no-solver-check: skip the check of the integrator on the problem's own box."""
+    p.add_argument("--no-solver-check", action="store_true",
+                   help="do not check the integrator first against a tight reference on the "
+                        "box's corners and centre (σ/10; default: check, and tighten or refuse)")
+
+
+def checked_integrator(args, problem, obs, b_range, lc_range, algorithm, why: str):
+    """``(algorithm, why, check)``: the integrator checked on ``problem``'s box for ``obs``
+    (:func:`benchmarks.inversion.solver_check.check_solver`), tightened if it had to be;
+    ``ValueError`` when no setting passes; ``check`` None with --no-solver-check."""
+    from benchmarks.inversion.solver_check import check_solver
+    if args.no_solver_check:
+        return algorithm, why + " (not checked on this problem: --no-solver-check)", None
+    talk = (lambda text: None) if args.json else (lambda text: say(f"… {text}"))
+    check = check_solver(problem, algorithm, obs, b_range, lc_range,
+                         workers=getattr(args, "workers", None), say=talk)
+    if not check.passed:
+        raise ValueError(f"the integrator check on this problem failed: {check.message}")
+    if check.algorithm is not algorithm:
+        why = f"{why}; tightened on this problem's box: {check.message}"
+    else:
+        why = f"{why}; checked on this problem's box: {check.message}"
+    return check.algorithm, why, check
 
 
 def wants_json(argv: list[str]) -> bool:

@@ -21,7 +21,9 @@ from benchmarks.cli.args import (
     add_integrator_options,
     add_observation_options,
     add_problem_choice,
+    add_solver_check_option,
     check_observation_options,
+    checked_integrator,
     count,
     flagged,
     integrator_from_args,
@@ -155,6 +157,12 @@ def cmd_invert(args) -> int:
     name = args.preset if args.problem is None else Path(args.problem).stem
     out = Path(args.out or f"invert_{name}_{problem.law.name}")
     out.mkdir(parents=True, exist_ok=True)               # before the work, not after it
+    try:
+        algorithm, why, check = checked_integrator(args, problem, obs, box_b, box_lc,
+                                                   algorithm, why)
+    except KeyboardInterrupt:
+        return _interrupted(args, "invert", f"during the integrator's check: nothing written "
+                                            f"to {out}")
     misfit = Misfit(problem, obs, algorithm, wall_budget=args.wall_budget, workers=args.workers)
     quiet = args.json or not show_progress(args)
     if not args.json:
@@ -177,6 +185,7 @@ def cmd_invert(args) -> int:
                      say=progress, method=args.method, grid=args.grid or 33)
         stage[0] = "writing of its files"
         record = {"command": args.command_line, "integrator_choice": why,
+                  "solver_check": None if check is None else check.summary(),
                   "observations_file": (None if args.observations is None
                                         else str(Path(args.observations).resolve())),
                   "problem_file": (None if args.problem is None
@@ -257,6 +266,7 @@ def add_parsers(sub, preset_names) -> None:
     i.add_argument("--t-end", type=positive, metavar="S",
                    help="simulated time per solve in s (default: the preset's or the file's)")
     add_integrator_options(i)
+    add_solver_check_option(i)
     i.add_argument("--method", choices=METHODS, default="grid",
                    help="the posterior: on a grid refined where its mass is, or sampled with "
                         "emcee (default: grid)")

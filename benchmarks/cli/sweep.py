@@ -16,8 +16,10 @@ from benchmarks.cli.args import (
     add_observation_options,
     add_problem_choice,
     add_problem_options,
+    add_solver_check_option,
     b_lc,
     check_observation_options,
+    checked_integrator,
     count,
     in_file,
     integrator_from_args,
@@ -59,6 +61,9 @@ def cmd_sweep(args) -> int:
     algorithm, why = integrator_from_args(args)
     name = args.preset if args.problem is None else Path(args.problem).stem
     out = Path(args.out or f"sweep_{name}_{problem.law.name}")
+    algorithm, why, check = checked_integrator(
+        args, problem, obs, (float(min(b_values)), float(max(b_values))),
+        (float(min(lc_values)), float(max(lc_values))), algorithm, why)
     if not args.json:
         say(f"integrator: {why}")
         if obs.assumed_sigma:
@@ -68,7 +73,8 @@ def cmd_sweep(args) -> int:
                    progress=show_progress(args), max_points=args.max_points,
                    connect_timeout=args.connect_timeout, worker_timeout=args.worker_timeout,
                    chunk_size=args.chunk_size)
-    s = {**result.summary, "integrator_choice": why, "out": str(out)}
+    s = {**result.summary, "integrator_choice": why, "out": str(out),
+         "solver_check": None if check is None else check.summary()}
     if not args.no_plot:
         # the published fit is marked only against the published observations it was fitted to
         own_obs = (args.obs_recurrence is not None or args.obs_drop is not None
@@ -163,6 +169,7 @@ def add_parsers(sub, preset_names) -> None:
     s.add_argument("--t-end", type=positive, metavar="S",
                    help="simulated time per point in s (default: the preset's or the file's)")
     add_integrator_options(s)
+    add_solver_check_option(s)
     where = s.add_mutually_exclusive_group()
     where.add_argument("--workers", type=count, metavar="N",
                        help="local workers, N ≥ 1 (default: all cores)")

@@ -104,9 +104,11 @@ ASSUMED_SIGMA = 0.10
 
 
 def observations(preset_name: str, obs_recurrence=None, sigma_recurrence=None, obs_drop=None,
-                 sigma_drop=None, curves=None) -> Observations:
+                 sigma_drop=None, curves=None, curve_noise: str = "scatter",
+                 curve_sigma: float | None = None) -> Observations:
     """Observations of a preset: a window's published means fill what is not given, and a
-    missing σ is 10 % of its mean (``assumed_sigma`` says so)."""
+    missing σ is 10 % of its mean (``assumed_sigma`` says so); ``curves`` in the likelihood
+    under ``curve_noise`` ("none": for the paper's J2 only)."""
     from problems import WINDOWS
     if not isinstance(preset_name, str):
         raise ValueError(f"preset_name must be a preset's name (a string), got {preset_name!r}")
@@ -124,7 +126,7 @@ def observations(preset_name: str, obs_recurrence=None, sigma_recurrence=None, o
                             else ASSUMED_SIGMA * obs_recurrence),
         friction_drop=obs_drop,
         sigma_friction_drop=sigma_drop if sigma_drop is not None else ASSUMED_SIGMA * obs_drop,
-        curves=curves, assumed_sigma=assumed)
+        curves=curves, assumed_sigma=assumed, curve_noise=curve_noise, curve_sigma=curve_sigma)
 
 
 #: the σ an observations file offers: the events' standard deviation, the mean's standard error

@@ -1,0 +1,177 @@
+"""Is the integrator good enough for *this* inversion? Checked on the user's own problem first.
+
+An integrator is chosen on the paper's problems (the quick work-precision study's front,
+:mod:`benchmarks.devtools.recommendation`) or named by the user; neither says how it does on
+another apparatus. Before an inversion or a sweep, :func:`check_solver` solves the box's four
+corners and its centre (in b and log10 Lc) with the integrator and with a tight reference — two
+own methods of different families, :data:`REFERENCES`, whose agreement is checked point by
+point — and compares what the likelihood reads:
+
+* the limit-cycle metrics, |ΔT − ΔT_ref| / σ_T and |Δμ − Δμ_ref| / σ_μ;
+* with curves in the likelihood, the largest change of a whitened curve residual
+  (:meth:`benchmarks.inversion.curve_likelihood.CurveLikelihood.residuals`, in units of σ);
+* whether the point has a limit cycle at all (a cycle the reference does not have, or misses,
+  moves the posterior more than any metric).
+
+Each must be within :data:`FRACTION` (σ/10) wherever the two references agree to a tenth of that;
+a point where they do not (near a boundary of stick–slip, or beyond the references' own
+accuracy) is not used, and said. If the integrator fails, a tighter setting is tried (the next
+more accurate one of the front, or rtol and atol ÷ 10; the ETD family's steps ÷ 4), at most
+:data:`TIGHTENINGS` times, and then the check refuses, naming the worst point.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from benchmarks.ensemble import ensemble
+from benchmarks.physics.metrics import CYCLES
+
+__all__ = ["check_solver", "SolverCheck", "REFERENCES", "FRACTION", "TIGHTENINGS", "tighter"]
+
+#: the reference pair (integrator, rtol = atol): an exponential Rosenbrock and a Rosenbrock
+#: method, tight, in compiled batches
+REFERENCES = (("Rodas5P", 1e-9), ("Exprb43", 1e-9))
+#: an error is acceptable up to this fraction of its σ
+FRACTION = 0.1
+#: tighter settings tried before the check refuses
+TIGHTENINGS = 3
+
+
+@dataclass
+class SolverCheck:
+    """The outcome: the setting that passed (or the last tried), whether it passed, every
+    point's errors in units of σ per setting tried (``points``), the settings tried, a sentence
+    (``message``), the wall time and the number of solves."""
+
+    algorithm: object
+    passed: bool
+    points: pd.DataFrame = field(repr=False)
+    tried: list
+    message: str
+    wall_s: float
+    n_solves: int
+
+    def summary(self) -> dict:
+        """What ``inversion.json`` records of the check."""
+        return {"passed": self.passed, "integrator": self.algorithm.name,
+                "options": self.algorithm.options(), "tried": self.tried,
+                "message": self.message, "wall_s": self.wall_s, "n_solves": self.n_solves,
+                "references": [f"{n} at rtol = atol = {t:g}" for n, t in REFERENCES],
+                "fraction_of_sigma": FRACTION, "points": self.points.to_dict(orient="records")}
+
+
+def tighter(algorithm):
+    """The next tighter setting of ``algorithm``: rtol and atol ÷ 10, or the ETD family's
+    Δτcnst and Δτmax ÷ 4; None when there is none (rtol at its floor)."""
+    from integrators.core.registry import RTOL_MIN
+    if hasattr(algorithm, "rtol"):
+        if algorithm.rtol / 10 < RTOL_MIN:
+            return None
+        return dataclasses.replace(algorithm, rtol=algorithm.rtol / 10, atol=algorithm.atol / 10)
+    if hasattr(algorithm, "dtau_cnst"):
+        return dataclasses.replace(algorithm, dtau_cnst=algorithm.dtau_cnst / 4,
+                                   dtau_max=algorithm.dtau_max / 4)
+    return None
+
+
+def _points(b_range, lc_range) -> dict:
+    (b_lo, b_hi), (lc_lo, lc_hi) = b_range, lc_range
+    b = [b_lo, b_lo, b_hi, b_hi, (b_lo + b_hi) / 2]
+    lc = [lc_lo, lc_hi, lc_lo, lc_hi, float(np.sqrt(lc_lo * lc_hi))]
+    return {"b": np.array(b, dtype=float), "lc": np.array(lc, dtype=float)}
+
+
+def _run(problem, algorithm, points, curves: bool, workers) -> pd.DataFrame:
+    return ensemble(problem, algorithm, points, curve_dt=5e-5 if curves else None,
+                    workers=workers, progress=False)
+
+
+def _errors(a: pd.DataFrame, b: pd.DataFrame, obs) -> np.ndarray:
+    """Per point: the largest error of ``a`` against ``b`` in units of σ (inf where one has a
+    cycle and the other not; 0 where neither has)."""
+    ca = a.classification.isin(CYCLES).to_numpy()
+    cb = b.classification.isin(CYCLES).to_numpy()
+    out = np.where(ca == cb, 0.0, np.inf)
+    both = ca & cb
+    err = np.maximum(np.abs(a.recurrence_s - b.recurrence_s).to_numpy() / obs.sigma_recurrence_s,
+                     np.abs(a.friction_drop - b.friction_drop).to_numpy()
+                     / obs.sigma_friction_drop)
+    like = obs.curve_likelihood
+    if like is not None:
+        for i in np.flatnonzero(both):
+            ra = like.residuals(a.curve_slip.iloc[i], a.curve_friction.iloc[i])
+            rb = like.residuals(b.curve_slip.iloc[i], b.curve_friction.iloc[i])
+            err[i] = max(err[i], float(np.max(np.abs(ra - rb))) if len(ra) else np.inf)
+    return np.where(both, err, out)
+
+
+def check_solver(problem, algorithm, obs, b_range, lc_range, next_setting=None,
+                 workers: int | None = None, say=None) -> SolverCheck:
+    """Check ``algorithm`` on ``problem`` for the observations ``obs`` over the box (module
+    docstring). ``next_setting(algorithm)``: the next tighter setting to try (default
+    :func:`tighter`). ``say``: a callable given a line of text per setting tried."""
+    from integrators import make_algorithm
+    say = say or (lambda text: None)
+    next_setting = next_setting or tighter
+    started = time.perf_counter()
+    points = _points(b_range, lc_range)
+    curves = obs.curve_likelihood is not None
+    refs = [_run(problem, make_algorithm(n, rtol=t, atol=t), points, curves, workers)
+            for n, t in REFERENCES]
+    agree = _errors(refs[0], refs[1], obs) <= FRACTION / 10
+    n_solves = 2 * len(points["b"])
+    rows, tried, current = [], [], algorithm
+    base = pd.DataFrame({"b": points["b"], "lc_m": points["lc"],
+                         "reference_class": refs[0].classification.to_numpy(),
+                         "references_agree": agree})
+    if not agree.any():
+        return SolverCheck(algorithm, False, base, [], (
+            "the two reference solvers disagree by more than σ/100 at every corner and the "
+            "centre of the box: nothing here can vouch for an integrator on this problem "
+            "(σ too small for the references, or every point at a boundary of stick–slip)"),
+            time.perf_counter() - started, n_solves)
+    for attempt in range(TIGHTENINGS + 1):
+        label = _label(current)
+        tried.append(label)
+        say(f"checking {label} against {REFERENCES[0][0]} and {REFERENCES[1][0]} at "
+            f"{REFERENCES[0][1]:g} on the box's corners and centre")
+        table = _run(problem, current, points, curves, workers)
+        n_solves += len(table)
+        err = _errors(table, refs[0], obs)
+        rows.append(base.assign(setting=label, error_in_sigma=err,
+                                classification=table.classification.to_numpy()))
+        worst = np.where(agree, err, 0.0)
+        if (worst <= FRACTION).all():
+            return SolverCheck(current, True, pd.concat(rows, ignore_index=True), tried,
+                               f"{label}: every checked point within σ/{1 / FRACTION:g} of the "
+                               f"reference (worst {worst.max():.2g} σ, {int(agree.sum())} of "
+                               f"{len(agree)} points where the references agree)"
+                               + ("" if attempt == 0 else
+                                  f"; tightened from {tried[0]}, which was "
+                                  f"{rows[0].error_in_sigma.where(agree).max():.2g} σ off"),
+                               time.perf_counter() - started, n_solves)
+        nxt = next_setting(current)
+        if nxt is None:
+            break
+        current = nxt
+    k = int(np.argmax(worst))
+    return SolverCheck(current, False, pd.concat(rows, ignore_index=True), tried,
+                       f"no setting tried ({', '.join(tried)}) is within σ/{1 / FRACTION:g} of "
+                       f"the reference: the last is {worst[k]:.3g} σ off at b = "
+                       f"{points['b'][k]:g}, Lc = {points['lc'][k]:g} m (name a more accurate "
+                       "--integrator, or check the σ)",
+                       time.perf_counter() - started, n_solves)
+
+
+def _label(algorithm) -> str:
+    if hasattr(algorithm, "rtol"):
+        return f"{algorithm.name} at rtol = atol = {algorithm.rtol:g}"
+    if hasattr(algorithm, "dtau_cnst"):
+        return f"{algorithm.name} at Δτcnst = {algorithm.dtau_cnst:g}"
+    return algorithm.name
