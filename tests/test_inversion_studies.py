@@ -292,6 +292,7 @@ def test_the_solver_effect_table_on_w4():
 
 # --- one inversion end to end, and the command line --------------------------------------------
 
+@pytest.mark.slow
 def test_an_inversion_writes_its_files(tmp_path):
     from benchmarks.inversion.invert import invert, write_inversion
     from benchmarks.inversion.observations import observations
@@ -309,6 +310,28 @@ def test_an_inversion_writes_its_files(tmp_path):
         assert (tmp_path / name).stat().st_size > 0, name
     samples = pd.read_csv(tmp_path / "posterior.csv")
     assert list(samples.columns) == ["b", "log10_lc"] and len(samples) == 8 * 9
+
+
+def test_the_default_inversion_is_the_refined_grid_and_writes_its_cells(tmp_path):
+    from benchmarks.inversion.invert import invert, write_inversion
+    from benchmarks.inversion.observations import observations
+    misfit = Misfit(preset("W4", law="slip", t_end=15.0), observations("W4"),
+                    Rodas5P(rtol=1e-4, atol=1e-4))
+    inv = invert(misfit, (0.0095, 0.0111), (1e-8, 1e-6), profile_points=3, grid=9)
+    summary = write_inversion(inv, tmp_path, {"command": "a test"})
+    p = summary["posterior"]
+    assert p["method"] == "grid" and p["n_solves"] == inv.posterior.n_solves >= 81
+    assert p["interval_95"]["b"][0] < p["mean"]["b"] < p["interval_95"]["b"][1]
+    cells = pd.read_csv(tmp_path / "posterior_cells.csv")
+    assert cells.mass.sum() == pytest.approx(1.0) and len(cells) == p["n_cells"]
+    assert len(pd.read_csv(tmp_path / "posterior.csv")) == 4000
+    doc = json.loads((tmp_path / "inversion.json").read_text())
+    assert doc["provenance"]["command"] == "a test" and doc["method"] == "grid"
+    assert "git_commit" in doc["provenance"] and doc["likelihood"]["curves"] is None
+    # the fit started from the grid's best cell, and lies inside its own profile intervals
+    assert inv.fit.misfit <= inv.posterior.best[2] + 1e-9
+    for name, x in (("b", inv.fit.b), ("log10_lc", np.log10(inv.fit.lc))):
+        assert inv.profiles[name].low <= x <= inv.profiles[name].high
 
 
 def test_no_cycle_in_the_box_means_no_posterior_not_a_frozen_chain(tmp_path):

@@ -5,8 +5,10 @@ import dataclasses
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
+from benchmarks.cli.main import main
 from problems import (InitialState, LoadHistory, load_problem, paper_example,
                       slide_hold_slide_test, variant, velocity_step_test, window)
 from problems.files import problem_dict
@@ -174,3 +176,67 @@ def test_every_valid_kind_of_file_reads_back_in_toml_and_json(tmp_path):
             got = load_problem(path)
             assert got == problem, name
             assert len(got.loading.history.switch_times) == switches, name
+
+
+def test_compare_runs_every_named_integrator_on_a_problem_file(capsys):
+    assert main(["compare", "--problem", str(EXAMPLE), "--t-end", "10", "--rtol", "1e-6",
+                 "--atol", "1e-6", "--integrators", "Rodas5P", "Exprb43", "--json"]) == 0
+    rows = json.loads(capsys.readouterr().out)
+    assert [r["integrator"] for r in rows] == ["Rodas5P", "Exprb43"]
+    assert all(r["problem"] == "W2, softer spring" for r in rows)
+    assert main(["compare", "--problem", str(EXAMPLE), "--law", "aging", "--rtol", "1e-6",
+                 "--atol", "1e-6"]) == 2
+    assert "names its own law" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_work_precision_names_the_fastest_setting_within_your_sigma(tmp_path, capsys):
+    """A problem file and an observations file: the settings whose ΔT and Δμ errors are within
+    σ/10 of the observed means on the problem, fastest first (the file: 5 events of the example
+    apparatus with 1 % scatter)."""
+    import pandas as pd
+
+    from benchmarks.inversion.observations import write_observations
+    events = pd.DataFrame({"t_start": [0.0, 4.2, 8.4, 12.6, 16.9],
+                           "t_end": [0.01, 4.21, 8.41, 12.61, 16.91],
+                           "recurrence_s": [np.nan, 4.20, 4.25, 4.22, 4.27],
+                           "friction_drop": [0.0469, 0.0470, 0.0465, 0.0472, 0.0468],
+                           "slip_m": [4e-4] * 5, "peak_velocity_m_s": [0.06] * 5})
+    write_observations(tmp_path / "obs.json", events)
+    assert main(["work-precision", "--problem", str(EXAMPLE), "--t-end", "20",
+                 "--integrators", "Rodas5P", "Rosenbrock23", "--tiers", "numba",
+                 "--observations", str(tmp_path / "obs.json"), "--out", str(tmp_path),
+                 "--json", "--no-progress"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    yours = out["for_your_sigma"]
+    assert yours["limits"]["err_recurrence"] == pytest.approx(0.1 * np.std(
+        [4.20, 4.25, 4.22, 4.27], ddof=1) / np.mean([4.20, 4.25, 4.22, 4.27]))
+    assert yours["choice"]["integrator"] in ("Rodas5P", "Rosenbrock23")
+    table = pd.read_csv(tmp_path / "wp_quick_for_sigma.csv")
+    assert (table.worst_err_recurrence <= yours["limits"]["err_recurrence"]).all()
+    assert table.total_wall_s.is_monotonic_increasing and out["problems"] == ["W2, softer spring"]
+
+
+@pytest.mark.slow
+def test_solver_effect_ranks_the_settings_on_a_problem_file(tmp_path, capsys):
+    import pandas as pd
+
+    from benchmarks.inversion.observations import write_observations
+    events = pd.DataFrame({"t_start": [0.0, 4.2, 8.4, 12.6], "t_end": [0.01, 4.21, 8.41, 12.61],
+                           "recurrence_s": [np.nan, 4.20, 4.25, 4.22],
+                           "friction_drop": [0.0469, 0.0470, 0.0465, 0.0472],
+                           "slip_m": [4e-4] * 4, "peak_velocity_m_s": [0.06] * 4})
+    write_observations(tmp_path / "obs.json", events)
+    assert main(["solver-effect", "--problem", str(EXAMPLE), "--observations",
+                 str(tmp_path / "obs.json"), "--b-range", "0.0086,0.0102", "--lc-range",
+                 "3e-8,3e-6", "--n", "5", "--out", str(tmp_path / "se"), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    table = pd.read_csv(tmp_path / "se" / "solver_effect.csv")
+    assert set(table.window) == {"apparatus"} and set(table.data) == {"yours"}
+    assert {"reference", "floor", "own", "ETD"} <= set(table.family)
+    assert out["provenance"]["mode"] == "quick" and out["recommendation"]
+    assert "your observations" in (tmp_path / "se" / "solver_effect.md").read_text()
+    assert main(["solver-effect", "--problem", str(EXAMPLE), "--observations",
+                 str(tmp_path / "obs.json"), "--b-range", "0.0086,0.0102", "--lc-range",
+                 "3e-8,3e-6", "--study", str(tmp_path / "obs.json")]) == 2
+    assert "add --full" in capsys.readouterr().err

@@ -34,6 +34,7 @@ from benchmarks.cli.args import (
     add_integrator_options,
     add_problem_options,
     flagged,
+    in_file,
     integrator_from_args,
     out_dir,
     out_file,
@@ -168,16 +169,25 @@ def cmd_windows(args) -> int:
 def cmd_compare(args) -> int:
     from benchmarks.devtools.compare import compare_integrators
     from benchmarks.records.report import markdown_table
-    problem = preset(args.preset, law=args.law, t_end=args.t_end)
+    if args.problem is not None:
+        if args.preset is not None or args.law is not None:
+            raise ValueError("--problem FILE names its own law: drop --preset and --law")
+        from problems import load_problem, variant
+        problem = load_problem(args.problem)
+        problem = variant(problem, t_end=args.t_end) if args.t_end else problem
+    else:
+        problem = preset(args.preset or "paper-example", law=args.law or "slip",
+                         t_end=args.t_end)
     names = None if not args.integrators else [algorithm_name(n) for n in args.integrators]
     table = compare_integrators(problem, args.rtol, args.atol, names=names,
                                 wall_budget=args.wall_budget, progress=show_progress(args))
+    table.insert(0, "problem", problem.name)
     if args.out:
         table.to_csv(args.out, index=False)
     if args.json:
         say(table.to_json(orient="records", indent=2))
     else:
-        shown = table.drop(columns=["library", "message"]).assign(
+        shown = table.drop(columns=["library", "message", "problem"]).assign(
             wall_s=table.wall_s.map("{:.4g}".format),
             recurrence_s=table.recurrence_s.map(lambda x: f"{x:.8g}" if x == x and x is not None else ""),
             friction_drop=table.friction_drop.map(lambda x: f"{x:.7g}" if x == x and x is not None else ""))
@@ -203,25 +213,71 @@ def cmd_work_precision(args) -> int:
     ladder = FULL if args.study == "full" else QUICK
     if args.wall_budget is not None:
         ladder = dataclasses.replace(ladder, wall_budget=args.wall_budget)
-    problems = ([_study_problem(x) for x in args.problems] if args.problems
-                else study_problems(args.study))
+    problems = [_study_problem(x) for x in args.problems] if args.problems else []
+    if args.problem:
+        from problems import load_problem
+        problems += [load_problem(f) for f in args.problem]
+    problems = problems or study_problems(args.study)
+    limits = None
+    if args.observations is not None:
+        limits = _limits_of(args.observations)
     if args.t_end is not None:
         problems = [dataclasses.replace(p, t_end=args.t_end) for p in problems]
     names = None if not args.integrators else [algorithm_name(n) for n in args.integrators]
-    df = work_precision(problems, ladder, names=names, tiers=tuple(args.tiers),
+    tiers = tuple(args.tiers)
+    if args.problem and names is None:       # on your problem: the compiled ones, in minutes
+        names = [n for n, c in sorted(REGISTRY.items()) if c.library.startswith(COMPILED)]
+        tiers = ("numba",)
+    df = work_precision(problems, ladder, names=names, tiers=tiers,
                         progress=show_progress(args))
     paths = write_work_precision(df, Path(args.out), args.name or args.study, error=args.error)
     pareto = best_at_levels(df, ERROR_LEVELS, args.error)
+    yours = None
+    if limits is not None:
+        from benchmarks.devtools.work_precision import fastest_within
+        within = fastest_within(df, limits)
+        paths["for_your_sigma"] = Path(args.out) / f"wp_{args.name or args.study}_for_sigma.csv"
+        within.to_csv(paths["for_your_sigma"], index=False)
+        yours = {"limits": limits, "observations": str(args.observations),
+                 "choice": within.iloc[0].to_dict() if len(within) else None,
+                 "n_within": len(within)}
     if args.json:
         from benchmarks.devtools.work_precision import recommend
         say(json.dumps(_jsonable({
             "csv": str(paths["csv"]), "error": args.error,
             "recommendation": recommend(df, ERROR_LEVELS, args.error).to_dict(orient="records"),
-            "pareto": pareto.to_dict(orient="records")}), indent=2))
+            "pareto": pareto.to_dict(orient="records"), "for_your_sigma": yours,
+            "problems": [p.name for p in problems], "command": args.command_line}), indent=2))
     else:
         say(paths["pareto_md"].read_text())
+        if yours is not None:
+            c = yours["choice"]
+            levels = ", ".join(f"{k} ≤ {v:.3g}" for k, v in limits.items())
+            say(f"for your σ (σ/10 of each mean: {levels}): " + (
+                f"{c['integrator']} [{c['rhs_tier']}] at {c['setting']:g}, "
+                f"{c['total_wall_s']:.3g} s over the problems; {yours['n_within'] - 1} other "
+                "settings also qualify" if c is not None else
+                "no setting of this study is accurate enough on every problem"))
         say("written: " + ", ".join(str(p) for p in paths.values()))
     return 0
+
+
+#: the libraries whose integrators a work-precision study of a problem file runs by default
+#: (compiled: the whole solve, or every call of the right-hand side, without Python)
+COMPILED = ("rsfbench", "CyRK", "numbalsoda", "SUNDIALS (C")
+
+
+def _limits_of(path) -> dict:
+    """The relative errors an inversion of the observations file ``path`` tolerates: σ/10 of
+    each mean, as the solver check of invert requires."""
+    from benchmarks.inversion.observations import read_observations
+    from benchmarks.inversion.solver_check import FRACTION
+    try:
+        o = read_observations(path)
+    except ValueError as exc:
+        raise ValueError(f"--observations: {exc}") from None
+    return {"err_recurrence": FRACTION * o.sigma_recurrence_s / o.recurrence_s,
+            "err_drop": FRACTION * o.sigma_friction_drop / o.friction_drop}
 
 
 def cmd_convergence(args) -> int:
@@ -365,10 +421,13 @@ def build_parser() -> Parser:
     w.add_argument("--json", action="store_true", help="print one JSON array")
     w.set_defaults(func=cmd_windows)
 
-    c = sub.add_parser("compare", help="every integrator on one preset, side by side")
-    c.add_argument("--preset", default="paper-example", choices=PRESET_NAMES, type=preset_name,
-                   help="the problem")
-    c.add_argument("--law", choices=("slip", "aging"), default="slip", help="friction law")
+    c = sub.add_parser("compare", help="every integrator on one problem, side by side")
+    c.add_argument("--preset", choices=PRESET_NAMES, type=preset_name,
+                   help="the problem (default: paper-example)")
+    c.add_argument("--problem", type=in_file, metavar="FILE",
+                   help="or your own apparatus: a TOML or JSON problem file (default: none)")
+    c.add_argument("--law", choices=("slip", "aging"), help="friction law of --preset "
+                   "(default: slip)")
     c.add_argument("--t-end", type=positive, metavar="S",
                    help="simulated time in s (default: the preset's)")
     c.add_argument("--rtol", type=positive, required=True,
@@ -391,6 +450,15 @@ def build_parser() -> Parser:
     wp.add_argument("--problems", nargs="+", metavar="PRESET[:LAW]",
                     help="instead of the study's problems, e.g. paper-example W2:aging "
                          "(default: the study's)")
+    wp.add_argument("--problem", type=in_file, nargs="+", metavar="FILE",
+                    help="your own apparatus: TOML or JSON problem files, with --problems' or "
+                         "instead of the study's; without --integrators, the compiled "
+                         "integrators only (own, CyRK, numbalsoda, SUNDIALS from C) at the "
+                         "numba tier: minutes (default: none)")
+    wp.add_argument("--observations", type=in_file, metavar="FILE.json",
+                    help="an observations file (rsfbench observe): also name the fastest "
+                         "setting whose ΔT and Δμ errors are within σ/10 of its means on every "
+                         "problem (default: none)")
     wp.add_argument("--t-end", type=positive, metavar="S",
                     help="simulated time of every problem in s (default: each preset's own)")
     wp.add_argument("--integrators", nargs="+", metavar="NAME",
@@ -471,6 +539,8 @@ def build_parser() -> Parser:
     add_lab_parsers(sub)
     from benchmarks.cli.observe import add_parsers as add_observe_parsers
     add_observe_parsers(sub)
+    from benchmarks.cli.solver_effect import add_parsers as add_solver_effect_parsers
+    add_solver_effect_parsers(sub)
     return parser
 
 

@@ -72,9 +72,14 @@ def cmd_sweep(args) -> int:
                    scheduler=args.scheduler, backend=args.backend, wall_budget=args.wall_budget,
                    progress=show_progress(args), max_points=args.max_points,
                    connect_timeout=args.connect_timeout, worker_timeout=args.worker_timeout,
-                   chunk_size=args.chunk_size)
-    s = {**result.summary, "integrator_choice": why, "out": str(out),
-         "solver_check": None if check is None else check.summary()}
+                   chunk_size=args.chunk_size,
+                   provenance={"command": args.command_line, "integrator_choice": why,
+                               "solver_check": None if check is None else check.summary(),
+                               "problem_file": (None if args.problem is None
+                                                else str(Path(args.problem).resolve())),
+                               "observations_file": (None if args.observations is None
+                                                     else str(Path(args.observations).resolve()))})
+    s = {**result.summary, "integrator_choice": why, "out": str(out)}
     if not args.no_plot:
         # the published fit is marked only against the published observations it was fitted to
         own_obs = (args.obs_recurrence is not None or args.obs_drop is not None

@@ -37,6 +37,7 @@ from problems import paper_example, window
 
 __all__ = ["Ladder", "FULL", "QUICK", "study_problems", "settings", "measure", "work_precision",
            "WP_COLUMNS", "SKIPPED", "REFUSED", "reliable_error", "best_at_levels", "recommend",
+           "fastest_within",
            "algorithm_at", "recommended_algorithm", "read_study", "STUDY_CSV", "pareto_front",
            "front_source", "write_recommendation"]
 
@@ -242,6 +243,23 @@ def recommend(df: pd.DataFrame, levels, error: str = "err_recurrence") -> pd.Dat
                      "next_integrator": others.iloc[0].integrator if len(others) else None,
                      "next_total_wall_s": others.iloc[0].total_wall_s if len(others) else math.nan})
     return pd.DataFrame(rows)
+
+
+def fastest_within(df: pd.DataFrame, limits: dict) -> pd.DataFrame:
+    """The settings (integrator, tier, setting) that succeeded on every problem of the study
+    with each error of ``limits`` (a column such as ``err_recurrence`` → the largest relative
+    error allowed) reliably within its limit on every problem, fastest first (total wall time
+    over the problems): the choice for an inversion whose σ sets the limits."""
+    n_problems = df.problem.nunique()
+    keys = ["integrator", "rhs_tier", "setting"]
+    ok = df[df.retcode == "Success"].assign(
+        **{c: reliable_error(df, c)[df.retcode == "Success"] for c in limits})
+    agg = ok.groupby(keys).agg(total_wall_s=("wall_s", "sum"), n=("problem", "nunique"),
+                               **{f"worst_{c}": (c, "max") for c in limits}).reset_index()
+    agg = agg[agg.n == n_problems]
+    for c, level in limits.items():
+        agg = agg[np.isfinite(agg[f"worst_{c}"]) & (agg[f"worst_{c}"] <= level)]
+    return agg.drop(columns="n").sort_values("total_wall_s").reset_index(drop=True)
 
 
 #: the committed quick study (the front of :mod:`benchmarks.devtools.recommendation` is written from it)

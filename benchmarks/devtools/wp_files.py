@@ -3,6 +3,7 @@ for the whole problem set as CSV and Markdown, and a figure per problem."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import pandas as pd
@@ -34,7 +35,7 @@ def write_work_precision(df: pd.DataFrame, out: Path, name: str,
     paths["pareto_md"].write_text(pareto_markdown(pareto, advice, error))
     for problem, g in df.groupby("problem", sort=False):
         key = f"png_{problem}"
-        paths[key] = out / f"wp_{name}_{problem.replace('/', '_')}.png"
+        paths[key] = out / f"wp_{name}_{re.sub(r'[^A-Za-z0-9._-]+', '_', problem)}.png"
         plot_work_precision(g, paths[key], error=error,
                             title=f"work-precision: {problem} ({error}; study '{name}')")
     return paths

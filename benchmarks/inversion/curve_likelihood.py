@@ -86,6 +86,7 @@ class CurveLikelihood:
     mean: np.ndarray | None = field(default=None, repr=False)
     whiten: np.ndarray | None = field(default=None, repr=False)
     shrinkage: float | None = None
+    #: every observed sample: slip, friction, its event's index, the events' sizes
     observed: tuple | None = field(default=None, repr=False)
 
     @classmethod
@@ -100,15 +101,16 @@ class CurveLikelihood:
             raise ValueError(f"reading must be 'std' or 'sem', got {reading!r}")
         events = [g.sort_values("slip_m") for _, g in curves.groupby("event_id", sort=False)]
         n = len(events)
+        index = np.concatenate([np.full(len(g), i) for i, g in enumerate(events)])
+        observed = (np.concatenate([g.slip_m.to_numpy() for g in events]),
+                    np.concatenate([g.friction.to_numpy() for g in events]), index,
+                    np.bincount(index))
         if noise == "sample":
             if sigma is None or not np.isfinite(sigma) or sigma <= 0:
                 raise ValueError(f"curve noise 'sample' needs σ per sample > 0 (friction, a "
                                  f"fraction like μ), got {sigma!r}")
-            index = np.concatenate([np.full(len(g), i) for i, g in enumerate(events)])
-            slip = np.concatenate([g.slip_m.to_numpy() for g in events])
-            mu = np.concatenate([g.friction.to_numpy() for g in events])
-            return cls("sample", reading, n, len(slip) - n, sigma=float(sigma),
-                       observed=(slip, mu, index, np.bincount(index)))
+            return cls("sample", reading, n, len(index) - n, sigma=float(sigma),
+                       observed=observed)
         if sigma is not None:
             raise ValueError("a σ per sample is for curve noise 'sample'; the 'scatter' model "
                              "estimates its covariance from the events")
@@ -136,7 +138,7 @@ class CurveLikelihood:
         # χ² = |L⁻¹ Qᵀ (ȳ − m)|² with S = L Lᵀ: the whitened residuals least squares reads
         whiten = np.linalg.inv(np.linalg.cholesky(cov)) @ q.T
         return cls("scatter", reading, n, points - 1, slips=slips, mean=y.mean(axis=0),
-                   whiten=whiten, shrinkage=shrinkage)
+                   whiten=whiten, shrinkage=shrinkage, observed=observed)
 
     def residuals(self, slip: np.ndarray, friction: np.ndarray) -> np.ndarray:
         """The whitened residuals of one model curve, whose squares sum to its χ² (the
@@ -151,6 +153,17 @@ class CurveLikelihood:
         s, mu, index, sizes = self.observed
         r = np.interp(s, slip, friction) - mu
         return (r - (np.bincount(index, r) / sizes)[index]) / self.sigma
+
+    def j2(self, slip, friction) -> float:
+        """The paper's J̄2 (Eq. 11) of one model curve: the mean over the events of each one's
+        residual variance after its best offset (NaN when the curve is empty)."""
+        slip, friction = np.asarray(slip, dtype=float), np.asarray(friction, dtype=float)
+        if len(slip) < 2:
+            return float("nan")
+        s, mu, index, sizes = self.observed
+        r = np.interp(s, slip, friction) - mu
+        r = r - (np.bincount(index, r) / sizes)[index]
+        return float(np.mean(np.bincount(index, r * r) / sizes))
 
     def chi2(self, slip, friction) -> float:
         """The curves' χ² of one model curve (NaN when it is empty)."""

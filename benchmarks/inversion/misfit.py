@@ -23,7 +23,7 @@ import numpy as np
 import pandas as pd
 
 from benchmarks.ensemble import ensemble
-from benchmarks.inversion.fitting import NO_CYCLE_J1, NO_CYCLE_RESIDUAL, j2_per_event, scores
+from benchmarks.inversion.fitting import NO_CYCLE_J1, NO_CYCLE_RESIDUAL, scores
 from benchmarks.inversion.observations import MIN_SIGMA_REL, Observations
 from benchmarks.physics.metrics import CYCLES
 from integrators import Algorithm
@@ -55,26 +55,25 @@ class Misfit:
         ensemble's columns, then ``r_recurrence``, ``r_drop`` (residuals in σ), ``J1``,
         ``chi2_curves`` (the curves' χ², :mod:`benchmarks.inversion.curve_likelihood`; 0
         without curves), ``misfit`` (−2 log L + const: J1 + χ²_curves), ``J2`` (Eq. 11's mean
-        over the events, the paper's score; NaN without curves) and ``log_likelihood``."""
+        over the events, the paper's score; NaN unless the curves are in the likelihood: only
+        then are the model's curves made) and ``log_likelihood``."""
         b, lc = np.broadcast_arrays(np.asarray(b, dtype=float), np.asarray(lc, dtype=float))
         table = ensemble(self.problem, self.algorithm, {"b": b.ravel(), "lc": lc.ravel()},
                          wall_budget=self.wall_budget,
                          workers=1 if b.size == 1 else self.workers,   # no pool for one point
-                         curve_dt=self.curve_dt if self.obs.curves is not None else None,
-                         progress=progress)
+                         curve_dt=(self.curve_dt if self.obs.curve_likelihood is not None
+                                   else None), progress=progress)
         o = self.obs
         cycle = table.classification.isin(CYCLES).to_numpy()
         s = scores(table.recurrence_s, table.friction_drop, cycle, o)
         table["r_recurrence"], table["r_drop"] = s.penalised
         table["J1"] = s.j1_penalised
         chi2 = np.zeros(len(table))
-        if o.curves is not None:
+        if o.curve_likelihood is not None:
             like = o.curve_likelihood
             curves = list(zip(cycle, table.curve_slip, table.curve_friction))
             chi2 = np.array([like.chi2(x, y) if c else np.nan for c, x, y in curves])
-            table["J2"] = [float(np.mean(j2_per_event(np.asarray(x, dtype=float),
-                                                      np.asarray(y, dtype=float), o.curves)))
-                           if c else np.inf for c, x, y in curves]
+            table["J2"] = [like.j2(x, y) if c else np.inf for c, x, y in curves]
         else:
             table["J2"] = np.nan
         # a cycle whose curve could not be made (a second solve that differed) has no χ²

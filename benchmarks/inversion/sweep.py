@@ -151,14 +151,16 @@ def sweep(problem, b_values, lc_values, algorithm, obs: Observations, out,
           curve_dt: float = 5e-5, wall_budget: float | None = None, progress: bool = True,
           max_points: int = MAX_GRID_POINTS, connect_timeout: float = CONNECT_TIMEOUT_S,
           worker_timeout: float = WORKER_TIMEOUT_S, chunk_size: int | None = None,
-          reclaim_store: bool = False) -> SweepResult:
+          reclaim_store: bool = False, provenance: dict | None = None) -> SweepResult:
     """Run (or resume) the sweep of ``problem`` (a SpringSlider: its t_end is each point's) over
     ``b_values`` × ``lc_values`` and score it against ``obs``.
 
     Finished chunks are read back from ``out/chunks`` and not run again. Returns the table (also
     written to ``out/sweep.csv``) and a summary (also ``out/summary.json``). Every argument is
     checked before the first point runs (``ValueError``); ``max_points`` bounds the grid.
-    ``curve_dt`` (s) resolves the slip-weakening curves when ``obs`` has some.
+    ``curve_dt`` (s) resolves the slip-weakening curves when ``obs`` has some. ``provenance``:
+    what else the summary records of the run (the command line, why this integrator), beside
+    the tool's version, the machine and the packages.
     ``reclaim_store``: stored chunks of another sweep in ``out`` are cleared, not refused (for
     the harness's own caches).
     """
@@ -194,6 +196,8 @@ def sweep(problem, b_values, lc_values, algorithm, obs: Observations, out,
                               scheduler=scheduler, backend=run["backend"],
                               batched=run["batched"], chunks=run["chunks"],
                               store=None if store is None else str(store))
+    from benchmarks.records.provenance import provenance as machine, version_line
+    summary["provenance"] = {"tool": version_line(), **machine(), **(provenance or {})}
     out.mkdir(parents=True, exist_ok=True)
     remove_stale_temporaries(out)
     atomic_write(out / "sweep.csv", table.to_csv(index=False))

@@ -7,7 +7,10 @@ reference at the published fit, plus noise of σ = 5 %, seed 0). The prior is un
 ``observations`` (``rsfbench study solver-effect --set observations=FILE``: an observations file
 of ``rsfbench observe``) one's own data are the data set ``yours`` beside them, on each window
 and law of the settings ``windows`` and ``laws`` (W2 and slip alone: ``--set windows=W2 --set
-laws=slip``) — the question for a recording of an apparatus that is one of the windows. Every
+laws=slip``) — the question for a recording of an apparatus that is one of the windows. For an
+apparatus of one's own, ``rsfbench solver-effect --problem FILE --observations FILE`` inverts
+``yours`` on that problem alone (``own``); its quick mode compares only :data:`QUICK_LADDERS`'
+settings and the paper's ETD2 on :data:`QUICK_N`-node grids. Every
 candidate setting inverts the same data, and is compared with the inversion by the tight
 ``reference`` setting:
 
@@ -122,10 +125,19 @@ def candidates(study: pd.DataFrame | None = None, own_ladders=None, etd_factors=
     return out
 
 
+#: the candidates of the quick mode: the own methods' front settings and the paper's ETD2
+QUICK_LADDERS = {"Rodas5P": (1e-3, 1e-4, 1e-5), "Exprb43": (1e-3, 1e-4),
+                 "Rosenbrock23": (1e-3, 1e-4)}
+
+
 def _datasets(name: str, law: str, reference_map: MetricMap, truth,
-              yours: Observations | None = None) -> dict[str, Observations]:
+              yours: Observations | None = None,
+              published: bool = True) -> dict[str, Observations]:
     """The published means, for W2/slip one synthetic set at ``truth`` (seed 0, σ 5 %), and
-    ``yours`` when given (its curves left out: J1 is what the posteriors here score)."""
+    ``yours`` when given (its curves left out: J1 is what the posteriors here score); for a
+    problem of one's own (``published`` False), ``yours`` alone."""
+    if not published:
+        return {"yours": dataclasses.replace(yours, curves=None)}
     data = {"published": observations(name)}
     if yours is not None:
         data["yours"] = dataclasses.replace(yours, curves=None)
@@ -209,14 +221,15 @@ def solver_effect(settings: list[Candidate], reference: Algorithm, floor: Algori
                   windows=("W1", "W2", "W3", "W4"), laws=("slip", "aging"), n: int = 31,
                   check_n: int | None = None, workers: int | None = None,
                   wall_budget: float | None = 5.0, progress=None,
-                  yours: Observations | None = None) -> pd.DataFrame:
+                  yours: Observations | None = None, own=None) -> pd.DataFrame:
     """One row per (window, law, data set, setting) with the comparison of the module
     docstring; ``floor``: a second tight setting of another method, compared like the others.
     ``yours``: a data set of one's own (an observations file of ``rsfbench observe`` read),
     inverted on every window and law beside the others as the data set ``yours``.
     ``check_n``: nodes per parameter of the whole-box grid (default n // 2). ``wall_budget``:
     s per solve of a candidate (a solve over it is a failed node). ``progress``: a callable
-    given a line of text per map, or None."""
+    given a line of text per map, or None. ``own`` = (label, problem, (b_range, lc_range)): a
+    problem of one's own with its prior box, inverted (``yours`` alone) beside the windows."""
     from benchmarks.inversion.published import GRID, T_END, best_fit, grid_around
     say = progress or (lambda text: None)
     if isinstance(n, bool) or not isinstance(n, int) or n < 3:
@@ -226,76 +239,85 @@ def solver_effect(settings: list[Candidate], reference: Algorithm, floor: Algori
     everyone = [Candidate("reference", f"{reference.name} {_tol(reference)}", reference),
                 Candidate("floor", f"{floor.name} {_tol(floor)}", floor), *settings]
     rows, warmed = [], set()
+    cases = []
     for law in laws:
         for name in windows:
-            problem = preset(name, law=law, t_end=T_END[name])
             b0, lc0 = best_fit(name, law)
             b_axis, lc_axis = grid_around(b0, lc0, **GRID[law])
-            box = ((b_axis.min(), b_axis.max()), (lc_axis.min(), lc_axis.max()))
-            coarse = metric_map(problem, reference, *box_grid(*box, n, n, through=(b0, lc0)),
-                                workers=workers)
-            data = _datasets(name, law, coarse, (b0, lc0), yours)
-            zoom = _zoom(coarse, data)
-            grid, check = box_grid(*zoom, n, n), box_grid(*box, check_n, check_n)
-            inside = ((check[0] >= zoom[0][0]) & (check[0] <= zoom[0][1]))[:, None] & (
-                (check[1] >= np.log10(zoom[1][0])) & (check[1] <= np.log10(zoom[1][1])))[None]
-            maps, checks, smalls = {}, {}, {}
+            cases.append((name, law, preset(name, law=law, t_end=T_END[name]),
+                          ((b_axis.min(), b_axis.max()), (lc_axis.min(), lc_axis.max())),
+                          (b0, lc0), True))
+    if own is not None:
+        if yours is None:
+            raise ValueError("a problem of one's own needs its observations (yours)")
+        label, problem, box = own
+        cases.append((label, problem.law.name, problem, box,
+                      (float(np.mean(box[0])), float(np.sqrt(box[1][0] * box[1][1]))), False))
+    for name, law, problem, box, (b0, lc0), published in cases:
+        coarse = metric_map(problem, reference, *box_grid(*box, n, n, through=(b0, lc0)),
+                            workers=workers)
+        data = _datasets(name, law, coarse, (b0, lc0), yours, published)
+        zoom = _zoom(coarse, data)
+        grid, check = box_grid(*zoom, n, n), box_grid(*box, check_n, check_n)
+        inside = ((check[0] >= zoom[0][0]) & (check[0] <= zoom[0][1]))[:, None] & (
+            (check[1] >= np.log10(zoom[1][0])) & (check[1] <= np.log10(zoom[1][1])))[None]
+        maps, checks, smalls = {}, {}, {}
+        for c in everyone:
+            say(f"{name}/{law}: {c.label}")
+            budget = None if c.family in ("reference", "floor") else wall_budget
+            if c.label not in warmed:         # compile out of the timed map (docstring)
+                metric_map(problem, c.algorithm, *box_grid(*box, 2, 2), wall_budget=budget,
+                           workers=1)
+                warmed.add(c.label)
+            smalls[c.label] = metric_map(problem, c.algorithm, *box_grid(*zoom, 2, 2),
+                                         wall_budget=budget, workers=workers)
+            maps[c.label] = metric_map(problem, c.algorithm, *grid, wall_budget=budget,
+                                       workers=workers)
+            checks[c.label] = metric_map(problem, c.algorithm, *check, wall_budget=budget,
+                                         workers=workers)
+        say(f"{name}/{law}: best fits")
+        ref_label = everyone[0].label
+        for key, obs in data.items():
+            ref, ref_box = maps[ref_label].posterior(obs), checks[ref_label].posterior(obs)
+            ref_fit = _best_fit(problem, obs, reference, maps[ref_label], box, workers, None)
+            floor_same = None
             for c in everyone:
-                say(f"{name}/{law}: {c.label}")
+                m = maps[c.label]
+                post, post_box = m.posterior(obs), checks[c.label].posterior(obs)
                 budget = None if c.family in ("reference", "floor") else wall_budget
-                if c.label not in warmed:         # compile out of the timed map (docstring)
-                    metric_map(problem, c.algorithm, *box_grid(*box, 2, 2), wall_budget=budget,
-                               workers=1)
-                    warmed.add(c.label)
-                smalls[c.label] = metric_map(problem, c.algorithm, *box_grid(*zoom, 2, 2),
-                                             wall_budget=budget, workers=workers)
-                maps[c.label] = metric_map(problem, c.algorithm, *grid, wall_budget=budget,
-                                           workers=workers)
-                checks[c.label] = metric_map(problem, c.algorithm, *check, wall_budget=budget,
-                                             workers=workers)
-            say(f"{name}/{law}: best fits")
-            ref_label = everyone[0].label
-            for key, obs in data.items():
-                ref, ref_box = maps[ref_label].posterior(obs), checks[ref_label].posterior(obs)
-                ref_fit = _best_fit(problem, obs, reference, maps[ref_label], box, workers, None)
-                floor_same = None
-                for c in everyone:
-                    m = maps[c.label]
-                    post, post_box = m.posterior(obs), checks[c.label].posterior(obs)
-                    budget = None if c.family in ("reference", "floor") else wall_budget
-                    fb, fl, fit_ok = (ref_fit if c.family == "reference" else
-                                      _best_fit(problem, obs, c.algorithm, m, box, workers,
-                                                budget))
-                    cmp = compare(ref, post)
-                    cmp["overlap_box"] = (float(np.minimum(post_box.mass, ref_box.mass).sum())
-                                          if ref_box.ok else np.nan)
-                    row = {"window": name, "law": law, "data": key, "family": c.family,
-                           "setting": c.label, "integrator": c.algorithm.name,
-                           "posterior_ok": post.ok, **cmp,
-                           "outside_mass": (float(post_box.mass[~inside].sum()) if post_box.ok
-                                            else np.nan)}
-                    for p, f, rf in (("b", fb, ref_fit[0]), ("log10_lc", fl, ref_fit[1])):
-                        row[f"mean_{p}"] = post.mean[p]
-                        row[f"std_{p}"] = post.std[p]
-                        row[f"fit_{p}"] = f
-                        row[f"fit_shift_{p}_sd"] = (f - rf) / ref.std[p] if ref.ok else np.nan
-                    row["fit_ok"] = fit_ok
-                    row["n_cycle_nodes"] = int(m.cycle.sum())
-                    row["n_failed"] = m.n_failed + checks[c.label].n_failed
-                    row["wall_per_solve_ms"] = 1e3 * m.wall_s / m.n_solves
-                    row["posterior_cost_s"] = posterior_cost(smalls[c.label], m)
-                    row["nfev_per_solve"] = m.nfev / m.n_solves
-                    row["indistinguishable"] = bool(post.ok and ref.ok and same_inference(cmp))
-                    if c.family == "floor":
-                        floor_same = row["indistinguishable"]
-                    row["resolved"] = floor_same
-                    row["ref_nodes_per_sd_b"] = ref.std["b"] / (grid[0][1] - grid[0][0])
-                    row["ref_nodes_per_sd_log10_lc"] = ref.std["log10_lc"] / (
-                        grid[1][1] - grid[1][0])
-                    row.update({"zoom_b": f"{zoom[0][0]:.5f}:{zoom[0][1]:.5f}",
-                                "zoom_lc_um": f"{zoom[1][0] * 1e6:.3g}..{zoom[1][1] * 1e6:.3g}",
-                                "grid": f"{n}x{n}", "check_grid": f"{check_n}x{check_n}"})
-                    rows.append(row)
+                fb, fl, fit_ok = (ref_fit if c.family == "reference" else
+                                  _best_fit(problem, obs, c.algorithm, m, box, workers,
+                                            budget))
+                cmp = compare(ref, post)
+                cmp["overlap_box"] = (float(np.minimum(post_box.mass, ref_box.mass).sum())
+                                      if ref_box.ok else np.nan)
+                row = {"window": name, "law": law, "data": key, "family": c.family,
+                       "setting": c.label, "integrator": c.algorithm.name,
+                       "posterior_ok": post.ok, **cmp,
+                       "outside_mass": (float(post_box.mass[~inside].sum()) if post_box.ok
+                                        else np.nan)}
+                for p, f, rf in (("b", fb, ref_fit[0]), ("log10_lc", fl, ref_fit[1])):
+                    row[f"mean_{p}"] = post.mean[p]
+                    row[f"std_{p}"] = post.std[p]
+                    row[f"fit_{p}"] = f
+                    row[f"fit_shift_{p}_sd"] = (f - rf) / ref.std[p] if ref.ok else np.nan
+                row["fit_ok"] = fit_ok
+                row["n_cycle_nodes"] = int(m.cycle.sum())
+                row["n_failed"] = m.n_failed + checks[c.label].n_failed
+                row["wall_per_solve_ms"] = 1e3 * m.wall_s / m.n_solves
+                row["posterior_cost_s"] = posterior_cost(smalls[c.label], m)
+                row["nfev_per_solve"] = m.nfev / m.n_solves
+                row["indistinguishable"] = bool(post.ok and ref.ok and same_inference(cmp))
+                if c.family == "floor":
+                    floor_same = row["indistinguishable"]
+                row["resolved"] = floor_same
+                row["ref_nodes_per_sd_b"] = ref.std["b"] / (grid[0][1] - grid[0][0])
+                row["ref_nodes_per_sd_log10_lc"] = ref.std["log10_lc"] / (
+                    grid[1][1] - grid[1][0])
+                row.update({"zoom_b": f"{zoom[0][0]:.5f}:{zoom[0][1]:.5f}",
+                            "zoom_lc_um": f"{zoom[1][0] * 1e6:.3g}..{zoom[1][1] * 1e6:.3g}",
+                            "grid": f"{n}x{n}", "check_grid": f"{check_n}x{check_n}"})
+                rows.append(row)
     table = pd.DataFrame(rows)
     if len(table):                       # the floor's verdict applies to its whole data set
         table["resolved"] = table.groupby(["window", "law", "data"], sort=False)[
@@ -350,36 +372,40 @@ def _none() -> dict:
 
 def solver_effect_study(out, n: int = 31, windows=("W1", "W2", "W3", "W4"),
                         laws=("slip", "aging"), study_csv=None,
-                        progress: bool = False, yours: Observations | None = None
+                        progress: bool = False, yours: Observations | None = None,
+                        own=None, quick: bool = False, command: str | None = None
                         ) -> pd.DataFrame:
     """The solver-effect table (:func:`benchmarks.studies.solver_effect.solver_effect`) with
     the candidates of the full work-precision study ``study_csv`` (default
-    ``out/wp_full.csv``), the reference Rodas5P and the floor Exprb43 at rtol = atol = 1e−9;
-    write ``out/solver_effect.*``."""
+    ``out/wp_full.csv``; ``quick``: :data:`QUICK_LADDERS` and the paper's ETD2 only), the
+    reference Rodas5P and the floor Exprb43 at rtol = atol = 1e−9; write
+    ``out/solver_effect.*``. ``own``: a problem of one's own (:func:`solver_effect`)."""
     from benchmarks.devtools.work_precision import read_study
     from integrators import Exprb43, Rodas5P
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)          # before the work, not after it
     study_csv = Path(study_csv) if study_csv else out / "wp_full.csv"
-    study = read_study(study_csv) if study_csv.exists() else None
+    study = read_study(study_csv) if study_csv.exists() and not quick else None
     started = time.perf_counter()
     say = (lambda text: print(f"  [{time.perf_counter() - started:6.0f} s] {text}", flush=True)
            ) if progress else None
-    table = solver_effect(candidates(study), Rodas5P(rtol=1e-9, atol=1e-9),
+    chosen = candidates(None, QUICK_LADDERS, etd_factors=(1,)) if quick else candidates(study)
+    table = solver_effect(chosen, Rodas5P(rtol=1e-9, atol=1e-9),
                           Exprb43(rtol=1e-9, atol=1e-9), windows=windows, laws=laws, n=n,
-                          progress=say, yours=yours)
+                          progress=say, yours=yours, own=own)
     wall = time.perf_counter() - started
     table.to_csv(out / "solver_effect.csv", index=False)
     advice = recommendation(table)
     advice.to_csv(out / "solver_effect_recommendation.csv", index=False)
     (out / "solver_effect.md").write_text(_solver_effect_markdown(
         table, advice, study_csv.name if study is not None else None, wall, SHIFT_SD,
-        MIN_OVERLAP))
+        MIN_OVERLAP, own, quick, command))
     _plot_solver_effect(table, out / "solver_effect.png", MIN_OVERLAP)
     return table
 
 
-def _solver_effect_markdown(table, advice, study_name, wall, shift_sd, min_overlap) -> str:
+def _solver_effect_markdown(table, advice, study_name, wall, shift_sd, min_overlap,
+                            own=None, quick=False, command=None) -> str:
     a = advice.assign(**{
         "ms per solve": [fmt(x, ".3g") for x in advice.wall_per_solve_ms],
         "s per 64,000-solve posterior": [fmt(x, ".3g") for x in advice.posterior_cost_s],
@@ -387,21 +413,28 @@ def _solver_effect_markdown(table, advice, study_name, wall, shift_sd, min_overl
     ).drop(columns=["wall_per_solve_ms", "posterior_cost_s"]).fillna("none")
     parts = [
         "# The solver's effect on the inferred (b, Lc)\n\n"
-        "Each setting inverts the same data (W1–W4, both laws: the published means with "
-        "σ = 10 % of each, assumed; W2/slip also one synthetic set, the reference's ΔT and Δμ "
-        "at the published fit plus 5 % noise, seed 0) under a uniform prior in (b, log10 Lc) "
-        "on the paper sweep's box. Posteriors on one grid per window "
+        + ("Each setting inverts the same data (W1–W4, both laws: the published means with "
+           "σ = 10 % of each, assumed; W2/slip also one synthetic set, the reference's ΔT and "
+           "Δμ at the published fit plus 5 % noise, seed 0) under a uniform prior in "
+           "(b, log10 Lc) on the paper sweep's box. " if own is None else
+           f"Each setting inverts your observations (their means and σ) on {own[0]} under a "
+           f"uniform prior in (b, log10 Lc) on b ∈ [{own[2][0][0]:g}, {own[2][0][1]:g}], "
+           f"Lc ∈ [{own[2][1][0]:g}, {own[2][1][1]:g}] m. ")
+        + "Posteriors on one grid per problem "
         f"({table.grid.iloc[0]} over the zoom where the reference's posterior lives, and "
         f"{table.check_grid.iloc[0]} over the whole box), compared with the reference Rodas5P "
         "at rtol = atol = 1e−9; the floor is Exprb43 at 1e−9. "
         f"**Indistinguishable**: both posterior means within {shift_sd:g} reference sd and "
         f"overlap Σ min(p, q) ≥ {min_overlap:g} on the zoom and on the whole box; a data set "
         "is **resolved** when the floor is indistinguishable by that rule (no recommendation "
-        "otherwise). Candidates: the own methods over their "
-        "tolerance ladders, ETD2 at the paper's Δτ rule and 4× coarser, and "
-        + (f"from {study_name} the fastest LSODA and SUNDIALS settings reaching worst ΔT "
-           "errors of 1e−2, 1e−3 and 1e−4" if study_name else
-           "(no full work-precision study: no LSODA or SUNDIALS settings)") +
+        "otherwise). "
+        + ("Candidates (quick): the own methods' front settings and ETD2 at the paper's Δτ "
+           "rule" if quick else
+           "Candidates: the own methods over their tolerance ladders, ETD2 at the paper's Δτ "
+           "rule and 4× coarser, and "
+           + (f"from {study_name} the fastest LSODA and SUNDIALS settings reaching worst ΔT "
+              "errors of 1e−2, 1e−3 and 1e−4" if study_name else
+              "(no full work-precision study: no LSODA or SUNDIALS settings)")) +
         f". Wall time of the study: {wall / 60:.0f} min.\n\n"
         "## The cheapest indistinguishable setting\n\n", markdown_table(a),
         "\nms per solve: the solves' own wall time, two at a time on 2 cores; s per posterior: "
@@ -429,7 +462,8 @@ def _solver_effect_markdown(table, advice, study_name, wall, shift_sd, min_overl
                   f"{ref.zoom_lc_um} µm; the reference's failed solves: {ref.n_failed}; "
                   f"resolved: {'yes' if ref.resolved else '**no**'}.\n\n",
                   markdown_table(t)]
-    parts.append("\nCommand: `rsfbench study solver-effect` (a study of "
+    parts.append(f"\nCommand: `{command}`.\n" if command else
+                 "\nCommand: `rsfbench study solver-effect` (a study of "
                  "`make reproduce-full`).\n")
     return "".join(parts)
 
@@ -479,6 +513,10 @@ def run(out: Path, n: int, windows: str, laws: str, observations: str) -> None:
     solver_effect_study(out, n=n, windows=_words(windows), laws=_words(laws), yours=yours,
                         study_csv=out / "wp_full.csv", progress=True)
     print((out / "solver_effect.md").read_text().split("\n## ")[1])
+
+
+#: nodes per parameter of the quick mode's grids
+QUICK_N = 15
 
 
 def report(out: Path) -> str:
