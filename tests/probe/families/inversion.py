@@ -35,6 +35,7 @@ ROOT = Path(__file__).resolve().parents[3]
 Z95 = 1.959963984540054
 _FAST = ("--integrator", "Rodas5P", "--rtol", "1e-4", "--atol", "1e-4")
 _INVERT = ("invert", "--preset", "W4", "--t-end", "15", *_FAST, "--out", "{tmp}/i")
+_EXAMPLE = str(Path(__file__).resolve().parents[3] / "docs" / "examples" / "apparatus.toml")
 
 
 def _cli_case(name, args, expect="refused", names="", json_mode=False, check=None,
@@ -82,6 +83,33 @@ def _flag_cases():
                   _INVERT + ("--method", "emcee", "--walkers", "5000", "--steps", "5000"), names="--walkers"),
         _cli_case("invert --t-end 1e6 (over 10,000 cycles a solve)",
                   _INVERT + ("--t-end", "1e6"), names="--t-end"),
+        _cli_case("invert --walkers 8 with the grid (emcee's)", _INVERT + ("--walkers", "8"),
+                  names="--walkers"),
+        _cli_case("invert --grid 5 --method emcee", _INVERT + ("--grid", "5", "--method",
+                                                               "emcee"), names="--grid"),
+        _cli_case("invert --grid 2", _INVERT + ("--grid", "2"), names="--grid"),
+        _cli_case("invert --grid 100000", _INVERT + ("--grid", "100000"), names="--grid"),
+        _cli_case("invert --method mcmc", _INVERT + ("--method", "mcmc"), names="--method"),
+        _cli_case("invert --curve-sigma 0.01 with the scatter model",
+                  _INVERT + ("--curve-sigma", "0.01"), names="--curve-sigma"),
+        _cli_case("solver-effect --n 3", ("solver-effect", "--problem", _EXAMPLE,
+                                          "--observations", _EXAMPLE, "--b-range",
+                                          "0.0086,0.0102", "--lc-range", "3e-8,3e-6", "--n",
+                                          "3", "--out", "{tmp}/i"), names="--n"),
+        _cli_case("solver-effect --observations a problem file",
+                  ("solver-effect", "--problem", _EXAMPLE, "--observations", _EXAMPLE,
+                   "--b-range", "0.0086,0.0102", "--lc-range", "3e-8,3e-6", "--out",
+                   "{tmp}/i"), names="--observations"),
+        _cli_case("solver-effect --b-range reaching b = 1.5",
+                  ("solver-effect", "--problem", _EXAMPLE, "--observations", _EXAMPLE,
+                   "--b-range", "0.001,1.5", "--lc-range", "3e-8,3e-6", "--out", "{tmp}/i"),
+                  names="b = 1.5"),
+        _cli_case("work-precision --observations a problem file",
+                  ("work-precision", "--problem", _EXAMPLE, "--observations", _EXAMPLE,
+                   "--out", "{tmp}/i"), names="--observations"),
+        _cli_case("compare --problem with --law", ("compare", "--problem", _EXAMPLE, "--law",
+                                                   "aging", "--rtol", "1e-6", "--atol",
+                                                   "1e-6"), names="--law"),
         _cli_case("study calibration: check_seeds 5 > seeds 2",
                   ("study", "calibration", "--out", "{tmp}/i", "--set", "seeds=2", "--set",
                    "check_seeds=5"), names="check_seeds"),
