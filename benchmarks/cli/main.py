@@ -182,6 +182,8 @@ def cmd_compare(args) -> int:
     table = compare_integrators(problem, args.rtol, args.atol, names=names,
                                 wall_budget=args.wall_budget, progress=show_progress(args))
     table.insert(0, "problem", problem.name)
+    if args.observations is not None:
+        table = _errors_in_sigma(table, problem, args.observations, args.wall_budget)
     if args.out:
         table.to_csv(args.out, index=False)
     if args.json:
@@ -190,9 +192,45 @@ def cmd_compare(args) -> int:
         shown = table.drop(columns=["library", "message", "problem"]).assign(
             wall_s=table.wall_s.map("{:.4g}".format),
             recurrence_s=table.recurrence_s.map(lambda x: f"{x:.8g}" if x == x and x is not None else ""),
-            friction_drop=table.friction_drop.map(lambda x: f"{x:.7g}" if x == x and x is not None else ""))
+            friction_drop=table.friction_drop.map(lambda x: f"{x:.7g}" if x == x and x is not None else ""),
+            **{c: table[c].map(lambda x: "" if x != x else f"{x:.2g}")
+               for c in table.columns if c.endswith("_sigma")})
         say(markdown_table(shown), end="")
     return 0
+
+
+def _errors_in_sigma(table, problem, path, wall_budget):
+    """``table`` with each integrator's ΔT and Δμ (of the last event) off the tight reference
+    in units of the observations' σ, and whether both are within σ/10: the references are
+    those of invert's check, which must agree to σ/100."""
+    import numpy as np
+
+    from benchmarks.devtools.compare import compare_integrators
+    from benchmarks.inversion.observations import read_observations
+    from benchmarks.inversion.solver_check import FRACTION, REFERENCES
+    try:
+        obs = read_observations(path)
+    except ValueError as exc:
+        raise ValueError(f"--observations: {exc}") from None
+    refs = [compare_integrators(problem, tol, tol, names=[name], wall_budget=wall_budget,
+                                progress=False).iloc[0] for name, tol in REFERENCES]
+    sigma = {"recurrence_s": obs.sigma_recurrence_s, "friction_drop": obs.sigma_friction_drop}
+    for ref in refs:
+        if ref.recurrence_s is None or not np.isfinite(ref.recurrence_s):
+            raise ValueError(f"the reference {ref.integrator} at 1e-9 did not finish this "
+                             f"problem ({ref.retcode}): no error in σ to report")
+    apart = max(abs(refs[0][k] - refs[1][k]) / s for k, s in sigma.items())
+    if apart > FRACTION / 10:
+        raise ValueError(f"the references {refs[0].integrator} and {refs[1].integrator} at 1e-9 "
+                         f"differ by {apart:.2g} σ on this problem (more than σ/100): no error "
+                         "in σ to report")
+    for k, s in sigma.items():
+        short = "recurrence" if k == "recurrence_s" else "drop"
+        got = table[k].astype(float)
+        table[f"err_{short}_sigma"] = (got - refs[0][k]).abs() / s
+    ok = (table.err_recurrence_sigma <= FRACTION) & (table.err_drop_sigma <= FRACTION)
+    table["within_a_tenth_of_sigma"] = ok.where(table.err_recurrence_sigma.notna())
+    return table
 
 
 def _study_problem(spec: str, flag: str = "--problems"):
@@ -428,6 +466,10 @@ def build_parser() -> Parser:
                    help="or your own apparatus: a TOML or JSON problem file (default: none)")
     c.add_argument("--law", choices=("slip", "aging"), help="friction law of --preset "
                    "(default: slip)")
+    c.add_argument("--observations", type=in_file, metavar="FILE.json",
+                   help="an observations file (rsfbench observe): add each integrator's ΔT and "
+                        "Δμ errors against a tight reference in units of its σ, and whether "
+                        "both are within σ/10 (default: none)")
     c.add_argument("--t-end", type=positive, metavar="S",
                    help="simulated time in s (default: the preset's)")
     c.add_argument("--rtol", type=positive, required=True,
