@@ -52,7 +52,7 @@ def posterior_target(out, walkers: int = 32, steps: int = 2500, seed: int = 0,
     algorithm, why = recommended_algorithm(1e-3, study_csv or STUDY_CSV)
     misfit = Misfit(preset("W2", law="slip", t_end=T_END["W2"]), observations("W2"), algorithm)
     inv = invert(misfit, *prior_box("W2", "slip"), walkers=walkers, steps=steps, seed=seed,
-                 progress=progress)
+                 progress=progress, method="emcee")
     summary = write_inversion(inv, out / "inversion_W2_slip")
     p = summary["posterior"] or {"n_solves": 0, "wall_s": float("nan")}
     target = {"solves": p["n_solves"], "wall_s": p["wall_s"], "cores": os.cpu_count(),
