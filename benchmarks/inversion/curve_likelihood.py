@@ -117,7 +117,8 @@ class CurveLikelihood:
         if n < MIN_EVENTS:
             raise ValueError(f"curve noise 'scatter' needs at least {MIN_EVENTS} events to "
                              f"estimate their spread, the curves have {n}: give a σ per sample "
-                             "(noise 'sample') instead")
+                             "(noise 'sample'; rsfbench invert --curve-noise sample "
+                             "--curve-sigma X) or leave the curves out ('none')")
         if isinstance(points, bool) or not isinstance(points, (int, np.integer)) or points < 3:
             raise ValueError(f"points must be an integer ≥ 3, got {points!r}")
         shortest = min(float(g.slip_m.max()) for g in events)
