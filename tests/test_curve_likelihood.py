@@ -92,6 +92,14 @@ def test_the_sample_models_chi2_at_the_truth_is_chi2_of_its_dof():
     assert np.var(values) == pytest.approx(2 * dof, rel=0.3)
 
 
+def test_an_empty_model_curve_has_no_chi2_and_no_j2():
+    curves, _ = _curves(noise=2e-3)
+    for like in (CurveLikelihood.from_curves(curves),
+                 CurveLikelihood.from_curves(curves, "sample", sigma=2e-3)):
+        assert np.isnan(like.chi2([], [])) and np.isnan(like.j2([], []))
+        assert np.isnan(like.residuals([], [])).all()
+
+
 @pytest.mark.parametrize("curves, kw, match", [
     (_curves(n_events=2)[0], {}, "at least 3 events"),
     (_curves()[0], {"noise": "sample"}, "needs σ per sample"),
@@ -148,6 +156,22 @@ def test_a_box_without_a_cycle_has_no_grid_posterior():
             return t.assign(log_likelihood=-np.inf, misfit=2e6)
     post = grid_posterior(Nothing((0.0094, -6.5), (1e-4, 0.1)), (0.0086, 0.0102), (1e-8, 1e-5))
     assert not np.isfinite(post.best[2]) and post.levels == 0 and not post.settled
+    # no numbers it does not have, and nothing to draw from
+    assert np.isnan(post.mean["b"]) and np.isnan(post.interval["log10_lc"][0])
+    assert np.isnan(post.edge_mass)
+    with pytest.raises(ValueError, match="no cell of the grid has a limit cycle"):
+        post.sample(10)
+
+
+def test_curves_that_do_not_scatter_in_shape_are_refused_by_the_scatter_model():
+    """Noise-free events differing only by their offsets: no covariance to whiten with."""
+    s = np.linspace(0, 3e-4, 30)
+    curves = pd.concat([pd.DataFrame({"event_id": i, "slip_m": s,
+                                      "friction": 0.6 + 0.01 * i - 0.04 * (1 - np.exp(-s / 2e-5))})
+                        for i in range(6)], ignore_index=True)
+    with pytest.raises(ValueError, match="do not scatter in shape"):
+        CurveLikelihood.from_curves(curves)
+    assert CurveLikelihood.from_curves(curves, "sample", sigma=1e-3).n_events == 6
 
 
 @pytest.mark.slow

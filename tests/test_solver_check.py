@@ -52,6 +52,37 @@ def test_a_setting_that_cannot_be_tightened_is_refused_naming_the_worst_point(w2
     assert "no setting tried" in check.message and "b = 0.0102" in check.message
 
 
+def test_a_box_without_a_cycle_checks_nothing_and_says_so(w2, obs):
+    """b far below a (0.008): steady sliding everywhere; no point to check a cycle's metrics on,
+    so the check says so (the commands warn) rather than pass on points that compare nothing."""
+    check = check_solver(w2, Rosenbrock23(rtol=1e-3, atol=1e-3), obs, (0.001, 0.002),
+                         (1e-7, 1e-6))
+    assert not check.passed and check.nothing_to_check
+    assert "nothing to check the integrator on" in check.message
+    assert check.n_solves == 2 * (5 + 9)
+
+
+def test_a_cycle_without_its_curve_is_no_agreement(obs):
+    """A missing curve (a second solve that stopped) is an infinite error, not a pass."""
+    import dataclasses
+
+    import pandas as pd
+
+    from benchmarks.inversion.solver_check import _errors
+    from benchmarks.physics.curves import sample_curves  # noqa: F401 (the format)
+    curves = pd.DataFrame({"event_id": np.repeat([1, 2, 3], 20),
+                           "slip_m": np.tile(np.linspace(0, 3e-4, 20), 3),
+                           "friction": 0.6 + 1e-3 * np.random.default_rng(0).standard_normal(60)})
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        o = dataclasses.replace(obs, curves=curves)
+    row = dict(classification="stick-slip", recurrence_s=3.0446, friction_drop=0.04522)
+    s = np.linspace(0, 3e-4, 50)
+    a = pd.DataFrame([{**row, "curve_slip": s, "curve_friction": 0.6 + 0 * s}])
+    b = pd.DataFrame([{**row, "curve_slip": np.empty(0), "curve_friction": np.empty(0)}])
+    assert _errors(a, a, o)[0] == 0.0 and _errors(a, b, o)[0] == np.inf
+
+
 def test_tighter_settings():
     assert tighter(Rosenbrock23(rtol=1e-4, atol=1e-6)).atol == pytest.approx(1e-7)
     assert tighter(Rosenbrock23(rtol=1e-13, atol=1e-13)) is None       # at the floor

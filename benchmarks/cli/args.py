@@ -389,6 +389,11 @@ def checked_integrator(args, problem, obs, b_range, lc_range, algorithm, why: st
     talk = (lambda text: None) if args.json else (lambda text: say(f"… {text}"))
     check = check_solver(problem, algorithm, obs, b_range, lc_range,
                          workers=getattr(args, "workers", None), say=talk)
+    if check.nothing_to_check:
+        import warnings
+        warnings.warn(f"the integrator is not checked on this problem: {check.message}",
+                      stacklevel=1)
+        return algorithm, f"{why} (not checked on this problem: {check.message})", check
     if not check.passed:
         raise ValueError(f"the integrator check on this problem failed: {check.message}")
     if check.algorithm is not algorithm:

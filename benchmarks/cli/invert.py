@@ -145,6 +145,16 @@ def cmd_invert(args) -> int:
         raise ValueError("--grid is the grid posterior's first grid: drop it with --method emcee")
     walkers = 32 if args.walkers is None else args.walkers
     steps = 2000 if args.steps is None else args.steps
+    if steps:                            # the corner plot is written after all the work
+        from benchmarks.records.optional import require
+        require("corner", "inversion", "the corner plot of a posterior")
+        if args.method == "emcee":
+            require("emcee", "inversion", "a posterior sample")
+    if args.grid is not None and not steps:
+        raise ValueError("--grid is the grid posterior's, and --steps 0 asks for none: drop one")
+    if args.curve_noise == "sample" and args.curve_sigma is None:
+        raise ValueError("--curve-noise sample needs --curve-sigma X (σ per sample of the "
+                         "curves' friction Ft/Fn)")
     if args.method == "emcee" and steps:
         flagged("--walkers/--steps", check_sampler, box_b, box_lc, walkers, steps)
     obs = observations_from_args(args, published)

@@ -209,7 +209,7 @@ def _errors_in_sigma(table, problem, path, wall_budget):
     from benchmarks.inversion.observations import read_observations
     from benchmarks.inversion.solver_check import FRACTION, REFERENCES
     try:
-        obs = read_observations(path)
+        obs = read_observations(path, curve_noise="none")   # ΔT and Δμ only
     except ValueError as exc:
         raise ValueError(f"--observations: {exc}") from None
     refs = [compare_integrators(problem, tol, tol, names=[name], wall_budget=wall_budget,
@@ -262,10 +262,10 @@ def cmd_work_precision(args) -> int:
     if args.t_end is not None:
         problems = [dataclasses.replace(p, t_end=args.t_end) for p in problems]
     names = None if not args.integrators else [algorithm_name(n) for n in args.integrators]
-    tiers = tuple(args.tiers)
+    tiers = tuple(args.tiers or ("numba", "python"))
     if args.problem and names is None:       # on your problem: the compiled ones, in minutes
         names = [n for n, c in sorted(REGISTRY.items()) if c.library.startswith(COMPILED)]
-        tiers = ("numba",)
+        tiers = tuple(args.tiers or ("numba",))
     df = work_precision(problems, ladder, names=names, tiers=tiers,
                         progress=show_progress(args))
     paths = write_work_precision(df, Path(args.out), args.name or args.study, error=args.error)
@@ -311,7 +311,7 @@ def _limits_of(path) -> dict:
     from benchmarks.inversion.observations import read_observations
     from benchmarks.inversion.solver_check import FRACTION
     try:
-        o = read_observations(path)
+        o = read_observations(path, curve_noise="none")     # ΔT and Δμ only
     except ValueError as exc:
         raise ValueError(f"--observations: {exc}") from None
     return {"err_recurrence": FRACTION * o.sigma_recurrence_s / o.recurrence_s,
@@ -505,8 +505,9 @@ def build_parser() -> Parser:
                     help="simulated time of every problem in s (default: each preset's own)")
     wp.add_argument("--integrators", nargs="+", metavar="NAME",
                     help="registry names (default: all)")
-    wp.add_argument("--tiers", nargs="+", choices=("numba", "python"), default=["numba", "python"],
-                    help="right-hand-side tiers")
+    wp.add_argument("--tiers", nargs="+", choices=("numba", "python"),
+                    help="right-hand-side tiers (default: both; numba only with --problem and "
+                         "no --integrators)")
     wp.add_argument("--wall-budget", type=positive, metavar="S",
                     help="per-run wall-time budget in s (default: the study's, 10 or 120 s)")
     wp.add_argument("--error", default="err_recurrence",

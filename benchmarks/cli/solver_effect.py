@@ -5,7 +5,8 @@
     rsfbench solver-effect --problem apparatus.toml --observations obs/observations.json \\
         --b-range 0.0086,0.0102 --lc-range 3e-8,3e-6 --full --study results/wp_full.csv
 
-Every candidate setting inverts the observations on the problem's own box and is compared with
+Every candidate setting inverts the observations' means (ΔT and Δμ with their σ: J1; the
+file's slip-weakening curves are left out here) on the problem's own box and is compared with
 the inversion by a tight reference (:mod:`benchmarks.studies.solver_effect`); the settings whose
 posterior is indistinguishable from the reference's are ranked by their cost.
 """
@@ -31,7 +32,7 @@ def cmd_solver_effect(args) -> int:
     problem = load_problem(args.problem)
     flagged("--b-range/--lc-range", check_box, problem, args.b_range, args.lc_range)
     try:
-        yours = read_observations(args.observations)
+        yours = read_observations(args.observations, curve_noise="none")  # J1 (docstring)
     except ValueError as exc:
         raise ValueError(f"--observations: {exc}") from None
     if args.study is not None and not args.full:
@@ -67,8 +68,9 @@ def add_parsers(sub) -> None:
     from benchmarks.cli.invert import b_range, bounded, lc_range
     from benchmarks.studies.solver_effect import QUICK_N
     p = sub.add_parser("solver-effect", help="does the integrator change what your observations "
-                       "infer on your problem? every candidate's posterior against a tight "
-                       "reference's, the indistinguishable ones ranked by cost")
+                       "infer on your problem? every candidate's posterior (J1: the means; "
+                       "curves left out) against a tight reference's, the indistinguishable "
+                       "ones ranked by cost")
     p.add_argument("--problem", type=in_file, required=True, metavar="FILE",
                    help="your apparatus: a TOML or JSON problem file (no default)")
     p.add_argument("--observations", type=in_file, required=True, metavar="FILE.json",

@@ -10,7 +10,8 @@ Two paths give the same columns (:data:`RESULT_COLUMNS`, after the parameter col
 
 Both classify with :func:`integrators.core.cycles.find_cycle` and word the reasons with
 :func:`benchmarks.physics.metrics.cycle_from`, so an own method's rows are the same either way (the
-tests check it). A point that fails is a row with its retcode and message, never an exception;
+tests check it); with curves, a batch solves each point with a cycle twice and its counters say
+so. A point that fails is a row with its retcode and message, never an exception;
 only a point with a limit cycle (:data:`benchmarks.physics.metrics.CYCLES`) has metrics.
 """
 
@@ -128,6 +129,10 @@ def batch_rows(problems, algorithm, names, values, wall_budget=None,
         col["curve_slip"], col["curve_friction"] = zip(*(
             _curve(problem, z) if what in CYCLES else (np.empty(0), np.empty(0))
             for problem, z, what in zip(problems, states, col["classification"])))
+        for i, (what, slip) in enumerate(zip(col["classification"], col["curve_slip"])):
+            if what in CYCLES and not len(slip):
+                col["message"][i] = ("its slip-weakening curve could not be made: the second "
+                                     "solve over its last event stopped (its wall budget?)")
     return _frame(names, values, col)
 
 

@@ -66,7 +66,11 @@ class CellPosterior:
     history: list = field(default_factory=list)
 
     def sample(self, n: int, seed: int = 0) -> pd.DataFrame:
-        """``n`` draws: a cell by its mass, then a point uniform inside it."""
+        """``n`` draws: a cell by its mass, then a point uniform inside it (``ValueError``
+        when no cell has a limit cycle: there is no posterior to draw from)."""
+        if not self.cells.mass.sum() > 0:
+            raise ValueError("no cell of the grid has a limit cycle: there is no posterior to "
+                             "draw from")
         rng = np.random.default_rng(seed)
         c = self.cells
         k = rng.choice(len(c), size=n, p=c.mass.to_numpy())
@@ -104,6 +108,9 @@ def _cdf_fast(x, lo, hi, mass):
 def _summary(cells: pd.DataFrame) -> tuple[dict, dict, dict]:
     mean, std, interval = {}, {}, {}
     m = cells.mass.to_numpy()
+    if not m.sum() > 0:                  # no cell with a limit cycle: no posterior, no numbers
+        nan = dict.fromkeys(_NAMES, float("nan"))
+        return nan, dict(nan), dict.fromkeys(_NAMES, (float("nan"), float("nan")))
     for name in _NAMES:
         x, w = cells[name].to_numpy(), cells[f"width_{name}"].to_numpy()
         mean[name] = float(m @ x)
@@ -181,7 +188,8 @@ def grid_posterior(misfit: Misfit, b_range, lc_range, n: int = 33, progress: boo
             else (np.nan, np.nan, np.nan))
     return CellPosterior(
         cells=cells, mean=mean, std=std, interval=interval,
-        edge_mass=float(cells.mass[edge].sum()), levels=len(history), settled=settled,
+        edge_mass=float(cells.mass[edge].sum()) if cells.mass.sum() > 0 else float("nan"),
+        levels=len(history), settled=settled,
         n_solves=n_solves, wall_s=time.perf_counter() - started,
         prior=f"uniform in b on [{b_lo:g}, {b_hi:g}] and in log10 Lc on [{l_lo:g}, {l_hi:g}] "
               "(Lc in m)", best=best, history=history)

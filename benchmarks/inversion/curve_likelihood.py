@@ -34,7 +34,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-__all__ = ["CurveLikelihood", "CURVE_NOISES", "COMMON_SLIPS", "MIN_EVENTS", "ledoit_wolf"]
+__all__ = ["CurveLikelihood", "CURVE_NOISES", "COMMON_SLIPS", "MIN_EVENTS", "MIN_SPREAD",
+           "ledoit_wolf"]
 
 #: the noise models of the curves (module docstring)
 CURVE_NOISES = ("scatter", "sample")
@@ -42,6 +43,9 @@ CURVE_NOISES = ("scatter", "sample")
 COMMON_SLIPS = 12
 #: the scatter model's least number of events (a covariance needs a spread of several)
 MIN_EVENTS = 3
+#: the least spread of the events' shapes (rms, in μ) the scatter model takes as a covariance:
+#: below it the curves are noise-free or copies, and their whitening would be round-off
+MIN_SPREAD = 1e-7
 
 
 def ledoit_wolf(x: np.ndarray) -> tuple[np.ndarray, float]:
@@ -133,6 +137,13 @@ class CurveLikelihood:
                       for g in events])
         q = _contrasts(points)
         cov, shrinkage = ledoit_wolf(y @ q)
+        spread = float(np.sqrt(np.trace(cov) / (points - 1)))
+        if not spread > MIN_SPREAD:
+            raise ValueError(f"the events' curves do not scatter in shape (their spread is "
+                             f"{spread:.2g} in μ, below {MIN_SPREAD:g}: noise-free or copies): "
+                             "the scatter model has no covariance to use; give a σ per sample "
+                             "(noise 'sample'; rsfbench invert --curve-noise sample "
+                             "--curve-sigma X)")
         cov *= n / (n - 1.0)                       # the events' spread, as their std is (ddof 1)
         if reading == "sem":
             cov /= n

@@ -28,6 +28,10 @@ def joint_misfit(misfit: Misfit, b, lc, alpha1: float, alpha2: float) -> pd.Data
     if misfit.obs.curves is None:
         raise ValueError("J needs observed slip-weakening curves: the misfit's observations "
                          "have none (J1 alone is the misfit then)")
+    if misfit.obs.curve_likelihood is None:
+        raise ValueError("J needs the model's slip-weakening curves, which a misfit makes only "
+                         "when the observed curves are in its likelihood: the observations "
+                         "have curve_noise 'none'")
     table = misfit.evaluate(b, lc)
     table["J"] = table.J1 + alpha1 / alpha2 * table.J2
     return table

@@ -85,8 +85,8 @@ class Misfit:
 
     def residuals(self, b: float, lc: float) -> np.ndarray:
         """The residuals at one point whose squares sum to its misfit, for least squares:
-        (ΔT − ΔT̄)/σ, (Δμ − Δμ̄)/σ and, with curves, the curves' whitened residuals
-        (:data:`NO_CYCLE_RESIDUAL` each without a limit cycle or its curve)."""
+        (ΔT − ΔT̄)/σ, (Δμ − Δμ̄)/σ and, with curves, the curves' whitened residuals (without a
+        limit cycle or its curve: :data:`NO_CYCLE_RESIDUAL` twice, then zeros)."""
         row = self.evaluate([b], [lc]).iloc[0]
         out = [row.r_recurrence, row.r_drop]
         like = self.obs.curve_likelihood
@@ -94,7 +94,8 @@ class Misfit:
             return np.array(out)
         r = like.residuals(row.curve_slip, row.curve_friction)
         if not np.isfinite(row.log_likelihood) or not np.isfinite(r).all():
-            return np.full(2 + len(r), NO_CYCLE_RESIDUAL)
+            # the squares sum to NO_CYCLE_J1, the misfit of a point without a cycle
+            return np.concatenate([[NO_CYCLE_RESIDUAL] * 2, np.zeros(len(r))])
         return np.concatenate([out, r])
 
     def __call__(self, b: float, lc: float) -> float:

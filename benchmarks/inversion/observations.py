@@ -59,7 +59,8 @@ class Observations:
     assumed_sigma: bool = False        # σ not measured: 10 % of the mean, say so in the output
     #: the curves' noise model, σ per sample (model "sample") and reading (std or sem) of the
     #: spread (model "scatter"): :mod:`benchmarks.inversion.curve_likelihood`; "none": the
-    #: curves enter no likelihood (the paper's J2 score only)
+    #: curves enter no likelihood, and a Misfit makes no model curves (a sweep still scores
+    #: its J2 with them)
     curve_noise: str = "scatter"
     curve_sigma: float | None = None
     curve_reading: str = "std"
@@ -172,7 +173,7 @@ def write_observations(path, events: pd.DataFrame, curves: pd.DataFrame | None =
     return doc
 
 
-def read_observations(path, sigma: str | None = None, curve_noise: str = "none",
+def read_observations(path, sigma: str | None = None, curve_noise: str = "scatter",
                       curve_sigma: float | None = None) -> Observations:
     """The :class:`Observations` of an observations file: the means of ΔT and Δμ, with the σ
     the file names (``std`` unless it says otherwise) or ``sigma``, and the curves if any, in

@@ -1,8 +1,9 @@
-"""Posterior samples of (b, log10 Lc) with emcee (issue 17, item 2, third part).
+"""Posterior samples of (b, log10 Lc) with emcee (``rsfbench invert --method emcee``).
 
 The model: the observed ΔT̄ and Δμ̄ are Gaussian about the limit cycle's metrics with the stated
-σ, so log L = −J1/2 (:meth:`benchmarks.inversion.Misfit.log_likelihood`; −inf at a point without
-a limit cycle). The prior is uniform on the box ``b_range`` × ``lc_range`` in (b, log10 Lc):
+σ, and the curves (when they are in the likelihood) as their noise model says, so
+log L = −misfit/2 (:meth:`benchmarks.inversion.Misfit.log_likelihood`; −inf at a point without a
+limit cycle). The prior is uniform on the box ``b_range`` × ``lc_range`` in (b, log10 Lc):
 flat in b and in the logarithm of Lc, which spans decades. Both are stated in the result.
 
 emcee's affine-invariant ensemble sampler runs with ``vectorize=True``: each step's walkers are

@@ -15,8 +15,11 @@ point — and compares what the likelihood reads:
 
 Each must be within :data:`FRACTION` (σ/10) wherever the two references agree to a tenth of that;
 a point where they do not (near a boundary of stick–slip, or beyond the references' own
-accuracy) is not used, and said. If the integrator fails, a tighter setting is tried (the next
-more accurate one of the front, or rtol and atol ÷ 10; the ETD family's steps ÷ 4), at most
+accuracy) is not used, and said. At least one checked point must have a limit cycle (a point
+without one in the integrator and in the references checks nothing but that): if none of the
+five has, a 3 × 3 grid inside the box is tried, and then the check says that it checked nothing
+(``nothing_to_check``: the commands go on with a warning). If the integrator
+fails, a tighter setting is tried (rtol and atol ÷ 10, or the ETD family's steps ÷ 4), at most
 :data:`TIGHTENINGS` times, and then the check refuses, naming the worst point.
 """
 
@@ -56,10 +59,13 @@ class SolverCheck:
     message: str
     wall_s: float
     n_solves: int
+    #: no checked point had a limit cycle: the integrator is neither vouched for nor refused
+    nothing_to_check: bool = False
 
     def summary(self) -> dict:
         """What ``inversion.json`` records of the check."""
-        return {"passed": self.passed, "integrator": self.algorithm.name,
+        return {"passed": self.passed, "nothing_to_check": self.nothing_to_check,
+                "integrator": self.algorithm.name,
                 "options": self.algorithm.options(), "tried": self.tried,
                 "message": self.message, "wall_s": self.wall_s, "n_solves": self.n_solves,
                 "references": [f"{n} at rtol = atol = {t:g}" for n, t in REFERENCES],
@@ -80,8 +86,15 @@ def tighter(algorithm):
     return None
 
 
-def _points(b_range, lc_range) -> dict:
+def _points(b_range, lc_range, inner: bool = False) -> dict:
+    """The box's corners and centre; ``inner``: a 3 × 3 grid inside it, at a quarter, half and
+    three quarters of each side (in b and log10 Lc)."""
     (b_lo, b_hi), (lc_lo, lc_hi) = b_range, lc_range
+    if inner:
+        fb = b_lo + (b_hi - b_lo) * np.array([0.25, 0.5, 0.75])
+        fl = 10.0 ** (np.log10(lc_lo) + np.log10(lc_hi / lc_lo) * np.array([0.25, 0.5, 0.75]))
+        bb, ll = np.meshgrid(fb, fl, indexing="ij")
+        return {"b": bb.ravel(), "lc": ll.ravel()}
     b = [b_lo, b_lo, b_hi, b_hi, (b_lo + b_hi) / 2]
     lc = [lc_lo, lc_hi, lc_lo, lc_hi, float(np.sqrt(lc_lo * lc_hi))]
     return {"b": np.array(b, dtype=float), "lc": np.array(lc, dtype=float)}
@@ -107,7 +120,8 @@ def _errors(a: pd.DataFrame, b: pd.DataFrame, obs) -> np.ndarray:
         for i in np.flatnonzero(both):
             ra = like.residuals(a.curve_slip.iloc[i], a.curve_friction.iloc[i])
             rb = like.residuals(b.curve_slip.iloc[i], b.curve_friction.iloc[i])
-            err[i] = max(err[i], float(np.max(np.abs(ra - rb))) if len(ra) else np.inf)
+            made = np.isfinite(ra).all() and np.isfinite(rb).all()    # a cycle without its curve
+            err[i] = max(err[i], float(np.max(np.abs(ra - rb)))) if made else np.inf
     return np.where(both, err, out)
 
 
@@ -120,21 +134,32 @@ def check_solver(problem, algorithm, obs, b_range, lc_range, next_setting=None,
     say = say or (lambda text: None)
     next_setting = next_setting or tighter
     started = time.perf_counter()
-    points = _points(b_range, lc_range)
     curves = obs.curve_likelihood is not None
-    refs = [_run(problem, make_algorithm(n, rtol=t, atol=t), points, curves, workers)
-            for n, t in REFERENCES]
+    refs = n_solves = None
+    for inner in (False, True):          # corners and centre; inside the box if none has a cycle
+        points = _points(b_range, lc_range, inner)
+        refs = [_run(problem, make_algorithm(n, rtol=t, atol=t), points, curves, workers)
+                for n, t in REFERENCES]
+        n_solves = (n_solves or 0) + 2 * len(points["b"])
+        cycles = [r.classification.isin(CYCLES).to_numpy() for r in refs]
+        if (cycles[0] & cycles[1]).any():
+            break
+    else:
+        return SolverCheck(algorithm, False, pd.DataFrame(), [], (
+            "no limit cycle at the box's corners, its centre or a 3 × 3 grid inside it, by "
+            "either reference: nothing to check the integrator on"),
+            time.perf_counter() - started, n_solves, nothing_to_check=True)
     agree = _errors(refs[0], refs[1], obs) <= FRACTION / 10
-    n_solves = 2 * len(points["b"])
     rows, tried, current = [], [], algorithm
     base = pd.DataFrame({"b": points["b"], "lc_m": points["lc"],
                          "reference_class": refs[0].classification.to_numpy(),
                          "references_agree": agree})
-    if not agree.any():
+    compared = agree & cycles[0] & cycles[1]     # a point is checked on its cycle's metrics
+    if not compared.any():
         return SolverCheck(algorithm, False, base, [], (
-            "the two reference solvers disagree by more than σ/100 at every corner and the "
-            "centre of the box: nothing here can vouch for an integrator on this problem "
-            "(σ too small for the references, or every point at a boundary of stick–slip)"),
+            "the two reference solvers disagree by more than σ/100 wherever they find a limit "
+            "cycle: nothing here can vouch for an integrator on this problem (σ too small for "
+            "the references, or every such point at a boundary of stick–slip)"),
             time.perf_counter() - started, n_solves)
     for attempt in range(TIGHTENINGS + 1):
         label = _label(current)
@@ -150,8 +175,9 @@ def check_solver(problem, algorithm, obs, b_range, lc_range, next_setting=None,
         if (worst <= FRACTION).all():
             return SolverCheck(current, True, pd.concat(rows, ignore_index=True), tried,
                                f"{label}: every checked point within σ/{1 / FRACTION:g} of the "
-                               f"reference (worst {worst.max():.2g} σ, {int(agree.sum())} of "
-                               f"{len(agree)} points where the references agree)"
+                               f"reference (worst {worst.max():.2g} σ; {int(compared.sum())} "
+                               f"points with a cycle where the references agree, of "
+                               f"{len(agree)})"
                                + ("" if attempt == 0 else
                                   f"; tightened from {tried[0]}, which was "
                                   f"{rows[0].error_in_sigma.where(agree).max():.2g} σ off"),

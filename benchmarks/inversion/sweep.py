@@ -7,7 +7,8 @@ other backend point by point on a pool of processes, or chunks on a Dask cluster
 are kept in a Parquet store under ``DIR/chunks`` (``benchmarks.ensemble.read_store(DIR/"chunks")``
 reads the simulations back: the chunks its identity file lists, each checked by its hash), so a sweep restarted with the same arguments runs only what is missing, and
 changing only the observations (ΔT̄, σ) re-scores the stored simulations without running them
-again. Slip-weakening curves (J2) need each point's trajectory: such a sweep runs point by point.
+again. Slip-weakening curves (J2) come from a second solve of each point over its last event, in
+the batch for the own methods, point by point for the others.
 
 Everything is checked before the first point runs: the grid (finite, non-empty, at most
 ``max_points`` points), every point's problem, the observations, the budget, the workers and the

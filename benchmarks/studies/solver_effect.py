@@ -509,7 +509,7 @@ def _plot_solver_effect(table, path: Path, min_overlap: float) -> None:
 
 def run(out: Path, n: int, windows: str, laws: str, observations: str) -> None:
     from benchmarks.inversion.observations import read_observations
-    yours = read_observations(observations) if observations else None
+    yours = read_observations(observations, curve_noise="none") if observations else None
     solver_effect_study(out, n=n, windows=_words(windows), laws=_words(laws), yours=yours,
                         study_csv=out / "wp_full.csv", progress=True)
     print((out / "solver_effect.md").read_text().split("\n## ")[1])
@@ -542,7 +542,7 @@ def check(settings: dict) -> None:
                              f"some of {', '.join(known)}, joined by commas")
     if settings["observations"]:
         try:
-            read_observations(settings["observations"])
+            read_observations(settings["observations"], curve_noise="none")
         except ValueError as exc:
             raise ValueError(f"study solver-effect: setting observations: {exc}") from None
 

@@ -169,6 +169,7 @@ def _one(kernel, workspace, p0, z0, c, dirs, r, curve):
             for j in range(n):
                 fine[j + 1] = tau_s + (tau_e - tau_s) * j / (n - 1)
             kept = np.empty((n + 2, 3))
+            p[_DEADLINE] = monotonic() + c[_BUDGET]      # the second solve's own budget
             again, st2, _ = _run(kernel, workspace, p, z0, dirs, fine, kept)
             if again == E.DONE and st2[_NEXT_SAVE] == n + 2.0:
                 for j in range(n):
