@@ -184,12 +184,15 @@ def cmd_compare(args) -> int:
     table.insert(0, "problem", problem.name)
     if args.observations is not None:
         table = _errors_in_sigma(table, problem, args.observations, args.wall_budget)
+    from benchmarks.records.provenance import version_line
+    table["rsfbench"], table["command"] = version_line(), args.command_line
     if args.out:
         table.to_csv(args.out, index=False)
     if args.json:
         say(table.to_json(orient="records", indent=2))
     else:
-        shown = table.drop(columns=["library", "message", "problem"]).assign(
+        shown = table.drop(columns=["library", "message", "problem", "rsfbench",
+                                    "command"]).assign(
             wall_s=table.wall_s.map("{:.4g}".format),
             recurrence_s=table.recurrence_s.map(lambda x: f"{x:.8g}" if x == x and x is not None else ""),
             friction_drop=table.friction_drop.map(lambda x: f"{x:.7g}" if x == x and x is not None else ""),
@@ -268,6 +271,7 @@ def cmd_work_precision(args) -> int:
         tiers = tuple(args.tiers or ("numba",))
     df = work_precision(problems, ladder, names=names, tiers=tiers,
                         progress=show_progress(args))
+    df["command"] = args.command_line                 # the rows carry the machine's already
     paths = write_work_precision(df, Path(args.out), args.name or args.study, error=args.error)
     pareto = best_at_levels(df, ERROR_LEVELS, args.error)
     yours = None
