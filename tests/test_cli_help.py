@@ -14,9 +14,14 @@ UNITS = {"--t-end": " s", "--wall-budget": " s", "--lc": "metres", "--curve-dt":
 
 
 def _commands():
-    parser = build_parser()
-    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-    return sorted(sub.choices.items())
+    """Every command and sub-command (``lab fit``), by its name."""
+    def walk(parser, prefix):
+        for action in parser._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                for name, command in action.choices.items():
+                    yield f"{prefix}{name}", command
+                    yield from walk(command, f"{prefix}{name} ")
+    return sorted(walk(build_parser(), ""))
 
 
 @pytest.mark.parametrize("name, command", _commands(), ids=[n for n, _ in _commands()])

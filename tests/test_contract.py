@@ -184,3 +184,39 @@ def test_saved_output_never_changes_the_steps(name):
         assert s.t[-1] == p.t_end and s.v[-1] == runs[0].v[-1]
     assert len(runs[1].t) == 20_000 and len(runs[2].t) == 501
     np.testing.assert_allclose(np.diff(runs[2].t), 1e-4, rtol=1e-9)
+
+
+@pytest.mark.parametrize("name", [n for n in NAMES if REGISTRY[n].saves_at_times])
+def test_save_at_saves_exactly_there_from_the_dense_output(name):
+    """``save_at``: the trajectory at exactly the times asked for (not the start or the end
+    unless asked), agreeing with the same method's uniform save grid where they coincide; for
+    the own methods the steps do not change. Times from a record of uneven sampling."""
+    p = P.window("W2", "aging", t_end=0.05)
+    alg = _make(REGISTRY[name], tol=1e-8)
+    grid = I.solve(p, alg, save_every=1e-3)
+    times = np.concatenate([np.linspace(0.0031, 0.02, 7), [0.025, 0.03],
+                            np.linspace(0.0301, 0.049, 5)])
+    sol = I.solve(p, alg, save_at=times)
+    assert sol.success and np.array_equal(sol.t, times)
+    assert np.all(np.isfinite(sol.fs))
+    at = I.solve(p, alg, save_at=[0.025, 0.03])
+    np.testing.assert_allclose(at.fs, grid.fs[[25, 30]], rtol=1e-7)
+    if REGISTRY[name].library.startswith("rsfbench"):
+        assert (sol.stats.steps, sol.stats.nfev) == (grid.stats.steps, grid.stats.nfev)
+
+
+@pytest.mark.parametrize("bad, match", [
+    ([0.02, 0.01], "must increase"), ([-1.0], "outside the run"), ([0.01, 1.0], "outside the run"),
+    ([], "non-empty"), ([[0.01]], "1-D"), ([np.nan], "not finite"), ("0.01", "array of times")])
+def test_save_at_is_checked_before_any_work(bad, match):
+    p = P.window("W2", "aging", t_end=0.05)
+    with pytest.raises(ValueError, match=match):
+        I.solve(p, I.make_algorithm("Rodas5P", rtol=1e-6, atol=1e-6), save_at=bad)
+    with pytest.raises(ValueError, match="without save_every"):
+        I.solve(p, I.make_algorithm("Rodas5P", rtol=1e-6, atol=1e-6), save_at=[0.01],
+                max_points=3)
+
+
+def test_a_fixed_step_method_refuses_save_at():
+    with pytest.raises(ValueError, match="its own step ends"):
+        I.solve(P.window("W2", "aging", t_end=0.05), I.make_algorithm("ETD2"), save_at=[0.01])

@@ -2,6 +2,8 @@
 
     rsfbench lab step --law aging --v1 1e-6 --v2 1e-5 --json
     rsfbench lab shs --law nagata --holds 1 10 100 --out results/lab
+    rsfbench lab fit run.txt --column time=Time:s --column friction=Friction \\
+        --column load_point=Displ:um                 (benchmarks.cli.lab_fit)
 
 The apparatus is that of Marone's code as distributed with rsfmodel (problems.presets.LAB:
 a = 0.005, b = 0.01, Dc = 10 µm, k = 1e7 N/m on 10 kN, V0 = 1 µm/s), quasi-static unless
@@ -216,10 +218,12 @@ def _plot(sol, heal, path: Path) -> None:
 
 
 def add_parsers(sub) -> None:
-    lab = sub.add_parser("lab", help="a velocity step or a slide-hold-slide test and what it "
-                         "measures (peaks, healing)", description=__doc__.split("\n\n")[0])
-    lab.add_argument("test", choices=("step", "shs"),
-                     help="step: a velocity step; shs: a slide-hold-slide sequence")
+    lab = sub.add_parser("lab", help="a velocity step or a slide-hold-slide test: simulate "
+                         "one (peaks, healing), or fit a record", description=__doc__.split("\n\n")[0])
+    tests = lab.add_subparsers(dest="test", required=True, metavar="{step,shs,fit}",
+                               help="step: simulate a velocity step; shs: a slide-hold-slide "
+                                    "sequence; fit: fit a record (required)")
+    lab = argparse.ArgumentParser(add_help=False)       # the options step and shs share
     lab.add_argument("--problem", type=in_file, metavar="FILE",
                      help="your own apparatus and load-point history (TOML or JSON, "
                           "docs/problem-family.md); default: the built-in apparatus")
@@ -266,4 +270,8 @@ def add_parsers(sub) -> None:
                           "there (default: print only)")
     lab.add_argument("--json", action="store_true", help="print one JSON object")
     lab.add_argument("--no-progress", action="store_true", help="no progress bar")
-    lab.set_defaults(func=cmd_lab)
+    for name, what in (("step", "a velocity step"), ("shs", "a slide-hold-slide sequence")):
+        tests.add_parser(name, parents=[lab], help=f"simulate {what} and what it measures",
+                         description=__doc__.split("\n\n")[0]).set_defaults(func=cmd_lab)
+    from benchmarks.cli.lab_fit import add_parser
+    add_parser(tests)

@@ -39,7 +39,7 @@ import numpy as np
 import pandas as pd
 
 __all__ = ["CHANNELS", "UNITS", "Recording", "read_recording", "column_spec", "explicit_unit",
-           "recording_from", "column_map"]
+           "recording_from", "column_map", "read_table", "column_values"]
 
 #: each channel and its SI unit
 CHANNELS = {"time": "s", "shear_force": "N", "normal_force": "N", "acceleration": "m/s2",
@@ -49,7 +49,9 @@ UNITS = {"s": ("s", 1.0), "ms": ("s", 1e-3), "us": ("s", 1e-6), "µs": ("s", 1e-
          "N": ("N", 1.0), "kN": ("N", 1e3), "MN": ("N", 1e6),
          "m": ("m", 1.0), "mm": ("m", 1e-3), "um": ("m", 1e-6), "µm": ("m", 1e-6),
          "nm": ("m", 1e-9), "m/s2": ("m/s2", 1.0), "m/s^2": ("m/s2", 1.0),
-         "mm/s2": ("m/s2", 1e-3), "g": ("m/s2", 9.80665)}
+         "mm/s2": ("m/s2", 1e-3), "g": ("m/s2", 9.80665),
+         "m/s": ("m/s", 1.0), "mm/s": ("m/s", 1e-3), "um/s": ("m/s", 1e-6),
+         "µm/s": ("m/s", 1e-6), "1": ("1", 1.0)}
 #: a friction coefficient Fs/Fn beyond these is a unit slip (kN against N is 10³ off)
 MU_RANGE = (0.01, 3.0)
 #: samples at a channel's extreme value in a row, in two separate places, that make it saturated
@@ -93,34 +95,37 @@ class Recording:
         return f"column {column!r} ({channel})" if column else channel
 
 
-def column_spec(text: str) -> tuple[str, str, str]:
+def column_spec(text: str, channels: dict | None = None) -> tuple[str, str, str]:
     """``CHANNEL=COLUMN[:UNIT]`` → (channel, column, unit), or ``ValueError`` naming what is
-    wrong. A column's own name may hold a colon: only a known unit after the last one counts."""
+    wrong. A column's own name may hold a colon: only a known unit after the last one counts.
+    ``channels``: channel → SI unit (default :data:`CHANNELS`)."""
+    known = CHANNELS if channels is None else channels
     channel, sep, rest = str(text).partition("=")
     channel = channel.strip()
     if not sep or not rest:
         raise ValueError(f"column mapping {text!r}: expected CHANNEL=COLUMN[:UNIT] "
-                         f"(channels: {', '.join(CHANNELS)})")
-    if channel not in CHANNELS:
+                         f"(channels: {', '.join(known)})")
+    if channel not in known:
         raise ValueError(f"column mapping {text!r}: unknown channel {channel!r}; expected one "
-                         f"of {', '.join(CHANNELS)}")
+                         f"of {', '.join(known)}")
     column, sep, unit = rest.rpartition(":")
     if not sep or unit not in UNITS:
-        column, unit = rest, CHANNELS[channel]
-    if UNITS[unit][0] != CHANNELS[channel]:
-        units = ", ".join(u for u, (si, _) in UNITS.items() if si == CHANNELS[channel])
+        column, unit = rest, known[channel]
+    if UNITS[unit][0] != known[channel]:
+        units = ", ".join(u for u, (si, _) in UNITS.items() if si == known[channel])
         raise ValueError(f"column mapping {text!r}: {unit} is not a unit of {channel} (in "
-                         f"{CHANNELS[channel]}: {units})")
+                         f"{known[channel]}: {units})")
     return channel, column, unit
 
 
-def explicit_unit(channel: str, column: str, unit: str) -> tuple[str, str, str]:
+def explicit_unit(channel: str, column: str, unit: str,
+                  channels: dict | None = None) -> tuple[str, str, str]:
     """(channel, column, unit) checked as :func:`column_spec` checks a spec, the unit given on
     its own (so that one none of ours is refused by name, not taken as part of the column's)."""
     if unit not in UNITS:
         raise ValueError(f"column {column!r} ({channel}): {unit!r} is not a known unit (units: "
                          f"{', '.join(UNITS)})")
-    return column_spec(f"{channel}={column}:{unit}")
+    return column_spec(f"{channel}={column}:{unit}", channels)
 
 
 def read_recording(path, columns, normal_force: float | None = None) -> Recording:
@@ -133,7 +138,7 @@ def read_recording(path, columns, normal_force: float | None = None) -> Recordin
         raise ValueError(f"recording {path} does not exist" if not path.exists()
                          else f"recording {path} is not a file")
     wanted = sorted({column for column, _ in mapping.values()})
-    table = _read(path, wanted)
+    table = read_table(path, wanted)
     digest = hashlib.sha256(path.read_bytes()).hexdigest()
     return recording_from(table, mapping, normal_force, source=str(path), sha256=digest)
 
@@ -154,7 +159,7 @@ def recording_from(table: pd.DataFrame, columns, normal_force: float | None = No
                          f"{', '.join(map(str, table.columns))}")
     channels = {}
     for channel, (column, unit) in mapping.items():
-        channels[channel] = _numbers(table[column], column, source) * UNITS[unit][1]
+        channels[channel] = column_values(table[column], column, source) * UNITS[unit][1]
     t = channels.pop("time")
     names = {channel: column for channel, (column, _) in mapping.items()}
     _check_time(t, names["time"], source)
@@ -168,31 +173,35 @@ def recording_from(table: pd.DataFrame, columns, normal_force: float | None = No
     return Recording(t, channels, names, source, sha256)
 
 
-def column_map(columns) -> dict[str, tuple[str, str]]:
+def column_map(columns, channels: dict | None = None,
+               required=("time", "shear_force")) -> dict[str, tuple[str, str]]:
     """channel → (column, unit) from a dict (channel → column or (column, unit)) or specs
-    ``CHANNEL=COLUMN[:UNIT]``, checked; time and shear_force must be mapped."""
+    ``CHANNEL=COLUMN[:UNIT]``, checked against ``channels`` (default :data:`CHANNELS`); the
+    ``required`` channels must be mapped."""
+    known = CHANNELS if channels is None else channels
     if isinstance(columns, dict):
-        items = [(k, v if isinstance(v, tuple) else (v, CHANNELS.get(k, ""))) for k, v in
+        items = [(k, v if isinstance(v, tuple) else (v, known.get(k, ""))) for k, v in
                  columns.items()]
         mapping = {}
         for channel, (column, unit) in items:
-            channel, column, unit = explicit_unit(channel, column, unit)
+            channel, column, unit = explicit_unit(channel, column, unit, known)
             mapping[channel] = (column, unit)
     else:
         mapping = {}
         for spec in columns:
-            channel, column, unit = column_spec(spec)
+            channel, column, unit = column_spec(spec, known)
             if channel in mapping:
                 raise ValueError(f"channel {channel} is mapped twice ({mapping[channel][0]!r} "
                                  f"and {column!r})")
             mapping[channel] = (column, unit)
-    for required in ("time", "shear_force"):
-        if required not in mapping:
-            raise ValueError(f"map a column to the {required} channel ({required}=COLUMN:UNIT)")
+    for channel in required:
+        if channel not in mapping:
+            raise ValueError(f"map a column to the {channel} channel ({channel}=COLUMN:UNIT)")
     return mapping
 
 
-def _read(path: Path, wanted: list[str]) -> pd.DataFrame:
+def read_table(path: Path, wanted: list[str]) -> pd.DataFrame:
+    """The ``wanted`` columns of the table in ``path`` (CSV, TSV, TXT, DAT or Parquet)."""
     suffix = path.suffix.lower()
     try:
         if suffix == ".parquet":
@@ -237,7 +246,8 @@ def _row(i: int) -> int:
     return int(i) + 2
 
 
-def _numbers(series: pd.Series, column: str, source: str) -> np.ndarray:
+def column_values(series: pd.Series, column: str, source: str) -> np.ndarray:
+    """A column as finite floats, or a refusal naming the first bad row."""
     if pd.api.types.is_datetime64_any_dtype(series) or pd.api.types.is_timedelta64_dtype(series):
         raise ValueError(f"{source}: column {column!r} holds {series.dtype} values (dates or "
                          "durations); give it as numbers in a stated unit (seconds since the "

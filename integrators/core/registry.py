@@ -40,6 +40,8 @@ class Algorithm:
     adaptive: ClassVar[bool] = False
     stiff: ClassVar[bool] = True
     library: ClassVar[str] = ""
+    #: it saves at any given times (``solve(..., save_at=)``) from its dense output
+    saves_at_times: ClassVar[bool] = True
 
     @classmethod
     def library_version(cls) -> str:

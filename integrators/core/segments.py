@@ -69,12 +69,17 @@ def run_segments(problem, solver: SegmentSolver, output, budget, progress,
     """Integrate ``problem`` to t_end with ``solver``; see the module docstring."""
     nd = problem.nondimensional()
     two_speed = nd.two_speed
-    save_dtau = output.interval(problem.t_end) / nd.time_scale
+    grid_s = output.times(problem.t_end)
+    grid = grid_s / nd.time_scale
+    if grid_s[-1] == problem.t_end:
+        grid[-1] = nd.tau_end
+    unasked = grid[0] > 0.0             # the start is kept as the first saved point, then dropped
+    grid = np.append(grid, np.inf)
     z = to_ode_state(nd.law_code, nd.beta, nd.x0)
     tau, load, fast_until = 0.0, 0.0, -math.inf
     rec = EventRecorder(nd.x0[0])
     saved_t, saved_z = [0.0], [z.copy()]
-    next_save = save_dtau
+    i_save = 0 if unasked else 1
     retcode, message = ReturnCode.SUCCESS, ""
     tiny = 1e-12 * nd.tau_end
     calls = 0
@@ -83,7 +88,7 @@ def run_segments(problem, solver: SegmentSolver, output, budget, progress,
         solver.start(tau, z, e, t_bound)
         tau0_seg, load0_seg = tau, load
         while True:
-            adv = solver.advance(min(next_save, t_bound))
+            adv = solver.advance(min(grid[i_save], t_bound))
             calls += 1
             if adv.retcode is not ReturnCode.SUCCESS:
                 retcode, message = adv.retcode, adv.message
@@ -100,11 +105,13 @@ def run_segments(problem, solver: SegmentSolver, output, budget, progress,
             for k in sorted(adv.roots):
                 ended = rec.root(k, tau, z, load) or ended
             rec.observe(float(z[0]))
-            if tau >= next_save - tiny:
-                saved_t.append(tau)
+            if tau >= grid[i_save] - tiny:
+                # a save time as it was asked for (τ and back is not exact)
+                saved_t.append(grid_s[i_save] if tau <= grid[i_save] + tiny
+                               else tau * nd.time_scale)
                 saved_z.append(z.copy())
-                while next_save <= tau + tiny:
-                    next_save += save_dtau
+                while grid[i_save] <= tau + tiny:
+                    i_save += 1
             if calls % check_every == 0:
                 if progress:
                     progress(tau * nd.time_scale)
@@ -120,11 +127,14 @@ def run_segments(problem, solver: SegmentSolver, output, budget, progress,
                 break
     if progress:
         progress(tau * nd.time_scale)
-    if saved_t[-1] < tau:
-        saved_t.append(tau)
+    if saved_t[-1] < tau * nd.time_scale and (output.save_at is None
+                                              or retcode is not ReturnCode.SUCCESS):
+        saved_t.append(tau * nd.time_scale)
         saved_z.append(z)
+    if unasked:
+        saved_t, saved_z = saved_t[1:], saved_z[1:]
     h, eta, psi = from_ode_state(nd.law_code, nd.beta, np.array(saved_z))
-    return RawRun(t=np.array(saved_t) * nd.time_scale,
+    return RawRun(t=np.array(saved_t),
                   y=np.column_stack(problem.dimensional_state(h, eta, psi)),
                   events=rec.table(problem, nd), stats=solver.stats, retcode=retcode,
                   message=message)

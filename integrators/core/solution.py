@@ -60,17 +60,21 @@ class Stats:
 @dataclass(frozen=True)
 class Output:
     """What to save of the trajectory: every ``save_every`` seconds, or else ``max_points`` in all
-    (default :data:`DEFAULT_POINTS`). With ``save_every``, ``max_points`` caps the number of saved
-    points (default :data:`SAVE_LIMIT`), so a typo cannot fill the memory.
+    (default :data:`DEFAULT_POINTS`), or exactly at the times ``save_at`` (s; increasing, within
+    the run: a record's sample times). With ``save_every``, ``max_points`` caps the number of
+    saved points (default :data:`SAVE_LIMIT`), so a typo cannot fill the memory.
 
     Events are always recorded exactly, whatever the decimation.
     """
 
     save_every: float | None = None
     max_points: int | None = None
+    save_at: np.ndarray | None = None
 
     def interval(self, t_end: float) -> float:
         """The save interval in seconds (validates the options: call it before any work)."""
+        if self.save_at is not None:
+            raise ValueError("save_at saves at given times, not at an interval")
         if self.save_every is None:
             n = check_count("max_points", DEFAULT_POINTS if self.max_points is None
                             else self.max_points, minimum=2)
@@ -83,6 +87,40 @@ class Output:
                              f"t_end = {t_end:g} s, more than max_points = {limit}: save less "
                              "often, or raise max_points")
         return dt
+
+    def times(self, t_end: float) -> np.ndarray:
+        """The save times in seconds (validates the options: call it before any work)."""
+        if self.save_at is None:
+            dt = self.interval(t_end)
+            n = int(np.floor(t_end / dt * (1.0 + 1e-12))) + 1
+            grid = np.arange(n) * dt
+            grid = grid[grid <= t_end]
+            if grid[-1] < t_end * (1.0 - 1e-12):
+                grid = np.append(grid, t_end)
+            grid[-1] = t_end
+            return grid
+        if self.save_every is not None or self.max_points is not None:
+            raise ValueError("save_at names the save times itself: give it without save_every "
+                             "and max_points")
+        try:
+            times = np.asarray(self.save_at, dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError(f"save_at must be an array of times in s, got "
+                             f"{type(self.save_at).__name__}") from None
+        if times.ndim != 1 or not len(times):
+            raise ValueError(f"save_at must be a non-empty 1-D array of times in s, got shape "
+                             f"{times.shape}")
+        if not np.isfinite(times).all():
+            raise ValueError(f"save_at[{int(np.argmax(~np.isfinite(times)))}] is not finite")
+        if (np.diff(times) <= 0).any():
+            i = int(np.argmax(np.diff(times) <= 0)) + 1
+            raise ValueError(f"save_at must increase: save_at[{i}] = {times[i]:.9g} s follows "
+                             f"{times[i - 1]:.9g} s")
+        if times[0] < 0 or times[-1] > t_end:
+            bad = times[0] if times[0] < 0 else times[-1]
+            raise ValueError(f"save_at holds t = {bad:.9g} s, outside the run (0 to t_end = "
+                             f"{t_end:g} s)")
+        return times
 
 
 @dataclass

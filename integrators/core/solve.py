@@ -39,13 +39,15 @@ class Budget:
 
 
 def solve(problem: SpringSlider, algorithm: Algorithm, *, save_every: float | None = None,
-          max_points: int | None = None, wall_budget: float | None = None,
+          max_points: int | None = None, save_at=None, wall_budget: float | None = None,
           progress: bool = False) -> Solution:
     """Integrate ``problem`` with ``algorithm`` from t = 0 to ``problem.t_end``.
 
     The trajectory is saved every ``save_every`` seconds, or else at ``max_points`` points in
     all (default 20,000); with ``save_every``, ``max_points`` caps the saved points (default
-    10⁷, see :class:`~integrators.core.solution.Output`). Events are recorded exactly either way.
+    10⁷, see :class:`~integrators.core.solution.Output`); with ``save_at`` (an increasing array
+    of times in s), at exactly those times, from each method's dense output (the ETD family,
+    which saves at its own step ends, refuses it). Events are recorded exactly either way.
     The saved grid never changes the steps a method takes. How each backend fills it:
 
     * the own adaptive methods (CashKarp45, Rosenbrock23, Rodas5P, Exprb32, Exprb43): from the
@@ -71,8 +73,11 @@ def solve(problem: SpringSlider, algorithm: Algorithm, *, save_every: float | No
     if wall_budget is not None:
         check_positive("wall_budget", wall_budget)
     algorithm.check_problem(problem)
-    output = Output(save_every=save_every, max_points=max_points)
-    output.interval(problem.t_end)          # validates the decimation now, not mid-run
+    output = Output(save_every=save_every, max_points=max_points, save_at=save_at)
+    if save_at is not None and not algorithm.saves_at_times:
+        raise ValueError(f"{algorithm.name} saves at its own step ends: save_at needs a method "
+                         "with dense output")
+    output.times(problem.t_end)             # validates the decimation now, not mid-run
     if wall_budget is not None:
         _compile_once(problem, algorithm, wall_budget)
     budget = Budget(wall_s=wall_budget, start=time.perf_counter())

@@ -23,7 +23,7 @@ from integrators.own import batch as B
 from integrators.own import engine as E
 from problems.formulations import from_ode_state
 
-__all__ = ["CompiledAlgorithm", "save_grid", "failure", "CHUNK_STEPS"]
+__all__ = ["CompiledAlgorithm", "failure", "CHUNK_STEPS"]
 
 #: accepted steps per compiled call when a progress bar is shown (~0.05 s), and without one
 #: (~0.5 s: Ctrl-C is seen between calls); the wall budget is read inside
@@ -33,17 +33,6 @@ _EVENTS_START = 64
 _DIRS = np.array(DIRECTIONS, dtype=np.int64)
 #: the root functions, in the order of :mod:`integrators.core.events` (``Solution.meta["roots"]``)
 ROOT_NAMES = ("start", "end", "h_extremum", "peak")
-
-
-def save_grid(t_end: float, dt: float) -> np.ndarray:
-    """The save times (s): 0, dt, 2 dt, … up to ``t_end``, and ``t_end`` itself (exactly)."""
-    n = int(math.floor(t_end / dt * (1.0 + 1e-12))) + 1
-    grid = np.arange(n) * dt
-    grid = grid[grid <= t_end]
-    if grid[-1] < t_end * (1.0 - 1e-12):
-        grid = np.append(grid, t_end)
-    grid[-1] = t_end
-    return grid
 
 
 def failure(status: int, t_stop: float, max_steps: int, wall_s: float | None,
@@ -87,9 +76,14 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
 
     def run(self, problem, output, budget, progress):
         nd = problem.nondimensional()
-        grid_t = save_grid(problem.t_end, output.interval(problem.t_end))
+        grid_t = output.times(problem.t_end)
+        # the kernel saves the start as the grid's first point: one not asked for is dropped
+        unasked = grid_t[0] > 0.0
+        if unasked:
+            grid_t = np.concatenate(([0.0], grid_t))
         grid = grid_t / nd.time_scale
-        grid[-1] = nd.tau_end
+        if grid_t[-1] == problem.t_end:
+            grid[-1] = nd.tau_end
         deadline = budget.deadline() if budget is not None else math.inf
         st, p, Z, G = E.new_state(nd, self.rtol, self.atol, self.constants, self.max_steps,
                                   deadline)
@@ -112,7 +106,10 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
                 break
         if progress is not None:
             progress(st[E.CURSOR] * nd.time_scale)
-        return self._raw(problem, nd, status, st, Z, grid_t, saved, ev, budget)
+        raw = self._raw(problem, nd, status, st, Z, grid_t, saved, ev, budget)
+        if unasked:
+            raw.t, raw.y = raw.t[1:], raw.y[1:]
+        return raw
 
     def _raw(self, problem, nd, status, st, Z, grid_t, saved, ev, budget) -> RawRun:
         ts = nd.time_scale

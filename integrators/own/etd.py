@@ -93,6 +93,7 @@ class _ETD(Algorithm):
 
     family: ClassVar[str] = "exponential time differencing"
     adaptive: ClassVar[bool] = False
+    saves_at_times: ClassVar[bool] = False
     library: ClassVar[str] = "rsfbench (numba)"
     n_iter: ClassVar[int] = 1
 

@@ -1,0 +1,346 @@
+"""rsfbench lab fit: (a, b, Dc) — and the stiffness — from a velocity-step or slide-hold-slide
+record.
+
+    rsfbench lab fit run.txt --column time=Time:s --column friction=Friction \\
+        --column load_point=Displ:um --out fit/
+
+The load point's history (its speeds and switch times) is found in the record; the fit is
+least squares on μ(t) (benchmarks.inversion.lab_fit: the noise model, the intervals), with
+profile intervals of the friction parameters, a check of the integrator at the best fit, and
+with --mass the inertial slider fitted too and compared.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from benchmarks.cli.args import in_file, non_negative, out_dir, positive, say
+
+__all__ = ["add_parser"]
+
+PROFILED = ("a", "b", "dc")
+
+
+def _record(args):
+    from benchmarks.physics.lab_record import read_lab_record
+    if not args.column:
+        raise ValueError("map the record's columns: --column CHANNEL=COLUMN[:UNIT] (time, "
+                         "friction or shear_force, load_point or load_velocity)")
+    mapped = {spec.partition("=")[0].strip() for spec in args.column}
+    # the constant normal force stands for a column only beside a shear force without one
+    constant = "shear_force" in mapped and "normal_force" not in mapped
+    return read_lab_record(args.recording, args.column,
+                           normal_force=args.normal_force if constant else None,
+                           window=args.window)
+
+
+def _model(args, record):
+    from benchmarks.physics.lab_model import DEFAULT_ALGORITHM, LabModel
+    from integrators import REGISTRY, make_algorithm
+    algorithm = None
+    if args.integrator is not None or args.rtol is not None:
+        name = args.integrator or DEFAULT_ALGORITHM[0]
+        cls = REGISTRY.get(name)
+        if cls is not None and not cls.saves_at_times:
+            raise ValueError(f"--integrator {name} saves at its own step ends: a fit needs μ at "
+                             "the record's times from a method's dense output (Rodas5P, "
+                             "Exprb43, scipy-Radau, …)")
+        tol = args.rtol if args.rtol is not None else DEFAULT_ALGORITHM[1]
+        algorithm = make_algorithm(name, rtol=tol, atol=tol)
+    return LabModel(record, args.law, detrend=args.detrend, algorithm=algorithm,
+                    states=args.states)
+
+
+def _check_flags(args) -> None:
+    if args.c is not None and args.law != "nagata":
+        raise ValueError("--c is the Nagata law's stress coefficient: it needs --law nagata")
+    if (args.mass is not None or args.radiation_damping is not None) and args.normal_force is None:
+        raise ValueError("--mass and --radiation-damping need --normal-force (N): the inertial "
+                         "slider's friction depends on it")
+    if args.states == 2 and (args.mass is not None or args.radiation_damping is not None):
+        raise ValueError("--states 2 fits the quasi-static slider only: no --mass or "
+                         "--radiation-damping")
+    if args.states == 2 and (args.integrator is not None or args.rtol is not None):
+        raise ValueError("--states 2 has its own compiled model (Rodas5P's tableau at 1e-10): "
+                         "--integrator and --rtol do not apply")
+    if args.weights is not None and any(w < 0 for w in args.weights):
+        raise ValueError("--weights must be non-negative")
+    given = [f for f, d in (("--walkers", 32), ("--steps", 600), ("--seed", 0))
+             if getattr(args, f[2:]) != d]
+    if given and not args.posterior:
+        raise ValueError(f"{given[0]} sets the posterior: it needs --posterior")
+    if args.posterior:
+        from benchmarks.records.optional import require
+        require("emcee", "inversion", "--posterior")
+
+
+def cmd_lab_fit(args) -> int:
+    from benchmarks.inversion.lab_fit import check_solver, fit_lab, inertia_check
+    from benchmarks.inversion.lab_profile import profile_lab
+    from benchmarks.records.provenance import provenance, version_line
+    from benchmarks.records.report import jsonable
+    _check_flags(args)
+    record = _record(args)
+    model = _model(args, record)
+    if args.weights is not None and len(args.weights) != len(record.velocities):
+        raise ValueError(f"--weights: {len(args.weights)} given, but the record's history has "
+                         f"{len(record.velocities)} pieces (one weight each): "
+                         f"{_pieces_line(record)}")
+    if args.out is not None:
+        args.out.mkdir(parents=True, exist_ok=True)
+    fixed = {k: v for k, v in (("k", args.stiffness), ("c", args.c)) if v is not None}
+    import warnings
+
+    from benchmarks.inversion.lab_fit import LabFitWarning
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", LabFitWarning)
+        fit = fit_lab(model, fixed=fixed, weights=args.weights)
+    notes = [str(w.message) for w in caught if issubclass(w.category, LabFitWarning)]
+    profiles = {}
+    if not args.no_profiles:
+        for name in (n for n in PROFILED + ("b2", "dc2") if n in fit.free):
+            profiles[name] = profile_lab(fit, name)
+            if profiles[name].note:
+                notes.append(profiles[name].note)
+    check = None if args.no_solver_check else check_solver(fit)
+    posterior = None
+    if args.posterior:
+        from benchmarks.inversion.lab_posterior import sample_lab
+        posterior = sample_lab(fit, walkers=args.walkers, steps=args.steps, seed=args.seed,
+                               progress=not args.json and not args.no_progress)
+    inertia = None
+    if args.mass is not None or args.radiation_damping is not None:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", LabFitWarning)
+            inertial, shifts = inertia_check(fit, args.mass or 0.0, args.normal_force,
+                                             args.radiation_damping or 0.0)
+        moved = shifts[shifts.shift_se.abs() > 1.0]
+        inertia = {"mass_kg": args.mass or 0.0, "normal_force_N": args.normal_force,
+                   "radiation_damping_N_s_per_m": args.radiation_damping or 0.0,
+                   "shifts": shifts.to_dict(orient="records"),
+                   "matters": bool(len(moved)),
+                   "parameters": inertial.table().to_dict(orient="records")}
+    table = fit.table()
+    for name, prof in profiles.items():
+        i = table.index[table.parameter == name][0]
+        table.loc[i, "profile_low95"], table.loc[i, "profile_high95"] = prof.interval
+    if posterior is not None:
+        for name, (low, median, high) in posterior.quantiles.items():
+            i = table.index[table.parameter == name][0]
+            table.loc[i, ["posterior_low95", "posterior_median", "posterior_high95"]] = \
+                low, median, high
+    doc = {"tool": version_line(), **provenance(), "command": args.command_line,
+           "recording": str(Path(args.recording).resolve()), "sha256": record.sha256,
+           "columns": record.columns, "window_s": list(args.window) if args.window else None,
+           "law": args.law, "states": args.states, "detrend": args.detrend, "fixed": fixed,
+           "weights": list(args.weights) if args.weights else None,
+           "history": {"velocities_m_s": list(record.velocities),
+                       "switch_times_s": [s + record.t_offset for s in record.switch_times],
+                       "pieces": record.pieces.assign(
+                           t_start_s=record.pieces.t_start_s + record.t_offset,
+                           t_end_s=record.pieces.t_end_s + record.t_offset).to_dict(
+                           orient="records")},
+           "samples": fit.n, "parameters": table.to_dict(orient="records"),
+           "noise": {"model": "AR(1): sigma from the residuals, rho their lag-1 "
+                              "autocorrelation, covariance inflated by (1+rho)/(1-rho)",
+                     "sigma": fit.sigma, "rho": fit.rho, "inflation": fit.inflation},
+           "success": fit.success, "message": fit.message, "at_bound": list(fit.at_bound),
+           "notes": notes, "solves": fit.solves, "wall_s": fit.wall_s,
+           "profiles": {n: {"interval": list(p.interval), "closed": list(p.closed),
+                            "solves": p.solves, "wall_s": p.wall_s}
+                        for n, p in profiles.items()},
+           "solver_check": check, "inertia": inertia,
+           "posterior": None if posterior is None else {
+               "walkers": args.walkers, "steps": args.steps, "seed": args.seed,
+               "prior": posterior.prior, "likelihood": posterior.likelihood,
+               "acceptance": posterior.acceptance, "tau": posterior.tau,
+               "tau_reliable": posterior.tau_reliable,
+               "effective_samples": posterior.effective_samples, "solves": posterior.solves,
+               "wall_s": posterior.wall_s}}
+    if args.out is not None:
+        _write(args.out, fit, table, profiles, doc)
+        if posterior is not None:
+            posterior.samples.to_csv(args.out / "lab_fit_posterior.csv", index=False)
+        doc["out"] = str(args.out)
+    if args.json:
+        say(json.dumps(jsonable(doc), indent=2))
+        return 0
+    _report(fit, table, profiles, check, inertia, notes, record, args)
+    if posterior is not None:
+        say(f"posterior: {args.walkers} walkers × {args.steps} steps, {posterior.solves} solves "
+            f"in {posterior.wall_s:.1f} s, acceptance {posterior.acceptance:.2f}, "
+            + ("τ reliable" if posterior.tau_reliable else
+               "the chain is shorter than 50 τ: lengthen --steps before trusting its tails")
+            + f"; prior {posterior.prior}")
+    return 0
+
+
+def _pieces_line(record) -> str:
+    return ", ".join(f"{v * 1e6:.4g} µm/s from {t + record.t_offset:.6g} s"
+                     for v, t in zip(record.pieces.velocity_m_s, record.pieces.t_start_s))
+
+
+def _report(fit, table, profiles, check, inertia, notes, record, args) -> None:
+    say(f"{record.source}: {fit.n} samples; the load point: {_pieces_line(record)}")
+    say(f"{args.law} law{', two state variables' if args.states == 2 else ''}, detrend "
+        f"{args.detrend}: {fit.solves} solves, {fit.wall_s:.2f} s"
+        + ("" if fit.success else f" — the fit did not converge: {fit.message}"))
+    shown = table.copy()
+    for col in ("value", "se", "low95", "high95", "profile_low95", "profile_high95",
+                "posterior_low95", "posterior_median", "posterior_high95"):
+        if col in shown:
+            shown[col] = [_num(v, u) for v, u in zip(shown[col], shown.unit)]
+    shown["unit"] = shown.unit.replace({"m": "µm", "1/m": "1/µm", "1": ""})
+    say(shown.drop(columns=["fitted"]).to_string(index=False))
+    say(f"noise: σ = {fit.sigma:.3g} (residual scatter), lag-1 autocorrelation ρ = "
+        f"{fit.rho:.3f}: errors inflated ×{math.sqrt(fit.inflation):.3g} (AR(1) noise)")
+    for note in notes:
+        say(f"note: {note}")
+    if check is not None:
+        say(f"solver check: {check['integrator']} is {check['error_sigma']:.2g} σ from "
+            f"{check['references'][0]}, whose gap to {check['references'][1]} is "
+            f"{check['references_disagree_sigma']:.2g} σ: "
+            + ("passed (≤ 0.1 σ)" if check["passed"] else
+               "FAILED: tighten --rtol or choose another --integrator"))
+    if inertia is not None:
+        say(f"with the mass ({inertia['mass_kg']:g} kg on {inertia['normal_force_N']:g} N): "
+            + ", ".join(f"{r['parameter']} moves {r['shift_se']:+.2g} s.e."
+                        for r in inertia["shifts"])
+            + (" — the inertia changes the fit beyond its error bars" if inertia["matters"]
+               else " — within the error bars: the quasi-static fit stands"))
+    if args.out is not None:
+        say(f"wrote lab_fit.json, lab_fit_parameters.csv, lab_fit_residuals.csv"
+            f"{', lab_fit_profiles.csv' if profiles else ''}"
+            f"{', lab_fit_posterior.csv' if args.posterior else ''} and lab_fit.png to {args.out}")
+
+
+def _num(v, unit) -> str:
+    if v is None or (isinstance(v, float) and math.isnan(v)):
+        return ""
+    scale = {"m": 1e6, "1/m": 1e-6}.get(unit, 1.0)      # shown in µm and per µm
+    return f"{v * scale:.5g}"
+
+
+def _write(out: Path, fit, table, profiles, doc) -> None:
+    import pandas as pd
+
+    from benchmarks.records.report import jsonable
+    rec = fit.model.record
+    table.assign(command=doc["command"], tool=doc["tool"]).to_csv(
+        out / "lab_fit_parameters.csv", index=False)
+    pd.DataFrame({"t_s": rec.t + rec.t_offset, "load_point_m": rec.load_point, "mu": rec.mu,
+                  "mu_model": fit.mu_model, "residual": rec.mu - fit.mu_model}).to_csv(
+        out / "lab_fit_residuals.csv", index=False)
+    if profiles:
+        pd.concat([p.points.rename(columns={p.parameter: "value"}).assign(parameter=p.parameter)
+                   for p in profiles.values()]).to_csv(out / "lab_fit_profiles.csv", index=False)
+    (out / "lab_fit.json").write_text(json.dumps(jsonable(doc), indent=2))
+    _plot(fit, profiles, out / "lab_fit.png")
+
+
+def _plot(fit, profiles, path: Path) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    rec = fit.model.record
+    n = 2 + bool(profiles)
+    fig, axes = plt.subplots(n, 1, figsize=(8, 2.8 * n), squeeze=False)
+    x = rec.load_point * 1e6
+    ax = axes[0, 0]
+    ax.plot(x, rec.mu, lw=0.5, color="0.6", label="record")
+    ax.plot(x, fit.mu_model, lw=1.2, color="C3", label=f"fit ({fit.model.law} law)")
+    for s in rec.switch_times:
+        ax.axvline(float(x[min(int((rec.t < s).sum()), len(x) - 1)]), color="k", lw=0.5, ls=":")
+    ax.set_ylabel("μ")
+    ax.legend(fontsize=8)
+    ax = axes[1, 0]
+    ax.plot(x, rec.mu - fit.mu_model, lw=0.5, color="C0")
+    ax.axhline(0, color="k", lw=0.5)
+    ax.set_ylabel("residual")
+    ax.set_xlabel("load-point displacement (µm)")
+    if profiles:
+        ax = axes[2, 0]
+        from benchmarks.inversion.lab_fit import _LOG
+        for name, prof in profiles.items():
+            v = prof.points[name].to_numpy()
+            u = np.log(v / prof.value) if name in _LOG else v - prof.value
+            se = fit.se(name)
+            ax.plot(u / se if se > 0 else u, prof.points.delta, "o-", ms=3, label=name)
+        ax.set_xlim(-8, 8)
+        ax.set_xlabel("change from the best fit, in standard errors (of ln Dc for Dc)")
+        ax.axhline(3.841, color="k", lw=0.5, ls="--")
+        ax.set_ylabel("Δ squares / (f σ²)")
+        ax.set_ylim(0, 10)
+        ax.legend(fontsize=8)
+    fig.suptitle(Path(rec.source).name, fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def add_parser(tests) -> None:
+    from benchmarks.physics.lab_model import DEFAULT_ALGORITHM, DETRENDS
+    p = tests.add_parser("fit", help="fit (a, b, Dc) and the stiffness to a velocity-step or "
+                         "slide-hold-slide record", description=__doc__.split("\n\n")[0])
+    p.add_argument("recording", type=in_file, metavar="RECORDING",
+                   help="the record: CSV, TSV, TXT or Parquet (required)")
+    p.add_argument("--column", action="append", default=[], metavar="CHANNEL=COLUMN[:UNIT]",
+                   help="a column and its unit (repeatable; required): time (s), friction "
+                        "(μ) or shear_force (N), load_point (m, mm, um) or load_velocity "
+                        "(m/s, um/s); the unit defaults to SI")
+    p.add_argument("--normal-force", type=positive, metavar="N",
+                   help="the normal force in N, for a shear_force column or the inertial "
+                        "slider (default: none)")
+    p.add_argument("--window", type=float, nargs=2, metavar=("START", "END"),
+                   help="fit the part of the record from START to END, in the file's time, s "
+                        "(default: all of it; it must start in steady sliding)")
+    p.add_argument("--law", choices=("aging", "slip", "nagata"), default="aging",
+                   help="the friction law (default: aging)")
+    p.add_argument("--states", type=int, choices=(1, 2), default=1,
+                   help="state variables: 1, or 2 for a second evolution (b2, Dc2; b2 may be "
+                        "negative; quasi-static only) (default: 1)")
+    p.add_argument("--stiffness", type=positive, metavar="PER_M",
+                   help="k′ = k/Fn, friction per metre of load-point travel (1/m; 0.001 per µm "
+                        "is 1000), held fixed (default: fitted)")
+    p.add_argument("--c", type=non_negative,
+                   help="the Nagata law's c, dimensionless, held fixed (default: fitted)")
+    p.add_argument("--detrend", choices=DETRENDS, default="piece",
+                   help="a linear trend in the load point's displacement: a slope per piece of "
+                        "the history, one slope, or none (default: piece)")
+    p.add_argument("--weights", type=float, nargs="+", metavar="W",
+                   help="a weight per piece of the history, multiplying its residuals "
+                        "(default: 1 each)")
+    p.add_argument("--mass", type=non_negative, metavar="KG",
+                   help="the slider's mass in kg: fit the inertial slider too and say whether "
+                        "it moves the fit beyond its error bars (default: quasi-static only)")
+    p.add_argument("--radiation-damping", type=non_negative, metavar="N_S_PER_M",
+                   help="radiation damping in N s/m, with --mass (default: 0)")
+    p.add_argument("--integrator", metavar="NAME",
+                   help=f"registry name of a method with dense output (default: "
+                        f"{DEFAULT_ALGORITHM[0]})")
+    p.add_argument("--rtol", type=positive,
+                   help=f"rtol = atol of the integrator, dimensionless (default: "
+                        f"{DEFAULT_ALGORITHM[1]:g})")
+    p.add_argument("--posterior", action="store_true",
+                   help="sample the posterior with emcee too (the inversion extra; uniform "
+                        "prior in a, b, c, ln Dc, ln k′ within the fit's bounds)")
+    p.add_argument("--walkers", type=int, default=32,
+                   help="emcee walkers, with --posterior (default: 32)")
+    p.add_argument("--steps", type=int, default=600,
+                   help="emcee steps, with --posterior; a quarter is dropped (default: 600)")
+    p.add_argument("--seed", type=int, default=0,
+                   help="the posterior's random seed (default: 0)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--no-profiles", action="store_true",
+                   help="skip the profile intervals of a, b and Dc (and b2, Dc2)")
+    p.add_argument("--no-solver-check", action="store_true",
+                   help="skip the check of the integrator against two references at 1e-12")
+    p.add_argument("--out", type=out_dir, metavar="DIR",
+                   help="write lab_fit.json, lab_fit_parameters.csv, lab_fit_residuals.csv, "
+                        "lab_fit_profiles.csv and lab_fit.png there (default: print only)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(func=cmd_lab_fit)

@@ -1,0 +1,110 @@
+"""An independent forward model of a laboratory velocity step, for checking the fit: the published
+equations integrated with scipy's Radau, sharing no code with :mod:`problems` or
+:mod:`integrators` (a test checks the import graph).
+
+The quasi-static spring-slider of Dieterich (1979), Ruina (1983) and Marone (1998, Annu. Rev.
+Earth Planet. Sci. 26, Eqs. 2–5), in friction units::
+
+    μ = μ0 + a ln(v/v0) + b ln(v0 θ/Dc) [+ b2 ln(v0 θ2/Dc2)]
+    dμ/dt = k′ (vL(t) − v)                         k′ in 1/m (friction per metre of load point)
+    aging:  dθ/dt = 1 − v θ/Dc                     slip:  dθ/dt = −(v θ/Dc) ln(v θ/Dc)
+    Nagata (Nagata et al. 2012, Eq. 7): dθ/dt = 1 − v θ/Dc − (c/b) θ dμ/dt
+
+solved for (μ, ln θ[, ln θ2]) piece by piece of the load point's history (each switch a restart),
+from steady sliding at the first speed, v0 = that speed. :func:`synthetic_record` adds what a
+laboratory adds: white noise on μ and on the displacement, and a linear drift of μ with the load
+point's displacement.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+from scipy.integrate import solve_ivp
+
+__all__ = ["reference_friction", "synthetic_record"]
+
+
+def _rates(law, a, b, dc, k, c, b2, dc2, mu0, v0, vl):
+    """The right-hand side in (μ, ln θ[, ln θ2]) and its Jacobian."""
+    bs, dcs = ((b, b2), (dc, dc2)) if b2 else ((b,), (dc,))
+    slip = law == "slip"
+
+    def speed(y):
+        state = sum(bi * (math.log(v0 / di) + li) for bi, di, li in zip(bs, dcs, y[1:]))
+        return v0 * math.exp((y[0] - mu0 - state) / a)
+
+    def rhs(t, y):
+        v = speed(y)
+        dmu = k * (vl - v)
+        out = [dmu]
+        for i, (di, li) in enumerate(zip(dcs, y[1:])):
+            x = math.log(v / di) + li                          # ln(v θ/Dc)
+            out.append(-(v / di) * x if slip else math.exp(-li) - v / di)
+        if law == "nagata":
+            out[1] -= (c / b) * dmu
+        return out
+
+    def jac(t, y):
+        v = speed(y)
+        n = len(y)
+        dv = (v / a) * np.array([1.0, *(-bi for bi in bs)])    # ∂v/∂(μ, ln θ, …)
+        j = np.empty((n, n))
+        j[0] = -k * dv
+        for i, (di, li) in enumerate(zip(dcs, y[1:]), start=1):
+            if slip:
+                x = math.log(v / di) + li
+                j[i] = -(x + 1.0) / di * dv
+                j[i, i] -= v / di
+            else:
+                j[i] = -dv / di
+                j[i, i] -= math.exp(-li)
+        if law == "nagata":
+            j[1] -= (c / b) * j[0]
+        return j
+
+    return rhs, jac
+
+
+def reference_friction(t, velocities, switch_times, a, b, dc, k, law="aging", c=0.0,
+                       b2=0.0, dc2=1.0, mu0=0.6, rtol=1e-10, atol=1e-12) -> np.ndarray:
+    """μ at times ``t`` (s, from 0) of the load point at ``velocities`` (m/s) between
+    ``switch_times`` (s); parameters in the module docstring's units."""
+    t = np.asarray(t, dtype=float)
+    v0 = velocities[0]
+    y = [mu0, math.log(dc / v0)] + ([math.log(dc2 / v0)] if b2 else [])
+    bounds = [0.0, *switch_times, float(t[-1])]
+    mu = np.empty(len(t))
+    for i, vl in enumerate(velocities):
+        t0, t1 = bounds[i], bounds[i + 1]
+        if t1 <= t0:
+            continue
+        rhs, jac = _rates(law, a, b, dc, k, c, b2, dc2, mu0, v0, vl)
+        sol = solve_ivp(rhs, (t0, t1), y, method="Radau", jac=jac, rtol=rtol, atol=atol,
+                        dense_output=True)
+        if not sol.success:
+            raise RuntimeError(f"the reference run failed on piece {i}: {sol.message}")
+        inside = (t >= t0) & (t <= t1)
+        mu[inside] = sol.sol(t[inside])[0]
+        y = sol.y[:, -1]
+    return mu
+
+
+def synthetic_record(t, velocities, switch_times, a, b, dc, k, law="aging", c=0.0, b2=0.0,
+                     dc2=1.0, mu0=0.6, noise=6e-4, displacement_noise=0.0, drift=0.0,
+                     seed=0) -> pd.DataFrame:
+    """A record as a laboratory would write it: columns ``time_s``, ``load_point_um`` and
+    ``friction``. ``noise`` is σ of μ, ``displacement_noise`` σ of the load point (m),
+    ``drift`` dμ per metre of load-point travel."""
+    rng = np.random.default_rng(seed)
+    t = np.asarray(t, dtype=float)
+    bounds = np.array([0.0, *switch_times])
+    piece = np.searchsorted(np.asarray(switch_times), t, side="right")
+    start = np.concatenate(([0.0], np.cumsum(np.diff(bounds) * np.asarray(velocities[:-1]))))
+    x = start[piece] + (t - bounds[piece]) * np.asarray(velocities)[piece]
+    mu = reference_friction(t, velocities, switch_times, a, b, dc, k, law, c, b2, dc2, mu0)
+    mu = mu + drift * x + noise * rng.standard_normal(len(t))
+    x = x + displacement_noise * rng.standard_normal(len(t))
+    return pd.DataFrame({"time_s": t, "load_point_um": x * 1e6, "friction": mu})

@@ -1,0 +1,451 @@
+"""Fit (a, b, Dc) — and the stiffness, the Nagata law's c — to a velocity-step or slide-hold-slide
+record, by least squares on μ(t) with its covariance.
+
+**The model** is :class:`benchmarks.physics.lab_model.LabModel`: the spring-slider on the
+record's own load-point history, μ = μ_ref + (rate-and-state response) + a linear trend in the
+load point's displacement. The level μ_ref and the trend's slopes enter linearly: they are
+eliminated exactly for each trial of the others (variable projection: with a basis that does not
+depend on the nonlinear parameters the projected residual P⊥ W (μ − g(θ)) and its Jacobian
+−P⊥ W ∂g/∂θ are exact, and (JᵀJ)⁻¹ of the projected problem is the nonlinear parameters' block of
+the full covariance). The nonlinear parameters are a, b, ln Dc, ln k′ and c, each fitted unless
+given (``fixed``); ∂g/∂θ by forward differences (:data:`FD_STEP`) of runs at rtol = atol = 1e-10,
+so a difference is ~10⁻⁵ above the integrator's noise.
+
+**Weights**: one per piece of the history (``weights``, default 1), multiplying its residuals.
+
+**Noise model and uncertainty.** The residuals are taken as stationary AR(1) noise: σ² =
+RSS/(n − p) and ρ the residuals' lag-1 autocorrelation (0 if negative). The covariance is
+f σ² (JᵀJ)⁻¹ with f = (1 + ρ)/(1 − ρ), the variance inflation of a mean under AR(1) noise (f = 1
+for white noise; a record's drift and unmodelled wiggles make ρ near 1, and f large, honestly).
+Intervals: Wald (value ± 1.96 s.e.; Dc and k′ on the log scale) here, profile intervals in
+:mod:`benchmarks.inversion.lab_profile` (Δ(RSS)/(f σ²) ≤ 3.84). A parameter at a bound of
+:data:`BOUNDS` is named (``at_bound``) and its interval is not a confidence interval.
+
+**Start.** From the record: for the first step, the jump to the first extreme sets a ln(v2/v1),
+the steady change (a − b) ln(v2/v1), the distance to the extreme the stiffness, and the decay
+after it Dc; the fit starts from Dc × :data:`DC_STARTS` and keeps the best.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+__all__ = ["LabFit", "fit_lab", "LabFitWarning", "BOUNDS", "FD_STEP", "DC_STARTS",
+           "Z95", "CHI2_95_1DOF", "SETTLE_DC", "PARAMETER_UNITS"]
+
+#: each nonlinear parameter's bounds in its own unit (a, b, c dimensionless; dc m; k 1/m)
+BOUNDS = {"a": (1e-5, 0.5), "b": (0.0, 0.5), "dc": (1e-9, 0.1), "k": (1.0, 1e10),
+          "c": (0.0, 100.0), "b2": (-0.5, 0.5), "dc2": (1e-9, 0.1)}
+PARAMETER_UNITS = {"a": "1", "b": "1", "dc": "m", "k": "1/m", "c": "1", "b2": "1", "dc2": "m",
+                   "a_minus_b": "1", "mu_ref": "1"}
+#: forward-difference step in the fitted coordinates (a, b, ln Dc, ln k′, c)
+FD_STEP = 1e-5
+#: the starts of Dc, as multiples of the record's own estimate
+DC_STARTS = (0.3, 1.0, 3.0)
+Z95 = 1.959963984540054
+CHI2_95_1DOF = 3.841458820694124
+#: a piece after a step shorter than this many Dc of load-point travel does not show the
+#: evolution: the fit warns
+SETTLE_DC = 3.0
+_LOG = ("dc", "k", "dc2")
+#: the second state's starts: b2 as these multiples of b (it may strengthen: negative), Dc2 as
+#: this multiple of Dc
+B2_STARTS, DC2_START = (0.5, -0.5), 10.0
+
+
+class LabFitWarning(UserWarning):
+    """What a fit wants its user to know: a parameter at a bound, a step shorter than Dc."""
+
+
+@dataclass
+class LabFit:
+    """A least-squares fit (module docstring). ``values`` holds every parameter (fitted or
+    fixed, and a − b, μ_ref, the trend's slopes); ``free`` the fitted nonlinear ones;
+    ``covariance`` is over ``free`` in the fitted coordinates (ln for Dc and k′); ``table()``
+    has values, standard errors and 95 % Wald intervals."""
+
+    model: object
+    free: tuple
+    values: dict
+    covariance: np.ndarray
+    linear: dict
+    linear_se: dict
+    residuals: np.ndarray = field(repr=False)
+    mu_model: np.ndarray = field(repr=False)
+    rss: float = math.nan
+    sigma: float = math.nan
+    rho: float = 0.0
+    n: int = 0
+    at_bound: tuple = ()
+    notes: list = field(default_factory=list)
+    solves: int = 0
+    wall_s: float = 0.0
+    weights: np.ndarray | None = field(default=None, repr=False)
+    fixed: dict = field(default_factory=dict)
+    piece_weights: np.ndarray | None = None
+    success: bool = True
+    message: str = ""
+
+    @property
+    def inflation(self) -> float:
+        """f = (1 + ρ)/(1 − ρ), the AR(1) noise's variance inflation."""
+        return (1.0 + self.rho) / (1.0 - self.rho)
+
+    @property
+    def noise_variance(self) -> float:
+        """f σ²: what a change of the squares is measured in (profiles, χ²)."""
+        return self.inflation * self.sigma ** 2
+
+    def se(self, name: str) -> float:
+        """The standard error in the fitted coordinate (of ln Dc, ln k′ for those)."""
+        if name in self.free:
+            i = self.free.index(name)
+            return float(math.sqrt(max(self.covariance[i, i], 0.0)))
+        if name == "a_minus_b" and {"a", "b"} <= set(self.free):
+            i, j = self.free.index("a"), self.free.index("b")
+            c = self.covariance
+            return float(math.sqrt(max(c[i, i] + c[j, j] - 2 * c[i, j], 0.0)))
+        return self.linear_se.get(name, 0.0)
+
+    def interval(self, name: str) -> tuple[float, float]:
+        """The 95 % Wald interval in the parameter's own unit."""
+        v, s = self.values[name], self.se(name)
+        if name in _LOG:
+            return v * math.exp(-min(Z95 * s, 700.0)), v * math.exp(min(Z95 * s, 700.0))
+        return v - Z95 * s, v + Z95 * s
+
+    def table(self) -> pd.DataFrame:
+        names = [n for n in ("a", "b", "a_minus_b", "dc", "k", "c", "b2", "dc2")
+                 if n in self.values]
+        names += list(self.linear)
+        rows = []
+        for n in names:
+            low, high = self.interval(n)
+            fitted = n in self.free or n in self.linear or (n == "a_minus_b" and "a" in self.free)
+            se = self.se(n) * (self.values[n] if n in _LOG else 1.0)
+            rows.append({"parameter": n, "value": self.values[n], "se": se if fitted else 0.0,
+                         "low95": low if fitted else math.nan,
+                         "high95": high if fitted else math.nan,
+                         "unit": PARAMETER_UNITS.get(n, "1/m"), "fitted": fitted,
+                         "at_bound": n in self.at_bound})
+        return pd.DataFrame(rows)
+
+
+class _Problem:
+    """The projected least-squares problem of a model, ``free`` parameters and ``fixed``
+    values; counts its solves."""
+
+    def __init__(self, model, free, fixed, weights):
+        self.model, self.free, self.fixed = model, tuple(free), dict(fixed)
+        self.piece_weights = weights
+        rec = model.record
+        w = np.ones(len(rec.t)) if weights is None else np.asarray(weights, float)[
+            rec.piece_index()]
+        self.w = w
+        self.wmu = w * rec.mu
+        q, _ = np.linalg.qr(w[:, None] * model.linear_basis())
+        self.q = q
+        self.solves = 0
+        self.cache = {}
+
+    def params(self, x) -> dict:
+        p = dict(self.fixed)
+        for name, u in zip(self.free, x):
+            p[name] = math.exp(u) if name in _LOG else float(u)
+        return p
+
+    def coordinates(self, params: dict) -> np.ndarray:
+        return np.array([math.log(params[n]) if n in _LOG else params[n] for n in self.free])
+
+    def bounds(self):
+        lo = [math.log(BOUNDS[n][0]) if n in _LOG else BOUNDS[n][0] for n in self.free]
+        hi = [math.log(BOUNDS[n][1]) if n in _LOG else BOUNDS[n][1] for n in self.free]
+        return np.array(lo), np.array(hi)
+
+    def g(self, x) -> np.ndarray:
+        key = tuple(np.round(x, 15))
+        if key not in self.cache:
+            p = self.params(x)
+            self.solves += 1
+            try:
+                mu, _ = self.model.response(**p)
+            except ValueError:      # a trial the law refuses (the Nagata law at b = 0)
+                mu = np.full(len(self.w), np.nan)
+            if len(self.cache) > 64:
+                self.cache.clear()
+            self.cache[key] = mu
+        return self.cache[key]
+
+    def project(self, v):
+        return v - self.q @ (self.q.T @ v)
+
+    def residual(self, x) -> np.ndarray:
+        g = self.g(x)
+        if not np.isfinite(g).all():            # a failed run: far from any fit
+            return np.full(len(g), 1e3 * max(np.std(self.wmu), 1e-6))
+        return self.project(self.wmu - self.w * g)
+
+    def jacobian(self, x) -> np.ndarray:
+        g0 = self.g(x)
+        lo, hi = self.bounds()
+        cols = []
+        for j in range(len(x)):
+            h = FD_STEP if x[j] + FD_STEP <= hi[j] else -FD_STEP
+            xj = np.array(x, dtype=float)
+            xj[j] += h
+            cols.append(-(self.w * (self.g(xj) - g0)) / h)
+        jac = np.column_stack(cols)
+        if not np.isfinite(jac).all():
+            jac = np.nan_to_num(jac, nan=0.0, posinf=0.0, neginf=0.0)
+        return jac - self.q @ (self.q.T @ jac)
+
+    def linear(self, x):
+        """The linear parameters at x and the weighted residual's pieces."""
+        basis = self.w[:, None] * self.model.linear_basis()
+        coef, *_ = np.linalg.lstsq(basis, self.wmu - self.w * self.g(x), rcond=None)
+        return coef
+
+    def solve(self, x0, max_nfev=200):
+        from scipy.optimize import least_squares
+        lo, hi = self.bounds()
+        x0 = np.clip(x0, lo + 1e-12, hi - 1e-12)
+        return least_squares(self.residual, x0, jac=self.jacobian, bounds=(lo, hi),
+                             method="trf", x_scale="jac", max_nfev=max_nfev,
+                             xtol=1e-10, ftol=1e-12, gtol=1e-10)
+
+
+def _lag1(r: np.ndarray) -> float:
+    r = r - r.mean()
+    d = float(r @ r)
+    return 0.0 if d == 0 else float(np.clip((r[1:] @ r[:-1]) / d, 0.0, 0.999))
+
+
+def starting_values(record) -> dict:
+    """a, b, Dc and k′ read off the record's first step (module docstring), each piece's drift
+    taken out first: the piece before the step by a line through it, the piece after by a line
+    through its second half (where it has settled)."""
+    t, mu, x = record.t, record.mu, record.load_point
+    piece = record.piece_index()
+    v1, v2 = record.velocities[0], record.velocities[1]
+    if v2 == 0:                        # a hold first: the relaxation sets a/k′ only
+        return {"a": 0.01, "b": 0.01, "dc": 1e-5, "k": 1e3}
+    before, after = np.flatnonzero(piece == 0), np.flatnonzero(piece == 1)
+    x_switch = v1 * record.switch_times[0]
+    base = np.polyval(np.polyfit(x[before] - x_switch, mu[before], 1), 0.0)
+    late = after[len(after) // 2:]
+    slope, end = np.polyfit(x[late] - x_switch, mu[late], 1)
+    level = mu[after] - slope * (x[after] - x_switch)           # the step's own response
+    k_smooth = max(len(after) // 200, 1)
+    smooth = np.convolve(level, np.ones(2 * k_smooth + 1) / (2 * k_smooth + 1), mode="same")
+    early = smooth[: max(len(after) // 2, 1)]
+    ratio = math.log(v2 / v1)
+    i_ext = int(np.argmax(early) if v2 > v1 else np.argmin(early))
+    jump = abs(early[i_ext] - base)
+    a = float(np.clip(jump / abs(ratio), 1e-3, 0.1))
+    b = float(np.clip(a - (end - base) / ratio, 1e-3, 0.2))
+    travel = v2 * (t[after] - record.switch_times[0])
+    x_ext = max(travel[i_ext], 1e-7)
+    # Dc: the travel from the extreme to 63 % of the way to the new steady value
+    target = early[i_ext] + 0.63 * (end - early[i_ext])
+    crossed = np.flatnonzero((smooth[i_ext:] - target) * np.sign(early[i_ext] - end) <= 0)
+    j = i_ext + (int(crossed[0]) if len(crossed) else len(smooth) - 1 - i_ext)
+    dc = max(travel[j] - travel[i_ext], 1e-7)
+    k = 2.0 * max(jump, 1e-4) / x_ext
+    return {"a": a, "b": b, "dc": float(np.clip(dc, 2e-9, 0.05)),
+            "k": float(np.clip(k, 2.0, 5e9))}
+
+
+def fit_lab(model, fixed: dict | None = None, weights=None, start: dict | None = None,
+            dc_starts=DC_STARTS) -> LabFit:
+    """Least squares of ``model`` (a :class:`~benchmarks.physics.lab_model.LabModel`) to its
+    record. ``fixed``: parameters held at given values (``k`` in 1/m: friction per metre of
+    load-point travel; ``c`` of the Nagata law, whose default is fitted); ``weights``: one per
+    piece of the history; ``start``: starting values instead of the record's own."""
+    t0 = time.perf_counter()
+    fixed = dict(fixed or {})
+    names = model.parameters
+    unknown = sorted(set(fixed) - set(names))
+    if unknown:
+        raise ValueError(f"{unknown[0]!r} is not a parameter of a {model.law}-law fit (its "
+                         f"parameters: {', '.join(names)})")
+    for name, value in fixed.items():
+        lo, hi = BOUNDS[name]
+        if not (isinstance(value, (int, float)) and lo <= value <= hi):
+            raise ValueError(f"fixed {name} = {value!r} {PARAMETER_UNITS[name]}: expected a "
+                             f"number from {lo:g} to {hi:g}")
+    n_pieces = len(model.record.velocities)
+    if weights is not None:
+        weights = np.asarray(weights, dtype=float)
+        if weights.shape != (n_pieces,) or not np.all(np.isfinite(weights)) or (weights < 0).any() \
+                or not (weights > 0).any():
+            raise ValueError(f"weights must be {n_pieces} non-negative numbers, one per piece of "
+                             f"the history (not all 0), got {np.atleast_1d(weights).tolist()}")
+    free = tuple(n for n in names if n not in fixed)
+    if not free:
+        raise ValueError("every parameter is fixed: nothing to fit")
+    guess = starting_values(model.record)
+    guess.update(c=2.0, b2=0.0, dc2=guess["dc"] * DC2_START)
+    guess.update(start or {})
+    prob = _Problem(model, free, fixed, weights)
+    starts = []
+    for factor in (dc_starts if "dc" in free and start is None else (1.0,)):
+        p0 = dict(guess, dc=guess["dc"] * factor)
+        if "b2" in free and start is None:
+            starts += [dict(p0, b2=m * p0["b"], dc2=p0["dc"] * DC2_START) for m in B2_STARTS]
+        else:
+            starts.append(p0)
+    best = None
+    for p0 in starts:
+        res = prob.solve(prob.coordinates({n: p0[n] for n in free}))
+        if best is None or res.cost < best.cost:
+            best = res
+    return _result(prob, best, time.perf_counter() - t0)
+
+
+def _result(prob, res, wall_s) -> LabFit:
+    model = prob.model
+    x = res.x
+    g = prob.g(x)
+    ok = bool(np.isfinite(g).all())
+    coef = prob.linear(x) if ok else np.full(len(model.linear_names), np.nan)
+    mu_model = g + model.linear_basis() @ coef
+    r = prob.w * (model.record.mu - mu_model)
+    n, p = len(r), len(x) + len(coef)
+    rss = float(r @ r)
+    sigma = math.sqrt(rss / max(n - p, 1))
+    rho = _lag1(r[prob.w > 0])
+    f = (1 + rho) / (1 - rho)
+    jac = prob.jacobian(x)
+    try:
+        cov = np.linalg.pinv(jac.T @ jac) * f * sigma ** 2
+    except np.linalg.LinAlgError:
+        cov = np.full((len(x), len(x)), np.nan)
+    # the linear parameters' errors: the full problem's covariance
+    full = np.column_stack([jac, -prob.w[:, None] * model.linear_basis()])
+    full_cov = np.linalg.pinv(full.T @ full) * f * sigma ** 2
+    params = prob.params(x)
+    values = dict(params)
+    values["a_minus_b"] = values["a"] - values["b"]
+    linear = dict(zip(model.linear_names, map(float, coef)))
+    linear_se = {k: float(math.sqrt(max(full_cov[len(x) + i, len(x) + i], 0.0)))
+                 for i, k in enumerate(model.linear_names)}
+    values.update(linear)
+    lo, hi = prob.bounds()
+    # at a bound: held there by the solver, or within 1e-3 of the log range (Dc, k′ at 1e-9 m
+    # is no value) or 1e-9 of a linear one
+    near = [1e-3 * (h - l) if n in _LOG else 1e-9 for n, l, h in zip(prob.free, lo, hi)]
+    at_bound = tuple(name for name, u, l, h, tol, act in zip(prob.free, x, lo, hi, near,
+                                                             res.active_mask)
+                     if act != 0 or u - l <= tol or h - u <= tol)
+    fit = LabFit(model=model, free=prob.free, values=values, covariance=cov, linear=linear,
+                 linear_se=linear_se, residuals=r, mu_model=mu_model, rss=rss, sigma=sigma,
+                 rho=rho, n=n, at_bound=at_bound, solves=prob.solves, wall_s=wall_s,
+                 weights=prob.w, fixed=dict(prob.fixed), piece_weights=prob.piece_weights,
+                 success=ok and res.status > 0,
+                 message=res.message if ok else "the forward model failed at the fit's end")
+    _notes(fit, lo, hi)
+    return fit
+
+
+def _notes(fit: LabFit, lo, hi) -> None:
+    """The fit's warnings: a parameter at a bound, a piece too short to show the evolution."""
+    for name in fit.at_bound:
+        l, h = BOUNDS[name]
+        side = "lower" if abs(fit.values[name] - l) <= abs(fit.values[name] - h) else "upper"
+        fit.notes.append(f"{name} = {fit.values[name]:.4g} {PARAMETER_UNITS[name]} is at its "
+                         f"{side} bound ({l if side == 'lower' else h:g}): the record does not "
+                         f"determine it there; its interval is not a confidence interval")
+    rec = fit.model.record
+    dc = fit.values["dc"]
+    moving = [v for v in rec.velocities if v > 0]
+    per_sample = max(moving) * float(np.median(np.diff(rec.t)))
+    if dc < per_sample:
+        fit.notes.append(f"Dc = {dc * 1e6:.3g} µm is shorter than the load point's travel in one "
+                         f"sample at its fastest ({per_sample * 1e6:.3g} µm): the record cannot "
+                         "resolve it, and a and b are then known only as a − b (an evolution "
+                         "the law cannot make, such as one that strengthens, ends here too)")
+    bounds = (0.0, *rec.switch_times, float(rec.t[-1]))
+    for name in ("dc", "dc2"):
+        if name not in fit.values:
+            continue
+        length = fit.values[name]
+        for i in range(1, len(rec.velocities)):
+            travel = rec.velocities[i] * (bounds[i + 1] - bounds[i])
+            if rec.velocities[i] > 0 and travel < SETTLE_DC * length:
+                fit.notes.append(
+                    f"the piece after the switch at t = {bounds[i]:.6g} s moves the load point "
+                    f"{travel * 1e6:.4g} µm, {travel / length:.2g} {name} ({name} = "
+                    f"{length * 1e6:.4g} µm): under {SETTLE_DC:g} {name} the evolution is not "
+                    f"seen to its end and {name} is poorly determined")
+    for note in fit.notes:
+        warnings.warn(note, LabFitWarning, stacklevel=3)
+
+
+#: the reference pair of the solver check: (name, rtol = atol), two independent libraries
+CHECK_REFERENCES = (("Rodas5P", 1e-12), ("scipy-Radau", 1e-12))
+
+
+def _references(fit: LabFit, p: dict):
+    """μ − μ0 at the best fit by two independent solvers, and their names."""
+    model, rec = fit.model, fit.model.record
+    if model.states == 2:
+        from benchmarks.devtools.lab_reference import reference_friction
+        from benchmarks.physics.lab_model import LAB_MU0
+        own, _ = model.response(**p, rtol=1e-12)
+        ref = reference_friction(rec.t, rec.velocities, rec.switch_times, p["a"], p["b"],
+                                 p["dc"], p["k"], law=model.law, c=p.get("c", 2.0),
+                                 b2=p["b2"], dc2=p["dc2"], mu0=LAB_MU0, rtol=1e-11,
+                                 atol=1e-13) - LAB_MU0
+        return [own, ref], ["the two-state model at 1e-12", "scipy-Radau (an independent "
+                            "model of the published equations) at 1e-11"]
+    from integrators import make_algorithm
+    refs = [model.response(**p, algorithm=make_algorithm(name, rtol=tol, atol=tol))[0]
+            for name, tol in CHECK_REFERENCES]
+    return refs, [f"{n} at {t:g}" for n, t in CHECK_REFERENCES]
+
+
+def check_solver(fit: LabFit) -> dict:
+    """Is the fit's integrator accurate enough for this record? μ(t) at the best fit against
+    two independent references (:data:`CHECK_REFERENCES`; with two states, the two-state model
+    at 1e-12 and scipy's Radau on the published equations), which must agree to σ/100 of the
+    record's noise; the fit's own error must be under σ/10 (σ the fit's residual scatter).
+    Returns the errors (in σ) and ``passed``; a reference pair that does not agree says so
+    (``references_agree`` False)."""
+    p = {n: fit.values[n] for n in fit.model.parameters}
+    own, _ = fit.model.response(**p)
+    refs, names = _references(fit, p)
+    sigma = fit.sigma
+    agree = float(np.max(np.abs(refs[0] - refs[1]))) / sigma
+    error = float(np.max(np.abs(own - refs[0]))) / sigma
+    algorithm = fit.model.algorithm
+    return {"integrator": algorithm.name if algorithm is not None else "the two-state model",
+            "options": algorithm.options() if algorithm is not None else {"rtol": 1e-10,
+                                                                           "atol": 1e-10},
+            "references": names, "references_disagree_sigma": agree,
+            "references_agree": bool(agree <= 0.01), "error_sigma": error,
+            "passed": bool(error <= 0.1 and agree <= 0.01)}
+
+
+def inertia_check(fit: LabFit, mass: float, normal_force: float,
+                  radiation_damping: float = 0.0) -> tuple[LabFit, pd.DataFrame]:
+    """Refit with the slider's ``mass`` (kg) on ``normal_force`` (N), from the quasi-static
+    ``fit``; per parameter, how far it moved in the quasi-static fit's standard errors."""
+    import dataclasses
+    model = dataclasses.replace(fit.model, mass=mass, normal_force=normal_force,
+                                radiation_damping=radiation_damping)
+    start = {n: fit.values[n] for n in fit.free}
+    inertial = fit_lab(model, fixed=fit.fixed, weights=fit.piece_weights, start=start)
+    rows = []
+    for n in fit.free:
+        u0 = math.log(fit.values[n]) if n in _LOG else fit.values[n]
+        u1 = math.log(inertial.values[n]) if n in _LOG else inertial.values[n]
+        rows.append({"parameter": n, "quasi_static": fit.values[n],
+                     "inertial": inertial.values[n], "shift_se": (u1 - u0) / fit.se(n)})
+    table = pd.DataFrame(rows)
+    return inertial, table

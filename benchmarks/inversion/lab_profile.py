@@ -1,0 +1,127 @@
+"""Profile intervals of a laboratory fit: hold one parameter at values on either side of its best
+fit, refit the others, and find where the squares have risen by χ²₁(95 %) = 3.84 noise
+variances (the fit's f σ², :mod:`benchmarks.inversion.lab_fit`).
+
+Each side walks out from the best fit in the fitted coordinate (a, b, c as they are; ln Dc,
+ln k′), starting at one Wald standard error, each refit started from the previous one; a step
+grows ×2 while the rise per step is under a quarter of what is left, and the crossing is
+interpolated in the signed root √Δ (linear in the parameter for a quadratic profile). A side that
+reaches its bound of :data:`~benchmarks.inversion.lab_fit.BOUNDS`, or :data:`MAX_POINTS` points,
+without the rise is open (``inf`` or the bound, and ``closed`` False). The profile interval
+differs from the Wald interval where the squares are not quadratic: Dc of a short step, a and b
+when their difference is what the record holds.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from benchmarks.inversion.lab_fit import _LOG, CHI2_95_1DOF, LabFit, _Problem
+
+__all__ = ["LabProfile", "profile_lab", "MAX_POINTS"]
+
+#: points a side of a profile takes at most
+MAX_POINTS = 24
+
+
+@dataclass
+class LabProfile:
+    """The profile of one parameter: ``points`` (value in its own unit, Δ = rise of the squares
+    in noise variances), the 95 % ``interval`` and whether each side ``closed``."""
+
+    parameter: str
+    value: float
+    interval: tuple
+    closed: tuple
+    points: pd.DataFrame = field(repr=False)
+    solves: int = 0
+    wall_s: float = 0.0
+
+    @property
+    def note(self) -> str:
+        """What an open side means, or "" when both are closed."""
+        sides = [s for s, c in zip(("below", "above"), self.closed) if not c]
+        if not sides:
+            return ""
+        ends = " and ".join(f"{s} (to {e:.4g})" for s, e, c in
+                            zip(("below", "above"), self.interval, self.closed) if not c)
+        return (f"{self.parameter}: the squares do not rise by {CHI2_95_1DOF:.2f} noise variances "
+                f"{ends}: the record does not bound {self.parameter} there, whatever its "
+                "standard error says (a step shorter than the evolution distance, or a "
+                "parameter the others can stand in for)")
+
+
+def profile_lab(fit: LabFit, parameter: str, level: float = CHI2_95_1DOF) -> LabProfile:
+    """The profile interval of ``parameter`` (one of ``fit.free``) at the Δ of ``level``."""
+    if parameter not in fit.free:
+        raise ValueError(f"{parameter!r} was not fitted; the fitted parameters: "
+                         f"{', '.join(fit.free)}")
+    t0 = time.perf_counter()
+    j = fit.free.index(parameter)
+    others = tuple(n for n in fit.free if n != parameter)
+    best = {n: fit.values[n] for n in fit.free}
+    u_best = math.log(best[parameter]) if parameter in _LOG else best[parameter]
+    scale = fit.noise_variance
+    lo_bound, hi_bound = _Problem(fit.model, fit.free, {}, None).bounds()
+    bounds = (lo_bound[j], hi_bound[j])
+    weights = fit.piece_weights
+    step0 = fit.se(parameter) if math.isfinite(fit.se(parameter)) and fit.se(parameter) > 0 \
+        else 0.05 * max(abs(u_best), 1e-3)
+    rows = [(u_best, 0.0)]
+    ends, closed, solves = [], [], 0
+    for side in (-1, 1):
+        u, step, delta = u_best, step0, 0.0
+        start = {n: best[n] for n in others}
+        found = None
+        for _ in range(MAX_POINTS):
+            u_next = u + side * step
+            limit = bounds[0] if side < 0 else bounds[1]
+            at_limit = (u_next - limit) * side >= 0
+            if at_limit:
+                u_next = limit
+            fixed = dict(fit.fixed)
+            fixed[parameter] = math.exp(u_next) if parameter in _LOG else u_next
+            if others:
+                prob = _Problem(fit.model, others, fixed, weights)
+                res = prob.solve(prob.coordinates(start), max_nfev=60)
+                solves += prob.solves
+                rss = 2.0 * res.cost
+                start = prob.params(res.x)
+            else:
+                prob = _Problem(fit.model, (), fixed, weights)
+                r = prob.residual(np.empty(0))
+                solves += prob.solves
+                rss = float(r @ r)
+            d = max((rss - fit.rss) / scale, 0.0)
+            rows.append((u_next, d))
+            if d >= level:
+                found = _crossing(u, delta, u_next, d, level)
+                break
+            if at_limit:
+                break
+            if d - delta < 0.25 * (level - d):
+                step *= 2.0
+            u, delta = u_next, d
+        ends.append(found if found is not None else (bounds[0] if side < 0 else bounds[1]))
+        closed.append(found is not None)
+    to_unit = (lambda v: math.exp(v)) if parameter in _LOG else (lambda v: v)
+    points = pd.DataFrame(sorted(rows), columns=["u", "delta"])
+    points.insert(0, parameter, [to_unit(v) for v in points.u])
+    points = points.drop(columns="u")
+    return LabProfile(parameter=parameter, value=fit.values[parameter],
+                      interval=(to_unit(ends[0]), to_unit(ends[1])), closed=tuple(closed),
+                      points=points, solves=solves, wall_s=time.perf_counter() - t0)
+
+
+def _crossing(u0, d0, u1, d1, level):
+    """Where the signed root √Δ reaches √level, linearly between (u0, d0) and (u1, d1)."""
+    r0, r1, target = math.sqrt(d0), math.sqrt(d1), math.sqrt(level)
+    if r1 == r0:
+        return u1
+    return u0 + (target - r0) / (r1 - r0) * (u1 - u0)
+

@@ -1,0 +1,166 @@
+"""The forward model of a laboratory fit: μ(t) at a record's sample times, for given friction
+parameters, on the record's own load-point history.
+
+The slider is the project's :class:`problems.SpringSlider` solved with :func:`integrators.solve`
+(``save_at`` the record's times, from the method's dense output): quasi-static by default (as
+rsfmodel, RSFit3000 and Marone's code), with mass or radiation damping on request. Its stiffness
+is given as k′ = k/Fn, friction per metre of load-point displacement (RSFit3000's k in µm⁻¹ is
+k′ · 10⁻⁶); without mass or damping the friction coefficient does not depend on Fn, which is
+then the nominal :data:`NOMINAL_NORMAL_FORCE`. The run starts from steady sliding at the first
+piece's speed, which is also the law's reference speed v0.
+
+With ``states=2`` the law has a second state variable (b2, Dc2: two evolutions, one of which may
+strengthen) and the slider is quasi-static: it is solved by its own compiled model
+(:mod:`benchmarks.physics.lab_two_state`), as no :class:`~problems.SpringSlider` holds two
+states; ``algorithm`` then does not apply.
+
+The friction μ the model returns is μ_ref + (Fs/Fn − μ0) + the trend: μ_ref the steady friction
+at the first speed (a fit parameter), the trend a straight line in the load point's displacement
+per piece of the history (``detrend="piece"``, each piece its own slope, continuous at the
+switches: the linear detrend of RSFit3000 and of Giacomel et al. 2024, fitted with the rest),
+one line through the record (``"one"``) or none. The offset and the slopes enter linearly.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["LabModel", "DETRENDS", "NOMINAL_NORMAL_FORCE", "LAB_MU0", "DEFAULT_ALGORITHM"]
+
+#: N: the normal force of a model whose friction does not depend on it (quasi-static, undamped)
+NOMINAL_NORMAL_FORCE = 1e4
+#: the reference friction of the slider; the fit's own level is μ_ref, added on
+LAB_MU0 = 0.6
+#: the ways of detrending: a slope per piece of the history, one slope, none
+DETRENDS = ("piece", "one", "none")
+#: (name, rtol = atol): the fit's integrator unless told (checked by the fit's solver check)
+DEFAULT_ALGORITHM = ("Rodas5P", 1e-10)
+
+
+@dataclass(frozen=True)
+class LabModel:
+    """μ(t) of ``law`` (``"aging"``, ``"slip"`` or ``"nagata"``) on ``record``'s history.
+    ``mass`` (kg), ``radiation_damping`` (N s/m) and ``normal_force`` (N, needed with either)
+    describe the apparatus; ``algorithm`` integrates (default :data:`DEFAULT_ALGORITHM`);
+    ``states`` is 1, or 2 for a second state variable (quasi-static only)."""
+
+    record: object
+    law: str = "aging"
+    detrend: str = "piece"
+    mass: float = 0.0
+    radiation_damping: float = 0.0
+    normal_force: float | None = None
+    algorithm: object = None
+    states: int = 1
+    _basis: np.ndarray = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        from problems.friction import LAWS
+        if self.law not in LAWS:
+            raise ValueError(f"law must be one of {', '.join(LAWS)}, got {self.law!r}")
+        if self.detrend not in DETRENDS:
+            raise ValueError(f"detrend must be one of {', '.join(DETRENDS)}, got "
+                             f"{self.detrend!r}")
+        if self.states not in (1, 2):
+            raise ValueError(f"states must be 1 or 2, got {self.states!r}")
+        if self.states == 2 and (self.mass > 0 or self.radiation_damping > 0):
+            raise ValueError("a second state variable is fitted on the quasi-static slider "
+                             "only: no mass, no radiation damping")
+        if self.states == 2 and self.algorithm is not None:
+            raise ValueError("a second state variable has its own compiled model: no "
+                             "algorithm to choose")
+        from problems._validate import check_non_negative, check_positive
+        check_non_negative("mass (kg)", self.mass)
+        check_non_negative("radiation_damping (N s/m)", self.radiation_damping)
+        if self.normal_force is not None:
+            check_positive("normal_force (N)", self.normal_force)
+        elif self.mass > 0 or self.radiation_damping > 0:
+            raise ValueError("a slider with mass or radiation damping needs the normal force "
+                             "(N): the friction then depends on it")
+        if self.algorithm is None and self.states == 1:
+            from integrators import make_algorithm
+            name, tol = DEFAULT_ALGORITHM
+            object.__setattr__(self, "algorithm", make_algorithm(name, rtol=tol, atol=tol))
+        elif self.states == 1 and not self.algorithm.saves_at_times:
+            raise ValueError(f"{self.algorithm.name} saves at its own step ends; a fit needs "
+                             "μ at the record's times from a method's dense output")
+        object.__setattr__(self, "_basis", self._trend_basis())
+
+    @property
+    def fn(self) -> float:
+        return NOMINAL_NORMAL_FORCE if self.normal_force is None else self.normal_force
+
+    @property
+    def v0(self) -> float:
+        return float(self.record.velocities[0])
+
+    @property
+    def linear_names(self) -> tuple[str, ...]:
+        """The parameters that enter linearly: μ_ref and the trend's slopes (per metre)."""
+        return ("mu_ref",) + tuple(f"trend_{i}" for i in range(self._basis.shape[1] - 1))
+
+    def linear_basis(self) -> np.ndarray:
+        """(samples, 1 + slopes): the columns the linear parameters multiply."""
+        return self._basis
+
+    def _trend_basis(self) -> np.ndarray:
+        rec = self.record
+        t = rec.t
+        bounds = np.concatenate(([0.0], rec.switch_times, [np.inf]))
+        # the load point's displacement by the fitted history (not the noisy recorded one)
+        x_at = np.concatenate(([0.0], np.cumsum(np.diff(bounds[:-1]) * rec.velocities[:-1])))
+        columns = [np.ones_like(t)]
+        if self.detrend == "one":
+            piece = rec.piece_index()
+            columns.append(x_at[piece] + (t - bounds[piece]) * np.asarray(rec.velocities)[piece])
+        elif self.detrend == "piece":
+            for i, v in enumerate(rec.velocities):
+                if v > 0:          # a hold moves no load point: no trend of its own
+                    columns.append(np.clip(t - bounds[i], 0.0, bounds[i + 1] - bounds[i]) * v)
+        return np.column_stack(columns)
+
+    def problem(self, a: float, b: float, dc: float, k: float, c: float | None = None):
+        """The slider of these parameters (``dc`` in m, ``k`` = k′ in friction per m)."""
+        from problems._validate import units_checked_already
+        from problems.friction import law_from_name
+        from problems.slider import BalancedStart, SpringSlider
+        params = dict(a=a, b=b, lc=dc, v0=self.v0)
+        if self.law == "nagata":
+            params["c"] = 2.0 if c is None else c
+        with units_checked_already():      # a fit's trial values are no user's typing
+            return SpringSlider(mass=self.mass, stiffness=k * self.fn, normal_force=self.fn,
+                                law=law_from_name(self.law, **params),
+                                loading=self.record.history, initial=BalancedStart(1.0),
+                                t_end=float(self.record.t[-1]), mu0=LAB_MU0,
+                                name=f"lab fit/{self.law}",
+                                radiation_damping=self.radiation_damping)
+
+    @property
+    def parameters(self) -> tuple[str, ...]:
+        """The law's parameters, in the order a fit lists them."""
+        return (("a", "b", "dc", "k") + (("c",) if self.law == "nagata" else ())
+                + (("b2", "dc2") if self.states == 2 else ()))
+
+    def response(self, a, b, dc, k, c=None, b2=None, dc2=None, algorithm=None,
+                 wall_budget=None, rtol=None):
+        """(μ − μ0 at the record's times, the Solution or, with two states, the steps): the
+        rate-and-state part of μ, without the level and the trend; NaN where the run failed.
+        ``rtol``: the two-state model's rtol = atol (default 1e-10)."""
+        if self.states == 2:
+            from benchmarks.physics.lab_two_state import two_state_friction
+            rec = self.record
+            tol = 1e-10 if rtol is None else rtol
+            mu, steps = two_state_friction(rec.t, rec.velocities, rec.switch_times, a, b, dc,
+                                           k, b2=b2, dc2=dc2, law=self.law,
+                                           c=2.0 if c is None else c, mu0=LAB_MU0, rtol=tol,
+                                           atol=tol)
+            return mu - LAB_MU0, steps
+        from integrators import solve
+        sol = solve(self.problem(a, b, dc, k, c), algorithm or self.algorithm,
+                    save_at=self.record.t, wall_budget=wall_budget)
+        mu = np.full(len(self.record.t), np.nan)
+        if sol.success:
+            mu[:] = sol.fs / self.fn - LAB_MU0
+        return mu, sol

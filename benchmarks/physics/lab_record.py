@@ -1,0 +1,376 @@
+"""A laboratory velocity-step or slide-hold-slide record, read for a fit: the friction, the load
+point, and the load point's history found in it.
+
+Its columns are mapped to channels as for ``observe`` (``CHANNEL=COLUMN[:UNIT]``, converted to
+SI on reading):
+
+=================  =======  ======================================================================
+channel            SI unit  what it is
+=================  =======  ======================================================================
+``time``           s        required: increasing (the sampling interval may change, as when a
+                            machine samples faster after a step, but not jump)
+``friction``       1        μ, the shear over the normal force; or else
+``shear_force``    N        with ``normal_force`` (a column, or a constant in N)
+``load_point``     m        the load point's displacement; or else
+``load_velocity``  m/s      its velocity (integrated to a displacement)
+=================  =======  ======================================================================
+
+**The history.** The fit's load point moves at piecewise-constant speeds, switching at times
+found in the recorded displacement: a continuous piecewise-linear fit, split where one more
+piece lowers the squares most (binary segmentation) as long as the two sides' speeds differ by
+more than :data:`MIN_CHANGE` of the faster one and by :data:`SIGNIFICANCE` standard errors,
+each side holding :data:`MIN_SAMPLES` samples; each switch time is then refined between samples
+(the two pieces' continuous fit, minimised over the switch time). A speed under :data:`HOLD` of
+the fastest is a hold (0). The record's time starts at 0 at its first sample (the file's time
+there is kept as ``t_offset``); the fit starts from steady sliding at the first piece's speed.
+
+Refused in one line: a record with no step (one speed throughout), one that opens with a hold,
+and a load point that moves back (a piece whose speed is negative beyond its error), besides
+what every recording is refused for (missing or non-numeric values, times that do not increase).
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from benchmarks.physics.recording import (
+    MU_RANGE,
+    UNITS,
+    column_map,
+    column_values,
+    read_table,
+)
+
+__all__ = ["LabRecord", "read_lab_record", "lab_record_from", "find_history", "LAB_CHANNELS",
+           "MIN_SAMPLES", "MIN_CHANGE", "HOLD", "SIGNIFICANCE", "PIECE_COLUMNS"]
+
+#: each channel of a laboratory record and its SI unit
+LAB_CHANNELS = {"time": "s", "friction": "1", "shear_force": "N", "normal_force": "N",
+                "load_point": "m", "load_velocity": "m/s"}
+#: samples a piece of the history holds at least
+MIN_SAMPLES = 20
+#: two pieces whose speeds differ by less than this share of the faster are one (drift)
+MIN_CHANGE = 0.1
+#: a speed below this share of the fastest piece's is a hold
+HOLD = 0.02
+#: two pieces' speeds must differ by this many standard errors
+SIGNIFICANCE = 10.0
+#: the columns of :attr:`LabRecord.pieces`
+PIECE_COLUMNS = ("t_start_s", "t_end_s", "velocity_m_s", "velocity_se_m_s", "samples")
+
+
+@dataclass(frozen=True)
+class LabRecord:
+    """A record in SI units, its time from 0 at the first sample: ``t`` (s), ``mu``, the
+    ``load_point`` displacement (m, from 0), and the history found in it: ``velocities`` (m/s)
+    between ``switch_times`` (s), one more velocity than switch times; ``pieces`` has each
+    piece's fitted speed and its standard error (:data:`PIECE_COLUMNS`). ``t_offset`` is the
+    file's time of the first sample; ``source``, ``sha256`` and ``columns`` say where it came
+    from."""
+
+    t: np.ndarray = field(repr=False)
+    mu: np.ndarray = field(repr=False)
+    load_point: np.ndarray = field(repr=False)
+    velocities: tuple
+    switch_times: tuple
+    pieces: pd.DataFrame = field(repr=False)
+    t_offset: float = 0.0
+    source: str = "table"
+    sha256: str = ""
+    columns: dict = field(default_factory=dict)
+
+    @property
+    def history(self):
+        """The load point's history as a :class:`problems.loading.LoadHistory`."""
+        from problems._validate import units_checked_already
+        from problems.loading import LoadHistory
+        with units_checked_already():       # a record's speeds are what they are
+            return LoadHistory(velocities=tuple(self.velocities),
+                               switch_times=tuple(self.switch_times))
+
+    def piece_index(self) -> np.ndarray:
+        """The piece of the history each sample is in (a switch time belongs to the piece after
+        it)."""
+        return np.searchsorted(np.asarray(self.switch_times), self.t, side="right")
+
+
+def read_lab_record(path, columns, normal_force: float | None = None,
+                    window: tuple[float, float] | None = None) -> LabRecord:
+    """The record in ``path`` with ``columns`` (channel → ``(column, unit)`` or specs
+    ``CHANNEL=COLUMN[:UNIT]``); ``normal_force`` (N) stands for a normal-force column;
+    ``window`` = (start, end) in the file's time (s) keeps that part only."""
+    mapping = _mapping(columns, normal_force)
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"record {path} does not exist" if not path.exists()
+                         else f"record {path} is not a file")
+    table = read_table(path, sorted({column for column, _ in mapping.values()}))
+    digest = hashlib.sha256(path.read_bytes()).hexdigest()
+    return lab_record_from(table, mapping, normal_force, window, source=str(path), sha256=digest)
+
+
+def _mapping(columns, normal_force):
+    mapping = column_map(columns, LAB_CHANNELS, required=("time",))
+    if ("friction" in mapping) == ("shear_force" in mapping):
+        raise ValueError("map the friction channel (μ) or the shear_force channel (with the "
+                         "normal force), one of them")
+    if "shear_force" in mapping and "normal_force" not in mapping and normal_force is None:
+        raise ValueError("a shear_force needs the normal force: map a normal_force column, or "
+                         "give the constant normal force (N)")
+    if "friction" in mapping and ("normal_force" in mapping or normal_force is not None):
+        raise ValueError("the friction channel is μ already: a normal force is not needed")
+    if ("load_point" in mapping) == ("load_velocity" in mapping):
+        raise ValueError("map the load_point channel (displacement) or the load_velocity "
+                         "channel, one of them")
+    return mapping
+
+
+def lab_record_from(table: pd.DataFrame, columns, normal_force: float | None = None,
+                    window: tuple[float, float] | None = None, source: str = "table",
+                    sha256: str = "") -> LabRecord:
+    """A :class:`LabRecord` of a DataFrame already in memory (the checks of
+    :func:`read_lab_record`)."""
+    mapping = _mapping(columns, normal_force)
+    missing = [c for c, _ in mapping.values() if c not in table.columns]
+    if missing:
+        raise ValueError(f"{source} has no column {missing[0]!r}; its columns: "
+                         f"{', '.join(map(str, table.columns))}")
+    data = {channel: column_values(table[column], column, source) * UNITS[unit][1]
+            for channel, (column, unit) in mapping.items()}
+    names = {channel: column for channel, (column, _) in mapping.items()}
+    t = data["time"]
+    _check_time(t, names["time"], source)
+    if window is not None:
+        keep = _window(t, window, source)
+        t, data = t[keep], {k: v[keep] for k, v in data.items()}
+    if "friction" in data:
+        mu = data["friction"]
+    else:
+        fn = data["normal_force"] if "normal_force" in data else normal_force
+        if not np.all(np.asarray(fn) > 0):
+            raise ValueError(f"{source}: the normal force must be positive (N)")
+        mu = data["shear_force"] / fn
+    median = float(np.median(mu))
+    if not MU_RANGE[0] <= median <= MU_RANGE[1]:
+        what = names.get("friction") or names["shear_force"]
+        raise ValueError(f"{source}: column {what!r} gives a friction coefficient of "
+                         f"{median:.4g} (median): no friction coefficient is; a unit is off "
+                         "(a percentage, or a force in kN read as N)")
+    if "load_point" in data:
+        x = data["load_point"]
+    else:
+        v = data["load_velocity"]
+        x = np.concatenate(([0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t))))
+    t0 = float(t[0])
+    t, x = t - t0, x - x[0]
+    velocities, switches, pieces = find_history(t, x, what=f"{source}: the load point "
+                                                f"({names.get('load_point') or names['load_velocity']!r})")
+    return LabRecord(t=t, mu=np.asarray(mu, dtype=float), load_point=x, velocities=velocities,
+                     switch_times=switches, pieces=pieces, t_offset=t0, source=source,
+                     sha256=sha256, columns=names)
+
+
+def _check_time(t: np.ndarray, column: str, source: str) -> None:
+    d = np.diff(t)
+    if (d <= 0).any():
+        i = int(np.argmax(d <= 0)) + 1
+        raise ValueError(f"{source}: column {column!r} row {i + 2}: t = {t[i]:.9g} s after "
+                         f"t = {t[i - 1]:.9g} s: times must increase")
+    # a gap: far longer than the sampling on both sides of it
+    step = pd.Series(d).rolling(21, center=True, min_periods=1).median().to_numpy()
+    gap = d > 20 * np.minimum(np.roll(step, 1), np.roll(step, -1))
+    gap[[0, -1]] = False
+    if gap.any():
+        i = int(np.argmax(gap))
+        raise ValueError(f"{source}: column {column!r}: a gap of {d[i]:.6g} s after row {i + 2} "
+                         f"(t = {t[i]:.9g} s): cut the record there, or fill the gap")
+
+
+def _window(t, window, source):
+    try:
+        start, end = (float(w) for w in window)
+    except (TypeError, ValueError):
+        raise ValueError(f"window must be (start, end) in s, got {window!r}") from None
+    if not start < end:
+        raise ValueError(f"window ({start:g}, {end:g}) s: its start must come before its end")
+    keep = (t >= start) & (t <= end)
+    if keep.sum() < 2 * MIN_SAMPLES:
+        raise ValueError(f"{source}: window ({start:g}, {end:g}) s holds {int(keep.sum())} "
+                         f"samples (the record runs from {t[0]:.9g} to {t[-1]:.9g} s)")
+    return keep
+
+
+# --- the history: a continuous piecewise-linear fit of the displacement ---------------------
+def _hinge_fits(t, x, side: int = MIN_SAMPLES):
+    """For every interior sample j as the switch, the continuous two-piece least-squares fit of
+    x(t) in ``t`` (centred, scaled), each side holding ``side`` samples at least: its residual
+    sum of squares and the two slopes."""
+    n = len(t)
+    ct = np.concatenate(([0.0], np.cumsum(t)))
+    ctt = np.concatenate(([0.0], np.cumsum(t * t)))
+    cx = np.concatenate(([0.0], np.cumsum(x)))
+    ctx = np.concatenate(([0.0], np.cumsum(t * x)))
+    j = np.arange(side, n - side + 1)
+    c = t[j - 1]                    # the left piece is [0, j), its last sample at the switch
+    nl, nr = j, n - j
+    slt, sltt, slx, sltx = ct[j], ctt[j], cx[j], ctx[j]
+    srt, srtt, srx, srtx = ct[n] - slt, ctt[n] - sltt, cx[n] - slx, ctx[n] - sltx
+    lu, luu, lux = slt - nl * c, sltt - 2 * c * slt + nl * c * c, sltx - c * slx
+    ru, ruu, rux = srt - nr * c, srtt - 2 * c * srt + nr * c * c, srtx - c * srx
+    m = np.zeros((len(j), 3, 3))
+    m[:, 0, 0], m[:, 0, 1], m[:, 0, 2] = n, lu, ru
+    m[:, 1, 0], m[:, 1, 1] = lu, luu
+    m[:, 2, 0], m[:, 2, 2] = ru, ruu
+    rhs = np.stack([np.full(len(j), cx[n]), lux, rux], axis=1)
+    beta = np.linalg.solve(m, rhs[..., None])[..., 0]
+    rss = float(np.dot(x, x)) - np.einsum("ij,ij->i", beta, rhs)
+    return j, rss, beta[:, 1], beta[:, 2], m
+
+
+def _line(t, x):
+    """Slope, its standard error and the residual sum of squares of a straight-line fit."""
+    tc = t - t.mean()
+    stt = float(np.dot(tc, tc))
+    slope = float(np.dot(tc, x - x.mean()) / stt)
+    r = x - x.mean() - slope * tc
+    rss = float(np.dot(r, r))
+    return slope, np.sqrt(rss / max(len(t) - 2, 1) / stt), rss
+
+
+def _best_hinge(t, x, side: int = MIN_SAMPLES):
+    """The best switch j of [0, len(t)) for a continuous two-piece fit, the two speeds and the
+    standard error of their difference."""
+    scale_t, scale_x = t[-1] - t[0], max(np.ptp(x), 1e-300)
+    tt, xx = (t - t[0]) / scale_t, (x - x[0]) / scale_x
+    j, rss, left, right, m = _hinge_fits(tt, xx, side)
+    k = int(np.argmin(rss))
+    cov = np.linalg.inv(m[k]) * max(rss[k], 0.0) / max(len(t) - 3, 1)
+    se = np.sqrt(max(cov[1, 1] + cov[2, 2], 0.0))        # the slopes are uncorrelated here
+    speed = scale_x / scale_t
+    return int(j[k]), left[k] * speed, right[k] * speed, se * speed
+
+
+def _split(t, x):
+    """The best switch of one piece, or None if no split makes two different speeds."""
+    if len(t) < 2 * MIN_SAMPLES:
+        return None
+    j, v1, v2, se = _best_hinge(t, x)
+    change = abs(v2 - v1)
+    if change < MIN_CHANGE * max(abs(v1), abs(v2)) or change < SIGNIFICANCE * se:
+        return None
+    return j
+
+
+def _relocated(t, x, cuts: list) -> list:
+    """Each switch moved to the best place between its neighbours, as close to them as 3
+    samples (a split of a piece that holds several corners lands between them; moved, it lands
+    on one, and the sliver left beside it merges with its neighbour)."""
+    for _ in range(3):
+        for i in range(1, len(cuts) - 1):
+            lo, hi = cuts[i - 1], cuts[i + 1]
+            if hi - lo >= 6:
+                cuts[i] = lo + _best_hinge(t[lo:hi], x[lo:hi], side=3)[0]
+    return cuts
+
+
+def _without_slivers(t, x, cuts: list) -> list:
+    """Pieces of fewer than :data:`MIN_SAMPLES` samples gone: the two switches around one become
+    one, at the best place between their neighbours (at the record's ends, the switch goes)."""
+    while len(cuts) > 2:
+        short = [k for k in range(len(cuts) - 1) if cuts[k + 1] - cuts[k] < MIN_SAMPLES]
+        if not short:
+            break
+        k = short[0]
+        if k == 0:
+            del cuts[1]
+        elif k == len(cuts) - 2:
+            del cuts[-2]
+        else:
+            lo, hi = cuts[k - 1], cuts[k + 2]
+            cuts[k:k + 2] = [lo + _best_hinge(t[lo:hi], x[lo:hi], side=3)[0]]
+    return cuts
+
+
+def _refined(t, x, lo, j, hi) -> float:
+    """The switch between pieces [lo, j) and [j, hi) as a time, minimising the continuous
+    two-piece fit's squares over t[j − 2] .. t[j + 1] (golden section)."""
+    tt, xx = t[lo:hi] - t[lo], x[lo:hi] - x[lo]
+
+    def rss(c):
+        a = np.column_stack([np.ones_like(tt), np.minimum(tt - c, 0), np.maximum(tt - c, 0)])
+        r = xx - a @ np.linalg.lstsq(a, xx, rcond=None)[0]
+        return float(r @ r)
+
+    a, b = tt[max(j - lo - 2, 0)], tt[min(j - lo + 1, hi - lo - 1)]
+    g = (np.sqrt(5) - 1) / 2
+    c1, c2 = b - g * (b - a), a + g * (b - a)
+    f1, f2 = rss(c1), rss(c2)
+    for _ in range(40):
+        if f1 < f2:
+            b, c2, f2 = c2, c1, f1
+            c1 = b - g * (b - a)
+            f1 = rss(c1)
+        else:
+            a, c1, f1 = c1, c2, f2
+            c2 = a + g * (b - a)
+            f2 = rss(c2)
+    return float(t[lo] + 0.5 * (a + b))
+
+
+def find_history(t: np.ndarray, x: np.ndarray, what: str = "the load point"):
+    """(velocities, switch_times, pieces) of the displacement ``x`` (m) at times ``t`` (s): see
+    the module docstring. ``what`` names the channel in a refusal."""
+    cuts = [0, len(t)]
+    while True:
+        added = False
+        for lo, hi in zip(cuts[:-1], cuts[1:]):
+            j = _split(t[lo:hi], x[lo:hi])
+            if j is not None:
+                cuts = sorted(cuts + [lo + j])
+                added = True
+                break
+        if not added:
+            break
+    cuts = _without_slivers(t, x, _relocated(t, x, cuts))
+    # merge neighbours that do not differ (a split may leave two near-equal speeds behind)
+    fits = [_line(t[lo:hi], x[lo:hi]) for lo, hi in zip(cuts[:-1], cuts[1:])]
+    i = 1
+    while i < len(cuts) - 1:
+        v1, v2 = fits[i - 1][0], fits[i][0]
+        if abs(v2 - v1) < MIN_CHANGE * max(abs(v1), abs(v2)):
+            del cuts[i]
+            fits[i - 1:i + 1] = [_line(t[cuts[i - 1]:cuts[i]], x[cuts[i - 1]:cuts[i]])]
+        else:
+            i += 1
+    speeds = np.array([f[0] for f in fits])
+    errors = np.array([f[1] for f in fits])
+    back = speeds < -SIGNIFICANCE * errors - HOLD * speeds.max(initial=0.0)
+    if back.any():
+        k = int(np.argmax(back))
+        raise ValueError(f"{what} moves back at {speeds[k]:.3g} m/s from t = "
+                         f"{t[cuts[k]]:.6g} s to {t[cuts[k + 1] - 1]:.6g} s: a fit needs a "
+                         "load point that only moves forward or holds")
+    fastest = speeds.max()
+    if fastest <= 0:
+        raise ValueError(f"{what} does not move")
+    velocities = tuple(float(v) if v >= HOLD * fastest else 0.0 for v in speeds)
+    if len(velocities) == 1:
+        raise ValueError(f"{what} moves at one speed throughout ({velocities[0]:.4g} m/s): "
+                         "the record has no velocity step (a change of speed by more than "
+                         f"{MIN_CHANGE:.0%} over {MIN_SAMPLES} samples or more)")
+    if velocities[0] == 0.0:
+        raise ValueError(f"{what} holds from the record's start to t = {t[cuts[1]]:.6g} s: the "
+                         "fit starts from steady sliding; start the record (--window) while "
+                         "the load point moves")
+    switches = tuple(_refined(t, x, lo, j, hi)
+                     for lo, j, hi in zip(cuts[:-2], cuts[1:-1], cuts[2:]))
+    bounds = (0.0, *switches, float(t[-1]))
+    pieces = pd.DataFrame({"t_start_s": bounds[:-1], "t_end_s": bounds[1:],
+                           "velocity_m_s": velocities, "velocity_se_m_s": errors,
+                           "samples": np.diff(cuts)}, columns=list(PIECE_COLUMNS))
+    return velocities, switches, pieces
