@@ -73,13 +73,24 @@ def _check_flags(args) -> None:
              if getattr(args, f[2:]) != d]
     if given and not args.posterior:
         raise ValueError(f"{given[0]} sets the posterior: it needs --posterior")
+    if args.walkers < 2 or args.walkers % 2:
+        raise ValueError(f"--walkers {args.walkers}: an even number, at least twice the "
+                         "fitted parameters (8 for a, b, Dc, k′)")
+    if args.steps < 20:
+        raise ValueError(f"--steps {args.steps}: at least 20")
+    mapped = {spec.partition("=")[0].strip() for spec in args.column}
+    if (args.normal_force is not None and args.mass is None
+            and args.radiation_damping is None
+            and not ("shear_force" in mapped and "normal_force" not in mapped)):
+        raise ValueError("--normal-force is for a shear_force column without a normal_force "
+                         "one, or for the inertial slider (--mass): here it would be unused")
     if args.posterior:
         from benchmarks.records.optional import require
         require("emcee", "inversion", "--posterior")
 
 
 def cmd_lab_fit(args) -> int:
-    from benchmarks.inversion.lab_fit import check_solver, fit_lab, inertia_check
+    from benchmarks.inversion.lab_fit import check_lab_solver, fit_lab, inertia_check
     from benchmarks.inversion.lab_profile import profile_lab
     from benchmarks.records.provenance import provenance, version_line
     from benchmarks.records.report import jsonable
@@ -93,6 +104,10 @@ def cmd_lab_fit(args) -> int:
     if args.out is not None:
         args.out.mkdir(parents=True, exist_ok=True)
     fixed = {k: v for k, v in (("k", args.stiffness), ("c", args.c)) if v is not None}
+    free = [n for n in model.parameters if n not in fixed]
+    if args.posterior and args.walkers < 2 * len(free):
+        raise ValueError(f"--walkers {args.walkers}: at least {2 * len(free)}, twice the "
+                         f"{len(free)} fitted parameters ({', '.join(free)})")
     import warnings
 
     from benchmarks.inversion.lab_fit import LabFitWarning
@@ -106,7 +121,7 @@ def cmd_lab_fit(args) -> int:
             profiles[name] = profile_lab(fit, name)
             if profiles[name].note:
                 notes.append(profiles[name].note)
-    check = None if args.no_solver_check else check_solver(fit)
+    check = None if args.no_solver_check else check_lab_solver(fit)
     posterior = None
     if args.posterior:
         from benchmarks.inversion.lab_posterior import sample_lab
@@ -166,9 +181,11 @@ def cmd_lab_fit(args) -> int:
         if posterior is not None:
             posterior.samples.to_csv(args.out / "lab_fit_posterior.csv", index=False)
         doc["out"] = str(args.out)
+    # a fit whose integrator failed its check, or that did not converge, is no answer: exit 1
+    status = 0 if fit.success and (check is None or check["passed"]) else 1
     if args.json:
         say(json.dumps(jsonable(doc), indent=2))
-        return 0
+        return status
     _report(fit, table, profiles, check, inertia, notes, record, args)
     if posterior is not None:
         say(f"posterior: {args.walkers} walkers × {args.steps} steps, {posterior.solves} solves "
@@ -176,7 +193,7 @@ def cmd_lab_fit(args) -> int:
             + ("τ reliable" if posterior.tau_reliable else
                "the chain is shorter than 50 τ: lengthen --steps before trusting its tails")
             + f"; prior {posterior.prior}")
-    return 0
+    return status
 
 
 def _pieces_line(record) -> str:
@@ -236,8 +253,10 @@ def _write(out: Path, fit, table, profiles, doc) -> None:
                   "mu_model": fit.mu_model, "residual": rec.mu - fit.mu_model}).to_csv(
         out / "lab_fit_residuals.csv", index=False)
     if profiles:
-        pd.concat([p.points.rename(columns={p.parameter: "value"}).assign(parameter=p.parameter)
-                   for p in profiles.values()]).to_csv(out / "lab_fit_profiles.csv", index=False)
+        from benchmarks.inversion.lab_fit import PARAMETER_UNITS
+        pd.concat([p.points.rename(columns={p.parameter: "value"}).assign(
+            parameter=p.parameter, unit=PARAMETER_UNITS[p.parameter])
+            for p in profiles.values()]).to_csv(out / "lab_fit_profiles.csv", index=False)
     (out / "lab_fit.json").write_text(json.dumps(jsonable(doc), indent=2))
     _plot(fit, profiles, out / "lab_fit.png")
 

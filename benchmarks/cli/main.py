@@ -12,6 +12,7 @@
     rsfbench study speedup --set scipy_budget=3600   # the paper's 1/10,000 claim
     rsfbench readme [--check]               # refill the README's numbers from results/
     rsfbench lab shs --holds 1 10 100       # a slide-hold-slide test and its healing
+    rsfbench lab fit rec.txt --column ...   # (a, b, Dc) of a velocity-step record
     rsfbench observe rec.csv --columns rec.toml   # a recording in: observations.json out
 """
 

@@ -9,6 +9,9 @@ the observations, typed in or measured on a recording (:mod:`~benchmarks.inversi
 the posterior on a grid refined where its mass is (:mod:`~benchmarks.inversion.adaptive`) or
 sampled with emcee (:mod:`~benchmarks.inversion.posterior`), the forward model on a
 grid and the posteriors and profiles of any data set on it (:mod:`~benchmarks.inversion.grid`).
+Laboratory velocity steps and slide-hold-slide records: the least-squares fit of (a, b, Dc, k′)
+(:mod:`~benchmarks.inversion.lab_fit`), its profiles (:mod:`~benchmarks.inversion.lab_profile`)
+and posterior (:mod:`~benchmarks.inversion.lab_posterior`).
 Built on them: one inversion end to end (:mod:`~benchmarks.inversion.invert`), the coverage of
 the 95 % regions (:mod:`~benchmarks.inversion.calibration`), the solver's effect on the
 inference (:mod:`~benchmarks.studies.solver_effect`) and the reproduce steps' studies
@@ -19,6 +22,9 @@ from benchmarks.inversion.curve_likelihood import CurveLikelihood
 from benchmarks.inversion.fit import FitResult, fit
 from benchmarks.inversion.fitting import NO_CYCLE_J1, NO_CYCLE_RESIDUAL, Scores, scores
 from benchmarks.inversion.grid import GridPosterior, MetricMap, box_grid, metric_map
+from benchmarks.inversion.lab_fit import LabFit, check_lab_solver, fit_lab, inertia_check
+from benchmarks.inversion.lab_posterior import LabPosterior, sample_lab
+from benchmarks.inversion.lab_profile import LabProfile, profile_lab
 from benchmarks.inversion.misfit import Misfit, synthetic
 from benchmarks.inversion.observations import read_observations, write_observations
 from benchmarks.inversion.posterior import Posterior, sample
@@ -28,7 +34,8 @@ __all__ = ["Misfit", "NO_CYCLE_RESIDUAL", "synthetic", "fit", "FitResult", "prof
            "CHI2_95_1DOF", "sample", "Posterior", "metric_map", "MetricMap", "GridPosterior",
            "box_grid", "NO_CYCLE_J1", "scores", "Scores", "read_observations",
            "write_observations", "observe", "CurveLikelihood", "grid_posterior",
-           "CellPosterior"]
+           "CellPosterior", "fit_lab", "LabFit", "check_lab_solver", "inertia_check",
+           "profile_lab", "LabProfile", "sample_lab", "LabPosterior"]
 
 
 def __getattr__(name):                 # observe reads and plots a recording: imported on use

@@ -36,8 +36,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-__all__ = ["LabFit", "fit_lab", "LabFitWarning", "BOUNDS", "FD_STEP", "DC_STARTS",
-           "Z95", "CHI2_95_1DOF", "SETTLE_DC", "PARAMETER_UNITS"]
+__all__ = ["LabFit", "fit_lab", "LabFitWarning", "check_lab_solver", "inertia_check",
+           "starting_values", "CHECK_REFERENCES", "BOUNDS", "FD_STEP", "DC_STARTS",
+           "Z95", "CHI2_95_1DOF", "SETTLE_DC", "PARAMETER_UNITS", "covariance", "RANK_TOL"]
 
 #: each nonlinear parameter's bounds in its own unit (a, b, c dimensionless; dc m; k 1/m)
 BOUNDS = {"a": (1e-5, 0.5), "b": (0.0, 0.5), "dc": (1e-9, 0.1), "k": (1.0, 1e10),
@@ -54,6 +55,9 @@ CHI2_95_1DOF = 3.841458820694124
 #: evolution: the fit warns
 SETTLE_DC = 3.0
 _LOG = ("dc", "k", "dc2")
+#: a singular value of a Jacobian or basis below this share of the largest is a direction the
+#: data do not determine
+RANK_TOL = 1e-10
 #: the second state's starts: b2 as these multiples of b (it may strengthen: negative), Dc2 as
 #: this multiple of Dc
 B2_STARTS, DC2_START = (0.5, -0.5), 10.0
@@ -110,15 +114,22 @@ class LabFit:
         if name == "a_minus_b" and {"a", "b"} <= set(self.free):
             i, j = self.free.index("a"), self.free.index("b")
             c = self.covariance
+            if not (np.isfinite(c[i, i]) and np.isfinite(c[j, j])):
+                return math.inf
             return float(math.sqrt(max(c[i, i] + c[j, j] - 2 * c[i, j], 0.0)))
         return self.linear_se.get(name, 0.0)
 
     def interval(self, name: str) -> tuple[float, float]:
-        """The 95 % Wald interval in the parameter's own unit."""
+        """The 95 % Wald interval in the parameter's own unit, within the parameter's bounds
+        (:data:`BOUNDS`)."""
         v, s = self.values[name], self.se(name)
         if name in _LOG:
-            return v * math.exp(-min(Z95 * s, 700.0)), v * math.exp(min(Z95 * s, 700.0))
-        return v - Z95 * s, v + Z95 * s
+            low, high = v * math.exp(-min(Z95 * s, 700.0)), v * math.exp(min(Z95 * s, 700.0))
+        else:
+            low, high = v - Z95 * s, v + Z95 * s
+        if name in BOUNDS:
+            low, high = max(low, BOUNDS[name][0]), min(high, BOUNDS[name][1])
+        return low, high
 
     def table(self) -> pd.DataFrame:
         names = [n for n in ("a", "b", "a_minus_b", "dc", "k", "c", "b2", "dc2")
@@ -149,8 +160,7 @@ class _Problem:
             rec.piece_index()]
         self.w = w
         self.wmu = w * rec.mu
-        q, _ = np.linalg.qr(w[:, None] * model.linear_basis())
-        self.q = q
+        self.q = _orthonormal(w[:, None] * model.linear_basis())
         self.solves = 0
         self.cache = {}
 
@@ -218,6 +228,29 @@ class _Problem:
         return least_squares(self.residual, x0, jac=self.jacobian, bounds=(lo, hi),
                              method="trf", x_scale="jac", max_nfev=max_nfev,
                              xtol=1e-10, ftol=1e-12, gtol=1e-10)
+
+
+def _orthonormal(basis: np.ndarray) -> np.ndarray:
+    """An orthonormal basis of the columns' span, whatever their rank (a trend whose piece has
+    weight 0 is a zero column)."""
+    u, sv, _ = np.linalg.svd(basis, full_matrices=False)
+    return u[:, sv > RANK_TOL * max(sv.max(initial=0.0), 1e-300)]
+
+
+def covariance(jac: np.ndarray, scale: float) -> np.ndarray:
+    """scale · (JᵀJ)⁻¹, with an infinite variance for each parameter in a direction the data
+    do not determine (a singular value of J below :data:`RANK_TOL` of the largest): a
+    pseudo-inverse would give such a parameter a variance of 0."""
+    n = jac.shape[1]
+    if not np.isfinite(jac).all():
+        return np.full((n, n), np.nan)
+    _, sv, vt = np.linalg.svd(jac, full_matrices=False)
+    keep = sv > RANK_TOL * max(sv.max(initial=0.0), 1e-300)
+    cov = (vt[keep].T / sv[keep] ** 2) @ vt[keep] * scale
+    lost = (np.abs(vt[~keep]) > 1e-6).any(axis=0)
+    cov[lost, :] = np.inf
+    cov[:, lost] = np.inf
+    return cov
 
 
 def _lag1(r: np.ndarray) -> float:
@@ -316,30 +349,28 @@ def _result(prob, res, wall_s) -> LabFit:
     coef = prob.linear(x) if ok else np.full(len(model.linear_names), np.nan)
     mu_model = g + model.linear_basis() @ coef
     r = prob.w * (model.record.mu - mu_model)
-    n, p = len(r), len(x) + len(coef)
+    # the samples of weight 0 are no data: they count neither in n nor in ρ
+    n, p = int((prob.w > 0).sum()), len(x) + prob.q.shape[1]
     rss = float(r @ r)
     sigma = math.sqrt(rss / max(n - p, 1))
     rho = _lag1(r[prob.w > 0])
     f = (1 + rho) / (1 - rho)
     jac = prob.jacobian(x)
-    try:
-        cov = np.linalg.pinv(jac.T @ jac) * f * sigma ** 2
-    except np.linalg.LinAlgError:
-        cov = np.full((len(x), len(x)), np.nan)
+    cov = covariance(jac, f * sigma ** 2)
     # the linear parameters' errors: the full problem's covariance
     full = np.column_stack([jac, -prob.w[:, None] * model.linear_basis()])
-    full_cov = np.linalg.pinv(full.T @ full) * f * sigma ** 2
+    full_cov = covariance(full, f * sigma ** 2)
     params = prob.params(x)
     values = dict(params)
     values["a_minus_b"] = values["a"] - values["b"]
     linear = dict(zip(model.linear_names, map(float, coef)))
-    linear_se = {k: float(math.sqrt(max(full_cov[len(x) + i, len(x) + i], 0.0)))
+    linear_se = {k: float(np.sqrt(max(full_cov[len(x) + i, len(x) + i], 0.0)))
                  for i, k in enumerate(model.linear_names)}
     values.update(linear)
     lo, hi = prob.bounds()
     # at a bound: held there by the solver, or within 1e-3 of the log range (Dc, k′ at 1e-9 m
-    # is no value) or 1e-9 of a linear one
-    near = [1e-3 * (h - l) if n in _LOG else 1e-9 for n, l, h in zip(prob.free, lo, hi)]
+    # is no value) or 1e-6 of a linear one
+    near = [(1e-3 if n in _LOG else 1e-6) * (h - l) for n, l, h in zip(prob.free, lo, hi)]
     at_bound = tuple(name for name, u, l, h, tol, act in zip(prob.free, x, lo, hi, near,
                                                              res.active_mask)
                      if act != 0 or u - l <= tol or h - u <= tol)
@@ -354,7 +385,14 @@ def _result(prob, res, wall_s) -> LabFit:
 
 
 def _notes(fit: LabFit, lo, hi) -> None:
-    """The fit's warnings: a parameter at a bound, a piece too short to show the evolution."""
+    """The fit's warnings: a parameter the data do not determine or at a bound, a piece too
+    short to show the evolution, a Dc below the sampling."""
+    lost = [n for n in fit.free if not np.isfinite(fit.se(n))]
+    lost += [n for n in fit.linear if not np.isfinite(fit.linear_se[n])]
+    if lost:
+        fit.notes.append(f"the record does not determine {', '.join(lost)} (the fit's Jacobian "
+                         "is singular there, as where a weight of 0 leaves no data for them): "
+                         "their standard errors are infinite")
     for name in fit.at_bound:
         l, h = BOUNDS[name]
         side = "lower" if abs(fit.values[name] - l) <= abs(fit.values[name] - h) else "upper"
@@ -410,7 +448,7 @@ def _references(fit: LabFit, p: dict):
     return refs, [f"{n} at {t:g}" for n, t in CHECK_REFERENCES]
 
 
-def check_solver(fit: LabFit) -> dict:
+def check_lab_solver(fit: LabFit) -> dict:
     """Is the fit's integrator accurate enough for this record? μ(t) at the best fit against
     two independent references (:data:`CHECK_REFERENCES`; with two states, the two-state model
     at 1e-12 and scipy's Radau on the published equations), which must agree to σ/100 of the

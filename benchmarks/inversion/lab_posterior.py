@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from benchmarks.inversion.lab_fit import _LOG, BOUNDS, LabFit, _Problem
+from benchmarks.inversion.lab_fit import _LOG, BOUNDS, PARAMETER_UNITS, LabFit, _Problem
 
 __all__ = ["LabPosterior", "sample_lab"]
 
@@ -91,7 +91,9 @@ def sample_lab(fit: LabFit, walkers: int = 32, steps: int = 600, seed: int = 0,
                  for c in samples}
     kept = steps - burn
     prior = ", ".join(f"uniform in {'ln ' if n in _LOG else ''}{n} on "
-                      f"[{BOUNDS[n][0]:g}, {BOUNDS[n][1]:g}]" for n in fit.free)
+                      f"[{BOUNDS[n][0]:g}, {BOUNDS[n][1]:g}]"
+                      + ("" if PARAMETER_UNITS[n] == "1" else f" {PARAMETER_UNITS[n]}")
+                      for n in fit.free)
     return LabPosterior(
         samples=samples, quantiles=quantiles,
         acceptance=float(np.mean(sampler.acceptance_fraction)),

@@ -3,9 +3,11 @@ fit, refit the others, and find where the squares have risen by χ²₁(95 %) = 
 variances (the fit's f σ², :mod:`benchmarks.inversion.lab_fit`).
 
 Each side walks out from the best fit in the fitted coordinate (a, b, c as they are; ln Dc,
-ln k′), starting at one Wald standard error, each refit started from the previous one; a step
-grows ×2 while the rise per step is under a quarter of what is left, and the crossing is
-interpolated in the signed root √Δ (linear in the parameter for a quadratic profile). A side that
+ln k′), starting at one Wald standard error (at most a twentieth of the parameter's range), each refit
+started from the previous one; a step grows ×2 while the rise per step is under a quarter of
+what is left. A bracket whose rise is over twice the level is halved (:data:`BISECTIONS` at
+most) until it is not, and the crossing is interpolated in the signed root √Δ (linear in the
+parameter for a quadratic profile). A side that
 reaches its bound of :data:`~benchmarks.inversion.lab_fit.BOUNDS`, or :data:`MAX_POINTS` points,
 without the rise is open (``inf`` or the bound, and ``closed`` False). The profile interval
 differs from the Wald interval where the squares are not quadratic: Dc of a short step, a and b
@@ -27,6 +29,8 @@ __all__ = ["LabProfile", "profile_lab", "MAX_POINTS"]
 
 #: points a side of a profile takes at most
 MAX_POINTS = 24
+#: halvings of a bracket whose rise is over twice the level, before interpolating in it
+BISECTIONS = 12
 
 
 @dataclass
@@ -69,46 +73,62 @@ def profile_lab(fit: LabFit, parameter: str, level: float = CHI2_95_1DOF) -> Lab
     scale = fit.noise_variance
     lo_bound, hi_bound = _Problem(fit.model, fit.free, {}, None).bounds()
     bounds = (lo_bound[j], hi_bound[j])
-    weights = fit.piece_weights
     step0 = fit.se(parameter) if math.isfinite(fit.se(parameter)) and fit.se(parameter) > 0 \
         else 0.05 * max(abs(u_best), 1e-3)
     rows = [(u_best, 0.0)]
-    ends, closed, solves = [], [], 0
+    ends, closed = [], []
+    counter = {"solves": 0}
+
+    def rise(u, start):
+        """Δ at the parameter's coordinate u, and the others' refit (from ``start``)."""
+        fixed = dict(fit.fixed)
+        fixed[parameter] = math.exp(u) if parameter in _LOG else u
+        prob = _Problem(fit.model, others, fixed, fit.piece_weights)
+        if others:
+            res = prob.solve(prob.coordinates(start), max_nfev=60)
+            rss, start = 2.0 * res.cost, prob.params(res.x)
+        else:
+            r = prob.residual(np.empty(0))
+            rss = float(r @ r)
+        counter["solves"] += prob.solves
+        d = max((rss - fit.rss) / scale, 0.0)
+        rows.append((u, d))
+        return d, start
+
     for side in (-1, 1):
-        u, step, delta = u_best, step0, 0.0
+        limit = bounds[0] if side < 0 else bounds[1]
+        u, step, delta = u_best, min(step0, 0.05 * (bounds[1] - bounds[0])), 0.0
         start = {n: best[n] for n in others}
         found = None
         for _ in range(MAX_POINTS):
             u_next = u + side * step
-            limit = bounds[0] if side < 0 else bounds[1]
             at_limit = (u_next - limit) * side >= 0
             if at_limit:
                 u_next = limit
-            fixed = dict(fit.fixed)
-            fixed[parameter] = math.exp(u_next) if parameter in _LOG else u_next
-            if others:
-                prob = _Problem(fit.model, others, fixed, weights)
-                res = prob.solve(prob.coordinates(start), max_nfev=60)
-                solves += prob.solves
-                rss = 2.0 * res.cost
-                start = prob.params(res.x)
-            else:
-                prob = _Problem(fit.model, (), fixed, weights)
-                r = prob.residual(np.empty(0))
-                solves += prob.solves
-                rss = float(r @ r)
-            d = max((rss - fit.rss) / scale, 0.0)
-            rows.append((u_next, d))
+            d, start_next = rise(u_next, start)
             if d >= level:
-                found = _crossing(u, delta, u_next, d, level)
+                # a long jump over a profile that is not quadratic: halve the bracket until
+                # the rise across it is moderate, then interpolate
+                lo_u, lo_d, lo_start, hi_u, hi_d = u, delta, start, u_next, d
+                for _ in range(BISECTIONS):
+                    if hi_d <= 2.0 * level:
+                        break
+                    mid = 0.5 * (lo_u + hi_u)
+                    d_mid, s_mid = rise(mid, lo_start)
+                    if d_mid >= level:
+                        hi_u, hi_d = mid, d_mid
+                    else:
+                        lo_u, lo_d, lo_start = mid, d_mid, s_mid
+                found = _crossing(lo_u, lo_d, hi_u, hi_d, level)
                 break
             if at_limit:
                 break
             if d - delta < 0.25 * (level - d):
                 step *= 2.0
-            u, delta = u_next, d
-        ends.append(found if found is not None else (bounds[0] if side < 0 else bounds[1]))
+            u, delta, start = u_next, d, start_next
+        ends.append(found if found is not None else limit)
         closed.append(found is not None)
+    solves = counter["solves"]
     to_unit = (lambda v: math.exp(v)) if parameter in _LOG else (lambda v: v)
     points = pd.DataFrame(sorted(rows), columns=["u", "delta"])
     points.insert(0, parameter, [to_unit(v) for v in points.u])

@@ -4,7 +4,10 @@ slide-hold-slide test (:mod:`~benchmarks.physics.lab`), slip-weakening curves
 (:mod:`~benchmarks.physics.curves`), figures (:mod:`~benchmarks.physics.plots`), the summary
 of one run (:mod:`~benchmarks.physics.summary`), and a laboratory recording: read and checked
 (:mod:`~benchmarks.physics.recording`), measured (:mod:`~benchmarks.physics.record_analysis`),
-or made by the forward model (:mod:`~benchmarks.physics.model_recording`). Nothing here reads a save grid for a measure."""
+or made by the forward model (:mod:`~benchmarks.physics.model_recording`); a laboratory
+velocity-step record read for a fit, its history found (:mod:`~benchmarks.physics.lab_record`),
+and the fit's forward model (:mod:`~benchmarks.physics.lab_model`, with two state variables
+:mod:`~benchmarks.physics.lab_two_state`). Nothing here reads a save grid for a measure."""
 
 from benchmarks._api import lazy_api
 
@@ -20,4 +23,7 @@ __getattr__, __dir__, __all__ = lazy_api(__name__, {
     "recording": ("read_recording", "recording_from", "Recording", "CHANNELS", "UNITS"),
     "record_analysis": ("analyse", "Analysis"),
     "model_recording": ("synthetic_recording",),
+    "lab_record": ("read_lab_record", "lab_record_from", "LabRecord"),
+    "lab_model": ("LabModel",),
+    "lab_two_state": ("two_state_friction",),
 })

@@ -55,6 +55,7 @@ class LabModel:
     algorithm: object = None
     states: int = 1
     _basis: np.ndarray = field(init=False, repr=False, compare=False)
+    _names: tuple = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         from problems.friction import LAWS
@@ -86,7 +87,9 @@ class LabModel:
         elif self.states == 1 and not self.algorithm.saves_at_times:
             raise ValueError(f"{self.algorithm.name} saves at its own step ends; a fit needs "
                              "μ at the record's times from a method's dense output")
-        object.__setattr__(self, "_basis", self._trend_basis())
+        basis, names = self._trend_basis()
+        object.__setattr__(self, "_basis", basis)
+        object.__setattr__(self, "_names", names)
 
     @property
     def fn(self) -> float:
@@ -98,28 +101,31 @@ class LabModel:
 
     @property
     def linear_names(self) -> tuple[str, ...]:
-        """The parameters that enter linearly: μ_ref and the trend's slopes (per metre)."""
-        return ("mu_ref",) + tuple(f"trend_{i}" for i in range(self._basis.shape[1] - 1))
+        """The parameters that enter linearly: μ_ref and the trend's slopes (per metre of
+        load-point travel): ``trend`` for one through the record, ``trend_i`` for piece i."""
+        return self._names
 
     def linear_basis(self) -> np.ndarray:
         """(samples, 1 + slopes): the columns the linear parameters multiply."""
         return self._basis
 
-    def _trend_basis(self) -> np.ndarray:
+    def _trend_basis(self):
         rec = self.record
         t = rec.t
         bounds = np.concatenate(([0.0], rec.switch_times, [np.inf]))
         # the load point's displacement by the fitted history (not the noisy recorded one)
         x_at = np.concatenate(([0.0], np.cumsum(np.diff(bounds[:-1]) * rec.velocities[:-1])))
-        columns = [np.ones_like(t)]
+        columns, names = [np.ones_like(t)], ["mu_ref"]
         if self.detrend == "one":
             piece = rec.piece_index()
             columns.append(x_at[piece] + (t - bounds[piece]) * np.asarray(rec.velocities)[piece])
+            names.append("trend")
         elif self.detrend == "piece":
             for i, v in enumerate(rec.velocities):
                 if v > 0:          # a hold moves no load point: no trend of its own
                     columns.append(np.clip(t - bounds[i], 0.0, bounds[i + 1] - bounds[i]) * v)
-        return np.column_stack(columns)
+                    names.append(f"trend_{i}")
+        return np.column_stack(columns), tuple(names)
 
     def problem(self, a: float, b: float, dc: float, k: float, c: float | None = None):
         """The slider of these parameters (``dc`` in m, ``k`` = k′ in friction per m)."""

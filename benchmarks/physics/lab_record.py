@@ -20,12 +20,12 @@ found in the recorded displacement: a continuous piecewise-linear fit, split whe
 piece lowers the squares most (binary segmentation) as long as the two sides' speeds differ by
 more than :data:`MIN_CHANGE` of the faster one and by :data:`SIGNIFICANCE` standard errors,
 each side holding :data:`MIN_SAMPLES` samples; each switch time is then refined between samples
-(the two pieces' continuous fit, minimised over the switch time). A speed under :data:`HOLD` of
-the fastest is a hold (0). The record's time starts at 0 at its first sample (the file's time
+(the two pieces' continuous fit, minimised over the switch time). A speed within
+:data:`SIGNIFICANCE` standard errors of 0 (or under :data:`HOLD` of the fastest) is a hold (0). The record's time starts at 0 at its first sample (the file's time
 there is kept as ``t_offset``); the fit starts from steady sliding at the first piece's speed.
 
 Refused in one line: a record with no step (one speed throughout), one that opens with a hold,
-and a load point that moves back (a piece whose speed is negative beyond its error), besides
+a load point faster than :data:`LAB_FASTEST` (a unit slip), and one that moves back (a piece whose speed is negative beyond its error), besides
 what every recording is refused for (missing or non-numeric values, times that do not increase).
 """
 
@@ -47,7 +47,7 @@ from benchmarks.physics.recording import (
 )
 
 __all__ = ["LabRecord", "read_lab_record", "lab_record_from", "find_history", "LAB_CHANNELS",
-           "MIN_SAMPLES", "MIN_CHANGE", "HOLD", "SIGNIFICANCE", "PIECE_COLUMNS"]
+           "MIN_SAMPLES", "MIN_CHANGE", "HOLD", "SIGNIFICANCE", "PIECE_COLUMNS", "LAB_FASTEST"]
 
 #: each channel of a laboratory record and its SI unit
 LAB_CHANNELS = {"time": "s", "friction": "1", "shear_force": "N", "normal_force": "N",
@@ -56,10 +56,14 @@ LAB_CHANNELS = {"time": "s", "friction": "1", "shear_force": "N", "normal_force"
 MIN_SAMPLES = 20
 #: two pieces whose speeds differ by less than this share of the faster are one (drift)
 MIN_CHANGE = 0.1
-#: a speed below this share of the fastest piece's is a hold
-HOLD = 0.02
+#: a speed within :data:`SIGNIFICANCE` standard errors of 0, or below this share of the fastest
+#: piece's (a noise-free record), is a hold
+HOLD = 1e-6
 #: two pieces' speeds must differ by this many standard errors
 SIGNIFICANCE = 10.0
+#: m/s: a load point faster than this is a unit slip (a displacement in µm read as m or mm);
+#: rate-and-state velocity steps run at 0.01 µm/s to 1 mm/s
+LAB_FASTEST = 1e-2
 #: the columns of :attr:`LabRecord.pieces`
 PIECE_COLUMNS = ("t_start_s", "t_end_s", "velocity_m_s", "velocity_se_m_s", "samples")
 
@@ -144,10 +148,10 @@ def lab_record_from(table: pd.DataFrame, columns, normal_force: float | None = N
             for channel, (column, unit) in mapping.items()}
     names = {channel: column for channel, (column, _) in mapping.items()}
     t = data["time"]
-    _check_time(t, names["time"], source)
     if window is not None:
         keep = _window(t, window, source)
         t, data = t[keep], {k: v[keep] for k, v in data.items()}
+    _check_time(t, names["time"], source)
     if "friction" in data:
         mu = data["friction"]
     else:
@@ -250,7 +254,7 @@ def _best_hinge(t, x, side: int = MIN_SAMPLES):
     j, rss, left, right, m = _hinge_fits(tt, xx, side)
     k = int(np.argmin(rss))
     cov = np.linalg.inv(m[k]) * max(rss[k], 0.0) / max(len(t) - 3, 1)
-    se = np.sqrt(max(cov[1, 1] + cov[2, 2], 0.0))        # the slopes are uncorrelated here
+    se = np.sqrt(max(cov[1, 1] + cov[2, 2] - 2.0 * cov[1, 2], 0.0))
     speed = scale_x / scale_t
     return int(j[k]), left[k] * speed, right[k] * speed, se * speed
 
@@ -261,7 +265,7 @@ def _split(t, x):
         return None
     j, v1, v2, se = _best_hinge(t, x)
     change = abs(v2 - v1)
-    if change < MIN_CHANGE * max(abs(v1), abs(v2)) or change < SIGNIFICANCE * se:
+    if change <= MIN_CHANGE * max(abs(v1), abs(v2)) or change <= SIGNIFICANCE * se:
         return None
     return j
 
@@ -342,14 +346,15 @@ def find_history(t: np.ndarray, x: np.ndarray, what: str = "the load point"):
     i = 1
     while i < len(cuts) - 1:
         v1, v2 = fits[i - 1][0], fits[i][0]
-        if abs(v2 - v1) < MIN_CHANGE * max(abs(v1), abs(v2)):
+        if abs(v2 - v1) <= MIN_CHANGE * max(abs(v1), abs(v2)):
             del cuts[i]
             fits[i - 1:i + 1] = [_line(t[cuts[i - 1]:cuts[i]], x[cuts[i - 1]:cuts[i]])]
         else:
             i += 1
     speeds = np.array([f[0] for f in fits])
     errors = np.array([f[1] for f in fits])
-    back = speeds < -SIGNIFICANCE * errors - HOLD * speeds.max(initial=0.0)
+    floor = SIGNIFICANCE * errors + HOLD * speeds.max(initial=0.0)
+    back = speeds < -floor
     if back.any():
         k = int(np.argmax(back))
         raise ValueError(f"{what} moves back at {speeds[k]:.3g} m/s from t = "
@@ -358,7 +363,11 @@ def find_history(t: np.ndarray, x: np.ndarray, what: str = "the load point"):
     fastest = speeds.max()
     if fastest <= 0:
         raise ValueError(f"{what} does not move")
-    velocities = tuple(float(v) if v >= HOLD * fastest else 0.0 for v in speeds)
+    if fastest > LAB_FASTEST:
+        raise ValueError(f"{what} moves at up to {fastest:.3g} m/s, faster than a velocity-step "
+                         f"test runs (up to {LAB_FASTEST:g} m/s): is its unit right? (a "
+                         "displacement in µm is load_point=COLUMN:um)")
+    velocities = tuple(float(v) if v > f else 0.0 for v, f in zip(speeds, floor))
     if len(velocities) == 1:
         raise ValueError(f"{what} moves at one speed throughout ({velocities[0]:.4g} m/s): "
                          "the record has no velocity step (a change of speed by more than "

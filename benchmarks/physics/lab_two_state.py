@@ -23,6 +23,7 @@ import math
 import numpy as np
 from numba import njit
 
+from integrators.own.linalg import factor, lu_solve3
 from integrators.own.rodas5p import A5P, C5P, G5P, H5P
 
 __all__ = ["two_state_friction", "LAW_CODES", "MAX_STEPS"]
@@ -72,48 +73,12 @@ def _rates(p, vl, y, f, jac, with_jac):
 
 
 @njit(cache=True, error_model="numpy")
-def _lu(m, piv):
-    """In-place LU with partial pivoting of a 3 × 3; False if singular."""
-    for k in range(3):
-        q = k
-        for i in range(k + 1, 3):
-            if abs(m[i, k]) > abs(m[q, k]):
-                q = i
-        piv[k] = q
-        if m[q, k] == 0.0:
-            return False
-        if q != k:
-            for j in range(3):
-                m[k, j], m[q, j] = m[q, j], m[k, j]
-        for i in range(k + 1, 3):
-            m[i, k] /= m[k, k]
-            for j in range(k + 1, 3):
-                m[i, j] -= m[i, k] * m[k, j]
-    return True
-
-
-@njit(cache=True, error_model="numpy")
-def _solve(m, piv, x):
-    for k in range(3):
-        q = piv[k]
-        if q != k:
-            x[k], x[q] = x[q], x[k]
-    for i in range(3):
-        for j in range(i):
-            x[i] -= m[i, j] * x[j]
-    for i in range(2, -1, -1):
-        for j in range(i + 1, 3):
-            x[i] -= m[i, j] * x[j]
-        x[i] /= m[i, i]
-
-
-@njit(cache=True, error_model="numpy")
 def _run(p, velocities, bounds, times, rtol, atol, out):
     """μ at ``times`` (within [bounds[0], bounds[-1]]) into ``out``; returns the steps taken,
     or −1 if a run failed."""
     y = np.zeros(3)
     y[0] = p[_MU0]
-    f, jac, m = np.empty(3), np.empty((3, 3)), np.empty((3, 3))
+    f, jac, m = np.empty(3), np.empty((3, 3)), np.empty((3, 3))      # m: I − hγJ, factored
     piv = np.empty(3, np.int64)
     K, u, fb, y1, D = np.empty((8, 3)), np.empty(3), np.empty(3), np.empty(3), np.empty((3, 3))
     i_out, steps = 0, 0
@@ -133,11 +98,7 @@ def _run(p, velocities, bounds, times, rtol, atol, out):
             _rates(p, vl, y, f, jac, True)
             while True:
                 hg = h * G5P
-                for i in range(3):
-                    for j in range(3):
-                        m[i, j] = -hg * jac[i, j]
-                    m[i, i] += 1.0
-                ok = _lu(m, piv)
+                ok = factor(hg, jac, m, piv)
                 for s in range(8):
                     for i in range(3):
                         acc = y[i]
@@ -154,9 +115,7 @@ def _run(p, velocities, bounds, times, rtol, atol, out):
                         for j in range(s):
                             acc += C5P[s, j] * K[j, i]
                         K[s, i] = hg * fb[i] + G5P * acc
-                    if ok:
-                        x = K[s]
-                        _solve(m, piv, x)
+                    lu_solve3(m, piv, K, s)
                 err = 0.0
                 for i in range(3):
                     y1[i] = u[i] + K[7, i]

@@ -73,7 +73,7 @@ def _flag_cases() -> list[Case]:
         "shs --slide 2 (before the reload's peak)": (("shs", "--holds", "1", "--slide", "2"),
                                                       "--slide"),
         "step --out onto a file": (("step", "--out", "{tmp}/f"), "--out"),
-        "lab (no test)": ((), "test"),
+        "lab (no test)": ((), "{step,shs,fit}"),
         "lab drop": (("drop",), "drop"),
     }
     for name, (args, names) in more.items():
@@ -347,5 +347,61 @@ def _marone_case() -> Case:
     return Case(KIND, "lab shs --holds 100: Marone's peak", run, "ok", timeout=60)
 
 
+# --- lab fit: a record in, refused in one line when it cannot be fitted -------------------------
+BASALT = (__import__("pathlib").Path(__file__).resolve().parents[2] / "data"
+          / "lab-velocity-steps" / "velstep4_BRAVA_expb819_basalt.txt")
+FIT_COLUMNS = ("--column", "time=Time(s):s", "--column", "friction=Friction", "--column",
+               "load_point=Displ(microns):um")
+
+
+def _fit_record(tmp, rows: str):
+    path = tmp / "rec.csv"
+    path.write_text("t,x,mu\n" + rows)
+    return path
+
+
+def _fit_cases() -> list[Case]:
+    def on_basalt(*extra, json_mode=False, columns=FIT_COLUMNS):
+        def run(tmp):
+            return cli_outcome(cli("lab", "fit", str(BASALT), *columns, *extra,
+                                   "--no-profiles", "--no-solver-check",
+                                   *(("--json",) if json_mode else ())), json_mode)
+        return run
+
+    def on_rows(rows, *columns):
+        def run(tmp):
+            path = _fit_record(tmp, rows)
+            return cli_outcome(cli("lab", "fit", str(path), *columns, "--no-profiles",
+                                   "--no-solver-check"))
+        return run
+
+    ramp = "".join(f"{i * 0.1},{i * 0.1},0.6\n" for i in range(400))
+    back = "".join(f"{i * 0.1},{(i if i < 200 else 400 - i) * 0.1},0.6\n" for i in range(400))
+    nan = ramp.replace("0.6\n", "\n", 1)
+    plain = ("--column", "time=t", "--column", "friction=mu", "--column", "load_point=x:um")
+    refusals = {
+        "no velocity step": (on_rows(ramp, *plain), "no velocity step"),
+        "a load point that moves back": (on_rows(back, *plain), "moves back"),
+        "a missing friction value": (on_rows(nan, *plain), "'mu'"),
+        "--weights of the wrong count": (on_basalt("--weights", "1", "1", "1"), "--weights"),
+        "--weights negative": (on_basalt("--weights", "1", "-1"), "--weights"),
+        "--window with no step": (on_basalt("--window", "11700", "11720"), "no velocity step"),
+        "--window outside the record": (on_basalt("--window", "0", "10"), "window"),
+        "--stiffness 0": (on_basalt("--stiffness", "0"), "--stiffness"),
+        "--c without nagata": (on_basalt("--c", "2"), "--c"),
+        "--states 2 with --mass": (on_basalt("--states", "2", "--mass", "1",
+                                             "--normal-force", "1e4"), "--states"),
+        "--walkers without --posterior": (on_basalt("--walkers", "10"), "--walkers"),
+        "--integrator ETD2": (on_basalt("--integrator", "ETD2"), "ETD2"),
+        "displacement read as m": (on_basalt(columns=FIT_COLUMNS[:4] + (
+            "--column", "load_point=Displ(microns)")), "unit"),
+        "--json with no step": (on_basalt("--window", "11700", "11720", json_mode=True),
+                                "no velocity step"),
+    }
+    return [Case(KIND, f"lab fit: {name}", run, "refused", names=names)
+            for name, (run, names) in refusals.items()]
+
+
 def cases() -> list[Case]:
-    return _flag_cases() + _reference_cases() + _file_cases() + _api_cases() + [_marone_case()]
+    return (_flag_cases() + _reference_cases() + _file_cases() + _api_cases()
+            + [_marone_case()] + _fit_cases())
