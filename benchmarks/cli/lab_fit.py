@@ -229,6 +229,15 @@ def _report(fit, table, profiles, check, inertia, notes, record, args) -> None:
                         for r in inertia["shifts"])
             + (" — the inertia changes the fit beyond its error bars" if inertia["matters"]
                else " — within the error bars: the quasi-static fit stands"))
+        if inertia["matters"]:
+            import pandas as pd
+            inertial = pd.DataFrame(inertia["parameters"])
+            for col in ("value", "se", "low95", "high95"):
+                inertial[col] = [_num(v, u) for v, u in zip(inertial[col], inertial.unit)]
+            inertial["unit"] = inertial.unit.replace({"m": "µm", "1/m": "1/µm", "1": ""})
+            say("the inertial fit (lab_fit.json: inertia):")
+            say(inertial[["parameter", "value", "se", "low95", "high95", "unit"]].to_string(
+                index=False))
     if args.out is not None:
         say(f"wrote lab_fit.json, lab_fit_parameters.csv, lab_fit_residuals.csv"
             f"{', lab_fit_profiles.csv' if profiles else ''}"

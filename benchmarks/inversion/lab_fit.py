@@ -473,12 +473,16 @@ def check_lab_solver(fit: LabFit) -> dict:
 def inertia_check(fit: LabFit, mass: float, normal_force: float,
                   radiation_damping: float = 0.0) -> tuple[LabFit, pd.DataFrame]:
     """Refit with the slider's ``mass`` (kg) on ``normal_force`` (N), from the quasi-static
-    ``fit``; per parameter, how far it moved in the quasi-static fit's standard errors."""
+    ``fit`` and from the record's own starts (the better kept: where the inertia matters, the
+    quasi-static fit can be far off); per parameter, how far it moved in the quasi-static fit's
+    standard errors."""
     import dataclasses
     model = dataclasses.replace(fit.model, mass=mass, normal_force=normal_force,
                                 radiation_damping=radiation_damping)
     start = {n: fit.values[n] for n in fit.free}
-    inertial = fit_lab(model, fixed=fit.fixed, weights=fit.piece_weights, start=start)
+    fits = [fit_lab(model, fixed=fit.fixed, weights=fit.piece_weights, start=start),
+            fit_lab(model, fixed=fit.fixed, weights=fit.piece_weights)]
+    inertial = min(fits, key=lambda f: f.rss if np.isfinite(f.rss) else np.inf)
     rows = []
     for n in fit.free:
         u0 = math.log(fit.values[n]) if n in _LOG else fit.values[n]

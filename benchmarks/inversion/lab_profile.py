@@ -126,6 +126,9 @@ def profile_lab(fit: LabFit, parameter: str, level: float = CHI2_95_1DOF) -> Lab
             if d - delta < 0.25 * (level - d):
                 step *= 2.0
             u, delta, start = u_next, d, start_next
+        # a crossing on the bound itself is the bound's (a refit there can fail), not the data's
+        if found is not None and abs(found - limit) <= 1e-4 * (bounds[1] - bounds[0]):
+            found = None
         ends.append(found if found is not None else limit)
         closed.append(found is not None)
     solves = counter["solves"]
