@@ -14,11 +14,12 @@ import pandas as pd
 import pytest
 
 from benchmarks.devtools.lab_reference import reference_friction, synthetic_record
-from benchmarks.inversion.lab_fit import (BOUNDS, LabFitWarning, check_lab_solver, fit_lab,
-                                          inertia_check)
+from benchmarks.inversion.lab_checks import check_lab_solver, inertia_check
+from benchmarks.inversion.lab_fit import BOUNDS, LabFitWarning, fit_lab
 from benchmarks.inversion.lab_profile import profile_lab
 from benchmarks.physics.lab_model import LabModel
-from benchmarks.physics.lab_record import find_history, lab_record_from
+from benchmarks.physics.lab_history import find_history
+from benchmarks.physics.lab_record import lab_record_from
 
 #: two real records, copied with their licence and source from the shared data (README there)
 DATA = Path(__file__).resolve().parent / "data" / "lab-velocity-steps"

@@ -90,7 +90,8 @@ def _check_flags(args) -> None:
 
 
 def cmd_lab_fit(args) -> int:
-    from benchmarks.inversion.lab_fit import check_lab_solver, fit_lab, inertia_check
+    from benchmarks.inversion.lab_checks import check_lab_solver, inertia_check
+    from benchmarks.inversion.lab_fit import fit_lab
     from benchmarks.inversion.lab_profile import profile_lab
     from benchmarks.records.provenance import provenance, version_line
     from benchmarks.records.report import jsonable

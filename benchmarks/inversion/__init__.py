@@ -10,8 +10,9 @@ the posterior on a grid refined where its mass is (:mod:`~benchmarks.inversion.a
 sampled with emcee (:mod:`~benchmarks.inversion.posterior`), the forward model on a
 grid and the posteriors and profiles of any data set on it (:mod:`~benchmarks.inversion.grid`).
 Laboratory velocity steps and slide-hold-slide records: the least-squares fit of (a, b, Dc, k′)
-(:mod:`~benchmarks.inversion.lab_fit`), its profiles (:mod:`~benchmarks.inversion.lab_profile`)
-and posterior (:mod:`~benchmarks.inversion.lab_posterior`).
+(:mod:`~benchmarks.inversion.lab_fit`), its profiles (:mod:`~benchmarks.inversion.lab_profile`),
+posterior (:mod:`~benchmarks.inversion.lab_posterior`) and checks
+(:mod:`~benchmarks.inversion.lab_checks`).
 Built on them: one inversion end to end (:mod:`~benchmarks.inversion.invert`), the coverage of
 the 95 % regions (:mod:`~benchmarks.inversion.calibration`), the solver's effect on the
 inference (:mod:`~benchmarks.studies.solver_effect`) and the reproduce steps' studies
@@ -22,7 +23,8 @@ from benchmarks.inversion.curve_likelihood import CurveLikelihood
 from benchmarks.inversion.fit import FitResult, fit
 from benchmarks.inversion.fitting import NO_CYCLE_J1, NO_CYCLE_RESIDUAL, Scores, scores
 from benchmarks.inversion.grid import GridPosterior, MetricMap, box_grid, metric_map
-from benchmarks.inversion.lab_fit import LabFit, check_lab_solver, fit_lab, inertia_check
+from benchmarks.inversion.lab_checks import check_lab_solver, inertia_check
+from benchmarks.inversion.lab_fit import LabFit, fit_lab
 from benchmarks.inversion.lab_posterior import LabPosterior, sample_lab
 from benchmarks.inversion.lab_profile import LabProfile, profile_lab
 from benchmarks.inversion.misfit import Misfit, synthetic

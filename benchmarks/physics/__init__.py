@@ -5,7 +5,8 @@ slide-hold-slide test (:mod:`~benchmarks.physics.lab`), slip-weakening curves
 of one run (:mod:`~benchmarks.physics.summary`), and a laboratory recording: read and checked
 (:mod:`~benchmarks.physics.recording`), measured (:mod:`~benchmarks.physics.record_analysis`),
 or made by the forward model (:mod:`~benchmarks.physics.model_recording`); a laboratory
-velocity-step record read for a fit, its history found (:mod:`~benchmarks.physics.lab_record`),
+velocity-step record read for a fit (:mod:`~benchmarks.physics.lab_record`), its history found
+(:mod:`~benchmarks.physics.lab_history`),
 and the fit's forward model (:mod:`~benchmarks.physics.lab_model`, with two state variables
 :mod:`~benchmarks.physics.lab_two_state`). Nothing here reads a save grid for a measure."""
 

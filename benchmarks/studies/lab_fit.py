@@ -115,7 +115,8 @@ NORMAL_FORCE = 1e4
 
 
 def _inertia() -> list[dict]:
-    from benchmarks.inversion.lab_fit import LabFitWarning, fit_lab, inertia_check
+    from benchmarks.inversion.lab_checks import inertia_check
+    from benchmarks.inversion.lab_fit import LabFitWarning, fit_lab
     from benchmarks.physics.lab_model import LabModel
     from benchmarks.physics.lab_record import lab_record_from
     rows = []
@@ -144,7 +145,8 @@ def _inertia() -> list[dict]:
 
 
 def _real(root: Path, out: Path) -> list[dict]:
-    from benchmarks.inversion.lab_fit import LabFitWarning, check_lab_solver, fit_lab
+    from benchmarks.inversion.lab_checks import check_lab_solver
+    from benchmarks.inversion.lab_fit import LabFitWarning, fit_lab
     from benchmarks.inversion.lab_profile import profile_lab
     from benchmarks.physics.lab_model import LabModel
     from benchmarks.physics.lab_record import read_lab_record

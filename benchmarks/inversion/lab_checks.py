@@ -1,0 +1,82 @@
+"""The checks of a laboratory fit: is its integrator accurate enough for this record
+(:func:`check_lab_solver`), and does the slider's inertia change the answer
+(:func:`inertia_check`)?
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+from benchmarks.inversion.lab_fit import _LOG, LabFit, fit_lab
+
+__all__ = ["check_lab_solver", "inertia_check", "CHECK_REFERENCES"]
+
+#: the reference pair of the solver check: (name, rtol = atol), two independent libraries
+CHECK_REFERENCES = (("Rodas5P", 1e-12), ("scipy-Radau", 1e-12))
+
+
+def _references(fit: LabFit, p: dict):
+    """μ − μ0 at the best fit by two independent solvers, and their names."""
+    model, rec = fit.model, fit.model.record
+    if model.states == 2:
+        from benchmarks.devtools.lab_reference import reference_friction
+        from benchmarks.physics.lab_model import LAB_MU0
+        own, _ = model.response(**p, rtol=1e-12)
+        ref = reference_friction(rec.t, rec.velocities, rec.switch_times, p["a"], p["b"],
+                                 p["dc"], p["k"], law=model.law, c=p.get("c", 2.0),
+                                 b2=p["b2"], dc2=p["dc2"], mu0=LAB_MU0, rtol=1e-11,
+                                 atol=1e-13) - LAB_MU0
+        return [own, ref], ["the two-state model at 1e-12", "scipy-Radau (an independent "
+                            "model of the published equations) at 1e-11"]
+    from integrators import make_algorithm
+    refs = [model.response(**p, algorithm=make_algorithm(name, rtol=tol, atol=tol))[0]
+            for name, tol in CHECK_REFERENCES]
+    return refs, [f"{n} at {t:g}" for n, t in CHECK_REFERENCES]
+
+
+def check_lab_solver(fit: LabFit) -> dict:
+    """Is the fit's integrator accurate enough for this record? μ(t) at the best fit against
+    two independent references (:data:`CHECK_REFERENCES`; with two states, the two-state model
+    at 1e-12 and scipy's Radau on the published equations), which must agree to σ/100 of the
+    record's noise; the fit's own error must be under σ/10 (σ the fit's residual scatter).
+    Returns the errors (in σ) and ``passed``; a reference pair that does not agree says so
+    (``references_agree`` False)."""
+    p = {n: fit.values[n] for n in fit.model.parameters}
+    own, _ = fit.model.response(**p)
+    refs, names = _references(fit, p)
+    sigma = fit.sigma
+    agree = float(np.max(np.abs(refs[0] - refs[1]))) / sigma
+    error = float(np.max(np.abs(own - refs[0]))) / sigma
+    algorithm = fit.model.algorithm
+    return {"integrator": algorithm.name if algorithm is not None else "the two-state model",
+            "options": algorithm.options() if algorithm is not None else {"rtol": 1e-10,
+                                                                           "atol": 1e-10},
+            "references": names, "references_disagree_sigma": agree,
+            "references_agree": bool(agree <= 0.01), "error_sigma": error,
+            "passed": bool(error <= 0.1 and agree <= 0.01)}
+
+
+def inertia_check(fit: LabFit, mass: float, normal_force: float,
+                  radiation_damping: float = 0.0) -> tuple[LabFit, pd.DataFrame]:
+    """Refit with the slider's ``mass`` (kg) on ``normal_force`` (N), from the quasi-static
+    ``fit`` and from the record's own starts (the better kept: where the inertia matters, the
+    quasi-static fit can be far off); per parameter, how far it moved in the quasi-static fit's
+    standard errors."""
+    import dataclasses
+    model = dataclasses.replace(fit.model, mass=mass, normal_force=normal_force,
+                                radiation_damping=radiation_damping)
+    start = {n: fit.values[n] for n in fit.free}
+    fits = [fit_lab(model, fixed=fit.fixed, weights=fit.piece_weights, start=start),
+            fit_lab(model, fixed=fit.fixed, weights=fit.piece_weights)]
+    inertial = min(fits, key=lambda f: f.rss if np.isfinite(f.rss) else np.inf)
+    rows = []
+    for n in fit.free:
+        u0 = math.log(fit.values[n]) if n in _LOG else fit.values[n]
+        u1 = math.log(inertial.values[n]) if n in _LOG else inertial.values[n]
+        rows.append({"parameter": n, "quasi_static": fit.values[n],
+                     "inertial": inertial.values[n], "shift_se": (u1 - u0) / fit.se(n)})
+    table = pd.DataFrame(rows)
+    return inertial, table
