@@ -69,10 +69,18 @@ def run_segments(problem, solver: SegmentSolver, output, budget, progress,
     """Integrate ``problem`` to t_end with ``solver``; see the module docstring."""
     nd = problem.nondimensional()
     two_speed = nd.two_speed
-    grid_s = output.times(problem.t_end)
-    grid = grid_s / nd.time_scale
-    if grid_s[-1] == problem.t_end:
-        grid[-1] = nd.tau_end
+    given = output.save_at is not None
+    if given:
+        grid_s = output.times(problem.t_end)
+        grid = grid_s / nd.time_scale
+        if grid_s[-1] == problem.t_end:
+            grid[-1] = nd.tau_end
+    else:
+        # every save_dtau by repeated addition, as the targets have always been (a target one
+        # rounding off moves a library's steps, and with them what its runs are on record as)
+        save_dtau = output.interval(problem.t_end) / nd.time_scale
+        count = int(math.ceil(nd.tau_end / save_dtau)) + 2
+        grid = np.concatenate(([0.0], np.cumsum(np.full(count, save_dtau))))
     unasked = grid[0] > 0.0             # the start is kept as the first saved point, then dropped
     grid = np.append(grid, np.inf)
     z = to_ode_state(nd.law_code, nd.beta, nd.x0)
@@ -107,7 +115,7 @@ def run_segments(problem, solver: SegmentSolver, output, budget, progress,
             rec.observe(float(z[0]))
             if tau >= grid[i_save] - tiny:
                 # a save time as it was asked for (τ and back is not exact)
-                saved_t.append(grid_s[i_save] if tau <= grid[i_save] + tiny
+                saved_t.append(grid_s[i_save] if given and tau <= grid[i_save] + tiny
                                else tau * nd.time_scale)
                 saved_z.append(z.copy())
                 while grid[i_save] <= tau + tiny:
@@ -127,8 +135,7 @@ def run_segments(problem, solver: SegmentSolver, output, budget, progress,
                 break
     if progress:
         progress(tau * nd.time_scale)
-    if saved_t[-1] < tau * nd.time_scale and (output.save_at is None
-                                              or retcode is not ReturnCode.SUCCESS):
+    if saved_t[-1] < tau * nd.time_scale and (not given or retcode is not ReturnCode.SUCCESS):
         saved_t.append(tau * nd.time_scale)
         saved_z.append(z)
     if unasked:
