@@ -347,7 +347,8 @@ def add_parser(tests) -> None:
                    help="the slider's mass in kg: fit the inertial slider too and say whether "
                         "it moves the fit beyond its error bars (default: quasi-static only)")
     p.add_argument("--radiation-damping", type=non_negative, metavar="N_S_PER_M",
-                   help="radiation damping in N s/m, with --mass (default: 0)")
+                   help="radiation damping in N s/m: the check refits the damped (and, with "
+                        "--mass, inertial) slider too (default: 0)")
     p.add_argument("--integrator", metavar="NAME",
                    help=f"registry name of a method with dense output (default: "
                         f"{DEFAULT_ALGORITHM[0]})")
