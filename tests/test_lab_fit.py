@@ -360,9 +360,23 @@ def test_the_command_fits_a_real_basalt_step(tmp_path):
     assert doc["git_commit"] and doc["command"].startswith("rsfbench lab fit")
     assert doc["sha256"] and doc["tool"].startswith("rsfbench")
     table = pd.read_csv(tmp_path / "lab_fit_parameters.csv")
-    assert {"parameter", "value", "se", "low95", "high95", "profile_low95"} <= set(table)
+    assert {"parameter", "value", "se", "wald_low95", "wald_high95", "profile_low95",
+            "profile_low_closed", "kind"} <= set(table)
     residuals = pd.read_csv(tmp_path / "lab_fit_residuals.csv")
     assert len(residuals) == 5849 and (tmp_path / "lab_fit.png").stat().st_size > 10_000
+
+
+def test_a_profile_is_open_where_the_model_fails_or_another_parameter_is_boxed():
+    """The Nagata law on the basalt step: a and c stand in for each other (its jump is
+    a ln(v2/v1)/(1 + c)), the least squares land at a ≈ 0.33, c ≈ 38; a's profile is flat until
+    the model fails below and b reaches its bound above. Both sides are open, and the note
+    says so (found by a newcomer: the failed solves and b's bound counted as rises)."""
+    rec = lab_record_from(pd.read_csv(BASALT, sep="\t"), REAL_COLUMNS)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LabFitWarning)
+        fit = fit_lab(LabModel(rec, "nagata"))
+    prof = profile_lab(fit, "a")
+    assert prof.closed == (False, False) and "does not bound a" in prof.note
 
 
 def test_a_failed_solver_check_is_a_failed_command():

@@ -16,13 +16,12 @@ import json
 import math
 from pathlib import Path
 
-import numpy as np
-
 from benchmarks.cli.args import in_file, non_negative, out_dir, positive, say
 
 __all__ = ["add_parser"]
 
-PROFILED = ("a", "b", "dc")
+#: the parameters profiled (those fitted): the friction's, not the machine's k′
+PROFILED = ("a", "b", "dc", "c", "b2", "dc2")
 
 
 def _record(args):
@@ -118,7 +117,7 @@ def cmd_lab_fit(args) -> int:
     notes = [str(w.message) for w in caught if issubclass(w.category, LabFitWarning)]
     profiles = {}
     if not args.no_profiles:
-        for name in (n for n in PROFILED + ("b2", "dc2") if n in fit.free):
+        for name in (n for n in PROFILED if n in fit.free):
             profiles[name] = profile_lab(fit, name)
             if profiles[name].note:
                 notes.append(profiles[name].note)
@@ -135,7 +134,11 @@ def cmd_lab_fit(args) -> int:
             inertial, shifts = inertia_check(fit, args.mass or 0.0, args.normal_force,
                                              args.radiation_damping or 0.0)
         moved = shifts[shifts.shift_se.abs() > 1.0]
+        k_n_per_m = fit.values["k"] * args.normal_force
+        period = 2 * math.pi * math.sqrt((args.mass or 0.0) / k_n_per_m)
+        fastest = max(record.velocities)
         inertia = {"mass_kg": args.mass or 0.0, "normal_force_N": args.normal_force,
+                   "period_s": period, "dc_time_s": fit.values["dc"] / fastest,
                    "radiation_damping_N_s_per_m": args.radiation_damping or 0.0,
                    "shifts": shifts.to_dict(orient="records"),
                    "matters": bool(len(moved)),
@@ -144,6 +147,7 @@ def cmd_lab_fit(args) -> int:
     for name, prof in profiles.items():
         i = table.index[table.parameter == name][0]
         table.loc[i, "profile_low95"], table.loc[i, "profile_high95"] = prof.interval
+        table.loc[i, "profile_low_closed"], table.loc[i, "profile_high_closed"] = prof.closed
     if posterior is not None:
         for name, (low, median, high) in posterior.quantiles.items():
             i = table.index[table.parameter == name][0]
@@ -208,24 +212,38 @@ def _report(fit, table, profiles, check, inertia, notes, record, args) -> None:
         f"{args.detrend}: {fit.solves} solves, {fit.wall_s:.2f} s"
         + ("" if fit.success else f" — the fit did not converge: {fit.message}"))
     shown = table.copy()
-    for col in ("value", "se", "low95", "high95", "profile_low95", "profile_high95",
+    for col in ("value", "se", "wald_low95", "wald_high95", "profile_low95", "profile_high95",
                 "posterior_low95", "posterior_median", "posterior_high95"):
         if col in shown:
             shown[col] = [_num(v, u) for v, u in zip(shown[col], shown.unit)]
+    for side in ("low", "high"):        # an open end is the bound, not an interval's end
+        if f"profile_{side}_closed" in shown:
+            col = shown[f"profile_{side}95"].astype(object)
+            open_end = shown[f"profile_{side}_closed"] == False  # noqa: E712 (NaN: not profiled)
+            shown[f"profile_{side}95"] = [f"{v} open" if o else v for v, o in zip(col, open_end)]
+            shown = shown.drop(columns=f"profile_{side}_closed")
     shown["unit"] = shown.unit.replace({"m": "µm", "1/m": "1/µm", "1": ""})
-    say(shown.drop(columns=["fitted"]).to_string(index=False))
-    say(f"noise: σ = {fit.sigma:.3g} (residual scatter), lag-1 autocorrelation ρ = "
-        f"{fit.rho:.3f}: errors inflated ×{math.sqrt(fit.inflation):.3g} (AR(1) noise)")
+    say(shown.to_string(index=False))
+    say(f"noise: σ = {fit.sigma:.3g} (the residuals' scatter), their lag-1 autocorrelation "
+        f"ρ = {fit.rho:.3f} (taken as 0 if negative): AR(1) noise, so the variances are "
+        f"inflated ×{fit.inflation:.3g} and the standard errors ×{math.sqrt(fit.inflation):.3g}; "
+        "Wald intervals are value ± 1.96 se, profile ones where the squares rise by 3.84 f σ² "
+        "(trust the profile where they differ; an open end is the parameter's bound)")
     for note in notes:
         say(f"note: {note}")
     if check is not None:
-        say(f"solver check: {check['integrator']} is {check['error_sigma']:.2g} σ from "
-            f"{check['references'][0]}, whose gap to {check['references'][1]} is "
-            f"{check['references_disagree_sigma']:.2g} σ: "
-            + ("passed (≤ 0.1 σ)" if check["passed"] else
-               "FAILED: tighten --rtol or choose another --integrator"))
+        if not check["checked"]:
+            say(f"solver check: not run: {check['reason']}")
+        else:
+            say(f"solver check: {check['integrator']} is {check['error_sigma']:.2g} σ from "
+                f"{check['references'][0]}, whose gap to {check['references'][1]} is "
+                f"{check['references_disagree_sigma']:.2g} σ: "
+                + ("passed (≤ 0.1 σ)" if check["passed"] else
+                   "FAILED: tighten --rtol or choose another --integrator"))
     if inertia is not None:
-        say(f"with the mass ({inertia['mass_kg']:g} kg on {inertia['normal_force_N']:g} N): "
+        say(f"with the mass ({inertia['mass_kg']:g} kg on {inertia['normal_force_N']:g} N: a "
+            f"period 2π√(m/k) of {inertia['period_s']:.3g} s against {inertia['dc_time_s']:.3g} "
+            "s to slip one Dc at the fastest speed): "
             + ", ".join(f"{r['parameter']} moves {r['shift_se']:+.2g} s.e."
                         for r in inertia["shifts"])
             + (" — the inertia changes the fit beyond its error bars" if inertia["matters"]
@@ -233,11 +251,12 @@ def _report(fit, table, profiles, check, inertia, notes, record, args) -> None:
         if inertia["matters"]:
             import pandas as pd
             inertial = pd.DataFrame(inertia["parameters"])
-            for col in ("value", "se", "low95", "high95"):
+            for col in ("value", "se", "wald_low95", "wald_high95"):
                 inertial[col] = [_num(v, u) for v, u in zip(inertial[col], inertial.unit)]
             inertial["unit"] = inertial.unit.replace({"m": "µm", "1/m": "1/µm", "1": ""})
             say("the inertial fit (lab_fit.json: inertia):")
-            say(inertial[["parameter", "value", "se", "low95", "high95", "unit"]].to_string(
+            say(inertial[["parameter", "value", "se", "wald_low95", "wald_high95",
+                          "unit"]].to_string(
                 index=False))
     if args.out is not None:
         say(f"wrote lab_fit.json, lab_fit_parameters.csv, lab_fit_residuals.csv"
@@ -272,39 +291,43 @@ def _write(out: Path, fit, table, profiles, doc) -> None:
 
 
 def _plot(fit, profiles, path: Path) -> None:
+    """Data and fit, residuals (against the load point), and each profile in its own panel."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from benchmarks.inversion.lab_fit import _LOG
     rec = fit.model.record
-    n = 2 + bool(profiles)
-    fig, axes = plt.subplots(n, 1, figsize=(8, 2.8 * n), squeeze=False)
+    cols = max(len(profiles), 1)
+    fig = plt.figure(figsize=(max(8, 2.6 * cols), 7.6 if profiles else 5.6))
+    grid = fig.add_gridspec(3 if profiles else 2, cols, height_ratios=[3, 1.4, 2][:2 + bool(
+        profiles)])
     x = rec.load_point * 1e6
-    ax = axes[0, 0]
+    ax = fig.add_subplot(grid[0, :])
+    states = "" if fit.model.states == 1 else ", two state variables"
     ax.plot(x, rec.mu, lw=0.5, color="0.6", label="record")
-    ax.plot(x, fit.mu_model, lw=1.2, color="C3", label=f"fit ({fit.model.law} law)")
+    ax.plot(x, fit.mu_model, lw=1.2, color="C3", label=f"fit ({fit.model.law} law{states})")
     for s in rec.switch_times:
         ax.axvline(float(x[min(int((rec.t < s).sum()), len(x) - 1)]), color="k", lw=0.5, ls=":")
     ax.set_ylabel("μ")
     ax.legend(fontsize=8)
-    ax = axes[1, 0]
+    ax = fig.add_subplot(grid[1, :])
     ax.plot(x, rec.mu - fit.mu_model, lw=0.5, color="C0")
     ax.axhline(0, color="k", lw=0.5)
     ax.set_ylabel("residual")
     ax.set_xlabel("load-point displacement (µm)")
-    if profiles:
-        ax = axes[2, 0]
-        from benchmarks.inversion.lab_fit import _LOG
-        for name, prof in profiles.items():
-            v = prof.points[name].to_numpy()
-            u = np.log(v / prof.value) if name in _LOG else v - prof.value
-            se = fit.se(name)
-            ax.plot(u / se if se > 0 else u, prof.points.delta, "o-", ms=3, label=name)
-        ax.set_xlim(-8, 8)
-        ax.set_xlabel("change from the best fit, in standard errors (of ln Dc for Dc)")
+    for j, (name, prof) in enumerate(profiles.items()):
+        ax = fig.add_subplot(grid[2, j])
+        scale = 1e6 if name in ("dc", "dc2") else 1.0
+        ax.plot(prof.points[name] * scale, prof.points.delta, "o-", ms=2.5, color="C2")
         ax.axhline(3.841, color="k", lw=0.5, ls="--")
-        ax.set_ylabel("Δ squares / (f σ²)")
+        ax.axvline(prof.value * scale, color="C3", lw=0.6)
+        if name in _LOG:
+            ax.set_xscale("log")
         ax.set_ylim(0, 10)
-        ax.legend(fontsize=8)
+        ax.set_xlabel(f"{name}{' (µm)' if scale != 1.0 else ''}", fontsize=8)
+        ax.tick_params(labelsize=7)
+        if j == 0:
+            ax.set_ylabel("Δ squares / (f σ²)", fontsize=8)
     fig.suptitle(Path(rec.source).name, fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
@@ -318,9 +341,10 @@ def add_parser(tests) -> None:
     p.add_argument("recording", type=in_file, metavar="RECORDING",
                    help="the record: CSV, TSV, TXT or Parquet (required)")
     p.add_argument("--column", action="append", default=[], metavar="CHANNEL=COLUMN[:UNIT]",
-                   help="a column and its unit (repeatable; required): time (s), friction "
-                        "(μ) or shear_force (N), load_point (m, mm, um) or load_velocity "
-                        "(m/s, um/s); the unit defaults to SI")
+                   help="a column and its unit (repeatable; required): time (s, ms, us), "
+                        "friction (μ) or shear_force (N, kN, MN), load_point (m, mm, um, nm) or "
+                        "load_velocity (m/s, mm/s, um/s; held over each sample interval); the "
+                        "unit defaults to SI")
     p.add_argument("--normal-force", type=positive, metavar="N",
                    help="the normal force in N, for a shear_force column or the inertial "
                         "slider (default: none)")
@@ -357,7 +381,7 @@ def add_parser(tests) -> None:
                         f"{DEFAULT_ALGORITHM[1]:g})")
     p.add_argument("--posterior", action="store_true",
                    help="sample the posterior with emcee too (the inversion extra; uniform "
-                        "prior in a, b, c, ln Dc, ln k′ within the fit's bounds)")
+                        "prior in a, b, c, b2, ln Dc, ln k′, ln Dc2 within the fit's bounds)")
     p.add_argument("--walkers", type=int, default=32,
                    help="emcee walkers, with --posterior (default: 32)")
     p.add_argument("--steps", type=int, default=600,

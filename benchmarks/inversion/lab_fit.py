@@ -38,8 +38,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-__all__ = ["LabFit", "fit_lab", "LabFitWarning", "starting_values", "BOUNDS", "FD_STEP", "DC_STARTS",
-           "Z95", "CHI2_95_1DOF", "SETTLE_DC", "PARAMETER_UNITS", "covariance", "RANK_TOL"]
+__all__ = ["LabFit", "fit_lab", "LabFitWarning", "starting_values", "BOUNDS", "FD_STEP",
+           "DC_STARTS", "Z95", "CHI2_95_1DOF", "SETTLE_DC", "PARAMETER_UNITS", "covariance",
+           "RANK_TOL", "DC_LONGEST"]
 
 #: each nonlinear parameter's bounds in its own unit (a, b, c dimensionless; dc m; k 1/m)
 BOUNDS = {"a": (1e-5, 0.5), "b": (0.0, 0.5), "dc": (1e-9, 0.1), "k": (1.0, 1e10),
@@ -73,7 +74,8 @@ class LabFit:
     """A least-squares fit (module docstring). ``values`` holds every parameter (fitted or
     fixed, and a − b, μ_ref, the trend's slopes); ``free`` the fitted nonlinear ones;
     ``covariance`` is over ``free`` in the fitted coordinates (ln for Dc and k′); ``table()``
-    has values, standard errors and 95 % Wald intervals."""
+    has values, standard errors and 95 % Wald intervals (within the bounds), and whether each
+    is fitted, derived (a − b) or fixed."""
 
     model: object
     free: tuple
@@ -139,12 +141,14 @@ class LabFit:
         rows = []
         for n in names:
             low, high = self.interval(n)
-            fitted = n in self.free or n in self.linear or (n == "a_minus_b" and "a" in self.free)
+            kind = ("fitted" if n in self.free or n in self.linear else
+                    "derived" if n == "a_minus_b" and {"a", "b"} & set(self.free) else "fixed")
+            known = kind != "fixed"
             se = self.se(n) * (self.values[n] if n in _LOG else 1.0)
-            rows.append({"parameter": n, "value": self.values[n], "se": se if fitted else 0.0,
-                         "low95": low if fitted else math.nan,
-                         "high95": high if fitted else math.nan,
-                         "unit": PARAMETER_UNITS.get(n, "1/m"), "fitted": fitted,
+            rows.append({"parameter": n, "value": self.values[n], "se": se if known else 0.0,
+                         "wald_low95": low if known else math.nan,
+                         "wald_high95": high if known else math.nan,
+                         "unit": PARAMETER_UNITS.get(n, "1/m"), "kind": kind,
                          "at_bound": n in self.at_bound})
         return pd.DataFrame(rows)
 
@@ -385,6 +389,16 @@ def _result(prob, res, wall_s) -> LabFit:
     return fit
 
 
+def _shown(name: str) -> tuple[float, str]:
+    """(factor, unit) of a parameter as a laboratory reads it: lengths in µm, k′ per µm."""
+    return {"m": (1e6, "µm"), "1/m": (1e-6, "per µm")}.get(PARAMETER_UNITS.get(name, "1"),
+                                                          (1.0, ""))
+
+
+#: m: a fitted Dc longer than this is no laboratory evolution distance (a unit slip)
+DC_LONGEST = 1e-3
+
+
 def _notes(fit: LabFit, lo, hi) -> None:
     """The fit's warnings: a parameter the data do not determine or at a bound, a piece too
     short to show the evolution, a Dc below the sampling."""
@@ -397,11 +411,24 @@ def _notes(fit: LabFit, lo, hi) -> None:
     for name in fit.at_bound:
         l, h = BOUNDS[name]
         side = "lower" if abs(fit.values[name] - l) <= abs(fit.values[name] - h) else "upper"
-        fit.notes.append(f"{name} = {fit.values[name]:.4g} {PARAMETER_UNITS[name]} is at its "
-                         f"{side} bound ({l if side == 'lower' else h:g}): the record does not "
+        scale, unit = _shown(name)
+        fit.notes.append(f"{name} = {fit.values[name] * scale:.4g} {unit} is at its {side} "
+                         f"bound ({(l if side == 'lower' else h) * scale:g}): the record does not "
                          f"determine it there; its interval is not a confidence interval")
     rec = fit.model.record
     dc = fit.values["dc"]
+    if not np.isfinite(fit.sigma):
+        fit.notes.append("the forward model failed at the fit's end: if the record opens in a "
+                         "transient (just after a step), start it (--window) in steady "
+                         "sliding, where the model starts")
+    elif not fit.success:
+        fit.notes.append(f"the fit did not converge ({fit.message}): its values are where it "
+                         "stopped, not a minimum")
+    for name in ("dc", "dc2"):
+        if fit.values.get(name, 0.0) > DC_LONGEST:
+            fit.notes.append(f"{name} = {fit.values[name] * 1e6:.4g} µm is longer than any "
+                             f"laboratory evolution distance (under {DC_LONGEST * 1e6:g} µm): "
+                             "is the load point's unit right (load_point=COLUMN:um, :mm)?")
     moving = [v for v in rec.velocities if v > 0]
     per_sample = max(moving) * float(np.median(np.diff(rec.t)))
     if dc < per_sample:

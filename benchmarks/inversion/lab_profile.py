@@ -3,15 +3,17 @@ fit, refit the others, and find where the squares have risen by χ²₁(95 %) = 
 variances (the fit's f σ², :mod:`benchmarks.inversion.lab_fit`).
 
 Each side walks out from the best fit in the fitted coordinate (a, b, c as they are; ln Dc,
-ln k′), starting at one Wald standard error (at most a twentieth of the parameter's range), each refit
-started from the previous one; a step grows ×2 while the rise per step is under a quarter of
-what is left. A bracket whose rise is over twice the level is halved (:data:`BISECTIONS` at
-most) until it is not, and the crossing is interpolated in the signed root √Δ (linear in the
-parameter for a quadratic profile). A side that
-reaches its bound of :data:`~benchmarks.inversion.lab_fit.BOUNDS`, or :data:`MAX_POINTS` points,
-without the rise is open (``inf`` or the bound, and ``closed`` False). The profile interval
-differs from the Wald interval where the squares are not quadratic: Dc of a short step, a and b
-when their difference is what the record holds.
+ln k′), starting at one Wald standard error (at most a twentieth of the parameter's range),
+each refit started from the previous one; a step grows ×2 while the rise per step is under a
+quarter of what is left. A bracket whose rise is over twice the level is halved
+(:data:`BISECTIONS` at most) until it is not, and the crossing is interpolated in the signed
+root √Δ (linear in the parameter for a quadratic profile). A side that reaches its bound of
+:data:`~benchmarks.inversion.lab_fit.BOUNDS`, or :data:`MAX_POINTS` points, without the rise is
+open (the bound, and ``closed`` False); so is a side where the forward model fails, or where
+the squares rise only because another parameter's refit is held at its bound (its end is the
+last point before: no rise is known past it; Δ is NaN in ``points``). The profile
+interval differs from the Wald interval where the squares are not quadratic: Dc of a short
+step, a and b when their difference is what the record holds.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from benchmarks.inversion.lab_fit import _LOG, CHI2_95_1DOF, LabFit, _Problem
+from benchmarks.inversion.lab_fit import _LOG, CHI2_95_1DOF, LabFit, _Problem, _shown
 
 __all__ = ["LabProfile", "profile_lab", "MAX_POINTS"]
 
@@ -52,12 +54,14 @@ class LabProfile:
         sides = [s for s, c in zip(("below", "above"), self.closed) if not c]
         if not sides:
             return ""
-        ends = " and ".join(f"{s} (to {e:.4g})" for s, e, c in
+        scale, unit = _shown(self.parameter)
+        ends = " and ".join(f"{s} (to {e * scale:.4g}{' ' + unit if unit else ''})" for s, e, c in
                             zip(("below", "above"), self.interval, self.closed) if not c)
-        return (f"{self.parameter}: the squares do not rise by {CHI2_95_1DOF:.2f} noise variances "
-                f"{ends}: the record does not bound {self.parameter} there, whatever its "
-                "standard error says (a step shorter than the evolution distance, or a "
-                "parameter the others can stand in for)")
+        return (f"{self.parameter}: no rise of the squares by {CHI2_95_1DOF:.2f} noise variances "
+                f"is found {ends} (they stay flat up to a bound, another parameter's refit "
+                "reaches its bound, or the model fails beyond): the record does not bound "
+                f"{self.parameter} there, whatever its standard error says (a step shorter "
+                "than the evolution distance, or parameters that stand in for each other)")
 
 
 def profile_lab(fit: LabFit, parameter: str, level: float = CHI2_95_1DOF) -> LabProfile:
@@ -80,18 +84,21 @@ def profile_lab(fit: LabFit, parameter: str, level: float = CHI2_95_1DOF) -> Lab
     counter = {"solves": 0}
 
     def rise(u, start):
-        """Δ at the parameter's coordinate u, and the others' refit (from ``start``)."""
+        """Δ at the parameter's coordinate u, and the others' refit (from ``start``); NaN where
+        the forward model failed at the refit's end (no rise is known there)."""
         fixed = dict(fit.fixed)
         fixed[parameter] = math.exp(u) if parameter in _LOG else u
         prob = _Problem(fit.model, others, fixed, fit.piece_weights)
+        x = np.empty(0)
         if others:
             res = prob.solve(prob.coordinates(start), max_nfev=60)
-            rss, start = 2.0 * res.cost, prob.params(res.x)
-        else:
-            r = prob.residual(np.empty(0))
-            rss = float(r @ r)
+            x, start = res.x, prob.params(res.x)
+        r = prob.residual(x)
+        failed = not np.isfinite(prob.g(x)).all()
         counter["solves"] += prob.solves
-        d = max((rss - fit.rss) / scale, 0.0)
+        d = math.nan if failed else max((float(r @ r) - fit.rss) / scale, 0.0)
+        if others and d >= level and _boxed(prob, x):
+            d = math.nan              # a rise made by another parameter's bound, not the data
         rows.append((u, d))
         return d, start
 
@@ -106,20 +113,11 @@ def profile_lab(fit: LabFit, parameter: str, level: float = CHI2_95_1DOF) -> Lab
             if at_limit:
                 u_next = limit
             d, start_next = rise(u_next, start)
+            if math.isnan(d):            # the model failed there: the side is open from here
+                limit = u
+                break
             if d >= level:
-                # a long jump over a profile that is not quadratic: halve the bracket until
-                # the rise across it is moderate, then interpolate
-                lo_u, lo_d, lo_start, hi_u, hi_d = u, delta, start, u_next, d
-                for _ in range(BISECTIONS):
-                    if hi_d <= 2.0 * level:
-                        break
-                    mid = 0.5 * (lo_u + hi_u)
-                    d_mid, s_mid = rise(mid, lo_start)
-                    if d_mid >= level:
-                        hi_u, hi_d = mid, d_mid
-                    else:
-                        lo_u, lo_d, lo_start = mid, d_mid, s_mid
-                found = _crossing(lo_u, lo_d, hi_u, hi_d, level)
+                found, limit = _bracketed(rise, u, delta, start, u_next, d, level, limit)
                 break
             if at_limit:
                 break
@@ -139,6 +137,33 @@ def profile_lab(fit: LabFit, parameter: str, level: float = CHI2_95_1DOF) -> Lab
     return LabProfile(parameter=parameter, value=fit.values[parameter],
                       interval=(to_unit(ends[0]), to_unit(ends[1])), closed=tuple(closed),
                       points=points, solves=solves, wall_s=time.perf_counter() - t0)
+
+
+def _boxed(prob, x) -> bool:
+    """Is one of the refit's parameters at its bound (within the tolerances of
+    :attr:`~benchmarks.inversion.lab_fit.LabFit.at_bound`)?"""
+    lo, hi = prob.bounds()
+    near = np.array([(1e-3 if n in _LOG else 1e-6) for n in prob.free]) * (hi - lo)
+    return bool(((x - lo <= near) | (hi - x <= near)).any())
+
+
+def _bracketed(rise, lo_u, lo_d, lo_start, hi_u, hi_d, level, limit):
+    """(the crossing, the side's limit) in a bracket whose far end has risen past ``level``: a
+    long jump over a profile that is not quadratic is halved until its rise is moderate, then
+    interpolated; where the model fails inside, the side is open from the last point that ran
+    (crossing None, limit there)."""
+    for _ in range(BISECTIONS):
+        if hi_d <= 2.0 * level:
+            break
+        mid = 0.5 * (lo_u + hi_u)
+        d_mid, s_mid = rise(mid, lo_start)
+        if math.isnan(d_mid):
+            return None, lo_u
+        if d_mid >= level:
+            hi_u, hi_d = mid, d_mid
+        else:
+            lo_u, lo_d, lo_start = mid, d_mid, s_mid
+    return _crossing(lo_u, lo_d, hi_u, hi_d, level), limit
 
 
 def _crossing(u0, d0, u1, d1, level):

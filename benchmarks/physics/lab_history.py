@@ -12,7 +12,8 @@ samples (the two pieces' continuous fit, minimised over the switch time). A spee
 
 Refused in one line: a record with no step (one speed throughout), one that opens with a hold,
 a load point faster than :data:`LAB_FASTEST` (a unit slip), and one that moves back (a piece
-whose speed is negative beyond its error).
+whose speed is negative beyond its error). A load point outside :data:`LAB_TYPICAL` is warned
+about (a :class:`~problems._validate.UnitWarning`: most likely a unit).
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ import numpy as np
 import pandas as pd
 
 __all__ = ["find_history", "MIN_SAMPLES", "MIN_CHANGE", "HOLD", "SIGNIFICANCE", "LAB_FASTEST",
-           "PIECE_COLUMNS"]
+           "PIECE_COLUMNS", "LAB_TYPICAL"]
 
 #: samples a piece of the history holds at least
 MIN_SAMPLES = 20
@@ -35,6 +36,8 @@ SIGNIFICANCE = 10.0
 #: m/s: a load point faster than this is a unit slip (a displacement in µm read as m or mm);
 #: rate-and-state velocity steps run at 0.01 µm/s to 1 mm/s
 LAB_FASTEST = 1e-2
+#: m/s: the speeds of most velocity-step tests; a load point outside is warned about (a unit)
+LAB_TYPICAL = (1e-9, 3e-4)
 #: the columns of the pieces table (:attr:`benchmarks.physics.lab_record.LabRecord.pieces`)
 PIECE_COLUMNS = ("t_start_s", "t_end_s", "velocity_m_s", "velocity_se_m_s", "samples")
 
@@ -201,6 +204,12 @@ def find_history(t: np.ndarray, x: np.ndarray, what: str = "the load point"):
         raise ValueError(f"{what} moves at one speed throughout ({velocities[0]:.4g} m/s): "
                          "the record has no velocity step (a change of speed by more than "
                          f"{MIN_CHANGE:.0%} over {MIN_SAMPLES} samples or more)")
+    moving = [v for v in velocities if v > 0]
+    if max(moving) > LAB_TYPICAL[1] or min(moving) < LAB_TYPICAL[0]:
+        from problems._validate import warn_unit
+        warn_unit(f"{what} moves at {min(moving):.3g} to {max(moving):.3g} m/s, outside the "
+                  f"{LAB_TYPICAL[0]:g} to {LAB_TYPICAL[1]:g} m/s of most velocity-step tests: "
+                  "is its unit right? (a displacement in µm is load_point=COLUMN:um, in mm :mm)")
     if velocities[0] == 0.0:
         raise ValueError(f"{what} holds from the record's start to t = {t[cuts[1]]:.6g} s: the "
                          "fit starts from steady sliding; start the record (--window) while "

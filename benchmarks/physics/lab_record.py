@@ -12,7 +12,7 @@ channel            SI unit  what it is
 ``friction``       1        μ, the shear over the normal force; or else
 ``shear_force``    N        with ``normal_force`` (a column, or a constant in N)
 ``load_point``     m        the load point's displacement; or else
-``load_velocity``  m/s      its velocity (integrated to a displacement)
+``load_velocity``  m/s      its velocity, each sample's held until the next (integrated)
 =================  =======  ======================================================================
 
 **The history** (the load point's speeds and switch times) is found in the displacement by
@@ -154,7 +154,9 @@ def lab_record_from(table: pd.DataFrame, columns, normal_force: float | None = N
         x = data["load_point"]
     else:
         v = data["load_velocity"]
-        x = np.concatenate(([0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t))))
+        # a speed holds over its sample's interval, as a commanded speed does (a trapezoid
+        # would put each switch half a sample early)
+        x = np.concatenate(([0.0], np.cumsum(v[:-1] * np.diff(t))))
     t0 = float(t[0])
     t, x = t - t0, x - x[0]
     velocities, switches, pieces = find_history(t, x, what=f"{source}: the load point "
