@@ -16,7 +16,7 @@ import json
 import math
 from pathlib import Path
 
-from benchmarks.cli.args import in_file, non_negative, out_dir, positive, say
+from benchmarks.cli.args import in_file, non_negative, out_dir, positive, say, show_progress
 
 __all__ = ["add_parser"]
 
@@ -101,16 +101,22 @@ def cmd_lab_fit(args) -> int:
         raise ValueError(f"--weights: {len(args.weights)} given, but the record's history has "
                          f"{len(record.velocities)} pieces (one weight each): "
                          f"{_pieces_line(record)}")
-    if args.out is not None:
-        args.out.mkdir(parents=True, exist_ok=True)
     fixed = {k: v for k, v in (("k", args.stiffness), ("c", args.c)) if v is not None}
     free = [n for n in model.parameters if n not in fixed]
     if args.posterior and args.walkers < 2 * len(free):
         raise ValueError(f"--walkers {args.walkers}: at least {2 * len(free)}, twice the "
                          f"{len(free)} fitted parameters ({', '.join(free)})")
+    if args.out is not None:
+        args.out.mkdir(parents=True, exist_ok=True)
+    import sys
     import warnings
 
+    def stage(text):                     # what runs now, on a terminal only (not with --json)
+        if show_progress(args):
+            print(f"  {text} …", file=sys.stderr, flush=True)
+
     from benchmarks.inversion.lab_fit import LabFitWarning
+    stage(f"fitting {', '.join(free)} to {len(record.t):,} samples")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", LabFitWarning)
         fit = fit_lab(model, fixed=fixed, weights=args.weights)
@@ -118,9 +124,12 @@ def cmd_lab_fit(args) -> int:
     profiles = {}
     if not args.no_profiles:
         for name in (n for n in PROFILED if n in fit.free):
+            stage(f"the profile of {name}")
             profiles[name] = profile_lab(fit, name)
             if profiles[name].note:
                 notes.append(profiles[name].note)
+    if not args.no_solver_check:
+        stage("the solver check")
     check = None if args.no_solver_check else check_lab_solver(fit)
     posterior = None
     if args.posterior:
@@ -129,6 +138,7 @@ def cmd_lab_fit(args) -> int:
                                progress=not args.json and not args.no_progress)
     inertia = None
     if args.mass is not None or args.radiation_damping is not None:
+        stage("the inertial fit")
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", LabFitWarning)
             inertial, shifts = inertia_check(fit, args.mass or 0.0, args.normal_force,
