@@ -221,7 +221,7 @@ class _Problem:
         return jac - self.q @ (self.q.T @ jac)
 
     def linear(self, x):
-        """The linear parameters at x and the weighted residual's pieces."""
+        """The linear parameters (level, slopes) at x: the least squares of the rest."""
         basis = self.w[:, None] * self.model.linear_basis()
         coef, *_ = np.linalg.lstsq(basis, self.wmu - self.w * self.g(x), rcond=None)
         return coef
