@@ -10,8 +10,9 @@ quarter of what is left. A bracket whose rise is over twice the level is halved
 root √Δ (linear in the parameter for a quadratic profile). A side that reaches its bound of
 :data:`~benchmarks.inversion.lab_fit.BOUNDS`, or :data:`MAX_POINTS` points, without the rise is
 open (the bound, and ``closed`` False); so is a side where the forward model fails, or where
-the squares rise only because another parameter's refit is held at its bound (its end is the
-last point before: no rise is known past it; Δ is NaN in ``points``). The profile
+the squares rise only because another parameter's refit is held at an edge of the box
+(:data:`BOX_EDGES`; its end is the last point before: no rise is known past it; Δ is NaN in
+``points``). The profile
 interval differs from the Wald interval where the squares are not quadratic: Dc of a short
 step, a and b when their difference is what the record holds.
 """
@@ -27,7 +28,7 @@ import pandas as pd
 
 from benchmarks.inversion.lab_fit import _LOG, CHI2_95_1DOF, LabFit, _Problem, _shown
 
-__all__ = ["LabProfile", "profile_lab", "MAX_POINTS"]
+__all__ = ["LabProfile", "profile_lab", "MAX_POINTS", "BISECTIONS", "BOX_EDGES"]
 
 #: points a side of a profile takes at most
 MAX_POINTS = 24
@@ -139,12 +140,21 @@ def profile_lab(fit: LabFit, parameter: str, level: float = CHI2_95_1DOF) -> Lab
                       points=points, solves=solves, wall_s=time.perf_counter() - t0)
 
 
+#: the bounds that are the box's, not a limit of the physics: the upper ones of a, b, b2 and c,
+#: the lower one of b2 (Dc → 0 or ∞, k′ → ∞, b → 0 are limits a refit may rightly reach)
+BOX_EDGES = {"a": (False, True), "b": (False, True), "c": (False, True), "b2": (True, True)}
+
+
 def _boxed(prob, x) -> bool:
-    """Is one of the refit's parameters at its bound (within the tolerances of
-    :attr:`~benchmarks.inversion.lab_fit.LabFit.at_bound`)?"""
+    """Is one of the refit's parameters held at an edge of the box (:data:`BOX_EDGES`, within
+    the tolerances of :attr:`~benchmarks.inversion.lab_fit.LabFit.at_bound`)?"""
     lo, hi = prob.bounds()
-    near = np.array([(1e-3 if n in _LOG else 1e-6) for n in prob.free]) * (hi - lo)
-    return bool(((x - lo <= near) | (hi - x <= near)).any())
+    for name, u, l, h in zip(prob.free, x, lo, hi):
+        near = (1e-3 if name in _LOG else 1e-6) * (h - l)
+        low_edge, high_edge = BOX_EDGES.get(name, (False, False))
+        if (low_edge and u - l <= near) or (high_edge and h - u <= near):
+            return True
+    return False
 
 
 def _bracketed(rise, lo_u, lo_d, lo_start, hi_u, hi_d, level, limit):

@@ -282,7 +282,8 @@ def _markdown(info: dict) -> str:
             "k′ (1/µm)": f"{p['k']['value'] * 1e-6:.3g}",
             "a 95 %": interval("a"), "b 95 %": interval("b"), "Dc 95 % (µm)": interval("dc"),
             "σ": f"{r['sigma']:.2g}", "ρ": f"{r['rho']:.2f}",
-            "check": "passed" if r["solver_check"]["passed"] else "**failed**",
+            "check": ("not run" if not r["solver_check"].get("checked", True) else
+                      "passed" if r["solver_check"]["passed"] else "**failed**"),
             "the fit says": "; ".join(says)})
     inertia_rows = [{
         "v1 (µm/s)": f"{r['v1_m_s'] * 1e6:g}", "mass (kg)": f"{r['mass_kg']:g}",
