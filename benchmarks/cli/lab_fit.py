@@ -24,14 +24,18 @@ __all__ = ["add_parser"]
 PROFILED = ("a", "b", "dc", "c", "b2", "dc2")
 
 
+def _constant_normal_force(args) -> bool:
+    """Does --normal-force stand for a column (a shear force mapped, no normal force column)?"""
+    mapped = {spec.partition("=")[0].strip() for spec in args.column}
+    return "shear_force" in mapped and "normal_force" not in mapped
+
+
 def _record(args):
     from benchmarks.physics.lab_record import read_lab_record
     if not args.column:
         raise ValueError("map the record's columns: --column CHANNEL=COLUMN[:UNIT] (time, "
                          "friction or shear_force, load_point or load_velocity)")
-    mapped = {spec.partition("=")[0].strip() for spec in args.column}
-    # the constant normal force stands for a column only beside a shear force without one
-    constant = "shear_force" in mapped and "normal_force" not in mapped
+    constant = _constant_normal_force(args)
     return read_lab_record(args.recording, args.column,
                            normal_force=args.normal_force if constant else None,
                            window=args.window)
@@ -77,10 +81,8 @@ def _check_flags(args) -> None:
                          "fitted parameters (8 for a, b, Dc, k′)")
     if args.steps < 20:
         raise ValueError(f"--steps {args.steps}: at least 20")
-    mapped = {spec.partition("=")[0].strip() for spec in args.column}
     if (args.normal_force is not None and args.mass is None
-            and args.radiation_damping is None
-            and not ("shear_force" in mapped and "normal_force" not in mapped)):
+            and args.radiation_damping is None and not _constant_normal_force(args)):
         raise ValueError("--normal-force is for a shear_force column without a normal_force "
                          "one, or for the inertial slider (--mass): here it would be unused")
     if args.posterior:

@@ -40,7 +40,7 @@ import pandas as pd
 
 __all__ = ["LabFit", "fit_lab", "LabFitWarning", "starting_values", "BOUNDS", "FD_STEP",
            "DC_STARTS", "Z95", "CHI2_95_1DOF", "SETTLE_DC", "PARAMETER_UNITS", "covariance",
-           "RANK_TOL", "DC_LONGEST"]
+           "RANK_TOL", "DC_LONGEST", "coordinate_bounds"]
 
 #: each nonlinear parameter's bounds in its own unit (a, b, c dimensionless; dc m; k 1/m)
 BOUNDS = {"a": (1e-5, 0.5), "b": (0.0, 0.5), "dc": (1e-9, 0.1), "k": (1.0, 1e10),
@@ -179,9 +179,7 @@ class _Problem:
         return np.array([math.log(params[n]) if n in _LOG else params[n] for n in self.free])
 
     def bounds(self):
-        lo = [math.log(BOUNDS[n][0]) if n in _LOG else BOUNDS[n][0] for n in self.free]
-        hi = [math.log(BOUNDS[n][1]) if n in _LOG else BOUNDS[n][1] for n in self.free]
-        return np.array(lo), np.array(hi)
+        return coordinate_bounds(self.free)
 
     def g(self, x) -> np.ndarray:
         key = tuple(np.round(x, 15))
@@ -233,6 +231,13 @@ class _Problem:
         return least_squares(self.residual, x0, jac=self.jacobian, bounds=(lo, hi),
                              method="trf", x_scale="jac", max_nfev=max_nfev,
                              xtol=1e-10, ftol=1e-12, gtol=1e-10)
+
+
+def coordinate_bounds(names) -> tuple[np.ndarray, np.ndarray]:
+    """The :data:`BOUNDS` of ``names`` in the fitted coordinates (ln for Dc, k′, Dc2)."""
+    lo = [math.log(BOUNDS[n][0]) if n in _LOG else BOUNDS[n][0] for n in names]
+    hi = [math.log(BOUNDS[n][1]) if n in _LOG else BOUNDS[n][1] for n in names]
+    return np.array(lo), np.array(hi)
 
 
 def _orthonormal(basis: np.ndarray) -> np.ndarray:

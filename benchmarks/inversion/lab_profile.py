@@ -26,7 +26,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from benchmarks.inversion.lab_fit import _LOG, CHI2_95_1DOF, LabFit, _Problem, _shown
+from benchmarks.inversion.lab_fit import (_LOG, CHI2_95_1DOF, LabFit, _Problem, _shown,
+                                          coordinate_bounds)
 
 __all__ = ["LabProfile", "profile_lab", "MAX_POINTS", "BISECTIONS", "BOX_EDGES"]
 
@@ -76,7 +77,7 @@ def profile_lab(fit: LabFit, parameter: str, level: float = CHI2_95_1DOF) -> Lab
     best = {n: fit.values[n] for n in fit.free}
     u_best = math.log(best[parameter]) if parameter in _LOG else best[parameter]
     scale = fit.noise_variance
-    lo_bound, hi_bound = _Problem(fit.model, fit.free, {}, None).bounds()
+    lo_bound, hi_bound = coordinate_bounds(fit.free)
     bounds = (lo_bound[j], hi_bound[j])
     step0 = fit.se(parameter) if math.isfinite(fit.se(parameter)) and fit.se(parameter) > 0 \
         else 0.05 * max(abs(u_best), 1e-3)
