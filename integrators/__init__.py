@@ -3,7 +3,7 @@
 * :mod:`integrators.core`: ``solve``, ``Solution``, the registry and base classes, the events,
   and the segment driver the adapters share;
 * :mod:`integrators.own`: the project's compiled methods (the paper's ETD family; CashKarp45,
-  Rosenbrock23, Rodas5P, Exprb32, Exprb43 on one compiled engine);
+  Rosenbrock23, Rodas5P, RadauIIA5, Exprb32, Exprb43 on one compiled engine);
 * :mod:`integrators.external`: adapters to scipy, numbalsoda, scikits-odes, assimulo and
   scikit-SUNDAE, declared by name here and imported on first use (``import integrators`` imports
   none of those libraries; a name whose library fails to import is left out of the registry, the
@@ -18,6 +18,7 @@ from integrators.own.etd import ETD1, ETD2, ETDIterated
 from integrators.own.cash_karp import CashKarp45
 from integrators.own.exprb32 import Exprb32
 from integrators.own.exprb43 import Exprb43
+from integrators.own.radau5 import RadauIIA5
 from integrators.own.rodas5p import Rodas5P
 from integrators.own.rosenbrock23 import Rosenbrock23
 
@@ -73,4 +74,4 @@ __all__ = ["REGISTRY", "UNAVAILABLE", "EXTERNAL", "INSTALL", "Algorithm", "Probl
            "algorithm_class", "make_algorithm",
            "register", "EVENT_COLUMNS", "Output", "ReturnCode", "Solution", "Stats", "Budget",
            "solve", "ETD1", "ETD2", "ETDIterated", "CashKarp45", "Exprb32", "Exprb43",
-           "Rosenbrock23", "Rodas5P", *_CLASSES]
+           "Rosenbrock23", "Rodas5P", "RadauIIA5", *_CLASSES]

@@ -43,10 +43,39 @@ class _FailedCall:
 
 
 def test_a_cyrk_failure_comes_back_with_its_status_and_message(monkeypatch):
+    """CyRK gives up at once: the one-call path hands the run to the segment path, whose call
+    fails the same way and reports it."""
     from integrators.external import cyrk_backend as cb
-    solve, call, rhs = cb._library()
-    monkeypatch.setattr(cb, "_library", lambda: (lambda f, span, z0, **kw: _FailedCall(z0),
-                                                 call, rhs))
+    monkeypatch.setattr(cb, "_whole_run", lambda *a: (-54, 0, np.empty((0, 8)), 0.0, a[4]))
+    monkeypatch.setattr(cb, "_call", lambda rhs, t0, t1, z0, *a: _FailedCall(z0))
     sol = I.solve(P.paper_example(), REGISTRY["CyRK-BDF"](rtol=1e-6, atol=1e-6))
     assert sol.retcode is I.ReturnCode.STEP_UNDERFLOW
     assert "status -54" in sol.message and "spacing" in sol.message
+
+
+@pytest.mark.parametrize("name", ["CyRK-Radau", "CyRK-BDF"])
+def test_one_call_path_is_the_segment_path_to_the_bit(name):
+    """On a run with one loading speed the implicit methods take the one compiled call; its
+    events, saved times and states and counters are those of the segment driver over the same
+    library (run directly here), on a uniform grid and at given times."""
+    from integrators.core.segments import run_segments
+    from integrators.core.solution import Output
+    from integrators.core.solve import Budget
+    p = P.paper_example()
+    method = REGISTRY[name](rtol=1e-6, atol=1e-6)
+    for kw in (dict(max_points=50), dict(save_at=np.linspace(0.5, 19.5, 7))):
+        sol = I.solve(p, method, **kw)
+        raw = run_segments(p, method.make_stepper(p.nondimensional(), None), Output(**kw),
+                           Budget(), None)
+        assert sol.meta["one_call"] and sol.success and len(sol.events) == 8
+        assert np.array_equal(sol.event_array, raw.events)
+        assert np.array_equal(sol.t, raw.t)
+        assert np.array_equal(np.column_stack([sol.v, sol.fs, sol.theta]), raw.y)
+        assert (sol.stats.steps, sol.stats.nfev, sol.stats.njev) == \
+            (raw.stats.steps, raw.stats.nfev, raw.stats.njev)
+
+
+def test_two_speed_loading_takes_the_segment_path():
+    sol = I.solve(P.window("W2", "slip", t_end=0.05),
+                  REGISTRY["CyRK-Radau"](rtol=1e-6, atol=1e-6), max_points=2)
+    assert sol.success and "one_call" not in sol.meta

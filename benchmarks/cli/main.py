@@ -535,8 +535,8 @@ def build_parser() -> Parser:
                     help="fixed-step registry names (default: all; with --fixed-steps, the "
                          "compiled stiff methods)")
     cv.add_argument("--fixed-steps", action="store_true",
-                    help="the compiled stiff methods (Rosenbrock23, Rodas5P, Exprb32, Exprb43) "
-                         "with error control off, on a stiff stick-phase segment")
+                    help="the compiled stiff methods (Rosenbrock23, Rodas5P, RadauIIA5, Exprb32, "
+                         "Exprb43) with error control off, on a stiff stick-phase segment")
     cv.add_argument("--out", type=out_dir, metavar="DIR",
                     help="directory for the CSV, JSON and plot (default: write nothing)")
     cv.add_argument("--json", action="store_true", help="print one JSON object")

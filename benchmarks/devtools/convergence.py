@@ -7,8 +7,8 @@ points whose error is well above the reference's own uncertainty (``FLOOR_FACTOR
 reference solvers' disagreement) enter the fit, and of those the finest ``fit_points``: the
 coarsest steps can be pre-asymptotic.
 
-The project's compiled stiff methods (Rosenbrock23, Rodas5P, Exprb32, Exprb43) are adaptive; their
-order is measured with the error control off (:func:`fixed_step_orders`): n equal steps of the
+The project's compiled stiff methods (Rosenbrock23, Rodas5P, RadauIIA5, Exprb32, Exprb43) are
+adaptive; their order is measured with the error control off (:func:`fixed_step_orders`): n equal steps of the
 method's own step over a stiff stretch of the stick phase, the error of the state at its end
 against a tight Radau solution. That is where the paper's ETD loses an order (frozen
 coefficients), so it is where a declared order has to be shown.

@@ -4,7 +4,11 @@
   on 1 and 2 numba threads (minimum of ``repeats`` runs after a warm-up, no store), beside the
   same points solved stand-alone, one :func:`integrators.solve` each (Σ of their own wall times).
   Targets: ≤ 0.5 s on 2 cores, 2 threads ≥ 1.8× one, per-point wall on 2 threads within 1.2× of
-  the stand-alone solve divided by 2.
+  the stand-alone solve divided by 2. The same points in a plain loop of the fastest compiled
+  peer (the quick study's fastest peer setting reaching the same level: one
+  :func:`integrators.solve` per point, ``max_points=2``, one thread, as its users would loop),
+  timed in the same run; target: the ensemble at least 2× the loop on the same cores (1 thread
+  each), and on 2 threads against the loop too.
 * **10⁵ points** (W2, 20 s a point, the same setting) into a Parquet store, uninterrupted; then
   the same ensemble in a fresh store, in a subprocess killed (SIGKILL) at ``kills`` random
   moments of the work (after a random number of finished chunks, plus a random part of a
@@ -39,10 +43,47 @@ from benchmarks.records.report import fmt, jsonable, markdown_table
 from benchmarks.studies.study import Study, markdown_file
 from problems import window
 
-__all__ = ["STUDY", "ensemble_scaling", "same_table", "TARGETS"]
+__all__ = ["STUDY", "ensemble_scaling", "same_table", "TARGETS", "fastest_peer"]
 
 TARGETS = {"grid_wall_s": 0.5, "thread_speedup": 1.8, "per_point_ratio": 1.2,
-           "big_wall_s": 180.0, "big_store_mb": 50.0}
+           "big_wall_s": 180.0, "big_store_mb": 50.0, "peer_loop_ratio": 2.0}
+
+
+def fastest_peer(level: float, csv=STUDY_CSV):
+    """``(algorithm, reason)``: the quick study's fastest setting of a compiled peer (any
+    library but the project's, compiled right-hand side) reaching ``level`` on every problem,
+    or ``(None, why not)``."""
+    from benchmarks.devtools.work_precision import algorithm_at, read_study, recommend
+    from integrators import REGISTRY
+    path = Path(csv)
+    if not path.exists():
+        return None, f"no work-precision study at {path}"
+    df = read_study(path)
+    peers = [n for n in df.integrator.unique()
+             if n in REGISTRY and not REGISTRY[n].library.startswith("rsfbench")]
+    advice = recommend(df[df.integrator.isin(peers) & (df.rhs_tier == "numba")], [level])
+    advice = advice.iloc[0]
+    if pd.isna(advice.get("integrator")):
+        return None, f"no compiled peer of {path.name} reaches {level:g} on every problem"
+    return (algorithm_at(advice.integrator, advice.rhs_tier, float(advice.setting)),
+            f"{advice.integrator} at {advice.setting:g} (worst {advice.worst_error:.2g})")
+
+
+def _time_peer_loop(peer, n, repeats):
+    """A plain loop of ``peer`` over the grid's points: min wall over ``repeats`` (s)."""
+    from integrators import solve
+    base = window("W2", "slip", t_end=40.0)
+    points = _grid21(n)
+    names, values = tuple(points), np.column_stack(list(points.values()))
+    problems = point_problems(base, names, values)
+    solve(problems[0], peer, max_points=2)                               # warm
+    walls, failed = [], 0
+    for _ in range(repeats):
+        start = time.perf_counter()
+        runs = [solve(problem, peer, max_points=2) for problem in problems]
+        walls.append(time.perf_counter() - start)
+        failed = sum(not r.success for r in runs)
+    return min(walls), failed
 
 
 def _grid21(n: int):
@@ -180,6 +221,13 @@ def ensemble_scaling(out, n: int = 21, big: int = 100_000, kills: int = 3, dask:
     algorithm, why = recommended_algorithm(1e-3, study_csv)
     summary = {"integrator": algorithm.name, "integrator_choice": why, "targets": TARGETS,
                "grid": _time_grid(algorithm, n, repeats, progress)}
+    peer, peer_why = fastest_peer(1e-3, study_csv)
+    summary["peer"] = {"choice": peer_why}
+    if peer is not None:
+        wall, failed = _time_peer_loop(peer, n, repeats)
+        summary["peer"].update(name=peer.name, loop_wall_s=wall, failed=failed,
+                               ratio_1_thread=wall / summary["grid"]["wall_1_thread_s"],
+                               ratio_2_threads=wall / summary["grid"]["wall_2_threads_s"])
     if big:
         summary["big"] = _time_big(big, kills, seed, progress)
     if dask:
@@ -209,6 +257,15 @@ def scaling_markdown(s: dict) -> str:
          "goal": f"≤ {t['per_point_ratio']}", "measured": fmt(g["per_point_ratio"]),
          "": _met(g["per_point_ratio"] <= t["per_point_ratio"])},
     ]
+    peer = s.get("peer", {})
+    if "loop_wall_s" in peer:
+        goal = t.get("peer_loop_ratio", 2.0)
+        rows.append({"target": f"against a plain loop of {peer['choice']} (1 thread)",
+                     "goal": f"≥ {goal:g}× on 1 thread",
+                     "measured": f"{fmt(peer['ratio_1_thread'])}× on 1 thread, "
+                                 f"{fmt(peer['ratio_2_threads'])}× on 2 (loop "
+                                 f"{fmt(peer['loop_wall_s'])} s, {peer['failed']} failed)",
+                     "": _met(peer["ratio_1_thread"] >= goal)})
     if "big" in s:
         b = s["big"]
         rows += [

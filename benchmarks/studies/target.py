@@ -1,6 +1,7 @@
-"""Issue 6's target, read off a work-precision study: at each recurrence-error level from 1e−3
+"""The speed target, read off a work-precision study: at each recurrence-error level from 1e−3
 to 1e−7 and on each problem, is the fastest of the project's own integrators at least 2× faster
-than compiled LSODA (numbalsoda) and than the best SUNDIALS backend?
+than every compiled peer: LSODA (numbalsoda, CyRK), the best SUNDIALS backend, and CyRK's BDF and
+Radau?
 
 Everything comes from one study CSV (so the times were measured in one run, side by side) and
 uses the reliable error of :func:`benchmarks.devtools.work_precision.reliable_error`: a setting counts for
@@ -33,7 +34,7 @@ def groups() -> dict[str, list[str]]:
     """The sides of the comparison, by registry name: the own integrators; every way of calling
     LSODA that is compiled (numbalsoda's block adapter and plain grid call, CyRK's C++ port);
     every way of calling SUNDIALS (from C with cfunc callbacks, and the three Python bindings);
-    and, shown beside the target but not part of it, CyRK's other compiled stiff methods."""
+    CyRK's other compiled stiff methods."""
     sundials = [n for n, c in REGISTRY.items()
                 if c.library in ("scikits-odes", "scikit-sundae") or c.library.startswith("SUNDIALS")
                 or n in ("assimulo-CVode", "assimulo-IDA")]
@@ -78,7 +79,10 @@ def target_table(df: pd.DataFrame, error: str = "err_recurrence", levels=TARGET_
             own = row["own_wall_s"]
             for side in ("lsoda", "sundials", "cyrk"):
                 row[f"ratio_{side}"] = row[f"{side}_wall_s"] / own
-            ratios = [row["ratio_lsoda"], row["ratio_sundials"]]
+            ratios = [row["ratio_lsoda"], row["ratio_sundials"], row["ratio_cyrk"]]
+            peers = [row[f"{side}_wall_s"] for side in ("lsoda", "sundials", "cyrk")]
+            row["ratio_peer"] = (np.nanmin(peers) / own if not all(np.isnan(peers))
+                                 else np.nan)
             if not np.isfinite(own):
                 row["met"] = "no (own: none)"
             elif all(np.isnan(r) for r in ratios):
@@ -98,15 +102,16 @@ def target_markdown(t: pd.DataFrame, factor: float = TARGET_FACTOR) -> str:
                        "fastest SUNDIALS": who("sundials"),
                        "× vs LSODA": t.ratio_lsoda.map(lambda x: fmt(x, ".3g")),
                        "× vs SUNDIALS": t.ratio_sundials.map(lambda x: fmt(x, ".3g")),
-                       f"≥ {factor:g}× both": t.met,
                        "fastest CyRK BDF/Radau": who("cyrk"),
-                       "× vs CyRK": t.ratio_cyrk.map(lambda x: fmt(x, ".3g"))})
+                       "× vs CyRK": t.ratio_cyrk.map(lambda x: fmt(x, ".3g")),
+                       "× vs the fastest peer": t.ratio_peer.map(lambda x: fmt(x, ".3g")),
+                       f"≥ {factor:g}× every peer": t.met})
     n = (t.met == "yes").sum()
     return (f"Target met at {n} of {len(t)} (problem, level) pairs; a ratio is the competitor's "
             f"time over the fastest own integrator's at the same reliable recurrence error. "
             f"Each side is the fastest way of calling its library in this run (compiled or "
-            f"Python-bound, whichever was faster). CyRK's BDF and Radau, compiled peers outside "
-            f"the target's definition, are shown beside it.\n\n" + markdown_table(md))
+            f"Python-bound, whichever was faster); every compiled peer counts.\n\n"
+            + markdown_table(md))
 
 
 def write_target(csv, out, name: str | None = None) -> pd.DataFrame:

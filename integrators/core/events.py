@@ -187,10 +187,6 @@ class EventRecorder:
 
 def events_table(rows: np.ndarray, problem, nd) -> np.ndarray:
     """Nondimensional event rows (τ, h, w, slip in Lc) in SI units, columns of ``EVENT_COLUMNS``."""
-    ev, ts, lc = rows, nd.time_scale, problem.law.lc
-    if not len(ev):
-        return np.empty((0, 8))
-    return np.column_stack([
-        ev[:, 0] * ts, ev[:, 1] * ts, problem.f0 + nd.force_h * ev[:, 2],
-        problem.f0 + nd.force_h * ev[:, 3], problem.law.v0 * ev[:, 4], ev[:, 5] * ts,
-        lc * ev[:, 6], lc * ev[:, 7]])
+    ts, lc, fh, f0 = nd.time_scale, problem.law.lc, nd.force_h, problem.f0
+    scale = np.array([ts, ts, fh, fh, problem.law.v0, ts, lc, lc])
+    return rows * scale + np.array([0.0, 0.0, f0, f0, 0.0, 0.0, 0.0, 0.0])

@@ -27,7 +27,7 @@ from integrators.core.solution import RawRun, ReturnCode, Stats
 from problems.formulations import from_ode_state, to_ode_state
 from problems.loading import load_segment
 
-__all__ = ["Advance", "SegmentSolver", "run_segments", "directional_roots"]
+__all__ = ["Advance", "SegmentSolver", "run_segments", "directional_roots", "save_grid"]
 
 _BUDGET_STOPS = (ReturnCode.WALL_TIME, ReturnCode.MAX_STEPS)
 
@@ -64,13 +64,12 @@ def directional_roots(nd, e: float, z: np.ndarray, found, signs=None) -> list[in
     return [k for k, sgn in zip(found, signs) if DIRECTIONS[k] == 0 or DIRECTIONS[k] == sgn]
 
 
-def run_segments(problem, solver: SegmentSolver, output, budget, progress,
-                 check_every: int = 50) -> RawRun:
-    """Integrate ``problem`` to t_end with ``solver``; see the module docstring."""
-    nd = problem.nondimensional()
-    two_speed = nd.two_speed
-    given = output.save_at is not None
-    if given:
+def save_grid(problem, nd, output):
+    """The save targets in τ, ending in inf; the times asked for in s (``save_at``; None for a
+    uniform grid); whether the start is not one of them (it is kept as the first saved point,
+    then dropped)."""
+    grid_s = None
+    if output.save_at is not None:
         grid_s = output.times(problem.t_end)
         grid = grid_s / nd.time_scale
         if grid_s[-1] == problem.t_end:
@@ -81,8 +80,16 @@ def run_segments(problem, solver: SegmentSolver, output, budget, progress,
         save_dtau = output.interval(problem.t_end) / nd.time_scale
         count = int(math.ceil(nd.tau_end / save_dtau)) + 2
         grid = np.concatenate(([0.0], np.cumsum(np.full(count, save_dtau))))
-    unasked = grid[0] > 0.0             # the start is kept as the first saved point, then dropped
-    grid = np.append(grid, np.inf)
+    return np.append(grid, np.inf), grid_s, grid[0] > 0.0
+
+
+def run_segments(problem, solver: SegmentSolver, output, budget, progress,
+                 check_every: int = 50) -> RawRun:
+    """Integrate ``problem`` to t_end with ``solver``; see the module docstring."""
+    nd = problem.nondimensional()
+    two_speed = nd.two_speed
+    grid, grid_s, unasked = save_grid(problem, nd, output)
+    given = grid_s is not None
     z = to_ode_state(nd.law_code, nd.beta, nd.x0)
     tau, load, fast_until = 0.0, 0.0, -math.inf
     rec = EventRecorder(nd.x0[0])

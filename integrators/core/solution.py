@@ -3,12 +3,16 @@
 from __future__ import annotations
 
 import enum
+import functools
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from problems._validate import check_count, check_positive
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 __all__ = ["ReturnCode", "Stats", "Solution", "EVENT_COLUMNS", "Output", "RawRun",
            "DEFAULT_POINTS", "SAVE_LIMIT"]
@@ -89,7 +93,16 @@ class Output:
         return dt
 
     def times(self, t_end: float) -> np.ndarray:
-        """The save times in seconds (validates the options: call it before any work)."""
+        """The save times in seconds (validates the options: call it before any work). Computed
+        once per ``t_end`` (an Output serves one solve: the array is handed out again)."""
+        memo = self.__dict__.get("_times")
+        if memo is not None and memo[0] == t_end:
+            return memo[1]
+        grid = self._times(t_end)
+        self.__dict__["_times"] = (t_end, grid)     # a frozen dataclass: its memo goes round
+        return grid
+
+    def _times(self, t_end: float) -> np.ndarray:
         if self.save_at is None:
             dt = self.interval(t_end)
             n = int(np.floor(t_end / dt * (1.0 + 1e-12))) + 1
@@ -120,7 +133,7 @@ class Output:
             bad = times[0] if times[0] < 0 else times[-1]
             raise ValueError(f"save_at holds t = {bad:.9g} s, outside the run (0 to t_end = "
                              f"{t_end:g} s)")
-        return times
+        return times.copy() if times is self.save_at else times
 
 
 @dataclass
@@ -142,9 +155,10 @@ class Solution:
 
     Trajectory arrays are 1-D over saved times ``t`` (s): slip rate ``v`` (m/s), spring force
     ``fs`` (N), friction ``ft`` (N) and state ``theta`` (newtons for the slip law, seconds for
-    the aging law). ``events`` is a DataFrame with :data:`EVENT_COLUMNS`. ``meta`` holds a
-    method's own diagnostics (the ETD family: ``step_rule_max``, the largest slip of a step over
-    what its step rule allows).
+    the aging law). ``events`` is a DataFrame with :data:`EVENT_COLUMNS`, built when first read
+    from ``event_array`` (the same table as a float array, one column per name: what a loop over
+    many solves should read). ``meta`` holds a method's own diagnostics (the ETD family:
+    ``step_rule_max``, the largest slip of a step over what its step rule allows).
     """
 
     problem: object
@@ -154,7 +168,7 @@ class Solution:
     fs: np.ndarray
     ft: np.ndarray
     theta: np.ndarray
-    events: pd.DataFrame
+    event_array: np.ndarray
     stats: Stats
     retcode: ReturnCode
     message: str = ""
@@ -163,6 +177,12 @@ class Solution:
     @property
     def success(self) -> bool:
         return self.retcode.success
+
+    @functools.cached_property
+    def events(self) -> pd.DataFrame:
+        """The events table, one row per completed event, columns :data:`EVENT_COLUMNS` (SI)."""
+        import pandas as pd
+        return pd.DataFrame(self.event_array, columns=list(EVENT_COLUMNS))
 
     @property
     def t_reached(self) -> float:
@@ -181,5 +201,5 @@ class Solution:
 
     def __repr__(self) -> str:
         return (f"Solution({type(self.algorithm).__name__} on {self.problem.name or 'problem'}: "
-                f"{self.retcode.value}, t={self.t_reached:.6g} s, {len(self.events)} events, "
+                f"{self.retcode.value}, t={self.t_reached:.6g} s, {len(self.event_array)} events, "
                 f"{self.stats.steps} steps, {self.stats.nfev} rhs, {self.stats.wall_s:.3g} s)")

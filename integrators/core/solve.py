@@ -12,7 +12,6 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-import pandas as pd
 
 from integrators.core.registry import Algorithm
 from integrators.core.solution import EVENT_COLUMNS, Output, RawRun, ReturnCode, Solution, Stats
@@ -50,9 +49,9 @@ def solve(problem: SpringSlider, algorithm: Algorithm, *, save_every: float | No
     which saves at its own step ends, refuses it). Events are recorded exactly either way.
     The saved grid never changes the steps a method takes. How each backend fills it:
 
-    * the own adaptive methods (CashKarp45, Rosenbrock23, Rodas5P, Exprb32, Exprb43): from the
-      step's dense output, inside the compiled solve; steps land only on the end of a loading
-      segment;
+    * the own adaptive methods (CashKarp45, Rosenbrock23, Rodas5P, RadauIIA5, Exprb32,
+      Exprb43): from the step's dense output, inside the compiled solve; steps land only on the
+      end of a loading segment;
     * the ETD family: its fixed rule (Eq. 53) sets every step; a save time takes the state at the
       first step end at or after it (``Solution.t`` holds those step times);
     * scipy: its ``dense_output``; CVODE/IDA (scikits-odes: CV_NORMAL with tstop at the segment
@@ -149,9 +148,9 @@ def _compile_once(problem: SpringSlider, algorithm: Algorithm, wall_budget: floa
 def _solution(problem: SpringSlider, algorithm: Algorithm, raw: RawRun) -> Solution:
     v, fs, theta = (raw.y[:, i] for i in range(3))
     ft = problem.friction(v, theta) if len(v) else np.empty(0)
-    events = pd.DataFrame(raw.events, columns=list(EVENT_COLUMNS))
     return Solution(problem=problem, algorithm=algorithm, t=raw.t, v=v, fs=fs, ft=ft, theta=theta,
-                    events=events, stats=raw.stats, retcode=raw.retcode, message=raw.message,
+                    event_array=np.asarray(raw.events, dtype=float).reshape(-1, len(EVENT_COLUMNS)),
+                    stats=raw.stats, retcode=raw.retcode, message=raw.message,
                     meta=dict(raw.meta))
 
 

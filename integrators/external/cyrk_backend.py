@@ -4,9 +4,19 @@ implicit BDF, Radau and LSODA, with a numba ``cfunc`` right-hand side.
 CyRK (J. P. Renaud) compiles its solvers in C++ and offers ``nbsolve2_ivp(diffeq_address,
 t_span, y0, method, dense_output, args, rtol, atol, max_num_steps, …)`` to numba users: the
 right-hand side is a cfunc, nothing runs in Python during the integration. It has no events on
-that entry point, so this adapter locates them on CyRK's dense output:
+that entry point, so this adapter locates them on CyRK's dense output. Two ways:
 
-* one call over the whole run, as a user's, unless it takes more than 2·``CHUNK_STEPS``
+* **one compiled call** (:func:`_whole_run`), as a numba user calls it: ``nbsolve2_ivp`` over
+  the whole run from compiled code, its crossings located and recorded and the save points
+  filled in the same compiled function, so no Python runs per step, per event or per save.
+  Taken by the implicit methods on a run with one loading speed throughout (no history
+  switches, no two-speed loading), without a progress bar and with the default step budget;
+  its events, saves and counters are those of the segment path to the bit (tests/test_cyrk.py).
+  A call that stops short (a failure, or more than 2·``CHUNK_STEPS`` steps) is thrown away and
+  the run is done again on the segment path, the thrown-away call's counters added. A wall
+  budget is read once the call is done (a run past it is reported ``WallTime``);
+* otherwise **the segment path** (:mod:`integrators.core.segments`):
+  one call over the whole run unless it takes more than 2·``CHUNK_STEPS``
   steps (memory: CyRK keeps every step and its interpolant; the explicit methods take
   millions here, and their first call stops at ``FIRST_CAP``): then calls over spans expected
   to take ``CHUNK_STEPS``/2 (the steps per unit time learned from the calls before). CyRK builds no dense output for a call that ran out
@@ -25,7 +35,10 @@ that entry point, so this adapter locates them on CyRK's dense output:
 
 ``rhs="python"`` is refused: CyRK's Python entry point (``pysolve_ivp``) calls a Python function
 per evaluation, which the study's Python tier of other libraries already measures. The first
-solve in a process compiles CyRK's numba entry point (~5 s).
+solve in a process compiles CyRK's numba entry point and the compiled callers of this module
+(numba cannot cache them: CyRK's entry point holds a ctypes pointer); a segment-path call goes
+through a compiled caller too (:func:`_call`: from Python, numba's dispatcher types a keyword
+call afresh each time, ~70 µs).
 
 Reference: CyRK, https://github.com/jrenaud90/CyRK (C++ ports of scipy's RK23/RK45/DOP853, BDF,
 Radau and LSODA; Tsit5, Vern7, Vern8).
@@ -47,18 +60,20 @@ from numba import carray, cfunc, njit, types
 from numba.extending import intrinsic
 
 from integrators.core.crossings import carry_last_root, push_crossing, queue_crossings
-from integrators.core.events import DIRECTIONS, END, PEAK, compiled_roots, sign_change
+from integrators.core.events import (DIRECTIONS, END, N_EVENTS, PEAK, compiled_roots,
+                                     events_table, new_recorder, observe, record, sign_change)
 from integrators.core.registry import AdaptiveAlgorithm, register
-from integrators.core.segments import Advance
-from integrators.core.solution import ReturnCode, Stats
-from problems.formulations import N_Q, Q_E, form_vector, ode_rhs
-from problems.loading import ln_load_rate
+from integrators.core.segments import Advance, save_grid
+from integrators.core.solution import RawRun, ReturnCode, Stats
+from problems.formulations import N_Q, Q_E, form_vector, from_ode_state, ode_rhs, to_ode_state
+from problems.loading import ln_load_rate, load_segment
 
 __all__ = ["CyRKRK45", "CyRKDOP853", "CyRKTsit5", "CyRKBDF", "CyRKRadau", "CyRKLSODA"]
 
 if importlib.util.find_spec("CyRK") is None:
     raise ImportError("No module named 'CyRK'")
 _VERSION = importlib.metadata.version("CyRK")
+from CyRK import nbsolve2_ivp  # noqa: E402  (after the check that CyRK is there)
 
 CHUNK_STEPS = 65_536
 #: under two-speed loading, the first call's span in half periods π/√C, until a cycle is known
@@ -160,15 +175,71 @@ def _step_crossings(call, result, q, T, Y, g):
     return R[:m]
 
 
+@njit(error_model="numpy")
+def _call(rhs, t0, t1, z0, method, args, rtol, atol, max_steps):
+    """One ``nbsolve2_ivp`` call from compiled code, as CyRK's numba users call it (from Python,
+    numba's dispatcher types the keyword call every time: ~70 µs a call)."""
+    return nbsolve2_ivp(rhs, (t0, t1), z0, method, dense_output=True, args=args, rtol=rtol,
+                        atol=atol, max_num_steps=max_steps)
+
+
+@njit(error_model="numpy")
+def _whole_run(rhs, call, method, tau_end, z0, args, q, rtol, atol, max_steps, rec, ev,
+               grid, saved):
+    """The one-call path (module docstring): ``nbsolve2_ivp`` over [0, τ_end], its crossings
+    recorded as the segment driver records them (coincident ones merged, kinds in order), the
+    states at the times ``grid`` (inside the run) into ``saved`` from the dense output. Returns
+    (CyRK's status, steps taken, the recorder's event rows, the last step's τ and state)."""
+    r = nbsolve2_ivp(rhs, (0.0, tau_end), z0, method, dense_output=True, args=args, rtol=rtol,
+                     atol=atol, max_num_steps=max_steps)
+    status, taken = r.status, r.steps_taken
+    T, Y = r.t, np.ascontiguousarray(r.y.T)
+    n = T.shape[0]
+    end = Y[n - 1].copy() if n else z0.copy()
+    t_last = T[n - 1] if n else 0.0
+    if status != _SUCCESS or n < 2 or T[0] != 0.0:
+        r.free()
+        return status, taken, ev[:0], t_last, end
+    g = np.empty(4)
+    compiled_roots(q, q[_LN_10ES], q[_LN_ES], q[_LN_E], z0, g)
+    R = _step_crossings(call, r._ptr, q, T, Y, g)
+    e = q[_E]
+    m, i = R.shape[0], 0
+    while i < m:
+        t = R[i, 0]
+        j = i + 1
+        while j < m and R[j, 0] - t <= 1e-14 * max(1.0, abs(t)):   # as queue_crossings
+            j += 1
+        if int(rec[N_EVENTS]) + 1 >= ev.shape[0]:
+            ev = np.concatenate((ev, np.empty_like(ev)))
+        for k in range(4):                                          # sorted(roots)
+            for row in range(i, j):
+                if int(R[row, 1]) == k:
+                    record(rec, ev, k, t, R[i, 3], R[i, 4], e * t)
+        observe(rec, R[i, 3])
+        i = j
+    observe(rec, end[0])
+    step, zt = 0, np.empty(3)
+    for k in range(grid.shape[0]):              # times inside the run, increasing
+        while step < n and T[step] < grid[k]:
+            step += 1
+        if step < n and T[step] == grid[k]:     # a step's end: its state, as the driver's
+            saved[k] = Y[step]
+        else:
+            _dense(call, r._ptr, grid[k], zt.ctypes.data)
+            saved[k] = zt
+    r.free()
+    return status, taken, ev[:int(rec[N_EVENTS])], t_last, end
+
+
 @functools.cache
 def _library():
-    """CyRK's numba entry point, the address of its dense-output call, and the cfunc."""
-    from CyRK import nbsolve2_ivp
+    """The address of CyRK's dense-output call, and the cfunc's."""
     from CyRK.nb import numba_c_api
     double_p = types.CPointer(types.float64)
     rhs = cfunc(types.void(double_p, types.float64, double_p, double_p), cache=True,
                 error_model="numpy")(_rhs)
-    return nbsolve2_ivp, int(numba_c_api.get_call_call_func_ptr()), rhs.address
+    return int(numba_c_api.get_call_call_func_ptr()), rhs.address
 
 
 @dataclass(frozen=True)
@@ -189,6 +260,22 @@ class _CyRK(AdaptiveAlgorithm):
 
     def make_stepper(self, nd, budget):
         return _CyRKStepper(self, nd, budget)
+
+    def run(self, problem, output, budget, progress):
+        nd = problem.nondimensional()
+        tiny = 1e-12 * nd.tau_end
+        _, bound = load_segment(nd.history, 0.0, -math.inf, nd.tau_end, tiny)
+        if (self.stiff and progress is None and not nd.two_speed
+                and bound >= nd.tau_end - tiny and self.max_steps > 2 * CHUNK_STEPS):
+            raw = _one_call(self, problem, nd, output, budget)
+            if isinstance(raw, RawRun):
+                return raw
+            again = super().run(problem, output, budget, progress)
+            for key in ("nfev", "njev", "steps"):       # the call's work counts too
+                setattr(again.stats, key, getattr(again.stats, key) + getattr(raw, key))
+            again.meta["one_call"] = False
+            return again
+        return super().run(problem, output, budget, progress)
 
 
 @register
@@ -277,7 +364,7 @@ class _CyRKStepper:
         self.nd = nd
         self.budget = budget
         self.stats = Stats()
-        self._solve, self._call, self._rhs = _library()
+        self._call, self._rhs = _library()
         self._counters = np.zeros(6)
         self._args = np.append(form_vector(nd, nd.e_slow), float(self._counters.ctypes.data))
         if int(self._args[_COUNTERS]) != self._counters.ctypes.data:   # above 2**53
@@ -368,9 +455,8 @@ class _CyRKStepper:
             cap = 2 * CHUNK_STEPS if self._density or a.stiff else FIRST_CAP
             t1 = self._t_bound if t0 + span >= self._t_bound else t0 + span
             self._free()
-            r = self._result = self._solve(
-                self._rhs, (t0, t1), z0, method=a.method, dense_output=True, args=self._args,
-                rtol=a.rtol, atol=a.atol, max_num_steps=min(cap, left))
+            r = self._result = _call(self._rhs, t0, t1, z0, a.method, self._args, a.rtol, a.atol,
+                                     min(cap, left))
             status, taken = int(r.status), int(r.steps_taken)
             self.stats.steps += taken
             self.stats.nfev = int(self._counters[_NFEV])
@@ -407,6 +493,55 @@ class _CyRKStepper:
         self._T, self._Y = T, Y
         queue_crossings(self._queue, ((r[0], r[1], r[2], r[3:6].copy()) for r in R))
         return None
+
+
+def _one_call(algorithm: _CyRK, problem, nd, output, budget) -> RawRun | Stats:
+    """The whole run in one compiled call (:func:`_whole_run`, module docstring); where the
+    call stopped short (a failure, or the steps of one call used up) its counters only: the
+    segment driver then runs it from the start."""
+    call, rhs = _library()
+    counters = np.zeros(6)
+    args = np.append(form_vector(nd, nd.e_slow), float(counters.ctypes.data))
+    if int(args[_COUNTERS]) != counters.ctypes.data:   # above 2**53
+        raise MemoryError("the counters' address does not fit a double exactly")
+    q = np.concatenate([form_vector(nd, nd.e_slow),
+                        [math.log(10.0 * nd.e_slow), math.log(nd.e_slow), 0.0]])
+    q[_LN_E] = ln_load_rate(q[_E])
+    grid, grid_s, unasked = save_grid(problem, nd, output)
+    tiny = 1e-12 * nd.tau_end
+    first = 0 if unasked else 1
+    inner = first + int(np.searchsorted(grid[first:], nd.tau_end - tiny))
+    z0 = to_ode_state(nd.law_code, nd.beta, nd.x0)
+    rec, saved = new_recorder(nd.x0[0]), np.empty((inner - first, 3))
+    status, taken, ev, t_last, end = _whole_run(
+        rhs, call, algorithm.method, nd.tau_end, z0, args, q, algorithm.rtol,
+        algorithm.atol, 2 * CHUNK_STEPS, rec, np.empty((16, 8)),
+        grid[first:inner], saved)
+    stats = Stats(nfev=int(counters[_NFEV]), njev=int(counters[_NJEV]), steps=int(taken))
+    if status != _SUCCESS or t_last != nd.tau_end or not np.all(np.isfinite(end)):
+        return stats
+    retcode, message = ReturnCode.SUCCESS, ""
+    if budget is not None and budget.exceeded():
+        retcode = ReturnCode.WALL_TIME
+        message = (f"wall-time budget of {budget.wall_s} s used up: CyRK's one call over the "
+                   "run took longer")
+    ts = nd.time_scale
+    times = [0.0] + [grid_s[k] if grid_s is not None else grid[k] * ts
+                     for k in range(first, inner)]
+    states = [z0] + list(saved)
+    if nd.tau_end >= grid[inner] - tiny:        # the end, as the segment driver saves it
+        times.append(grid_s[inner] if grid_s is not None and nd.tau_end <= grid[inner] + tiny
+                     else nd.tau_end * ts)
+        states.append(end)
+    if times[-1] < nd.tau_end * ts and grid_s is None:
+        times.append(nd.tau_end * ts)
+        states.append(end)
+    if unasked:
+        times, states = times[1:], states[1:]
+    h, eta, psi = from_ode_state(nd.law_code, nd.beta, np.array(states))
+    return RawRun(t=np.array(times), y=np.column_stack(problem.dimensional_state(h, eta, psi)),
+                  events=events_table(ev, problem, nd), stats=stats, retcode=retcode,
+                  message=message, meta={"one_call": True})
 
 
 @njit(cache=True)

@@ -6,12 +6,15 @@ functions of its own module that call :func:`integrators.own.engine.run` and
 :func:`integrators.own.engine.fixed_steps` with its step), its ``workspace`` and its constants;
 ``run`` does the rest: the save grid, the state and scratch arrays, the call (repeated only for a progress bar, every
 :data:`CHUNK_STEPS` accepted steps, or to enlarge the events table) and the conversion.
-``Solution.meta`` reports the engine's (re)starts and the roots reported of each kind.
+``Solution.meta`` reports the engine's (re)starts, the roots reported of each kind, the arrests
+and ``kernel_s``, the wall time spent in the compiled calls (s): a whole ``solve`` call's wall time
+less it is what the Python side costs.
 """
 
 from __future__ import annotations
 
 import math
+import time
 from typing import Callable, ClassVar
 
 import numpy as np
@@ -31,6 +34,10 @@ CHUNK_STEPS = 1 << 16
 LONG_CHUNK_STEPS = 1 << 20
 _EVENTS_START = 64
 _DIRS = np.array(DIRECTIONS, dtype=np.int64)
+#: the engine's starting arrays by (problem, method, settings), so that repeated solves of one
+#: problem (a study's repeats, a fit's forward model) skip making them: at most this many kept
+_STARTS: dict = {}
+_STARTS_KEPT = 64
 #: the root functions, in the order of :mod:`integrators.core.events` (``Solution.meta["roots"]``)
 ROOT_NAMES = ("start", "end", "h_extremum", "peak")
 
@@ -84,16 +91,18 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
         grid = grid_t / nd.time_scale
         if grid_t[-1] == problem.t_end:
             grid[-1] = nd.tau_end
-        deadline = budget.deadline() if budget is not None else math.inf
-        st, p, Z, G = E.new_state(nd, self.rtol, self.atol, self.constants, self.max_steps,
-                                  deadline)
+        st, p, Z, G = self._start(nd, budget.deadline() if budget is not None else math.inf)
         saved, ev = np.empty((len(grid), 3)), np.empty((_EVENTS_START, 8))
         saved[0] = Z[E.ZROW["ZC"]]
         st[E.ST["NEXT_SAVE"]] = 1
         n_max = CHUNK_STEPS if progress is not None else LONG_CHUNK_STEPS
-        ws, sc = type(self).workspace(), E.scratch()
+        # the scratch arrays made by numpy (the compiled makers' boxing costs microseconds)
+        ws, sc = type(self).workspace.py_func(), E.scratch.py_func()
+        kernel_s = 0.0
         while True:
+            start = time.perf_counter()
             status = type(self).kernel(ws, sc, st, p, Z, G, _DIRS, grid, saved, ev, n_max)
+            kernel_s += time.perf_counter() - start
             if status == E.GROW:
                 ev = np.concatenate([ev, np.empty_like(ev)])
             elif status == E.CHUNK:
@@ -107,9 +116,25 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
         if progress is not None:
             progress(st[E.CURSOR] * nd.time_scale)
         raw = self._raw(problem, nd, status, st, Z, grid_t, saved, ev, budget)
+        raw.meta["kernel_s"] = kernel_s
         if unasked:
             raw.t, raw.y = raw.t[1:], raw.y[1:]
         return raw
+
+    def _start(self, nd, deadline: float):
+        """The arrays (st, p, Z, G) of a solve of ``nd`` (:func:`integrators.own.engine.
+        new_state`), copied from the last ones made for the same problem and settings."""
+        key = (id(nd), type(self), self.rtol, self.atol, self.max_steps)
+        made = _STARTS.get(key)
+        if made is None or made[0] is not nd:           # (the problem is held: ids stay unique)
+            if len(_STARTS) >= _STARTS_KEPT:
+                _STARTS.clear()
+            made = (nd, E.new_state(nd, self.rtol, self.atol, self.constants, self.max_steps,
+                                    math.inf))
+            _STARTS[key] = made
+        st, p, Z, G = (a.copy() for a in made[1])
+        p[E.P["DEADLINE"]] = deadline
+        return st, p, Z, G
 
     def _raw(self, problem, nd, status, st, Z, grid_t, saved, ev, budget) -> RawRun:
         ts = nd.time_scale

@@ -103,18 +103,21 @@ N_Z = 10
 #: p: the problem vector q of :mod:`problems.formulations` (its E is the current segment's), the
 #: tolerances, the root functions' thresholds ln(10 E_slow), ln E_slow, ln E; the run (τ_end,
 #: two-speed flag, step budget, wall deadline); the method (exponent of the initial-step guess,
-#: controller order q, stick_peaks, fsal, hermite, f evaluations per attempt); from N_P on, the
-#: load-point history (:func:`problems.loading.history_vector`)
+#: controller order q, stick_peaks, fsal, hermite, f evaluations per attempt, and those of the
+#: last attempt beyond them); from N_P on, the load-point history
+#: (:func:`problems.loading.history_vector`)
 P = dict(LAW=Q_LAW, BETA=Q_BETA, C=Q_C, D=Q_D, E=Q_E, RTOL=N_Q, ATOL=N_Q + 1,
          LN_10E_SLOW=N_Q + 2, LN_E_SLOW=N_Q + 3, LN_E=N_Q + 4, TAU_END=N_Q + 5,
          TWO_SPEED=N_Q + 6, MAX_STEPS=N_Q + 7, DEADLINE=N_Q + 8, INIT_EXPONENT=N_Q + 9,
-         Q=N_Q + 10, STICK_PEAKS=N_Q + 11, FSAL=N_Q + 12, HERMITE=N_Q + 13, STAGES=N_Q + 14)
+         Q=N_Q + 10, STICK_PEAKS=N_Q + 11, FSAL=N_Q + 12, HERMITE=N_Q + 13, STAGES=N_Q + 14,
+         MORE_F=N_Q + 15)
 (_RTOL, _ATOL, _LN_10ES, _LN_ES, _LN_E, _TAU_END, _TWO_SPEED, _MAX_STEPS, _DEADLINE,
- _INIT_EXPONENT, _Q, _STICK_PEAKS, _FSAL, _HERMITE, _STAGES) = range(N_Q, N_Q + 15)
+ _INIT_EXPONENT, _Q, _STICK_PEAKS, _FSAL, _HERMITE, _STAGES, _MORE_F) = range(N_Q, N_Q + 16)
 _E = Q_E
-N_P = N_Q + 15
-#: where a method's ``attempt`` reads the tolerances
-P_RTOL, P_ATOL = _RTOL, _ATOL
+N_P = N_Q + 16
+#: where a method's ``attempt`` reads the tolerances; where one whose f evaluations per attempt
+#: vary (Newton iterations) adds those beyond p[STAGES], which the engine counts and clears
+P_RTOL, P_ATOL, P_MORE_F = _RTOL, _ATOL, _MORE_F
 
 #: what :func:`run` returns
 DONE, CHUNK, GROW, NONFINITE, UNDERFLOW, MAX_STEPS, WALL_TIME = range(7)
@@ -475,8 +478,9 @@ def _step(prepare, attempt, reject, accept, st, p, Z, ws, z0, f0, z1, f1, D, t_l
         if tau + hs == tau:
             return UNDERFLOW, tau, hs, attempts
         attempts += 1
-        st[NFEV] += stages
         errmax = attempt(p, hs, ws, z0, f0, z1, f1, D)
+        st[NFEV] += stages + p[_MORE_F]
+        p[_MORE_F] = 0.0
         if errmax <= 1.0:                               # False for NaN
             if not fsal:                # f at the end: the next step's f0, the interpolant's slope
                 f_of(p, z1, f1)

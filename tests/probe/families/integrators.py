@@ -32,10 +32,11 @@ RTOL = 1e-8
 PEER, PEER_RTOL = "sundials-CVODE-BDF", 1e-10
 #: allowed relative difference from the peer, in units of rtol: the methods' global error over
 #: an event and a lock at rtol = 1e−8, measured against CVODE-BDF at 1e−10 (Rodas5P ≤ 9.7,
-#: Exprb43 ≤ 7.3, Exprb32 ≤ 13, Rosenbrock23 ≤ 470: order 2, its error per step controlled),
-#: with a margin of 2–3 (tests/test_deep_lock.py)
-AGREE = {"Rodas5P": 30.0, "Exprb43": 30.0, "Exprb32": 50.0, "Rosenbrock23": 1500.0,
-         "CashKarp45": 30.0}
+#: Exprb43 ≤ 7.3, Exprb32 ≤ 13, Rosenbrock23 ≤ 470: order 2, its error per step controlled;
+#: RadauIIA5 between 3 and 10: it fails at 3, passes at 10), with a margin of 2–3
+#: (tests/test_deep_lock.py)
+AGREE = {"Rodas5P": 30.0, "RadauIIA5": 30.0, "Exprb43": 30.0, "Exprb32": 50.0,
+         "Rosenbrock23": 1500.0, "CashKarp45": 30.0}
 _EVENT_COLUMNS = ("t_start", "t_end", "t_peak", "v_peak", "fs_max_before", "fs_min")
 #: a window's short run: the first event, its lock and the switch back to slow loading
 _T_END = 0.06
