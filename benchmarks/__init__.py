@@ -15,5 +15,9 @@
 The public names of each room are in its ``__all__`` and in ``docs/api.md``.
 """
 
+from integrators.core.cache import drop_stale_caches
+
+drop_stale_caches(("benchmarks",), ("integrators", "problems", "benchmarks"))
+
 __all__ = ["records", "physics", "devtools", "ensemble", "inversion", "studies", "pipeline",
            "cli"]

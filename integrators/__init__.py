@@ -10,6 +10,11 @@
   reason in :data:`UNAVAILABLE`).
 """
 
+from integrators.core.cache import drop_stale_caches
+
+# before any kernel loads its cache (integrators/core/cache.py says why)
+drop_stale_caches(("integrators", "problems"), ("integrators", "problems"))
+
 from integrators.core.registry import (REGISTRY, UNAVAILABLE, Algorithm, ProblemNotSupported,
                                        algorithm_class, make_algorithm, register)
 from integrators.core.solution import EVENT_COLUMNS, Output, ReturnCode, Solution, Stats

@@ -57,13 +57,20 @@ def test_a_cyrk_failure_comes_back_with_its_status_and_message(monkeypatch):
 def test_one_call_path_is_the_segment_path_to_the_bit(name):
     """On a run with one loading speed the implicit methods take the one compiled call; its
     events, saved times and states and counters are those of the segment driver over the same
-    library (run directly here), on a uniform grid and at given times."""
+    library (run directly here), on uniform grids (50 and the default 20,000 points) and at
+    given times."""
     from integrators.core.segments import run_segments
     from integrators.core.solution import Output
     from integrators.core.solve import Budget
-    p = P.paper_example()
+    import dataclasses
+    base = P.paper_example()
+    # and a history whose reference velocity (the one E is measured in) is not its speed
+    other = dataclasses.replace(base, loading=P.LoadHistory(
+        (base.loading.v_slow,), reference_velocity=2 * base.loading.v_slow))
     method = REGISTRY[name](rtol=1e-6, atol=1e-6)
-    for kw in (dict(max_points=50), dict(save_at=np.linspace(0.5, 19.5, 7))):
+    for p, kw in ((base, dict(max_points=50)), (base, dict(save_at=np.linspace(0.5, 19.5, 7))),
+                  (base, dict(save_at=np.array([1.0, 1.0 + 1e-12, 2.0, 20.0]))),
+                  (base, dict()), (other, dict(max_points=3))):
         sol = I.solve(p, method, **kw)
         raw = run_segments(p, method.make_stepper(p.nondimensional(), None), Output(**kw),
                            Budget(), None)
@@ -79,3 +86,17 @@ def test_two_speed_loading_takes_the_segment_path():
     sol = I.solve(P.window("W2", "slip", t_end=0.05),
                   REGISTRY["CyRK-Radau"](rtol=1e-6, atol=1e-6), max_points=2)
     assert sol.success and "one_call" not in sol.meta
+
+
+def test_a_call_that_runs_out_goes_on_chunked_its_steps_counted(monkeypatch):
+    """With calls of at most 2000 steps the one call runs out (the paper example takes ~4000
+    at 1e−7): the segment path runs it again, chunked from the steps per unit τ just seen; the
+    thrown-away steps count, against the step budget too."""
+    from integrators.external import cyrk_backend as cb
+    monkeypatch.setattr(cb, "CHUNK_STEPS", 1000)
+    p = P.paper_example()
+    sol = I.solve(p, REGISTRY["CyRK-Radau"](rtol=1e-7, atol=1e-7), max_points=2)
+    assert sol.success and sol.meta["one_call"] is False and len(sol.events) == 8
+    assert sol.stats.steps > 2000 + 3900
+    short = I.solve(p, REGISTRY["CyRK-Radau"](rtol=1e-7, atol=1e-7, max_steps=2500))
+    assert short.retcode is I.ReturnCode.MAX_STEPS and short.stats.steps == 2500

@@ -11,13 +11,19 @@ numbalsoda's ``lsoda`` called once over a 20,001-point grid at rtol = atol = 1e�
 ``cfunc`` right-hand side, as its users call it: no events, no restarts (so W2's two-speed
 loading is not followed: it measures the machine, not an answer).
 
+The Python side of a solve (the whole call less its compiled calls, ``Solution.meta
+["kernel_s"]``), and Rodas5P's kernel against its twin in C
+(:mod:`benchmarks.devtools.c_twin`: the same arithmetic, steps and events), interleaved in one
+run, µs per step attempt.
+
 Start-up, in fresh processes: ``import integrators``, the first solve after it (Rodas5P on the
 paper example) and ``rsfbench simulate --preset paper-example --json``, with the numba cache
 warm (the minimum of 3) and, for the first two, cold (a copy of the sources with no cache: every
 kernel that solve needs is compiled).
 
-``rsfbench study engine-speed`` writes ``engine_speed.csv`` (every setting) and
-``engine_speed.md`` (the targets, met or missed, and the start-up times).
+``rsfbench study engine-speed`` writes ``engine_speed.csv`` (every setting),
+``engine_speed_c_twin.csv`` and ``engine_speed.md`` (the targets, met or missed, and the
+start-up times).
 """
 
 from __future__ import annotations
@@ -36,7 +42,7 @@ from integrators import REGISTRY, solve
 from problems import paper_example, window
 
 __all__ = ["STUDY", "engine_speed", "targets", "startup", "engine_speed_markdown", "write_engine_speed",
-           "METHODS", "TOLERANCES", "python_side"]
+           "METHODS", "TOLERANCES", "python_side", "c_twin_comparison"]
 
 METHODS = ("Rosenbrock23", "Rodas5P", "RadauIIA5", "Exprb32", "Exprb43")
 TOLERANCES = tuple(10.0 ** -k for k in range(2, 11))
@@ -155,6 +161,46 @@ def python_side(repeats: int = 200, method: str = "Rodas5P", tol: float = 1e-3) 
             "whole_us": float(np.min(whole) * 1e6)}
 
 
+#: the tolerances and goal of the comparison with the C twin: the kernel's µs per attempt
+#: within TWIN_FACTOR × the twin's at each
+TWIN_TOLERANCES, TWIN_FACTOR = (1e-3, 1e-5, 1e-7, 1e-9), 1.15
+
+
+def c_twin_comparison(rounds: int = 8, solves: int = 10) -> pd.DataFrame | None:
+    """Rodas5P's kernel against its C twin (:mod:`benchmarks.devtools.c_twin`) on the paper
+    example, interleaved by tolerance and round: µs per step attempt, the kernel's from
+    ``Solution.meta["kernel_s"]`` (the minimum over ``solves`` solves), the twin's (the minimum
+    over as many runs), each the minimum over ``rounds``; the ratio and whether the two took
+    the same steps. None without gcc."""
+    import tempfile
+
+    from benchmarks.devtools import c_twin
+    if c_twin.compiler() is None:
+        return None
+    problem = paper_example()
+    kernel = {tol: math.inf for tol in TWIN_TOLERANCES}
+    twin = dict(kernel)
+    same = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        binary = c_twin.build(tmp)
+        inputs = {tol: c_twin.write_input(Path(tmp) / f"in_{tol:g}.txt", problem, tol)
+                  for tol in TWIN_TOLERANCES}
+        for _ in range(rounds):
+            for tol in TWIN_TOLERANCES:
+                algorithm = REGISTRY["Rodas5P"](rtol=tol, atol=tol)
+                for _ in range(solves):
+                    sol = solve(problem, algorithm, max_points=2)
+                    attempts = sol.stats.steps + sol.stats.rejected
+                    kernel[tol] = min(kernel[tol], sol.meta["kernel_s"] * 1e6 / attempts)
+                got = c_twin.run_twin(binary, inputs[tol], solves)
+                twin[tol] = min(twin[tol], got["us_per_attempt"])
+                same[tol] = (got["steps"], got["rejected"], got["roots"]) == (
+                    sol.stats.steps, sol.stats.rejected, list(sol.meta["roots"].values()))
+    return pd.DataFrame([dict(tol=tol, kernel_us=kernel[tol], twin_us=twin[tol],
+                              ratio=kernel[tol] / twin[tol], same_steps=same[tol])
+                         for tol in TWIN_TOLERANCES])
+
+
 _STARTUP = ("import time; t0 = time.perf_counter(); import integrators as I, problems as P; "
             "t1 = time.perf_counter(); I.solve(P.paper_example(), I.Rodas5P(rtol=1e-4, atol=1e-4)); "
             "print(t1 - t0, time.perf_counter() - t1)")
@@ -209,7 +255,7 @@ def _verdict(goals: pd.DataFrame) -> str:
 
 
 def engine_speed_markdown(goals: pd.DataFrame, t: dict, repeats: int,
-                          side: dict | None = None) -> str:
+                          side: dict | None = None, twin: pd.DataFrame | None = None) -> str:
     """``engine_speed.md``: the targets table and the start-up times."""
     lines = ["# The own compiled engine against issue 14's targets",
              "",
@@ -234,6 +280,19 @@ def engine_speed_markdown(goals: pd.DataFrame, t: dict, repeats: int,
                   f"against a goal of {PYTHON_SIDE_TARGET_US:.0f} µs: {met}; the kernel "
                   f"{side['kernel_us']:.0f} µs, the whole call {side['whole_us']:.0f} µs "
                   "(minima).", ""]
+    if twin is not None:
+        met = "met" if (twin.ratio <= TWIN_FACTOR).all() else "missed"
+        lines += ["Rodas5P's kernel against its C twin (`benchmarks/native/rodas5p.c`, gcc "
+                  "-O3 -ffp-contract=off: the same arithmetic, steps and events) on the paper "
+                  "example, µs per step attempt, interleaved, the minimum of 8 rounds of 10 "
+                  f"solves each; goal: within {TWIN_FACTOR:g}× at every tolerance ({met}):", "",
+                  "| rtol = atol | kernel (µs) | C twin (µs) | kernel / C | same steps |",
+                  "|---|---|---|---|---|"]
+        lines += [f"| {r.tol:g} | {r.kernel_us:.3f} | {r.twin_us:.3f} | {r.ratio:.2f} | "
+                  f"{'yes' if r.same_steps else 'no'} |" for r in twin.itertuples()]
+        lines += [""]
+    elif side is not None:
+        lines += ["No C compiler (gcc): the kernel's C twin was not run.", ""]
     lines += ["Start-up in a fresh process (`import integrators`; then the first solve, Rodas5P "
               "on the paper example; the simulate command as a whole), warm numba cache (min of 3) "
               "and cold (no cache: the kernels that solve needs are compiled):",
@@ -253,9 +312,12 @@ def write_engine_speed(out: Path | None, repeats: int = 5) -> tuple[pd.DataFrame
     Returns the targets table and the Markdown."""
     table, lsoda = engine_speed(repeats)
     goals = targets(table, lsoda)
-    text = engine_speed_markdown(goals, startup(), repeats, python_side())
+    twin = c_twin_comparison()
+    text = engine_speed_markdown(goals, startup(), repeats, python_side(), twin)
     if out is not None:
         atomic_write(out / "engine_speed.csv", table.to_csv(index=False))
+        if twin is not None:
+            atomic_write(out / "engine_speed_c_twin.csv", twin.to_csv(index=False))
         atomic_write(out / "engine_speed.md", text)
     return goals, text
 
@@ -268,4 +330,5 @@ STUDY = Study("engine-speed", "The own compiled engine against issue 14's target
               "(`engine_speed.*`)", 180, run, report=markdown_file("engine_speed.md"),
               timed=True, modules=("benchmarks.cli",), settings={"repeats": 5},
               limits={"repeats": (1, 100)},   # it times the CLI's start-up
-              writes=("engine_speed.csv", "engine_speed.md"), minutes=0.6)
+              writes=("engine_speed.csv", "engine_speed.md", "engine_speed_c_twin.csv"),
+              minutes=1.0)

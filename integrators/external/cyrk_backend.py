@@ -63,7 +63,7 @@ from integrators.core.crossings import carry_last_root, push_crossing, queue_cro
 from integrators.core.events import (DIRECTIONS, END, N_EVENTS, PEAK, compiled_roots,
                                      events_table, new_recorder, observe, record, sign_change)
 from integrators.core.registry import AdaptiveAlgorithm, register
-from integrators.core.segments import Advance, save_grid
+from integrators.core.segments import Advance, run_segments, save_grid
 from integrators.core.solution import RawRun, ReturnCode, Stats
 from problems.formulations import N_Q, Q_E, form_vector, from_ode_state, ode_rhs, to_ode_state
 from problems.loading import ln_load_rate, load_segment
@@ -188,7 +188,8 @@ def _whole_run(rhs, call, method, tau_end, z0, args, q, rtol, atol, max_steps, r
                grid, saved):
     """The one-call path (module docstring): ``nbsolve2_ivp`` over [0, τ_end], its crossings
     recorded as the segment driver records them (coincident ones merged, kinds in order), the
-    states at the times ``grid`` (inside the run) into ``saved`` from the dense output. Returns
+    states at the times ``grid`` (increasing, ≤ τ_end) into ``saved`` from the dense output (a
+    step's own state where one ends exactly there, as the segment driver takes it). Returns
     (CyRK's status, steps taken, the recorder's event rows, the last step's τ and state)."""
     r = nbsolve2_ivp(rhs, (0.0, tau_end), z0, method, dense_output=True, args=args, rtol=rtol,
                      atol=atol, max_num_steps=max_steps)
@@ -220,7 +221,7 @@ def _whole_run(rhs, call, method, tau_end, z0, args, q, rtol, atol, max_steps, r
         i = j
     observe(rec, end[0])
     step, zt = 0, np.empty(3)
-    for k in range(grid.shape[0]):              # times inside the run, increasing
+    for k in range(grid.shape[0]):
         while step < n and T[step] < grid[k]:
             step += 1
         if step < n and T[step] == grid[k]:     # a step's end: its state, as the driver's
@@ -239,6 +240,11 @@ def _library():
     double_p = types.CPointer(types.float64)
     rhs = cfunc(types.void(double_p, types.float64, double_p, double_p), cache=True,
                 error_model="numpy")(_rhs)
+    # both compiled callers are compiled now, whichever path the first (warm-up) run takes
+    counters = np.zeros(6)
+    args = np.zeros(_N_ARGS)
+    args[_COUNTERS] = float(counters.ctypes.data)
+    _call(rhs.address, 0.0, 1e-9, np.ones(3), "RADAU", args, 1e-3, 1e-3, 2).free()
     return int(numba_c_api.get_call_call_func_ptr()), rhs.address
 
 
@@ -264,18 +270,27 @@ class _CyRK(AdaptiveAlgorithm):
     def run(self, problem, output, budget, progress):
         nd = problem.nondimensional()
         tiny = 1e-12 * nd.tau_end
-        _, bound = load_segment(nd.history, 0.0, -math.inf, nd.tau_end, tiny)
-        if (self.stiff and progress is None and not nd.two_speed
+        e, bound = load_segment(nd.history, 0.0, -math.inf, nd.tau_end, tiny)
+        if not (self.stiff and progress is None and not nd.two_speed
                 and bound >= nd.tau_end - tiny and self.max_steps > 2 * CHUNK_STEPS):
-            raw = _one_call(self, problem, nd, output, budget)
-            if isinstance(raw, RawRun):
-                return raw
-            again = super().run(problem, output, budget, progress)
-            for key in ("nfev", "njev", "steps"):       # the call's work counts too
-                setattr(again.stats, key, getattr(again.stats, key) + getattr(raw, key))
-            again.meta["one_call"] = False
-            return again
-        return super().run(problem, output, budget, progress)
+            return super().run(problem, output, budget, progress)
+        raw = _one_call(self, problem, nd, e, output, budget)
+        if isinstance(raw, RawRun):
+            return raw
+        # the call stopped short: the segment path from the start, its first chunk sized by
+        # the steps per unit τ just seen, the thrown-away call's work counted (and charged to
+        # the step budget)
+        wasted, density = raw
+        stepper = self.make_stepper(nd, budget)
+        stepper.stats.steps = wasted.steps
+        stepper._counters[_NFEV], stepper._counters[_NJEV] = wasted.nfev, wasted.njev
+        stepper._density = density
+        try:
+            again = run_segments(problem, stepper, output, budget, progress)
+        finally:
+            stepper.finish()
+        again.meta["one_call"] = False
+        return again
 
 
 @register
@@ -495,53 +510,63 @@ class _CyRKStepper:
         return None
 
 
-def _one_call(algorithm: _CyRK, problem, nd, output, budget) -> RawRun | Stats:
-    """The whole run in one compiled call (:func:`_whole_run`, module docstring); where the
-    call stopped short (a failure, or the steps of one call used up) its counters only: the
-    segment driver then runs it from the start."""
+def _one_call(algorithm: _CyRK, problem, nd, e: float, output, budget):
+    """The whole run, under the loading E = ``e`` throughout, in one compiled call
+    (:func:`_whole_run`, module docstring): a RawRun; where the call stopped short (a failure,
+    or the steps of one call used up), its counters and the steps it took per unit τ, for the
+    segment path that then runs it from the start."""
     call, rhs = _library()
     counters = np.zeros(6)
-    args = np.append(form_vector(nd, nd.e_slow), float(counters.ctypes.data))
+    args = np.append(form_vector(nd, e), float(counters.ctypes.data))
     if int(args[_COUNTERS]) != counters.ctypes.data:   # above 2**53
         raise MemoryError("the counters' address does not fit a double exactly")
-    q = np.concatenate([form_vector(nd, nd.e_slow),
-                        [math.log(10.0 * nd.e_slow), math.log(nd.e_slow), 0.0]])
-    q[_LN_E] = ln_load_rate(q[_E])
-    grid, grid_s, unasked = save_grid(problem, nd, output)
-    tiny = 1e-12 * nd.tau_end
-    first = 0 if unasked else 1
-    inner = first + int(np.searchsorted(grid[first:], nd.tau_end - tiny))
+    q = np.concatenate([form_vector(nd, e),
+                        [math.log(10.0 * nd.e_slow), math.log(nd.e_slow), ln_load_rate(e)]])
+    taus, times, unasked = _saves(problem, nd, output)
     z0 = to_ode_state(nd.law_code, nd.beta, nd.x0)
-    rec, saved = new_recorder(nd.x0[0]), np.empty((inner - first, 3))
+    rec, saved = new_recorder(nd.x0[0]), np.empty((len(taus), 3))
     status, taken, ev, t_last, end = _whole_run(
         rhs, call, algorithm.method, nd.tau_end, z0, args, q, algorithm.rtol,
-        algorithm.atol, 2 * CHUNK_STEPS, rec, np.empty((16, 8)),
-        grid[first:inner], saved)
+        algorithm.atol, 2 * CHUNK_STEPS, rec, np.empty((16, 8)), taus, saved)
     stats = Stats(nfev=int(counters[_NFEV]), njev=int(counters[_NJEV]), steps=int(taken))
     if status != _SUCCESS or t_last != nd.tau_end or not np.all(np.isfinite(end)):
-        return stats
+        return stats, (max(taken / t_last, 1e-300) if taken > 0 and t_last > 0.0 else None)
     retcode, message = ReturnCode.SUCCESS, ""
     if budget is not None and budget.exceeded():
         retcode = ReturnCode.WALL_TIME
         message = (f"wall-time budget of {budget.wall_s} s used up: CyRK's one call over the "
                    "run took longer")
-    ts = nd.time_scale
-    times = [0.0] + [grid_s[k] if grid_s is not None else grid[k] * ts
-                     for k in range(first, inner)]
-    states = [z0] + list(saved)
-    if nd.tau_end >= grid[inner] - tiny:        # the end, as the segment driver saves it
-        times.append(grid_s[inner] if grid_s is not None and nd.tau_end <= grid[inner] + tiny
-                     else nd.tau_end * ts)
+    states = ([] if unasked else [z0]) + list(saved)
+    if len(times) > len(states):                # the end, after the save grid's last point
         states.append(end)
-    if times[-1] < nd.tau_end * ts and grid_s is None:
-        times.append(nd.tau_end * ts)
-        states.append(end)
-    if unasked:
-        times, states = times[1:], states[1:]
     h, eta, psi = from_ode_state(nd.law_code, nd.beta, np.array(states))
     return RawRun(t=np.array(times), y=np.column_stack(problem.dimensional_state(h, eta, psi)),
                   events=events_table(ev, problem, nd), stats=stats, retcode=retcode,
                   message=message, meta={"one_call": True})
+
+
+def _saves(problem, nd, output):
+    """Where the segment driver saves on a run of one loading segment that reaches its end
+    (:func:`integrators.core.segments.run_segments`, followed step by step): the τ of each save
+    after the start, all ≤ τ_end; the times of the saved points in s (the start's, unless not
+    asked for; then one for each τ, then the end's if the driver appends it); whether the start
+    was not asked for."""
+    grid, grid_s, unasked = save_grid(problem, nd, output)
+    tiny, ts, tau_end = 1e-12 * nd.tau_end, nd.time_scale, nd.tau_end
+    taus, times, i, tau = [], [0.0], 0 if unasked else 1, 0.0
+    while True:
+        tau = min(grid[i], tau_end)
+        if tau >= grid[i] - tiny:
+            taus.append(tau)
+            times.append(grid_s[i] if grid_s is not None and tau <= grid[i] + tiny
+                         else tau * ts)
+            while grid[i] <= tau + tiny:
+                i += 1
+        if tau >= tau_end - tiny:
+            break
+    if times[-1] < tau * ts and grid_s is None:
+        times.append(tau * ts)
+    return np.array(taus), (times[1:] if unasked else times), unasked
 
 
 @njit(cache=True)

@@ -68,7 +68,7 @@ from integrators.core.events import (AT_ROOT, END, H_EXTREMUM, PEAK, REC_SIZE, c
                                      compiled_roots, new_recorder, observe, record, sign_change)
 from integrators.core.events import N_EVENTS as _REC_N
 from problems.formulations import (N_Q, Q_BETA, Q_C, Q_D, Q_E, Q_G, Q_LAW, Q_QS, ode_jacobian,
-                                   ode_rhs)
+                                   ode_rhs, peak_function)
 from problems.loading import H_TAU_FAST, LN_E_HOLD, load_segment
 
 __all__ = ["run", "scratch", "NO_NRT", "fixed_steps", "rhs", "jacobian", "hermite", "new_state",
@@ -277,6 +277,52 @@ def _dense(Z, x, out):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _dense_at(Z, i, x):
+    """Component i of :func:`_dense` at x (the same operations)."""
+    y = 1.0 - x
+    return y * Z[_ZO, i] + x * (Z[_Z, i] + y * (Z[_D1, i] + x * (Z[_D2, i] + x * Z[_D3, i])))
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _root_at(p, Z, k, x):
+    """Root function k of :func:`roots` on the dense output at x, alone (the same value)."""
+    if k == 0:
+        return _dense_at(Z, 1, x) - p[_LN_10ES]
+    if k == 1:
+        return _dense_at(Z, 1, x) - p[_LN_ES]
+    if k == 2:
+        return _dense_at(Z, 1, x) - p[_LN_E]
+    return peak_function(p, (_dense_at(Z, 0, x), _dense_at(Z, 1, x), _dense_at(Z, 2, x)))
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _bisect(p, Z, k, up, lo, hi):
+    """Bisection of root function k on [lo, hi] to the last bit (lo on the side ``up`` says,
+    a zero on the far side): the far end. Written as runs of steps to one side, each a loop
+    whose exit is a branch (an if/else of lo = mid, hi = mid becomes a select, whose dependency
+    chain the processor cannot speculate past)."""
+    while True:
+        while True:                     # a run of steps that move lo
+            mid = 0.5 * (lo + hi)
+            if mid <= lo or mid >= hi:
+                return hi
+            gm = _root_at(p, Z, k, mid)
+            if not (gm != 0.0 and (gm > 0.0) == up):
+                break
+            lo = mid
+        hi = mid
+        while True:                     # a run of steps that move hi
+            mid = 0.5 * (lo + hi)
+            if mid <= lo or mid >= hi:
+                return hi
+            gm = _root_at(p, Z, k, mid)
+            if gm != 0.0 and (gm > 0.0) == up:
+                break
+            hi = mid
+        lo = mid
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _cursor_time(t0, dt, x, lo, hi):
     """The time of the fraction x of the step [t0, t0 + dt], within [lo, hi], rounded up so that
     (t − t0)/dt ≥ x: the cursor must sit on the far side of a crossing just placed at x, where
@@ -307,7 +353,7 @@ def _scan(st, p, Z, G, dirs, stick_peaks, t_end, w):
     does not count only moves the cursor and its signs (G[0]). ``w``: 3 × 4 scratch."""
     t0, dt = st[TAU_OLD], st[TAU] - st[TAU_OLD]
     x_end = (t_end - t0) / dt
-    zt, z_end, g_end, g_new, gt, x_root = w[0, :3], w[1, :3], w[2], w[3], w[4], w[5]
+    zt, z_end, g_end, g_new, x_root = w[0, :3], w[1, :3], w[2], w[3], w[5]
     if t_end < st[TAU]:
         _dense(Z, x_end, z_end)
     else:
@@ -324,16 +370,8 @@ def _scan(st, p, Z, G, dirs, stick_peaks, t_end, w):
                 hi = np.inf
             elif ga == 0.0 or (ga > 0.0 and g1 > 0.0) or (ga < 0.0 and g1 < 0.0):
                 hi = x_cur            # the interpolant is past it already: at the cursor
-            while lo < hi < np.inf:   # bisection to the last bit; hi keeps the far side's sign
-                mid = 0.5 * (lo + hi)
-                if mid <= lo or mid >= hi:
-                    break
-                _dense(Z, mid, zt)
-                roots(p, zt, gt)
-                if gt[k] != 0.0 and (gt[k] > 0.0) == (ga > 0.0):
-                    lo = mid
-                else:
-                    hi = mid
+            if lo < hi < np.inf:      # bisection to the last bit; hi keeps the far side's sign
+                hi = _bisect(p, Z, k, ga > 0.0, lo, hi)
             x_root[k] = hi
         best = x_root[0]                  # x_root.min() (which allocates), NaN included
         for k in range(1, 4):
