@@ -35,6 +35,7 @@ def test_constants():
     np.testing.assert_allclose(e, [-(13 + 7 * s6) / 3, (-13 + 7 * s6) / 3, -1 / 3], rtol=1e-15)
 
 
+@pytest.mark.slow                   # 6 s (two scipy Radau runs at 1e−12, 1e−13): make test-slow
 def test_dense_output_is_the_collocation_polynomial():
     """Saved points between steps come from the collocation polynomial (order 3 inside a step,
     exact at its nodes): on the paper example at rtol = atol = 1e−10, 400 save points agree
