@@ -160,7 +160,8 @@ def _newton(p, hs, ws, z0, scale, kappa, iterations, predict):
 def _attempt(p, hs, ws, z0, f0, z1, f1, D):
     J, M, piv, Mc, pivc, Z, W, F, x, y, u, last, scale = ws
     rtol, atol = p[engine.P_RTOL], p[engine.P_ATOL]
-    regular = factor(hs / MU, J, M, piv)
+    fr = hs / MU
+    regular = factor(fr, J, M, piv)
     fc = hs / MU_C
     for i in range(3):
         for j in range(3):
@@ -177,15 +178,13 @@ def _attempt(p, hs, ws, z0, f0, z1, f1, D):
     _start_values(hs, z0, Z, last)
     converged, nfev = _newton(p, hs, ws, z0, scale, kappa,
                               NEWTON_MAXITER if adaptive else FIXED_MAXITER, adaptive)
+    for i in range(3):
+        z1[i] = z0[i] + Z[2, i]     # (a failed iteration's too: fixed steps take it)
     if not converged:
         p[engine.P_MORE_F] += nfev
-        for i in range(3):
-            z1[i] = z0[i] + Z[2, i]
         return NEWTON_FAIL
     # the error: (μ/h − J)⁻¹ (f0 + e·Z/h), solved scaled as the iteration's real part
-    fr = hs / MU
     for i in range(3):
-        z1[i] = z0[i] + Z[2, i]
         ze = (E_ERR[0] * Z[0, i] + E_ERR[1] * Z[1, i] + E_ERR[2] * Z[2, i]) / hs
         F[0, i] = ze                            # kept for a second estimate
         x[0, i] = fr * (f0[i] + ze)
