@@ -267,3 +267,42 @@ def test_a_store_written_by_other_code_is_refused_or_reclaimed(base, points, tmp
         _run(base, points, tmp_path)
     again = _run(base, points, tmp_path, reclaim_store=True)     # a cache of the harness
     assert again.attrs["n_run"] == 12 and len(read_store(tmp_path)) == 12
+
+
+def test_grid_errors_count_a_missing_or_failed_dt_as_infinite_and_skip_points_left_out():
+    """The ensemble study's accuracy on the grid's points: relative ΔT error against the
+    reference over the points that count (values made up here, errors worked by hand)."""
+    from benchmarks.studies.ensemble_scaling import grid_errors
+    ref = pd.DataFrame({"recurrence_s": [10.0, 20.0, 5.0, np.nan],
+                        "classification": ["stick-slip"] * 3 + ["not converged"]})
+    counts = pd.Series([True, True, False, False])
+    good = ref.assign(recurrence_s=[10.01, 19.99, 99.0, np.nan], retcode="Success")
+    e = grid_errors(good, ref, counts)
+    assert e["worst_dt_error"] == pytest.approx(1e-3)          # |10.01 − 10|/10; point 2 left out
+    assert e["points_compared"] == 2 and e["same_class"] == 1.0
+    missing = good.assign(recurrence_s=[10.0, np.nan, 5.0, np.nan],
+                          classification=["stick-slip", "not converged", "stick-slip",
+                                          "not converged"])
+    e = grid_errors(missing, ref, counts)
+    assert e["worst_dt_error"] == np.inf and e["same_class"] == 0.75
+    failed = good.assign(retcode=["Success", "MaxSteps", "Success", "Success"])
+    assert grid_errors(failed, ref, counts)["worst_dt_error"] == np.inf
+
+
+def test_the_ensemble_report_judges_the_fastest_setting_within_the_level():
+    from benchmarks.studies.ensemble_scaling import TARGETS, scaling_markdown
+    errs = dict(p95_dt_error=1e-4, points_compared=3, same_class=1.0)
+    grid = {"n_points": 4, "wall_1_thread_s": 0.8, "wall_2_threads_s": 0.45,
+            "thread_speedup": 1.8, "per_point_ratio": 1.0, "sum_standalone_solve_s": 0.8,
+            "sum_batch_solve_s": 0.8,
+            "accuracy": {"references": "A and B at 1e-10", "references_agree": 1e-9,
+                         "points_left_out": 1, "recommended": dict(errs, worst_dt_error=2e-3),
+                         "settings": [], "fastest_within_level": None}}
+    text = scaling_markdown({"integrator_choice": "X", "targets": TARGETS, "grid": grid})
+    assert "none within the level | **missed**" in text
+    fast = {"integrator": "Rodas5P", "rtol": 1e-4, "wall_2_threads_s": 0.4,
+            "worst_dt_error": 5e-4, **errs}
+    grid["accuracy"].update(settings=[fast], fastest_within_level=fast)
+    text = scaling_markdown({"integrator_choice": "X", "targets": TARGETS, "grid": grid})
+    assert "0.4 s (Rodas5P at 0.0001, worst 0.0005) | met" in text
+    assert "| Rodas5P | 0.0001 | 0.4 | 0.0005 | 0.0001 | 100.0% |" in text
