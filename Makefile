@@ -9,7 +9,10 @@ APT_PKGS := gfortran libsundials-dev pkg-config cmake
 STAMP    := $(VENV)/.installed
 WARM     := $(VENV)/.compiled
 
-.PHONY: setup system-packages numba-cache warm test test-slow reproduce reproduce-full bench clean
+.PHONY: all setup system-packages numba-cache warm test test-slow docs reproduce reproduce-full bench clean
+
+# `make`: install, then compile every kernel ahead, so that a first run does not wait for it
+all: setup numba-cache warm
 
 setup: $(STAMP)
 
@@ -27,7 +30,7 @@ system-packages:
 $(STAMP): pyproject.toml requirements.lock | system-packages
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip==26.3 setuptools==84.2.1 wheel==0.48.0
-	$(PY) -m pip install -q -c requirements.lock -e '.[all]' --group test
+	$(PY) -m pip install -q -c requirements.lock -e '.[all]' --group test --group docs
 	touch $@
 
 # numba's on-disk cache of a function is keyed by its own file only, so a kernel would keep the
@@ -49,6 +52,10 @@ $(WARM): $(STAMP) $(shell find integrators problems benchmarks -name '*.py')
 	$(PY) -m integrators.core.warm
 	$(PY) -m benchmarks.ensemble.warm
 	touch $@
+
+# the documentation site, into docs/_build/html; a warning (a broken link or reference) fails it
+docs: setup
+	$(PY) -m sphinx -W --keep-going -q -b html docs docs/_build/html
 
 test: setup numba-cache warm
 	$(PY) -m pytest --require-all

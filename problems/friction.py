@@ -44,6 +44,8 @@ class FrictionLaw:
     name: ClassVar[str] = ""
     #: integer code read by the compiled kernels (0 = slip law, 1 = aging law, 2 = Nagata law)
     code: ClassVar[int] = -1
+    #: the unit of the state θ
+    theta_unit: ClassVar[str] = ""
 
     def __post_init__(self) -> None:
         # a ≥ 1 or b ≥ 1 is refused (a percentage), a unit slip warned (problems._validate)
@@ -101,6 +103,7 @@ class SlipLaw(FrictionLaw):
 
     name: ClassVar[str] = "slip"
     code: ClassVar[int] = 0
+    theta_unit: ClassVar[str] = "N"
 
     def steady_state(self, v: float, fn: float) -> float:
         return -self.b * fn * math.log(v / self.v0)
@@ -132,6 +135,7 @@ class AgingLaw(FrictionLaw):
 
     name: ClassVar[str] = "aging"
     code: ClassVar[int] = 1
+    theta_unit: ClassVar[str] = "s"
 
     def steady_state(self, v: float, fn: float) -> float:
         return self.lc / v

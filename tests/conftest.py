@@ -52,7 +52,8 @@ def _gfortran_runtimes():
 
 
 #: the optional modules ``--require-all`` checks (besides every adapter of the registry)
-OPTIONAL = ("pyarrow", "dask", "distributed", "emcee", "corner", "pytest_benchmark")
+OPTIONAL = ("pyarrow", "dask", "distributed", "emcee", "corner", "pytest_benchmark", "sphinx",
+            "myst_parser", "furo")
 
 
 def pytest_addoption(parser):

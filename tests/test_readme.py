@@ -25,8 +25,8 @@ def test_committed_readme_matches_committed_results(monkeypatch):
     # in another environment than the lock's (pip install . without extras, newer releases) the
     # blocks' labels are judged with the versions they were made with, not those installed
     monkeypatch.setattr(readme, "RECORDED_VERSIONS", not _locked())
-    stale = readme.refresh(check=True)
-    assert stale == [], f"README blocks out of date (run `rsfbench readme`): {stale}"
+    stale = readme.refresh_pages(check=True)
+    assert stale == [], f"generated blocks out of date (run `rsfbench readme`): {stale}"
 
 
 def _root(tmp_path):

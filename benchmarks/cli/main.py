@@ -113,22 +113,48 @@ def _print_summary(s: dict) -> None:
 
 
 def cmd_simulate(args) -> int:
+    if args.save and args.save.suffix.lower() == ".parquet":
+        from benchmarks.records.optional import require
+        require("pyarrow", "ensemble", "--save FILE.parquet")
     problem = problem_from_args(args)
     algorithm, why = integrator_from_args(args)
     warm_up(problem, algorithm, wall_budget=args.wall_budget)   # wall_s excludes compiling
-    sol = solve(problem, algorithm, max_points=200_000 if args.plot else 20_000,
-                progress=args.progress, wall_budget=args.wall_budget)
+    # 20,000 points over the run; a figure draws each event from the dense output besides
+    sol = solve(problem, algorithm, max_points=20_000, progress=args.progress,
+                wall_budget=args.wall_budget)
     summary = {**simulate_summary(sol), "integrator_choice": why}
+    if args.save:
+        summary["trajectory"] = _save_trajectory(sol, args.save, summary, args.command_line)
     if args.plot:
         from benchmarks.physics.plots import plot_solution
-        plot_solution(sol, args.plot)
+        plot_solution(sol.resolved() if sol.success else sol, args.plot)
     if args.json:
         say(json.dumps(summary, indent=2))
     else:
         _print_summary(summary)
+        if args.save:
+            say(f"  trajectory  {args.save} (and {summary['trajectory']['about']})")
         if args.plot:
             say(f"  figure      {args.plot}")
     return 0 if sol.success else 1
+
+
+def _save_trajectory(sol, path: Path, summary: dict, command: str) -> dict:
+    """Write ``sol``'s trajectory to ``path`` (.csv or .parquet: t, v, fs, ft, mu, theta) and
+    what it is to ``path`` + ".json" (units, command, versions, the run's summary)."""
+    from benchmarks.records.files import atomic_write
+    from benchmarks.records.provenance import provenance, version_line
+    df = sol.to_dataframe()
+    about = {"tool": version_line(), "command": command, **provenance(),
+             "columns": df.attrs["units"], "rows": len(df), "run": summary}
+    if path.suffix.lower() == ".parquet":
+        df.attrs["about"] = json.dumps(_jsonable(about))
+        df.to_parquet(path, index=False)
+    else:
+        atomic_write(path, df.to_csv(index=False))
+    side = path.with_name(path.name + ".json")
+    atomic_write(side, json.dumps(_jsonable(about), indent=2))
+    return {"file": str(path), "about": str(side), "rows": len(df)}
 
 
 def cmd_integrators(args) -> int:
@@ -369,10 +395,11 @@ def _fixed_step_orders(args, names) -> int:
 
 
 def cmd_readme(args) -> int:
-    from benchmarks.pipeline.readme import refresh
-    stale = refresh(check=args.check)
+    from benchmarks.pipeline.readme import refresh_pages
+    stale = refresh_pages(check=args.check)
     verb = "out of date" if args.check else "refilled"
-    say(f"README blocks {verb}: {', '.join(stale)}" if stale else "README blocks up to date")
+    say(f"generated blocks {verb}: {', '.join(stale)}" if stale
+        else "generated blocks up to date (README and docs)")
     return 1 if stale and args.check else 0
 
 
@@ -433,7 +460,8 @@ def build_parser() -> Parser:
     parser.add_argument("--version", action=ShowVersion)
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    s = sub.add_parser("simulate", help="run one preset and summarise its limit cycle")
+    s = sub.add_parser("simulate", help="run one problem (a preset or your own file) and "
+                       "summarise its limit cycle")
     add_problem_options(s, PRESET_NAMES)
     add_integrator_options(s)
     s.add_argument("--wall-budget", type=positive, metavar="S",
@@ -441,6 +469,10 @@ def build_parser() -> Parser:
     s.add_argument("--json", action="store_true", help="print one JSON object")
     s.add_argument("--plot", metavar="FILE.png", type=out_file(".png", ".pdf", ".svg"),
                    help="draw v(t), μ(t) and the phase portrait (default: no figure)")
+    s.add_argument("--save", metavar="FILE", type=out_file(".csv", ".parquet"),
+                   help="write the trajectory (t s, v m/s, fs N, ft N, mu, theta) to FILE.csv "
+                        "or FILE.parquet, and what it is to FILE.csv.json or FILE.parquet.json "
+                        "beside it (default: not written)")
     s.add_argument("--progress", action="store_true", help="show a progress bar")
     s.set_defaults(func=cmd_simulate)
 
@@ -542,7 +574,8 @@ def build_parser() -> Parser:
     cv.add_argument("--json", action="store_true", help="print one JSON object")
     cv.set_defaults(func=cmd_convergence)
 
-    rd = sub.add_parser("readme", help="refill the README's generated blocks from results/")
+    rd = sub.add_parser("readme", help="refill the generated blocks of the README and the docs "
+                        "from results/")
     rd.add_argument("--check", action="store_true",
                     help="only say which blocks are out of date (exit status 1 if any)")
     rd.set_defaults(func=cmd_readme)

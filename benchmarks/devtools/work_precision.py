@@ -72,7 +72,7 @@ QUICK = Ladder(tolerances=tuple(10.0 ** -k for k in range(3, 11)),
 
 
 def study_problems(which: str = "full"):
-    """``full``: the paper example and W1–W4 under both laws (the issue's study set);
+    """``full``: the paper example and W1–W4 under both laws (the full study set);
     ``quick``: the paper example and W2 under the aging law."""
     if which == "quick":
         return [paper_example(), window("W2", "aging")]

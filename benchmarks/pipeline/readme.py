@@ -1,6 +1,7 @@
-"""``rsfbench readme``: the README's numbers, refilled from ``results/``.
+"""``rsfbench readme``: the numbers of the README and of the docs pages, refilled from
+``results/``.
 
-Every number the README quotes sits in a generated block::
+Every number a page quotes sits in a generated block::
 
     <!-- rsfbench: results/speedup.md -->
     ...
@@ -26,7 +27,7 @@ from pathlib import Path
 
 import pandas as pd
 
-__all__ = ["fill", "render", "refresh", "RECOMMENDATION_LEVELS"]
+__all__ = ["fill", "render", "refresh", "refresh_pages", "pages", "RECOMMENDATION_LEVELS"]
 
 ROOT = Path(__file__).resolve().parents[2]
 RECOMMENDATION_LEVELS = (1e-3, 1e-6)          # the issue's "to 1e−3, use X; to 1e−6, use Y"
@@ -175,13 +176,28 @@ def _body(source: str, root: Path) -> str:
     return origin(source, root) + render(source, root)
 
 
-def refresh(path: Path = ROOT / "README.md", check: bool = False) -> list[str]:
-    """Rewrite the README's blocks (or with ``check`` only compare); returns the sources of the
-    blocks that were out of date."""
+def refresh(path: Path = ROOT / "README.md", check: bool = False,
+            root: Path | None = None) -> list[str]:
+    """Rewrite the blocks of the page ``path`` (or with ``check`` only compare), rendered from
+    ``root``'s results (default: the page's directory); returns the sources of the blocks that
+    were out of date."""
+    root = path.parent if root is None else root
     old = path.read_text()
     _NOW.clear()
     stale = [m.group("source") for m in _BLOCK.finditer(old)
-             if m.group("body").rstrip("\n") != _body(m.group("source"), path.parent)]
+             if m.group("body").rstrip("\n") != _body(m.group("source"), root)]
     if stale and not check:
-        path.write_text(fill(old, path.parent))
+        path.write_text(fill(old, root))
     return stale
+
+
+def pages(root: Path = ROOT) -> list[Path]:
+    """The pages that quote results: the README and each page of ``docs/`` holding a block."""
+    docs = sorted(p for p in (root / "docs").glob("*.md") if _BLOCK.search(p.read_text()))
+    return [root / "README.md", *docs]
+
+
+def refresh_pages(check: bool = False, root: Path = ROOT) -> list[str]:
+    """:func:`refresh` on every page of :func:`pages`; the stale blocks as ``page: source``."""
+    return [f"{page.relative_to(root)}: {source}" for page in pages(root)
+            for source in refresh(page, check, root)]

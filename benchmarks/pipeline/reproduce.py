@@ -79,10 +79,10 @@ def reproduce(out: Path, full: bool = False, force: bool = False, start: str | N
         return rows
     (out / "REPORT.md").write_text(report_markdown(plan, out))
     print(f"\nwritten: {out / 'REPORT.md'}")
-    from benchmarks.pipeline.readme import ROOT, refresh
-    if out.resolve() == (ROOT / "results").resolve():    # the README quotes these files
-        stale = refresh()
-        print(f"README blocks refilled: {', '.join(stale) or 'none changed'}")
+    from benchmarks.pipeline.readme import ROOT, refresh_pages
+    if out.resolve() == (ROOT / "results").resolve():    # the README and docs quote these files
+        stale = refresh_pages()
+        print(f"generated blocks refilled: {', '.join(stale) or 'none changed'}")
     return rows
 
 

@@ -1,4 +1,4 @@
-"""The own compiled engine against issue 14's targets, with numbalsoda's LSODA as the yardstick.
+"""The own compiled engine against its speed targets, with numbalsoda's LSODA as the yardstick.
 
 For each own adaptive method and tolerance (rtol = atol = 1e−2 … 1e−10) on the paper example and
 W2/aging (40 s, two-speed loading): the relative error of the recurrence interval ΔT against the
@@ -113,7 +113,7 @@ def engine_speed(repeats: int = 5, progress: bool = False) -> tuple[pd.DataFrame
 
 
 def targets(table: pd.DataFrame, lsoda: dict) -> pd.DataFrame:
-    """Issue 14's targets: the fastest reliable own setting per (problem, level), met or not."""
+    """The speed targets: the fastest reliable own setting per (problem, level), met or not."""
     out = []
     for pname, level, target_ms in TARGETS:
         ok = table[(table.problem == pname) & (table.err_reliable <= level)]
@@ -257,7 +257,7 @@ def _verdict(goals: pd.DataFrame) -> str:
 def engine_speed_markdown(goals: pd.DataFrame, t: dict, repeats: int,
                           side: dict | None = None, twin: pd.DataFrame | None = None) -> str:
     """``engine_speed.md``: the targets table and the start-up times."""
-    lines = ["# The own compiled engine against issue 14's targets",
+    lines = ["# The own compiled engine against its speed targets",
              "",
              f"`rsfbench study engine-speed` (min of {repeats} after a warm-up, "
              "`max_points=2`, wall time of the solve without building the Solution; "
@@ -326,7 +326,7 @@ def run(out: Path, repeats: int) -> None:
     print(write_engine_speed(out, repeats)[1])
 
 
-STUDY = Study("engine-speed", "The own compiled engine against issue 14's targets "
+STUDY = Study("engine-speed", "The own compiled engine against its speed targets "
               "(`engine_speed.*`)", 180, run, report=markdown_file("engine_speed.md"),
               timed=True, modules=("benchmarks.cli",), settings={"repeats": 5},
               limits={"repeats": (1, 100)},   # it times the CLI's start-up

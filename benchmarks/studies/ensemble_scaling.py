@@ -1,4 +1,4 @@
-"""Issue 16's targets for ensembles, measured: every figure reported, met or missed.
+"""The targets for ensembles, measured: every figure reported, met or missed.
 
 * **21 × 21 on W2** (40 s a point, the study's recommended setting for ΔT to 1e−3): the ensemble
   on 1 and 2 numba threads (minimum of ``repeats`` runs after a warm-up, no store), beside the

@@ -41,7 +41,7 @@ T_END = 20.0
 
 
 def spring_curve(sol, index: int = -1) -> tuple[np.ndarray, np.ndarray]:
-    """The curve J2 compared before issue 13: Fs/Fn against slip over event ``index``."""
+    """The curve J2 compared first: Fs/Fn against slip over event ``index``."""
     _, slip, fs = event_window(sol, index)
     return slip, fs / sol.problem.normal_force
 
@@ -73,7 +73,7 @@ def write_j2_information(table: pd.DataFrame, out: Path) -> str:
     truth = table[np.isclose(table.b, 0.0094) & np.isclose(table.lc_um, 0.3)].iloc[0]
     lines = []
     for col, what in (("J2_friction", "friction Ft/Fn (Eq. 11, now)"),
-                      ("J2_spring", "spring force Fs/Fn (before issue 13)")):
+                      ("J2_spring", "spring force Fs/Fn (the first channel compared)")):
         grid = table.pivot(index="lc_um", columns="b", values=col) / NOISE ** 2
         grid.index = [f"{x:g}" for x in grid.index]
         grid = grid.map(lambda v: fmt(v, ".3g"))

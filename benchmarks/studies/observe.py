@@ -112,7 +112,7 @@ def observe_markdown(accuracy: pd.DataFrame, speed: pd.DataFrame) -> str:
     from benchmarks.records.report import markdown_table
     at1 = accuracy[accuracy.noise == 0.01]
     lines = ["At 1 % noise (and drift), the largest relative error over W1–W4, both laws, by "
-             "channel set, against the issue's targets:", ""]
+             "channel set, against the targets:", ""]
     rows = []
     for label, g in at1.groupby("channels", sort=False):
         row = {"channels": label}

@@ -1,4 +1,4 @@
-"""Does the choice of solver change what is inferred? (issue 17, item 4.)
+"""Does the choice of solver change what is inferred?
 
 For each window and law, the data are the published means with σ = 10 % of each (assumed, as in
 :mod:`benchmarks.studies.paper_sweeps`), and for W2/slip also one synthetic set (ΔT and Δμ of the

@@ -150,6 +150,6 @@ def report(out: Path) -> str:
             + (out / "target_quick.md").read_text())
 
 
-STUDY = Study("target", "Issue 6's target on the quick study: own integrators against compiled "
+STUDY = Study("target", "The 2× target on the quick study: own integrators against compiled "
               "LSODA and SUNDIALS", 90, run, report=report, reads=("wp_quick.csv",),
               writes=("target_quick.csv", "target_quick.md"), minutes=0.05)

@@ -1,4 +1,4 @@
-"""Issue 6's target on every study problem: the full work-precision study of the stiff
+"""The 2× target on every study problem: the full work-precision study of the stiff
 adaptive integrators of the three sides (own, LSODA, SUNDIALS), 10 s per run."""
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ def report(out: Path) -> str:
             + (out / "target_full.md").read_text())
 
 
-STUDY = Study("target-full", "Issue 6's target on every study problem", 100, run, report=report,
+STUDY = Study("target-full", "The 2× target on every study problem", 100, run, report=report,
               plan="full", timed=True,
               writes=("target_full.csv", "target_full.md", "wp_full.csv", "wp_full_*.png",
                       "wp_full_pareto.*"), minutes=26)

@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+import dataclasses
 import enum
 import functools
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
@@ -14,8 +15,8 @@ from problems._validate import check_count, check_positive
 if TYPE_CHECKING:
     import pandas as pd
 
-__all__ = ["ReturnCode", "Stats", "Solution", "EVENT_COLUMNS", "Output", "RawRun",
-           "DEFAULT_POINTS", "SAVE_LIMIT"]
+__all__ = ["ReturnCode", "Stats", "Solution", "EVENT_COLUMNS", "TRAJECTORY_UNITS", "Output",
+           "RawRun", "DEFAULT_POINTS", "SAVE_LIMIT"]
 
 #: points saved over a run when neither ``save_every`` nor ``max_points`` is given
 DEFAULT_POINTS = 20_000
@@ -27,6 +28,11 @@ SAVE_LIMIT = 10_000_000
 #: force since the previous event ended, ``fs_min`` the smallest during the event.
 EVENT_COLUMNS = ("t_start", "t_end", "fs_max_before", "fs_min", "v_peak", "t_peak",
                  "slip_start", "slip_end")
+
+
+#: the columns of :meth:`Solution.to_dataframe` and their units (θ's is the law's:
+#: ``problem.law.theta_unit``)
+TRAJECTORY_UNITS = {"t": "s", "v": "m/s", "fs": "N", "ft": "N", "mu": "1", "theta": None}
 
 
 class ReturnCode(enum.Enum):
@@ -155,8 +161,10 @@ class Solution:
 
     Trajectory arrays are 1-D over saved times ``t`` (s): slip rate ``v`` (m/s), spring force
     ``fs`` (N), friction ``ft`` (N) and state ``theta`` (newtons for the slip law, seconds for
-    the aging law). ``events`` is a DataFrame with :data:`EVENT_COLUMNS`, built when first read
-    from ``event_array`` (the same table as a float array, one column per name: what a loop over
+    the aging law). ``sol(t)`` is the run at other times (a DataFrame, from the method's
+    dense output); ``to_dataframe()`` and ``plot()`` export and draw the saved trajectory.
+    ``events`` is a DataFrame with :data:`EVENT_COLUMNS`, built when first read from
+    ``event_array`` (the same table as a float array, one column per name: what a loop over
     many solves should read). ``meta`` holds a method's own diagnostics (the ETD family:
     ``step_rule_max``, the largest slip of a step over what its step rule allows).
     """
@@ -173,6 +181,11 @@ class Solution:
     retcode: ReturnCode
     message: str = ""
     meta: dict = field(default_factory=dict)
+    #: repeats this solve saving at given times (``rerun(times) -> Solution``): set by
+    #: :func:`integrators.core.solve.solve`; None in a Solution built otherwise, which
+    #: ``sol(t)`` then refuses
+    rerun: Callable[[np.ndarray], Solution] | None = field(default=None, repr=False,
+                                                            compare=False)
 
     @property
     def success(self) -> bool:
@@ -198,6 +211,67 @@ class Solution:
     def mu(self) -> np.ndarray:
         """Friction coefficient shown in plots, μ = Fs/Fn."""
         return self.fs / self.problem.normal_force
+
+    def __call__(self, t) -> pd.DataFrame:
+        """The run at the times ``t`` (s; a number or an increasing array within the run), as
+        :meth:`to_dataframe` has it, from the method's own dense output: the solve is repeated
+        with ``save_at=t``, and takes the same steps (saved output never changes them), so the
+        values are its interpolant's at exactly t. Costs one solve: ask for all the times at
+        once. A method that saves at its own step ends (the ETD family) has no dense output
+        and refuses, as does a run that did not reach its end."""
+        return self._at(np.atleast_1d(np.asarray(t, dtype=float))).to_dataframe()
+
+    def _at(self, times: np.ndarray) -> Solution:
+        """This run with its trajectory at ``times`` (:meth:`__call__`): events, counters and
+        retcode are this run's."""
+        if not self.algorithm.saves_at_times:
+            raise ValueError(f"sol(t) needs a method with dense output; {self.algorithm.name} "
+                             "saves at its own step ends (its solve's save_every sets them)")
+        if not self.success:
+            raise ValueError(f"sol(t) needs a successful run; this one ended {self.retcode.value}"
+                             f" at t = {self.t_reached:.6g} s ({self.message})")
+        if self.rerun is None:
+            raise ValueError("sol(t) needs a Solution made by integrators.solve (this one was "
+                             "built otherwise: it cannot repeat its run)")
+        again = self.rerun(times)
+        if not (again.success and np.array_equal(again.event_array, self.event_array)):
+            raise RuntimeError(f"{self.algorithm.name} did not repeat its run "
+                               f"({again.retcode.value}, {len(again.event_array)} events against "
+                               f"{len(self.event_array)}): sol(t) cannot interpolate it")
+        return dataclasses.replace(self, t=again.t, v=again.v, fs=again.fs, ft=again.ft,
+                                   theta=again.theta, meta=dict(self.meta))
+
+    def resolved(self, per_event: int = 200) -> Solution:
+        """This run at its saved times and ``per_event`` more across each completed event
+        (:meth:`__call__`: the method's dense output), so that a figure draws a 10 ms event as
+        a curve and not as the few saved points it spans. A run without events, or by a method
+        without dense output, comes back as it is."""
+        per_event = check_count("per_event", per_event)
+        ev = self.event_array
+        if not len(ev) or not self.success or not self.algorithm.saves_at_times:
+            return self
+        fine = np.concatenate([np.linspace(a, b, per_event) for a, b in ev[:, :2]])
+        times = np.union1d(self.t, fine)
+        return self._at(times[(times >= 0.0) & (times <= self.problem.t_end)])
+
+    def to_dataframe(self) -> pd.DataFrame:
+        """The trajectory as a DataFrame: t (s), v (m/s), fs (N), ft (N), mu (Fs/Fn) and theta
+        (N for the slip law, s for the aging law); ``attrs`` hold the units, the integrator,
+        the problem and the retcode (Parquet keeps them; CSV does not)."""
+        import pandas as pd
+        df = pd.DataFrame({"t": self.t, "v": self.v, "fs": self.fs, "ft": self.ft,
+                           "mu": self.mu, "theta": self.theta})
+        df.attrs.update(units=dict(TRAJECTORY_UNITS, theta=self.problem.law.theta_unit),
+                        integrator=self.algorithm.name, problem=self.problem.name or "",
+                        retcode=self.retcode.value, message=self.message)
+        return df
+
+    def plot(self, path=None, resolve_events: bool = True):
+        """A figure of the run: the slip rate (log) and μ against time, events marked, each
+        event drawn from the dense output (:meth:`resolved`) unless ``resolve_events`` is
+        False; written to ``path`` (.png, .pdf, .svg) when given. Returns the Figure."""
+        from integrators.core.plotting import plot_run
+        return plot_run(self.resolved() if resolve_events else self, path)
 
     def __repr__(self) -> str:
         return (f"Solution({type(self.algorithm).__name__} on {self.problem.name or 'problem'}: "

@@ -7,6 +7,7 @@ problem onto its method (``Algorithm.run``).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import time
 from dataclasses import dataclass
@@ -151,7 +152,14 @@ def _solution(problem: SpringSlider, algorithm: Algorithm, raw: RawRun) -> Solut
     return Solution(problem=problem, algorithm=algorithm, t=raw.t, v=v, fs=fs, ft=ft, theta=theta,
                     event_array=np.asarray(raw.events, dtype=float).reshape(-1, len(EVENT_COLUMNS)),
                     stats=raw.stats, retcode=raw.retcode, message=raw.message,
-                    meta=dict(raw.meta))
+                    meta=dict(raw.meta),
+                    rerun=functools.partial(_save_at, problem, algorithm))
+
+
+def _save_at(problem: SpringSlider, algorithm: Algorithm, times: np.ndarray) -> Solution:
+    """The solve again, saving at ``times`` (:meth:`Solution.__call__`; a module-level function
+    so that a Solution pickles)."""
+    return solve(problem, algorithm, save_at=times)
 
 
 def _progress_bar(problem: SpringSlider, algorithm: Algorithm):

@@ -59,6 +59,7 @@ from llvmlite import ir
 from numba import carray, cfunc, njit, types
 from numba.extending import intrinsic
 
+from integrators.core.cache import announce_compile
 from integrators.core.crossings import carry_last_root, push_crossing, queue_crossings
 from integrators.core.events import (DIRECTIONS, END, N_EVENTS, PEAK, compiled_roots,
                                      events_table, new_recorder, observe, record, sign_change)
@@ -237,6 +238,7 @@ def _whole_run(rhs, call, method, tau_end, z0, args, q, rtol, atol, max_steps, r
 def _library():
     """The address of CyRK's dense-output call, and the cfunc's."""
     from CyRK.nb import numba_c_api
+    announce_compile(_call, "the callers of CyRK's compiled solver", "about 10 s", cached=False)
     double_p = types.CPointer(types.float64)
     rhs = cfunc(types.void(double_p, types.float64, double_p, double_p), cache=True,
                 error_model="numpy")(_rhs)

@@ -19,6 +19,7 @@ from typing import Callable, ClassVar
 
 import numpy as np
 
+from integrators.core.cache import announce_compile
 from integrators.core.events import DIRECTIONS, N_EVENTS, events_table
 from integrators.core.registry import AdaptiveAlgorithm
 from integrators.core.solution import RawRun, ReturnCode, Stats
@@ -98,6 +99,7 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
         n_max = CHUNK_STEPS if progress is not None else LONG_CHUNK_STEPS
         # the scratch arrays made by numpy (the compiled makers' boxing costs microseconds)
         ws, sc = type(self).workspace.py_func(), E.scratch.py_func()
+        announce_compile(type(self).kernel, f"the {self.name} kernel")
         kernel_s = 0.0
         while True:
             start = time.perf_counter()
@@ -199,8 +201,10 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
         curve = np.empty((len(problems), curve_points, 4))
         if parallel:
             order = np.random.default_rng(0).permutation(len(problems))  # balance the threads
+            announce_compile(type(self).batch_kernel, f"the {self.name} batch kernel")
             type(self).batch_kernel(P, Z0, C, _DIRS, out, order, curve)
         else:
+            announce_compile(type(self).batch_serial, f"the {self.name} serial batch kernel")
             type(self).batch_serial(P, Z0, C, _DIRS, out, curve)
         return (out, curve) if curve_points else out
 

@@ -60,9 +60,10 @@ from typing import ClassVar
 
 import numpy as np
 
-from integrators.own import etd_kernel as K
+from integrators.core.cache import announce_compile
 from integrators.core.registry import Algorithm, ProblemNotSupported, register
 from integrators.core.solution import RawRun, ReturnCode, Stats
+from integrators.own import etd_kernel as K
 from problems._validate import check_count, check_positive
 from problems.formulations import form_vector
 from problems.loading import event_thresholds
@@ -146,6 +147,7 @@ class _ETD(Algorithm):
         save_buf, ev_buf = np.empty((n_save, 4)), np.empty((_EVENT_BUFFER, K.E_SIZE))
         saved, events = [np.concatenate(([0.0], nd.x0))[None, :]], []
         retcode, message = ReturnCode.SUCCESS, ""
+        announce_compile(K.etd_advance, "the ETD kernel")
         while True:
             chunk = int(min(_CHUNK_STEPS, self.max_steps - st[K.S_STEPS]))
             status = K.etd_advance(st, p, o, save_buf, ev_buf, max(chunk, 0))

@@ -1,0 +1,32 @@
+"""A figure of one solve (:meth:`integrators.core.solution.Solution.plot`): the slip rate on a
+log scale and μ = Fs/Fn against time, events marked. Matplotlib is imported only here."""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["plot_run"]
+
+
+def plot_run(sol, path=None, title: str | None = None):
+    """Two panels of ``sol`` (a :class:`~integrators.core.solution.Solution`, drawn as given:
+    :meth:`~integrators.core.solution.Solution.plot` passes the run with its events resolved);
+    written to ``path`` (.png, .pdf or .svg) when given. Returns the matplotlib Figure."""
+    import matplotlib.pyplot as plt
+    p = sol.problem
+    fig, (ax_v, ax_mu) = plt.subplots(2, 1, figsize=(9, 5.5), sharex=True, layout="constrained")
+    ax_v.semilogy(sol.t, sol.v, lw=0.8, color="C0")
+    ax_v.axhline(p.loading.v_slow, color="0.6", lw=0.6, ls="--", label="slow loading speed")
+    ax_v.set_ylabel("slip rate v (m/s)")
+    ax_v.legend(loc="lower right", fontsize=8)
+    for t0 in np.asarray(sol.event_array)[:, 0]:
+        ax_v.axvline(t0, color="C3", lw=0.4, alpha=0.4)
+    ax_mu.plot(sol.t, sol.mu, lw=0.8, color="C1")
+    ax_mu.set_xlabel("time t (s)")
+    ax_mu.set_ylabel(r"$\mu = F_s/F_n$")
+    fig.suptitle(title or f"{p.name or 'problem'}: {sol.algorithm.name}, {sol.retcode.value}, "
+                          f"{len(sol.event_array)} events", fontsize=11)
+    if path is not None:
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+    return fig
