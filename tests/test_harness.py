@@ -271,15 +271,18 @@ def test_a_speedup_below_one_says_which_method_is_faster():
 def test_the_engine_speed_verdict_is_read_from_the_table():
     import pandas as pd
     from benchmarks.studies.engine_speed import _verdict
-    goals = pd.DataFrame({"target": ["a", "b", "c", "d"], "target_ms": [1.0, 1.0, 0.4, 1.0],
-                          "fastest": ["Rodas5P 1e-08", "Exprb43 1e-02", "Rodas5P", "none"],
-                          "wall_ms": [1.8, 0.5, 0.44, float("nan")],
-                          "attempts": [4662, 400, 0, 0],
-                          "us_per_attempt": [0.39, 0.7, float("nan"), float("nan")],
-                          "met": [False, True, False, False]})
-    assert _verdict(goals) == ("1 of the 4 speed targets are met. a: missed by 1.8×; Rodas5P "
+    goals = pd.DataFrame({"target": ["a", "b", "c", "d", "e"],
+                          "target_ms": [1.0, 1.0, 0.4, 1.0, 0.4],
+                          "fastest": ["Rodas5P 1e-08", "Exprb43 1e-02", "Rodas5P", "none",
+                                      "Rodas5P"],
+                          "wall_ms": [1.8, 0.5, 0.44, float("nan"), 0.401],
+                          "attempts": [4662, 400, 0, 0, 0],
+                          "us_per_attempt": [0.39, 0.7, float("nan"), float("nan"), float("nan")],
+                          "met": [False, True, False, False, False]})
+    # a miss by a quarter of a per cent reads as one, not as "1×"
+    assert _verdict(goals) == ("1 of the 5 speed targets are met. a: missed by 1.8×; Rodas5P "
                                "1e-08 takes 4,662 step attempts at 0.39 µs each. c: missed by "
-                               "1.1×. d: no own setting reaches it.")
+                               "1.1×. d: no own setting reaches it. e: missed by 1.0025×.")
 
 
 @pytest.mark.slow
