@@ -64,6 +64,8 @@ def test_sol_refuses_a_method_without_dense_output_and_a_failed_run(problem, sol
         short(0.1)
     with pytest.raises(ValueError, match="outside the run"):
         sol(np.array([-1.0]))
+    with pytest.raises(ValueError, match="t must be a time or an array of times in s"):
+        sol("abc")
 
 
 def test_resolved_draws_each_event_from_the_dense_output(sol):
@@ -110,6 +112,13 @@ def test_simulate_save_writes_a_trajectory_pandas_reads_and_what_it_is(tmp_path,
     about = json.loads(path.with_name(path.name + ".json").read_text())
     assert about["columns"]["v"] == "m/s" and about["command"].startswith("rsfbench simulate")
     assert about["run"]["n_events"] == out["n_events"] and about["git_commit"]
+
+
+def test_simulate_save_and_plot_create_their_directories(tmp_path, capsys):
+    path, figure = tmp_path / "new" / "traj.csv", tmp_path / "other" / "run.png"
+    rc = main(["simulate", "--preset", "W2", "--t-end", "2", "--save", str(path), "--plot",
+               str(figure)])
+    assert rc == 0 and path.exists() and figure.exists(), capsys.readouterr().err
 
 
 def test_simulate_save_refuses_another_suffix_in_one_line(tmp_path, capsys):

@@ -127,7 +127,8 @@ def cmd_simulate(args) -> int:
         summary["trajectory"] = _save_trajectory(sol, args.save, summary, args.command_line)
     if args.plot:
         from benchmarks.physics.plots import plot_solution
-        plot_solution(sol.resolved() if sol.success else sol, args.plot)
+        args.plot.parent.mkdir(parents=True, exist_ok=True)   # a creatable place (its check)
+        plot_solution(sol.resolved(), args.plot)     # a failed run comes back as it is
     if args.json:
         say(json.dumps(summary, indent=2))
     else:
@@ -145,6 +146,7 @@ def _save_trajectory(sol, path: Path, summary: dict, command: str) -> dict:
     from benchmarks.records.files import atomic_write
     from benchmarks.records.provenance import provenance, version_line
     df = sol.to_dataframe()
+    path.parent.mkdir(parents=True, exist_ok=True)      # a creatable place (--save's check)
     about = {"tool": version_line(), "command": command, **provenance(),
              "columns": df.attrs["units"], "rows": len(df), "run": summary}
     if path.suffix.lower() == ".parquet":

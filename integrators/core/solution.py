@@ -219,7 +219,12 @@ class Solution:
         values are its interpolant's at exactly t. Costs one solve: ask for all the times at
         once. A method that saves at its own step ends (the ETD family) has no dense output
         and refuses, as does a run that did not reach its end."""
-        return self._at(np.atleast_1d(np.asarray(t, dtype=float))).to_dataframe()
+        try:
+            times = np.atleast_1d(np.asarray(t, dtype=float))
+        except (TypeError, ValueError):
+            raise ValueError(f"sol(t): t must be a time or an array of times in s, got "
+                             f"{t!r}") from None
+        return self._at(times).to_dataframe()
 
     def _at(self, times: np.ndarray) -> Solution:
         """This run with its trajectory at ``times`` (:meth:`__call__`): events, counters and
