@@ -70,7 +70,7 @@ test-slow: setup numba-cache warm
 reproduce: setup numba-cache warm
 	$(VENV)/bin/rsfbench reproduce --out results
 
-# the full plan: also the quick work-precision study, issue 6's target on every study problem
+# the full plan: also the quick work-precision study, the 2× speed target on every study problem
 # and scipy's RK45 to its 600 s budget, the solver-effect and problem-family studies (about
 # 3.5 h on 2 cores when every step runs; `rsfbench reproduce --full --dry-run` says what would)
 reproduce-full: setup numba-cache warm

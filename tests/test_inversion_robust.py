@@ -248,3 +248,29 @@ def test_ctrl_c_during_the_posterior_is_one_line_and_exit_130(tmp_path):
     assert "Traceback" not in err and "emcee" not in err
     lines = [x for x in err.strip().splitlines() if "warning:" not in x]
     assert len(lines) == 1 and "interrupted" in lines[0] and "posterior" in lines[0]
+
+
+# --- a grid posterior that missed the best fit is not reported --------------------------------
+
+def _profile(parameter, misfits):
+    from benchmarks.inversion.profile import Profile
+    other = "log10_lc" if parameter == "b" else "b"
+    x = np.linspace(0.009, 0.010, len(misfits)) if parameter == "b" else \
+        np.linspace(-7.0, -6.0, len(misfits))
+    w = np.full(len(misfits), -6.3 if other == "log10_lc" else 0.0096)
+    table = pd.DataFrame({parameter: x, "misfit": misfits, other: w, "point": "grid"})
+    return Profile(parameter, table, float(x[0]), float(x[-1]), False, False, len(misfits))
+
+
+def test_a_posterior_whose_best_cell_the_profiles_beat_is_dropped():
+    from benchmarks.inversion.invert import posterior_missed
+    profiles = {"b": _profile("b", [50.0, 7.0, 30.0]),
+                "log10_lc": _profile("log10_lc", [40.0, 9.0, 60.0])}
+    # the profiles' lowest point, 7.0, is 3.84 (the 95 % level of one parameter) below 10.84
+    assert posterior_missed(7.0 + CHI2_95_1DOF, profiles) == ""
+    why = posterior_missed(7.0 + CHI2_95_1DOF + 0.01, profiles)
+    assert "missed the best fit" in why and "found 7 at b = 0.0095" in why, why
+    assert "log10 Lc = -6.3" in why
+    assert posterior_missed(5.0, profiles) == ""             # the grid found better
+    assert posterior_missed(float("inf"), profiles) == ""    # no cell had a cycle: said elsewhere
+    assert posterior_missed(1e3, {"b": _profile("b", [np.inf, np.inf, np.inf])}) == ""

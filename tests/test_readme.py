@@ -53,6 +53,14 @@ def test_blocks_render_a_file_or_one_of_its_tables(tmp_path):
     assert (root / "README.md").read_text() == out
 
 
+def test_a_whole_file_s_headings_sit_under_the_page_s(tmp_path):
+    root = _root(tmp_path)
+    (root / "results" / "h.md").write_text("# Title\n\ntext\n\n```sh\n# a comment\n```\n"
+                                           "## Part\n")
+    out = readme.fill("<!-- rsfbench: results/h.md -->\n<!-- /rsfbench -->\n", root)
+    assert "\n## Title\n\ntext\n\n```sh\n# a comment\n```\n### Part\n" in out
+
+
 @pytest.mark.parametrize("source, error", [("results/x.md table 3", ValueError),
                                            ("results/nope.md", FileNotFoundError),
                                            ("a guess", ValueError)])

@@ -210,9 +210,11 @@ def cmd_invert(args) -> int:
     for p in summary["profiles"].values():       # on the standard error, also with --json
         for text in p["warnings"]:
             warnings.warn(text, stacklevel=1)
+    if inv.posterior_missed:                     # a posterior not to be read fails the run
+        warnings.warn(inv.posterior_missed, stacklevel=1)
     if args.json:
         say(json.dumps(jsonable(summary), indent=2))
-        return 1 if failed else 0
+        return 1 if failed or inv.posterior_missed else 0
     f = summary["fit"]
     if failed:
         say(f"inversion failed: {f['message']} (failed solves, e.g. over --wall-budget, count "
@@ -253,7 +255,7 @@ def cmd_invert(args) -> int:
                "τ not estimable (a walker never moved: run more --steps)"))
         say(f"prior: {p['prior']}")
     say(f"written: {', '.join(summary['files'].values())}")
-    return 0
+    return 1 if inv.posterior_missed else 0
 
 
 def add_parsers(sub, preset_names) -> None:

@@ -1,4 +1,4 @@
-"""Ensembles: one problem and one algorithm at many points, as one table (issue 16).
+"""Ensembles: one problem and one algorithm at many points, as one table.
 
     from benchmarks.ensemble import ensemble, grid, read_store
     table = ensemble(window("W2", "slip", t_end=40.0), Rodas5P(rtol=1e-4, atol=1e-4),

@@ -1,4 +1,4 @@
-"""Do the 95 % regions hold 95 %? Coverage on seeded synthetic data (issue 17, item 3).
+"""Do the 95 % regions hold 95 %? Coverage on seeded synthetic data.
 
 Observations are simulated at a known ``truth`` = (b, Lc): the limit cycle's ΔT and Δμ there,
 plus Gaussian noise of standard deviation σ = ``sigma_rel`` × the true value, with the seeds

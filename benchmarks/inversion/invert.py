@@ -60,6 +60,8 @@ class Inversion:
     no_posterior: str = ""
     method: str = "grid"
     seed: int = 0
+    #: why the grid posterior was dropped (:func:`posterior_missed`), or ""
+    posterior_missed: str = ""
 
 
 def check_box(problem, b_range, lc_range) -> None:
@@ -141,6 +143,9 @@ def invert(misfit: Misfit, b_range, lc_range, walkers: int = 32, steps: int = 20
                                  if np.isfinite(best.misfit) else None)
         wall[f"profile_{name}"] = time.perf_counter() - t
         _check_fit_inside(profiles[name], best)
+    missed = posterior_missed(post.best[2], profiles) if isinstance(post, CellPosterior) else ""
+    if missed:
+        post, why = None, missed
     if method == "emcee" and steps and not np.isfinite(best.misfit):
         why = f"not sampled: {best.message} (no point of the box is known to have a cycle)"
     elif method == "emcee" and steps:
@@ -154,7 +159,27 @@ def invert(misfit: Misfit, b_range, lc_range, walkers: int = 32, steps: int = 20
         wall["posterior"] = time.perf_counter() - t
         why = ""
     return Inversion(misfit, tuple(b_range), tuple(lc_range), best, profiles, post, wall, why,
-                     method=method, seed=seed)
+                     method=method, seed=seed, posterior_missed=missed)
+
+
+def posterior_missed(cell_misfit: float, profiles: dict) -> str:
+    """Why a grid posterior is not to be read, or "": its best cell's misfit is higher, by more
+    than the 95 % level, than a point one of the profiles found. Its mass then lies about a
+    point the data reject against that one: a posterior narrower than the first grid's cells,
+    whose cell with the best fit was never refined. Its mean and intervals are dropped."""
+    found = [(float(p.table.misfit.min()), p) for p in profiles.values()
+             if np.isfinite(p.table.misfit).any()]
+    if not found or not np.isfinite(cell_misfit):
+        return ""
+    lowest, p = min(found, key=lambda f: f[0])
+    if cell_misfit - lowest <= CHI2_95_1DOF:
+        return ""
+    at = p.table.loc[p.table.misfit.idxmin()]
+    return (f"the grid posterior missed the best fit: its best cell has misfit "
+            f"{cell_misfit:.4g}, but the profile of {p.parameter} found {lowest:.4g} at "
+            f"b = {at['b']:.6g}, log10 Lc = {at['log10_lc']:.4g}; the posterior is narrower than "
+            f"the first grid's cells and its mass lies elsewhere, so it is not reported (a finer "
+            f"first grid, --grid, may find it)")
 
 
 def _check_fit_inside(p, best: FitResult) -> None:
@@ -206,6 +231,7 @@ def _summary(inv: Inversion) -> dict:
     if inv.posterior is None:
         out["posterior"] = None
         out["no_posterior"] = inv.no_posterior
+        out["posterior_missed"] = bool(inv.posterior_missed)
     elif isinstance(inv.posterior, CellPosterior):
         p = inv.posterior
         out["posterior"] = {

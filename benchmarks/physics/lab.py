@@ -105,7 +105,7 @@ def marone_check(names=("Rodas5P", "sundials-CVODE-BDF", "sundials-IDA"),
 #: Obtained by :func:`step_reference` (the maximum of ±Fs on 200,001 even samples, refined by the
 #: parabola through it: no root finding) with Rodas5P and with SUNDIALS CVODE-BDF at
 #: rtol = atol = 1e−10; the two agree to ≤ 3e−10 in μ and ≤ 7.4e−8 relative in time; the
-#: Rodas5P values. 1e5 and 1e6 (v2 = 0.1 and 1 m/s) are the issue's examples.
+#: Rodas5P values. 1e5 and 1e6 (v2 = 0.1 and 1 m/s) are the examples of the original request.
 STEP_REFERENCE = {
     ("aging", 0.0, 1e-3): (165.9446622, -0.006624674353),
     ("aging", 0.0, 1e-2): (54.98419266, -0.006000969864),

@@ -9,6 +9,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from integrators.core.plotting import draw_rate_and_friction  # noqa: E402
+
 __all__ = ["plot_solution", "plot_work_precision", "plot_convergence"]
 
 
@@ -21,16 +23,7 @@ def plot_solution(solution, path, title: str | None = None) -> None:
     ax_mu = fig.add_subplot(grid[1, 0], sharex=ax_v)
     ax_ph = fig.add_subplot(grid[:, 1])
 
-    ax_v.semilogy(solution.t, solution.v, lw=0.8, color="C0")
-    ax_v.axhline(p.loading.v_slow, color="0.6", lw=0.6, ls="--", label="slow loading speed")
-    ax_v.set_ylabel("slip rate v (m/s)")
-    ax_v.legend(loc="lower right", fontsize=8)
-    for t0 in solution.events["t_start"]:
-        ax_v.axvline(t0, color="C3", lw=0.4, alpha=0.4)
-
-    ax_mu.plot(solution.t, solution.mu, lw=0.8, color="C1")
-    ax_mu.set_xlabel("time t (s)")
-    ax_mu.set_ylabel(r"$\mu = F_s/F_n$")
+    draw_rate_and_friction(solution, ax_v, ax_mu)
 
     friction = (solution.ft - p.f0) / p.normal_force
     ax_ph.semilogx(solution.v, friction, lw=0.5, color="0.7", label="whole run")

@@ -30,7 +30,7 @@ import pandas as pd
 __all__ = ["fill", "render", "refresh", "refresh_pages", "pages", "RECOMMENDATION_LEVELS"]
 
 ROOT = Path(__file__).resolve().parents[2]
-RECOMMENDATION_LEVELS = (1e-3, 1e-6)          # the issue's "to 1e−3, use X; to 1e−6, use Y"
+RECOMMENDATION_LEVELS = (1e-3, 1e-6)          # the advice reads "to 1e−3, use X; to 1e−6, use Y"
 _BLOCK = re.compile(r"(<!-- rsfbench: (?P<source>[^>]*?) -->\n)(?P<body>.*?)(<!-- /rsfbench -->)",
                     re.S)
 _SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
@@ -119,7 +119,18 @@ def render(source: str, root: Path = ROOT) -> str:
         raise FileNotFoundError(f"README block {source!r}: {path} does not exist (run `make "
                                 f"reproduce`)")
     text = path.read_text()
-    return _table(text, int(m.group(2)), source) if m.group(2) else text.strip()
+    return _table(text, int(m.group(2)), source) if m.group(2) else _demoted(text.strip())
+
+
+def _demoted(text: str) -> str:
+    """A results file's headings one level down, so that the file sits under the page's own
+    title and sections (lines inside code fences kept)."""
+    lines, fenced = [], False
+    for line in text.splitlines():
+        if line.startswith("```"):
+            fenced = not fenced
+        lines.append("#" + line if line.startswith("#") and not fenced else line)
+    return "\n".join(lines)
 
 
 _NOW: dict = {}          # a study's inputs now, computed once per fill or refresh

@@ -203,6 +203,8 @@ def _targets(problem, algorithm, obs) -> dict:
     inv = invert(misfit, *BOX)                   # the default: the refined grid, fit, profiles
     inversion_s = time.perf_counter() - started
     post = inv.posterior
+    if post is None:
+        raise RuntimeError(f"the inversion of the targets has no posterior: {inv.no_posterior}")
     chain = sample(misfit, *BOX, start=(post.best[0], post.best[1]), walkers=64,
                    steps=EMCEE_STEPS)
     return {
@@ -333,11 +335,11 @@ def _markdown(info: dict) -> str:
         + markdown_table(pd.DataFrame(rec_rows)) +
         "\nThe model's own limit cycle hardly scatters from event to event, so σ of ΔT from a "
         "synthetic record is set by the noise, not by natural scatter (a stochastic forward "
-        "model would be needed for that). `observe` measures the friction after its filters "
-        "(the record's anti-alias filter, the accelerometers' low-pass), which smooth the "
-        "weakening over the first few Lc of slip; the model's curve is not filtered, so an "
-        "interval with the curves that misses the truth here is that mismatch, not noise "
-        "(docs/inversion.md).\n\n"
+        "model would be needed for that). `observe` computes the friction after its own "
+        "low-pass of the acceleration (750 Hz), which smears the near-step of m·a as the "
+        "slider stops and the first millisecond of the event, and times each event on a "
+        "smoothed slip rate; the model's curve goes through neither, so an interval with the "
+        "curves that misses the truth here is that mismatch, not noise (docs/inversion.md).\n\n"
         f"Wall time of the study: {info['wall_s'] / 60:.1f} min. Command: `rsfbench study "
         "curves`.\n")
 

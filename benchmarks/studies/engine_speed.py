@@ -46,7 +46,7 @@ __all__ = ["STUDY", "engine_speed", "targets", "startup", "engine_speed_markdown
 
 METHODS = ("Rosenbrock23", "Rodas5P", "RadauIIA5", "Exprb32", "Exprb43")
 TOLERANCES = tuple(10.0 ** -k for k in range(2, 11))
-#: issue 14's targets: (problem, reliable ΔT error, wall time in ms)
+#: the engine's speed targets: (problem, reliable ΔT error, wall time in ms)
 TARGETS = (("paper-example", 1e-3, 0.3), ("paper-example", 1e-7, 1.0), ("W2/aging", 1e-3, 1.0))
 #: the cost of a Rodas5P step attempt on the paper example, µs, events included
 ATTEMPT_TARGET_US = 0.4

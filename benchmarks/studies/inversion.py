@@ -1,7 +1,7 @@
 """The inversion studies ``make reproduce`` runs, and their files in ``results/``.
 
 * :func:`posterior_target`: one full inversion of W2/slip's published means (fit, profiles,
-  posterior) with the study's recommended integrator, timed against the issue's target (a
+  posterior) with the study's recommended integrator, timed against its target (a
   posterior of ≥ 64,000 forward solves in ≤ 2 minutes on 2 cores) →
   ``inversion_W2_slip/`` and ``inversion.md``;
 * :func:`calibration_study`: coverage of the 95 % regions on seeded synthetic data
@@ -28,7 +28,7 @@ from benchmarks.studies.study import Study
 __all__ = ["STUDY", "posterior_target", "calibration_study", "TARGET_SOLVES",
            "TARGET_WALL_S", "CALIBRATION_TRUTH"]
 
-#: the issue's posterior target: at least this many forward solves …
+#: the posterior target: at least this many forward solves …
 TARGET_SOLVES = 64_000
 #: … in at most this many seconds on 2 cores
 TARGET_WALL_S = 120.0

@@ -40,7 +40,7 @@ __all__ = ["STUDY", "lab_fit_study", "TRUTH", "RECORDS"]
 TRUTH = {"a": 0.006, "b": 0.009, "dc": 10e-6, "k": 3e3}
 VELOCITIES, SWITCHES = (1e-6, 1e-5, 1e-6, 3e-6), (20.0, 50.0, 100.0)
 NOISE, DISPLACEMENT_NOISE, DRIFT = 6e-4, 0.05e-6, 50.0
-#: the issue's accuracy targets: relative error of a, b and of Dc
+#: the accuracy targets of the fit: relative error of a, b and of Dc
 TARGETS = {"a": 0.02, "b": 0.02, "dc": 0.05}
 DATA = "tests/data/lab-velocity-steps"
 #: the real records: (label, file, column specs)

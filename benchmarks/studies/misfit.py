@@ -1,13 +1,14 @@
 """What J2 can see: the misfit of slip-weakening curves on friction against on the spring force.
 
-Eq. 11 compares the *friction* Ft/Fn against slip (:mod:`benchmarks.physics.curves`); until issue 13
-the project compared the spring force Fs/Fn, which during an event is the spring's unloading
-line whatever (b, Lc). :func:`j2_information` fits the same synthetic observations — the curves
-of ``tests/data/W2_slip_weakening.csv``: W2 under the slip law at its best fit (b = 0.0094,
-Lc = 0.3 µm), three events, noise of std 2e−4 — over a grid of (b, Lc) both ways, so the two
-J2 maps can be compared: how far J2 rises above the noise variance away from the truth. The
-spring-force map is scored against spring-force curves made from the same run the same way (the
-observations the project used to make), so each map is its own definition's best case.
+Eq. 11 compares the *friction* Ft/Fn against slip (:mod:`benchmarks.physics.curves`); earlier
+versions of the project compared the spring force Fs/Fn, which during an event is the spring's
+unloading line whatever (b, Lc). :func:`j2_information` fits the same synthetic observations —
+the curves of ``tests/data/W2_slip_weakening.csv``: W2 under the slip law at its best fit
+(b = 0.0094, Lc = 0.3 µm), three events, noise of std 2e−4 — over a grid of (b, Lc) both ways,
+so the two J2 maps can be compared: how far J2 rises above the noise variance away from the
+truth. The spring-force map is scored against spring-force curves made from the same run the
+same way (the observations the project used to make), so each map is its own definition's best
+case.
 """
 
 from __future__ import annotations

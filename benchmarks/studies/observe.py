@@ -6,7 +6,7 @@ measured by :func:`benchmarks.physics.record_analysis.analyse` and compared with
 event table; and the time :func:`benchmarks.inversion.observing.observe` takes on a 400 s record
 at 10 kHz (4 million rows) in CSV and in Parquet, after one run that warms the caches.
 
-The issue's targets, met or missed row by row: at 1 % noise ΔT and Δμ within 0.5 % of the
+The targets, met or missed row by row: at 1 % noise ΔT and Δμ within 0.5 % of the
 model's, the slip per event within 2 %, the stiffness within 1 %; a 4-million-row record in at
 most 10 s.
 """
@@ -35,7 +35,7 @@ CHANNELS = {"all": ("time", "shear_force", "acceleration", "slip", "table"),
             "accelerations": ("time", "shear_force", "acceleration", "table"),
             "slip column": ("time", "shear_force", "slip", "table"),
             "force and table": ("time", "shear_force", "table")}
-#: at 1 % noise: the largest relative error of each quantity the issue sets a target for
+#: at 1 % noise: the largest relative error allowed for each quantity that has a target
 TARGETS = {"recurrence_s": 0.005, "friction_drop": 0.005, "slip_m": 0.02, "stiffness": 0.01}
 #: the time target for a 400 s record at 10 kHz, s
 SPEED_TARGET_S = 10.0

@@ -6,7 +6,7 @@
 σ = 10 % of each mean. That σ is an assumption (the paper's standard deviations are not
 published); the tables say so. The aging-law grid is wider because its best fit is derived.
 
-:func:`sweep_scaling`: the issue's performance target — a 21 × 21 grid on W2 with 40 s of
+:func:`sweep_scaling`: the sweep's performance target — a 21 × 21 grid on W2 with 40 s of
 simulated time per point — run serially, with 2 processes and with 2 threads, beside one
 stand-alone run of the same integrator, so that the overhead per point is measured, not assumed.
 """

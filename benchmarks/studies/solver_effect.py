@@ -80,7 +80,7 @@ __all__ = ["STUDY", "solver_effect", "solver_effect_study", "candidates", "Candi
 SHIFT_SD = 0.1
 #: the smallest overlap Σ min(p, q) of two posteriors called the same
 MIN_OVERLAP = 0.95
-#: the forward solves a posterior costs (the issue's target size)
+#: the forward solves a posterior costs (the size of the inversion study's posterior target)
 POSTERIOR_SOLVES = 64_000
 #: a node is in a posterior's zoom when its density is within this factor of the maximum
 ZOOM_DENSITY = 1e-6

@@ -14,7 +14,7 @@ Runge–Kutta (Press et al. 1992: Cash–Karp RK45 with step control) on the pap
 * ``CashKarp45`` (the paper's RK scheme, compiled with numba like ETD2) at the same tolerance:
   like for like;
 * the best stiff solver at the same achieved accuracy (``best_implicit``, for the implicit
-  methods the key was named after; the Rosenbrock and exponential Rosenbrock methods of issue 6
+  methods the key was named after; the Rosenbrock and exponential Rosenbrock methods added later
   count too): every stiff adaptive method of the registry (numba tier) climbs a tolerance ladder until its worst limit-cycle error is at most
   ETD2's; the fastest such run is the comparison.
 

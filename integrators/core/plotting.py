@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["plot_run"]
+__all__ = ["plot_run", "draw_rate_and_friction"]
 
 
 def plot_run(sol, path=None, title: str | None = None):
@@ -15,8 +15,21 @@ def plot_run(sol, path=None, title: str | None = None):
     import matplotlib.pyplot as plt
     p = sol.problem
     fig, (ax_v, ax_mu) = plt.subplots(2, 1, figsize=(9, 5.5), sharex=True, layout="constrained")
+    draw_rate_and_friction(sol, ax_v, ax_mu)
+    fig.suptitle(title or f"{p.name or 'problem'}: {sol.algorithm.name}, {sol.retcode.value}, "
+                          f"{len(sol.event_array)} events", fontsize=11)
+    if path is not None:
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+    return fig
+
+
+def draw_rate_and_friction(sol, ax_v, ax_mu) -> None:
+    """The two time panels of a run on the given axes: the slip rate (log) with the slow
+    loading speed and each event's start marked, and μ = Fs/Fn."""
     ax_v.semilogy(sol.t, sol.v, lw=0.8, color="C0")
-    ax_v.axhline(p.loading.v_slow, color="0.6", lw=0.6, ls="--", label="slow loading speed")
+    ax_v.axhline(sol.problem.loading.v_slow, color="0.6", lw=0.6, ls="--",
+                 label="slow loading speed")
     ax_v.set_ylabel("slip rate v (m/s)")
     ax_v.legend(loc="lower right", fontsize=8)
     for t0 in np.asarray(sol.event_array)[:, 0]:
@@ -24,9 +37,3 @@ def plot_run(sol, path=None, title: str | None = None):
     ax_mu.plot(sol.t, sol.mu, lw=0.8, color="C1")
     ax_mu.set_xlabel("time t (s)")
     ax_mu.set_ylabel(r"$\mu = F_s/F_n$")
-    fig.suptitle(title or f"{p.name or 'problem'}: {sol.algorithm.name}, {sol.retcode.value}, "
-                          f"{len(sol.event_array)} events", fontsize=11)
-    if path is not None:
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
-    return fig
