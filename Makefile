@@ -60,7 +60,8 @@ docs: setup
 test: setup numba-cache warm
 	$(PY) -m pytest --require-all
 
-# the slow probes: kills, Ctrl-C, subprocesses, a Dask cluster losing its workers (~1 min)
+# the slow tests: kills, Ctrl-C, subprocesses, a Dask cluster losing its workers, the README's
+# and the docs' pages run as written (~30 min on 2 cores)
 test-slow: setup numba-cache warm
 	$(PY) -m pytest --require-all -m slow
 

@@ -164,6 +164,13 @@ def test_the_page_runs_as_written(page, tmp_path):
                          timeout=3 * BUDGET_S.get(page.name, DEFAULT_BUDGET_S))
     assert run.returncode == 0, f"{_name(page)}:\n{run.stdout[-3000:]}\n{run.stderr[-3000:]}"
     assert _repository_state() == before, f"{_name(page)} wrote into the repository"
+    # a reader runs the page from the repository's root: git must ignore what it writes there
+    written = sorted(p.name + "/" * p.is_dir() for p in work.iterdir()
+                     if p.name not in ("docs", "results", "tests", "steps.json", "driver.py"))
+    ignored = subprocess.run(["git", "check-ignore", "--no-index", *written], cwd=ROOT,
+                             capture_output=True, text=True).stdout.split()
+    assert set(written) <= set(ignored), \
+        f"{_name(page)} writes {sorted(set(written) - set(ignored))}: add them to .gitignore"
     took = sum(float(s) for s in re.findall(r"took ([\d.]+) s", run.stdout))
     print(f"{_name(page)}: {took:.0f} s")
     if page == README:
