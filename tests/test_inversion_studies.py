@@ -373,6 +373,7 @@ def test_invert_misuse_is_one_line_and_exit_2(argv, match, capsys, tmp_path):
     assert match in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
 
 
+@pytest.mark.slow                      # several seconds: make test-slow
 @pytest.mark.needs("emcee", "corner")
 def test_invert_json_prints_one_document(capsys, tmp_path):
     code = main(["invert", "--preset", "W4", "--t-end", "15", "--integrator", "Rodas5P",

@@ -343,6 +343,7 @@ def _cli(*args, timeout=300):
                           capture_output=True, text=True, timeout=timeout)
 
 
+@pytest.mark.slow                      # several seconds: make test-slow
 def test_the_command_fits_a_real_basalt_step(tmp_path):
     """BRAVA experiment b819 (Giacomel et al. 2021; the record as published with Giacomel et
     al. 2024's steadystate): a 3 → 10 µm/s step. The values checked are this fit's own at the

@@ -432,6 +432,7 @@ def _cli(*args):
                           capture_output=True, text=True, timeout=600)
 
 
+@pytest.mark.slow                      # several seconds: make test-slow
 def test_rsfbench_lab(tmp_path):
     import json
     done = _cli("shs", "--holds", "1", "10", "--slide", "50", "--json", "--out",
@@ -476,6 +477,7 @@ def test_a_switch_after_the_end_is_refused():
         P.velocity_step_test(t_step=50.0, t_end=40.0)
 
 
+@pytest.mark.slow                      # several seconds: make test-slow
 def test_rsfbench_lab_refuses_options_it_would_ignore(tmp_path):
     import json
     wrong = _cli("step", "--holds", "5", "--json")

@@ -71,6 +71,7 @@ def test_counters():
     assert s.njev == s.steps
 
 
+@pytest.mark.slow                      # several seconds: make test-slow
 def test_newton_failure_halves_the_step():
     """One attempt, called directly: from the paper example's start a step of 10⁻⁴ τ passes,
     one of 1 τ (the inertial period is ~0.02 τ) cannot converge and reports NEWTON_FAIL after

@@ -11,9 +11,22 @@ from probe.cases import cases
 CASES = cases()
 
 
+#: cases of 8–10 s each on 2 cores (`pytest --durations`, 2026-11-28), run by ``make test-slow``
+#: so that ``make test`` stays within its budget; the same behaviours keep faster cases there
+LONG = {"budgets/CyRK-BDF: wall budget 0.5 s",
+        "classification/sundials-CVODE-BDF: a switch 1 ulp, 1e-15\u20261e-6 s before t_end = 0.05 s, "
+        "or at 0+",
+        "classification/sundials-CVODE-BDF: a switch 1 ulp, 1e-15\u20261e-6 s before t_end = 2 s, "
+        "or at 0+"}
+
+
 def _param(case):
-    marks = [pytest.mark.slow] if case.slow else []
+    marks = [pytest.mark.slow] if case.slow or case.id in LONG else []
     return pytest.param(case, id=case.id, marks=marks)
+
+
+def test_the_long_cases_exist():
+    assert LONG <= {c.id for c in CASES}
 
 
 @pytest.mark.parametrize("case", [_param(c) for c in CASES])
