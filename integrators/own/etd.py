@@ -33,7 +33,24 @@ What a user must know (docs/etd.md explains each, with what was measured):
     the bound shortened. With it, any Δτmax (up to 1e6 measured) finds the reference's events;
   - every step checks Eq. 53 at the fastest state it evaluated; a step that exceeds
     ``rule_ratio_max`` (100) stops the run with retcode ``Unresolved`` (a runaway within one
-    step: a start out of force balance, strong weakening).
+    step: a start out of force balance, strong weakening);
+  - the step at steady sliding, at each load-point speed v (where a run starts and sits
+    between events; there w = E, so the load bound lapses): it may neither let steady sliding's
+    instability grow by more than ``GROWTH_PER_STEP_MAX`` = 0.5 e-folds
+    (:func:`problems.stability.growth_rate`), nor slip more than ``RELAX_PER_STEP_MAX`` = 0.5
+    times a·Fn/k (the slip over which the spring sheds the direct effect's a·Fn: a step of it
+    relaxes η and moves h with the other frozen). ``check_problem`` refuses before any work,
+    naming the option and the largest value that passes. The case that needed it: the paper
+    example at a = 1e−6 (t_end = 1 s; the reference, scipy Radau and Rodas5P at 1e−10, has one
+    event peaking at 0.1623 m/s at 6.12 ms): the first step, of 0.99 e-folds and 3.7 a·Fn/k,
+    sent w from E down to 0.36 E (ETD1) or 0.019 E (ETDIterated), the slider stuck, and both
+    reported Success with no event (w never rose, so the step-rule check saw nothing; ETD2's
+    single correction happened to land above E). On the presets at every accepted setting the
+    largest values are 0.074 e-folds (W4/slip, both options 8×) and 0.2 a·Fn/k (the lab's
+    velocity step with mass); with only one of the two bounds, the case runs unseen (0.5
+    e-folds alone still lets ETD1 and ETDIterated report no event). Past the refusal, ETD1 is
+    still far off there (peak 0.050 m/s at the largest accepted Δτcnst, 0.080 at 1e−7: first
+    order with a constant ∝ 1/a), ETD2 and ETDIterated within 1.5 %.
 
   What remains is accuracy, judged against a reference: ETD1 and ETD2 are first order in the
   stick phase, so coarse settings shift event times. Measured on the presets (windows of 3–7
@@ -54,6 +71,7 @@ drives the loop in chunks.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import ClassVar
@@ -76,6 +94,12 @@ _SAVE_BUFFER_MAX = 65_536
 #: the most a step may slip under the rule, in Lc (dtau_cnst · v_max/v0; the paper's 0.05 Lc for
 #: v0 = 10 µm/s): module docstring, "validity"
 SLIP_PER_STEP_MAX = 0.5
+#: the most steady sliding's instability may grow in one step of the rule at a load-point
+#: speed, in e-folds (module docstring, "validity")
+GROWTH_PER_STEP_MAX = 0.5
+#: the most a step of the rule at a load-point speed may slip, in units of a·Fn/k (the slip over
+#: which the spring sheds the direct effect's a·Fn: module docstring, "validity")
+RELAX_PER_STEP_MAX = 0.5
 
 
 @dataclass(frozen=True)
@@ -132,6 +156,58 @@ class _ETD(Algorithm):
                 f"events are missed or invented): dtau_cnst must be at most "
                 f"{SLIP_PER_STEP_MAX * v0 / self.v_max:.3g} here (nondimensional time v0 t/Lc), "
                 "or v_max smaller")
+        try:
+            refusal = _steady_refusal(self, problem)
+        except TypeError:                   # a problem that does not hash: no memo
+            refusal = self.steady_refusal(problem)
+        if refusal:
+            raise ProblemNotSupported(refusal)
+
+    def steady_steps(self, problem) -> list[tuple[float, float, float, float]]:
+        """One step of the rule at steady sliding at each load-point speed v of ``problem``
+        (where a run starts and sits between events; the loading bound does not shorten a step
+        there, w = E): rows (v in m/s, the step in units of v0 t/Lc, the e-folds steady
+        sliding's fastest mode grows over it (:func:`problems.stability.growth_rate`), its slip
+        in units of a·Fn/k)."""
+        from problems.stability import growth_rate
+        law, hist = problem.law, problem.loading.history
+        relax = law.a * problem.normal_force / (problem.stiffness * law.lc)   # a·Fn/k in Lc
+        rows = []
+        for v in sorted({x for x in (*hist.velocities, hist.overshoot_velocity) if x > 0}):
+            dt = min(self.dtau_max, self.dtau_cnst * self.v_max / v)         # Eq. 53, w = v/v0
+            rows.append((v, dt, growth_rate(problem, v) * dt * law.lc / law.v0,
+                         dt * v / law.v0 / relax))
+        return rows
+
+    def steady_refusal(self, problem) -> str:
+        """Why a step of the rule at steady sliding (:meth:`steady_steps`) is too long for
+        ``problem`` (module docstring, "validity"), naming the option to lower and the largest
+        value that works; "" when it is not."""
+        law = problem.law
+        worst = None
+        for v, dt, growth, relax in self.steady_steps(problem):
+            for amount, bound, what in (
+                    (growth, GROWTH_PER_STEP_MAX, "steady sliding's instability grows by "
+                     f"{growth:.3g} e-folds over it (problems.stability.growth_rate)"),
+                    (relax, RELAX_PER_STEP_MAX, f"it slips {relax:.3g} times "
+                     f"{law.a * problem.normal_force / problem.stiffness:.3g} m (a·Fn/k), the "
+                     "slip over which the direct effect relaxes")):
+                if not amount > bound * (1 + 1e-9):   # the bound itself is allowed (and NaN)
+                    continue
+                dt_ok = dt * bound / amount
+                name, value, limit = (("dtau_max", self.dtau_max, dt_ok) if dt == self.dtau_max
+                                      else ("dtau_cnst", self.dtau_cnst,
+                                            dt_ok * v / self.v_max))
+                if worst is None or limit / value < worst[0]:
+                    worst = (limit / value, name, value, limit, v, dt, what, bound)
+        if worst is None:
+            return ""
+        _, name, value, limit, v, dt, what, bound = worst
+        return (f"{name} = {value!r} lets a step of {problem.name} at steady sliding at "
+                f"v = {v:.4g} m/s (a load-point speed) last {dt * law.lc / law.v0:.3g} s: {what}; "
+                f"a frozen-coefficient step resolves at most {bound:g} (beyond it a step can leap "
+                f"over an event and report none): {name} must be at most {_down(limit):.3g} here "
+                "(nondimensional time v0 t/Lc), or use an adaptive method (Rodas5P)")
 
     def run(self, problem, output, budget, progress) -> RawRun:
         nd = problem.nondimensional()
@@ -194,6 +270,18 @@ class _ETD(Algorithm):
                       stats=stats, retcode=retcode, message=message,
                       meta={"step_rule_max": float(st[K.S_RULE_MAX]),
                             "load_bound_steps": int(st[K.S_LOAD_BOUND])})
+
+
+@functools.lru_cache(maxsize=256)
+def _steady_refusal(algorithm: _ETD, problem) -> str:
+    # ~0.2 ms of polynomial roots, once per (options, problem): a sweep re-solves the same pair
+    return algorithm.steady_refusal(problem)
+
+
+def _down(x: float) -> float:
+    """``x`` rounded down to three significant digits (a limit quoted must pass its check)."""
+    unit = 10.0 ** (math.floor(math.log10(x)) - 2)
+    return math.floor(x / unit) * unit
 
 
 def _events_si(problem, nd, ev: np.ndarray) -> np.ndarray:
