@@ -19,7 +19,7 @@ from benchmarks.ensemble.executors import RunStopped
 __all__ = ["say", "show_progress", "RunStopped", "Parser", "HelpFormatter", "positive",
            "non_negative", "finite", "pair",
            "count", "seed", "out_dir", "out_file", "in_file", "preset_name", "flagged",
-           "add_problem_options", "add_integrator_options", "integrator_from_args",
+           "add_problem_options", "add_integrator_options", "add_overwrite_options", "integrator_from_args",
            "problem_from_args", "add_problem_choice", "add_observation_options",
            "check_observation_options", "observations_from_args", "ACCURACY"]
 
@@ -64,6 +64,11 @@ class Parser(argparse.ArgumentParser):
     def __init__(self, *args, **kwargs):
         kwargs.setdefault("formatter_class", HelpFormatter)
         super().__init__(*args, **kwargs)
+
+    def print_help(self, file=None):
+        # --help is the command's output: the standard output as it was (main() points
+        # sys.stdout at the standard error while a command runs)
+        super().print_help(file if file is not None else _OUTPUT or sys.stdout)
 
     def error(self, message):
         raise UsageError(f"{self.prog}: {message}{self._unit_of(message)} (see {self.prog} --help)")
@@ -201,7 +206,29 @@ def in_file(text: str) -> Path:
         raise argparse.ArgumentTypeError(f"{text!r} is not a file")
     if not os.access(path, os.R_OK):
         raise argparse.ArgumentTypeError(f"{text!r} is not readable")
+    from benchmarks.records.files import note_input
+    note_input(path)                      # never written over by this run (records.files)
     return path
+
+
+#: the commands whose files never replace a user's (:mod:`benchmarks.records.files`)
+GUARDED_COMMANDS = ("simulate", "observe", "invert", "sweep", "solver-effect", "fit", "shs",
+                    "step", "compare")
+
+
+def add_overwrite_options(sub) -> None:
+    """``--overwrite`` on each command of :data:`GUARDED_COMMANDS` that writes files."""
+    for name, p in sub.choices.items():
+        for action in p._actions:                      # lab's step, shs and fit
+            if isinstance(action, argparse._SubParsersAction):
+                add_overwrite_options(action)
+        writes = {"out", "save", "plot"} & {a.dest for a in p._actions}
+        if name in GUARDED_COMMANDS and writes:
+            p.add_argument("--overwrite", action="store_true",
+                           help="replace existing files of the names this command writes "
+                                "even when rsfbench did not write them (default: such a file "
+                                "is refused before any work; a file rsfbench wrote and nobody "
+                                "changed is replaced; an input never is)")
 
 
 def preset_name(text: str) -> str:
@@ -328,7 +355,7 @@ class ShowVersion(argparse.Action):
 
     def __call__(self, parser, namespace, values, option_string=None):
         from benchmarks.records.provenance import version_line
-        print(version_line())
+        say(version_line())             # the command's output: stdout, also under main()
         parser.exit(0)
 
 
@@ -386,9 +413,11 @@ def checked_integrator(args, problem, obs, b_range, lc_range, algorithm, why: st
     from benchmarks.inversion.solver_check import check_solver
     if args.no_solver_check:
         return algorithm, why + " (not checked on this problem: --no-solver-check)", None
+    from benchmarks.inversion.solver_check import WALL_BUDGET
     talk = (lambda text: None) if args.json else (lambda text: say(f"… {text}"))
     check = check_solver(problem, algorithm, obs, b_range, lc_range,
-                         workers=getattr(args, "workers", None), say=talk)
+                         workers=getattr(args, "workers", None), say=talk,
+                         wall_budget=getattr(args, "wall_budget", None) or WALL_BUDGET)
     if check.nothing_to_check:
         import warnings
         warnings.warn(f"the integrator is not checked on this problem: {check.message}",

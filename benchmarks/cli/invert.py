@@ -97,6 +97,9 @@ MAX_STEPS = 1_000_000
 MAX_WALKERS = 10_000
 #: profile points per parameter at most (each is a line of ≥ 41 solves, then refined)
 MAX_PROFILE_POINTS = 1001
+#: s of wall time per forward solve unless told (a W2 solve takes milliseconds; a point that
+#: crawls, as b ≈ 0.2 of W2 does at 300,000 steps a second, would hold the grid for hours)
+WALL_BUDGET = 10.0
 
 
 def _interrupted(args, command: str, where: str) -> int:
@@ -127,7 +130,8 @@ def _box(args, problem, published: bool):
 
 def cmd_invert(args) -> int:
     from benchmarks.inversion import Misfit
-    from benchmarks.inversion.invert import check_box, invert, write_inversion
+    from benchmarks.inversion.invert import check_box, invert, inversion_files, write_inversion
+    from benchmarks.records.files import claim_outputs
     from benchmarks.inversion.posterior import check_sampler
     from problems import WINDOWS
     problem = problem_from_args(args, fields=("t_end",))
@@ -166,6 +170,7 @@ def cmd_invert(args) -> int:
     algorithm, why = integrator_from_args(args)
     name = args.preset if args.problem is None else Path(args.problem).stem
     out = Path(args.out or f"invert_{name}_{problem.law.name}")
+    claim_outputs(inversion_files(out))                  # a user's file there: refused now
     out.mkdir(parents=True, exist_ok=True)               # before the work, not after it
     try:
         algorithm, why, check = checked_integrator(args, problem, obs, box_b, box_lc,
@@ -207,6 +212,12 @@ def cmd_invert(args) -> int:
                    f"nothing written to {out}")
         return _interrupted(args, "invert", f"during the {stage[0]}: {written}")
     failed = not np.isfinite(inv.fit.misfit)         # no point of the box had a limit cycle
+    solves = summary["solves"]
+    if solves["failed"]:                         # on the standard error, also with --json
+        warnings.warn(f"{solves['failed']:,} of {solves['solves']:,} forward solves failed "
+                      f"({solves['over_budget']:,} over the wall budget of "
+                      f"{args.wall_budget:g} s per solve, --wall-budget): each is a point "
+                      "without a limit cycle, never read as one", stacklevel=1)
     for p in summary["profiles"].values():       # on the standard error, also with --json
         for text in p["warnings"]:
             warnings.warn(text, stacklevel=1)
@@ -234,7 +245,9 @@ def cmd_invert(args) -> int:
         p = summary["posterior"]
         ib, il = p["interval_95"]["b"], p["interval_95"]["log10_lc"]
         say(f"posterior (grid, {p['n_cells']:,} cells in {p['levels']} levels, "
-            f"{p['n_solves']:,} solves, {p['wall_s']:.1f} s): b = {p['mean']['b']:.5g} ± "
+            f"{p['n_solves']:,} solves"
+            + (f" of which {p['n_failed']:,} failed" if p["n_failed"] else "")
+            + f", {p['wall_s']:.1f} s): b = {p['mean']['b']:.5g} ± "
             f"{p['std']['b']:.2g} (95 %: {ib[0]:.5g} to {ib[1]:.5g}), log10 Lc = "
             f"{p['mean']['log10_lc']:.3f} ± {p['std']['log10_lc']:.2g} (95 %: {il[0]:.3f} to "
             f"{il[1]:.3f})" + ("" if p["settled"] else " — the refinement did not settle: "
@@ -254,6 +267,8 @@ def cmd_invert(args) -> int:
                if np.isfinite(p["effective_samples"]) else
                "τ not estimable (a walker never moved: run more --steps)"))
         say(f"prior: {p['prior']}")
+    say(f"forward solves: {solves['solves']:,}, {solves['failed']:,} failed "
+        f"({solves['over_budget']:,} over the wall budget of {args.wall_budget:g} s per solve)")
     say(f"written: {', '.join(summary['files'].values())}")
     return 1 if inv.posterior_missed else 0
 
@@ -311,9 +326,11 @@ def add_parsers(sub, preset_names) -> None:
                    "(default: 0)")
     i.add_argument("--workers", type=workers, metavar="N",
                    help="threads (own methods) or processes per batch (default: all cores)")
-    i.add_argument("--wall-budget", type=positive, metavar="S",
-                   help="wall budget per forward solve in s; a solve over it counts as without "
-                        "a cycle (default: none)")
+    i.add_argument("--wall-budget", type=positive, default=WALL_BUDGET, metavar="S",
+                   help="wall budget per forward solve in s, of the inversion and of its "
+                        "solver check; a solve over it is a failed point, counted in the "
+                        "output and read as without a limit cycle, never as one (default: "
+                        f"{WALL_BUDGET:g} s per solve)")
     i.add_argument("--out", type=out_dir, metavar="DIR",
                    help="where to write inversion.json, the CSVs (posterior.csv: at most "
                         f"{MAX_SAMPLES_SAVED} samples) and PNGs (default: "

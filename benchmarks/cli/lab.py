@@ -32,6 +32,7 @@ from benchmarks.cli.args import (
     say,
     show_progress,
 )
+from benchmarks.records.files import claim_outputs, write_figure, write_table
 
 __all__ = ["add_parsers"]
 
@@ -144,8 +145,10 @@ def cmd_lab(args) -> int:
     tol = args.rtol if args.rtol is not None else (None if args.integrator else DEFAULT_TOL)
     algorithm = make_algorithm(name, rtol=tol, atol=args.atol if args.atol is not None else tol)
     out = args.out
-    if out is not None:
-        out.mkdir(parents=True, exist_ok=True)          # before the work: a bad --out fails now
+    if out is not None:                   # before the work: a bad --out or a user's file
+        claim_outputs(out / n for n in ("lab_steps.csv", "lab_healing.csv",
+                                        "lab_trajectory.csv", "lab.png"))
+        out.mkdir(parents=True, exist_ok=True)
     sol = solve(problem, algorithm, save_every=problem.t_end / (SAVED_POINTS - 1),
                 progress=show_progress(args))
     if not sol.success:
@@ -166,11 +169,12 @@ def cmd_lab(args) -> int:
            "healing": heal.to_dict(orient="records"),
            "healing_per_decade": healing_rate(heal)}
     if out is not None:
-        steps.to_csv(out / "lab_steps.csv", index=False)
-        heal.to_csv(out / "lab_healing.csv", index=False)
+        write_table(steps, out / "lab_steps.csv")
+        write_table(heal, out / "lab_healing.csv")
         import pandas as pd
-        pd.DataFrame({"t_s": sol.t, "v_m_s": sol.v, "mu": sol.fs / problem.normal_force,
-                      "theta": sol.theta}).to_csv(out / "lab_trajectory.csv", index=False)
+        write_table(pd.DataFrame({"t_s": sol.t, "v_m_s": sol.v,
+                                  "mu": sol.fs / problem.normal_force, "theta": sol.theta}),
+                    out / "lab_trajectory.csv")
         _plot(sol, heal, out / "lab.png")
         doc["out"] = str(out)
     if args.json:
@@ -213,7 +217,7 @@ def _plot(sol, heal, path: Path) -> None:
         axes[2].grid(True, which="both", alpha=0.3)
     fig.suptitle(sol.problem.name, fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    write_figure(fig, path, dpi=110)
     plt.close(fig)
 
 

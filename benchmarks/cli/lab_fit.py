@@ -17,6 +17,11 @@ import math
 from pathlib import Path
 
 from benchmarks.cli.args import in_file, non_negative, out_dir, positive, say, show_progress
+from benchmarks.records.files import claim_outputs, write_figure, write_output, write_table
+
+#: the files ``lab fit --out DIR`` may write
+LAB_FIT_FILES = ("lab_fit.json", "lab_fit_parameters.csv", "lab_fit_residuals.csv",
+                 "lab_fit_profiles.csv", "lab_fit_posterior.csv", "lab_fit.png")
 
 __all__ = ["add_parser"]
 
@@ -55,7 +60,7 @@ def _model(args, record):
         tol = args.rtol if args.rtol is not None else DEFAULT_ALGORITHM[1]
         algorithm = make_algorithm(name, rtol=tol, atol=tol)
     return LabModel(record, args.law, detrend=args.detrend, algorithm=algorithm,
-                    states=args.states)
+                    states=args.states, wall_budget=args.wall_budget)
 
 
 def _check_flags(args) -> None:
@@ -108,7 +113,8 @@ def cmd_lab_fit(args) -> int:
     if args.posterior and args.walkers < 2 * len(free):
         raise ValueError(f"--walkers {args.walkers}: at least {2 * len(free)}, twice the "
                          f"{len(free)} fitted parameters ({', '.join(free)})")
-    if args.out is not None:
+    if args.out is not None:              # a user's file of one of these names: refused now
+        claim_outputs(args.out / n for n in LAB_FIT_FILES)
         args.out.mkdir(parents=True, exist_ok=True)
     import sys
     import warnings
@@ -136,8 +142,12 @@ def cmd_lab_fit(args) -> int:
     posterior = None
     if args.posterior:
         from benchmarks.inversion.lab_posterior import sample_lab
-        posterior = sample_lab(fit, walkers=args.walkers, steps=args.steps, seed=args.seed,
-                               progress=not args.json and not args.no_progress)
+        try:
+            posterior = sample_lab(fit, walkers=args.walkers, steps=args.steps, seed=args.seed,
+                                   progress=not args.json and not args.no_progress)
+        except KeyboardInterrupt as exc:      # one line (main), never emcee's traceback
+            raise KeyboardInterrupt(f"lab fit interrupted (Ctrl-C): {exc or 'the posterior'}; "
+                                    "nothing written") from None
     inertia = None
     if args.mass is not None or args.radiation_damping is not None:
         stage("the inertial fit")
@@ -181,7 +191,8 @@ def cmd_lab_fit(args) -> int:
                               "autocorrelation, covariance inflated by (1+rho)/(1-rho)",
                      "sigma": fit.sigma, "rho": fit.rho, "inflation": fit.inflation},
            "success": fit.success, "message": fit.message, "at_bound": list(fit.at_bound),
-           "notes": notes, "solves": fit.solves, "wall_s": fit.wall_s,
+           "notes": notes, "solves": fit.solves, "failed_solves": fit.failed_solves,
+           "wall_budget_s": args.wall_budget, "wall_s": fit.wall_s,
            "profiles": {n: {"interval": list(p.interval), "closed": list(p.closed),
                             "solves": p.solves, "wall_s": p.wall_s}
                         for n, p in profiles.items()},
@@ -196,7 +207,7 @@ def cmd_lab_fit(args) -> int:
     if args.out is not None:
         _write(args.out, fit, table, profiles, doc)
         if posterior is not None:
-            posterior.samples.to_csv(args.out / "lab_fit_posterior.csv", index=False)
+            write_table(posterior.samples, args.out / "lab_fit_posterior.csv")
         doc["out"] = str(args.out)
     # a fit whose integrator failed its check, or that did not converge, is no answer: exit 1
     status = 0 if fit.success and (check is None or check["passed"]) else 1
@@ -222,6 +233,8 @@ def _report(fit, table, profiles, check, inertia, notes, record, args) -> None:
     say(f"{record.source}: {fit.n} samples; the load point: {_pieces_line(record)}")
     say(f"{args.law} law{', two state variables' if args.states == 2 else ''}, detrend "
         f"{args.detrend}: {fit.solves} solves, {fit.wall_s:.2f} s"
+        + (f" ({fit.failed_solves} failed or over the {args.wall_budget:g} s budget per solve: "
+           "not read as μ)" if fit.failed_solves else "")
         + ("" if fit.success else f" — the fit did not converge: {fit.message}"))
     shown = table.copy()
     for col in ("value", "se", "wald_low95", "wald_high95", "profile_low95", "profile_high95",
@@ -246,6 +259,8 @@ def _report(fit, table, profiles, check, inertia, notes, record, args) -> None:
     if check is not None:
         if not check["checked"]:
             say(f"solver check: not run: {check['reason']}")
+        elif check.get("reason"):
+            say(f"solver check: FAILED: {check['reason']}")
         else:
             say(f"solver check: {check['integrator']} is {check['error_sigma']:.2g} σ from "
                 f"{check['references'][0]}, whose gap to {check['references'][1]} is "
@@ -288,17 +303,17 @@ def _write(out: Path, fit, table, profiles, doc) -> None:
 
     from benchmarks.records.report import jsonable
     rec = fit.model.record
-    table.assign(command=doc["command"], tool=doc["tool"]).to_csv(
-        out / "lab_fit_parameters.csv", index=False)
-    pd.DataFrame({"t_s": rec.t + rec.t_offset, "load_point_m": rec.load_point, "mu": rec.mu,
-                  "mu_model": fit.mu_model, "residual": rec.mu - fit.mu_model}).to_csv(
-        out / "lab_fit_residuals.csv", index=False)
+    write_table(table.assign(command=doc["command"], tool=doc["tool"]),
+                out / "lab_fit_parameters.csv")
+    write_table(pd.DataFrame({"t_s": rec.t + rec.t_offset, "load_point_m": rec.load_point,
+                              "mu": rec.mu, "mu_model": fit.mu_model,
+                              "residual": rec.mu - fit.mu_model}), out / "lab_fit_residuals.csv")
     if profiles:
         from benchmarks.inversion.lab_fit import PARAMETER_UNITS
-        pd.concat([p.points.rename(columns={p.parameter: "value"}).assign(
+        write_table(pd.concat([p.points.rename(columns={p.parameter: "value"}).assign(
             parameter=p.parameter, unit=PARAMETER_UNITS[p.parameter])
-            for p in profiles.values()]).to_csv(out / "lab_fit_profiles.csv", index=False)
-    (out / "lab_fit.json").write_text(json.dumps(jsonable(doc), indent=2))
+            for p in profiles.values()]), out / "lab_fit_profiles.csv")
+    write_output(out / "lab_fit.json", json.dumps(jsonable(doc), indent=2))
     _plot(fit, profiles, out / "lab_fit.png")
 
 
@@ -342,12 +357,12 @@ def _plot(fit, profiles, path: Path) -> None:
             ax.set_ylabel("Δ squares / (f σ²)", fontsize=8)
     fig.suptitle(Path(rec.source).name, fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    write_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
 def add_parser(tests) -> None:
-    from benchmarks.physics.lab_model import DEFAULT_ALGORITHM, DETRENDS
+    from benchmarks.physics.lab_model import DEFAULT_ALGORITHM, DETRENDS, WALL_BUDGET
     p = tests.add_parser("fit", help="fit (a, b, Dc) and the stiffness to a velocity-step or "
                          "slide-hold-slide record", description=__doc__.split("\n\n")[0])
     p.add_argument("recording", type=in_file, metavar="RECORDING",
@@ -405,6 +420,11 @@ def add_parser(tests) -> None:
                    help="skip the profile intervals of a, b and Dc (and b2, Dc2)")
     p.add_argument("--no-solver-check", action="store_true",
                    help="skip the check of the integrator against two references at 1e-12")
+    p.add_argument("--wall-budget", type=positive, default=WALL_BUDGET, metavar="S",
+                   help="wall-time budget of each solve in s: the fit's, its profiles', the "
+                        "posterior's and the solver check's (a reference over it fails the "
+                        "check: exit status 1; the two-state model has a step budget instead) "
+                        f"(default: {WALL_BUDGET:g} s per solve)")
     p.add_argument("--out", type=out_dir, metavar="DIR",
                    help="write lab_fit.json, lab_fit_parameters.csv, lab_fit_residuals.csv, "
                         "lab_fit_profiles.csv and lab_fit.png there (default: print only)")

@@ -33,6 +33,7 @@ from benchmarks.cli.args import (
     RunStopped,
     ShowVersion,
     add_integrator_options,
+    add_overwrite_options,
     add_problem_options,
     flagged,
     in_file,
@@ -53,6 +54,8 @@ from benchmarks.physics.summary import (
     integrators_markdown,
     simulate_summary,
 )
+from benchmarks.records.files import allow_overwrite, begin_run, claim_outputs, write_output, \
+    write_table, writing
 from benchmarks.records.optional import MissingExtra
 from benchmarks.records.report import jsonable as _jsonable
 from integrators import REGISTRY, algorithm_class, solve
@@ -118,6 +121,8 @@ def cmd_simulate(args) -> int:
         require("pyarrow", "ensemble", "--save FILE.parquet")
     problem = problem_from_args(args)
     algorithm, why = integrator_from_args(args)
+    claim_outputs([p for p in (args.save, args.save and args.save.with_name(
+        args.save.name + ".json"), args.plot) if p])   # a user's file there: refused now
     warm_up(problem, algorithm, wall_budget=args.wall_budget)   # wall_s excludes compiling
     # 20,000 points over the run; a figure draws each event from the dense output besides
     sol = solve(problem, algorithm, max_points=20_000, progress=args.progress,
@@ -143,7 +148,6 @@ def cmd_simulate(args) -> int:
 def _save_trajectory(sol, path: Path, summary: dict, command: str) -> dict:
     """Write ``sol``'s trajectory to ``path`` (.csv or .parquet: t, v, fs, ft, mu, theta) and
     what it is to ``path`` + ".json" (units, command, versions, the run's summary)."""
-    from benchmarks.records.files import atomic_write
     from benchmarks.records.provenance import provenance, version_line
     df = sol.to_dataframe()
     path.parent.mkdir(parents=True, exist_ok=True)      # a creatable place (--save's check)
@@ -151,11 +155,12 @@ def _save_trajectory(sol, path: Path, summary: dict, command: str) -> dict:
              "columns": df.attrs["units"], "rows": len(df), "run": summary}
     if path.suffix.lower() == ".parquet":
         df.attrs["about"] = json.dumps(_jsonable(about))
-        df.to_parquet(path, index=False)
+        with writing(path) as tmp:
+            df.to_parquet(tmp, index=False)
     else:
-        atomic_write(path, df.to_csv(index=False))
+        write_table(df, path)
     side = path.with_name(path.name + ".json")
-    atomic_write(side, json.dumps(_jsonable(about), indent=2))
+    write_output(side, json.dumps(_jsonable(about), indent=2))
     return {"file": str(path), "about": str(side), "rows": len(df)}
 
 
@@ -207,6 +212,8 @@ def cmd_compare(args) -> int:
     else:
         problem = preset(args.preset or "paper-example", law=args.law or "slip",
                          t_end=args.t_end)
+    if args.out:
+        claim_outputs([args.out])             # a user's file there: refused before the work
     names = None if not args.integrators else [algorithm_name(n) for n in args.integrators]
     table = compare_integrators(problem, args.rtol, args.atol, names=names,
                                 wall_budget=args.wall_budget, progress=show_progress(args))
@@ -216,7 +223,7 @@ def cmd_compare(args) -> int:
     from benchmarks.records.provenance import version_line
     table["rsfbench"], table["command"] = version_line(), args.command_line
     if args.out:
-        table.to_csv(args.out, index=False)
+        write_table(table, args.out)
     if args.json:
         say(table.to_json(orient="records", indent=2))
     else:
@@ -294,6 +301,12 @@ def cmd_work_precision(args) -> int:
     if args.t_end is not None:
         problems = [dataclasses.replace(p, t_end=args.t_end) for p in problems]
     names = None if not args.integrators else [algorithm_name(n) for n in args.integrators]
+    from benchmarks.devtools.reference import NoStickSlip, reference
+    for problem in problems:                   # before any run; the study reads them cached
+        try:
+            reference(problem)
+        except NoStickSlip as exc:             # nothing to measure: a failure, one line
+            return _fail(f"work-precision: {_one_line(exc)}", 1, args.json)
     tiers = tuple(args.tiers or ("numba", "python"))
     if args.problem and names is None:       # on your problem: the compiled ones, in minutes
         names = [n for n, c in sorted(REGISTRY.items()) if c.library.startswith(COMPILED)]
@@ -624,6 +637,7 @@ def build_parser() -> Parser:
     add_observe_parsers(sub)
     from benchmarks.cli.solver_effect import add_parsers as add_solver_effect_parsers
     add_solver_effect_parsers(sub)
+    add_overwrite_options(sub)
     return parser
 
 
@@ -642,7 +656,9 @@ def main(argv: list[str] | None = None) -> int:
         warnings.showwarning = _show_warning
         args = None
         try:
+            begin_run()                           # nothing written yet, no inputs known
             args = build_parser().parse_args(argv)
+            allow_overwrite(getattr(args, "overwrite", False))
             args.command_line = shlex.join(["rsfbench", *(sys.argv[1:] if argv is None
                                                           else argv)])
             return args.func(args)

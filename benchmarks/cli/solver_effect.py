@@ -17,7 +17,12 @@ import json
 from pathlib import Path
 
 from benchmarks.cli.args import in_file, out_dir, say
+from benchmarks.records.files import adopt, claim_outputs, write_output
 from benchmarks.records.report import jsonable
+
+#: the files ``solver-effect --out DIR`` writes (the study's, then its provenance)
+SOLVER_EFFECT_FILES = ("solver_effect.csv", "solver_effect_recommendation.csv",
+                       "solver_effect.md", "solver_effect.png", "solver_effect_provenance.json")
 
 __all__ = ["add_parsers"]
 
@@ -39,6 +44,8 @@ def cmd_solver_effect(args) -> int:
         raise ValueError("--study names the work-precision study of --full's candidates: add "
                          "--full")
     out = Path(args.out or f"solver_effect_{Path(args.problem).stem}")
+    mine = [out / n for n in SOLVER_EFFECT_FILES]
+    claim_outputs(mine)                   # before the work: a user's file of these names
     out.mkdir(parents=True, exist_ok=True)
     n = args.n or (31 if args.full else QUICK_N)
     own = (Path(args.problem).stem, problem, (args.b_range, args.lc_range))
@@ -52,7 +59,8 @@ def cmd_solver_effect(args) -> int:
               "observations_file": str(Path(args.observations).resolve()),
               "b_range": list(args.b_range), "lc_range_m": list(args.lc_range), "n": n,
               "mode": "full" if args.full else "quick"}
-    (out / "solver_effect_provenance.json").write_text(json.dumps(jsonable(record), indent=2))
+    adopt([p for p in mine[:-1] if p.exists()])   # the study's files, written by it just now
+    write_output(mine[-1], json.dumps(jsonable(record), indent=2))
     summary = {"out": str(out), "recommendation": advice.to_dict(orient="records"),
                "rows": len(table), "provenance": record}
     if args.json:

@@ -37,6 +37,8 @@ from benchmarks.inversion.fit import FitResult, fit
 from benchmarks.inversion.misfit import Misfit
 from benchmarks.inversion.posterior import Posterior, check_sampler, sample
 from benchmarks.inversion.profile import CHI2_95_1DOF, profile
+from benchmarks.records.files import (claim_outputs, remove_own, write_figure, write_output,
+                                      write_table)
 from benchmarks.records.report import jsonable
 
 __all__ = ["invert", "Inversion", "write_inversion", "check_box", "MAX_SAMPLES_SAVED", "METHODS"]
@@ -227,7 +229,9 @@ def _summary(inv: Inversion) -> dict:
                          "n_points": len(p.table), "resolved": p.resolved,
                          "monotone": p.monotone, "warnings": list(p.warnings),
                          "level": f"Δ misfit ≤ {CHI2_95_1DOF:.3f}"} for k, p in inv.profiles.items()},
-        "wall_s": inv.wall_s}
+        "wall_s": inv.wall_s,
+        # every forward solve of the inversion; a failed one (over its budget too) is no cycle
+        "solves": m.failures}
     if inv.posterior is None:
         out["posterior"] = None
         out["no_posterior"] = inv.no_posterior
@@ -238,8 +242,8 @@ def _summary(inv: Inversion) -> dict:
             "method": "grid", "prior": p.prior, "mean": p.mean, "std": p.std,
             "interval_95": {k: list(v) for k, v in p.interval.items()},
             "edge_mass": p.edge_mass, "levels": p.levels, "settled": p.settled,
-            "n_cells": len(p.cells), "n_solves": p.n_solves, "wall_s": p.wall_s,
-            "refinement": p.history}
+            "n_cells": len(p.cells), "n_solves": p.n_solves, "n_failed": p.n_failed,
+            "wall_s": p.wall_s, "refinement": p.history}
     else:
         p = inv.posterior
         q = p.samples.quantile([0.025, 0.975])
@@ -259,33 +263,45 @@ def write_inversion(inv: Inversion, out: Path, provenance: dict | None = None) -
     and the packages' (:func:`benchmarks.records.provenance.provenance`)."""
     from benchmarks.records.provenance import provenance as machine, version_line
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    claim_outputs(inversion_files(out, inv.profiles))
     summary = _summary(inv)
     summary["provenance"] = {"tool": version_line(), **machine(), **(provenance or {})}
     files = {"summary": out / "inversion.json", "fit_starts": out / "fit_starts.csv",
              "profiles_plot": out / "profiles.png"}
-    inv.fit.starts.to_csv(files["fit_starts"], index=False)
+    write_table(inv.fit.starts, files["fit_starts"])
     for name, p in inv.profiles.items():
         files[f"profile_{name}"] = out / f"profile_{name}.csv"
-        p.table.to_csv(files[f"profile_{name}"], index=False)
+        write_table(p.table, files[f"profile_{name}"])
     _plot_profiles(inv, files["profiles_plot"])
     if isinstance(inv.posterior, CellPosterior):
         files["posterior_cells"] = out / "posterior_cells.csv"
-        inv.posterior.cells.to_csv(files["posterior_cells"], index=False)
+        write_table(inv.posterior.cells, files["posterior_cells"])
         files["posterior"] = out / "posterior.csv"
-        inv.posterior.sample(MAX_SAMPLES_SAVED, inv.seed).to_csv(files["posterior"], index=False)
+        write_table(inv.posterior.sample(MAX_SAMPLES_SAVED, inv.seed), files["posterior"])
         files["corner"] = out / "corner.png"
         _plot_corner(inv, files["corner"])
     elif inv.posterior is not None:
         s = inv.posterior.samples
         stride = max(1, -(-len(s) // MAX_SAMPLES_SAVED))
         files["posterior"] = out / "posterior.csv"
-        s.iloc[::stride].to_csv(files["posterior"], index=False)
+        write_table(s.iloc[::stride], files["posterior"])
         files["corner"] = out / "corner.png"
         _plot_corner(inv, files["corner"])
+    for path in inversion_files(out, inv.profiles):   # an earlier run's, of another inversion
+        if path not in files.values():
+            remove_own(path)
     summary["files"] = {k: str(v) for k, v in files.items()}
-    files["summary"].write_text(json.dumps(jsonable(summary), indent=2) + "\n")
+    write_output(files["summary"], json.dumps(jsonable(summary), indent=2) + "\n")
     return summary
+
+
+def inversion_files(out: Path, parameters=("b", "log10_lc")) -> list[Path]:
+    """Every file :func:`write_inversion` may write to ``out`` (checked before the work: a
+    user's file of one of these names is refused, :func:`benchmarks.records.files.writing`)."""
+    out = Path(out)
+    return [out / n for n in ("inversion.json", "fit_starts.csv", "profiles.png",
+                              "posterior_cells.csv", "posterior.csv", "corner.png")] + [
+        out / f"profile_{name}.csv" for name in parameters]
 
 
 def _plot_profiles(inv: Inversion, path: Path) -> None:
@@ -314,7 +330,7 @@ def _plot_profiles(inv: Inversion, path: Path) -> None:
             ax.legend(fontsize=8)
     fig.suptitle(f"{inv.misfit.problem.name}: profiles ({inv.misfit.algorithm.name})", fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    write_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
@@ -334,5 +350,5 @@ def _plot_corner(inv: Inversion, path: Path) -> None:
                         truths=truths, truth_color="C3")
     fig.suptitle(f"{inv.misfit.problem.name}: posterior ({inv.method}, "
                  f"{inv.misfit.algorithm.name}); red: least-squares fit", fontsize=9, y=1.02)
-    fig.savefig(path, dpi=110, bbox_inches="tight")
+    write_figure(fig, path, dpi=110, bbox_inches="tight")
     plt.close(fig)

@@ -16,6 +16,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.colors import LogNorm  # noqa: E402
 
+from benchmarks.records.files import write_figure  # noqa: E402
+
 __all__ = ["plot_sweep"]
 
 _PANELS = (("recurrence_s", "ΔT (s)", False), ("friction_drop", "Δμ", False),
@@ -61,7 +63,7 @@ def plot_sweep(table, path, title: str = "", mark=None, best=None,
         axes[0][0].legend(fontsize=6, loc="lower right")
     if title:
         fig.suptitle(title)
-    fig.savefig(path, dpi=110)
+    write_figure(fig, path, dpi=110)
     plt.close(fig)
 
 

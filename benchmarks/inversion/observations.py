@@ -144,7 +144,7 @@ def write_observations(path, events: pd.DataFrame, curves: pd.DataFrame | None =
                        provenance: dict | None = None) -> dict:
     """Write the observations file ``path`` (module docstring) from a per-event table
     (``t_start``, ``t_end`` and the metrics) and return the document."""
-    from benchmarks.records.files import atomic_write
+    from benchmarks.records.files import write_output
     from benchmarks.records.report import jsonable
     if sigma not in SIGMAS:
         raise ValueError(f"sigma must be one of {SIGMAS}, got {sigma!r}")
@@ -169,7 +169,7 @@ def write_observations(path, events: pd.DataFrame, curves: pd.DataFrame | None =
            "apparatus": apparatus or {}, "how": how or {}, "notes": list(notes),
            "recording": recording or {}, "provenance": provenance or {}}
     doc = jsonable(doc)
-    atomic_write(Path(path), json.dumps(doc, indent=1))
+    write_output(Path(path), json.dumps(doc, indent=1))
     return doc
 
 

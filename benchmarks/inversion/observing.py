@@ -16,8 +16,11 @@ one directory:
   and Fn are known (the mass is given, ``--mass``): ``rsfbench simulate --problem`` runs it;
 * ``observe.png`` — the record with its events marked, the metrics event by event, the curves.
 
-An optional file this run does not write is removed from ``out`` if an earlier run left it
-there: every file in the directory is of the same observations.
+No file of the user's is replaced: a file of one of these names in ``out`` that rsfbench did
+not write (or that was changed since) is refused before any work, unless ``--overwrite``
+(:func:`benchmarks.records.files.writing`). An optional file this run does not write is removed
+from ``out`` if an earlier run wrote it and nobody changed it since, so that every file in the
+directory is of the same observations; a file of anyone else's stays.
 
 A column file (TOML) maps the columns and gives the apparatus's constants::
 
@@ -43,8 +46,9 @@ import tomllib
 from pathlib import Path
 
 from benchmarks.inversion.observations import SIGMAS, write_observations
+from benchmarks.records.files import claim_outputs, remove_own, write_output, write_table
 
-__all__ = ["observe", "read_column_file", "apparatus_toml", "APPARATUS_KEYS"]
+__all__ = ["observe", "observe_files", "read_column_file", "apparatus_toml", "APPARATUS_KEYS"]
 
 #: the constants a column file's [apparatus] table may give, and their units
 APPARATUS_KEYS = {"normal_force": "N", "mass": "kg", "vls": "m/s", "stiffness": "N/m"}
@@ -115,47 +119,55 @@ def observe(path, columns, out, normal_force: float | None = None, mass: float |
     from benchmarks.physics.recording import column_map, read_recording
     if sigma not in SIGMAS:
         raise ValueError(f"sigma must be one of {SIGMAS}, got {sigma!r}")
+    out = Path(out)
+    claim_outputs(observe_files(out))          # before the work: a user's file there is refused
     rec = read_recording(path, columns, normal_force=normal_force)
     found = analyse(rec, mass=mass, vls=vls, stiffness=stiffness)
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     files = {"observations": out / "observations.json", "events": out / "events.csv"}
-    found.events.to_csv(files["events"], index=False)
+    write_table(found.events, files["events"])
     if found.curves is not None:
         files["curves"] = out / "curves.csv"
-        found.curves.to_csv(files["curves"], index=False)
+        write_table(found.curves, files["curves"])
     recording = {"file": str(path), "sha256": rec.sha256, "rows": len(rec.t),
                  "rate_hz": rec.rate, "duration_s": float(rec.t[-1] - rec.t[0]),
                  "columns": {c: {"column": col, "unit": unit}
                              for c, (col, unit) in column_map(columns).items()},
                  "slip_from": found.slip_source, "noise": found.noise}
-    doc = write_observations(files["observations"], found.events, found.curves,
-                             found.apparatus, found.how, found.notes, recording, sigma,
-                             provenance)
-    text = apparatus_toml(found.apparatus, doc, Path(path).stem)
+    text = apparatus_toml(found.apparatus, found.events, Path(path).stem)
     if text is not None:
         files["apparatus"] = out / "apparatus.toml"
-        files["apparatus"].write_text(text, encoding="utf-8")
+    if plot:
+        files["figure"] = out / "observe.png"
+    doc = write_observations(files["observations"], found.events, found.curves,
+                             found.apparatus, found.how, found.notes, recording, sigma,
+                             {**(provenance or {}),
+                              "files_written": [str(v) for v in files.values()]})
+    if text is not None:
+        write_output(files["apparatus"], text)
     if plot:
         from benchmarks.physics.record_plot import plot_recording
-        files["figure"] = out / "observe.png"
         plot_recording(rec, found, files["figure"])
     for key, name in OPTIONAL_FILES.items():      # an earlier run's, of other observations
         if key not in files:
-            (out / name).unlink(missing_ok=True)
+            remove_own(out / name)
     doc["files"] = {k: str(v) for k, v in files.items()}
     return doc
 
 
-def apparatus_toml(apparatus: dict, doc: dict, name: str) -> str | None:
+def observe_files(out) -> list[Path]:
+    """Every file :func:`observe` may write to ``out``."""
+    return [Path(out) / n for n in ("observations.json", "events.csv", *OPTIONAL_FILES.values())]
+
+
+def apparatus_toml(apparatus: dict, events, name: str) -> str | None:
     """A problem file of the apparatus the record shows (module docstring), or None when its
     stiffness, slow loading speed, mass or normal force is unknown."""
     need = ("stiffness", "vls", "mass", "normal_force")
     if any(apparatus.get(k) is None for k in need):
         return None
     a = apparatus
-    recurrence = doc["metrics"]["recurrence_s"]["mean"]   # None: not a number (jsonable)
-    t_end = 10.0 * recurrence if recurrence is not None and math.isfinite(recurrence) else 40.0
+    recurrence = float(events["recurrence_s"].mean())
+    t_end = 10.0 * recurrence if math.isfinite(recurrence) else 40.0
     two_speed = a.get("df") and a.get("vlf") and a["df"] > 0
     loading = (f"vls = {a['vls']:.6g}               # m/s, measured\n"
                f"vlf = {a['vlf']:.6g}               # m/s, measured\n"

@@ -39,7 +39,7 @@ from benchmarks.ensemble.executors import CONNECT_TIMEOUT_S, WORKER_TIMEOUT_S
 from benchmarks.inversion.fitting import CHI2_95_2DOF, j2_per_event, joint_fit, scores
 from benchmarks.inversion.observations import Observations
 from benchmarks.physics.metrics import CYCLES
-from benchmarks.records.files import atomic_write, remove_stale_temporaries
+from benchmarks.records.files import remove_stale_temporaries, write_output
 from benchmarks.records.report import jsonable
 from problems import SpringSlider
 from problems._validate import (
@@ -201,8 +201,8 @@ def sweep(problem, b_values, lc_values, algorithm, obs: Observations, out,
     summary["provenance"] = {"tool": version_line(), **machine(), **(provenance or {})}
     out.mkdir(parents=True, exist_ok=True)
     remove_stale_temporaries(out)
-    atomic_write(out / "sweep.csv", table.to_csv(index=False))
-    atomic_write(out / "summary.json", json.dumps(jsonable(summary), indent=2))
+    write_output(out / "sweep.csv", table.to_csv(index=False))
+    write_output(out / "summary.json", json.dumps(jsonable(summary), indent=2))
     return SweepResult(table, summary)
 
 

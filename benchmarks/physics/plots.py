@@ -10,6 +10,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from integrators.core.plotting import draw_rate_and_friction  # noqa: E402
+from benchmarks.records.files import write_figure  # noqa: E402
 
 __all__ = ["plot_solution", "plot_work_precision", "plot_convergence"]
 
@@ -40,7 +41,7 @@ def plot_solution(solution, path, title: str | None = None) -> None:
     fig.suptitle(title or (f"{p.name}: {type(solution.algorithm).__name__}, "
                            f"b = {law.b:.5g}, Lc = {law.lc * 1e6:.4g} µm, k = {p.stiffness:.3g} N/m"),
                  fontsize=11)
-    fig.savefig(path, dpi=110)
+    write_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
@@ -83,7 +84,7 @@ def plot_work_precision(df, path, error: str = "err_recurrence", title: str | No
                    title="solid: numba rhs, dashed: Python rhs\n×: failed / out of budget",
                    title_fontsize=7)
     fig.suptitle(title or f"work-precision: {df.problem.iloc[0]}", fontsize=11)
-    fig.savefig(path, dpi=100)
+    write_figure(fig, path, dpi=100)
     plt.close(fig)
 
 
@@ -104,5 +105,5 @@ def plot_convergence(df, orders: dict, path, error: str = "err_recurrence",
     ax.grid(True, which="major", alpha=0.3)
     ax.legend(fontsize=8, title="filled: points in the least-squares fit", title_fontsize=8)
     ax.set_title(title or f"convergence: {df.problem.iloc[0]}", fontsize=11)
-    fig.savefig(path, dpi=110)
+    write_figure(fig, path, dpi=110)
     plt.close(fig)

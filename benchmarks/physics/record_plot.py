@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from benchmarks.records.files import write_figure
+
 __all__ = ["plot_recording"]
 
 #: samples drawn of the record at most (a 4-million-row record is drawn from every k-th)
@@ -48,6 +50,6 @@ def plot_recording(rec, analysis, path) -> Path:
         ax.set(xlabel="slip since the event started (µm)", ylabel="Ft/Fn = (Fs − m·a)/Fn",
                title="slip-weakening curves, one per event")
     path = Path(path)
-    fig.savefig(path, dpi=110)
+    write_figure(fig, path, dpi=110)
     plt.close(fig)
     return path

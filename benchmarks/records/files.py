@@ -6,6 +6,8 @@ never trusted.
   half file.
 * :func:`remove_stale_temporaries`: such leftovers are removed once they are older than any
   write can take (:data:`STALE_AFTER_S`), so a directory written by killed runs does not fill up.
+* :func:`writing`, :func:`write_output` and :func:`claim_outputs`: the files a command writes
+  for its user, which never replace a file of the user's (below).
 * :func:`read_json_record` and :func:`read_table` check what they read (it parses, it is the kind
   of object expected, it has the keys or columns expected) and raise :class:`BadResultsFile`,
   which names the file and what is wrong with it. A cache catches it and recomputes; a command
@@ -14,6 +16,8 @@ never trusted.
 
 from __future__ import annotations
 
+import contextlib
+import hashlib
 import json
 import os
 import tempfile
@@ -22,8 +26,10 @@ from pathlib import Path
 
 import pandas as pd
 
-__all__ = ["BadResultsFile", "atomic_write", "remove_stale_temporaries", "read_json_record",
-           "read_table", "STALE_AFTER_S"]
+__all__ = ["BadResultsFile", "OutputExists", "atomic_write", "writing", "write_output",
+           "write_table", "write_figure", "claim_outputs", "adopt", "remove_own", "note_input",
+           "allow_overwrite", "begin_run", "written", "remove_stale_temporaries",
+           "read_json_record", "read_table", "STALE_AFTER_S", "LEDGER"]
 
 #: a temporary file older than this (s) belongs to a writer that was killed: any write here
 #: (one small JSON or CSV file) takes milliseconds
@@ -39,19 +45,203 @@ class BadResultsFile(ValueError):
 def atomic_write(path: Path, text: str | bytes) -> None:
     """Write ``text`` (or bytes) to ``path`` so that readers see the old file or the new one,
     never half. The file gets the permissions a plain ``open`` would give it (``mkstemp``'s are
-    0600)."""
+    0600). No ownership check: for the files of a store or cache rsfbench owns (a user's
+    output goes through :func:`write_output`)."""
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f"{_PREFIX}{path.name}.", suffix=".tmp")
-    try:
-        os.fchmod(fd, 0o666 & ~_UMASK)
-        with os.fdopen(fd, "wb" if isinstance(text, bytes) else "w") as f:
+    with _temporary(path) as tmp:
+        with open(tmp, "wb" if isinstance(text, bytes) else "w") as f:
             f.write(text)
             f.flush()
             os.fsync(f.fileno())
+
+
+@contextlib.contextmanager
+def _temporary(path: Path):
+    """A temporary path beside ``path``, renamed to it when the block ends without an error and
+    removed otherwise; an OSError names ``path``."""
+    try:
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f"{_PREFIX}{path.name}.",
+                                   suffix=".tmp")
+    except OSError as exc:
+        raise OSError(exc.errno, f"cannot write {path}: {exc.strerror}", str(path)) from None
+    try:
+        os.fchmod(fd, 0o666 & ~_UMASK)
+        os.close(fd)
+        yield Path(tmp)
         os.replace(tmp, path)
+    except OSError as exc:
+        Path(tmp).unlink(missing_ok=True)
+        raise OSError(exc.errno, f"cannot write {path}: {exc.strerror or exc}",
+                      str(path)) from None
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+# --- a user's files ---------------------------------------------------------------------------
+
+#: the ledger of the files rsfbench wrote in a directory (module docstring)
+LEDGER = ".rsfbench-files.json"
+
+
+class OutputExists(ValueError):
+    """A command would replace a file that is not rsfbench's own, unchanged; the message names
+    the file and how to proceed."""
+
+
+class _Run:
+    """What this process's run may write over (module docstring)."""
+
+    def __init__(self) -> None:
+        self.overwrite = False
+        self.inputs: set[Path] = set()
+        self.written: list[Path] = []
+
+
+_RUN = _Run()
+
+
+def begin_run() -> None:
+    """Start a new run (``rsfbench``'s main, once a command): nothing written, no inputs, no
+    overwriting."""
+    global _RUN
+    _RUN = _Run()
+
+
+def allow_overwrite(allow: bool = True) -> None:
+    """Let this run replace files that are not rsfbench's (``--overwrite``); never an input."""
+    _RUN.overwrite = bool(allow)
+
+
+def note_input(path) -> None:
+    """``path`` is read by this run: it is never written over, not even with ``--overwrite``."""
+    with contextlib.suppress(OSError):
+        _RUN.inputs.add(Path(path).resolve())
+
+
+def written() -> list[str]:
+    """The files this run wrote, in order (for a run's provenance)."""
+    return [str(p) for p in _RUN.written]
+
+
+def _sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _ledger(directory: Path) -> dict:
+    try:
+        data = json.loads((directory / LEDGER).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    return data if isinstance(data, dict) else {}
+
+
+def _is_own(path: Path) -> bool:
+    """Did rsfbench write ``path``, and is it unchanged since?"""
+    entry = _ledger(path.parent).get(path.name)
+    try:
+        return isinstance(entry, dict) and entry.get("sha256") == _sha256(path)
+    except OSError:
+        return False
+
+
+def _refusal(path: Path) -> str | None:
+    """Why this run may not write ``path``, or None."""
+    resolved = path.resolve()
+    if resolved in _RUN.inputs:
+        return f"{path} is an input of this run: refusing to write over it (choose another place)"
+    if not path.exists() and not path.is_symlink():
+        return None
+    if path.is_dir():
+        return f"{path} is a directory, not a file"
+    if resolved in _RUN.written or _RUN.overwrite or _is_own(path):
+        return None
+    return (f"{path} exists and is not a file rsfbench wrote (or it was changed since): "
+            "refusing to replace it; choose another place, move it, or give --overwrite")
+
+
+def claim_outputs(paths) -> None:
+    """Refuse, before any work, to go on when one of ``paths`` could not be written
+    (:class:`OutputExists` naming the first)."""
+    for path in paths:
+        why = _refusal(Path(path))
+        if why:
+            raise OutputExists(why)
+
+
+@contextlib.contextmanager
+def writing(path):
+    """``with writing(path) as tmp: df.to_csv(tmp)``: the block writes a temporary file beside
+    ``path``, which becomes ``path`` when the block ends (none, and the old file kept, if it
+    fails); refused with :class:`OutputExists` when ``path`` holds a file that is not
+    rsfbench's (module docstring). The file joins the directory's ledger and :func:`written`."""
+    path = Path(path)
+    claim_outputs([path])
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with _temporary(path) as tmp:
+        yield tmp
+    _record(path)
+
+
+def write_output(path, data: str | bytes) -> Path:
+    """Write ``data`` to ``path`` as :func:`writing` does; returns the path."""
+    with writing(path) as tmp:
+        if isinstance(data, bytes):
+            tmp.write_bytes(data)
+        else:
+            tmp.write_text(data, encoding="utf-8")
+    return Path(path)
+
+
+def write_table(table, path, **to_csv) -> Path:
+    """Write the DataFrame ``table`` to ``path`` as CSV (no index unless asked) as
+    :func:`writing` does; returns the path."""
+    with writing(path) as tmp:
+        table.to_csv(tmp, **{"index": False, **to_csv})
+    return Path(path)
+
+
+def write_figure(fig, path, **savefig) -> Path:
+    """Save the matplotlib ``fig`` to ``path`` (its format from the suffix) as :func:`writing`
+    does; returns the path."""
+    path = Path(path)
+    with writing(path) as tmp:
+        fig.savefig(tmp, format=path.suffix.lstrip(".").lower() or "png", **savefig)
+    return path
+
+
+def _record(path: Path) -> None:
+    resolved = path.resolve()
+    if resolved not in _RUN.written:
+        _RUN.written.append(resolved)
+    ledger = _ledger(path.parent)
+    ledger[path.name] = {"sha256": _sha256(path), "written": time.strftime(
+        "%Y-%m-%dT%H:%M:%S%z")}
+    atomic_write(path.parent / LEDGER, json.dumps(ledger, indent=1, sort_keys=True) + "\n")
+
+
+def adopt(paths) -> None:
+    """Record ``paths``, which this run has just written by other means (a study's own
+    writers), as this run's and rsfbench's (the ledger)."""
+    for path in paths:
+        _record(Path(path))
+
+
+def remove_own(path) -> bool:
+    """Delete ``path`` if rsfbench wrote it and it is unchanged since (an earlier run's file
+    this run does not make again); a file of anyone else's is kept. Returns whether it went."""
+    path = Path(path)
+    if not path.is_file() or path.resolve() in _RUN.inputs or not _is_own(path):
+        return False
+    path.unlink()
+    ledger = _ledger(path.parent)
+    if ledger.pop(path.name, None) is not None:
+        atomic_write(path.parent / LEDGER, json.dumps(ledger, indent=1, sort_keys=True) + "\n")
+    return True
 
 
 def _umask() -> int:
