@@ -131,7 +131,13 @@ PLAUSIBLE: dict[str, Plausible] = {
                    "tenfold speed step: b is a fraction (0.0092), not a percentage"),
     # speeds: from 1e-12 m/s (below any plate rate, 3e-10 m/s = 1 cm/yr) to just below
     # 10 m/s (high-velocity rotary shear reaches ~9 m/s); the reference v0 likewise
-    "v0": _SPEED, "vl": _SPEED, "vls": _SPEED, "vlf": _SPEED, "velocity": _SPEED,
+    "v0": _SPEED, "vl": _SPEED, "vlf": _SPEED, "velocity": _SPEED,
+    # the slow loading of stick–slip: a load point that creeps while the fault sticks, from
+    # plate rates to 1 cm/s (the paper's 75 µm/s; a fast phase, vlf, may be faster); 0.075 is
+    # mm/s typed as m/s
+    "vls": Plausible(1e-12, 1e-2, "m/s", _SPEED.small,
+                     "the slow loading speed is in metres per second (m/s), not mm/s: "
+                     "75 µm/s is 7.5e-05"),
     "overshoot_velocity": _SPEED, "reference_velocity": _SPEED,
     # a slip rate (an initial state's): down to 1e-20 m/s (a healed, locked fault), up to
     # seismic slip rates below 10 m/s

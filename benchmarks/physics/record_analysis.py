@@ -96,10 +96,13 @@ def analyse(rec, mass: float | None = None, vls: float | None = None,
     """Measure the recording ``rec`` (:class:`benchmarks.physics.recording.Recording`).
     ``mass`` (kg): the slider's, for Ft = Fs − m·a; ``vls`` (m/s) and ``stiffness`` (N/m)
     stand for what the table's position would give (and are then not measured)."""
-    from problems._validate import check_positive
+    from problems._validate import check_positive, warn_implausible
     mass = None if mass is None else check_positive("mass", mass)
     vls = None if vls is None else check_positive("vls", vls)
     stiffness = None if stiffness is None else check_positive("stiffness", stiffness)
+    for name, value in (("mass", mass), ("vls", vls), ("stiffness", stiffness)):
+        if value is not None:                 # a unit slip in a given constant: warned
+            warn_implausible(name, value)
     notes, how = [], {}
     t, fs = rec.t, rec["shear_force"]
     fs_smooth = _smooth(fs, DETECT_HZ, rec.rate)
@@ -120,8 +123,12 @@ def analyse(rec, mass: float | None = None, vls: float | None = None,
         notes.append("vLs is the record's mean slip rate (no table column, no vls given): the "
                      "thresholds 10·vLs and vLs that time an event use it")
     events = _events(rec, drops, fs_smooth, acc, vls, slip_source, noise, notes)
+    if acc is not None and rec.has("slip"):
+        _check_acceleration_against_slip(rec, acc, events)
     if slip_source == "accelerations" and rec.has("table"):
         _check_events_against_table(rec, events)
+    if acc is not None and mass is not None:
+        _check_inertia(rec, mass, events)
     vlf = df = None
     if rec.has("table") and vls is not None:
         vlf, df = _fast_phase(rec, events, vls)
@@ -217,6 +224,51 @@ def _check_slip_against_table(rec) -> None:
                          "with the load point, so one of them is in another unit")
 
 
+def _check_acceleration_against_slip(rec, acc, events) -> None:
+    """The accelerations integrated twice over each event against the slip column's change: the
+    same slip, unless one of them is in another unit (g read as m/s² is 9.8× off)."""
+    t, slip, rate = rec.t, rec["slip"], rec.rate
+    acc_f, q = _lowpass(acc, ACCELERATION_HZ, rate), max(int(0.01 * rate), 10)
+    ratios = []
+    for i0, i1 in zip(events._i0.to_numpy()[:8], events._i1.to_numpy()[:8]):
+        a, b = max(int(i0) - q, 0), min(int(i1) + q, len(t))
+        if i1 < 0 or b - a < 8 or slip[i1] == slip[i0]:
+            continue
+        _, u, _ = _integrated(t, acc_f, a, b, int(i0), int(i1))
+        ratios.append((u[i1 - a] - u[i0 - a]) / (slip[i1] - slip[i0]))
+    if not ratios:
+        return
+    ratio = float(np.median(ratios))
+    if not TRAVEL_RATIO[0] <= ratio <= TRAVEL_RATIO[1]:
+        names = rec.where("acceleration") + (f" − {rec.where('acceleration_lower')}"
+                                             if rec.has("acceleration_lower") else "")
+        raise ValueError(f"{rec.source}: the slip of an event integrated from {names} is "
+                         f"{ratio:.3g} times the change of {rec.where('slip')} over it; they "
+                         "measure one slip, so one of them is in another unit (an "
+                         "acceleration in g read as m/s2 is 9.8 times off)")
+
+
+#: the inertia m·a of a stick–slip event is of the order of its force drop (0.53–0.57 of it in
+#: W1–W4, both laws, measured on the model's recordings): beyond this multiple the mass or the
+#: acceleration's unit is wrong
+INERTIA_RATIO_MAX = 5.0
+
+
+def _check_inertia(rec, mass: float, events) -> None:
+    """Refuse a mass whose m·a dwarfs the force's drops (:data:`INERTIA_RATIO_MAX`)."""
+    a1 = _lowpass(rec["acceleration"], ACCELERATION_HZ, rec.rate)
+    fs = rec["shear_force"]
+    drops = [fs[int(i)] - fs[int(j)] for i, j in zip(events._imax, events._imin)]
+    drop = float(np.median(drops))
+    inertia = mass * float(np.max(np.abs(a1)))
+    if drop > 0 and inertia > INERTIA_RATIO_MAX * drop:
+        raise ValueError(f"{rec.source}: m·a reaches {inertia:.3g} N with the mass "
+                         f"{mass:.6g} kg, {inertia / drop:.3g} times the force's drop in an "
+                         f"event ({drop:.3g} N); in stick–slip the inertia is of the order of "
+                         f"the drop (half of it in the paper's windows): the mass (kg) or the "
+                         f"unit of {rec.where('acceleration')} is wrong")
+
+
 def _check_events_against_table(rec, events) -> None:
     t, table = rec.t, rec["table"]
     span = np.interp([events.t_start.iloc[0], events.t_start.iloc[-1]], t, table)
@@ -290,15 +342,22 @@ def _crossing(t: np.ndarray, x: np.ndarray, level: float, i: int) -> float:
 
 
 def _extremum(t: np.ndarray, x: np.ndarray, i: int, drop: float, sign: float, lo: int,
-              hi: int, rate: float, sigma: float) -> float:
-    """The extreme value of the raw samples ``x`` near index ``i`` (a maximum for ``sign`` +1,
-    a minimum for −1), searched within [lo, hi): found again on ``x`` smoothed at ``FINE_HZ``
-    within ``DETECT_HZ``'s reach of ``i`` (a coarse smoothing moves the extremum of a lopsided
-    peak), then the extreme of a polynomial of degree ``EXTREMUM_DEGREE`` fitted to the raw
-    samples whose finely smoothed value is within ``EXTREMUM_BAND`` × ``drop`` of it, or within
-    3 σ (``sigma``, the noise's) if that is wider: enough samples that the noise averages out rather than biasing the extreme. The
-    polynomial is of degree ``EXTREMUM_DEGREE``: an extremum of stick–slip is lopsided (a slow
-    rise, a fast drop), which a parabola fits badly."""
+              hi: int, rate: float, sigma: float) -> tuple[float, int]:
+    """The extreme value of the force ``x`` near index ``i``, and the index of the extreme
+    sample (a maximum for ``sign`` +1, a
+    minimum for −1), searched within [lo, hi). A model of the samples that cannot overshoot
+    them:
+
+    * the fit: found again on ``x`` smoothed at ``FINE_HZ`` within ``DETECT_HZ``'s reach of
+      ``i``, then the extreme of a polynomial of degree ``EXTREMUM_DEGREE`` fitted to the raw
+      samples whose finely smoothed value is within ``EXTREMUM_BAND`` × ``drop`` (or 3 σ, the
+      noise's, if wider) of it: the noise averages out instead of biasing the extreme (a
+      stick–slip extreme is lopsided, a slow rise and a fast drop, which a parabola fits badly);
+    * the bounds, from the samples alone (:func:`_sample_bounds`): between two samples a smooth
+      force goes beyond their extreme by at most an eighth of its second difference (the
+      three-point parabola's vertex), and noise moves the extreme sample by a few σ. A fit
+      beyond them — a polynomial around a corner, or over a few samples of a coarse record —
+      overshoots, and the samples' own estimate is taken instead."""
     reach = int(3 * rate / (2 * math.pi * DETECT_HZ)) + 2
     a0, b0 = max(lo, i - reach), min(hi, i + reach + 1)
     fine = sign * _smooth(x[a0:b0], FINE_HZ, rate)
@@ -314,7 +373,57 @@ def _extremum(t: np.ndarray, x: np.ndarray, i: int, drop: float, sign: float, lo
     tt = (t[a0 + a:a0 + b] - t[a0 + j]) * rate              # in samples: well conditioned
     coef = np.polyfit(tt, sign * x[a0 + a:a0 + b], EXTREMUM_DEGREE)
     grid = np.linspace(tt[0], tt[-1], 8 * len(tt))
-    return float(sign * np.max(np.polyval(coef, grid)))
+    fitted = float(np.max(np.polyval(coef, grid)))
+    estimate, low, high = _sample_bounds(sign * x[a0:b0], a, b, sigma)
+    extreme = a0 + a + int(np.argmax(sign * x[a0 + a:a0 + b]))
+    return float(sign * (fitted if low <= fitted <= high else estimate)), extreme
+
+
+#: how far noise moves the extreme sample from the force's extreme, in σ of the noise: the
+#: largest of a few dozen normal deviates stays within this but for 1 in 10⁴
+NOISE_REACH = 4.0
+
+
+def _sample_bounds(y: np.ndarray, a: int, b: int, sigma: float) -> tuple[float, float, float]:
+    """(an estimate, the lowest, the highest) plausible maximum of the samples ``y`` near the
+    largest of ``y[a:b]`` (a maximum: the caller flips a minimum's sign), from the samples
+    alone. Near its maximum a force is concave, so between two samples it lies below the
+    secants of the neighbouring pairs, extended (:func:`_concave_bound`): at a corner (a slow
+    rise, then the drop) that bound is the largest sample itself, where a parabola through the
+    three samples would overshoot by an eighth of the drop between them. The estimate is the
+    three-point parabola's vertex held under that bound; noise moves the largest sample by up
+    to :data:`NOISE_REACH` σ either way."""
+    j = a + int(np.argmax(y[a:b]))
+    vertex = bound = float(y[j])
+    if 0 < j < len(y) - 1:
+        y0, y1, y2 = y[j - 1], y[j], y[j + 1]
+        curvature = y0 - 2.0 * y1 + y2                      # ≤ 0 at a largest sample
+        if curvature < 0:
+            vertex = float(y1 - (y2 - y0) ** 2 / (8.0 * curvature))
+        bound = _concave_bound(y, j)
+    estimate = max(min(vertex, bound), float(y[j]))
+    reach = NOISE_REACH * sigma
+    return estimate, float(y[j]) - reach, max(estimate, bound) + reach
+
+
+def _concave_bound(y: np.ndarray, j: int) -> float:
+    """The most a concave function through the samples ``y`` reaches between ``j − 1`` and
+    ``j + 1``: on each interval [p, p + 1] it lies under the secant through samples p − 1, p
+    extended forward and under the one through p + 1, p + 2 extended back; the top of the lower
+    of the two lines. Where a secant falls off the record, the larger sample of the interval
+    plus the other line's rise over it (no bound tighter than the samples allow)."""
+    n, best = len(y), float(y[j])
+    for p in (j - 1, j):
+        q = p + 1
+        if p < 1 or q + 1 >= n:
+            continue
+        sl, sr = y[p] - y[p - 1], y[q + 1] - y[q]
+        if sl <= sr:                        # not concave here (noise): no bound from it
+            return math.inf
+        t = (y[q] - y[p] + sl * p - sr * q) / (sl - sr)
+        t = min(max(t, p), q)
+        best = max(best, float(min(y[p] + sl * (t - p), y[q] + sr * (t - q))))
+    return best
 
 
 def _peak_rate(t: np.ndarray, u: np.ndarray, v: np.ndarray, a: int, b: int) -> float:
@@ -394,6 +503,14 @@ def _events(rec, drops, fs_smooth, acc, vls, slip_source, noise, notes) -> pd.Da
                 lo, hi, off = 0, b - a, a
             start_level, end_level = 10.0 * vls if vls else 10.0 * sv, max(vls or 0.0, 3.0 * sv)
             peak = lo + int(np.argmax(v[lo:hi]))
+            if v[peak] < start_level:           # no event could start: vLs is wrong
+                raise ValueError(
+                    f"{rec.source}: the event at t = {t[imax]:.6g} s slips at "
+                    f"{v[peak]:.3g} m/s at its fastest, below the rate that starts an event "
+                    f"(10·vLs = {start_level:.3g} m/s, vLs {vls:.3g} m/s): vLs is the load "
+                    "point's slow speed in m/s (75 µm/s is 7.5e-05)" if vls else
+                    f"{rec.source}: the event at t = {t[imax]:.6g} s does not slip above the "
+                    "noise of the slip rate")
             i0 = peak
             while i0 > lo and v[i0 - 1] >= start_level:
                 i0 -= 1
@@ -416,9 +533,14 @@ def _events(rec, drops, fs_smooth, acc, vls, slip_source, noise, notes) -> pd.Da
             row.update(_i0=imax, _i1=imin if imin < n - 1 else -1, t_start=float(t[imax]),
                        t_end=float(t[imin]), slip_m=math.nan, peak_velocity_m_s=math.nan)
         sigma = noise["shear_force"]
-        fs_max = _extremum(t, fs, imax, drop, 1.0, prev_end, imin, rate, sigma)
-        fs_min = _extremum(t, fs, imin, drop, -1.0, imax + 1, next_start, rate, sigma)
-        row["friction_drop"] = (fs_max - fs_min) / float(np.median(fn[imax:imin + 1]))
+        fs_max, jmax = _extremum(t, fs, imax, drop, 1.0, prev_end, imin, rate, sigma)
+        fs_min, jmin = _extremum(t, fs, imin, drop, -1.0, imax + 1, next_start, rate, sigma)
+        fn_event = float(np.median(fn[imax:imin + 1]))
+        row["friction_drop"] = (fs_max - fs_min) / fn_event
+        # the definition on the raw samples alone, over the whole stick and the whole event
+        row["friction_drop_raw"] = (float(np.max(fs[prev_end:imin + 1]))
+                                    - float(np.min(fs[imax:next_start]))) / fn_event
+        row["drop_samples"] = jmin - jmax
         rows.append(row)
     table = pd.DataFrame(rows)
     for column in ("t_start", "t_end", "slip_m", "peak_velocity_m_s"):
@@ -436,9 +558,52 @@ def _events(rec, drops, fs_smooth, acc, vls, slip_source, noise, notes) -> pd.Da
                          f"event{'s' if len(table) != 1 else ''} (the first and any still "
                          "open at the end are partial): a mean and its scatter need at least "
                          "two")
-    out = table[["t_start", "t_end", *METRICS, "_i0", "_i1", "_imax", "_imin", "_drop"]].copy()
+    _check_resolution(rec, table)
+    _compare_raw_drop(table, noise["shear_force"] / float(np.median(fn)), notes)
+    out = table[["t_start", "t_end", *METRICS, "friction_drop_raw", "drop_samples", "_i0",
+                 "_i1", "_imax", "_imin", "_drop"]].copy()
     out.attrs["integrated"] = integrated
     return out
+
+
+#: the fewest sampling intervals across a drop, from the force's peak to its trough, for the
+#: drop to be measured. Measured on docs/examples/apparatus.toml (10–12 ms events) sampled from
+#: the run's dense output: every event's Δμ within 0.56 % of the run's at 500 Hz (5 intervals),
+#: 0.80 % at 400 Hz (4); 1.3–1.7 % at 250–200 Hz (3), 3.3 % at 100 Hz (1–2)
+MIN_DROP_SAMPLES = 4
+
+
+def _check_resolution(rec, table) -> None:
+    """Refuse a record whose events its sampling does not resolve (:data:`MIN_DROP_SAMPLES`),
+    naming the rate it needs."""
+    across = float(np.median(table.drop_samples))
+    if across >= MIN_DROP_SAMPLES:
+        return
+    need = MIN_DROP_SAMPLES * rec.rate / max(across, 1.0)
+    raise ValueError(f"{rec.source}: at {rec.rate:.6g} Hz the force falls from its peak to its "
+                     f"trough within {across:g} sampling interval{'s' if across != 1 else ''} "
+                     f"(the median event): the drops are not resolved, and their size, timing "
+                     f"and slip would be made up; observe needs {MIN_DROP_SAMPLES} intervals "
+                     f"across a drop: record at {need:.3g} Hz or faster (more if the events are "
+                     "shorter than a sample)")
+
+
+def _compare_raw_drop(table, sigma_mu: float, notes: list) -> None:
+    """Say where the drop from the fitted extremes and the raw samples' (their largest before
+    the event less their smallest during it) differ beyond what noise and sampling allow: an
+    extreme found in the wrong place (a foreshock, a double peak, a glitch)."""
+    raw, fitted = table.friction_drop_raw.to_numpy(), table.friction_drop.to_numpy()
+    # noise lifts the raw max and lowers the raw min (NOISE_REACH σ each); sampling misses the
+    # extremes by a small fraction of the drop (measured: 0.6 % at 5 intervals across)
+    low, high = fitted * (1 - 0.01) - 1e-12, fitted * (1 + 0.01) + 2 * NOISE_REACH * sigma_mu
+    bad = np.flatnonzero(~((raw >= low) & (raw <= high)) & np.isfinite(raw) & np.isfinite(fitted))
+    if len(bad):
+        worst = max(bad, key=lambda k: abs(raw[k] / fitted[k] - 1))
+        notes.append(f"the friction drop of {len(bad)} event{'s' if len(bad) > 1 else ''} "
+                     f"(event starting at {table.t_start.iloc[worst]:.6g} s: fitted "
+                     f"{fitted[worst]:.5g}, raw samples' max − min {raw[worst]:.5g}) differs "
+                     "from the raw samples' beyond the noise: an extreme away from the drop "
+                     "(a foreshock, a double peak, a glitch); look at observe.png")
 
 
 # --- the apparatus -----------------------------------------------------------------------------
