@@ -141,6 +141,8 @@ CURVE_POINTS = 20
 
 def cmd_slip_weakening(args) -> int:
     from benchmarks.physics.curves import write_curves
+    from benchmarks.records.files import claim_outputs
+    claim_outputs([args.out])                # a user's file there: refused before the work
     problem = problem_from_args(args)
     algorithm, why = integrator_from_args(args)
     df = synthetic_curves(problem, algorithm, args.events, args.points, args.noise, args.seed,

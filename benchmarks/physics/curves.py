@@ -67,8 +67,10 @@ def check_curves(df, source: str = "slip-weakening curves") -> pd.DataFrame:
 
 
 def write_curves(df: pd.DataFrame, path) -> None:
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    df[list(CURVE_COLUMNS)].to_csv(path, index=False)
+    """Write the curves to ``path`` (CSV), never over a file of the user's
+    (:func:`benchmarks.records.files.writing`)."""
+    from benchmarks.records.files import write_table
+    write_table(df[list(CURVE_COLUMNS)], path)
 
 
 def event_curve(sol, index: int = -1) -> tuple[np.ndarray, np.ndarray]:
