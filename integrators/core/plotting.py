@@ -3,15 +3,38 @@ log scale and μ = Fs/Fn against time, events marked. Matplotlib is imported onl
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
-__all__ = ["plot_run", "draw_rate_and_friction"]
+__all__ = ["plot_run", "draw_rate_and_friction", "check_figure_path"]
+
+
+def check_figure_path(path):
+    """``path`` if a figure can be written there: None (no file), a file name (str or
+    path-like) whose suffix matplotlib writes (.png, .pdf, .svg, ...), or an open binary file;
+    else one ``ValueError`` line naming the parameter, its value and what is accepted, before
+    any work."""
+    if path is None or (hasattr(path, "write") and not isinstance(path, (str, bytes))):
+        return path
+    accepted = "a file name ending in .png, .pdf or .svg (or None: no file)"
+    if not isinstance(path, (str, os.PathLike)):
+        raise ValueError(f"path must be {accepted}, got {path!r} ({type(path).__name__})")
+    suffix = os.path.splitext(os.fspath(path))[1].lower().lstrip(".")
+    from matplotlib.backend_bases import FigureCanvasBase
+    if suffix not in FigureCanvasBase.get_supported_filetypes():
+        raise ValueError(f"path must be {accepted}, got {os.fspath(path)!r}"
+                         + (f" (matplotlib does not write .{suffix})" if suffix else
+                            " (no suffix)"))
+    return path
 
 
 def plot_run(sol, path=None, title: str | None = None):
     """Two panels of ``sol`` (a :class:`~integrators.core.solution.Solution`, drawn as given:
     :meth:`~integrators.core.solution.Solution.plot` passes the run with its events resolved);
-    written to ``path`` (.png, .pdf or .svg) when given. Returns the matplotlib Figure."""
+    written to ``path`` (.png, .pdf or .svg) when given (:func:`check_figure_path`). Returns the
+    matplotlib Figure."""
+    check_figure_path(path)
     import matplotlib.pyplot as plt
     p = sol.problem
     fig, (ax_v, ax_mu) = plt.subplots(2, 1, figsize=(9, 5.5), sharex=True, layout="constrained")
