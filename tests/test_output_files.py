@@ -163,3 +163,28 @@ def test_every_command_that_writes_files_offers_overwrite():
     found = commands(build_parser(), {})
     for name in GUARDED_COMMANDS:
         assert "--overwrite" in found[name]._option_string_actions, name
+
+
+def test_a_study_s_committed_files_are_its_own_and_a_user_s_edit_is_not(tmp_path):
+    """A results directory's manifest lists each study's files with their sha256: those are
+    rsfbench's (a fresh clone has no ledger), an edited one is not."""
+    import hashlib
+    out = tmp_path / "results"
+    out.mkdir()
+    (out / "compare_paper_example.csv").write_text("a\n1\n")
+    digest = hashlib.sha256(b"a\n1\n").hexdigest()
+    (out / "manifest.json").write_text(json.dumps(
+        [{"step": "compare", "outputs": {"compare_paper_example.csv": digest}}]))
+    assert F.is_own(out / "compare_paper_example.csv")
+    (out / "compare_paper_example.csv").write_text("a\n2\n")            # edited by hand
+    assert not F.is_own(out / "compare_paper_example.csv")
+    from benchmarks.pipeline.reproduce import _refuse_foreign_files
+    from benchmarks.studies.compare import STUDY
+    _refuse_foreign_files(STUDY, out)           # a results store: the rerun restores its record
+    write_output(out / "compare_paper_example.csv", "a\n1\n")
+    mine = tmp_path / "mine"                     # a folder of the user's, given as --out
+    mine.mkdir()
+    (mine / "compare_paper_example.md").write_text("my notes\n")
+    F.begin_run()
+    with pytest.raises(OutputExists, match="compare_paper_example.md"):
+        _refuse_foreign_files(STUDY, mine)

@@ -213,7 +213,8 @@ def in_file(text: str) -> Path:
 
 #: the commands whose files never replace a user's (:mod:`benchmarks.records.files`)
 GUARDED_COMMANDS = ("simulate", "observe", "invert", "sweep", "solver-effect", "fit", "shs",
-                    "step", "compare", "slip-weakening")
+                    "step", "compare", "slip-weakening", "study", "reproduce",
+                    "work-precision", "convergence", "windows")
 
 
 def add_overwrite_options(sub) -> None:

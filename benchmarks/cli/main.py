@@ -186,6 +186,8 @@ def cmd_integrators(args) -> int:
 def cmd_windows(args) -> int:
     from benchmarks.studies.windows import windows_table, write_windows
     algorithm, why = integrator_from_args(args)
+    if args.out:                              # a user's file there: refused before the work
+        claim_outputs([Path(args.out) / "windows.csv", Path(args.out) / "windows.md"])
     if not args.json:
         say(f"integrator: {why}")
     table = windows_table(laws=args.law, names=args.window, integrator=algorithm,
@@ -311,6 +313,9 @@ def cmd_work_precision(args) -> int:
     if args.problem and names is None:       # on your problem: the compiled ones, in minutes
         names = [n for n, c in sorted(REGISTRY.items()) if c.library.startswith(COMPILED)]
         tiers = tuple(args.tiers or ("numba",))
+    stem = Path(args.out) / f"wp_{args.name or args.study}"
+    claim_outputs(Path(f"{stem}{tail}") for tail in (".csv", "_pareto.csv", "_pareto.md",
+                                                     "_for_sigma.csv"))   # before the work
     df = work_precision(problems, ladder, names=names, tiers=tiers,
                         progress=show_progress(args))
     df["command"] = args.command_line                 # the rows carry the machine's already
@@ -321,7 +326,7 @@ def cmd_work_precision(args) -> int:
         from benchmarks.devtools.work_precision import fastest_within
         within = fastest_within(df, limits)
         paths["for_your_sigma"] = Path(args.out) / f"wp_{args.name or args.study}_for_sigma.csv"
-        within.to_csv(paths["for_your_sigma"], index=False)
+        write_table(within, paths["for_your_sigma"])
         yours = {"limits": limits, "observations": str(args.observations),
                  "choice": within.iloc[0].to_dict() if len(within) else None,
                  "n_within": len(within)}

@@ -23,6 +23,7 @@ from tqdm.auto import tqdm
 from benchmarks.devtools.errors import errors
 from benchmarks.devtools.reference import reference
 from benchmarks.devtools.timing import warm_up
+from benchmarks.records.files import write_figure, write_output, write_table
 from integrators import REGISTRY, solve
 
 __all__ = ["observed_order", "convergence_study", "convergence_summary", "write_convergence",
@@ -97,8 +98,8 @@ def write_convergence(problem, table: pd.DataFrame, orders: dict, out) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     summary = convergence_summary(problem, table, orders)
     stem = out / f"convergence_{problem.name.replace('/', '_')}"
-    table.to_csv(stem.with_suffix(".csv"), index=False)
-    stem.with_suffix(".json").write_text(json.dumps(_jsonable(summary), indent=2) + "\n")
+    write_table(table, stem.with_suffix(".csv"))
+    write_output(stem.with_suffix(".json"), json.dumps(_jsonable(summary), indent=2) + "\n")
     plot_convergence(table, orders, stem.with_suffix(".png"))
     return summary
 
@@ -189,10 +190,10 @@ def write_fixed_step_orders(table: pd.DataFrame, orders: dict, out) -> dict:
                           f"{SEGMENT_START + SEGMENT_SPAN:g}], equal steps, no error control",
                "reference": f"scipy Radau, rtol = atol = {SEGMENT_TOL:g}",
                "orders": orders, "declared": declared}
-    table.to_csv(out / "convergence_fixed_steps.csv", index=False)
-    (out / "convergence_fixed_steps.md").write_text(_fixed_step_markdown(table, orders))
-    (out / "convergence_fixed_steps.json").write_text(json.dumps(_jsonable(summary), indent=2)
-                                                      + "\n")
+    write_table(table, out / "convergence_fixed_steps.csv")
+    write_output(out / "convergence_fixed_steps.md", _fixed_step_markdown(table, orders))
+    write_output(out / "convergence_fixed_steps.json",
+                 json.dumps(_jsonable(summary), indent=2) + "\n")
     fig, ax = plt.subplots(figsize=(7.5, 5.5), layout="constrained")
     colour = {name: f"C{i}" for i, name in enumerate(declared)}
     for (name, law), g in table.groupby(["integrator", "law"], sort=False):
@@ -209,6 +210,6 @@ def write_fixed_step_orders(table: pd.DataFrame, orders: dict, out) -> dict:
     ax.grid(True, which="major", alpha=0.3)
     ax.legend(fontsize=8, title="observed order (filled: points fitted)", title_fontsize=8)
     ax.set_title("fixed-step order on a stiff stick-phase segment (paper example)", fontsize=11)
-    fig.savefig(out / "convergence_fixed_steps.png", dpi=110)
+    write_figure(fig, out / "convergence_fixed_steps.png", dpi=110)
     plt.close(fig)
     return summary

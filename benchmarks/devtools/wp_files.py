@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from benchmarks.records.files import write_output, write_table
 from benchmarks.records.report import fmt, markdown_table
 
 __all__ = ["ERROR_LEVELS", "write_work_precision", "pareto_markdown"]
@@ -26,13 +27,13 @@ def write_work_precision(df: pd.DataFrame, out: Path, name: str,
 
     out.mkdir(parents=True, exist_ok=True)
     paths = {"csv": out / f"wp_{name}.csv"}
-    df.to_csv(paths["csv"], index=False)
+    write_table(df, paths["csv"])
     pareto = best_at_levels(df, ERROR_LEVELS, error)
     advice = recommend(df, ERROR_LEVELS, error)
     paths["pareto_csv"] = out / f"wp_{name}_pareto.csv"
-    pareto.to_csv(paths["pareto_csv"], index=False)
+    write_table(pareto, paths["pareto_csv"])
     paths["pareto_md"] = out / f"wp_{name}_pareto.md"
-    paths["pareto_md"].write_text(pareto_markdown(pareto, advice, error))
+    write_output(paths["pareto_md"], pareto_markdown(pareto, advice, error))
     for problem, g in df.groupby("problem", sort=False):
         key = f"png_{problem}"
         paths[key] = out / f"wp_{name}_{re.sub(r'[^A-Za-z0-9._-]+', '_', problem)}.png"

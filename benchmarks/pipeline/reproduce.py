@@ -140,11 +140,16 @@ def run_steps(steps, out: Path, modes: dict[str, str], dry_run: bool = False,
             raise FileNotFoundError(f"step {step.name} reads {out / missing[0]}, which is not "
                                     "there: run the step that writes it first (`rsfbench "
                                     f"reproduce --full --out {out}`)")
+        from benchmarks.records.files import adopt
+        _refuse_foreign_files(step, out)
         _section(step.title)
         print(f"({why})", flush=True)
         before = M.snapshot(out)
         started = time.perf_counter()
-        step.run(out, **step.settings)
+        try:
+            step.run(out, **step.settings)
+        finally:                              # also a step stopped half-way: what it wrote
+            adopt(out / p for p in M.written_since(before, out))     # is rsfbench's
         wall = time.perf_counter() - started
         outputs = _declared_outputs(step, steps, out, before)
         records = current()
@@ -152,6 +157,24 @@ def run_steps(steps, out: Path, modes: dict[str, str], dry_run: bool = False,
         M.write_manifest(out, records, order)
         rows.append({"step": step.name, "status": "ran", "why": why})
     return rows
+
+
+def _refuse_foreign_files(study, out: Path) -> None:
+    """Before a study runs: in a directory that is not yet a results store (no manifest), a
+    file its declared patterns match that rsfbench's ledger does not know, unchanged, is a
+    user's, and refused unless ``--overwrite`` (:mod:`benchmarks.records.files`). In a results
+    store every such file is the pipeline's record, and the step writes it again (a record
+    changed by hand is stale: the rerun restores it)."""
+    from benchmarks.records.files import claim_outputs, permit
+    out = Path(out)
+    if not out.is_dir():
+        return
+    found = [p for pattern in study.writes for p in sorted(out.glob(pattern)) if p.is_file()]
+    if (out / M.MANIFEST).exists():
+        permit(found)
+    else:
+        claim_outputs(found)
+        permit(found)
 
 
 def _declared_outputs(study, plan, out: Path, before: dict) -> dict[str, str]:

@@ -28,7 +28,7 @@ import pandas as pd
 
 __all__ = ["BadResultsFile", "OutputExists", "atomic_write", "writing", "write_output",
            "write_table", "write_figure", "claim_outputs", "adopt", "remove_own", "note_input",
-           "allow_overwrite", "begin_run", "written", "remove_stale_temporaries",
+           "allow_overwrite", "begin_run", "written", "is_own", "overwriting", "permit", "remove_stale_temporaries",
            "read_json_record", "read_table", "STALE_AFTER_S", "LEDGER"]
 
 #: a temporary file older than this (s) belongs to a writer that was killed: any write here
@@ -113,6 +113,19 @@ def allow_overwrite(allow: bool = True) -> None:
     _RUN.overwrite = bool(allow)
 
 
+def overwriting() -> bool:
+    """Does this run replace files that are not rsfbench's (``--overwrite``)?"""
+    return _RUN.overwrite
+
+
+def permit(paths) -> None:
+    """Let this run write ``paths`` (a pipeline's own records, listed in its manifest)."""
+    for path in paths:
+        resolved = Path(path).resolve()
+        if resolved not in _RUN.written:
+            _RUN.written.append(resolved)
+
+
 def note_input(path) -> None:
     """``path`` is read by this run: it is never written over, not even with ``--overwrite``."""
     with contextlib.suppress(OSError):
@@ -140,13 +153,33 @@ def _ledger(directory: Path) -> dict:
     return data if isinstance(data, dict) else {}
 
 
-def _is_own(path: Path) -> bool:
-    """Did rsfbench write ``path``, and is it unchanged since?"""
-    entry = _ledger(path.parent).get(path.name)
+#: the results manifest of a study directory (:mod:`benchmarks.pipeline.manifest`), whose
+#: records list each study's files with their sha256: those files are rsfbench's too
+RESULTS_MANIFEST = "manifest.json"
+
+
+def is_own(path) -> bool:
+    """Did rsfbench write ``path``, and is it unchanged since? Its directory's ledger says so,
+    or a results manifest in it or up to two levels above (a study's file)."""
+    path = Path(path)
     try:
-        return isinstance(entry, dict) and entry.get("sha256") == _sha256(path)
+        digest = _sha256(path)
     except OSError:
         return False
+    entry = _ledger(path.parent).get(path.name)
+    if isinstance(entry, dict) and entry.get("sha256") == digest:
+        return True
+    for root in list(path.parents)[:3]:
+        try:
+            records = json.loads((root / RESULTS_MANIFEST).read_text(encoding="utf-8"))
+            relative = path.resolve().relative_to(root.resolve()).as_posix()
+        except (OSError, ValueError):
+            continue
+        if isinstance(records, list) and any(
+                isinstance(r, dict) and isinstance(r.get("outputs"), dict)
+                and r["outputs"].get(relative) == digest for r in records):
+            return True
+    return False
 
 
 def _refusal(path: Path) -> str | None:
@@ -158,7 +191,7 @@ def _refusal(path: Path) -> str | None:
         return None
     if path.is_dir():
         return f"{path} is a directory, not a file"
-    if resolved in _RUN.written or _RUN.overwrite or _is_own(path):
+    if resolved in _RUN.written or _RUN.overwrite or is_own(path):
         return None
     return (f"{path} exists and is not a file rsfbench wrote (or it was changed since): "
             "refusing to replace it; choose another place, move it, or give --overwrite")
@@ -235,7 +268,7 @@ def remove_own(path) -> bool:
     """Delete ``path`` if rsfbench wrote it and it is unchanged since (an earlier run's file
     this run does not make again); a file of anyone else's is kept. Returns whether it went."""
     path = Path(path)
-    if not path.is_file() or path.resolve() in _RUN.inputs or not _is_own(path):
+    if not path.is_file() or path.resolve() in _RUN.inputs or not is_own(path):
         return False
     path.unlink()
     ledger = _ledger(path.parent)

@@ -49,8 +49,8 @@ def windows_table(laws=("slip", "aging"), integrator=None, t_end: float | None =
 
 def write_windows(table: pd.DataFrame, out: Path) -> None:
     """``windows.csv`` (all columns) and ``windows.md`` (the comparison, rounded) in ``out``."""
-    out.mkdir(parents=True, exist_ok=True)
-    table.to_csv(out / "windows.csv", index=False)
+    from benchmarks.records.files import write_output, write_table
+    write_table(table, out / "windows.csv")
     md = table.assign(
         b=table.b.map("{:.5f}".format), lc_um=table.lc_um.map("{:.3f}".format),
         kappa=table.kappa.map("{:.3g}".format),
@@ -62,7 +62,7 @@ def write_windows(table: pd.DataFrame, out: Path) -> None:
            "wall (s)": table.wall_s.map("{:.3f}".format)},
     )[["window", "law", "b", "lc_um", "kappa", "classification", "ΔT sim / obs (s)", "Δμ sim / obs",
        "slip sim / obs (mm)", "peak v sim / obs (m/s)", "integrator", "steps", "wall (s)"]]
-    (out / "windows.md").write_text(markdown_table(md))
+    write_output(out / "windows.md", markdown_table(md))
 
 
 def run(out: Path) -> None:
