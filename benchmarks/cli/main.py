@@ -303,11 +303,14 @@ def cmd_work_precision(args) -> int:
     if args.t_end is not None:
         problems = [dataclasses.replace(p, t_end=args.t_end) for p in problems]
     names = None if not args.integrators else [algorithm_name(n) for n in args.integrators]
-    from benchmarks.devtools.reference import NoStickSlip, reference
+    from benchmarks.devtools.reference import ReferenceDisagreement, no_stick_slip, reference
     for problem in problems:                   # before any run; the study reads them cached
+        why = no_stick_slip(problem)
+        if why:                                # nothing to measure: refused, one line
+            return _fail(f"work-precision: {why}", 2, args.json)
         try:
             reference(problem)
-        except NoStickSlip as exc:             # nothing to measure: a failure, one line
+        except ReferenceDisagreement as exc:   # no stick–slip, or no reference: one line
             return _fail(f"work-precision: {_one_line(exc)}", 1, args.json)
     tiers = tuple(args.tiers or ("numba", "python"))
     if args.problem and names is None:       # on your problem: the compiled ones, in minutes

@@ -19,6 +19,7 @@ point's displacement.
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 import pandas as pd
@@ -68,10 +69,20 @@ def _rates(law, a, b, dc, k, c, b2, dc2, mu0, v0, vl):
     return rhs, jac
 
 
+class _OutOfTime(Exception):
+    """The run's wall budget is used up (raised from the right-hand side, caught below)."""
+
+
 def reference_friction(t, velocities, switch_times, a, b, dc, k, law="aging", c=0.0,
-                       b2=0.0, dc2=1.0, mu0=0.6, rtol=1e-10, atol=1e-12) -> np.ndarray:
+                       b2=0.0, dc2=1.0, mu0=0.6, rtol=1e-10, atol=1e-12,
+                       wall_budget: float | None = None) -> np.ndarray:
     """μ at times ``t`` (s, from 0) of the load point at ``velocities`` (m/s) between
-    ``switch_times`` (s); parameters in the module docstring's units."""
+    ``switch_times`` (s); parameters in the module docstring's units. ``wall_budget``: s for the
+    whole run (None: none). A run that fails, or runs out of its budget, raises
+    ``RuntimeError`` saying which."""
+    if wall_budget is not None and not (math.isfinite(wall_budget) and wall_budget > 0):
+        raise ValueError(f"wall_budget must be a positive number of s, got {wall_budget!r}")
+    deadline = math.inf if wall_budget is None else time.perf_counter() + wall_budget
     t = np.asarray(t, dtype=float)
     v0 = velocities[0]
     y = [mu0, math.log(dc / v0)] + ([math.log(dc2 / v0)] if b2 else [])
@@ -82,8 +93,17 @@ def reference_friction(t, velocities, switch_times, a, b, dc, k, law="aging", c=
         if t1 <= t0:
             continue
         rhs, jac = _rates(law, a, b, dc, k, c, b2, dc2, mu0, v0, vl)
-        sol = solve_ivp(rhs, (t0, t1), y, method="Radau", jac=jac, rtol=rtol, atol=atol,
-                        dense_output=True)
+
+        def timed(t_, y_, rhs=rhs):
+            if time.perf_counter() > deadline:
+                raise _OutOfTime
+            return rhs(t_, y_)
+        try:
+            sol = solve_ivp(timed, (t0, t1), y, method="Radau", jac=jac, rtol=rtol, atol=atol,
+                            dense_output=True)
+        except _OutOfTime:
+            raise RuntimeError(f"the reference run ran out of its wall budget of {wall_budget:g} "
+                               f"s on piece {i} (t = {t0:g} to {t1:g} s)") from None
         if not sol.success:
             raise RuntimeError(f"the reference run failed on piece {i}: {sol.message}")
         inside = (t >= t0) & (t <= t1)

@@ -4,7 +4,9 @@ A reference for a problem is computed by the two solvers of :data:`REFERENCE_SOL
 Radau IIA of order 5 and SUNDIALS' CVODE BDF, different methods, libraries and step controls),
 each at rtol = atol = 1e−12. Their limit-cycle metrics, compared event by event on the last
 complete event and on the start time of that event, must agree to :data:`AGREEMENT_RTOL`
-before either is used; otherwise :func:`reference` raises :class:`ReferenceDisagreement`.
+before either is used; otherwise :func:`reference` raises :class:`ReferenceDisagreement` (also
+when a solver fails or runs out of its :data:`WALL_BUDGET`; :class:`NoStickSlip` when both find
+fewer than two events).
 The first solver's run is the reference; the agreement (the largest relative disagreement per
 measure) is stored with it and is the floor below which no error in a study means anything.
 
@@ -34,7 +36,8 @@ from benchmarks.records.files import (
 )
 from integrators import EVENT_COLUMNS, REGISTRY, solve
 
-__all__ = ["Reference", "ReferenceDisagreement", "reference", "REFERENCE_SOLVERS",
+__all__ = ["Reference", "ReferenceDisagreement", "NoStickSlip", "reference", "no_stick_slip",
+           "REFERENCE_SOLVERS",
            "AGREEMENT_RTOL", "GRID_POINTS", "cache_dir", "agreement_table"]
 
 #: candidate pairs of independent reference solvers (name, rtol = atol); the first pair whose
@@ -46,12 +49,20 @@ REFERENCE_SOLVERS = ((("assimulo-Radau5ODE", 1e-12), ("odes-CVODE-BDF", 1e-12)),
 AGREEMENT_RTOL = 1e-7
 #: points of the common time grid of the trajectory error
 GRID_POINTS = 2001
+#: s of wall time per reference solve: the paper's problems take 1–10 s (results/references.csv);
+#: one that crawls (a problem without stick–slip can, at 1e-12) fails in minutes, not hours
+WALL_BUDGET = 120.0
 #: bump when the stored content or the way it is computed changes
 _FORMAT = 1
 
 
 class ReferenceDisagreement(RuntimeError):
     """The two reference solvers do not agree: no reference for this problem."""
+
+
+class NoStickSlip(ReferenceDisagreement):
+    """Both reference solvers agree that the problem has fewer than two events: no recurrence
+    interval, friction drop or event to measure an error on."""
 
 
 class BadReferenceWarning(UserWarning):
@@ -141,6 +152,28 @@ def reference(problem, cache: Path | None = None, refresh: bool = False,
     return ref
 
 
+#: (method, rtol = atol, wall budget in s): the quick compiled run that screens a problem for
+#: events before its references are computed (a milliseconds' run on the paper's problems)
+SCREEN = ("Rodas5P", 1e-8, 10.0)
+
+
+def no_stick_slip(problem) -> str:
+    """Why ``problem`` has no error to measure — fewer than two events in a quick run of
+    :data:`SCREEN` —, or "" (two events or more, or the quick run did not finish: then the
+    references decide). Seconds, where the references of such a problem can crawl for
+    minutes (a steady slider at 1e-12)."""
+    from benchmarks.physics.metrics import summarize
+    name, tol, budget = SCREEN
+    run = solve(problem, REGISTRY[name](rtol=tol, atol=tol), max_points=2, wall_budget=budget)
+    if not run.success or len(run.events) >= 2:
+        return ""
+    n = len(run.events)
+    return (f"{problem.name}: no stick–slip events to measure: {n} event{'' if n == 1 else 's'} "
+            f"in its {problem.t_end:g} s ({name} at {tol:g}: {summarize(run).reason}); an "
+            "error in the recurrence interval needs two: give a problem that sticks and slips, "
+            "or a longer t_end")
+
+
 def _load(path: Path, key: str, problem) -> Reference | None:
     """The cached reference at ``path`` if it is whole and is the one asked for (format, key,
     problem); otherwise None, with a warning naming the file, and it is recomputed."""
@@ -164,12 +197,19 @@ def _compute(problem, pair, key: str, progress: bool) -> Reference:
     runs = []
     for name, tol in pair:
         sol = solve(problem, REGISTRY[name](rtol=tol, atol=tol),
-                    save_every=problem.t_end / (GRID_POINTS - 1), progress=progress)
+                    save_every=problem.t_end / (GRID_POINTS - 1), progress=progress,
+                    wall_budget=WALL_BUDGET)
         if not sol.success:
             raise ReferenceDisagreement(f"reference solver {name} failed on {problem.name}: "
                                         f"{sol.retcode.value}: {sol.message}")
         runs.append(sol)
     n = min(len(s.events) for s in runs)
+    if n < 2 and len({len(s.events) for s in runs}) == 1:
+        raise NoStickSlip(
+            f"{problem.name}: no stick–slip events to measure: both reference solvers "
+            f"({', '.join(s.algorithm.name for s in runs)}) find {n} event"
+            f"{'' if n == 1 else 's'} in its {problem.t_end:g} s (an error in the recurrence "
+            "interval needs two); give a problem that sticks and slips, or a longer t_end")
     if n < 2 or len({len(s.events) for s in runs}) != 1:
         raise ReferenceDisagreement(
             f"{problem.name}: reference solvers disagree on the number of events "

@@ -64,6 +64,8 @@ class CellPosterior:
     prior: str
     best: tuple                      # (b, Lc in m, misfit) of the best centre
     history: list = field(default_factory=list)
+    #: solves that failed or ran out of their budget: cells without mass, never a cycle
+    n_failed: int = 0
 
     def sample(self, n: int, seed: int = 0) -> pd.DataFrame:
         """``n`` draws: a cell by its mass, then a point uniform inside it (``ValueError``
@@ -139,6 +141,7 @@ def grid_posterior(misfit: Misfit, b_range, lc_range, n: int = 33, progress: boo
     wb, wl = (b_hi - b_lo) / n, (l_hi - l_lo) / n
     bb, ll = np.meshgrid(b_lo + wb * (np.arange(n) + 0.5), l_lo + wl * (np.arange(n) + 0.5),
                          indexing="ij")
+    failed_before = misfit.failures["failed"]
     cells = _evaluate(misfit, bb.ravel(), ll.ravel(), np.full(bb.size, wb), np.full(bb.size, wl),
                       progress)
     n_solves = len(cells)
@@ -191,6 +194,7 @@ def grid_posterior(misfit: Misfit, b_range, lc_range, n: int = 33, progress: boo
         edge_mass=float(cells.mass[edge].sum()) if cells.mass.sum() > 0 else float("nan"),
         levels=len(history), settled=settled,
         n_solves=n_solves, wall_s=time.perf_counter() - started,
+        n_failed=misfit.failures["failed"] - failed_before,
         prior=f"uniform in b on [{b_lo:g}, {b_hi:g}] and in log10 Lc on [{l_lo:g}, {l_hi:g}] "
               "(Lc in m)", best=best, history=history)
 
@@ -200,6 +204,7 @@ def _evaluate(misfit: Misfit, b, log10_lc, width_b, width_l, progress) -> pd.Dat
     cells = pd.DataFrame({"b": b, "log10_lc": log10_lc, "width_b": width_b,
                           "width_log10_lc": width_l,
                           "log_likelihood": table.log_likelihood.to_numpy(),
-                          "misfit": table.misfit.to_numpy()})
+                          "misfit": table.misfit.to_numpy(),
+                          "failed": (table.retcode != "Success").to_numpy()})
     cells["mass"] = _mass(cells.log_likelihood.to_numpy(), width_b * width_l)
     return cells

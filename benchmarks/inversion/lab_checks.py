@@ -21,23 +21,34 @@ TWO_STATE_REFERENCES = (1e-12, 1e-11)
 
 
 def _references(fit: LabFit, p: dict):
-    """μ − μ0 at the best fit by two independent solvers, and their names."""
+    """μ − μ0 at the best fit by two independent solvers, their names, and why one did not
+    finish ("" when both did): each solve has the model's wall budget (the two-state model its
+    step budget)."""
     model, rec = fit.model, fit.model.record
     if model.states == 2:
         from benchmarks.devtools.lab_reference import reference_friction
         from benchmarks.physics.lab_model import LAB_MU0
         own_tol, ref_tol = TWO_STATE_REFERENCES
+        names = [f"the two-state model at {own_tol:g}", "scipy-Radau (an independent model "
+                 f"of the published equations) at {ref_tol:g}"]
         own, _ = model.response(**p, rtol=own_tol)
-        ref = reference_friction(rec.t, rec.velocities, rec.switch_times, p["a"], p["b"],
-                                 p["dc"], p["k"], law=model.law, c=p.get("c", 2.0),
-                                 b2=p["b2"], dc2=p["dc2"], mu0=LAB_MU0, rtol=ref_tol,
-                                 atol=1e-13) - LAB_MU0
-        return [own, ref], [f"the two-state model at {own_tol:g}", "scipy-Radau (an "
-                            f"independent model of the published equations) at {ref_tol:g}"]
+        why = "" if np.isfinite(own).all() else f"{names[0]} failed (its step budget?)"
+        try:
+            ref = reference_friction(rec.t, rec.velocities, rec.switch_times, p["a"], p["b"],
+                                     p["dc"], p["k"], law=model.law, c=p.get("c", 2.0),
+                                     b2=p["b2"], dc2=p["dc2"], mu0=LAB_MU0, rtol=ref_tol,
+                                     atol=1e-13, wall_budget=model.wall_budget) - LAB_MU0
+        except RuntimeError as exc:
+            ref, why = np.full(len(rec.t), np.nan), why or f"{names[1]}: {exc}"
+        return [own, ref], names, why
     from integrators import make_algorithm
-    refs = [model.response(**p, algorithm=make_algorithm(name, rtol=tol, atol=tol))[0]
-            for name, tol in CHECK_REFERENCES]
-    return refs, [f"{n} at {t:g}" for n, t in CHECK_REFERENCES]
+    refs, why = [], ""
+    for name, tol in CHECK_REFERENCES:
+        mu, sol = model.response(**p, algorithm=make_algorithm(name, rtol=tol, atol=tol))
+        refs.append(mu)
+        if not sol.success and not why:
+            why = f"{name} at {tol:g}: {sol.retcode.value}: {sol.message}"
+    return refs, [f"{n} at {t:g}" for n, t in CHECK_REFERENCES], why
 
 
 def check_lab_solver(fit: LabFit) -> dict:
@@ -47,15 +58,33 @@ def check_lab_solver(fit: LabFit) -> dict:
     record's noise; the fit's own error must be under σ/10 (σ the fit's residual scatter).
     Returns the errors (in σ) and ``passed``; a reference pair that does not agree says so
     (``references_agree`` False). A fit that failed is not checked (``checked`` False): its
-    failure is the fit's, not the integrator's."""
+    failure is the fit's, not the integrator's. A solve that fails or runs out of its budget
+    (the model's ``wall_budget``, s per solve) fails the check (``passed`` False, ``reason``
+    names it): an unfinished reference vouches for nothing."""
     algorithm = fit.model.algorithm
     if not fit.success or not np.isfinite(fit.sigma):
         return {"integrator": algorithm.name if algorithm is not None else "the two-state model",
                 "checked": False, "passed": False,
                 "reason": f"the fit failed ({fit.message}): nothing to check"}
     p = {n: fit.values[n] for n in fit.model.parameters}
-    own, _ = fit.model.response(**p)
-    refs, names = _references(fit, p)
+    own, own_run = fit.model.response(**p)
+    refs, names, failed = _references(fit, p)
+    if not np.isfinite(own).all():
+        failed = (f"the fit's integrator at the best fit: {own_run.retcode.value}: "
+                  f"{own_run.message}" if hasattr(own_run, "retcode") else
+                  "the fit's model at the best fit failed")
+    if failed:
+        budget = fit.model.wall_budget
+        return {"checked": True, "integrator": (algorithm.name if algorithm is not None
+                                                else "the two-state model"),
+                "options": algorithm.options() if algorithm is not None else {"rtol": 1e-10,
+                                                                               "atol": 1e-10},
+                "references": names, "references_disagree_sigma": math.nan,
+                "references_agree": False, "error_sigma": math.nan, "passed": False,
+                "wall_budget_s": budget,
+                "reason": f"a solve of the check did not finish, so nothing is compared: "
+                          f"{failed}" + (f" (each solve may take {budget:g} s: --wall-budget)"
+                                         if budget is not None else "")}
     sigma = fit.sigma
     agree = float(np.max(np.abs(refs[0] - refs[1]))) / sigma
     error = float(np.max(np.abs(own - refs[0]))) / sigma

@@ -94,6 +94,8 @@ class LabFit:
     solves: int = 0
     wall_s: float = 0.0
     weights: np.ndarray | None = field(default=None, repr=False)
+    #: solves that failed or ran out of their budget: residuals far from any fit, never μ
+    failed_solves: int = 0
     fixed: dict = field(default_factory=dict)
     piece_weights: np.ndarray | None = None
     success: bool = True
@@ -167,6 +169,7 @@ class _Problem:
         self.wmu = w * rec.mu
         self.q = _orthonormal(w[:, None] * model.linear_basis())
         self.solves = 0
+        self.failed = 0                  # solves that failed or ran out of their budget
         self.cache = {}
 
     def params(self, x) -> dict:
@@ -190,6 +193,7 @@ class _Problem:
                 mu, _ = self.model.response(**p)
             except ValueError:      # a trial the law refuses (the Nagata law at b = 0)
                 mu = np.full(len(self.w), np.nan)
+            self.failed += not np.isfinite(mu).all()
             if len(self.cache) > 64:
                 self.cache.clear()
             self.cache[key] = mu
@@ -387,6 +391,7 @@ def _result(prob, res, wall_s) -> LabFit:
     fit = LabFit(model=model, free=prob.free, values=values, covariance=cov, linear=linear,
                  linear_se=linear_se, residuals=r, mu_model=mu_model, rss=rss, sigma=sigma,
                  rho=rho, n=n, at_bound=at_bound, solves=prob.solves, wall_s=wall_s,
+                 failed_solves=prob.failed,
                  weights=prob.w, fixed=dict(prob.fixed), piece_weights=prob.piece_weights,
                  success=ok and res.status > 0,
                  message=res.message if ok else "the forward model failed at the fit's end")

@@ -12,6 +12,10 @@ The walkers start in a small ball about the least-squares fit (a hundredth of it
 the first quarter of the steps is dropped. Reported: the acceptance fraction, emcee's
 integrated autocorrelation time τ per parameter (``tol=0``) and whether the chain is 50 τ long,
 and the effective number of samples.
+
+A Ctrl-C during a step is held until the step ends and then raised as ``KeyboardInterrupt``
+from :func:`sample_lab` (as :func:`benchmarks.inversion.posterior.sample` does): emcee wraps the
+log-probability in a handler that prints a traceback for any exception, an interruption included.
 """
 
 from __future__ import annotations
@@ -60,11 +64,16 @@ def sample_lab(fit: LabFit, walkers: int = 32, steps: int = 600, seed: int = 0,
     prob = _Problem(fit.model, fit.free, fit.fixed, fit.piece_weights)
     lo, hi = prob.bounds()
     scale = fit.noise_variance
+    stopped = []
 
     def log_prob(x):
-        if not ((x > lo) & (x < hi)).all():
+        if stopped or not ((x > lo) & (x < hi)).all():
             return -np.inf
-        r = prob.residual(x)
+        try:
+            r = prob.residual(x)
+        except KeyboardInterrupt:     # emcee would print its traceback: raised after the step
+            stopped.append(True)
+            return -np.inf
         if not np.isfinite(prob.g(x)).all():
             return -np.inf
         return -0.5 * float(r @ r) / scale
@@ -77,7 +86,9 @@ def sample_lab(fit: LabFit, walkers: int = 32, steps: int = 600, seed: int = 0,
     sampler = emcee.EnsembleSampler(walkers, n, log_prob)
     sampler.random_state = np.random.RandomState(int(rng.integers(2 ** 31))).get_state()
     started = time.perf_counter()
-    sampler.run_mcmc(p0, steps, progress=progress)
+    for done, _ in enumerate(sampler.sample(p0, iterations=steps, progress=progress), 1):
+        if stopped:
+            raise KeyboardInterrupt(f"the posterior was interrupted at step {done} of {steps}")
     wall = time.perf_counter() - started
     burn = steps // 4
     chain = sampler.get_chain(discard=burn, flat=True)

@@ -17,7 +17,7 @@ The class and the reason are in the table, so a fit can say why a region is excl
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
@@ -29,12 +29,21 @@ from benchmarks.physics.metrics import CYCLES
 from integrators import Algorithm
 from problems import SpringSlider
 
-__all__ = ["Misfit", "NO_CYCLE_RESIDUAL", "synthetic", "MIN_SIGMA_REL"]
+__all__ = ["Misfit", "NO_CYCLE_RESIDUAL", "synthetic", "MIN_SIGMA_REL", "BUDGET_STOPS"]
+
+#: the retcodes of a solve stopped by its budget (wall time, steps)
+BUDGET_STOPS = ("WallTime", "MaxSteps")
+_COUNTS = ("solves", "failed", "over_budget")
+
+
 @dataclass(frozen=True)
 class Misfit:
     """J(b, Lc) of ``problem`` against ``obs`` with ``algorithm`` (module docstring).
     ``wall_budget``: s per forward solve; ``workers``: threads (or processes) of a batch;
-    ``curve_dt``: s between saved points of the trajectory J2 compares (with curves only)."""
+    ``curve_dt``: s between saved points of the trajectory J2 compares (with curves only).
+
+    A solve that fails or runs out of its budget is a failed point: no limit cycle is read from
+    it (the misfit of a point without one), and :attr:`failures` counts it."""
 
     problem: SpringSlider
     obs: Observations
@@ -42,6 +51,14 @@ class Misfit:
     wall_budget: float | None = None
     workers: int | None = None
     curve_dt: float = 5e-5
+    _counts: dict = field(default_factory=lambda: dict.fromkeys(_COUNTS, 0), init=False,
+                          repr=False, compare=False)
+
+    @property
+    def failures(self) -> dict:
+        """The solves evaluated so far: ``solves``, ``failed`` (any retcode but Success) and,
+        of those, ``over_budget`` (WallTime or MaxSteps), and the ``wall_budget_s`` per solve."""
+        return {**self._counts, "wall_budget_s": self.wall_budget}
 
     def __post_init__(self) -> None:
         for name, value, kind in (("problem", self.problem, SpringSlider),
@@ -64,7 +81,11 @@ class Misfit:
                          curve_dt=(self.curve_dt if self.obs.curve_likelihood is not None
                                    else None), progress=progress)
         o = self.obs
-        cycle = table.classification.isin(CYCLES).to_numpy()
+        failed = (table.retcode != "Success").to_numpy()
+        self._counts["solves"] += len(table)
+        self._counts["failed"] += int(failed.sum())
+        self._counts["over_budget"] += int(table.retcode.isin(BUDGET_STOPS).sum())
+        cycle = table.classification.isin(CYCLES).to_numpy() & ~failed     # never a cycle
         s = scores(table.recurrence_s, table.friction_drop, cycle, o)
         table["r_recurrence"], table["r_drop"] = s.penalised
         table["J1"] = s.j1_penalised

@@ -35,7 +35,8 @@ import pandas as pd
 from benchmarks.ensemble import ensemble
 from benchmarks.physics.metrics import CYCLES
 
-__all__ = ["check_solver", "SolverCheck", "REFERENCES", "FRACTION", "TIGHTENINGS", "tighter"]
+__all__ = ["check_solver", "SolverCheck", "REFERENCES", "FRACTION", "TIGHTENINGS", "tighter",
+           "WALL_BUDGET"]
 
 #: the reference pair (integrator, rtol = atol): an exponential Rosenbrock and a Rosenbrock
 #: method, tight, in compiled batches
@@ -44,6 +45,9 @@ REFERENCES = (("Rodas5P", 1e-9), ("Exprb43", 1e-9))
 FRACTION = 0.1
 #: tighter settings tried before the check refuses
 TIGHTENINGS = 3
+#: s of wall time per solve of the check unless told: a reference over it vouches for nothing at
+#: its point, an integrator over it fails there (a W2 solve takes milliseconds)
+WALL_BUDGET = 10.0
 
 
 @dataclass
@@ -100,9 +104,9 @@ def _points(b_range, lc_range, inner: bool = False) -> dict:
     return {"b": np.array(b, dtype=float), "lc": np.array(lc, dtype=float)}
 
 
-def _run(problem, algorithm, points, curves: bool, workers) -> pd.DataFrame:
+def _run(problem, algorithm, points, curves: bool, workers, wall_budget) -> pd.DataFrame:
     return ensemble(problem, algorithm, points, curve_dt=5e-5 if curves else None,
-                    workers=workers, progress=False)
+                    workers=workers, progress=False, wall_budget=wall_budget)
 
 
 def _errors(a: pd.DataFrame, b: pd.DataFrame, obs) -> np.ndarray:
@@ -126,30 +130,41 @@ def _errors(a: pd.DataFrame, b: pd.DataFrame, obs) -> np.ndarray:
 
 
 def check_solver(problem, algorithm, obs, b_range, lc_range, next_setting=None,
-                 workers: int | None = None, say=None) -> SolverCheck:
+                 workers: int | None = None, say=None,
+                 wall_budget: float | None = WALL_BUDGET) -> SolverCheck:
     """Check ``algorithm`` on ``problem`` for the observations ``obs`` over the box (module
     docstring). ``next_setting(algorithm)``: the next tighter setting to try (default
-    :func:`tighter`). ``say``: a callable given a line of text per setting tried."""
+    :func:`tighter`). ``say``: a callable given a line of text per setting tried.
+    ``wall_budget``: s per solve (None: none); a point where a reference failed or ran out of
+    it is not used (its references do not agree), one where the integrator did is a failure."""
     from integrators import make_algorithm
     say = say or (lambda text: None)
     next_setting = next_setting or tighter
     started = time.perf_counter()
     curves = obs.curve_likelihood is not None
     refs = n_solves = None
+    unfinished = 0                       # reference solves that failed or ran out of budget
     for inner in (False, True):          # corners and centre; inside the box if none has a cycle
         points = _points(b_range, lc_range, inner)
-        refs = [_run(problem, make_algorithm(n, rtol=t, atol=t), points, curves, workers)
-                for n, t in REFERENCES]
+        refs = [_run(problem, make_algorithm(n, rtol=t, atol=t), points, curves, workers,
+                     wall_budget) for n, t in REFERENCES]
         n_solves = (n_solves or 0) + 2 * len(points["b"])
+        unfinished += sum(int((r.retcode != "Success").sum()) for r in refs)
         cycles = [r.classification.isin(CYCLES).to_numpy() for r in refs]
         if (cycles[0] & cycles[1]).any():
             break
     else:
         return SolverCheck(algorithm, False, pd.DataFrame(), [], (
             "no limit cycle at the box's corners, its centre or a 3 × 3 grid inside it, by "
-            "either reference: nothing to check the integrator on"),
+            "either reference: nothing to check the integrator on"
+            + (f" ({unfinished} of the references' {n_solves} solves failed or ran out of "
+               f"their budget of {wall_budget:g} s per solve: no cycle is read from them)"
+               if unfinished and wall_budget is not None else
+               f" ({unfinished} of the references' {n_solves} solves failed)"
+               if unfinished else "")),
             time.perf_counter() - started, n_solves, nothing_to_check=True)
-    agree = _errors(refs[0], refs[1], obs) <= FRACTION / 10
+    finished = ((refs[0].retcode == "Success") & (refs[1].retcode == "Success")).to_numpy()
+    agree = (_errors(refs[0], refs[1], obs) <= FRACTION / 10) & finished
     rows, tried, current = [], [], algorithm
     base = pd.DataFrame({"b": points["b"], "lc_m": points["lc"],
                          "reference_class": refs[0].classification.to_numpy(),
@@ -166,7 +181,7 @@ def check_solver(problem, algorithm, obs, b_range, lc_range, next_setting=None,
         tried.append(label)
         say(f"checking {label} against {REFERENCES[0][0]} and {REFERENCES[1][0]} at "
             f"{REFERENCES[0][1]:g} on the box's corners and centre")
-        table = _run(problem, current, points, curves, workers)
+        table = _run(problem, current, points, curves, workers, wall_budget)
         n_solves += len(table)
         err = _errors(table, refs[0], obs)
         rows.append(base.assign(setting=label, error_in_sigma=err,

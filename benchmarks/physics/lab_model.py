@@ -27,7 +27,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["LabModel", "DETRENDS", "NOMINAL_NORMAL_FORCE", "LAB_MU0", "DEFAULT_ALGORITHM"]
+__all__ = ["LabModel", "DETRENDS", "NOMINAL_NORMAL_FORCE", "LAB_MU0", "DEFAULT_ALGORITHM",
+           "WALL_BUDGET"]
 
 #: N: the normal force of a model whose friction does not depend on it (quasi-static, undamped)
 NOMINAL_NORMAL_FORCE = 1e4
@@ -37,6 +38,10 @@ LAB_MU0 = 0.6
 DETRENDS = ("piece", "one", "none")
 #: (name, rtol = atol): the fit's integrator unless told (checked by the fit's solver check)
 DEFAULT_ALGORITHM = ("Rodas5P", 1e-10)
+#: s of wall time per solve unless told: a solve over it fails (NaN, never read as μ). A fit's
+#: solves take milliseconds; the solver check's scipy Radau at 1e-12 about 3 ms a step, so a
+#: long record may need more (a slide-hold-slide of 20,000 samples: about 40 s)
+WALL_BUDGET = 120.0
 
 
 @dataclass(frozen=True)
@@ -44,7 +49,8 @@ class LabModel:
     """μ(t) of ``law`` (``"aging"``, ``"slip"`` or ``"nagata"``) on ``record``'s history.
     ``mass`` (kg), ``radiation_damping`` (N s/m) and ``normal_force`` (N, needed with either)
     describe the apparatus; ``algorithm`` integrates (default :data:`DEFAULT_ALGORITHM`);
-    ``states`` is 1, or 2 for a second state variable (quasi-static only)."""
+    ``states`` is 1, or 2 for a second state variable (quasi-static only); ``wall_budget``: s
+    per solve (None: no budget; the two-state model has its step budget, ``MAX_STEPS``)."""
 
     record: object
     law: str = "aging"
@@ -54,6 +60,7 @@ class LabModel:
     normal_force: float | None = None
     algorithm: object = None
     states: int = 1
+    wall_budget: float | None = WALL_BUDGET
     _basis: np.ndarray = field(init=False, repr=False, compare=False)
     _names: tuple = field(init=False, repr=False, compare=False)
 
@@ -77,6 +84,8 @@ class LabModel:
         check_non_negative("radiation_damping (N s/m)", self.radiation_damping)
         if self.normal_force is not None:
             check_positive("normal_force (N)", self.normal_force)
+        if self.wall_budget is not None:
+            check_positive("wall_budget (s per solve)", self.wall_budget)
         elif self.mass > 0 or self.radiation_damping > 0:
             raise ValueError("a slider with mass or radiation damping needs the normal force "
                              "(N): the friction then depends on it")
@@ -152,8 +161,9 @@ class LabModel:
     def response(self, a, b, dc, k, c=None, b2=None, dc2=None, algorithm=None,
                  wall_budget=None, rtol=None):
         """(μ − μ0 at the record's times, the Solution or, with two states, the steps): the
-        rate-and-state part of μ, without the level and the trend; NaN where the run failed.
-        ``rtol``: the two-state model's rtol = atol (default 1e-10)."""
+        rate-and-state part of μ, without the level and the trend; NaN where the run failed
+        (also over its ``wall_budget``, s: default the model's). ``rtol``: the two-state model's
+        rtol = atol (default 1e-10)."""
         if self.states == 2:
             from benchmarks.physics.lab_two_state import two_state_friction
             rec = self.record
@@ -165,7 +175,8 @@ class LabModel:
             return mu - LAB_MU0, steps
         from integrators import solve
         sol = solve(self.problem(a, b, dc, k, c), algorithm or self.algorithm,
-                    save_at=self.record.t, wall_budget=wall_budget)
+                    save_at=self.record.t,
+                    wall_budget=self.wall_budget if wall_budget is None else wall_budget)
         mu = np.full(len(self.record.t), np.nan)
         if sol.success:
             mu[:] = sol.fs / self.fn - LAB_MU0

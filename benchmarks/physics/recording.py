@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import hashlib
 from dataclasses import dataclass, field
+from os import PathLike
 from pathlib import Path
 
 import numpy as np
@@ -132,6 +133,12 @@ def read_recording(path, columns, normal_force: float | None = None) -> Recordin
     """The recording in ``path`` (``.csv``, ``.txt``, ``.tsv`` or ``.parquet``) with
     ``columns`` (channel → ``(column, unit)``, or specs ``CHANNEL=COLUMN:UNIT``), checked (see
     the module docstring); ``normal_force`` (N) stands for a normal-force column."""
+    if not isinstance(path, (str, PathLike)):
+        raise ValueError(f"path must be the recording's file name (str or os.PathLike), got "
+                        f"{path!r}")
+    if columns is None or isinstance(columns, (str, bytes)):
+        raise ValueError(f"columns must map channels to columns: a dict, or a list of "
+                        f"'CHANNEL=COLUMN:UNIT' specs, got {columns!r}")
     mapping = column_map(columns)
     path = Path(path)
     if not path.is_file():
