@@ -205,3 +205,28 @@ def test_an_invert_whose_solves_run_out_says_how_many(tmp_path):
     assert doc["solves"]["over_budget"] > 0 and doc["solves"]["wall_budget_s"] == 1e-9
     assert doc["solves"]["failed"] >= doc["solves"]["over_budget"]
     assert "forward solves failed" in out.stderr and "never read as one" in out.stderr
+
+
+def test_a_ctrl_c_while_the_command_line_imports_is_one_line(tmp_path):
+    """The console script imports the harness (about a second: numba, scipy, the registry)
+    before main() can catch anything: a Ctrl-C there was a traceback and a death by SIGINT
+    (exit −2). A KeyboardInterrupt is raised here at the import of the command line, as a
+    Ctrl-C at that moment would be."""
+    from pathlib import Path
+    script = Path(sys.executable).parent / "rsfbench"
+    if not script.exists():
+        pytest.skip("no rsfbench console script next to this Python (not installed)")
+    (tmp_path / "sitecustomize.py").write_text(
+        "import sys\n"
+        "class Interrupt:\n"
+        "    def find_spec(self, name, path=None, target=None):\n"
+        "        if name == 'benchmarks.cli.main':\n"
+        "            raise KeyboardInterrupt\n"
+        "sys.meta_path.insert(0, Interrupt())\n")
+    import os
+    env = {**os.environ, "PYTHONPATH": str(tmp_path)}
+    out = subprocess.run([str(script), "--version"], capture_output=True, text=True,
+                         timeout=120, env=env)
+    assert out.returncode == 130, (out.returncode, out.stderr[-500:])
+    assert "Traceback" not in out.stderr and out.stdout == ""
+    assert out.stderr.strip() == "rsfbench: error: interrupted (Ctrl-C) while starting"

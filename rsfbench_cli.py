@@ -1,0 +1,24 @@
+"""The ``rsfbench`` console script (``[project.scripts]``): :func:`benchmarks.cli.main.main`,
+imported inside a handler so that a Ctrl-C while the harness imports — a second or more (numba,
+scipy, the integrators' registry) before ``main()`` can catch anything — ends as one while a
+command runs does: one line on the standard error and exit status 130, not a traceback and a
+death by SIGINT. It sits outside the ``benchmarks`` package on purpose: importing any module of
+that package first runs its ``__init__``, which imports the integrators.
+"""
+
+import sys
+
+__all__ = ["main"]
+
+
+def main() -> int:
+    try:
+        from benchmarks.cli.main import main as run
+    except KeyboardInterrupt:
+        print("rsfbench: error: interrupted (Ctrl-C) while starting", file=sys.stderr)
+        return 130
+    return run()
+
+
+if __name__ == "__main__":
+    sys.exit(main())
