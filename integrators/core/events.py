@@ -12,6 +12,19 @@ Root functions located by the backend's own root finding:
 
 :class:`EventRecorder` turns the located roots, fed in time order, into the rows of
 ``EVENT_COLUMNS`` (nondimensional until :meth:`EventRecorder.table` converts them).
+
+The spring force's extremes (``fs_max_before``, ``fs_min``) are read at located states only,
+never at save points, so that a save grid cannot change them: h is piecewise smooth with
+h' = E − w, so its extremes over a stretch lie at the stretch's ends or where h' = 0 or E
+jumps. ``fs_max_before`` is the largest h over [previous END, START] (the start of the run for
+the first event): at the previous END, at the H_EXTREMUM roots between, at the ends of loading
+segments (E changes there) and at START itself, which is where it lies when the loading is
+still faster than the slider as the event starts (two-speed loading: an event that starts
+within the fast loading, w crossing 10 E_slow < E_fast with h still rising; the maximum of h
+inside the event, at w = E_fast, is not "before"). ``fs_min`` is the smallest h over
+[START, END], read at the same kinds of points. The own engine (:mod:`integrators.own.engine`)
+also observes every accepted step's end (one comparison a step), which catches an extremum
+whose two crossings of h' = 0 fall within one step; the segment driver sees no step ends.
 """
 
 from __future__ import annotations
@@ -124,7 +137,9 @@ def new_recorder(h0: float) -> np.ndarray:
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def observe(rec, h):
-    """A state the run passed through (a save point, a root, a segment end): the extrema of h."""
+    """A located state the run passed through (a root, a segment end, an own engine's step
+    end; never a save point, which would make the extrema depend on the save grid): the
+    extrema of h."""
     if rec[IN_EVENT] != 0.0:
         if h < rec[H_MIN]:
             rec[H_MIN] = h
@@ -139,6 +154,10 @@ def record(rec, ev, kind, tau, h, u, load):
     business), nondimensional. True when an event has just ended."""
     slip = load - (h - rec[H0])
     if kind == START and rec[IN_EVENT] == 0.0:
+        # the stretch before the event ends here: h at START counts towards its maximum (h
+        # still rises at START when the loading is faster than 10 E_slow, module docstring)
+        if h > rec[H_MAX]:
+            rec[H_MAX] = h
         rec[IN_EVENT] = 1.0
         rec[EV_START], rec[EV_SLIP] = tau, slip
         rec[H_MIN], rec[W_PEAK], rec[TAU_PEAK] = h, math.exp(u), tau

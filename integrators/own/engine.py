@@ -30,11 +30,13 @@ state is in arrays (layouts below), so a call resumes where the last one stopped
 Events: the four root functions of :mod:`integrators.core.events`, evaluated after each accepted
 step; on a sign change in a direction that counts, the crossings are placed on the dense output
 by bisection to the last bit, earliest first; a crossing in a direction that does not count only
-moves the cursor. A restart at a root keeps the root's sign after the crossing, or the first step
-would find the same crossing again. Methods at their stability limit in the stick phase (the
-explicit CashKarp45, the exponential Rosenbrock methods' undamped jitter) set ``stick_peaks``
-False: a PEAK crossing at w ≤ E_slow is not an event's peak (an event starts at w > 10 E_slow and
-ends at w ≤ E_slow) and is not reported.
+moves the cursor. The recorder's extremes of h are read at the roots, the segment ends and every
+accepted step's end, never at a save point (:mod:`integrators.core.events`), so the events table
+does not depend on the save grid, to the bit. A restart at a root keeps the root's sign after
+the crossing, or the first step would find the same crossing again. Methods at their stability
+limit in the stick phase (the explicit CashKarp45, the exponential Rosenbrock methods' undamped
+jitter) set ``stick_peaks`` False: a PEAK crossing at w ≤ E_slow is not an event's peak (an
+event starts at w > 10 E_slow and ends at w ≤ E_slow) and is not reported.
 
 The arrest (a deep lock): with mass, w u' = L(u) = C h − D (u + β s) − G w. When an event ends
 with friction far above the spring force (b ≫ a, a small, a stiff or light slider), w falls
@@ -632,9 +634,10 @@ def _arrest(st, p, Z, z0, f0, z1, f1, D, t_land):
 
 # --- the driver: saves, events, loading ---------------------------------------------------------
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _save_until(st, rec, Z, grid, saved, t_hi, inclusive, zt):
+def _save_until(st, Z, grid, saved, t_hi, inclusive, zt):
     """Fill the save points of ``grid`` up to t_hi (or just before it) from the dense output of
-    the last step; each is a state passed through. ``rec``: the recorder's part of ``st``."""
+    the last step. The events recorder never sees them (the save grid changes no measure):
+    it observes the roots, the segment ends and the step ends."""
     k, n = int(st[NEXT_SAVE]), grid.shape[0]
     t0, dt = st[TAU_OLD], st[TAU] - st[TAU_OLD]
     while k < n and (grid[k] < t_hi or (inclusive and grid[k] == t_hi)):
@@ -645,7 +648,6 @@ def _save_until(st, rec, Z, grid, saved, t_hi, inclusive, zt):
             _dense(Z, (grid[k] - t0) / dt, zt)
             for i in range(3):
                 saved[k, i] = zt[i]
-        observe(rec, saved[k, 0])
         k += 1
     st[NEXT_SAVE] = k
 
@@ -701,7 +703,7 @@ def run(prepare, attempt, reject, accept, ws, sc, st, p, Z, G, dirs, grid, saved
                 return GROW
             found = _scan(st, p, Z, G, dirs, stick_peaks, st[TAU], scan_w)
             t_ret = st[T_RET]
-            _save_until(st, rec, Z, grid, saved, t_ret, not found, zt)
+            _save_until(st, Z, grid, saved, t_ret, not found, zt)
             if found:
                 z = Z[_ZR]
                 load = st[LOAD0] + p[_E] * (t_ret - st[TAU0])
@@ -719,6 +721,7 @@ def run(prepare, attempt, reject, accept, ws, sc, st, p, Z, G, dirs, grid, saved
                     st[FAST_UNTIL] = t_ret + hist[H_TAU_FAST]
                     st[NEED_START] = 1.0
                 continue
+            observe(rec, Z[_Z, 0])              # the step's end, its roots done
             _hand_on(st, Z, st[TAU], _Z)
         if st[CURSOR] >= st[T_BOUND]:           # the end of the segment: restart or done
             observe(rec, Z[_Z, 0])
@@ -752,7 +755,8 @@ def run(prepare, attempt, reject, accept, ws, sc, st, p, Z, G, dirs, grid, saved
         st[TAU_OLD], st[TAU], st[H] = st[TAU], tau, h
         roots(p, z_now, g)
         if not _crossed(G, g, dirs, stick_peaks):   # else the scan at the top places them
-            _save_until(st, rec, Z, grid, saved, tau, True, zt)
+            _save_until(st, Z, grid, saved, tau, True, zt)
+            observe(rec, z_now[0])              # the step's end (one comparison a step)
             carry_signs(g_cur, g)
             st[CURSOR] = tau
             _copy(g, g_cur)
