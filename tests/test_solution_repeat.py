@@ -46,9 +46,9 @@ def _not_resolved(record) -> list[str]:
 
 def test_simulate_plot_of_a_quasi_dynamic_file_with_the_default_integrator(tmp_path, capsys):
     # the recommended Exprb43 at 1e-3 repeats its steps (2114), but the repeat's denser grid
-    # raised fs_max_before by up to 64 N, first in event 58 of 71 (the largest spring force
-    # passed through counts save points): bit for bit, that was "did not repeat its run",
-    # exit 3 (internal error)
+    # raised fs_max_before by up to 64 N, first in event 58 of 71 (save points counted
+    # towards the largest spring force until 4bef9e2): bit for bit, that was "did not repeat
+    # its run", exit 3 (internal error)
     path = tmp_path / "qd.toml"
     path.write_text(QUASI_DYNAMIC)
     figure = tmp_path / "qd.png"
@@ -101,8 +101,9 @@ def test_a_repeat_within_the_tolerance_is_the_same_run(paper_run):
     tol = REPEAT_FACTOR * 1e-8
     close = _moved(paper_run, 1, 0, 1.0 + 0.5 * tol)
     assert close(paper_run.t[:5]).equals(paper_run(paper_run.t[:5]))
-    # fs_max_before is left out: a denser save grid may raise it
-    assert len(_moved(paper_run, 1, 2, 1.01)(1.0)) == 1
+    # every column counts, fs_max_before too (no save point moves it since 4bef9e2)
+    with pytest.raises(RunNotRepeated, match="fs_max_before"):
+        _moved(paper_run, 1, 2, 1.01)(1.0)
 
 
 def test_a_repeat_that_differs_is_refused_by_sol_and_drawn_as_saved(paper_run, tmp_path):

@@ -294,10 +294,9 @@ class Solution:
         from a reference; measured between repeats on W2 (10 s), at most 58·rtol
         (sundials-CVODE-BDF at 1e-3, the peak slip rate; 21·rtol at 1e-6; odes-CVODE-BDF
         15·rtol at 1e-9), scipy's Radau and LSODA within 2e-11, rounding in their root
-        brackets. ``fs_max_before`` is left out: it is the largest spring force the run
-        passed through, and a save point counts, so a denser grid raises it where the
-        maximum is not located as a root (measured: 1e-4 of Fs, Rodas5P at 1e-9 on a
-        quasi-dynamic W2, whose steps are the same)."""
+        brackets. Every column is compared: the extremes of the spring force are read at
+        roots, segment ends and step ends, never at save points (integrators/core/events.py),
+        so a denser save grid cannot move them."""
         if not again.success:
             return (f"the repeat ended {again.retcode.value} at t = {again.t_reached:.6g} s "
                     f"({again.message})")
@@ -307,7 +306,7 @@ class Solution:
         tols = [getattr(self.algorithm, k, None) for k in ("rtol", "atol")]
         tols = [float(x) for x in tols if isinstance(x, numbers.Real) and x > 0]
         tol = min(REPEAT_FACTOR * max(tols), REPEAT_CAP) if tols else 1e-9
-        compared = [i for i, c in enumerate(EVENT_COLUMNS) if c != "fs_max_before"]
+        compared = list(range(len(EVENT_COLUMNS)))
         a, b = mine[:, compared], theirs[:, compared]
         with np.errstate(invalid="ignore"):
             off = np.abs(b - a) / np.maximum(np.maximum(np.abs(a), np.abs(b)),
