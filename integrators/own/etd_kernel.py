@@ -211,6 +211,11 @@ def etd_advance(st, p, o, save_buf, ev_buf, max_steps):
         if st[S_IN_EVENT] < 0.5:
             if lnw1 > ln_w_start:
                 f = _crossing(lnw, lnw1, ln_w_start)
+                # the force at the start counts towards the largest before the event: under
+                # two-speed loading the spring is still loading there (as the recorder's START)
+                h_start = h + f * (h1 - h)
+                if h_start > st[S_HMAX]:
+                    st[S_HMAX] = h_start
                 st[S_IN_EVENT] = 1.0
                 st[S_TAU_START] = tau + f * s
                 st[S_SLIP_START] = st[S_LOAD] + f * e * s - (h + f * (h1 - h))
