@@ -230,3 +230,40 @@ def test_a_ctrl_c_while_the_command_line_imports_is_one_line(tmp_path):
     assert out.returncode == 130, (out.returncode, out.stderr[-500:])
     assert "Traceback" not in out.stderr and out.stdout == ""
     assert out.stderr.strip() == "rsfbench: error: interrupted (Ctrl-C) while starting"
+
+
+@pytest.mark.slow                      # a fit, then a posterior interrupted: make test-slow
+def test_a_ctrl_c_in_lab_fit_posterior_is_one_line_and_exit_130():
+    """emcee printed its traceback for the interruption (found by a hostile run); now one line
+    says where it stopped, and nothing is written."""
+    pytest.importorskip("emcee")
+    import os
+    import select
+    import signal
+    import time
+    from pathlib import Path
+    basalt = (Path(__file__).resolve().parent / "data" / "lab-velocity-steps"
+              / "velstep4_BRAVA_expb819_basalt.txt")
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "benchmarks.cli", "lab", "fit", str(basalt),
+         "--column=time=Time(s):s", "--column=friction=Friction",
+         "--column=load_point=Displ(microns):um", "--posterior", "--steps", "100000",
+         "--no-profiles", "--no-solver-check"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    err, started = b"", time.monotonic()
+    try:
+        while b"it/s" not in err:                   # emcee's progress bar: it is sampling
+            assert time.monotonic() - started < 600 and proc.poll() is None, err[-500:]
+            if select.select([proc.stderr], [], [], 1.0)[0]:
+                err += os.read(proc.stderr.fileno(), 65536)
+        time.sleep(1.0)
+        proc.send_signal(signal.SIGINT)
+        out, rest = proc.communicate(timeout=120)
+    finally:
+        proc.kill()
+    text = (err + rest).decode()
+    assert proc.returncode == 130, text[-1000:]
+    assert "Traceback" not in text and "emcee:" not in text
+    last = text.replace("\r", "\n").strip().splitlines()[-1]
+    assert re.fullmatch(r"rsfbench: error: lab fit interrupted \(Ctrl-C\): the posterior was "
+                        r"interrupted at step \d+ of 100000; nothing written", last), last
