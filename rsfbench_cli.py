@@ -11,13 +11,14 @@ import sys
 __all__ = ["main"]
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
+    """:func:`benchmarks.cli.main.main` (``argv``: the arguments, default the command line's)."""
     try:
         from benchmarks.cli.main import main as run
     except KeyboardInterrupt:
         print("rsfbench: error: interrupted (Ctrl-C) while starting", file=sys.stderr)
         return 130
-    return run()
+    return run(argv)
 
 
 if __name__ == "__main__":
