@@ -173,8 +173,9 @@ def test_a_study_s_committed_files_are_its_own_and_a_user_s_edit_is_not(tmp_path
     out.mkdir()
     (out / "compare_paper_example.csv").write_text("a\n1\n")
     digest = hashlib.sha256(b"a\n1\n").hexdigest()
-    (out / "manifest.json").write_text(json.dumps(
-        [{"step": "compare", "outputs": {"compare_paper_example.csv": digest}}]))
+    from benchmarks.pipeline import manifest as M
+    M.write_manifest(out, {"compare": M.make_record(
+        "compare", "quick", {}, {"compare_paper_example.csv": digest}, 0.0)})
     assert F.is_own(out / "compare_paper_example.csv")
     (out / "compare_paper_example.csv").write_text("a\n2\n")            # edited by hand
     assert not F.is_own(out / "compare_paper_example.csv")
@@ -182,9 +183,20 @@ def test_a_study_s_committed_files_are_its_own_and_a_user_s_edit_is_not(tmp_path
     from benchmarks.studies.compare import STUDY
     _refuse_foreign_files(STUDY, out)           # a results store: the rerun restores its record
     write_output(out / "compare_paper_example.csv", "a\n1\n")
-    mine = tmp_path / "mine"                     # a folder of the user's, given as --out
-    mine.mkdir()
-    (mine / "compare_paper_example.md").write_text("my notes\n")
+    (out / "compare_paper_example.md").write_text("my notes\n")  # not a record: the user's
     F.begin_run()
     with pytest.raises(OutputExists, match="compare_paper_example.md"):
+        _refuse_foreign_files(STUDY, out)
+    mine = tmp_path / "mine"          # a folder of the user's with a file named manifest.json
+    mine.mkdir()
+    (mine / "manifest.json").write_text('{"name": "my web app"}')
+    (mine / "compare_paper_example.csv").write_text("mine\n")
+    with pytest.raises(OutputExists, match="compare_paper_example.csv"):
         _refuse_foreign_files(STUDY, mine)
+
+
+def test_study_refuses_a_user_s_report_in_a_folder_that_is_no_results_store(tmp_path, capsys):
+    (tmp_path / "REPORT.md").write_text("MY REPORT - precious\n")
+    assert main(["study", "integrators", "--out", str(tmp_path)]) == 2
+    assert "REPORT.md exists and is not a file rsfbench wrote" in capsys.readouterr().err
+    assert (tmp_path / "REPORT.md").read_text() == "MY REPORT - precious\n"

@@ -62,7 +62,8 @@ def cmd_sweep(args) -> int:
     name = args.preset if args.problem is None else Path(args.problem).stem
     out = Path(args.out or f"sweep_{name}_{problem.law.name}")
     from benchmarks.records.files import claim_outputs
-    claim_outputs([out / "sweep.csv", out / "summary.json"])   # a user's file there: refused
+    claim_outputs([out / "sweep.csv", out / "summary.json",      # a user's file there:
+                   *([] if args.no_plot else [out / "maps.png"])])  # refused before the work
     algorithm, why, check = checked_integrator(
         args, problem, obs, (float(min(b_values)), float(max(b_values))),
         (float(min(lc_values)), float(max(lc_values))), algorithm, why)

@@ -133,7 +133,7 @@ def observe(path, columns, out, normal_force: float | None = None, mass: float |
                  "columns": {c: {"column": col, "unit": unit}
                              for c, (col, unit) in column_map(columns).items()},
                  "slip_from": found.slip_source, "noise": found.noise}
-    text = apparatus_toml(found.apparatus, found.events, Path(path).stem)
+    text = apparatus_toml(found.apparatus, found.events, Path(path).stem, found.how)
     if text is not None:
         files["apparatus"] = out / "apparatus.toml"
     if plot:
@@ -159,20 +159,22 @@ def observe_files(out) -> list[Path]:
     return [Path(out) / n for n in ("observations.json", "events.csv", *OPTIONAL_FILES.values())]
 
 
-def apparatus_toml(apparatus: dict, events, name: str) -> str | None:
+def apparatus_toml(apparatus: dict, events, name: str, how: dict | None = None) -> str | None:
     """A problem file of the apparatus the record shows (module docstring), or None when its
     stiffness, slow loading speed, mass or normal force is unknown."""
     need = ("stiffness", "vls", "mass", "normal_force")
     if any(apparatus.get(k) is None for k in need):
         return None
     a = apparatus
+    how = how or {}
+    said = {key: "given" if how.get(key) == "given" else "measured" for key in ("stiffness", "vls")}
     recurrence = float(events["recurrence_s"].mean())
     t_end = 10.0 * recurrence if math.isfinite(recurrence) else 40.0
     two_speed = a.get("df") and a.get("vlf") and a["df"] > 0
-    loading = (f"vls = {a['vls']:.6g}               # m/s, measured\n"
+    loading = (f"vls = {a['vls']:.6g}               # m/s, {said['vls']}\n"
                f"vlf = {a['vlf']:.6g}               # m/s, measured\n"
                f"df = {a['df']:.6g}                 # s, measured\n" if two_speed else
-               f"vl = {a['vls']:.6g}                # m/s, measured\n")
+               f"vl = {a['vls']:.6g}                # m/s, {said['vls']}\n")
     return (f"# The apparatus of the recording {name!r}, as `rsfbench observe` measured it.\n"
             "# k, the loading, m and Fn are the record's; the friction law's a, b and Lc are\n"
             "# placeholders (the paper's W2 fit): `rsfbench invert --problem THIS --observations"
@@ -181,7 +183,7 @@ def apparatus_toml(apparatus: dict, events, name: str) -> str | None:
             "# SI units.\n"
             f"name = {json.dumps(name)}\n"
             f"mass = {a['mass']:.6g}                 # kg, given\n"
-            f"stiffness = {a['stiffness']:.6g}       # N/m, measured\n"
+            f"stiffness = {a['stiffness']:.6g}       # N/m, {said['stiffness']}\n"
             f"normal_force = {a['normal_force']:.6g} # N\n"
             f"t_end = {t_end:.6g}                    # s: ten mean recurrence intervals\n\n"
             "[law]                    # placeholders: edit, or invert\n"

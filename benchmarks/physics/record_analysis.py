@@ -43,6 +43,7 @@ vLs over that pulse (vLf − vLs)·df (Sect. 2.2.2).
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -252,6 +253,9 @@ def _check_acceleration_against_slip(rec, acc, events) -> None:
 #: W1–W4, both laws, measured on the model's recordings): beyond this multiple the mass or the
 #: acceleration's unit is wrong
 INERTIA_RATIO_MAX = 5.0
+#: below this fraction of the drop the inertia is negligible: a mass in the wrong unit (g as
+#: kg, or 1 kg for a 1000 kg slider), warned
+INERTIA_RATIO_MIN = 1e-3
 
 
 def _check_inertia(rec, mass: float, events) -> None:
@@ -261,6 +265,12 @@ def _check_inertia(rec, mass: float, events) -> None:
     drops = [fs[int(i)] - fs[int(j)] for i, j in zip(events._imax, events._imin)]
     drop = float(np.median(drops))
     inertia = mass * float(np.max(np.abs(a1)))
+    if drop > 0 and inertia < INERTIA_RATIO_MIN * drop:
+        from problems._validate import warn_unit
+        warn_unit(f"{rec.source}: m·a reaches {inertia:.3g} N with the mass {mass:.6g} kg, "
+                  f"{inertia / drop:.2g} of the force's drop in an event ({drop:.3g} N; about "
+                  "half of it in the paper's windows): the friction Ft = Fs − m·a and the "
+                  "curves are then the load cell's force; is the mass in kg?")
     if drop > 0 and inertia > INERTIA_RATIO_MAX * drop:
         raise ValueError(f"{rec.source}: m·a reaches {inertia:.3g} N with the mass "
                          f"{mass:.6g} kg, {inertia / drop:.3g} times the force's drop in an "
@@ -371,7 +381,9 @@ def _extremum(t: np.ndarray, x: np.ndarray, i: int, drop: float, sign: float, lo
     if b - a < 2 * EXTREMUM_DEGREE + 1:        # too few samples for the polynomial: widen
         a, b = max(0, j - EXTREMUM_DEGREE), min(len(fine), j + EXTREMUM_DEGREE + 1)
     tt = (t[a0 + a:a0 + b] - t[a0 + j]) * rate              # in samples: well conditioned
-    coef = np.polyfit(tt, sign * x[a0 + a:a0 + b], EXTREMUM_DEGREE)
+    with warnings.catch_warnings():         # a coarse record's few samples: the bounds decide
+        warnings.simplefilter("ignore", np.exceptions.RankWarning)
+        coef = np.polyfit(tt, sign * x[a0 + a:a0 + b], EXTREMUM_DEGREE)
     grid = np.linspace(tt[0], tt[-1], 8 * len(tt))
     fitted = float(np.max(np.polyval(coef, grid)))
     estimate, low, high = _sample_bounds(sign * x[a0:b0], a, b, sigma)
@@ -579,13 +591,19 @@ def _check_resolution(rec, table) -> None:
     across = float(np.median(table.drop_samples))
     if across >= MIN_DROP_SAMPLES:
         return
-    need = MIN_DROP_SAMPLES * rec.rate / max(across, 1.0)
+    # a drop spanning n intervals lasts at least n − 1 of them: the rate that puts the least
+    # allowed count across the shortest such drop; under two intervals its length is unknown
+    if across >= 2:
+        need = f"record at {MIN_DROP_SAMPLES * rec.rate / (across - 1):.3g} Hz or faster"
+    else:
+        need = (f"the drops last less than {2.0 / rec.rate:.3g} s, so record faster than "
+                f"{MIN_DROP_SAMPLES * rec.rate / 2.0:.3g} Hz at the least (their duration is "
+                "not in the record)")
     raise ValueError(f"{rec.source}: at {rec.rate:.6g} Hz the force falls from its peak to its "
                      f"trough within {across:g} sampling interval{'s' if across != 1 else ''} "
                      f"(the median event): the drops are not resolved, and their size, timing "
                      f"and slip would be made up; observe needs {MIN_DROP_SAMPLES} intervals "
-                     f"across a drop: record at {need:.3g} Hz or faster (more if the events are "
-                     "shorter than a sample)")
+                     f"across a drop: {need}")
 
 
 def _compare_raw_drop(table, sigma_mu: float, notes: list) -> None:

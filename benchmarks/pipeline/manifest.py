@@ -372,6 +372,14 @@ def read_manifest(out: Path) -> dict[str, dict]:
     return {r["step"]: r for r in records}
 
 
+def read_manifest_or_none(out: Path) -> dict[str, dict] | None:
+    """:func:`read_manifest`, or None where there is none or it cannot be read."""
+    try:
+        return read_manifest(out) or None
+    except BadResultsFile:
+        return None
+
+
 def write_manifest(out: Path, records: dict[str, dict], order=()) -> None:
     """``out/manifest.json``, atomically: the records in ``order``, then any others."""
     rank = {name: i for i, name in enumerate(order)}

@@ -73,11 +73,17 @@ def reproduce(out: Path, full: bool = False, force: bool = False, start: str | N
                  for s in steps[first:]}
     out = Path(out)
     if not dry_run:
+        from benchmarks.records.files import claim_outputs
+        if not M.read_manifest_or_none(out):   # not a results store: a user's REPORT.md
+            claim_outputs([out / "REPORT.md"])  # is refused before the work
         out.mkdir(parents=True, exist_ok=True)
     rows = run_steps(steps, out, modes, dry_run=dry_run)
     if dry_run:
         return rows
-    (out / "REPORT.md").write_text(report_markdown(plan, out))
+    from benchmarks.records.files import permit, write_output
+    if M.read_manifest_or_none(out):          # a results store's report is the pipeline's
+        permit([out / "REPORT.md"])
+    write_output(out / "REPORT.md", report_markdown(plan, out))
     print(f"\nwritten: {out / 'REPORT.md'}")
     from benchmarks.pipeline.readme import ROOT, refresh_pages
     if out.resolve() == (ROOT / "results").resolve():    # the README and docs quote these files
@@ -149,7 +155,10 @@ def run_steps(steps, out: Path, modes: dict[str, str], dry_run: bool = False,
         try:
             step.run(out, **step.settings)
         finally:                              # also a step stopped half-way: what it wrote
-            adopt(out / p for p in M.written_since(before, out))     # is rsfbench's
+            try:                              # is rsfbench's (a full disk: the step's own
+                adopt(out / p for p in M.written_since(before, out))    # error is the one
+            except OSError:                                              # said)
+                pass
         wall = time.perf_counter() - started
         outputs = _declared_outputs(step, steps, out, before)
         records = current()
@@ -160,21 +169,22 @@ def run_steps(steps, out: Path, modes: dict[str, str], dry_run: bool = False,
 
 
 def _refuse_foreign_files(study, out: Path) -> None:
-    """Before a study runs: in a directory that is not yet a results store (no manifest), a
-    file its declared patterns match that rsfbench's ledger does not know, unchanged, is a
-    user's, and refused unless ``--overwrite`` (:mod:`benchmarks.records.files`). In a results
-    store every such file is the pipeline's record, and the step writes it again (a record
-    changed by hand is stale: the rerun restores it)."""
+    """Before a study runs: a file its declared patterns match is a user's, and refused unless
+    ``--overwrite`` (:mod:`benchmarks.records.files`), when the directory's manifest (a
+    readable one: a file merely named so says nothing) does not list it as a step's output and
+    rsfbench's ledger does not know it, unchanged. A listed file is the pipeline's record: the
+    step writes it again, even if it was edited since (a record changed by hand is stale, and
+    the rerun restores it)."""
     from benchmarks.records.files import claim_outputs, permit
     out = Path(out)
     if not out.is_dir():
         return
     found = [p for pattern in study.writes for p in sorted(out.glob(pattern)) if p.is_file()]
-    if (out / M.MANIFEST).exists():
-        permit(found)
-    else:
-        claim_outputs(found)
-        permit(found)
+    records = M.read_manifest_or_none(out) or {}
+    listed = {rel for r in records.values() for rel in r.get("outputs", {})}
+    mine = [p for p in found if p.relative_to(out).as_posix() in listed]
+    claim_outputs(p for p in found if p not in mine)      # the ledger's pass; others refused
+    permit(found)
 
 
 def _declared_outputs(study, plan, out: Path, before: dict) -> dict[str, str]:

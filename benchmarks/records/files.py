@@ -247,14 +247,28 @@ def write_figure(fig, path, **savefig) -> Path:
     return path
 
 
+@contextlib.contextmanager
+def _ledger_lock(directory: Path):
+    """The directory locked (flock on it) while its ledger is read, changed and written: runs
+    writing into one directory at once keep each other's entries."""
+    import fcntl
+    fd = os.open(directory, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)                     # releases the lock
+
+
 def _record(path: Path) -> None:
     resolved = path.resolve()
     if resolved not in _RUN.written:
         _RUN.written.append(resolved)
-    ledger = _ledger(path.parent)
-    ledger[path.name] = {"sha256": _sha256(path), "written": time.strftime(
-        "%Y-%m-%dT%H:%M:%S%z")}
-    atomic_write(path.parent / LEDGER, json.dumps(ledger, indent=1, sort_keys=True) + "\n")
+    digest = _sha256(path)
+    with _ledger_lock(path.parent):
+        ledger = _ledger(path.parent)
+        ledger[path.name] = {"sha256": digest, "written": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+        atomic_write(path.parent / LEDGER, json.dumps(ledger, indent=1, sort_keys=True) + "\n")
 
 
 def adopt(paths) -> None:
@@ -271,9 +285,11 @@ def remove_own(path) -> bool:
     if not path.is_file() or path.resolve() in _RUN.inputs or not is_own(path):
         return False
     path.unlink()
-    ledger = _ledger(path.parent)
-    if ledger.pop(path.name, None) is not None:
-        atomic_write(path.parent / LEDGER, json.dumps(ledger, indent=1, sort_keys=True) + "\n")
+    with _ledger_lock(path.parent):
+        ledger = _ledger(path.parent)
+        if ledger.pop(path.name, None) is not None:
+            atomic_write(path.parent / LEDGER,
+                         json.dumps(ledger, indent=1, sort_keys=True) + "\n")
     return True
 
 
