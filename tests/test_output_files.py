@@ -200,3 +200,18 @@ def test_study_refuses_a_user_s_report_in_a_folder_that_is_no_results_store(tmp_
     assert main(["study", "integrators", "--out", str(tmp_path)]) == 2
     assert "REPORT.md exists and is not a file rsfbench wrote" in capsys.readouterr().err
     assert (tmp_path / "REPORT.md").read_text() == "MY REPORT - precious\n"
+
+
+@pytest.mark.parametrize("argv, name", [
+    (["convergence", "--problem", "paper-example"], "convergence_paper-example_slip.png"),
+    (["convergence", "--fixed-steps"], "convergence_fixed_steps.png"),
+    (["work-precision", "--problems", "W2", "--t-end", "2", "--integrators", "Rodas5P"],
+     "wp_quick_W2_slip.png"),
+])
+def test_the_studies_commands_refuse_a_user_s_figure_before_the_work(tmp_path, capsys, argv,
+                                                                     name):
+    """They refused it only after the work (18 s to 146 s), their other files written."""
+    (tmp_path / name).write_text("mine")
+    assert main([*argv, "--out", str(tmp_path)]) == 2
+    assert f"{name} exists and is not a file rsfbench wrote" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == [name]

@@ -303,6 +303,12 @@ def cmd_work_precision(args) -> int:
     if args.t_end is not None:
         problems = [dataclasses.replace(p, t_end=args.t_end) for p in problems]
     names = None if not args.integrators else [algorithm_name(n) for n in args.integrators]
+    import re
+    stem = Path(args.out) / f"wp_{args.name or args.study}"
+    claim_outputs([*(Path(f"{stem}{tail}") for tail in (".csv", "_pareto.csv", "_pareto.md",
+                                                        "_for_sigma.csv")),
+                   *(Path(f"{stem}_{re.sub(r'[^A-Za-z0-9._-]+', '_', p.name)}.png")
+                     for p in problems)])       # before the work: a user's file is refused
     from benchmarks.devtools.reference import ReferenceDisagreement, no_stick_slip, reference
     for problem in problems:                   # before any run; the study reads them cached
         why = no_stick_slip(problem)
@@ -316,9 +322,6 @@ def cmd_work_precision(args) -> int:
     if args.problem and names is None:       # on your problem: the compiled ones, in minutes
         names = [n for n, c in sorted(REGISTRY.items()) if c.library.startswith(COMPILED)]
         tiers = tuple(args.tiers or ("numba",))
-    stem = Path(args.out) / f"wp_{args.name or args.study}"
-    claim_outputs(Path(f"{stem}{tail}") for tail in (".csv", "_pareto.csv", "_pareto.md",
-                                                     "_for_sigma.csv"))   # before the work
     df = work_precision(problems, ladder, names=names, tiers=tiers,
                         progress=show_progress(args))
     df["command"] = args.command_line                 # the rows carry the machine's already
@@ -384,6 +387,9 @@ def cmd_convergence(args) -> int:
     problem = _study_problem(args.problem, "--problem")
     if args.t_end:
         problem = dataclasses.replace(problem, t_end=args.t_end)
+    if args.out:                              # a user's file there: refused before the work
+        stem = Path(args.out) / f"convergence_{problem.name.replace('/', '_')}"
+        claim_outputs(stem.with_suffix(tail) for tail in (".csv", ".json", ".png"))
     table, orders = convergence_study(problem, names=names, progress=show_progress(args))
     summary = (write_convergence(problem, table, orders, args.out) if args.out
                else convergence_summary(problem, table, orders))
@@ -404,6 +410,9 @@ def _fixed_step_orders(args, names) -> int:
         fixed_step_orders,
         write_fixed_step_orders,
     )
+    if args.out:                              # a user's file there: refused before the work
+        claim_outputs(Path(args.out) / f"convergence_fixed_steps{tail}"
+                      for tail in (".csv", ".md", ".json", ".png"))
     table, orders = fixed_step_orders(names, progress=show_progress(args))
     summary = (write_fixed_step_orders(table, orders, args.out) if args.out
                else {"orders": orders})
