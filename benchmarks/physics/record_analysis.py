@@ -572,6 +572,7 @@ def _events(rec, drops, fs_smooth, acc, vls, slip_source, noise, notes) -> pd.Da
                          "two")
     _check_resolution(rec, table)
     _compare_raw_drop(table, noise["shear_force"] / float(np.median(fn)), notes)
+    _note_noise_at_coarse_rate(rec, table, noise["shear_force"] / float(np.median(fn)), notes)
     out = table[["t_start", "t_end", *METRICS, "friction_drop_raw", "drop_samples", "_i0",
                  "_i1", "_imax", "_imin", "_drop"]].copy()
     out.attrs["integrated"] = integrated
@@ -604,6 +605,28 @@ def _check_resolution(rec, table) -> None:
                      f"(the median event): the drops are not resolved, and their size, timing "
                      f"and slip would be made up; observe needs {MIN_DROP_SAMPLES} intervals "
                      f"across a drop: {need}")
+
+
+#: below this rate (Hz) a noisy force's extremes carry a bias the fit cannot average out: the
+#: few samples at the drop's corner. Measured on docs/examples/apparatus.toml with white noise
+#: of 1 % of the drop: Δμ high by 0.1 σ at 10 kHz, 0.9 σ at 1 kHz, 2.8 σ at 500 Hz (σ: the
+#: noise in μ; each extreme moves about half of it)
+NOISY_RATE = 5_000.0
+#: the bias per σ of the noise said at rates below ``NOISY_RATE`` (the 500 Hz figure)
+NOISY_BIAS = 2.8
+
+
+def _note_noise_at_coarse_rate(rec, table, sigma_mu: float, notes: list) -> None:
+    """Say the bias a noisy force's drop carries at a coarse rate (:data:`NOISY_RATE`), when it
+    exceeds 0.1 % of the drop: not removed, so an inversion is told."""
+    drop = float(np.median(table.friction_drop))
+    bias = NOISY_BIAS * sigma_mu / drop if drop > 0 else 0.0
+    if rec.rate < NOISY_RATE and bias > 1e-3:
+        notes.append(f"the force's noise (σ = {sigma_mu:.2g} in μ, {sigma_mu / drop:.2g} of the "
+                     f"drop) at {rec.rate:.6g} Hz biases the friction drop high by up to about "
+                     f"{100 * bias:.2g} % (the extremes at the drop's corner have few samples "
+                     "to average; measured on model recordings): record faster or with less "
+                     "noise, or widen σ of Δμ in the inversion")
 
 
 def _compare_raw_drop(table, sigma_mu: float, notes: list) -> None:
