@@ -23,6 +23,7 @@ import pandas as pd
 from tqdm.auto import tqdm
 
 from benchmarks.physics.metrics import LOCKED_SLIP_RATE, interevent_slip_rate, summarize
+from benchmarks.records.files import write_output, write_table
 from benchmarks.records.report import fmt, markdown_table
 from benchmarks.studies.study import Study, markdown_file
 from integrators import Rodas5P, solve
@@ -101,7 +102,7 @@ def classification_study(progress: bool = True) -> pd.DataFrame:
 def write_classification(table: pd.DataFrame, out: Path) -> str:
     """``classification.csv`` and ``.md`` in ``out``; returns the Markdown."""
     out.mkdir(parents=True, exist_ok=True)
-    table.to_csv(out / "classification.csv", index=False)
+    write_table(table, out / "classification.csv")
     # a cycle of events: an oscillation about vL without events (a small limit cycle, or the
     # neutral oscillation at k = kcr) has no gaps between events to compare
     has_cycle = table.period.fillna(0) > 0
@@ -130,7 +131,7 @@ def write_classification(table: pd.DataFrame, out: Path) -> str:
             f"{int((by_rule & ~by_trajectory).sum())} runs locked whose slip rate stayed above "
             f"{LOCKED_V:g} vLs, and {int((~by_rule & by_trajectory).sum())} runs not locked whose "
             f"slip rate fell below it.\n")
-    (out / "classification.md").write_text(text)
+    write_output(out / "classification.md", text)
     return text
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from benchmarks.devtools.compare import compare_integrators, compare_markdown
+from benchmarks.records.files import write_output, write_table
 from benchmarks.studies.study import Study, markdown_file
 from problems import paper_example
 
@@ -15,8 +16,8 @@ COMPARE_RTOL = 1e-8
 
 def run(out: Path, rtol: float, wall_budget: float) -> None:
     table = compare_integrators(paper_example(), rtol, rtol, wall_budget=wall_budget)
-    table.to_csv(out / "compare_paper_example.csv", index=False)
-    (out / "compare_paper_example.md").write_text(compare_markdown(table))
+    write_table(table, out / "compare_paper_example.csv")
+    write_output(out / "compare_paper_example.md", compare_markdown(table))
 
 
 STUDY = Study("compare", f"Every integrator on the paper example at rtol = atol = {COMPARE_RTOL:g} "

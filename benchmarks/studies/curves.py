@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from benchmarks.records.files import write_figure, write_output, write_table
 from benchmarks.records.report import jsonable, markdown_table
 from benchmarks.studies.study import Study
 
@@ -129,7 +130,7 @@ def curves_study(out, seeds: int = 200, n: int = 61, sigma_rel: float = 0.01,
             row["edge_mass"] = post.edge_mass
             rows.append(row)
     table = pd.DataFrame(rows)
-    table.to_csv(out / "curves.csv", index=False)
+    write_table(table, out / "curves.csv")
     coverage = []
     for label, g in table.groupby("model", sort=False):
         grid = grids[g["map"].iloc[0]]
@@ -166,8 +167,8 @@ def curves_study(out, seeds: int = 200, n: int = 61, sigma_rel: float = 0.01,
                          "n_cycle_nodes": int(v.cycle.sum())} for k, v in maps.items()},
             "coverage": coverage, "targets": targets, "recordings": through,
             "wall_s": time.perf_counter() - started}
-    (out / "curves.json").write_text(json.dumps(jsonable(info), indent=2) + "\n")
-    (out / "curves.md").write_text(_markdown(info))
+    write_output(out / "curves.json", json.dumps(jsonable(info), indent=2) + "\n")
+    write_output(out / "curves.md", _markdown(info))
     _plot(table, out / "curves.png")
     return info
 
@@ -243,7 +244,7 @@ def _through_a_recording(problem, algorithm, seed: int, out: Path) -> dict:
     with tempfile.TemporaryDirectory() as tmp, warnings.catch_warnings():
         warnings.simplefilter("ignore")          # a synthetic record's σ of ΔT warns tiny
         path = Path(tmp) / "recording.csv"
-        rec.to_csv(path, index=False)
+        write_table(rec, path)
         columns = {c: c for c in rec.columns}
         observe(path, columns, Path(tmp) / "obs", normal_force=problem.normal_force,
                 mass=problem.mass, plot=False)
@@ -356,7 +357,7 @@ def _plot(table: pd.DataFrame, path: Path) -> None:
         ax.tick_params(axis="x", labelsize=7, rotation=15)
     fig.suptitle("W2/slip synthetic data: interval widths over seeds", fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    write_figure(fig, path, dpi=110)
     plt.close(fig)
 
 

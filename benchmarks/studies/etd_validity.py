@@ -19,6 +19,7 @@ from pathlib import Path
 import pandas as pd
 from tqdm.auto import tqdm
 
+from benchmarks.records.files import write_output, write_table
 from benchmarks.records.report import fmt, markdown_table
 from benchmarks.studies.study import Study, markdown_file
 from integrators import ETD2, ETDIterated, Rodas5P, solve
@@ -62,7 +63,7 @@ def etd_validity(progress: bool = True) -> pd.DataFrame:
 def write_etd_validity(table: pd.DataFrame, out: Path) -> str:
     """``etd_validity.csv`` and ``.md`` in ``out``; returns the Markdown."""
     out.mkdir(parents=True, exist_ok=True)
-    table.to_csv(out / "etd_validity.csv", index=False)
+    write_table(table, out / "etd_validity.csv")
     good = table[table.group != "outside the rule"]
     summary = (good.groupby(["group", "method"], sort=False)
                .agg(runs=("problem", "size"),
@@ -85,7 +86,7 @@ def write_etd_validity(table: pd.DataFrame, out: Path) -> str:
             + "\nThe problems the check exists for (a start out of force balance; b/a = 100), "
             "against Rodas5P's first event:\n\n"
             + markdown_table(stops))
-    (out / "etd_validity.md").write_text(text)
+    write_output(out / "etd_validity.md", text)
     return text
 
 

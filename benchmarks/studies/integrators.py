@@ -5,13 +5,14 @@ from __future__ import annotations
 from pathlib import Path
 
 from benchmarks.physics.summary import integrators_markdown
+from benchmarks.records.files import write_output
 from benchmarks.studies.study import Study, markdown_file
 
 __all__ = ["STUDY"]
 
 
 def run(out: Path) -> None:
-    (out / "integrators.md").write_text(integrators_markdown())
+    write_output(out / "integrators.md", integrators_markdown())
 
 
 STUDY = Study("integrators", "The registry (`integrators.md`)", 10, run,

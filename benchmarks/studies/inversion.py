@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from benchmarks.records.files import write_figure, write_output, write_table
 from benchmarks.records.report import fmt, jsonable, markdown_table
 from benchmarks.studies.study import Study
 
@@ -59,9 +60,9 @@ def posterior_target(out, walkers: int = 32, steps: int = 2500, seed: int = 0,
               "min_solves": TARGET_SOLVES, "max_wall_s": TARGET_WALL_S,
               "met": bool(p["n_solves"] >= TARGET_SOLVES and p["wall_s"] <= TARGET_WALL_S)}
     summary.update(target=target, integrator_choice=why)
-    (out / "inversion_W2_slip" / "inversion.json").write_text(
+    write_output(out / "inversion_W2_slip" / "inversion.json",
         json.dumps(jsonable(summary), indent=2) + "\n")
-    (out / "inversion.md").write_text(_inversion_markdown(summary))
+    write_output(out / "inversion.md", _inversion_markdown(summary))
     return summary
 
 
@@ -135,7 +136,7 @@ def calibration_study(out, seeds: int = 1000, n: int = 121, sigma_rel: float = 0
                    seeds=seeds, n_b=n, n_lc=n, check_seeds=check_seeds, check_steps=check_steps,
                    progress=progress)
     wall = time.perf_counter() - started
-    cal.seeds.to_csv(out / "calibration.csv", index=False)
+    write_table(cal.seeds, out / "calibration.csv")
     g = cal.grid_map
     (b_lo, b_hi), (lc_lo, lc_hi) = cell_box(g.b, g.log10_lc)
     info = {"truth": {"b": b_t, "lc_m": lc_t}, "sigma_rel": sigma_rel, "seeds": seeds,
@@ -146,8 +147,8 @@ def calibration_study(out, seeds: int = 1000, n: int = 121, sigma_rel: float = 0
             "n_cycle_nodes": int(g.cycle.sum()), "wall_s": wall,
             "coverage": cal.summary.to_dict(orient="records"),
             "checks": cal.checks.to_dict(orient="records")}
-    (out / "calibration.json").write_text(json.dumps(jsonable(info), indent=2) + "\n")
-    (out / "calibration.md").write_text(_calibration_markdown(cal, info))
+    write_output(out / "calibration.json", json.dumps(jsonable(info), indent=2) + "\n")
+    write_output(out / "calibration.md", _calibration_markdown(cal, info))
     _plot_calibration(cal, out / "calibration.png")
     return cal.summary
 
@@ -238,7 +239,7 @@ def _plot_calibration(cal, path: Path) -> None:
     ax.set_xlim(0.75, 1.0)
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.3, -0.2), ncol=3)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    write_figure(fig, path, dpi=110)
     plt.close(fig)
 
 

@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from benchmarks.records.files import write_figure, write_output, write_table
 from benchmarks.records.report import jsonable, markdown_table
 from benchmarks.studies.study import Study
 
@@ -201,7 +202,7 @@ def _plot(figures, path: Path) -> None:
         axes[1, col].set_ylabel("residual")
         axes[1, col].set_xlabel("load-point displacement (µm)")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    write_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
@@ -218,7 +219,7 @@ def lab_fit_study(out: Path, seeds: int = 200, profile_seeds: int = 100,
     cost = _cost()
     say(f"cost: a fit {cost['fit_s']:.2f} s, three profiles {cost['profiles_s']:.2f} s")
     table = _coverage(seeds, min(profile_seeds, seeds), say)
-    table.to_csv(out / "lab_fit.csv", index=False)
+    write_table(table, out / "lab_fit.csv")
     coverage = {}
     for name in TRUTH:
         for kind, n in (("wald", seeds), ("profile", min(profile_seeds, seeds))):
@@ -237,8 +238,8 @@ def lab_fit_study(out: Path, seeds: int = 200, profile_seeds: int = 100,
             "coverage": coverage, "cost": cost, "inertia": _inertia(),
             "real": _real(root, out),
             "wall_s": time.perf_counter() - started}
-    (out / "lab_fit.json").write_text(json.dumps(jsonable(info), indent=2))
-    (out / "lab_fit.md").write_text(_markdown(info))
+    write_output(out / "lab_fit.json", json.dumps(jsonable(info), indent=2))
+    write_output(out / "lab_fit.md", _markdown(info))
     return info
 
 

@@ -26,6 +26,7 @@ import pandas as pd
 
 from benchmarks.devtools.errors import errors
 from benchmarks.devtools.reference import reference
+from benchmarks.records.files import write_figure, write_table
 from benchmarks.studies.study import Study
 from integrators import REGISTRY, solve
 from integrators.core.registry import ProblemNotSupported
@@ -106,7 +107,7 @@ def write_mass_limit(out: Path, progress: bool = True) -> pd.DataFrame:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     df = mass_limit(progress)
-    df.to_csv(out / "mass_limit.csv", index=False)
+    write_table(df, out / "mass_limit.csv")
     show = df.assign(wall_ms=1e3 * df.wall_s)[
         ["ladder", "mass_kg", "method", "retcode", "wall_ms", "steps", "err_recurrence",
          "peak_velocity_m_s"]]
@@ -236,7 +237,7 @@ def _plot(df: pd.DataFrame, path: Path) -> None:
     axes[0].set_ylabel("wall time per solve (s)")
     axes[0].legend(fontsize=7, loc="center right")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    write_figure(fig, path, dpi=110)
     plt.close(fig)
 
 

@@ -27,6 +27,7 @@ from benchmarks.physics.curves import (
     sample_curves,
 )
 from benchmarks.physics.metrics import summarize
+from benchmarks.records.files import write_output, write_table
 from benchmarks.records.report import fmt, markdown_table
 from benchmarks.studies.study import Study, markdown_file
 from integrators import Rodas5P, solve
@@ -70,7 +71,7 @@ def j2_information(progress: bool = True) -> pd.DataFrame:
 def write_j2_information(table: pd.DataFrame, out: Path) -> str:
     """``j2_information.csv`` and ``.md`` in ``out``; returns the Markdown."""
     out.mkdir(parents=True, exist_ok=True)
-    table.to_csv(out / "j2_information.csv", index=False)
+    write_table(table, out / "j2_information.csv")
     truth = table[np.isclose(table.b, 0.0094) & np.isclose(table.lc_um, 0.3)].iloc[0]
     lines = []
     for col, what in (("J2_friction", "friction Ft/Fn (Eq. 11, now)"),
@@ -88,7 +89,7 @@ def write_j2_information(table: pd.DataFrame, out: Path) -> str:
             f"events, noise of std {NOISE:g} (`{CURVES.relative_to(CURVES.parents[2])}`); each "
             "grid point simulated 20 s by Rodas5P at 1e−8, its last event compared.\n\n"
             + "\n".join(lines))
-    (out / "j2_information.md").write_text(text)
+    write_output(out / "j2_information.md", text)
     return text
 
 

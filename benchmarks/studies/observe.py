@@ -22,6 +22,7 @@ import numpy as np
 import pandas as pd
 
 from benchmarks.physics.metrics import METRICS
+from benchmarks.records.files import write_output, write_table
 from benchmarks.studies.study import Study, markdown_file
 
 __all__ = ["STUDY", "observe_accuracy", "observe_speed"]
@@ -90,7 +91,7 @@ def observe_speed(repeats: int = 3) -> pd.DataFrame:
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         files = {"csv": Path(tmp) / "record.csv"}
-        table.to_csv(files["csv"], index=False)
+        write_table(table, files["csv"])
         if importlib.util.find_spec("pyarrow") is not None:   # the ensemble extra's
             files["parquet"] = Path(tmp) / "record.parquet"
             table.to_parquet(files["parquet"])
@@ -145,10 +146,10 @@ def observe_markdown(accuracy: pd.DataFrame, speed: pd.DataFrame) -> str:
 def run(out: Path) -> None:
     accuracy = observe_accuracy(progress=True)
     speed = observe_speed()
-    accuracy.to_csv(out / "observe_accuracy.csv", index=False)
-    speed.to_csv(out / "observe_speed.csv", index=False)
+    write_table(accuracy, out / "observe_accuracy.csv")
+    write_table(speed, out / "observe_speed.csv")
     text = observe_markdown(accuracy, speed)
-    (out / "observe.md").write_text(text)
+    write_output(out / "observe.md", text)
     print(text)
 
 

@@ -9,6 +9,7 @@ from pathlib import Path
 from benchmarks.devtools.timing import warm_up
 from benchmarks.physics.plots import plot_solution
 from benchmarks.physics.summary import simulate_summary
+from benchmarks.records.files import write_output
 from benchmarks.studies.study import Study
 from integrators import ETD2, solve
 from problems import paper_example, window
@@ -21,7 +22,7 @@ def run(out: Path) -> None:
     warm_up(problem, algorithm)
     sol = solve(problem, algorithm, max_points=200_000)
     summary = simulate_summary(sol)
-    (out / "paper_example.json").write_text(json.dumps(summary, indent=2) + "\n")
+    write_output(out / "paper_example.json", json.dumps(summary, indent=2) + "\n")
     plot_solution(sol, out / "paper_example.png")
     plot_solution(solve(window("W2"), algorithm, max_points=200_000), out / "W2_slip.png")
     print(json.dumps(summary["limit_cycle"], indent=2))

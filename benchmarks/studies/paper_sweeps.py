@@ -29,6 +29,7 @@ from benchmarks.inversion.maps import plot_sweep
 from benchmarks.inversion.published import B_STEP, GRID, T_END, best_fit, grid_around
 from benchmarks.inversion.observations import observations
 from benchmarks.inversion.sweep import sweep
+from benchmarks.records.files import write_output, write_table
 from benchmarks.records.provenance import provenance
 from benchmarks.records.report import fmt, jsonable, markdown_table
 from benchmarks.studies.study import Study
@@ -82,8 +83,8 @@ def paper_sweeps(out, cache=None, windows=("W1", "W2", "W3", "W4"), laws=("slip"
                 "grid_lc_um": f"{lc.min() * 1e6:.3g}..{lc.max() * 1e6:.3g} ({len(lc)} log)",
                 "integrator": algorithm.name, "sim_wall_s_total": s["sim_wall_s_total"]})
     table = pd.DataFrame(rows)
-    table.to_csv(out / "sweeps.csv", index=False)
-    (out / "sweeps.md").write_text(sweeps_markdown(table, why))
+    write_table(table, out / "sweeps.csv")
+    write_output(out / "sweeps.md", sweeps_markdown(table, why))
     return table
 
 
@@ -147,13 +148,13 @@ def sweep_scaling(out, n: int = 21, t_end: float = 40.0, progress: bool = True,
     }
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    (out / "sweep_scaling.json").write_text(json.dumps(jsonable(summary), indent=2))
+    write_output(out / "sweep_scaling.json", json.dumps(jsonable(summary), indent=2))
     md = pd.DataFrame([{"run": k, "wall (s)": fmt(v["wall_s"]),
                         "Σ per-point solve (s)": fmt(v["sim_wall_s_total"]),
                         "median point (s)": fmt(v["sim_wall_s_median"]),
                         "overhead per point (ms)": fmt(1e3 * v["overhead_per_point_s"]),
                         "speed-up": fmt(serial["wall_s"] / v["wall_s"])} for k, v in runs.items()])
-    (out / "sweep_scaling.md").write_text(
+    write_output(out / "sweep_scaling.md",
         f"{summary['grid']}; integrator {why}. One stand-alone run at the best fit: "
         f"{single * 1e3:.1f} ms (min of 3, warm).\n\n" + markdown_table(md))
     return summary

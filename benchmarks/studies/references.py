@@ -9,6 +9,7 @@ import pandas as pd
 
 from benchmarks.devtools.reference import agreement_table, reference
 from benchmarks.devtools.work_precision import study_problems
+from benchmarks.records.files import write_table
 from benchmarks.records.report import markdown_table
 from benchmarks.studies.study import Study
 
@@ -17,7 +18,7 @@ __all__ = ["STUDY"]
 
 def run(out: Path) -> None:
     refs = [(p, reference(p, progress=False)) for p in study_problems("full")]
-    agreement_table(refs).to_csv(out / "references.csv", index=False)
+    write_table(agreement_table(refs), out / "references.csv")
 
 
 def report(out: Path) -> str:

@@ -67,6 +67,7 @@ from benchmarks.inversion.fit import fit
 from benchmarks.inversion.grid import GridPosterior, MetricMap, box_grid, metric_map
 from benchmarks.inversion.misfit import Misfit, synthetic
 from benchmarks.inversion.observations import Observations, observations
+from benchmarks.records.files import write_figure, write_output, write_table
 from benchmarks.records.report import fmt, markdown_table
 from benchmarks.studies.study import Study
 from integrators import Algorithm
@@ -394,10 +395,10 @@ def solver_effect_study(out, n: int = 31, windows=("W1", "W2", "W3", "W4"),
                           Exprb43(rtol=1e-9, atol=1e-9), windows=windows, laws=laws, n=n,
                           progress=say, yours=yours, own=own)
     wall = time.perf_counter() - started
-    table.to_csv(out / "solver_effect.csv", index=False)
+    write_table(table, out / "solver_effect.csv")
     advice = recommendation(table)
-    advice.to_csv(out / "solver_effect_recommendation.csv", index=False)
-    (out / "solver_effect.md").write_text(_solver_effect_markdown(
+    write_table(advice, out / "solver_effect_recommendation.csv")
+    write_output(out / "solver_effect.md", _solver_effect_markdown(
         table, advice, study_csv.name if study is not None else None, wall, SHIFT_SD,
         MIN_OVERLAP, own, quick, command))
     _plot_solver_effect(table, out / "solver_effect.png", MIN_OVERLAP)
@@ -503,7 +504,7 @@ def _plot_solver_effect(table, path: Path, min_overlap: float) -> None:
                  "overlap threshold; hollow: a mean shifted or the overlap too small)",
                  fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    write_figure(fig, path, dpi=100)
     plt.close(fig)
 
 

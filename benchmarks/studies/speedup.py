@@ -35,6 +35,7 @@ from benchmarks.devtools.reference import reference
 from benchmarks.devtools.timing import warm_up
 from benchmarks.devtools.work_precision import Ladder, measure
 from benchmarks.physics.metrics import METRICS, event_metrics
+from benchmarks.records.files import write_output, write_table
 from benchmarks.studies.study import Study, markdown_file
 from integrators import ETD2, REGISTRY, solve
 from problems import paper_example
@@ -261,9 +262,9 @@ def write_speedup(summary: dict, table: pd.DataFrame, out) -> str:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     text = speedup_markdown(summary, table)
-    (out / "speedup.json").write_text(json.dumps(_jsonable(summary), indent=2) + "\n")
-    table.to_csv(out / "speedup.csv", index=False)
-    (out / "speedup.md").write_text(text)
+    write_output(out / "speedup.json", json.dumps(_jsonable(summary), indent=2) + "\n")
+    write_table(table, out / "speedup.csv")
+    write_output(out / "speedup.md", text)
     return text
 
 

@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 
 from benchmarks.devtools.work_precision import read_study, reliable_error
+from benchmarks.records.files import write_output, write_table
 from benchmarks.records.report import fmt, markdown_table
 from benchmarks.studies.study import Study
 from integrators import REGISTRY
@@ -120,8 +121,8 @@ def write_target(csv, out, name: str | None = None) -> pd.DataFrame:
     name = name or csv.stem.removeprefix("wp_")
     t = target_table(read_study(csv))
     out.mkdir(parents=True, exist_ok=True)
-    t.to_csv(out / f"target_{name}.csv", index=False)
-    (out / f"target_{name}.md").write_text(target_markdown(t))
+    write_table(t, out / f"target_{name}.csv")
+    write_output(out / f"target_{name}.md", target_markdown(t))
     return t
 
 

@@ -9,6 +9,7 @@ from tqdm.auto import tqdm
 
 from benchmarks.devtools.timing import warm_up
 from benchmarks.physics.metrics import summarize
+from benchmarks.records.files import write_output
 from benchmarks.records.report import markdown_table
 from benchmarks.studies.study import Study, markdown_file
 from integrators import solve
@@ -80,7 +81,7 @@ def run(out: Path) -> None:
             problem = window(name, law)
             warm_up(problem, algorithm)
             summary = simulate_summary(solve(problem, algorithm))
-            (out / f"simulate_{name}_{law}.json").write_text(json.dumps(summary, indent=2) + "\n")
+            write_output(out / f"simulate_{name}_{law}.json", json.dumps(summary, indent=2) + "\n")
     write_windows(windows_table(), out)
 
 
