@@ -33,6 +33,7 @@ from benchmarks.cli.args import (
     seed,
     show_progress,
 )
+from benchmarks.cli.invert import WALL_BUDGET
 from benchmarks.inversion.observations import observations
 from benchmarks.records.report import jsonable
 
@@ -198,8 +199,10 @@ def add_parsers(sub, preset_names) -> None:
                    help="s the Dask scheduler has to answer before the sweep is refused")
     s.add_argument("--worker-timeout", type=positive, default=WORKER_TIMEOUT_S, metavar="S",
                    help="s a Dask cluster may have no worker before the sweep stops")
-    s.add_argument("--wall-budget", type=positive, metavar="S",
-                   help="wall budget per point in s (default: none)")
+    s.add_argument("--wall-budget", type=positive, default=WALL_BUDGET, metavar="S",
+                   help="wall budget per point in s: a point over it is a failed point, read "
+                        f"as without a limit cycle, never as one (default: {WALL_BUDGET:g} s, "
+                        "as invert's)")
     s.add_argument("--out", type=out_dir, metavar="DIR",
                    help="directory of the store (DIR/chunks), table and maps (default: "
                         "./sweep_<preset or file name>_<law>)")
