@@ -38,7 +38,7 @@ import textwrap
 import tomllib
 from pathlib import Path
 
-from benchmarks.records.files import BadResultsFile, atomic_write
+from benchmarks.records.files import RESULTS_MANIFEST, BadResultsFile, atomic_write
 
 __all__ = ["ROOT", "PACKAGES", "WHOLE_PACKAGES", "MANIFEST", "import_graph", "find_cycles",
            "step_inputs", "inputs_hash", "what_changed", "versions", "machine", "file_hash",
@@ -51,7 +51,7 @@ PACKAGES = ("benchmarks", "integrators", "problems")
 #: packages that count as a whole: any module of theirs stands for all their files
 WHOLE_PACKAGES = ("integrators", "problems")
 #: the manifest's name in a results directory
-MANIFEST = "manifest.json"
+MANIFEST = RESULTS_MANIFEST      # one name, kept by records.files (a study file is its own)
 _RECORD_KEYS = ("step", "inputs_hash", "inputs", "outputs")
 
 
