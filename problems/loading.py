@@ -226,7 +226,7 @@ def slide_hold_slide(v: float, holds, slide: float, first_slide: float | None = 
     """A slide-hold-slide sequence: slide at ``v`` (m/s) for ``first_slide`` s (default
     ``slide``), then for each hold time in ``holds`` (s) hold the load point at rest and slide
     again for ``slide`` s. Each reloading's peak spring force against log hold time is the
-    healing (:func:`benchmarks.physics.lab.healing`)."""
+    healing (:func:`benchmarks.lab.measures.healing`)."""
     check_positive("v", v)
     check_positive("slide", slide)
     first = slide if first_slide is None else check_positive("first_slide", first_slide)

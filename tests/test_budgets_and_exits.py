@@ -15,10 +15,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from benchmarks.devtools.lab_reference import reference_friction, synthetic_record
-from benchmarks.inversion.lab_fit import LabFitWarning
-from benchmarks.physics.lab_model import LabModel
-from benchmarks.physics.lab_record import lab_record_from
+from benchmarks.lab.independent_model import reference_friction, synthetic_record
+from benchmarks.lab.fit import LabFitWarning
+from benchmarks.lab.model import LabModel
+from benchmarks.lab.step_data import lab_record_from
 
 COLUMNS = ["time=time_s", "load_point=load_point_um:um", "friction=friction"]
 TRUTH = dict(a=0.006, b=0.009, dc=10e-6, k=3e3)
@@ -59,7 +59,7 @@ def test_version_and_help_are_on_the_standard_output(args, starts):
     ("rec.csv", None, "columns must map channels"),
 ])
 def test_read_recording_names_a_missing_argument(path, columns, match):
-    from benchmarks.physics.recording import read_recording
+    from benchmarks.lab.channels import read_recording
     with pytest.raises(ValueError, match=match):
         read_recording(path, columns, normal_force=1e6)
 
@@ -84,8 +84,8 @@ def test_a_ctrl_c_in_the_lab_posterior_is_one_exception_and_no_emcee_traceback(
     """emcee prints a traceback for any exception of the log-probability, an interruption
     included; the posterior holds a Ctrl-C until its step ends, then raises it."""
     pytest.importorskip("emcee")
-    from benchmarks.inversion import lab_fit
-    from benchmarks.inversion.lab_posterior import sample_lab
+    from benchmarks.lab import fit
+    from benchmarks.lab.sampling import sample_lab
     fit = lab_fit.fit_lab(LabModel(_step_record(), "aging", detrend="none"))
     calls = {"n": 0}
     residual = lab_fit._Problem.residual
@@ -106,8 +106,8 @@ def test_a_ctrl_c_in_the_lab_posterior_is_one_exception_and_no_emcee_traceback(
 
 # --- budgets: a solve over its budget is a counted failure, never physics -------------------
 def test_a_lab_solve_over_its_budget_is_no_friction_and_fails_the_check():
-    from benchmarks.inversion.lab_checks import check_lab_solver
-    from benchmarks.inversion.lab_fit import fit_lab
+    from benchmarks.lab.checks import check_lab_solver
+    from benchmarks.lab.fit import fit_lab
     rec = _step_record()
     model = LabModel(rec, "aging", detrend="none")
     assert model.wall_budget is not None           # a budget by default
@@ -157,7 +157,7 @@ def _misfit(wall_budget=None, max_steps=None):
 def test_an_inversion_point_over_its_budget_is_a_failed_point_and_counted():
     """A step budget of 5 (W2's points need thousands): every solve runs out of it."""
     from benchmarks.inversion.adaptive import grid_posterior
-    from benchmarks.inversion.fitting import NO_CYCLE_J1
+    from benchmarks.inversion.objectives import NO_CYCLE_J1
     misfit = _misfit(max_steps=5)
     table = misfit.evaluate([0.0092, 0.0094], [3e-7, 3e-7])
     assert (table.retcode == "MaxSteps").all() and (table.classification == "failed").all()

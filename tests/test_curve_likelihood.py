@@ -13,7 +13,7 @@ from scipy.stats import norm
 
 from benchmarks.inversion.adaptive import grid_posterior
 from benchmarks.inversion.curve_likelihood import CurveLikelihood, ledoit_wolf
-from benchmarks.inversion.fitting import j2_per_event
+from benchmarks.inversion.objectives import j2_per_event
 from benchmarks.inversion.observations import Observations
 
 

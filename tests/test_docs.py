@@ -52,7 +52,7 @@ def test_no_page_names_an_internal_issue(page):
 def test_every_example_file_loads(name):
     # the problem files as `rsfbench simulate --problem` reads them, the column file as
     # `rsfbench observe --columns` does
-    from benchmarks.inversion.observing import read_column_file
+    from benchmarks.lab.observe import read_column_file
     from problems import SpringSlider, load_problem
     path = DOCS / "examples" / name
     if name == "columns.toml":

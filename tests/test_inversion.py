@@ -96,7 +96,7 @@ def _synthetic(problem, algorithm):
 def test_the_fit_recovers_a_known_point_from_noise_free_data():
     """W2 at (0.0094, 0.3 µm): the scan of the box does not contain the truth (its b values are
     0.0086 + k·0.0001875), the least-squares fit reaches it to 1e−3 relative."""
-    from benchmarks.inversion.fit import fit
+    from benchmarks.inversion.least_squares import fit
     algorithm = Rodas5P(rtol=1e-8, atol=1e-8)
     problem = preset("W2", law="slip", t_end=20.0)
     result = fit(Misfit(problem, _synthetic(problem, algorithm), algorithm),
@@ -108,14 +108,14 @@ def test_the_fit_recovers_a_known_point_from_noise_free_data():
 
 
 def test_a_box_without_stick_slip_is_a_failed_fit_not_a_guess(w2):
-    from benchmarks.inversion.fit import fit
+    from benchmarks.inversion.least_squares import fit
     result = fit(Misfit(w2, observations("W2"), Rodas5P(rtol=1e-4, atol=1e-4)),
                  b_range=(0.004, 0.007), lc_range=(1e-7, 1e-6), grid=3)
     assert not result.success and "no point" in result.message and np.isnan(result.b)
 
 
 def test_a_bad_box_is_refused(w2):
-    from benchmarks.inversion.fit import fit
+    from benchmarks.inversion.least_squares import fit
     with pytest.raises(ValueError, match="b_range"):
         fit(Misfit(w2, observations("W2"), Rodas5P(rtol=1e-4, atol=1e-4)),
             b_range=(0.01, 0.009))
@@ -176,7 +176,7 @@ def test_posterior_credible_intervals_contain_the_truth_for_seeded_noisy_data():
     """W2 at (0.0094, 0.3 µm), 10 % noise (seed 0), started from the least-squares fit: the
     central 95 % of both marginals contains the truth; the chain is reproducible by its seed and
     reports its diagnostics."""
-    from benchmarks.inversion.fit import fit
+    from benchmarks.inversion.least_squares import fit
     from benchmarks.inversion.posterior import sample
     algorithm = Rodas5P(rtol=1e-6, atol=1e-6)
     problem = preset("W2", law="slip", t_end=20.0)

@@ -146,7 +146,7 @@ def test_w2_profiles_with_a_small_sigma_and_few_points_contain_the_fit_and_the_t
     at −6.447, after a search whose absolute tolerance in b exceeded its bracket). Now: both
     intervals contain the fit and the truth, are resolved and monotone; J1 at the truth is
     (0.3² + 0.5²) = 0.34 up to the solver, so the truth is inside by construction."""
-    from benchmarks.inversion.fit import fit
+    from benchmarks.inversion.least_squares import fit
     from benchmarks.ensemble import ensemble
     algorithm = Rodas5P(rtol=1e-6, atol=1e-6)
     problem = preset("W2", law="slip", t_end=20.0)

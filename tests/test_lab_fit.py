@@ -13,13 +13,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from benchmarks.devtools.lab_reference import reference_friction, synthetic_record
-from benchmarks.inversion.lab_checks import check_lab_solver, inertia_check
-from benchmarks.inversion.lab_fit import BOUNDS, LabFitWarning, fit_lab
-from benchmarks.inversion.lab_profile import profile_lab
-from benchmarks.physics.lab_model import LabModel
-from benchmarks.physics.lab_history import find_history
-from benchmarks.physics.lab_record import lab_record_from
+from benchmarks.lab.independent_model import reference_friction, synthetic_record
+from benchmarks.lab.checks import check_lab_solver, inertia_check
+from benchmarks.lab.fit import BOUNDS, LabFitWarning, fit_lab
+from benchmarks.lab.profile_intervals import profile_lab
+from benchmarks.lab.model import LabModel
+from benchmarks.lab.history import find_history
+from benchmarks.lab.step_data import lab_record_from
 
 #: two real records, copied with their licence and source from the shared data (README there)
 DATA = Path(__file__).resolve().parent / "data" / "lab-velocity-steps"
@@ -163,7 +163,7 @@ def test_a_friction_in_percent_and_times_that_go_back_are_refused():
 @pytest.mark.parametrize("law, extra", [("aging", {}), ("slip", {}), ("nagata", {"c": 2.0})])
 def test_the_model_agrees_with_an_independent_one(law, extra):
     """The project's slider (Rodas5P at 1e-10, saved at the record's times) against scipy's
-    Radau on the published equations at 1e-10 (benchmarks.devtools.lab_reference, which shares
+    Radau on the published equations at 1e-10 (benchmarks.lab.independent_model, which shares
     no code with it): 6e-12 to 1e-11 apart in μ when this test was written."""
     rec = lab_record_from(synthetic_record(T, VELOCITIES, SWITCHES, law=law, **TRUTH, **extra,
                                            noise=0.0), COLUMNS)
@@ -180,7 +180,7 @@ def test_the_two_state_model_agrees_with_the_independent_one(law, extra):
     """The compiled two-state slider (Rodas5P's tableau at 1e-10) against scipy's Radau on the
     same published equations: 2e-12 to 2.3e-11 apart when this test was written; and with
     b2 = 0 against the project's one-state slider."""
-    from benchmarks.physics.lab_two_state import two_state_friction
+    from benchmarks.lab.two_state import two_state_friction
     mu, steps = two_state_friction(T, VELOCITIES, SWITCHES, **TRUTH, law=law, **extra)
     ref = reference_friction(T, VELOCITIES, SWITCHES, law=law, **TRUTH, **extra)
     assert steps > 0 and np.max(np.abs(mu - ref)) < 1e-9
@@ -212,7 +212,7 @@ def test_a_second_state_that_strengthens_is_recovered():
 
 def test_the_independent_model_imports_nothing_of_the_project():
     from benchmarks.pipeline.manifest import import_graph
-    deps = import_graph()["benchmarks.devtools.lab_reference"]
+    deps = import_graph()["benchmarks.lab.independent_model"]
     assert not [d for d in deps if d.split(".")[0] in ("problems", "integrators", "benchmarks")]
 
 
@@ -324,7 +324,7 @@ def test_the_posterior_agrees_with_the_covariance_where_it_is_gaussian():
     within a fifth of the Wald ones' width of them (a short chain: 24 × 200, on one step of
     2,000 samples)."""
     pytest.importorskip("emcee")
-    from benchmarks.inversion.lab_posterior import sample_lab
+    from benchmarks.lab.sampling import sample_lab
     df = synthetic_record(T[:2000], (1e-6, 1e-5), (10.0,), **TRUTH, noise=6e-4, seed=8)
     fit = fit_lab(LabModel(lab_record_from(df, COLUMNS), "aging", detrend="none"))
     post = sample_lab(fit, walkers=24, steps=200, seed=1)

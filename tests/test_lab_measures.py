@@ -1,4 +1,4 @@
-"""Laboratory measures (benchmarks.physics.lab, ``rsfbench lab``): located from the run's own method, not
+"""Laboratory measures (benchmarks.lab.measures, ``rsfbench lab``): located from the run's own method, not
 from its save grid, and never a steady value from a piece that has not settled (issue 29)."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import pytest
 
 import integrators as I
 import problems as P
-from benchmarks.physics.lab import (SETTLED, STEP_REFERENCE, PeakNotReached, UnsettledWarning, healing,
+from benchmarks.lab.measures import (SETTLED, STEP_REFERENCE, PeakNotReached, UnsettledWarning, healing,
                             step_reference, step_response)
 from probe.harness import cli, cli_outcome
 from problems.files import problem_dict
@@ -82,7 +82,7 @@ def test_the_step_reference_is_two_independent_solvers_agreeing(key):
 def test_the_healing_peak_is_marones_on_any_grid():
     """Marone's 100 s hold (tests/test_problem_family.py: the vertex of his rows, μ =
     0.6204361366 at 132.672 s after the hold's start), saved at 300 points and at 1 ms."""
-    from benchmarks.physics.lab import marone_problem
+    from benchmarks.lab.measures import marone_problem
     p, _ = marone_problem("slide-hold-slide")
     alg = I.Rodas5P(rtol=1e-11, atol=1e-11)
     for kw in ({"max_points": 300}, {"save_every": 1e-3}):

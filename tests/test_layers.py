@@ -8,7 +8,8 @@ import pytest
 from benchmarks.pipeline.manifest import find_cycles, import_graph
 
 #: bottom to top: a room may import the rooms before it, never those after
-ROOMS = ("records", "physics", "devtools", "ensemble", "inversion", "studies", "pipeline", "cli")
+ROOMS = ("records", "physics", "devtools", "ensemble", "inversion", "lab", "studies", "pipeline",
+         "cli")
 #: modules of ``benchmarks`` outside the rooms: the lazy-API helper, importable from any room;
 #: the pytest-benchmark suite, which imports anything and which nothing imports
 BASE = {"benchmarks", "benchmarks._api"}

@@ -1,6 +1,6 @@
 """``rsfbench observe``: from a laboratory recording to the observations of an inversion.
 
-Round trips: recordings made by the forward model (benchmarks/physics/model_recording.py:
+Round trips: recordings made by the forward model (benchmarks/lab/synthetic.py:
 sampled at 10 kHz, an anti-alias filter, white noise and a slow drift as fractions of what one
 event changes) from which the analysis must recover the model's own per-event metrics — those
 of its event table, which its integrator located by root finding — and the apparatus it was made
@@ -15,10 +15,10 @@ import pandas as pd
 import pytest
 
 from benchmarks.inversion.observations import read_observations, write_observations
-from benchmarks.inversion.observing import observe, read_column_file
-from benchmarks.physics.record_analysis import analyse
-from benchmarks.physics.recording import column_spec, read_recording, recording_from
-from benchmarks.physics.model_recording import synthetic_recording
+from benchmarks.lab.observe import observe, read_column_file
+from benchmarks.lab.events import analyse
+from benchmarks.lab.channels import column_spec, read_recording, recording_from
+from benchmarks.lab.synthetic import synthetic_recording
 from problems import preset
 
 ALL = ("time", "shear_force", "acceleration", "slip", "table")

@@ -218,7 +218,7 @@ def test_a_simulation_grows_below_the_quasi_static_kcr_and_decays_above():
 
 
 # --- an independent code: Marone's ---------------------------------------------------------------
-# Marone's μ(t): benchmarks.physics.lab.MARONE_VELOCITY_STEP and MARONE_SLIDE_HOLD_SLIDE, which say where
+# Marone's μ(t): benchmarks.lab.measures.MARONE_VELOCITY_STEP and MARONE_SLIDE_HOLD_SLIDE, which say where
 # they come from (his code's output as distributed with rsfmodel, printed to 9 decimals).
 @pytest.mark.parametrize("name", ["Rodas5P", "sundials-CVODE-BDF", "sundials-IDA"])
 @pytest.mark.parametrize("test", ["velocity step", "slide-hold-slide"])
@@ -228,7 +228,7 @@ def test_marones_published_velocity_step_and_slide_hold_slide(name, test):
     our three solvers (they agree with each other to 1e−11), so the difference is Marone's own
     solution error plus his rounding to 9 decimals (±5e−10). Marone's times lie within 1e−7 s
     of our save points (every 1 ms), so the interpolation adds nothing that counts."""
-    from benchmarks.physics.lab import marone_problem
+    from benchmarks.lab.measures import marone_problem
     p, reference = marone_problem(test)
     sol = I.solve(p, I.make_algorithm(name, 1e-11, 1e-11), save_every=0.001)
     assert sol.retcode == I.ReturnCode.SUCCESS, sol.message
@@ -366,7 +366,7 @@ def test_the_paper_etd_is_refused_without_mass_before_any_work():
 
 # --- what a laboratory user measures, and the harness on the family ------------------------------
 def test_healing_grows_with_hold_time_and_steps_settle_to_a_minus_b():
-    from benchmarks.physics.lab import healing, healing_rate, step_response
+    from benchmarks.lab.measures import healing, healing_rate, step_response
     p = P.slide_hold_slide_test("aging", holds=(1.0, 10.0, 100.0), first_slide=10.0,
                                 slide=100.0)
     sol = I.solve(p, I.Rodas5P(rtol=1e-9, atol=1e-9), save_every=0.01)
@@ -384,7 +384,7 @@ def test_healing_grows_with_hold_time_and_steps_settle_to_a_minus_b():
 
 
 def test_laboratory_measures_refuse_a_failed_run():
-    from benchmarks.physics.lab import healing, step_response
+    from benchmarks.lab.measures import healing, step_response
     sol = I.solve(P.velocity_step_test("slip", t_end=20.0), I.Rodas5P(rtol=1e-8, atol=1e-8))
     assert not sol.success                     # the slip law without mass runs away here
     for measure in (healing, step_response):
@@ -451,11 +451,11 @@ def test_rsfbench_lab(tmp_path):
 
 
 def test_the_healing_peak_of_marones_hold():
-    """The peak after Marone's 100 s hold, found by :func:`benchmarks.physics.lab.healing` on our
+    """The peak after Marone's 100 s hold, found by :func:`benchmarks.lab.measures.healing` on our
     trajectory (1 ms samples, parabola), against the vertex of the parabola through his rows at
     132.6, 132.7 and 132.8 s after the hold's start (0.620435683, 0.620436068, 0.620434703):
     μ = 0.6204361366 at 132.6720 s. His rows are rounded to 1e−9, so the vertex is good to ~1e−9."""
-    from benchmarks.physics.lab import healing, marone_problem
+    from benchmarks.lab.measures import healing, marone_problem
     p, _ = marone_problem("slide-hold-slide")
     heal = healing(I.solve(p, I.Rodas5P(rtol=1e-11, atol=1e-11), save_every=0.001))
     assert heal.mu_peak.iloc[0] == pytest.approx(0.6204361366, abs=3e-9)

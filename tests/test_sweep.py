@@ -13,7 +13,7 @@ import pytest
 
 from benchmarks.cli.sweep import observations
 from benchmarks.physics.curves import read_curves
-from benchmarks.inversion.fitting import NO_CYCLE_J1, j2_per_event, joint_fit, scores
+from benchmarks.inversion.objectives import NO_CYCLE_J1, j2_per_event, joint_fit, scores
 from benchmarks.inversion.sweep import parse_b, parse_lc, sweep
 from integrators import ETD2, ETDIterated, Rodas5P
 from problems import preset

@@ -10,7 +10,7 @@ a = 0.005, b = 0.01, Dc = 10 µm, k = 1e7 N/m on 10 kN, V0 = 1 µm/s), quasi-sta
 --mass is given; --problem FILE runs your own apparatus and history instead (TOML or JSON).
 
 μ is the spring force over the normal force (what a load cell reads; with mass it is not the
-friction). The peaks are located by re-solving from the run's states (benchmarks.physics.lab), not read
+friction). The peaks are located by re-solving from the run's states (benchmarks.lab.measures), not read
 off the saved trajectory: the save grid (the trajectory file and plot) does not move them. A
 piece that has not settled is named in a warning, and its steady-state change is null.
 """
@@ -116,7 +116,7 @@ def _problem(args):
 def _measures(sol, args):
     """The step and healing tables; a peak that cannot be located is a refusal naming what to
     lengthen (exit 2), a re-solve that failed a stopped run (exit 1)."""
-    from benchmarks.physics.lab import (
+    from benchmarks.lab.measures import (
         PeakNotReached,
         ResolveFailed,
         healing,
@@ -137,7 +137,7 @@ def _measures(sol, args):
 
 
 def cmd_lab(args) -> int:
-    from benchmarks.physics.lab import healing_rate
+    from benchmarks.lab.measures import healing_rate
     from benchmarks.records.report import jsonable
     from integrators import make_algorithm, solve
     problem = _problem(args)

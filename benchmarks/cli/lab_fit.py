@@ -5,7 +5,7 @@ record.
         --column load_point=Displ:um --out fit/
 
 The load point's history (its speeds and switch times) is found in the record; the fit is
-least squares on μ(t) (benchmarks.inversion.lab_fit: the noise model, the intervals), with
+least squares on μ(t) (benchmarks.lab.fit: the noise model, the intervals), with
 profile intervals of the friction parameters, a check of the integrator at the best fit, and
 with --mass the inertial slider fitted too and compared.
 """
@@ -36,7 +36,7 @@ def _constant_normal_force(args) -> bool:
 
 
 def _record(args):
-    from benchmarks.physics.lab_record import read_lab_record
+    from benchmarks.lab.step_data import read_lab_record
     if not args.column:
         raise ValueError("map the record's columns: --column CHANNEL=COLUMN[:UNIT] (time, "
                          "friction or shear_force, load_point or load_velocity)")
@@ -47,7 +47,7 @@ def _record(args):
 
 
 def _model(args, record):
-    from benchmarks.physics.lab_model import DEFAULT_ALGORITHM, LabModel
+    from benchmarks.lab.model import DEFAULT_ALGORITHM, LabModel
     from integrators import REGISTRY, make_algorithm
     algorithm = None
     if args.integrator is not None or args.rtol is not None:
@@ -96,9 +96,9 @@ def _check_flags(args) -> None:
 
 
 def cmd_lab_fit(args) -> int:
-    from benchmarks.inversion.lab_checks import check_lab_solver, inertia_check
-    from benchmarks.inversion.lab_fit import fit_lab
-    from benchmarks.inversion.lab_profile import profile_lab
+    from benchmarks.lab.checks import check_lab_solver, inertia_check
+    from benchmarks.lab.fit import fit_lab
+    from benchmarks.lab.profile_intervals import profile_lab
     from benchmarks.records.provenance import provenance, version_line
     from benchmarks.records.report import jsonable
     _check_flags(args)
@@ -123,7 +123,7 @@ def cmd_lab_fit(args) -> int:
         if show_progress(args):
             print(f"  {text} …", file=sys.stderr, flush=True)
 
-    from benchmarks.inversion.lab_fit import LabFitWarning
+    from benchmarks.lab.fit import LabFitWarning
     stage(f"fitting {', '.join(free)} to {len(record.t):,} samples")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", LabFitWarning)
@@ -141,7 +141,7 @@ def cmd_lab_fit(args) -> int:
     check = None if args.no_solver_check else check_lab_solver(fit)
     posterior = None
     if args.posterior:
-        from benchmarks.inversion.lab_posterior import sample_lab
+        from benchmarks.lab.sampling import sample_lab
         try:
             posterior = sample_lab(fit, walkers=args.walkers, steps=args.steps, seed=args.seed,
                                    progress=not args.json and not args.no_progress)
@@ -309,7 +309,7 @@ def _write(out: Path, fit, table, profiles, doc) -> None:
                               "mu": rec.mu, "mu_model": fit.mu_model,
                               "residual": rec.mu - fit.mu_model}), out / "lab_fit_residuals.csv")
     if profiles:
-        from benchmarks.inversion.lab_fit import PARAMETER_UNITS
+        from benchmarks.lab.fit import PARAMETER_UNITS
         write_table(pd.concat([p.points.rename(columns={p.parameter: "value"}).assign(
             parameter=p.parameter, unit=PARAMETER_UNITS[p.parameter])
             for p in profiles.values()]), out / "lab_fit_profiles.csv")
@@ -322,7 +322,7 @@ def _plot(fit, profiles, path: Path) -> None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from benchmarks.inversion.lab_fit import _LOG
+    from benchmarks.lab.fit import _LOG
     rec = fit.model.record
     cols = max(len(profiles), 1)
     fig = plt.figure(figsize=(max(8, 2.6 * cols), 7.6 if profiles else 5.6))
@@ -362,7 +362,7 @@ def _plot(fit, profiles, path: Path) -> None:
 
 
 def add_parser(tests) -> None:
-    from benchmarks.physics.lab_model import DEFAULT_ALGORITHM, DETRENDS, WALL_BUDGET
+    from benchmarks.lab.model import DEFAULT_ALGORITHM, DETRENDS, WALL_BUDGET
     p = tests.add_parser("fit", help="fit (a, b, Dc) and the stiffness to a velocity-step or "
                          "slide-hold-slide record", description=__doc__.split("\n\n")[0])
     p.add_argument("recording", type=in_file, metavar="RECORDING",

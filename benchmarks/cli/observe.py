@@ -7,8 +7,8 @@
     rsfbench invert --problem obs_run42/apparatus.toml \\
         --observations obs_run42/observations.json --b-range 0.0086,0.0102 --lc-range 3e-8,3e-6
 
-See :mod:`benchmarks.inversion.observing` for the files written and the column file, and
-:mod:`benchmarks.physics.record_analysis` for how each quantity is measured.
+See :mod:`benchmarks.lab.observe` for the files written and the column file, and
+:mod:`benchmarks.lab.events` for how each quantity is measured.
 """
 
 from __future__ import annotations
@@ -39,9 +39,9 @@ and the curves; the table's position gives vLs, vLf, df and the stiffness."""
 
 
 def cmd_observe(args) -> int:
-    from benchmarks.inversion.observing import observe, read_column_file
+    from benchmarks.lab.observe import observe, read_column_file
     from benchmarks.records.provenance import provenance
-    from benchmarks.physics.recording import column_spec
+    from benchmarks.lab.channels import column_spec
     columns, constants = read_column_file(args.columns) if args.columns else ({}, {})
     given = set()
     for spec in args.column:

@@ -4,9 +4,8 @@ measured quantities (:mod:`~benchmarks.devtools.errors`), work-precision studies
 recommendation they give (:mod:`~benchmarks.devtools.work_precision`,
 :mod:`~benchmarks.devtools.recommendation`), convergence orders
 (:mod:`~benchmarks.devtools.convergence`), every integrator side by side
-(:mod:`~benchmarks.devtools.compare`), timing after warm-up
-(:mod:`~benchmarks.devtools.timing`), and an independent model of a laboratory velocity step
-(:mod:`~benchmarks.devtools.lab_reference`) to check the fits against."""
+(:mod:`~benchmarks.devtools.compare`) and timing after warm-up
+(:mod:`~benchmarks.devtools.timing`)."""
 
 from benchmarks._api import lazy_api
 
@@ -20,5 +19,4 @@ __getattr__, __dir__, __all__ = lazy_api(__name__, {
     "convergence": ("convergence_study", "observed_order"),
     "compare": ("compare_integrators",),
     "timing": ("warm_up",),
-    "lab_reference": ("reference_friction", "synthetic_record"),
 })

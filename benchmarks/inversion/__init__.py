@@ -1,33 +1,27 @@
 """Inversions of (b, Lc) a solver can be chosen for: one likelihood, J1 of Eq. 10 plus the
 slip-weakening curves' χ² under a stated noise model
 (:mod:`~benchmarks.inversion.curve_likelihood`), with what a point without a limit cycle is to
-each reader (:func:`~benchmarks.inversion.fitting.scores`);
-the observations, typed in or measured on a recording (:mod:`~benchmarks.inversion.observations`,
-:mod:`~benchmarks.inversion.observing`); the misfit as a function
+each reader (:func:`~benchmarks.inversion.objectives.scores`);
+the observations, typed in or read from a file (:mod:`~benchmarks.inversion.observations`;
+measured on a recording by :mod:`benchmarks.lab.observe`); the misfit as a function
 (:mod:`~benchmarks.inversion.misfit`), the multi-start least-squares fit with its covariance
-(:mod:`~benchmarks.inversion.fit`), profile likelihoods (:mod:`~benchmarks.inversion.profile`),
-the posterior on a grid refined where its mass is (:mod:`~benchmarks.inversion.adaptive`) or
-sampled with emcee (:mod:`~benchmarks.inversion.posterior`), the forward model on a
-grid and the posteriors and profiles of any data set on it (:mod:`~benchmarks.inversion.grid`).
-Laboratory velocity steps and slide-hold-slide records: the least-squares fit of (a, b, Dc, k′)
-(:mod:`~benchmarks.inversion.lab_fit`), its profiles (:mod:`~benchmarks.inversion.lab_profile`),
-posterior (:mod:`~benchmarks.inversion.lab_posterior`) and checks
-(:mod:`~benchmarks.inversion.lab_checks`).
+(:mod:`~benchmarks.inversion.least_squares`), profile likelihoods
+(:mod:`~benchmarks.inversion.profile`), the posterior on a grid refined where its mass is
+(:mod:`~benchmarks.inversion.adaptive`) or sampled with emcee
+(:mod:`~benchmarks.inversion.posterior`), the forward model on a grid and the posteriors and
+profiles of any data set on it (:mod:`~benchmarks.inversion.grid`).
 Built on them: one inversion end to end (:mod:`~benchmarks.inversion.invert`), the coverage of
 the 95 % regions (:mod:`~benchmarks.inversion.calibration`), the solver's effect on the
 inference (:mod:`~benchmarks.studies.solver_effect`) and the reproduce steps' studies
-(:mod:`~benchmarks.studies.inversion`)."""
+(:mod:`~benchmarks.studies.inversion`). Laboratory velocity steps are fitted in
+:mod:`benchmarks.lab`."""
 
 from benchmarks.inversion.adaptive import CellPosterior, grid_posterior
 from benchmarks.inversion.curve_likelihood import CurveLikelihood
-from benchmarks.inversion.fit import FitResult, fit
-from benchmarks.inversion.fitting import NO_CYCLE_J1, NO_CYCLE_RESIDUAL, Scores, scores
 from benchmarks.inversion.grid import GridPosterior, MetricMap, box_grid, metric_map
-from benchmarks.inversion.lab_checks import check_lab_solver, inertia_check
-from benchmarks.inversion.lab_fit import LabFit, fit_lab
-from benchmarks.inversion.lab_posterior import LabPosterior, sample_lab
-from benchmarks.inversion.lab_profile import LabProfile, profile_lab
+from benchmarks.inversion.least_squares import FitResult, fit
 from benchmarks.inversion.misfit import Misfit, synthetic
+from benchmarks.inversion.objectives import NO_CYCLE_J1, NO_CYCLE_RESIDUAL, Scores, scores
 from benchmarks.inversion.observations import read_observations, write_observations
 from benchmarks.inversion.posterior import Posterior, sample
 from benchmarks.inversion.profile import CHI2_95_1DOF, Profile, profile
@@ -35,13 +29,4 @@ from benchmarks.inversion.profile import CHI2_95_1DOF, Profile, profile
 __all__ = ["Misfit", "NO_CYCLE_RESIDUAL", "synthetic", "fit", "FitResult", "profile", "Profile",
            "CHI2_95_1DOF", "sample", "Posterior", "metric_map", "MetricMap", "GridPosterior",
            "box_grid", "NO_CYCLE_J1", "scores", "Scores", "read_observations",
-           "write_observations", "observe", "CurveLikelihood", "grid_posterior",
-           "CellPosterior", "fit_lab", "LabFit", "check_lab_solver", "inertia_check",
-           "profile_lab", "LabProfile", "sample_lab", "LabPosterior"]
-
-
-def __getattr__(name):                 # observe reads and plots a recording: imported on use
-    if name == "observe":
-        from benchmarks.inversion.observing import observe
-        return observe
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+           "write_observations", "CurveLikelihood", "grid_posterior", "CellPosterior"]

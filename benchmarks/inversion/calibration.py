@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from benchmarks.inversion.fitting import CHI2_95_2DOF
+from benchmarks.inversion.objectives import CHI2_95_2DOF
 from benchmarks.inversion.grid import MetricMap, box_grid, cell_box, metric_map
 from benchmarks.inversion.misfit import Misfit, synthetic
 from benchmarks.inversion.profile import CHI2_95_1DOF

@@ -5,7 +5,7 @@ grid (:func:`metric_map`) serves every data set scored against it: the published
 thousand seeded synthetic sets (calibration), the same data under another solver (the solver's
 effect). From a :class:`MetricMap` and an :class:`~benchmarks.inversion.observations.Observations`:
 
-* :meth:`MetricMap.scores`: Eq. 10 on the grid (:func:`benchmarks.inversion.fitting.scores`), and
+* :meth:`MetricMap.scores`: Eq. 10 on the grid (:func:`benchmarks.inversion.objectives.scores`), and
   :meth:`MetricMap.j1`, J1 with ``NO_CYCLE_J1`` where there is no limit cycle;
 * :meth:`MetricMap.posterior`: the posterior under the uniform prior in (b, log10 Lc) on the
   box the grid's cells tile (:func:`box_grid` puts the nodes at the cells' centres;
@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from benchmarks.ensemble import ensemble
-from benchmarks.inversion.fitting import scores
+from benchmarks.inversion.objectives import scores
 from benchmarks.inversion.observations import Observations
 from benchmarks.physics.metrics import CYCLES
 from integrators import Algorithm
@@ -144,7 +144,7 @@ class MetricMap:
     def misfit(self, obs: Observations) -> np.ndarray:
         """J1 + the curves' χ² at every node; :data:`NO_CYCLE_J1` without a limit cycle (or
         a cycle whose curve is missing)."""
-        from benchmarks.inversion.fitting import NO_CYCLE_J1
+        from benchmarks.inversion.objectives import NO_CYCLE_J1
         total = self.scores(obs).j1 + self.chi2_curves(obs)
         return np.where(np.isfinite(total), total, NO_CYCLE_J1)
 
@@ -158,7 +158,7 @@ class MetricMap:
         return self.scores(obs).j1_penalised
 
     def scores(self, obs: Observations):
-        """Eq. 10 at every node (:func:`benchmarks.inversion.fitting.scores`)."""
+        """Eq. 10 at every node (:func:`benchmarks.inversion.objectives.scores`)."""
         if not isinstance(obs, Observations):
             raise ValueError(f"obs must be Observations, got {obs!r}")
         return scores(self.recurrence_s, self.friction_drop, self.cycle, obs)

@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.inversion.adaptive import CellPosterior
-from benchmarks.inversion.fit import FitResult, fit
+from benchmarks.inversion.least_squares import FitResult, fit
 from benchmarks.inversion.misfit import Misfit
 from benchmarks.inversion.posterior import Posterior, check_sampler, sample
 from benchmarks.inversion.profile import CHI2_95_1DOF, profile

@@ -1,7 +1,7 @@
 """J (Eq. 12) as a function of (b, Lc), once its weights are fixed.
 
 J = J1 + (α1/α2)·J̄2. The paper's weights are statistics of a grid
-(:func:`benchmarks.inversion.fitting.joint_fit`: α1 the mean J1 inside the 95 % region, α2 the mean J̄2 of
+(:func:`benchmarks.inversion.objectives.joint_fit`: α1 the mean J1 inside the 95 % region, α2 the mean J̄2 of
 the points that match the curves best), so J at one point has no meaning until they are fixed.
 Take them from a sweep of the region (its ``table.attrs["alpha1"]`` and ``["alpha2"]``); J is
 then a function of (b, Lc) like J1, for a fit or a sampler. A point without a limit cycle has

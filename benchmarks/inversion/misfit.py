@@ -8,7 +8,7 @@ point, the limit-cycle metrics, the residuals, J1 (Eq. 10), and with slip-weaken
 misfit J1 + χ²_curves, which fits and profiles minimise, and the log-likelihood, −misfit/2.
 
 What an optimizer or a sampler sees at a point **without a limit cycle** is defined, never NaN
-(:func:`benchmarks.inversion.fitting.scores`): each residual is ``NO_CYCLE_RESIDUAL`` σ and J1
+(:func:`benchmarks.inversion.objectives.scores`): each residual is ``NO_CYCLE_RESIDUAL`` σ and J1
 ``NO_CYCLE_J1`` (finite, so that least squares can step away), the log-likelihood −inf (a
 sampler rejects the move), J2 +inf.
 
@@ -23,7 +23,7 @@ import numpy as np
 import pandas as pd
 
 from benchmarks.ensemble import ensemble
-from benchmarks.inversion.fitting import NO_CYCLE_J1, NO_CYCLE_RESIDUAL, scores
+from benchmarks.inversion.objectives import NO_CYCLE_J1, NO_CYCLE_RESIDUAL, scores
 from benchmarks.inversion.observations import MIN_SIGMA_REL, Observations
 from benchmarks.physics.metrics import CYCLES
 from integrators import Algorithm

@@ -17,7 +17,7 @@ Dask scheduler.
 The table (``DIR/sweep.csv``, one row per grid point, b outer and Lc inner) holds the limit-cycle
 metrics, the classification (:data:`benchmarks.physics.metrics.CLASSIFICATIONS`: the paper's Fig. 8
 classes, and what a run that shows no limit cycle is), J1, and J2, J when slip-weakening curves
-are given (see :mod:`benchmarks.inversion.fitting`). Only a point with a limit cycle
+are given (see :mod:`benchmarks.inversion.objectives`). Only a point with a limit cycle
 (:data:`benchmarks.physics.metrics.CYCLES`) has metrics and scores; any other point has NaN there and
 the reason in its classification and message.
 """
@@ -36,7 +36,7 @@ import pandas as pd
 
 from benchmarks.ensemble import ensemble, grid
 from benchmarks.ensemble.executors import CONNECT_TIMEOUT_S, WORKER_TIMEOUT_S
-from benchmarks.inversion.fitting import CHI2_95_2DOF, j2_per_event, joint_fit, scores
+from benchmarks.inversion.objectives import CHI2_95_2DOF, j2_per_event, joint_fit, scores
 from benchmarks.inversion.observations import Observations
 from benchmarks.physics.metrics import CYCLES
 from benchmarks.records.files import remove_stale_temporaries, write_output

@@ -16,7 +16,7 @@ Errors, against a reference of two independent solvers that agree
 (:data:`benchmarks.devtools.reference.REFERENCE_SOLVERS`):
 
 * laboratory tests: ``err_peak``, the largest error of what the test measures (the excursion
-  μ_extreme − μ_before after each step, the healing Δμ_peak of each hold: :mod:`benchmarks.physics.lab`)
+  μ_extreme − μ_before after each step, the healing Δμ_peak of each hold: :mod:`benchmarks.lab.measures`)
   relative to the largest of them, and ``err_trajectory``, max |μ − μ_ref| over the common grid divided
   by the reference's range of μ. Timed with the trajectory saved on the grid, as a fit to
   sampled data needs it;
@@ -43,7 +43,7 @@ from benchmarks.devtools.reference import (
     reference,
 )
 from benchmarks.devtools.work_precision import Ladder, best_at_levels, work_precision
-from benchmarks.physics.lab import PeakNotReached, healing, step_response
+from benchmarks.lab.measures import PeakNotReached, healing, step_response
 from benchmarks.records.files import write_figure, write_table
 from benchmarks.studies.study import Study
 from integrators import REGISTRY, solve
@@ -341,7 +341,7 @@ def write_lab_checks(out: Path) -> dict:
     law's velocity step (direct effect, steady-state change against (a − b) ln 10) and
     slide-hold-slide healing (holds 1 to 300 s; after 1000 s the slip law runs away on
     reloading), quasi-static, the steps also with 1 kg of mass."""
-    from benchmarks.physics.lab import (
+    from benchmarks.lab.measures import (
         healing,
         healing_rate,
         marone_check,

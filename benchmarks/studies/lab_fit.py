@@ -1,7 +1,7 @@
 """Fitting (a, b, Dc) to velocity steps: recovery, coverage, cost, and two real records
 (``lab_fit.*``).
 
-* **Synthetic records** made by an independent model (:mod:`benchmarks.devtools.lab_reference`:
+* **Synthetic records** made by an independent model (:mod:`benchmarks.lab.independent_model`:
   scipy's Radau on the published equations): 10⁴ samples over 150 s, the load point stepping
   1 → 10 → 1 → 3 µm/s at 20, 50 and 100 s, aging law a = 0.006, b = 0.009, Dc = 10 µm,
   k′ = 0.003 per µm; white noise of 0.1 % of μ (σ = 6e-4) on μ and 0.05 µm on the
@@ -52,8 +52,8 @@ COLUMNS = ["time=time_s", "load_point=load_point_um:um", "friction=friction"]
 
 
 def _synthetic(seed: int, t=None, velocities=VELOCITIES, switches=SWITCHES):
-    from benchmarks.devtools.lab_reference import synthetic_record
-    from benchmarks.physics.lab_record import lab_record_from
+    from benchmarks.lab.independent_model import synthetic_record
+    from benchmarks.lab.step_data import lab_record_from
     t = np.linspace(0.0, 150.0, 10_000) if t is None else t
     df = synthetic_record(t, velocities, switches, **TRUTH, noise=NOISE,
                           displacement_noise=DISPLACEMENT_NOISE, drift=DRIFT, seed=seed)
@@ -61,9 +61,9 @@ def _synthetic(seed: int, t=None, velocities=VELOCITIES, switches=SWITCHES):
 
 
 def _coverage(seeds: int, profile_seeds: int, say) -> pd.DataFrame:
-    from benchmarks.inversion.lab_fit import LabFitWarning, fit_lab
-    from benchmarks.inversion.lab_profile import profile_lab
-    from benchmarks.physics.lab_model import LabModel
+    from benchmarks.lab.fit import LabFitWarning, fit_lab
+    from benchmarks.lab.profile_intervals import profile_lab
+    from benchmarks.lab.model import LabModel
     rows = []
     for seed in range(seeds):
         with warnings.catch_warnings():
@@ -88,9 +88,9 @@ def _coverage(seeds: int, profile_seeds: int, say) -> pd.DataFrame:
 
 def _cost() -> dict:
     """The targets' timings: warm, the minimum of three runs."""
-    from benchmarks.inversion.lab_fit import fit_lab
-    from benchmarks.inversion.lab_profile import profile_lab
-    from benchmarks.physics.lab_model import LabModel
+    from benchmarks.lab.fit import fit_lab
+    from benchmarks.lab.profile_intervals import profile_lab
+    from benchmarks.lab.model import LabModel
     record = _synthetic(0, t=np.linspace(0.0, 60.0, 10_000), velocities=(1e-6, 1e-5),
                         switches=(20.0,))
     model = LabModel(record, "aging")
@@ -116,10 +116,10 @@ NORMAL_FORCE = 1e4
 
 
 def _inertia() -> list[dict]:
-    from benchmarks.inversion.lab_checks import inertia_check
-    from benchmarks.inversion.lab_fit import LabFitWarning, fit_lab
-    from benchmarks.physics.lab_model import LabModel
-    from benchmarks.physics.lab_record import lab_record_from
+    from benchmarks.lab.checks import inertia_check
+    from benchmarks.lab.fit import LabFitWarning, fit_lab
+    from benchmarks.lab.model import LabModel
+    from benchmarks.lab.step_data import lab_record_from
     rows = []
     for v1, mass in INERTIA_CASES:
         t_step = 60 * TRUTH["dc"] / v1          # 60 Dc of steady sliding, then 40 Dc at 10 v1
@@ -146,11 +146,11 @@ def _inertia() -> list[dict]:
 
 
 def _real(root: Path, out: Path) -> list[dict]:
-    from benchmarks.inversion.lab_checks import check_lab_solver
-    from benchmarks.inversion.lab_fit import LabFitWarning, fit_lab
-    from benchmarks.inversion.lab_profile import profile_lab
-    from benchmarks.physics.lab_model import LabModel
-    from benchmarks.physics.lab_record import read_lab_record
+    from benchmarks.lab.checks import check_lab_solver
+    from benchmarks.lab.fit import LabFitWarning, fit_lab
+    from benchmarks.lab.profile_intervals import profile_lab
+    from benchmarks.lab.model import LabModel
+    from benchmarks.lab.step_data import read_lab_record
     results, figures = [], []
     for label, name in RECORDS:
         record = read_lab_record(root / DATA / name, REAL_COLUMNS)
@@ -300,7 +300,7 @@ def _markdown(info: dict) -> str:
     return (
         "# Fitting velocity steps\n\n"
         f"Synthetic records from an independent model (scipy's Radau on the published "
-        f"equations, `benchmarks/devtools/lab_reference.py`): aging law a = {TRUTH['a']}, "
+        f"equations, `benchmarks/lab/independent_model.py`): aging law a = {TRUTH['a']}, "
         f"b = {TRUTH['b']}, Dc = {TRUTH['dc'] * 1e6:g} µm, k′ = {TRUTH['k'] * 1e-6:g} per µm; "
         "the load point at 1 → 10 → 1 → 3 µm/s (switches at 20, 50, 100 s), 10⁴ samples over "
         f"150 s; noise σ = {NOISE:g} in μ (0.1 %), {DISPLACEMENT_NOISE * 1e6:g} µm on the "

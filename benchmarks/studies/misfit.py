@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 from tqdm.auto import tqdm
 
-from benchmarks.inversion.fitting import j2_per_event
+from benchmarks.inversion.objectives import j2_per_event
 from benchmarks.physics.curves import (
     event_curve,
     event_window,

@@ -1,9 +1,9 @@
 """``rsfbench observe`` measured against what it must recover: recordings made by the forward
-model (:func:`benchmarks.physics.model_recording.synthetic_recording`: 10 kHz, a causal
+model (:func:`benchmarks.lab.synthetic.synthetic_recording`: 10 kHz, a causal
 anti-alias filter at 4 kHz, white noise and a linear drift, both as fractions of what one event
 changes) of W1–W4 under both laws, at three noise levels and with four sets of channels, each
-measured by :func:`benchmarks.physics.record_analysis.analyse` and compared with the model's own
-event table; and the time :func:`benchmarks.inversion.observing.observe` takes on a 400 s record
+measured by :func:`benchmarks.lab.events.analyse` and compared with the model's own
+event table; and the time :func:`benchmarks.lab.observe.observe` takes on a 400 s record
 at 10 kHz (4 million rows) in CSV and in Parquet, after one run that warms the caches.
 
 The targets, met or missed row by row: at 1 % noise ΔT and Δμ within 0.5 % of the
@@ -45,9 +45,9 @@ SPEED_TARGET_S = 10.0
 def observe_accuracy(progress: bool = False) -> pd.DataFrame:
     """One row per window, law, noise and channel set: the relative errors of the mean
     metrics and of the apparatus against the model's, and the number of events."""
-    from benchmarks.physics.record_analysis import analyse
-    from benchmarks.physics.recording import recording_from
-    from benchmarks.physics.model_recording import synthetic_recording
+    from benchmarks.lab.events import analyse
+    from benchmarks.lab.channels import recording_from
+    from benchmarks.lab.synthetic import synthetic_recording
     from problems import preset
     rows = []
     for name, law, t_end in CASES:
@@ -82,8 +82,8 @@ def _err(measured, true) -> float:
 def observe_speed(repeats: int = 3) -> pd.DataFrame:
     """Wall time of :func:`observe` on a 400 s record at 10 kHz with 1 % noise, as CSV and as
     Parquet, with and without the figure: the fastest of ``repeats`` runs after a warm-up."""
-    from benchmarks.inversion.observing import observe
-    from benchmarks.physics.model_recording import synthetic_recording
+    from benchmarks.lab.observe import observe
+    from benchmarks.lab.synthetic import synthetic_recording
     from problems import preset
     problem = preset("W2", law="slip", t_end=400.0)
     table, _ = synthetic_recording(problem, noise=0.01, drift=0.01, seed=1)

@@ -24,7 +24,7 @@ import pandas as pd
 
 from benchmarks.devtools.timing import warm_up
 from benchmarks.devtools.work_precision import STUDY_CSV, recommended_algorithm
-from benchmarks.inversion.fitting import CHI2_95_2DOF
+from benchmarks.inversion.objectives import CHI2_95_2DOF
 from benchmarks.inversion.maps import plot_sweep
 from benchmarks.inversion.published import B_STEP, GRID, T_END, best_fit, grid_around
 from benchmarks.inversion.observations import observations

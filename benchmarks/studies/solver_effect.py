@@ -24,7 +24,7 @@ candidate setting inverts the same data, and is compared with the inversion by t
   setting whose posterior has mass where the reference's has none (a spurious cycle matching the
   data elsewhere) would look the same on the zoom; its whole-box overlap, and its mass outside
   the zoom, show it;
-* the best fit: :func:`benchmarks.inversion.fit` started from each setting's best node, its shift
+* the best fit: :func:`benchmarks.inversion.least_squares.fit` started from each setting's best node, its shift
   from the reference's best fit in the same units (``fit_ok``: the fit converged).
 
 A setting's inversion is **indistinguishable** from the reference's when both posterior-mean
@@ -63,7 +63,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from benchmarks.inversion.fit import fit
+from benchmarks.inversion.least_squares import fit
 from benchmarks.inversion.grid import GridPosterior, MetricMap, box_grid, metric_map
 from benchmarks.inversion.misfit import Misfit, synthetic
 from benchmarks.inversion.observations import Observations, observations

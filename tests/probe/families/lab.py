@@ -1,11 +1,11 @@
-"""Probe cases: lab — laboratory measures (:mod:`benchmarks.physics.lab`, ``rsfbench lab``).
+"""Probe cases: lab — laboratory measures (:mod:`benchmarks.lab.measures`, ``rsfbench lab``).
 
 Families, each complete by construction:
 
 * every numeric flag of ``rsfbench lab`` × every kind of bad value, and the flags of the other
   test, the flags a problem file states, combinations that measure nothing: refused in one line
   naming the flag (with ``--json``, one JSON document);
-* every step ratio of :data:`benchmarks.physics.lab.STEP_REFERENCE` through the command line at its
+* every step ratio of :data:`benchmarks.lab.measures.STEP_REFERENCE` through the command line at its
   defaults, at two ``--after`` (save grids ten times apart): the peak and its time as the tight
   reference, and the same on both;
 * the same through the API at 50 and 200,000 saved points;
@@ -99,7 +99,7 @@ def _after(ratio: float, factor: float) -> float:
 
 def _step_cli(law: str, mass: float, ratio: float):
     def run(tmp):
-        from benchmarks.physics.lab import SETTLED, STEP_REFERENCE
+        from benchmarks.lab.measures import SETTLED, STEP_REFERENCE
         from problems.presets import LAB
         t_ref, jump_ref = STEP_REFERENCE[(law, mass, ratio)]
         a, b = LAB["a"], LAB["b"]
@@ -133,7 +133,7 @@ def _near(got, want, rel, what):
 
 def _step_api(ratio: float):
     def run(tmp):
-        from benchmarks.physics.lab import STEP_REFERENCE, step_response
+        from benchmarks.lab.measures import STEP_REFERENCE, step_response
         from integrators import Rodas5P, solve
         from problems import velocity_step_test
         t_ref, jump_ref = STEP_REFERENCE[("aging", 0.0, ratio)]
@@ -147,7 +147,7 @@ def _step_api(ratio: float):
 
 
 def _reference_cases() -> list[Case]:
-    from benchmarks.physics.lab import STEP_REFERENCE
+    from benchmarks.lab.measures import STEP_REFERENCE
     out = [Case(KIND, f"lab step --law {law} --mass {mass:g} --v2 {V1 * r:g}: the reference on "
                 "two grids", _step_cli(law, mass, r), "ok", timeout=60)
            for law, mass, r in STEP_REFERENCE]
@@ -184,7 +184,7 @@ def _file_refusal(build, test: str, names: str, what: str = ""):
 
 def _file_history_measures(tmp):
     """Up, hold, reload, down: the command's measures equal a run at 1e−10 on another grid."""
-    from benchmarks.physics.lab import healing, step_response
+    from benchmarks.lab.measures import healing, step_response
     from integrators import make_algorithm, solve
     p = _history((1e-6, 1e-5, 0.0, 1e-5, 1e-6), (10.0, 210.0, 230.0, 430.0), 1030.0)
     path = _write(tmp, p)
@@ -269,7 +269,7 @@ def _api(make):
 
 
 def _api_cases() -> list[Case]:
-    from benchmarks.physics.lab import healing, step_response
+    from benchmarks.lab.measures import healing, step_response
     from problems import window
 
     def solved(problem, **kw):
@@ -310,7 +310,7 @@ def _api_cases() -> list[Case]:
     ]
 
     def settled_after(tmp):
-        from benchmarks.physics.lab import UnsettledWarning
+        from benchmarks.lab.measures import UnsettledWarning
         with warnings.catch_warnings(record=True) as seen:
             warnings.simplefilter("always")
             row = step_response(solved(vs(v2=1e-7, t_end=40.0))).iloc[0]

@@ -23,7 +23,7 @@ _MAP = ("--column", "time=t", "--column", "shear_force=Fs:kN", "--normal-force",
 def _good() -> pd.DataFrame:
     """W2 (slip law) recorded for 20 s from t = 5 s at 10 kHz with 1 % noise: Fs in kN, the
     slip and the table in mm, the acceleration in m/s²."""
-    from benchmarks.physics.model_recording import synthetic_recording
+    from benchmarks.lab.synthetic import synthetic_recording
     from problems import preset
     table, _ = synthetic_recording(preset("W2", law="slip", t_end=20.0), t_skip=5.0,
                                    noise=0.01, drift=0.01, seed=9)

@@ -2,10 +2,10 @@
 --posterior``).
 
 The likelihood is the fit's: Gaussian AR(1) noise of variance f σ² (σ and f from the least-squares
-fit, held fixed: :mod:`benchmarks.inversion.lab_fit`), so log L = −RSS/(2 f σ²). The level and the
+fit, held fixed: :mod:`benchmarks.lab.fit`), so log L = −RSS/(2 f σ²). The level and the
 trend's slopes enter linearly with flat priors, so they are integrated out exactly: the marginal
 likelihood of the others is the projected one, up to a constant. The prior is uniform in the
-fitted coordinates inside :data:`~benchmarks.inversion.lab_fit.BOUNDS` — flat in a, b and c, and
+fitted coordinates inside :data:`~benchmarks.lab.fit.BOUNDS` — flat in a, b and c, and
 in ln Dc and ln k′, which span decades. Both are stated in the result.
 
 The walkers start in a small ball about the least-squares fit (a hundredth of its covariance);
@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from benchmarks.inversion.lab_fit import _LOG, BOUNDS, PARAMETER_UNITS, LabFit, _Problem
+from benchmarks.lab.fit import _LOG, BOUNDS, PARAMETER_UNITS, LabFit, _Problem
 
 __all__ = ["LabPosterior", "sample_lab"]
 

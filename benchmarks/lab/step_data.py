@@ -16,11 +16,11 @@ channel            SI unit  what it is
 =================  =======  ======================================================================
 
 **The history** (the load point's speeds and switch times) is found in the displacement by
-:func:`benchmarks.physics.lab_history.find_history`. The record's time starts at 0 at its first
+:func:`benchmarks.lab.history.find_history`. The record's time starts at 0 at its first
 sample (the file's time there is kept as ``t_offset``); the fit starts from steady sliding at
 the first piece's speed.
 
-Refused in one line: what :func:`~benchmarks.physics.lab_history.find_history` refuses (no
+Refused in one line: what :func:`~benchmarks.lab.history.find_history` refuses (no
 step, an opening hold, a load point too fast for its unit or moving back), a friction no
 friction coefficient has (a percentage, a force in kN read as N), a gap in the times, besides
 what every recording is refused for (missing or non-numeric values, times that do not
@@ -36,8 +36,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from benchmarks.physics.lab_history import MIN_SAMPLES, find_history
-from benchmarks.physics.recording import (
+from benchmarks.lab.history import MIN_SAMPLES, find_history
+from benchmarks.lab.channels import (
     MU_RANGE,
     UNITS,
     column_map,
@@ -58,7 +58,7 @@ class LabRecord:
     ``load_point`` displacement (m, from 0), and the history found in it: ``velocities`` (m/s)
     between ``switch_times`` (s), one more velocity than switch times; ``pieces`` has each
     piece's fitted speed and its standard error
-    (:data:`~benchmarks.physics.lab_history.PIECE_COLUMNS`). ``t_offset`` is the
+    (:data:`~benchmarks.lab.history.PIECE_COLUMNS`). ``t_offset`` is the
     file's time of the first sample; ``source``, ``sha256`` and ``columns`` say where it came
     from."""
 

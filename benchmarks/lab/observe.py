@@ -1,7 +1,7 @@
 """From a laboratory recording to the observations an inversion uses (``rsfbench observe``).
 
-:func:`observe` reads a recording (:mod:`benchmarks.physics.recording`), measures its events,
-the fault's friction and the apparatus (:mod:`benchmarks.physics.record_analysis`) and writes, in
+:func:`observe` reads a recording (:mod:`benchmarks.lab.channels`), measures its events,
+the fault's friction and the apparatus (:mod:`benchmarks.lab.events`) and writes, in
 one directory:
 
 * ``observations.json`` — the observations file (:mod:`benchmarks.inversion.observations`):
@@ -57,7 +57,7 @@ APPARATUS_KEYS = {"normal_force": "N", "mass": "kg", "vls": "m/s", "stiffness": 
 def read_column_file(path) -> tuple[dict, dict]:
     """``(columns, apparatus)`` of a column file (module docstring): channel → (column, unit),
     and the constants by name; or ``ValueError`` naming the file and the key."""
-    from benchmarks.physics.recording import CHANNELS, explicit_unit
+    from benchmarks.lab.channels import CHANNELS, explicit_unit
     path = Path(path)
     try:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
@@ -115,8 +115,8 @@ def observe(path, columns, out, normal_force: float | None = None, mass: float |
             plot: bool = True, provenance: dict | None = None) -> dict:
     """Measure the recording ``path`` and write the files of the module docstring to ``out``;
     returns the observations document with the files written (``files``)."""
-    from benchmarks.physics.record_analysis import analyse
-    from benchmarks.physics.recording import column_map, read_recording
+    from benchmarks.lab.events import analyse
+    from benchmarks.lab.channels import column_map, read_recording
     if sigma not in SIGMAS:
         raise ValueError(f"sigma must be one of {SIGMAS}, got {sigma!r}")
     out = Path(out)
@@ -145,7 +145,7 @@ def observe(path, columns, out, normal_force: float | None = None, mass: float |
     if text is not None:
         write_output(files["apparatus"], text)
     if plot:
-        from benchmarks.physics.record_plot import plot_recording
+        from benchmarks.lab.figures import plot_recording
         plot_recording(rec, found, files["figure"])
     for key, name in OPTIONAL_FILES.items():      # an earlier run's, of other observations
         if key not in files:

@@ -38,7 +38,7 @@ SIGNIFICANCE = 10.0
 LAB_FASTEST = 1e-2
 #: m/s: the speeds of most velocity-step tests; a load point outside is warned about (a unit)
 LAB_TYPICAL = (1e-9, 3e-4)
-#: the columns of the pieces table (:attr:`benchmarks.physics.lab_record.LabRecord.pieces`)
+#: the columns of the pieces table (:attr:`benchmarks.lab.step_data.LabRecord.pieces`)
 PIECE_COLUMNS = ("t_start_s", "t_end_s", "velocity_m_s", "velocity_se_m_s", "samples")
 
 

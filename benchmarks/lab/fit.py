@@ -1,7 +1,7 @@
 """Fit (a, b, Dc) — and the stiffness, the Nagata law's c — to a velocity-step or slide-hold-slide
 record, by least squares on μ(t) with its covariance.
 
-**The model** is :class:`benchmarks.physics.lab_model.LabModel`: the spring-slider on the
+**The model** is :class:`benchmarks.lab.model.LabModel`: the spring-slider on the
 record's own load-point history, μ = μ_ref + (rate-and-state response) + a linear trend in the
 load point's displacement. The level μ_ref and the trend's slopes enter linearly: they are
 eliminated exactly for each trial of the others (variable projection: with a basis that does not
@@ -18,10 +18,10 @@ RSS/(n − p) and ρ the residuals' lag-1 autocorrelation (0 if negative). The c
 f σ² (JᵀJ)⁻¹ with f = (1 + ρ)/(1 − ρ), the variance inflation of a mean under AR(1) noise (f = 1
 for white noise; a record's drift and unmodelled wiggles make ρ near 1, and f large, honestly).
 Intervals: Wald (value ± 1.96 s.e.; Dc and k′ on the log scale) here, profile intervals in
-:mod:`benchmarks.inversion.lab_profile` (Δ(RSS)/(f σ²) ≤ 3.84). A parameter at a bound of
+:mod:`benchmarks.lab.profile_intervals` (Δ(RSS)/(f σ²) ≤ 3.84). A parameter at a bound of
 :data:`BOUNDS` is named (``at_bound``) and its interval is not a confidence interval.
 
-Its checks (the integrator, the inertia) are :mod:`benchmarks.inversion.lab_checks`.
+Its checks (the integrator, the inertia) are :mod:`benchmarks.lab.checks`.
 
 **Start.** From the record: for the first step, the jump to the first extreme sets a ln(v2/v1),
 the steady change (a − b) ln(v2/v1), the distance to the extreme the stiffness, and the decay
@@ -310,7 +310,7 @@ def starting_values(record) -> dict:
 
 def fit_lab(model, fixed: dict | None = None, weights=None, start: dict | None = None,
             dc_starts=DC_STARTS) -> LabFit:
-    """Least squares of ``model`` (a :class:`~benchmarks.physics.lab_model.LabModel`) to its
+    """Least squares of ``model`` (a :class:`~benchmarks.lab.model.LabModel`) to its
     record. ``fixed``: parameters held at given values (``k`` in 1/m: friction per metre of
     load-point travel; ``c`` of the Nagata law, whose default is fitted); ``weights``: one per
     piece of the history; ``start``: starting values instead of the record's own."""

@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pandas as pd
 
-from benchmarks.inversion.lab_fit import _LOG, LabFit, fit_lab
+from benchmarks.lab.fit import _LOG, LabFit, fit_lab
 
 __all__ = ["check_lab_solver", "inertia_check", "CHECK_REFERENCES"]
 
@@ -26,8 +26,8 @@ def _references(fit: LabFit, p: dict):
     step budget)."""
     model, rec = fit.model, fit.model.record
     if model.states == 2:
-        from benchmarks.devtools.lab_reference import reference_friction
-        from benchmarks.physics.lab_model import LAB_MU0
+        from benchmarks.lab.independent_model import reference_friction
+        from benchmarks.lab.model import LAB_MU0
         own_tol, ref_tol = TWO_STATE_REFERENCES
         names = [f"the two-state model at {own_tol:g}", "scipy-Radau (an independent model "
                  f"of the published equations) at {ref_tol:g}"]

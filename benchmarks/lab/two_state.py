@@ -12,7 +12,7 @@ b2 may be negative, an evolution that strengthens, as clays show.) Solved for (�
 Rodas5P (the project's tableau, :mod:`integrators.own.rodas5p`: order 5, its 4th-order dense
 output, the analytic Jacobian), elementary step control on atol + rtol·|y|, a restart at each
 switch of the load point; μ at the record's times from the dense output. It is checked against
-:mod:`benchmarks.devtools.lab_reference` (scipy's Radau) and, with b2 = 0, against the project's
+:mod:`benchmarks.lab.independent_model` (scipy's Radau) and, with b2 = 0, against the project's
 slider (tests/test_lab_fit.py).
 """
 

@@ -1,6 +1,6 @@
 """Profile intervals of a laboratory fit: hold one parameter at values on either side of its best
 fit, refit the others, and find where the squares have risen by χ²₁(95 %) = 3.84 noise
-variances (the fit's f σ², :mod:`benchmarks.inversion.lab_fit`).
+variances (the fit's f σ², :mod:`benchmarks.lab.fit`).
 
 Each side walks out from the best fit in the fitted coordinate (a, b, c as they are; ln Dc,
 ln k′), starting at one Wald standard error (at most a twentieth of the parameter's range),
@@ -8,7 +8,7 @@ each refit started from the previous one; a step grows ×2 while the rise per st
 quarter of what is left. A bracket whose rise is over twice the level is halved
 (:data:`BISECTIONS` at most) until it is not, and the crossing is interpolated in the signed
 root √Δ (linear in the parameter for a quadratic profile). A side that reaches its bound of
-:data:`~benchmarks.inversion.lab_fit.BOUNDS`, or :data:`MAX_POINTS` points, without the rise is
+:data:`~benchmarks.lab.fit.BOUNDS`, or :data:`MAX_POINTS` points, without the rise is
 open (the bound, and ``closed`` False); so is a side where the forward model fails, or where
 the squares rise only because another parameter's refit is held at an edge of the box
 (:data:`BOX_EDGES`; its end is the last point before: no rise is known past it; Δ is NaN in
@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from benchmarks.inversion.lab_fit import (_LOG, CHI2_95_1DOF, LabFit, _Problem, _shown,
+from benchmarks.lab.fit import (_LOG, CHI2_95_1DOF, LabFit, _Problem, _shown,
                                           coordinate_bounds)
 
 __all__ = ["LabProfile", "profile_lab", "MAX_POINTS", "BISECTIONS", "BOX_EDGES"]
@@ -148,7 +148,7 @@ BOX_EDGES = {"a": (False, True), "b": (False, True), "c": (False, True), "b2": (
 
 def _boxed(prob, x) -> bool:
     """Is one of the refit's parameters held at an edge of the box (:data:`BOX_EDGES`, within
-    the tolerances of :attr:`~benchmarks.inversion.lab_fit.LabFit.at_bound`)?"""
+    the tolerances of :attr:`~benchmarks.lab.fit.LabFit.at_bound`)?"""
     lo, hi = prob.bounds()
     for name, u, l, h in zip(prob.free, x, lo, hi):
         near = (1e-3 if name in _LOG else 1e-6) * (h - l)

@@ -26,7 +26,7 @@ durations (give seconds), a force or an acceleration clipped at its extreme (a s
 two separate runs of ``SATURATED_RUN`` samples or more at the channel's largest or smallest value,
 inside the record), and a shear force whose ratio to the normal force no friction coefficient
 has (one of them in another unit). Other units slips are caught where two channels measure the
-same thing (:mod:`benchmarks.physics.record_analysis`).
+same thing (:mod:`benchmarks.lab.events`).
 """
 
 from __future__ import annotations

@@ -94,7 +94,7 @@ class Analysis:
 
 def analyse(rec, mass: float | None = None, vls: float | None = None,
             stiffness: float | None = None) -> Analysis:
-    """Measure the recording ``rec`` (:class:`benchmarks.physics.recording.Recording`).
+    """Measure the recording ``rec`` (:class:`benchmarks.lab.channels.Recording`).
     ``mass`` (kg): the slider's, for Ft = Fs − m·a; ``vls`` (m/s) and ``stiffness`` (N/m)
     stand for what the table's position would give (and are then not measured)."""
     from problems._validate import check_positive, warn_implausible

@@ -14,7 +14,7 @@ MAX_DRAWN = 50_000
 
 
 def plot_recording(rec, analysis, path) -> Path:
-    """Write the figure of ``analysis`` (:class:`~benchmarks.physics.record_analysis.Analysis`)
+    """Write the figure of ``analysis`` (:class:`~benchmarks.lab.events.Analysis`)
     of the recording ``rec`` to ``path`` (PNG)."""
     import matplotlib
     matplotlib.use("Agg")

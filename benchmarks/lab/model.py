@@ -11,7 +11,7 @@ piece's speed, which is also the law's reference speed v0.
 
 With ``states=2`` the law has a second state variable (b2, Dc2: two evolutions, one of which may
 strengthen) and the slider is quasi-static: it is solved by its own compiled model
-(:mod:`benchmarks.physics.lab_two_state`), as no :class:`~problems.SpringSlider` holds two
+(:mod:`benchmarks.lab.two_state`), as no :class:`~problems.SpringSlider` holds two
 states; ``algorithm`` then does not apply.
 
 The friction μ the model returns is μ_ref + (Fs/Fn − μ0) + the trend: μ_ref the steady friction
@@ -165,7 +165,7 @@ class LabModel:
         (also over its ``wall_budget``, s: default the model's). ``rtol``: the two-state model's
         rtol = atol (default 1e-10)."""
         if self.states == 2:
-            from benchmarks.physics.lab_two_state import two_state_friction
+            from benchmarks.lab.two_state import two_state_friction
             rec = self.record
             tol = 1e-10 if rtol is None else rtol
             mu, steps = two_state_friction(rec.t, rec.velocities, rec.switch_times, a, b, dc,
