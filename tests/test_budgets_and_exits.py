@@ -84,7 +84,7 @@ def test_a_ctrl_c_in_the_lab_posterior_is_one_exception_and_no_emcee_traceback(
     """emcee prints a traceback for any exception of the log-probability, an interruption
     included; the posterior holds a Ctrl-C until its step ends, then raises it."""
     pytest.importorskip("emcee")
-    from benchmarks.lab import fit
+    from benchmarks.lab import fit as lab_fit
     from benchmarks.lab.sampling import sample_lab
     fit = lab_fit.fit_lab(LabModel(_step_record(), "aging", detrend="none"))
     calls = {"n": 0}
