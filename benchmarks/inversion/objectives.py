@@ -29,7 +29,8 @@ import numpy as np
 import pandas as pd
 
 __all__ = ["CHI2_95_2DOF", "NO_CYCLE_RESIDUAL", "NO_CYCLE_J1", "Scores", "scores",
-           "j2_per_event", "JointFit", "joint_fit"]
+           "EventSamples", "event_samples", "offset_residuals", "j2_per_event", "JointFit",
+           "joint_fit"]
 
 #: the 95 % quantile of χ² with two degrees of freedom: the paper's J1 threshold
 CHI2_95_2DOF = 5.99146
@@ -81,22 +82,46 @@ def scores(recurrence_s, friction_drop, cycle, obs) -> Scores:
     return Scores(*residual, cycle)
 
 
-def j2_per_event(curve_slip: np.ndarray, curve_friction: np.ndarray,
-                 observed: pd.DataFrame) -> np.ndarray:
-    """Eq. 11: J2(i) for each observed event i against one synthetic curve.
+class EventSamples(NamedTuple):
+    """Every sample of observed curves, flat: its ``slip``, ``friction`` and ``event`` (the
+    events indexed in the order they first appear, each one's samples by increasing slip), and
+    the events' ``sizes``."""
 
-    The minimum over the offset μ0 is taken in closed form: it is the variance (over the samples
-    of event i) of the residual μsy − μob. Returns NaN for every event if there is no curve.
-    """
-    groups = [g for _, g in observed.groupby("event_id", sort=False)]
+    slip: np.ndarray
+    friction: np.ndarray
+    event: np.ndarray
+    sizes: np.ndarray
+
+
+def event_samples(observed: pd.DataFrame) -> EventSamples:
+    """The samples of ``observed`` curves (columns ``event_id``, ``slip_m``, ``friction``)."""
+    events = [g.sort_values("slip_m") for _, g in observed.groupby("event_id", sort=False)]
+    event = np.concatenate([np.full(len(g), i) for i, g in enumerate(events)])
+    return EventSamples(np.concatenate([g.slip_m.to_numpy() for g in events]),
+                        np.concatenate([g.friction.to_numpy() for g in events]), event,
+                        np.bincount(event))
+
+
+def offset_residuals(curve_slip: np.ndarray, curve_friction: np.ndarray,
+                     samples: EventSamples) -> np.ndarray:
+    """μsy − μob at every observed sample, less its event's mean: the residuals after each
+    event's best offset μ0 (Eq. 11's minimum, in closed form)."""
+    r = np.interp(samples.slip, curve_slip, curve_friction) - samples.friction
+    return r - (np.bincount(samples.event, r) / samples.sizes)[samples.event]
+
+
+def j2_per_event(curve_slip: np.ndarray, curve_friction: np.ndarray,
+                 observed: pd.DataFrame | EventSamples) -> np.ndarray:
+    """Eq. 11: J2(i) for each observed event i (``observed``: the curves, or their
+    :func:`event_samples` when one set is scored against many curves) against one synthetic
+    curve: the variance of its residuals after the best offset. NaN for every event if there
+    is no curve."""
+    samples = observed if isinstance(observed, EventSamples) else event_samples(observed)
+    curve_slip = np.asarray(curve_slip, dtype=float)
     if len(curve_slip) < 2:
-        return np.full(len(groups), np.nan)
-    out = np.empty(len(groups))
-    for i, g in enumerate(groups):
-        synthetic = np.interp(g["slip_m"].to_numpy(), curve_slip, curve_friction)
-        residual = synthetic - g["friction"].to_numpy()
-        out[i] = np.mean((residual - residual.mean()) ** 2)
-    return out
+        return np.full(len(samples.sizes), np.nan)
+    r = offset_residuals(curve_slip, np.asarray(curve_friction, dtype=float), samples)
+    return np.bincount(samples.event, r * r) / samples.sizes
 
 
 class JointFit(dict):
