@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from benchmarks.ensemble import ensemble
-from benchmarks.inversion.objectives import scores
+from benchmarks.inversion.objectives import Total, scores, total
 from benchmarks.inversion.observations import Observations
 from benchmarks.physics.metrics import CYCLES
 from integrators import Algorithm
@@ -127,31 +127,25 @@ class MetricMap:
     curve_slip: np.ndarray | None = field(default=None, repr=False)
     curve_friction: np.ndarray | None = field(default=None, repr=False)
 
-    def chi2_curves(self, obs: Observations) -> np.ndarray:
-        """The curves' χ² at every node against ``obs``' curves (0 everywhere when ``obs`` has
-        none; NaN without a cycle): :mod:`benchmarks.inversion.curve_likelihood`."""
+    def total(self, obs: Observations) -> Total:
+        """J1 + the curves' χ² at every node against ``obs``, and the log-likelihood
+        (:func:`benchmarks.inversion.objectives.total`; the curves' χ² 0 everywhere when
+        ``obs`` has none)."""
         like = obs.curve_likelihood
-        if like is None:
-            return np.where(self.cycle, 0.0, np.nan)
-        if self.curve_slip is None:
+        if like is not None and self.curve_slip is None:
             raise ValueError("the observations have slip-weakening curves but this map was "
                              "made without them: make it with metric_map(..., curves=True)")
-        out = np.full(self.cycle.shape, np.nan)
-        for i, j in zip(*np.nonzero(self.cycle)):
-            out[i, j] = like.chi2(self.curve_slip[i, j], self.curve_friction[i, j])
-        return out
+        curves = (() if like is None else (self.curve_slip.ravel(), self.curve_friction.ravel()))
+        return total(self.scores(obs), like, *curves)
 
     def misfit(self, obs: Observations) -> np.ndarray:
         """J1 + the curves' χ² at every node; :data:`NO_CYCLE_J1` without a limit cycle (or
         a cycle whose curve is missing)."""
-        from benchmarks.inversion.objectives import NO_CYCLE_J1
-        total = self.scores(obs).j1 + self.chi2_curves(obs)
-        return np.where(np.isfinite(total), total, NO_CYCLE_J1)
+        return self.total(obs).misfit
 
     def log_likelihood(self, obs: Observations) -> np.ndarray:
         """−misfit/2 at every node, −inf without a limit cycle."""
-        total = self.scores(obs).j1 + self.chi2_curves(obs)
-        return np.where(np.isfinite(total), -0.5 * total, -np.inf)
+        return self.total(obs).log_likelihood
 
     def j1(self, obs: Observations) -> np.ndarray:
         """J1 at every node against ``obs``; :data:`NO_CYCLE_J1` without a limit cycle."""

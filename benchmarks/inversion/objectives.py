@@ -30,7 +30,7 @@ import pandas as pd
 
 __all__ = ["CHI2_95_2DOF", "NO_CYCLE_RESIDUAL", "NO_CYCLE_J1", "Scores", "scores",
            "EventSamples", "event_samples", "offset_residuals", "j2_per_event", "JointFit",
-           "joint_fit"]
+           "joint_fit", "Total", "total"]
 
 #: the 95 % quantile of χ² with two degrees of freedom: the paper's J1 threshold
 CHI2_95_2DOF = 5.99146
@@ -80,6 +80,35 @@ def scores(recurrence_s, friction_drop, cycle, obs) -> Scores:
                                        (friction_drop, obs.friction_drop,
                                         obs.sigma_friction_drop))]
     return Scores(*residual, cycle)
+
+
+class Total(NamedTuple):
+    """−2 log L (up to a constant) at a set of points, from :func:`total`."""
+
+    #: the curves' χ²: 0 without curves in the likelihood, NaN without a cycle or its curve
+    chi2_curves: np.ndarray
+    #: J1 + χ²_curves; :data:`NO_CYCLE_J1` without a cycle or its curve (least squares)
+    misfit: np.ndarray
+    #: −misfit/2; −inf without a cycle or its curve (a sampler, a grid posterior)
+    log_likelihood: np.ndarray
+
+
+def total(s: Scores, likelihood=None, curve_slip=(), curve_friction=()) -> Total:
+    """J1 of the scored points ``s`` plus the curves' χ² under ``likelihood`` (a
+    :class:`~benchmarks.inversion.curve_likelihood.CurveLikelihood`, or None: no curves) of
+    each point's model curve (``curve_slip``, ``curve_friction``: one array per point, flat in
+    the order of ``s.cycle.ravel()``). A cycle whose curve is missing or empty has no χ² and
+    scores as a point without a cycle."""
+    cycle = s.cycle.ravel()
+    chi2 = np.where(cycle, 0.0, np.nan)
+    if likelihood is not None:
+        chi2 = np.array([likelihood.chi2(x, y) if c else np.nan
+                         for c, x, y in zip(cycle, curve_slip, curve_friction)])
+    chi2 = chi2.reshape(s.cycle.shape)
+    misfit = s.j1 + chi2
+    ok = np.isfinite(misfit)
+    return Total(np.where(ok, chi2, np.nan), np.where(ok, misfit, NO_CYCLE_J1),
+                 np.where(ok, -0.5 * misfit, -np.inf))
 
 
 class EventSamples(NamedTuple):
