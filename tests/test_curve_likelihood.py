@@ -74,7 +74,7 @@ def test_the_sample_model_is_the_papers_j2_over_sigma_squared():
     want = np.sum(sizes * j2_per_event(s, m, curves)) / 2e-3 ** 2
     assert like.chi2(s, m) == pytest.approx(want, rel=1e-10)
     assert like.dof == len(curves) - 6
-    # the paper's J̄2, as every noise model reports it: fitting.j2_per_event's mean
+    # the paper's J̄2, as every noise model reports it: objectives.j2_per_event's mean
     for model in (like, CurveLikelihood.from_curves(curves)):
         assert model.j2(s, m) == pytest.approx(np.mean(j2_per_event(s, m, curves)), rel=1e-10)
 

@@ -38,7 +38,7 @@ from problems import paper_example, window
 __all__ = ["Ladder", "FULL", "QUICK", "study_problems", "settings", "measure", "work_precision",
            "WP_COLUMNS", "SKIPPED", "REFUSED", "reliable_error", "best_at_levels", "recommend",
            "fastest_within",
-           "algorithm_at", "recommended_algorithm", "read_study", "STUDY_CSV", "pareto_front",
+           "algorithm_at", "read_study", "STUDY_CSV", "pareto_front",
            "front_source", "write_recommendation"]
 
 SKIPPED = "Skipped"
@@ -299,25 +299,6 @@ def pareto_front(df: pd.DataFrame, error: str = "err_recurrence") -> pd.DataFram
     agg = agg.sort_values(["total_wall_s", "worst_error"], kind="stable")
     front = agg[agg.worst_error < agg.worst_error.cummin().shift(fill_value=math.inf)]
     return front[["worst_error", "total_wall_s", *keys]].reset_index(drop=True)
-
-
-def recommended_algorithm(level: float, csv=STUDY_CSV, error: str = "err_recurrence"):
-    """``(algorithm, reason)``: the study ``csv``'s recommendation for ``level`` (see
-    :func:`recommend`), or ETD2 at the paper's settings when there is no study or it recommends
-    nothing. The commands use the recommendation in code instead
-    (:func:`benchmarks.devtools.recommendation.recommended`, written from the committed study)."""
-    from integrators import ETD2
-    path = Path(csv)
-    if not path.exists():
-        return ETD2(), f"no work-precision study at {path}: ETD2 at the paper's settings"
-    advice = recommend(read_study(path), [level], error).iloc[0]
-    if pd.isna(advice.get("integrator")) or advice.integrator not in REGISTRY:
-        return ETD2(), (f"{path.name} recommends nothing for {error} ≤ {level:g}: ETD2 at the "
-                        f"paper's settings")
-    alg = algorithm_at(advice.integrator, advice.rhs_tier, float(advice.setting))
-    return alg, (f"{path.name}: fastest setting with worst {error} ≤ {level:g} over its problems "
-                 f"(worst {advice.worst_error:.2g}): {advice.integrator} [{advice.rhs_tier}] at "
-                 f"{advice.setting:g}")
 
 
 RECOMMENDATION_MODULE = Path(__file__).resolve().parent / "recommendation.py"

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from benchmarks.inversion.grid import cell_mass, cell_quantiles, hpd
 from benchmarks.inversion.misfit import Misfit
 
 __all__ = ["CellPosterior", "grid_posterior", "TAIL", "MAX_SPLIT", "SETTLED", "MIN_CELLS",
@@ -82,31 +83,6 @@ class CellPosterior:
                              + u[:, 1] * c.width_log10_lc.to_numpy()[k]})
 
 
-def _mass(log_l: np.ndarray, area: np.ndarray) -> np.ndarray:
-    if not np.isfinite(log_l).any():
-        return np.zeros(len(log_l))
-    w = np.where(np.isfinite(log_l), np.exp(log_l - np.max(log_l[np.isfinite(log_l)])), 0.0)
-    w *= area
-    return w / w.sum()
-
-
-def _quantiles(lo: np.ndarray, hi: np.ndarray, mass: np.ndarray, qs) -> list[float]:
-    """Quantiles of a density uniform over each [lo, hi] with ``mass``: the cumulative mass is
-    piecewise linear between the cells' ends."""
-    x = np.unique(np.concatenate([lo, hi]))
-    cdf = np.array([np.sum(mass * np.clip((xi - lo) / (hi - lo), 0.0, 1.0)) for xi in x]) \
-        if len(x) < 4000 else _cdf_fast(x, lo, hi, mass)
-    return [float(np.interp(q, cdf, x)) for q in qs]
-
-
-def _cdf_fast(x, lo, hi, mass):
-    out = np.empty(len(x))
-    for i in range(0, len(x), 512):
-        xi = x[i:i + 512, None]
-        out[i:i + 512] = (mass * np.clip((xi - lo) / (hi - lo), 0.0, 1.0)).sum(axis=1)
-    return out
-
-
 def _summary(cells: pd.DataFrame) -> tuple[dict, dict, dict]:
     mean, std, interval = {}, {}, {}
     m = cells.mass.to_numpy()
@@ -118,14 +94,8 @@ def _summary(cells: pd.DataFrame) -> tuple[dict, dict, dict]:
         mean[name] = float(m @ x)
         # each cell uniform over its width: its own variance w²/12 adds to the spread
         std[name] = float(np.sqrt(max(m @ ((x - mean[name]) ** 2 + w ** 2 / 12.0), 0.0)))
-        interval[name] = tuple(_quantiles(x - w / 2, x + w / 2, m, (0.025, 0.975)))
+        interval[name] = cell_quantiles(x - w / 2, x + w / 2, m, (0.025, 0.975))
     return mean, std, interval
-
-
-def _hpd_cells(cells: pd.DataFrame, level: float = 0.95) -> int:
-    density = cells.mass / (cells.width_b * cells.width_log10_lc)
-    m = cells.mass.to_numpy()[np.argsort(-density.to_numpy())]
-    return int(np.searchsorted(np.cumsum(m), level) + 1)
 
 
 def grid_posterior(misfit: Misfit, b_range, lc_range, n: int = 33, progress: bool = False,
@@ -169,16 +139,17 @@ def grid_posterior(misfit: Misfit, b_range, lc_range, n: int = 33, progress: boo
         centres["width_b"] /= 3
         centres["width_log10_lc"] /= 3
         cells = pd.concat([cells.drop(cells.index[split]), centres, new], ignore_index=True)
-        cells["mass"] = _mass(cells.log_likelihood.to_numpy(),
-                              (cells.width_b * cells.width_log10_lc).to_numpy())
+        cells["mass"] = cell_mass(cells.log_likelihood.to_numpy(),
+                                  (cells.width_b * cells.width_log10_lc).to_numpy())
         before = interval
         mean, std, interval = _summary(cells)
         moved = max(max(abs(interval[k][0] - before[k][0]), abs(interval[k][1] - before[k][1]))
                     / max(interval[k][1] - interval[k][0], 1e-300) for k in _NAMES)
-        hpd = _hpd_cells(cells)
+        n_hpd = int(hpd(cells.mass.to_numpy(), 0.95,
+                        (cells.width_b * cells.width_log10_lc).to_numpy()).sum())
         history.append({"level": level, "cells": len(cells), "split": len(split),
-                        "solves": n_solves, "moved": moved, "hpd_cells": hpd})
-        if moved < SETTLED and hpd >= MIN_CELLS:
+                        "solves": n_solves, "moved": moved, "hpd_cells": n_hpd})
+        if moved < SETTLED and n_hpd >= MIN_CELLS:
             settled = True
             break
     edge = ((cells.b - cells.width_b / 2 <= b_lo + 1e-12 * (b_hi - b_lo))
@@ -213,5 +184,5 @@ def _evaluate(misfit: Misfit, b, log10_lc, width_b, width_l, progress) -> pd.Dat
                           "misfit": table.misfit.to_numpy(),
                           "failed": ((table.retcode != "Success").to_numpy() if "retcode" in table
                                     else np.zeros(len(table), bool))})
-    cells["mass"] = _mass(cells.log_likelihood.to_numpy(), width_b * width_l)
+    cells["mass"] = cell_mass(cells.log_likelihood.to_numpy(), width_b * width_l)
     return cells

@@ -34,6 +34,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from benchmarks.inversion.objectives import (EventSamples, event_samples, j2_per_event,
+                                             offset_residuals)
+
 __all__ = ["CurveLikelihood", "CURVE_NOISES", "COMMON_SLIPS", "MIN_EVENTS", "MIN_SPREAD",
            "ledoit_wolf"]
 
@@ -90,8 +93,8 @@ class CurveLikelihood:
     mean: np.ndarray | None = field(default=None, repr=False)
     whiten: np.ndarray | None = field(default=None, repr=False)
     shrinkage: float | None = None
-    #: every observed sample: slip, friction, its event's index, the events' sizes
-    observed: tuple | None = field(default=None, repr=False)
+    #: every observed sample (the residuals of ``"sample"``, the paper's J̄2)
+    observed: EventSamples | None = field(default=None, repr=False)
 
     @classmethod
     def from_curves(cls, curves: pd.DataFrame, noise: str = "scatter", sigma: float | None = None,
@@ -105,15 +108,12 @@ class CurveLikelihood:
             raise ValueError(f"reading must be 'std' or 'sem', got {reading!r}")
         events = [g.sort_values("slip_m") for _, g in curves.groupby("event_id", sort=False)]
         n = len(events)
-        index = np.concatenate([np.full(len(g), i) for i, g in enumerate(events)])
-        observed = (np.concatenate([g.slip_m.to_numpy() for g in events]),
-                    np.concatenate([g.friction.to_numpy() for g in events]), index,
-                    np.bincount(index))
+        observed = event_samples(curves)
         if noise == "sample":
             if sigma is None or not np.isfinite(sigma) or sigma <= 0:
                 raise ValueError(f"curve noise 'sample' needs σ per sample > 0 (friction, a "
                                  f"fraction like μ), got {sigma!r}")
-            return cls("sample", reading, n, len(index) - n, sigma=float(sigma),
+            return cls("sample", reading, n, len(observed.slip) - n, sigma=float(sigma),
                        observed=observed)
         if sigma is not None:
             raise ValueError("a σ per sample is for curve noise 'sample'; the 'scatter' model "
@@ -158,24 +158,16 @@ class CurveLikelihood:
         NaN when the curve is empty."""
         slip, friction = np.asarray(slip, dtype=float), np.asarray(friction, dtype=float)
         if len(slip) < 2:
-            return np.full(self.dof if self.noise == "scatter" else len(self.observed[0]),
+            return np.full(self.dof if self.noise == "scatter" else len(self.observed.slip),
                            np.nan)
         if self.noise == "scatter":
             return self.whiten @ (self.mean - np.interp(self.slips, slip, friction))
-        s, mu, index, sizes = self.observed
-        r = np.interp(s, slip, friction) - mu
-        return (r - (np.bincount(index, r) / sizes)[index]) / self.sigma
+        return offset_residuals(slip, friction, self.observed) / self.sigma
 
     def j2(self, slip, friction) -> float:
         """The paper's J̄2 (Eq. 11) of one model curve: the mean over the events of each one's
         residual variance after its best offset (NaN when the curve is empty)."""
-        slip, friction = np.asarray(slip, dtype=float), np.asarray(friction, dtype=float)
-        if len(slip) < 2:
-            return float("nan")
-        s, mu, index, sizes = self.observed
-        r = np.interp(s, slip, friction) - mu
-        r = r - (np.bincount(index, r) / sizes)[index]
-        return float(np.mean(np.bincount(index, r * r) / sizes))
+        return float(np.mean(j2_per_event(slip, friction, self.observed)))
 
     def chi2(self, slip, friction) -> float:
         """The curves' χ² of one model curve (NaN when it is empty)."""

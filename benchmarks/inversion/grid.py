@@ -30,13 +30,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from benchmarks.ensemble import ensemble
-from benchmarks.inversion.objectives import scores
+from benchmarks.inversion.objectives import Total, scores, total
 from benchmarks.inversion.observations import Observations
 from benchmarks.physics.metrics import CYCLES
 from integrators import Algorithm
 from problems import SpringSlider
 
-__all__ = ["MetricMap", "GridPosterior", "metric_map", "box_grid", "cell_box"]
+__all__ = ["MetricMap", "GridPosterior", "metric_map", "box_grid", "cell_box", "cell_mass",
+           "cell_quantiles", "hpd"]
 
 _SIDES = ("b_low", "b_high", "lc_low", "lc_high")
 #: s between saved points of a peer's trajectory when curves are made point by point (the own
@@ -84,6 +85,39 @@ def _through(x: np.ndarray, x0: float) -> np.ndarray:
     return x + (x0 - x[k]) if abs(x0 - x[k]) <= step else x
 
 
+def cell_mass(log_l: np.ndarray, area=1.0) -> np.ndarray:
+    """The posterior mass of cells with log-likelihood ``log_l`` at their centres and ``area``
+    (the midpoint rule under a uniform prior), summing to one; all zero when no cell has a
+    finite log-likelihood."""
+    finite = np.isfinite(log_l)
+    if not finite.any():
+        return np.zeros(np.shape(log_l))
+    w = np.where(finite, np.exp(log_l - np.max(log_l[finite])), 0.0) * area
+    return w / w.sum()
+
+
+def cell_quantiles(lo: np.ndarray, hi: np.ndarray, mass: np.ndarray, qs) -> tuple[float, ...]:
+    """Quantiles of a density uniform over each cell [``lo``, ``hi``] with ``mass``: the
+    cumulative mass is piecewise linear between the cells' ends."""
+    x = np.unique(np.concatenate([lo, hi]))
+    cdf = np.empty(len(x))
+    for i in range(0, len(x), 512):                    # in blocks: a refined grid's many cells
+        xi = x[i:i + 512, None]
+        cdf[i:i + 512] = (mass * np.clip((xi - lo) / (hi - lo), 0.0, 1.0)).sum(axis=1)
+    return tuple(float(np.interp(q, cdf, x)) for q in qs)
+
+
+def hpd(mass: np.ndarray, level: float, area=1.0) -> np.ndarray:
+    """The highest-posterior-density set of cells (a mask of ``mass``' shape): the fewest
+    cells by decreasing density ``mass``/``area`` that hold ``level`` of the mass, the cell
+    that crosses the level included."""
+    order = np.argsort(mass / area, axis=None)[::-1]
+    n_in = int(np.searchsorted(np.cumsum(mass.ravel()[order]), level) + 1)
+    inside = np.zeros(mass.size, bool)
+    inside[order[:n_in]] = True
+    return inside.reshape(mass.shape)
+
+
 @dataclass
 class GridPosterior:
     """The posterior of one data set on a :class:`MetricMap`'s grid (module docstring).
@@ -127,31 +161,25 @@ class MetricMap:
     curve_slip: np.ndarray | None = field(default=None, repr=False)
     curve_friction: np.ndarray | None = field(default=None, repr=False)
 
-    def chi2_curves(self, obs: Observations) -> np.ndarray:
-        """The curves' χ² at every node against ``obs``' curves (0 everywhere when ``obs`` has
-        none; NaN without a cycle): :mod:`benchmarks.inversion.curve_likelihood`."""
+    def total(self, obs: Observations) -> Total:
+        """J1 + the curves' χ² at every node against ``obs``, and the log-likelihood
+        (:func:`benchmarks.inversion.objectives.total`; the curves' χ² 0 everywhere when
+        ``obs`` has none)."""
         like = obs.curve_likelihood
-        if like is None:
-            return np.where(self.cycle, 0.0, np.nan)
-        if self.curve_slip is None:
+        if like is not None and self.curve_slip is None:
             raise ValueError("the observations have slip-weakening curves but this map was "
                              "made without them: make it with metric_map(..., curves=True)")
-        out = np.full(self.cycle.shape, np.nan)
-        for i, j in zip(*np.nonzero(self.cycle)):
-            out[i, j] = like.chi2(self.curve_slip[i, j], self.curve_friction[i, j])
-        return out
+        curves = (() if like is None else (self.curve_slip.ravel(), self.curve_friction.ravel()))
+        return total(self.scores(obs), like, *curves)
 
     def misfit(self, obs: Observations) -> np.ndarray:
         """J1 + the curves' χ² at every node; :data:`NO_CYCLE_J1` without a limit cycle (or
         a cycle whose curve is missing)."""
-        from benchmarks.inversion.objectives import NO_CYCLE_J1
-        total = self.scores(obs).j1 + self.chi2_curves(obs)
-        return np.where(np.isfinite(total), total, NO_CYCLE_J1)
+        return self.total(obs).misfit
 
     def log_likelihood(self, obs: Observations) -> np.ndarray:
         """−misfit/2 at every node, −inf without a limit cycle."""
-        total = self.scores(obs).j1 + self.chi2_curves(obs)
-        return np.where(np.isfinite(total), -0.5 * total, -np.inf)
+        return self.total(obs).log_likelihood
 
     def j1(self, obs: Observations) -> np.ndarray:
         """J1 at every node against ``obs``; :data:`NO_CYCLE_J1` without a limit cycle."""
@@ -172,24 +200,21 @@ class MetricMap:
             return GridPosterior(np.zeros(log_w.shape), np.zeros(log_w.shape, bool), nan, nan,
                                  {"b": (np.nan, np.nan), "log10_lc": (np.nan, np.nan)},
                                  np.nan, dict.fromkeys(_SIDES, np.nan), ok=False)
-        w = np.exp(log_w - log_w.max())
-        mass = w / w.sum()
-        order = np.argsort(mass, axis=None)[::-1]
-        cum = np.cumsum(mass.ravel()[order])
-        n_in = int(np.searchsorted(cum, level) + 1)       # the node that crosses the level, too
-        hpd = np.zeros(mass.size, bool)
-        hpd[order[:n_in]] = True
+        mass = cell_mass(log_w)
         mean, std, interval = {}, {}, {}
         for name, axis, x in (("b", 1, self.b), ("log10_lc", 0, self.log10_lc)):
             marginal = mass.sum(axis=axis)
             mean[name] = float(marginal @ x)
             std[name] = float(np.sqrt(max(marginal @ (x - mean[name]) ** 2, 0.0)))
-            interval[name] = _quantiles(x, marginal, ((1 - level) / 2, (1 + level) / 2))
+            edges = np.concatenate([[x[0] - (x[1] - x[0]) / 2], (x[1:] + x[:-1]) / 2,
+                                    [x[-1] + (x[-1] - x[-2]) / 2]])
+            interval[name] = cell_quantiles(edges[:-1], edges[1:], marginal,
+                                            ((1 - level) / 2, (1 + level) / 2))
         edge = np.zeros(log_w.shape, bool)
         edge[[0, -1], :] = edge[:, [0, -1]] = True
         sides = dict(zip(_SIDES, (mass[0].sum(), mass[-1].sum(), mass[:, 0].sum(),
                                   mass[:, -1].sum())))
-        return GridPosterior(mass, hpd.reshape(log_w.shape), mean, std, interval,
+        return GridPosterior(mass, hpd(mass, level), mean, std, interval,
                              float(mass[edge].sum()), {k: float(v) for k, v in sides.items()},
                              ok=True)
 
@@ -200,15 +225,6 @@ class MetricMap:
             raise ValueError(f"parameter must be 'b' or 'log10_lc', got {parameter!r}")
         J = self.misfit(obs)
         return (self.b, J.min(axis=1)) if parameter == "b" else (self.log10_lc, J.min(axis=0))
-
-
-def _quantiles(x: np.ndarray, mass: np.ndarray, qs) -> tuple[float, float]:
-    """Quantiles of a distribution of masses ``mass`` at nodes ``x``, each node's mass spread
-    uniformly over its cell (the linear interpolation of the cumulative mass at cell edges)."""
-    edges = np.concatenate([[x[0] - (x[1] - x[0]) / 2], (x[1:] + x[:-1]) / 2,
-                            [x[-1] + (x[-1] - x[-2]) / 2]])
-    cum = np.concatenate([[0.0], np.cumsum(mass)])
-    return tuple(float(np.interp(q, cum, edges)) for q in qs)
 
 
 def metric_map(problem: SpringSlider, algorithm: Algorithm, b, log10_lc,

@@ -23,7 +23,7 @@ import numpy as np
 import pandas as pd
 
 from benchmarks.ensemble import ensemble
-from benchmarks.inversion.objectives import NO_CYCLE_J1, NO_CYCLE_RESIDUAL, scores
+from benchmarks.inversion.objectives import NO_CYCLE_RESIDUAL, scores, total
 from benchmarks.inversion.observations import MIN_SIGMA_REL, Observations
 from benchmarks.physics.metrics import CYCLES
 from integrators import Algorithm
@@ -89,19 +89,12 @@ class Misfit:
         s = scores(table.recurrence_s, table.friction_drop, cycle, o)
         table["r_recurrence"], table["r_drop"] = s.penalised
         table["J1"] = s.j1_penalised
-        chi2 = np.zeros(len(table))
-        if o.curve_likelihood is not None:
-            like = o.curve_likelihood
-            curves = list(zip(cycle, table.curve_slip, table.curve_friction))
-            chi2 = np.array([like.chi2(x, y) if c else np.nan for c, x, y in curves])
-            table["J2"] = [like.j2(x, y) if c else np.inf for c, x, y in curves]
-        else:
-            table["J2"] = np.nan
-        # a cycle whose curve could not be made (a second solve that differed) has no χ²
-        has = cycle & np.isfinite(chi2)
-        table["chi2_curves"] = np.where(has, chi2, np.nan)
-        table["misfit"] = np.where(has, s.j1_penalised + np.where(has, chi2, 0.0), NO_CYCLE_J1)
-        table["log_likelihood"] = np.where(has, -0.5 * table.misfit.to_numpy(), -np.inf)
+        like = o.curve_likelihood
+        t = total(s, like, table.get("curve_slip", ()), table.get("curve_friction", ()))
+        table["J2"] = np.nan if like is None else [
+            like.j2(x, y) if c else np.inf
+            for c, x, y in zip(cycle, table.curve_slip, table.curve_friction)]
+        table["chi2_curves"], table["misfit"], table["log_likelihood"] = t
         return table
 
     def residuals(self, b: float, lc: float) -> np.ndarray:

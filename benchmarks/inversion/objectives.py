@@ -29,10 +29,14 @@ import numpy as np
 import pandas as pd
 
 __all__ = ["CHI2_95_2DOF", "NO_CYCLE_RESIDUAL", "NO_CYCLE_J1", "Scores", "scores",
-           "j2_per_event", "JointFit", "joint_fit"]
+           "EventSamples", "event_samples", "offset_residuals", "j2_per_event", "JointFit",
+           "joint_fit", "Total", "total", "CHI2_95_1DOF", "level_crossing"]
 
 #: the 95 % quantile of χ² with two degrees of freedom: the paper's J1 threshold
 CHI2_95_2DOF = 5.99146
+#: the 95 % quantile of χ² with one degree of freedom: the level of every profile interval
+#: (−2 Δ log L ≤ 3.84, Wilks), the stick–slip inversion's and the laboratory fit's
+CHI2_95_1DOF = 3.841458820694124
 #: the residual (in σ) of each observation at a point without a limit cycle, for least squares
 NO_CYCLE_RESIDUAL = 1e3
 #: J1 of a point without a limit cycle, for least squares (both residuals NO_CYCLE_RESIDUAL)
@@ -81,22 +85,88 @@ def scores(recurrence_s, friction_drop, cycle, obs) -> Scores:
     return Scores(*residual, cycle)
 
 
-def j2_per_event(curve_slip: np.ndarray, curve_friction: np.ndarray,
-                 observed: pd.DataFrame) -> np.ndarray:
-    """Eq. 11: J2(i) for each observed event i against one synthetic curve.
+class Total(NamedTuple):
+    """−2 log L (up to a constant) at a set of points, from :func:`total`."""
 
-    The minimum over the offset μ0 is taken in closed form: it is the variance (over the samples
-    of event i) of the residual μsy − μob. Returns NaN for every event if there is no curve.
-    """
-    groups = [g for _, g in observed.groupby("event_id", sort=False)]
+    #: the curves' χ²: 0 without curves in the likelihood, NaN without a cycle or its curve
+    chi2_curves: np.ndarray
+    #: J1 + χ²_curves; :data:`NO_CYCLE_J1` without a cycle or its curve (least squares)
+    misfit: np.ndarray
+    #: −misfit/2; −inf without a cycle or its curve (a sampler, a grid posterior)
+    log_likelihood: np.ndarray
+
+
+def total(s: Scores, likelihood=None, curve_slip=(), curve_friction=()) -> Total:
+    """J1 of the scored points ``s`` plus the curves' χ² under ``likelihood`` (a
+    :class:`~benchmarks.inversion.curve_likelihood.CurveLikelihood`, or None: no curves) of
+    each point's model curve (``curve_slip``, ``curve_friction``: one array per point, flat in
+    the order of ``s.cycle.ravel()``). A cycle whose curve is missing or empty has no χ² and
+    scores as a point without a cycle."""
+    cycle = s.cycle.ravel()
+    chi2 = np.where(cycle, 0.0, np.nan)
+    if likelihood is not None:
+        chi2 = np.array([likelihood.chi2(x, y) if c else np.nan
+                         for c, x, y in zip(cycle, curve_slip, curve_friction)])
+    chi2 = chi2.reshape(s.cycle.shape)
+    misfit = s.j1 + chi2
+    ok = np.isfinite(misfit)
+    return Total(np.where(ok, chi2, np.nan), np.where(ok, misfit, NO_CYCLE_J1),
+                 np.where(ok, -0.5 * misfit, -np.inf))
+
+
+class EventSamples(NamedTuple):
+    """Every sample of observed curves, flat: its ``slip``, ``friction`` and ``event`` (the
+    events indexed in the order they first appear, each one's samples by increasing slip), and
+    the events' ``sizes``."""
+
+    slip: np.ndarray
+    friction: np.ndarray
+    event: np.ndarray
+    sizes: np.ndarray
+
+
+def event_samples(observed: pd.DataFrame) -> EventSamples:
+    """The samples of ``observed`` curves (columns ``event_id``, ``slip_m``, ``friction``)."""
+    events = [g.sort_values("slip_m") for _, g in observed.groupby("event_id", sort=False)]
+    event = np.concatenate([np.full(len(g), i) for i, g in enumerate(events)])
+    return EventSamples(np.concatenate([g.slip_m.to_numpy() for g in events]),
+                        np.concatenate([g.friction.to_numpy() for g in events]), event,
+                        np.bincount(event))
+
+
+def offset_residuals(curve_slip: np.ndarray, curve_friction: np.ndarray,
+                     samples: EventSamples) -> np.ndarray:
+    """μsy − μob at every observed sample, less its event's mean: the residuals after each
+    event's best offset μ0 (Eq. 11's minimum, in closed form)."""
+    r = np.interp(samples.slip, curve_slip, curve_friction) - samples.friction
+    return r - (np.bincount(samples.event, r) / samples.sizes)[samples.event]
+
+
+def j2_per_event(curve_slip: np.ndarray, curve_friction: np.ndarray,
+                 observed: pd.DataFrame | EventSamples) -> np.ndarray:
+    """Eq. 11: J2(i) for each observed event i (``observed``: the curves, or their
+    :func:`event_samples` when one set is scored against many curves) against one synthetic
+    curve: the variance of its residuals after the best offset. NaN for every event if there
+    is no curve."""
+    samples = observed if isinstance(observed, EventSamples) else event_samples(observed)
+    curve_slip = np.asarray(curve_slip, dtype=float)
     if len(curve_slip) < 2:
-        return np.full(len(groups), np.nan)
-    out = np.empty(len(groups))
-    for i, g in enumerate(groups):
-        synthetic = np.interp(g["slip_m"].to_numpy(), curve_slip, curve_friction)
-        residual = synthetic - g["friction"].to_numpy()
-        out[i] = np.mean((residual - residual.mean()) ** 2)
-    return out
+        return np.full(len(samples.sizes), np.nan)
+    r = offset_residuals(curve_slip, np.asarray(curve_friction, dtype=float), samples)
+    return np.bincount(samples.event, r * r) / samples.sizes
+
+
+def level_crossing(x0: float, d0: float, x1: float, d1: float, level: float,
+                   root: bool = False) -> float:
+    """Where a profile's rise ``d`` reaches ``level`` between (``x0``, ``d0``) and (``x1``,
+    ``d1``): linearly in d, or with ``root`` in the signed root √d (linear in x for a
+    quadratic profile; the rises then are ≥ 0 above the minimum). ``x1`` when the two are
+    level."""
+    if root:
+        d0, d1, level = np.sqrt(d0), np.sqrt(d1), np.sqrt(level)
+    if d1 == d0:
+        return x1
+    return x0 + (x1 - x0) * (level - d0) / (d1 - d0)
 
 
 class JointFit(dict):

@@ -39,11 +39,10 @@ import numpy as np
 import pandas as pd
 
 from benchmarks.inversion.misfit import Misfit
+from benchmarks.inversion.objectives import CHI2_95_1DOF, level_crossing
 
 __all__ = ["profile", "Profile", "CHI2_95_1DOF", "NOISE_J1", "CELLS"]
 
-#: the 95 % quantile of χ² with one degree of freedom
-CHI2_95_1DOF = 3.841458820694124
 #: a profile falling by less than this (in misfit, plus 1e−3 of the value) where it should rise is
 #: noise: it moves an interval's end by a few hundredths of the level at most
 NOISE_J1 = 0.05
@@ -252,9 +251,7 @@ def _interval(x: np.ndarray, J: np.ndarray):
     i, j, level = _crossings(x, J)
 
     def cross(a, c):                     # where the line from point a (in) to c (out) meets it
-        if not np.isfinite(J[c]):
-            return x[a]
-        return x[a] + (x[c] - x[a]) * (level - J[a]) / (J[c] - J[a])
+        return level_crossing(x[a], J[a], x[c], J[c], level) if np.isfinite(J[c]) else x[a]
     open_low, open_high = i == 0, j == len(x) - 1
     low = x[0] if open_low else cross(i, i - 1)
     high = x[-1] if open_high else cross(j, j + 1)

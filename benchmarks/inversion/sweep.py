@@ -36,7 +36,8 @@ import pandas as pd
 
 from benchmarks.ensemble import ensemble, grid
 from benchmarks.ensemble.executors import CONNECT_TIMEOUT_S, WORKER_TIMEOUT_S
-from benchmarks.inversion.objectives import CHI2_95_2DOF, j2_per_event, joint_fit, scores
+from benchmarks.inversion.objectives import (CHI2_95_2DOF, event_samples, j2_per_event,
+                                             joint_fit, scores)
 from benchmarks.inversion.observations import Observations
 from benchmarks.physics.metrics import CYCLES
 from benchmarks.records.files import remove_stale_temporaries, write_output
@@ -219,7 +220,8 @@ def score(points: pd.DataFrame, obs: Observations) -> pd.DataFrame:
     if obs.curves is None:
         fit = joint_fit(table.J1.to_numpy())
     else:
-        per_event = [j2_per_event(_curve(s), _curve(f), obs.curves)
+        observed = event_samples(obs.curves)
+        per_event = [j2_per_event(_curve(s), _curve(f), observed)
                      for s, f in zip(points.get("curve_slip", [None] * len(points)),
                                      points.get("curve_friction", [None] * len(points)))]
         table["J2"] = [np.mean(x) if len(x) else np.nan for x in per_event]

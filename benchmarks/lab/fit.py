@@ -39,7 +39,7 @@ import numpy as np
 import pandas as pd
 
 __all__ = ["LabFit", "fit_lab", "LabFitWarning", "starting_values", "BOUNDS", "FD_STEP",
-           "DC_STARTS", "Z95", "CHI2_95_1DOF", "SETTLE_DC", "PARAMETER_UNITS", "covariance",
+           "DC_STARTS", "Z95", "SETTLE_DC", "PARAMETER_UNITS", "covariance",
            "RANK_TOL", "DC_LONGEST", "coordinate_bounds"]
 
 #: each nonlinear parameter's bounds in its own unit (a, b, c dimensionless; dc m; k 1/m)
@@ -52,7 +52,6 @@ FD_STEP = 1e-5
 #: the starts of Dc, as multiples of the record's own estimate
 DC_STARTS = (0.3, 1.0, 3.0)
 Z95 = 1.959963984540054
-CHI2_95_1DOF = 3.841458820694124
 #: a piece after a step shorter than this many Dc of load-point travel does not show the
 #: evolution: the fit warns
 SETTLE_DC = 3.0

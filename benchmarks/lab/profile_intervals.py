@@ -26,8 +26,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from benchmarks.lab.fit import (_LOG, CHI2_95_1DOF, LabFit, _Problem, _shown,
-                                          coordinate_bounds)
+from benchmarks.inversion.objectives import CHI2_95_1DOF, level_crossing
+from benchmarks.lab.fit import _LOG, LabFit, _Problem, _shown, coordinate_bounds
 
 __all__ = ["LabProfile", "profile_lab", "MAX_POINTS", "BISECTIONS", "BOX_EDGES"]
 
@@ -174,13 +174,5 @@ def _bracketed(rise, lo_u, lo_d, lo_start, hi_u, hi_d, level, limit):
             hi_u, hi_d = mid, d_mid
         else:
             lo_u, lo_d, lo_start = mid, d_mid, s_mid
-    return _crossing(lo_u, lo_d, hi_u, hi_d, level), limit
-
-
-def _crossing(u0, d0, u1, d1, level):
-    """Where the signed root √Δ reaches √level, linearly between (u0, d0) and (u1, d1)."""
-    r0, r1, target = math.sqrt(d0), math.sqrt(d1), math.sqrt(level)
-    if r1 == r0:
-        return u1
-    return u0 + (target - r0) / (r1 - r0) * (u1 - u0)
+    return float(level_crossing(lo_u, lo_d, hi_u, hi_d, level, root=True)), limit
 

@@ -41,7 +41,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from benchmarks.devtools.work_precision import STUDY_CSV, recommended_algorithm
+from benchmarks.devtools.recommendation import recommended
+from benchmarks.devtools.work_precision import STUDY_CSV
 from benchmarks.ensemble import ensemble, grid, point_problems, point_rows, read_store
 from benchmarks.inversion.published import B_STEP, best_fit
 from benchmarks.records.files import atomic_write
@@ -210,8 +211,7 @@ _big_run(sys.argv[1], int(sys.argv[2]), progress=False)
 
 
 def _big_run(store, n, progress=True, workers=2):
-    from benchmarks.devtools.work_precision import recommended_algorithm as rec
-    algorithm, _ = rec(1e-3)
+    algorithm, _ = recommended(1e-3)
     return ensemble(window("W2", "slip", t_end=20.0), algorithm, _big_grid(n), store=store,
                     workers=workers, progress=progress)
 
@@ -264,7 +264,7 @@ def _chunks_in(directory: Path) -> int:
 
 def _time_dask(n, progress):
     from distributed import LocalCluster
-    algorithm, _ = recommended_algorithm(1e-3)
+    algorithm, _ = recommended(1e-3)
     base, points = window("W2", "slip", t_end=20.0), _big_grid(n)
     local = ensemble(base, algorithm, points, workers=2, progress=progress)
     with LocalCluster(n_workers=2, threads_per_worker=1, host="127.0.0.1", processes=True,
@@ -289,7 +289,7 @@ def ensemble_scaling(out, n: int = 21, big: int = 100_000, kills: int = 3, dask:
     if big and not kills <= n_chunks - 2:
         raise ValueError(f"kills = {kills} need at least {kills + 2} chunks of {CHUNK_SIZE} "
                          f"points, and big = {big} makes {n_chunks}: raise big or kill less")
-    algorithm, why = recommended_algorithm(LEVEL, study_csv)
+    algorithm, why = recommended(LEVEL)
     grid_summary, (ref, counts) = _time_grid(algorithm, n, repeats, progress)
     summary = {"integrator": algorithm.name, "integrator_choice": why, "targets": TARGETS,
                "grid": grid_summary}

@@ -38,11 +38,11 @@ CALIBRATION_TRUTH = (0.0094, 3e-7)
 
 
 def posterior_target(out, walkers: int = 32, steps: int = 2500, seed: int = 0,
-                     study_csv=None, progress: bool = False) -> dict:
+                     progress: bool = False) -> dict:
     """Invert W2/slip's published means (σ 10 %, assumed) in the paper sweep's box with the
     integrator the work-precision study recommends for 1e−3 in ΔT; check the posterior's size
     and time against the target; write ``out/inversion_W2_slip/`` and ``out/inversion.md``."""
-    from benchmarks.devtools.work_precision import STUDY_CSV, recommended_algorithm
+    from benchmarks.devtools.recommendation import recommended
     from benchmarks.inversion.invert import invert, write_inversion
     from benchmarks.inversion.misfit import Misfit
     from benchmarks.inversion.published import T_END, prior_box
@@ -50,7 +50,7 @@ def posterior_target(out, walkers: int = 32, steps: int = 2500, seed: int = 0,
     from problems import preset
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    algorithm, why = recommended_algorithm(1e-3, study_csv or STUDY_CSV)
+    algorithm, why = recommended(1e-3)
     misfit = Misfit(preset("W2", law="slip", t_end=T_END["W2"]), observations("W2"), algorithm)
     inv = invert(misfit, *prior_box("W2", "slip"), walkers=walkers, steps=steps, seed=seed,
                  progress=progress, method="emcee")
@@ -244,7 +244,7 @@ def _plot_calibration(cal, path: Path) -> None:
 
 
 def run(out: Path) -> None:
-    posterior_target(out, study_csv=out / "wp_quick.csv")
+    posterior_target(out)
     print((out / "inversion.md").read_text())
 
 
@@ -254,6 +254,5 @@ def report(out: Path) -> str:
 
 STUDY = Study("inversion", "An inversion: fit, profiles, posterior (`inversion.md`, "
               "`inversion_W2_slip/`)", 200, run, report=report, timed=True,
-              reads=("wp_quick.csv",),
               writes=("inversion.md", "inversion_W2_slip/*.png", "inversion_W2_slip/*.csv",
                       "inversion_W2_slip/inversion.json"), minutes=0.9)

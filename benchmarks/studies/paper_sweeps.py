@@ -23,7 +23,7 @@ import numpy as np
 import pandas as pd
 
 from benchmarks.devtools.timing import warm_up
-from benchmarks.devtools.work_precision import STUDY_CSV, recommended_algorithm
+from benchmarks.devtools.recommendation import recommended
 from benchmarks.inversion.objectives import CHI2_95_2DOF
 from benchmarks.inversion.maps import plot_sweep
 from benchmarks.inversion.published import B_STEP, GRID, T_END, best_fit, grid_around
@@ -44,14 +44,13 @@ POINT_BUDGET = 5.0
 
 
 def paper_sweeps(out, cache=None, windows=("W1", "W2", "W3", "W4"), laws=("slip", "aging"),
-                 workers=None, progress: bool = True, accuracy: float = 1e-3,
-                 study_csv=STUDY_CSV) -> pd.DataFrame:
+                 workers=None, progress: bool = True, accuracy: float = 1e-3) -> pd.DataFrame:
     """Run the sweeps; write ``out/sweeps/<W>_<law>/{sweep.csv,summary.json,maps.png}`` and
     ``out/sweeps.csv``/``.md`` (one row per window and law). Points are kept under ``cache``
     (default ``out/cache/sweeps``), so a rerun only scores."""
     out = Path(out)
     cache = Path(cache) if cache else out / "cache" / "sweeps"
-    algorithm, why = recommended_algorithm(accuracy, study_csv)
+    algorithm, why = recommended(accuracy)
     rows = []
     for law in laws:
         for name in windows:
@@ -109,10 +108,10 @@ def sweeps_markdown(table: pd.DataFrame, why: str) -> str:
 
 
 def sweep_scaling(out, n: int = 21, t_end: float = 40.0, progress: bool = True,
-                  accuracy: float = 1e-3, study_csv=STUDY_CSV) -> dict:
+                  accuracy: float = 1e-3) -> dict:
     """Time the 21 × 21 W2 sweep serially, on 2 processes and on 2 threads (fresh each time), and
     one stand-alone run; write ``out/sweep_scaling.json`` and ``.md``."""
-    algorithm, why = recommended_algorithm(accuracy, study_csv)
+    algorithm, why = recommended(accuracy)
     b0, lc0 = best_fit("W2", "slip")
     b = np.round(b0 + B_STEP * np.arange(-(n // 2), n - n // 2), 12)
     lc = np.geomspace(lc0 / 10, lc0 * 10, n)
@@ -161,7 +160,7 @@ def sweep_scaling(out, n: int = 21, t_end: float = 40.0, progress: bool = True,
 
 
 def run(out: Path) -> None:
-    paper_sweeps(out, study_csv=out / "wp_quick.csv")
+    paper_sweeps(out)
 
 
 def report(out: Path) -> str:
@@ -169,6 +168,6 @@ def report(out: Path) -> str:
 
 
 STUDY = Study("sweeps", "Section 4: (b, Lc) sweeps around the published best fits (`sweeps.*`, "
-              "`sweeps/`)", 120, run, report=report, reads=("wp_quick.csv",),
+              "`sweeps/`)", 120, run, report=report,
               writes=("sweeps.csv", "sweeps.md", "sweeps/*/maps.png", "sweeps/*/summary.json",
                       "sweeps/*/sweep.csv"), minutes=0.2)

@@ -12,10 +12,10 @@ __all__ = ["STUDY"]
 
 
 def run(out: Path, n: int, t_end: float) -> None:
-    sweep_scaling(out, n=n, t_end=t_end, study_csv=out / "wp_quick.csv")
+    sweep_scaling(out, n=n, t_end=t_end)
 
 
 STUDY = Study("sweep-scaling", "Sweep speed (`sweep_scaling.*`)", 130, run,
-              report=markdown_file("sweep_scaling.md"), timed=True, reads=("wp_quick.csv",),
+              report=markdown_file("sweep_scaling.md"), timed=True,
               settings={"n": 21, "t_end": 40.0}, limits={"n": (2, 101), "t_end": (1.0, 1e4)},
               writes=("sweep_scaling.json", "sweep_scaling.md"), minutes=0.1)

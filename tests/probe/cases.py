@@ -1096,9 +1096,9 @@ def _corrupt_reference_cases():
                         "recovered", timeout=120))
 
     def bad_study(tmp):
-        from benchmarks.devtools.work_precision import recommended_algorithm
+        from benchmarks.devtools.work_precision import read_study
         (tmp / "wp.csv").write_text("integrator,setting\nRodas5P,1e-4\n")
-        recommended_algorithm(1e-3, tmp / "wp.csv")
+        read_study(tmp / "wp.csv")
         raise Wrong("a study without its columns was trusted")
     out.append(Case("corrupt-results", "a work-precision study without its columns", bad_study,
                     "refused"))
