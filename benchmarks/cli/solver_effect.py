@@ -16,7 +16,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from benchmarks.cli.args import in_file, out_dir, say
+from benchmarks.cli.args import b_range, bounded, flagged, in_file, lc_range, out_dir, say
 from benchmarks.records.files import adopt, claim_outputs, write_output
 from benchmarks.records.report import jsonable
 
@@ -30,7 +30,6 @@ __all__ = ["add_parsers"]
 def cmd_solver_effect(args) -> int:
     from benchmarks.inversion.invert import check_box
     from benchmarks.inversion.observations import read_observations
-    from benchmarks.cli.args import flagged
     from benchmarks.inversion.solver_effect import QUICK_N, recommendation
     from benchmarks.records.provenance import provenance, version_line
     from benchmarks.studies.solver_effect import solver_effect_study   # its files and figure
@@ -74,7 +73,6 @@ def cmd_solver_effect(args) -> int:
 
 
 def add_parsers(sub) -> None:
-    from benchmarks.cli.invert import b_range, bounded, lc_range
     from benchmarks.inversion.solver_effect import QUICK_N
     p = sub.add_parser("solver-effect", help="does the integrator change what your observations "
                        "infer on your problem? every candidate's posterior (J1: the means; "
