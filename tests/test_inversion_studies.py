@@ -17,7 +17,8 @@ from benchmarks.cli.main import main
 from benchmarks.inversion import (Misfit, MetricMap, NO_CYCLE_J1, box_grid, metric_map,
                                   synthetic)
 from benchmarks.inversion import calibration as C
-from benchmarks.studies import solver_effect as SE
+from benchmarks.inversion import solver_effect as SE
+from benchmarks.studies.solver_effect import STUDY as SOLVER_EFFECT
 from benchmarks.inversion.observations import Observations
 from benchmarks.devtools.work_precision import algorithm_at
 from integrators import Rodas5P
@@ -460,9 +461,9 @@ def test_solver_effect_takes_an_observations_file(tmp_path):
                            "slip_m": [3e-4, 3e-4, 3e-4], "peak_velocity_m_s": [0.05] * 3})
     path = tmp_path / "observations.json"
     write_observations(path, events)
-    settings = {**SE.STUDY.settings, "observations": str(path), "windows": "W1",
+    settings = {**SOLVER_EFFECT.settings, "observations": str(path), "windows": "W1",
                 "laws": "slip"}
-    SE.STUDY.checked(settings)
+    SOLVER_EFFECT.checked(settings)
     yours = Observations(3.05, 0.07, 0.045, 0.001, curves=pd.DataFrame(
         {"event_id": [1, 1], "slip_m": [0.0, 1e-4], "friction": [0.6, 0.58]}),
         curve_noise="none")
@@ -470,6 +471,6 @@ def test_solver_effect_takes_an_observations_file(tmp_path):
     assert set(data) == {"published", "yours"} and data["yours"].curves is None
     assert data["yours"].recurrence_s == 3.05
     with pytest.raises(ValueError, match="setting observations: observations file"):
-        SE.STUDY.checked({**settings, "observations": str(tmp_path / "none.json")})
+        SOLVER_EFFECT.checked({**settings, "observations": str(tmp_path / "none.json")})
     with pytest.raises(ValueError, match="setting windows = 'W1,W9'"):
-        SE.STUDY.checked({**settings, "windows": "W1,W9"})
+        SOLVER_EFFECT.checked({**settings, "windows": "W1,W9"})

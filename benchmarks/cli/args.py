@@ -15,11 +15,14 @@ import sys
 from pathlib import Path
 
 from benchmarks.ensemble.executors import RunStopped
+from problems import LAWS
 
 __all__ = ["say", "show_progress", "RunStopped", "Parser", "HelpFormatter", "positive",
            "non_negative", "finite", "pair",
-           "count", "seed", "out_dir", "out_file", "in_file", "preset_name", "flagged",
-           "add_problem_options", "add_integrator_options", "add_overwrite_options", "integrator_from_args",
+           "count", "seed", "bounded", "steps_or_none", "workers", "b_lc", "b_range", "lc_range",
+           "quantity", "SPEED", "TIME", "out_dir", "out_file", "in_file", "preset_name", "flagged",
+           "add_problem_options", "add_integrator_options", "add_overwrite_options",
+           "integrator_from_args",
            "problem_from_args", "add_problem_choice", "add_observation_options",
            "check_observation_options", "observations_from_args", "ACCURACY"]
 
@@ -159,6 +162,63 @@ def seed(text: str) -> int:
     return count(text, minimum=0)
 
 
+def bounded(minimum: int, maximum: int, why: str):
+    """A type: an integer from ``minimum`` to ``maximum``; above it, ``why`` says what breaks."""
+    def check(text: str) -> int:
+        n = count(text, minimum)
+        if n > maximum:
+            raise argparse.ArgumentTypeError(f"must be an integer from {minimum} to "
+                                             f"{maximum:,} ({why}), got {text!r}")
+        return n
+    check.__name__ = "integer"
+    return check
+
+
+def steps_or_none(maximum: int):
+    """A type: 0 (no posterior) or an integer from 2 to ``maximum`` (emcee's steps per
+    walker)."""
+    def check(text: str) -> int:
+        n = count(text, 0)
+        if n == 1 or n > maximum:
+            raise argparse.ArgumentTypeError(f"must be 0 (no posterior) or an integer from 2 to "
+                                             f"{maximum:,}, got {text!r}")
+        return n
+    check.__name__ = "steps"
+    return check
+
+
+def workers(text: str) -> int:
+    """An integer from 1 to 4 × the cores: more only adds start-up time and memory."""
+    most = 4 * (os.cpu_count() or 1)
+    return bounded(1, most, f"4 × this machine's {os.cpu_count()} cores; more workers only "
+                   "add start-up time and memory")(text)
+
+
+def b_range(text: str):
+    """``LO,HI``: 0 ≤ LO < HI, the box of b."""
+    return pair(text, "LO,HI (two numbers)", lambda lo, hi: 0 <= lo < hi, "0 ≤ LO < HI (finite)")
+
+
+def lc_range(text: str):
+    """``LO,HI``: 0 < LO < HI in metres, the box of Lc."""
+    return pair(text, "LO,HI (two numbers, in m)", lambda lo, hi: 0 < lo < hi,
+                "0 < LO < HI (finite, in m)")
+
+
+def quantity(kind, what: str):
+    """``kind`` (a checked number type), whose refusal also says the quantity and its unit."""
+    def check(text: str) -> float:
+        try:
+            return kind(text)
+        except argparse.ArgumentTypeError as exc:
+            raise argparse.ArgumentTypeError(f"{exc}; {what}") from None
+    check.__name__ = kind.__name__
+    return check
+
+
+SPEED, TIME = quantity(positive, "a speed in m/s"), quantity(positive, "a time in s")
+
+
 def _writable_dir(path: Path, what: str) -> None:
     """``path`` is a directory that exists or can be made, and can be written in."""
     probe = path
@@ -246,7 +306,7 @@ def add_problem_choice(p, preset_names, what: str) -> None:
                        help="or your own apparatus: a TOML or JSON file (mass, stiffness, "
                             "normal_force, t_end, [law], [loading], [initial]; SI units; "
                             "docs/examples/apparatus.toml is one; no default)")
-    p.add_argument("--law", choices=("slip", "aging", "nagata"),
+    p.add_argument("--law", choices=tuple(LAWS),
                    help="friction law of --preset (default: slip; nagata: the aging law's best "
                         "fit with the Nagata law's c = 2)")
 

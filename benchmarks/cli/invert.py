@@ -8,9 +8,7 @@
 
 from __future__ import annotations
 
-import argparse
 import json
-import os
 import sys
 import warnings
 from pathlib import Path
@@ -22,71 +20,26 @@ from benchmarks.cli.args import (
     add_observation_options,
     add_problem_choice,
     add_solver_check_option,
+    b_range,
+    bounded,
     check_observation_options,
     checked_integrator,
-    count,
     flagged,
     integrator_from_args,
+    lc_range,
     observations_from_args,
     out_dir,
-    pair,
     positive,
     problem_from_args,
     say,
     seed,
     show_progress,
+    steps_or_none,
+    workers,
 )
 from benchmarks.records.report import jsonable
 
 __all__ = ["add_parsers"]
-
-
-def b_range(text: str):
-    """``LO,HI``: 0 ≤ LO < HI, the box of b."""
-    return pair(text, "LO,HI (two numbers)", lambda lo, hi: 0 <= lo < hi, "0 ≤ LO < HI (finite)")
-
-
-def lc_range(text: str):
-    """``LO,HI``: 0 < LO < HI in metres, the box of Lc."""
-    return pair(text, "LO,HI (two numbers, in m)", lambda lo, hi: 0 < lo < hi,
-                "0 < LO < HI (finite, in m)")
-
-
-def bounded(minimum: int, maximum: int, why: str):
-    """A type: an integer from ``minimum`` to ``maximum``; above it, ``why`` says what breaks."""
-    def check(text: str) -> int:
-        n = count(text, minimum)
-        if n > maximum:
-            raise argparse.ArgumentTypeError(f"must be an integer from {minimum} to "
-                                             f"{maximum:,} ({why}), got {text!r}")
-        return n
-    check.__name__ = "integer"
-    return check
-
-
-def steps(text: str) -> int:
-    """0 (no posterior) or an integer from 2 to MAX_STEPS (emcee's steps per walker)."""
-    n = count(text, 0)
-    if n == 1 or n > MAX_STEPS:
-        raise argparse.ArgumentTypeError(f"must be 0 (no posterior) or an integer from 2 to "
-                                         f"{MAX_STEPS:,}, got {text!r}")
-    return n
-
-
-def fraction(text: str) -> float:
-    """A number in [1e-6, 1): σ as a fraction of the true value."""
-    x = positive(text)
-    if not 1e-6 <= x < 1:
-        raise argparse.ArgumentTypeError(f"must be a fraction in [1e-6, 1) of the true values "
-                                         f"(0.05 is 5 %), got {text!r}")
-    return x
-
-
-def workers(text: str) -> int:
-    """An integer from 1 to 4 × the cores: more only adds start-up time and memory."""
-    most = 4 * (os.cpu_count() or 1)
-    return bounded(1, most, f"4 × this machine's {os.cpu_count()} cores; more workers only "
-                   "add start-up time and memory")(text)
 
 
 #: simulated cycles of the observed ΔT per forward solve at most (t_end / ΔT)
@@ -130,8 +83,54 @@ def _box(args, problem, published: bool):
 
 def cmd_invert(args) -> int:
     from benchmarks.inversion import Misfit
-    from benchmarks.inversion.invert import check_box, invert, inversion_files, write_inversion
+    from benchmarks.inversion.invert import inversion_files
     from benchmarks.records.files import claim_outputs
+    problem, published, box_b, box_lc, walkers, steps = _checked(args)
+    obs = observations_from_args(args, published)
+    cycles = problem.t_end / obs.recurrence_s
+    if cycles > MAX_CYCLES:                  # each of thousands of solves would run for hours
+        raise ValueError(f"--t-end {problem.t_end:g} s simulates {cycles:,.0f} cycles of the "
+                         f"observed ΔT = {obs.recurrence_s:g} s per solve; a limit cycle is "
+                         f"read in tens: at most {MAX_CYCLES:,}")
+    algorithm, why = integrator_from_args(args)
+    name = args.preset if args.problem is None else Path(args.problem).stem
+    out = Path(args.out or f"invert_{name}_{problem.law.name}")
+    claim_outputs(inversion_files(out))                  # a user's file there: refused now
+    out.mkdir(parents=True, exist_ok=True)               # before the work, not after it
+    try:
+        algorithm, why, check = checked_integrator(args, problem, obs, box_b, box_lc,
+                                                   algorithm, why)
+    except KeyboardInterrupt:
+        return _interrupted(args, "invert", f"during the integrator's check: nothing written "
+                                            f"to {out}")
+    misfit = Misfit(problem, obs, algorithm, wall_budget=args.wall_budget, workers=args.workers)
+    if not args.json:
+        _say_setting(why, obs)
+    stage = ["the start"]
+    try:
+        inv, summary = _run(args, misfit, (box_b, box_lc), walkers, steps, out, why, check,
+                            stage)
+    except KeyboardInterrupt:
+        written = (f"{out} is incomplete" if stage[0].startswith("writing") else
+                   f"nothing written to {out}")
+        return _interrupted(args, "invert", f"during the {stage[0]}: {written}")
+    failed = not np.isfinite(inv.fit.misfit)         # no point of the box had a limit cycle
+    _warn(args, inv, summary)
+    if args.json:
+        say(json.dumps(jsonable(summary), indent=2))
+        return 1 if failed or inv.posterior_missed else 0
+    if failed:
+        say(f"inversion failed: {summary['fit']['message']} (failed solves, e.g. over "
+            f"--wall-budget, count as without a cycle); written: {summary['files']['summary']}")
+        return 1
+    _report(args, summary)
+    return 1 if inv.posterior_missed else 0
+
+
+def _checked(args):
+    """``(problem, published, box_b, box_lc, walkers, steps)`` of the options, every
+    combination checked before any work."""
+    from benchmarks.inversion.invert import check_box
     from benchmarks.inversion.posterior import check_sampler
     from problems import WINDOWS
     problem = problem_from_args(args, fields=("t_end",))
@@ -161,76 +160,61 @@ def cmd_invert(args) -> int:
                          "curves' friction Ft/Fn)")
     if args.method == "emcee" and steps:
         flagged("--walkers/--steps", check_sampler, box_b, box_lc, walkers, steps)
-    obs = observations_from_args(args, published)
-    cycles = problem.t_end / obs.recurrence_s
-    if cycles > MAX_CYCLES:                  # each of thousands of solves would run for hours
-        raise ValueError(f"--t-end {problem.t_end:g} s simulates {cycles:,.0f} cycles of the "
-                         f"observed ΔT = {obs.recurrence_s:g} s per solve; a limit cycle is "
-                         f"read in tens: at most {MAX_CYCLES:,}")
-    algorithm, why = integrator_from_args(args)
-    name = args.preset if args.problem is None else Path(args.problem).stem
-    out = Path(args.out or f"invert_{name}_{problem.law.name}")
-    claim_outputs(inversion_files(out))                  # a user's file there: refused now
-    out.mkdir(parents=True, exist_ok=True)               # before the work, not after it
-    try:
-        algorithm, why, check = checked_integrator(args, problem, obs, box_b, box_lc,
-                                                   algorithm, why)
-    except KeyboardInterrupt:
-        return _interrupted(args, "invert", f"during the integrator's check: nothing written "
-                                            f"to {out}")
-    misfit = Misfit(problem, obs, algorithm, wall_budget=args.wall_budget, workers=args.workers)
-    quiet = args.json or not show_progress(args)
-    if not args.json:
-        say(f"integrator: {why}")
-        if obs.assumed_sigma:
-            say("σ not given: assumed 10 % of the observed mean (an assumption, not data)")
-        if obs.curve_likelihood is not None:
-            say(obs.curve_likelihood.describe())
-        elif obs.curves is not None:
-            say("curves: in no likelihood (--curve-noise none)")
-    stage = ["the start"]
+    return problem, published, box_b, box_lc, walkers, steps
+
+
+def _say_setting(why: str, obs) -> None:
+    """The integrator chosen, and what the likelihood reads of the observations."""
+    say(f"integrator: {why}")
+    if obs.assumed_sigma:
+        say("σ not given: assumed 10 % of the observed mean (an assumption, not data)")
+    if obs.curve_likelihood is not None:
+        say(obs.curve_likelihood.describe())
+    elif obs.curves is not None:
+        say("curves: in no likelihood (--curve-noise none)")
+
+
+def _run(args, misfit, box, walkers, steps, out: Path, why: str, check, stage: list):
+    """``(inversion, summary)`` with its files written to ``out``; ``stage[0]``: what runs
+    now (a Ctrl-C says it)."""
+    from benchmarks.inversion.invert import invert, write_inversion
 
     def progress(text: str) -> None:
         stage[0] = text
         if not args.json:
             say(f"… {text}")
-    try:
-        inv = invert(misfit, box_b, box_lc, walkers=walkers, steps=steps,
-                     profile_points=args.profile_points, seed=args.seed, progress=not quiet,
-                     say=progress, method=args.method, grid=args.grid or 33)
-        stage[0] = "writing of its files"
-        record = {"command": args.command_line, "integrator_choice": why,
-                  "solver_check": None if check is None else check.summary(),
-                  "observations_file": (None if args.observations is None
-                                        else str(Path(args.observations).resolve())),
-                  "problem_file": (None if args.problem is None
-                                   else str(Path(args.problem).resolve()))}
-        summary = {**write_inversion(inv, out, record), "integrator_choice": why,
-                   "out": str(out)}
-    except KeyboardInterrupt:
-        written = (f"{out} is incomplete" if stage[0].startswith("writing") else
-                   f"nothing written to {out}")
-        return _interrupted(args, "invert", f"during the {stage[0]}: {written}")
-    failed = not np.isfinite(inv.fit.misfit)         # no point of the box had a limit cycle
+    inv = invert(misfit, *box, walkers=walkers, steps=steps, profile_points=args.profile_points,
+                 seed=args.seed, progress=not args.json and show_progress(args), say=progress,
+                 method=args.method, grid=args.grid or 33)
+    stage[0] = "writing of its files"
+    record = {"command": args.command_line, "integrator_choice": why,
+              "solver_check": None if check is None else check.summary(),
+              "observations_file": (None if args.observations is None
+                                    else str(Path(args.observations).resolve())),
+              "problem_file": (None if args.problem is None
+                               else str(Path(args.problem).resolve()))}
+    return inv, {**write_inversion(inv, out, record), "integrator_choice": why, "out": str(out)}
+
+
+def _warn(args, inv, summary) -> None:
+    """Failed solves, profiles' warnings and a posterior not to be read: on the standard
+    error, also with --json."""
     solves = summary["solves"]
-    if solves["failed"]:                         # on the standard error, also with --json
+    if solves["failed"]:
         warnings.warn(f"{solves['failed']:,} of {solves['solves']:,} forward solves failed "
                       f"({solves['over_budget']:,} over the wall budget of "
                       f"{args.wall_budget:g} s per solve, --wall-budget): each is a point "
                       "without a limit cycle, never read as one", stacklevel=1)
-    for p in summary["profiles"].values():       # on the standard error, also with --json
+    for p in summary["profiles"].values():
         for text in p["warnings"]:
             warnings.warn(text, stacklevel=1)
     if inv.posterior_missed:                     # a posterior not to be read fails the run
         warnings.warn(inv.posterior_missed, stacklevel=1)
-    if args.json:
-        say(json.dumps(jsonable(summary), indent=2))
-        return 1 if failed or inv.posterior_missed else 0
-    f = summary["fit"]
-    if failed:
-        say(f"inversion failed: {f['message']} (failed solves, e.g. over --wall-budget, count "
-            f"as without a cycle); written: {summary['files']['summary']}")
-        return 1
+
+
+def _report(args, summary) -> None:
+    """The fit, the profiles, the posterior and the solves, for a reader."""
+    f, solves = summary["fit"], summary["solves"]
     say(f"least squares: b = {f['b']:.5g} ± {f['sigma_b']:.2g}, Lc = {f['lc_m'] * 1e6:.4g} µm "
         f"(log10 Lc ± {f['sigma_log10_lc']:.2g}), misfit = {f['misfit']:.3g}"
         + ("" if f["success"] else f" — not converged: {f['message']}"))
@@ -239,48 +223,53 @@ def cmd_invert(args) -> int:
         say(f"profile of {k}: 95 % interval [{p['low']:.5g}, {p['high']:.5g}]"
             + (f" (open at the {' and '.join(opens)} end of the box)" if opens else "")
             + ("" if p["resolved"] else " (not resolved: the points about it)"))
-    if summary["posterior"] is None:
+    p = summary["posterior"]
+    if p is None:
         say(f"posterior: {summary['no_posterior']}")
-    elif summary["posterior"]["method"] == "grid":
-        p = summary["posterior"]
-        ib, il = p["interval_95"]["b"], p["interval_95"]["log10_lc"]
-        say(f"posterior (grid, {p['n_cells']:,} cells in {p['levels']} levels, "
-            f"{p['n_solves']:,} solves"
-            + (f" of which {p['n_failed']:,} failed" if p["n_failed"] else "")
-            + f", {p['wall_s']:.1f} s): b = {p['mean']['b']:.5g} ± "
-            f"{p['std']['b']:.2g} (95 %: {ib[0]:.5g} to {ib[1]:.5g}), log10 Lc = "
-            f"{p['mean']['log10_lc']:.3f} ± {p['std']['log10_lc']:.2g} (95 %: {il[0]:.3f} to "
-            f"{il[1]:.3f})" + ("" if p["settled"] else " — the refinement did not settle: "
-                               "see refinement in inversion.json"))
-        if p["edge_mass"] > 0.01:
-            say(f"{p['edge_mass']:.0%} of the posterior is on the box's edge: the box cuts it")
-        say(f"prior: {p['prior']}")
+    elif p["method"] == "grid":
+        _report_grid(p)
     else:
-        p = summary["posterior"]
-        say(f"posterior ({p['n_solves']:,} solves, {p['wall_s']:.1f} s): b = "
-            f"{p['mean']['b']:.5g} ± {p['std']['b']:.2g}, log10 Lc = "
-            f"{p['mean']['log10_lc']:.3f} ± {p['std']['log10_lc']:.2g}; acceptance "
-            f"{p['acceptance']:.2f}, "
-            + (f"τ = {max(p['tau'].values()):.1f} steps"
-               f"{'' if p['tau_reliable'] else ' (chain < 50 τ: run more --steps)'}, "
-               f"{p['effective_samples']:.0f} effective samples"
-               if np.isfinite(p["effective_samples"]) else
-               "τ not estimable (a walker never moved: run more --steps)"))
-        say(f"prior: {p['prior']}")
+        _report_sample(p)
     say(f"forward solves: {solves['solves']:,}, {solves['failed']:,} failed "
         f"({solves['over_budget']:,} over the wall budget of {args.wall_budget:g} s per solve)")
     say(f"written: {', '.join(summary['files'].values())}")
-    return 1 if inv.posterior_missed else 0
 
 
-def add_parsers(sub, preset_names) -> None:
-    from benchmarks.inversion.curve_likelihood import CURVE_NOISES
-    from benchmarks.inversion.invert import MAX_SAMPLES_SAVED, METHODS
-    from benchmarks.inversion.posterior import MAX_POSTERIOR_SOLVES
+def _report_grid(p: dict) -> None:
+    ib, il = p["interval_95"]["b"], p["interval_95"]["log10_lc"]
+    say(f"posterior (grid, {p['n_cells']:,} cells in {p['levels']} levels, "
+        f"{p['n_solves']:,} solves"
+        + (f" of which {p['n_failed']:,} failed" if p["n_failed"] else "")
+        + f", {p['wall_s']:.1f} s): b = {p['mean']['b']:.5g} ± "
+        f"{p['std']['b']:.2g} (95 %: {ib[0]:.5g} to {ib[1]:.5g}), log10 Lc = "
+        f"{p['mean']['log10_lc']:.3f} ± {p['std']['log10_lc']:.2g} (95 %: {il[0]:.3f} to "
+        f"{il[1]:.3f})" + ("" if p["settled"] else " — the refinement did not settle: "
+                           "see refinement in inversion.json"))
+    if p["edge_mass"] > 0.01:
+        say(f"{p['edge_mass']:.0%} of the posterior is on the box's edge: the box cuts it")
+    say(f"prior: {p['prior']}")
+
+
+def _report_sample(p: dict) -> None:
+    say(f"posterior ({p['n_solves']:,} solves, {p['wall_s']:.1f} s): b = "
+        f"{p['mean']['b']:.5g} ± {p['std']['b']:.2g}, log10 Lc = "
+        f"{p['mean']['log10_lc']:.3f} ± {p['std']['log10_lc']:.2g}; acceptance "
+        f"{p['acceptance']:.2f}, "
+        + (f"τ = {max(p['tau'].values()):.1f} steps"
+           f"{'' if p['tau_reliable'] else ' (chain < 50 τ: run more --steps)'}, "
+           f"{p['effective_samples']:.0f} effective samples"
+           if np.isfinite(p["effective_samples"]) else
+           "τ not estimable (a walker never moved: run more --steps)"))
+    say(f"prior: {p['prior']}")
+
+
+def add_parsers(sub) -> None:
+    from benchmarks.inversion.invert import MAX_SAMPLES_SAVED
+    from problems import PRESET_NAMES
     i = sub.add_parser("invert", help="invert observed means (and slip-weakening curves) for "
                        "(b, Lc): posterior (refined grid or emcee), least-squares fit with "
                        "covariance, profiles of b and log10 Lc, corner and profile plots")
-    add_problem_choice(i, preset_names, "the problem whose (b, Lc) is inferred")
+    add_problem_choice(i, PRESET_NAMES, "the problem whose (b, Lc) is inferred")
     add_observation_options(i)
     i.add_argument("--b-range", type=b_range, metavar="LO,HI",
                    help="the prior box of b (uniform): required for --problem; default for "
@@ -294,6 +283,28 @@ def add_parsers(sub, preset_names) -> None:
                    help="simulated time per solve in s (default: the preset's or the file's)")
     add_integrator_options(i)
     add_solver_check_option(i)
+    _add_posterior_options(i)
+    i.add_argument("--workers", type=workers, metavar="N",
+                   help="threads (own methods) or processes per batch (default: all cores)")
+    i.add_argument("--wall-budget", type=positive, default=WALL_BUDGET, metavar="S",
+                   help="wall budget per forward solve in s, of the inversion and of its "
+                        "solver check; a solve over it is a failed point, counted in the "
+                        "output and read as without a limit cycle, never as one (default: "
+                        f"{WALL_BUDGET:g} s per solve)")
+    i.add_argument("--out", type=out_dir, metavar="DIR",
+                   help="where to write inversion.json, the CSVs (posterior.csv: at most "
+                        f"{MAX_SAMPLES_SAVED} samples) and PNGs (default: "
+                        "./invert_<preset or file name>_<law>)")
+    i.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    i.add_argument("--no-progress", action="store_true", help="no progress bar")
+    i.set_defaults(func=cmd_invert)
+
+
+def _add_posterior_options(i) -> None:
+    """The posterior's method and size, the curves' noise, the profiles and the seed."""
+    from benchmarks.inversion.curve_likelihood import CURVE_NOISES
+    from benchmarks.inversion.invert import METHODS
+    from benchmarks.inversion.posterior import MAX_POSTERIOR_SOLVES
     i.add_argument("--method", choices=METHODS, default="grid",
                    help="the posterior: on a grid refined where its mass is, or sampled with "
                         "emcee (default: grid)")
@@ -304,7 +315,7 @@ def add_parsers(sub, preset_names) -> None:
                                              "at once"), metavar="N",
                    help=f"emcee walkers (--method emcee), 4 to {MAX_WALKERS:,}; walkers × steps "
                         f"at most {MAX_POSTERIOR_SOLVES:,} (default: 32)")
-    i.add_argument("--steps", type=steps, metavar="N",
+    i.add_argument("--steps", type=steps_or_none(MAX_STEPS), metavar="N",
                    help="emcee steps per walker (--method emcee), a quarter dropped as burn-in; "
                         f"at most {MAX_STEPS:,}; 0: no posterior, with either method "
                         "(default: 2000)")
@@ -324,17 +335,3 @@ def add_parsers(sub, preset_names) -> None:
                         "where its interval's ends are not resolved (default: 21)")
     i.add_argument("--seed", type=seed, default=0, help="seed of the walkers' start and moves "
                    "(default: 0)")
-    i.add_argument("--workers", type=workers, metavar="N",
-                   help="threads (own methods) or processes per batch (default: all cores)")
-    i.add_argument("--wall-budget", type=positive, default=WALL_BUDGET, metavar="S",
-                   help="wall budget per forward solve in s, of the inversion and of its "
-                        "solver check; a solve over it is a failed point, counted in the "
-                        "output and read as without a limit cycle, never as one (default: "
-                        f"{WALL_BUDGET:g} s per solve)")
-    i.add_argument("--out", type=out_dir, metavar="DIR",
-                   help="where to write inversion.json, the CSVs (posterior.csv: at most "
-                        f"{MAX_SAMPLES_SAVED} samples) and PNGs (default: "
-                        "./invert_<preset or file name>_<law>)")
-    i.add_argument("--json", action="store_true", help="print the summary as one JSON object")
-    i.add_argument("--no-progress", action="store_true", help="no progress bar")
-    i.set_defaults(func=cmd_invert)

@@ -24,15 +24,19 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.cli.args import (
+    SPEED,
+    TIME,
     RunStopped,
     in_file,
     non_negative,
     out_dir,
     positive,
+    quantity,
     say,
     show_progress,
 )
 from benchmarks.records.files import claim_outputs, write_figure, write_table
+from problems import LAWS
 
 __all__ = ["add_parsers"]
 
@@ -46,19 +50,6 @@ STEP_OPTIONS = {"v1": 1e-6, "v2": 1e-5, "t_step": 10.0, "after": 30.0}
 #: a slide of 300 s (30 Dc at 1 µm/s) settles after a 100 s hold to SETTLED of a (100 s did not)
 SHS_OPTIONS = {"holds": [1.0, 10.0, 100.0], "v": 1e-6, "slide": 300.0, "first_slide": 10.0}
 
-
-def _in(kind, what: str):
-    """``kind`` (a checked number type), whose refusal also says the quantity and its unit."""
-    def check(text: str) -> float:
-        try:
-            return kind(text)
-        except argparse.ArgumentTypeError as exc:
-            raise argparse.ArgumentTypeError(f"{exc}; {what}") from None
-    check.__name__ = kind.__name__
-    return check
-
-
-SPEED, TIME = _in(positive, "a speed in m/s"), _in(positive, "a time in s")
 
 
 def _flag(name: str) -> str:
@@ -223,7 +214,8 @@ def _plot(sol, heal, path: Path) -> None:
 
 def add_parsers(sub) -> None:
     lab = sub.add_parser("lab", help="a velocity step or a slide-hold-slide test: simulate "
-                         "one (peaks, healing), or fit a record", description=__doc__.split("\n\n")[0])
+                         "one (peaks, healing), or fit a record",
+                         description=__doc__.split("\n\n")[0])
     tests = lab.add_subparsers(dest="test", required=True, metavar="{step,shs,fit}",
                                help="step: simulate a velocity step; shs: a slide-hold-slide "
                                     "sequence; fit: fit a record (required)")
@@ -231,17 +223,18 @@ def add_parsers(sub) -> None:
     lab.add_argument("--problem", type=in_file, metavar="FILE",
                      help="your own apparatus and load-point history (TOML or JSON, "
                           "docs/problem-family.md); default: the built-in apparatus")
-    lab.add_argument("--law", choices=("slip", "aging", "nagata"),
+    lab.add_argument("--law", choices=tuple(LAWS),
                      help="friction law of the built-in apparatus (default: aging)")
-    lab.add_argument("--c", type=_in(non_negative, "dimensionless"),
+    lab.add_argument("--c", type=quantity(non_negative, "dimensionless"),
                      help="the Nagata law's stress coefficient "
                      "(default: 2)")
-    lab.add_argument("--mass", type=_in(non_negative, "a mass in kg"), metavar="KG",
+    lab.add_argument("--mass", type=quantity(non_negative, "a mass in kg"), metavar="KG",
                      help="slider mass in kg (default: 0, quasi-static)")
-    lab.add_argument("--radiation-damping", type=_in(non_negative, "a damping in N s/m"),
+    lab.add_argument("--radiation-damping", type=quantity(non_negative, "a damping in N s/m"),
                      metavar="N_S_PER_M",
                      help="radiation damping ηr in N s/m (default: 0)")
-    lab.add_argument("--stiffness", type=_in(positive, "a stiffness in N/m"), metavar="N_PER_M",
+    lab.add_argument("--stiffness", type=quantity(positive, "a stiffness in N/m"),
+                     metavar="N_PER_M",
                      help="spring stiffness in N/m (default: 1e7, on a 10 kN normal force)")
     lab.add_argument("--v1", type=SPEED, metavar="M_S",
                      help="step: load-point velocity before the step, m/s (default: 1e-6)")
@@ -262,11 +255,11 @@ def add_parsers(sub) -> None:
     lab.add_argument("--integrator", metavar="NAME",
                      help=f"registry name (default: {DEFAULT_INTEGRATOR} at rtol = atol = "
                           f"{DEFAULT_TOL:g}; results/family_wp.md compares them)")
-    lab.add_argument("--rtol", type=_in(positive, "dimensionless"),
+    lab.add_argument("--rtol", type=quantity(positive, "dimensionless"),
                      help=f"relative tolerance (default: "
                      f"{DEFAULT_TOL:g} with the default integrator; required with --integrator "
                      "NAME of an adaptive method)")
-    lab.add_argument("--atol", type=_in(positive, "dimensionless"),
+    lab.add_argument("--atol", type=quantity(positive, "dimensionless"),
                      help="absolute tolerance on (h, ln w, Ψ or ln Ψ), "
                      "nondimensional (default: --rtol)")
     lab.add_argument("--out", type=out_dir, metavar="DIR",

@@ -14,10 +14,14 @@ from __future__ import annotations
 
 import json
 import math
+import sys
+import warnings
 from pathlib import Path
 
 from benchmarks.cli.args import in_file, non_negative, out_dir, positive, say, show_progress
 from benchmarks.records.files import claim_outputs, write_figure, write_output, write_table
+from benchmarks.records.report import jsonable
+from problems import LAWS
 
 #: the files ``lab fit --out DIR`` may write
 LAB_FIT_FILES = ("lab_fit.json", "lab_fit_parameters.csv", "lab_fit_residuals.csv",
@@ -96,11 +100,6 @@ def _check_flags(args) -> None:
 
 
 def cmd_lab_fit(args) -> int:
-    from benchmarks.lab.checks import check_lab_solver, inertia_check
-    from benchmarks.lab.fit import fit_lab
-    from benchmarks.lab.profile_intervals import profile_lab
-    from benchmarks.records.provenance import provenance, version_line
-    from benchmarks.records.report import jsonable
     _check_flags(args)
     record = _record(args)
     model = _model(args, record)
@@ -116,94 +115,19 @@ def cmd_lab_fit(args) -> int:
     if args.out is not None:              # a user's file of one of these names: refused now
         claim_outputs(args.out / n for n in LAB_FIT_FILES)
         args.out.mkdir(parents=True, exist_ok=True)
-    import sys
-    import warnings
-
-    def stage(text):                     # what runs now, on a terminal only (not with --json)
-        if show_progress(args):
-            print(f"  {text} …", file=sys.stderr, flush=True)
-
-    from benchmarks.lab.fit import LabFitWarning
-    stage(f"fitting {', '.join(free)} to {len(record.t):,} samples")
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", LabFitWarning)
-        fit = fit_lab(model, fixed=fixed, weights=args.weights)
-    notes = [str(w.message) for w in caught if issubclass(w.category, LabFitWarning)]
-    profiles = {}
-    if not args.no_profiles:
-        for name in (n for n in PROFILED if n in fit.free):
-            stage(f"the profile of {name}")
-            profiles[name] = profile_lab(fit, name)
-            if profiles[name].note:
-                notes.append(profiles[name].note)
+    _stage(args, f"fitting {', '.join(free)} to {len(record.t):,} samples")
+    fit, notes = _fit(model, fixed, args.weights)
+    profiles = {} if args.no_profiles else _profiles(args, fit, notes)
+    check = None
     if not args.no_solver_check:
-        stage("the solver check")
-    check = None if args.no_solver_check else check_lab_solver(fit)
-    posterior = None
-    if args.posterior:
-        from benchmarks.lab.sampling import sample_lab
-        try:
-            posterior = sample_lab(fit, walkers=args.walkers, steps=args.steps, seed=args.seed,
-                                   progress=not args.json and not args.no_progress)
-        except KeyboardInterrupt as exc:      # one line (main), never emcee's traceback
-            raise KeyboardInterrupt(f"lab fit interrupted (Ctrl-C): {exc or 'the posterior'}; "
-                                    "nothing written") from None
-    inertia = None
-    if args.mass is not None or args.radiation_damping is not None:
-        stage("the inertial fit")
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", LabFitWarning)
-            inertial, shifts = inertia_check(fit, args.mass or 0.0, args.normal_force,
-                                             args.radiation_damping or 0.0)
-        moved = shifts[shifts.shift_se.abs() > 1.0]
-        k_n_per_m = fit.values["k"] * args.normal_force
-        period = 2 * math.pi * math.sqrt((args.mass or 0.0) / k_n_per_m)
-        fastest = max(record.velocities)
-        inertia = {"mass_kg": args.mass or 0.0, "normal_force_N": args.normal_force,
-                   "period_s": period, "dc_time_s": fit.values["dc"] / fastest,
-                   "radiation_damping_N_s_per_m": args.radiation_damping or 0.0,
-                   "shifts": shifts.to_dict(orient="records"),
-                   "matters": bool(len(moved)),
-                   "parameters": inertial.table().to_dict(orient="records")}
-    table = fit.table()
-    for name, prof in profiles.items():
-        i = table.index[table.parameter == name][0]
-        table.loc[i, "profile_low95"], table.loc[i, "profile_high95"] = prof.interval
-        table.loc[i, "profile_low_closed"], table.loc[i, "profile_high_closed"] = prof.closed
-    if posterior is not None:
-        for name, (low, median, high) in posterior.quantiles.items():
-            i = table.index[table.parameter == name][0]
-            table.loc[i, ["posterior_low95", "posterior_median", "posterior_high95"]] = \
-                low, median, high
-    doc = {"tool": version_line(), **provenance(), "command": args.command_line,
-           "recording": str(Path(args.recording).resolve()), "sha256": record.sha256,
-           "columns": record.columns, "window_s": list(args.window) if args.window else None,
-           "law": args.law, "states": args.states, "detrend": args.detrend, "fixed": fixed,
-           "weights": list(args.weights) if args.weights else None,
-           "history": {"velocities_m_s": list(record.velocities),
-                       "switch_times_s": [s + record.t_offset for s in record.switch_times],
-                       "pieces": record.pieces.assign(
-                           t_start_s=record.pieces.t_start_s + record.t_offset,
-                           t_end_s=record.pieces.t_end_s + record.t_offset).to_dict(
-                           orient="records")},
-           "samples": fit.n, "parameters": table.to_dict(orient="records"),
-           "noise": {"model": "AR(1): sigma from the residuals, rho their lag-1 "
-                              "autocorrelation, covariance inflated by (1+rho)/(1-rho)",
-                     "sigma": fit.sigma, "rho": fit.rho, "inflation": fit.inflation},
-           "success": fit.success, "message": fit.message, "at_bound": list(fit.at_bound),
-           "notes": notes, "solves": fit.solves, "failed_solves": fit.failed_solves,
-           "wall_budget_s": args.wall_budget, "wall_s": fit.wall_s,
-           "profiles": {n: {"interval": list(p.interval), "closed": list(p.closed),
-                            "solves": p.solves, "wall_s": p.wall_s}
-                        for n, p in profiles.items()},
-           "solver_check": check, "inertia": inertia,
-           "posterior": None if posterior is None else {
-               "walkers": args.walkers, "steps": args.steps, "seed": args.seed,
-               "prior": posterior.prior, "likelihood": posterior.likelihood,
-               "acceptance": posterior.acceptance, "tau": posterior.tau,
-               "tau_reliable": posterior.tau_reliable,
-               "effective_samples": posterior.effective_samples, "solves": posterior.solves,
-               "wall_s": posterior.wall_s}}
+        from benchmarks.lab.checks import check_lab_solver
+        _stage(args, "the solver check")
+        check = check_lab_solver(fit)
+    posterior = _posterior(args, fit) if args.posterior else None
+    inertia = (_inertia(args, fit, record)
+               if args.mass is not None or args.radiation_damping is not None else None)
+    table = _table(fit, profiles, posterior)
+    doc = _doc(args, record, fit, table, fixed, notes, profiles, check, inertia, posterior)
     if args.out is not None:
         _write(args.out, fit, table, profiles, doc)
         if posterior is not None:
@@ -222,6 +146,114 @@ def cmd_lab_fit(args) -> int:
                "the chain is shorter than 50 τ: lengthen --steps before trusting its tails")
             + f"; prior {posterior.prior}")
     return status
+
+
+def _stage(args, text: str) -> None:
+    """What runs now, on a terminal only (not with --json)."""
+    if show_progress(args):
+        print(f"  {text} …", file=sys.stderr, flush=True)
+
+
+def _fit(model, fixed: dict, weights):
+    """The least-squares fit and the notes of its warnings (:class:`LabFitWarning`)."""
+    from benchmarks.lab.fit import LabFitWarning, fit_lab
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", LabFitWarning)
+        fit = fit_lab(model, fixed=fixed, weights=weights)
+    return fit, [str(w.message) for w in caught if issubclass(w.category, LabFitWarning)]
+
+
+def _profiles(args, fit, notes: list) -> dict:
+    """The profile of each fitted parameter of :data:`PROFILED`; a profile's note joins
+    ``notes``."""
+    from benchmarks.lab.profile_intervals import profile_lab
+    profiles = {}
+    for name in (n for n in PROFILED if n in fit.free):
+        _stage(args, f"the profile of {name}")
+        profiles[name] = profile_lab(fit, name)
+        if profiles[name].note:
+            notes.append(profiles[name].note)
+    return profiles
+
+
+def _posterior(args, fit):
+    from benchmarks.lab.sampling import sample_lab
+    try:
+        return sample_lab(fit, walkers=args.walkers, steps=args.steps, seed=args.seed,
+                          progress=not args.json and not args.no_progress)
+    except KeyboardInterrupt as exc:      # one line (main), never emcee's traceback
+        raise KeyboardInterrupt(f"lab fit interrupted (Ctrl-C): {exc or 'the posterior'}; "
+                                "nothing written") from None
+
+
+def _inertia(args, fit, record) -> dict:
+    """The inertial (and damped) slider fitted too, and how far its parameters moved."""
+    from benchmarks.lab.checks import inertia_check
+    from benchmarks.lab.fit import LabFitWarning
+    _stage(args, "the inertial fit")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LabFitWarning)
+        inertial, shifts = inertia_check(fit, args.mass or 0.0, args.normal_force,
+                                         args.radiation_damping or 0.0)
+    moved = shifts[shifts.shift_se.abs() > 1.0]
+    k_n_per_m = fit.values["k"] * args.normal_force
+    period = 2 * math.pi * math.sqrt((args.mass or 0.0) / k_n_per_m)
+    fastest = max(record.velocities)
+    return {"mass_kg": args.mass or 0.0, "normal_force_N": args.normal_force,
+            "period_s": period, "dc_time_s": fit.values["dc"] / fastest,
+            "radiation_damping_N_s_per_m": args.radiation_damping or 0.0,
+            "shifts": shifts.to_dict(orient="records"),
+            "matters": bool(len(moved)),
+            "parameters": inertial.table().to_dict(orient="records")}
+
+
+def _table(fit, profiles: dict, posterior):
+    """The fit's parameter table with the profile and posterior intervals beside."""
+    table = fit.table()
+    for name, prof in profiles.items():
+        i = table.index[table.parameter == name][0]
+        table.loc[i, "profile_low95"], table.loc[i, "profile_high95"] = prof.interval
+        table.loc[i, "profile_low_closed"], table.loc[i, "profile_high_closed"] = prof.closed
+    if posterior is not None:
+        for name, (low, median, high) in posterior.quantiles.items():
+            i = table.index[table.parameter == name][0]
+            table.loc[i, ["posterior_low95", "posterior_median", "posterior_high95"]] = \
+                low, median, high
+    return table
+
+
+def _doc(args, record, fit, table, fixed, notes, profiles, check, inertia, posterior) -> dict:
+    """lab_fit.json: the record, the history, the fit, its noise, intervals and checks."""
+    from benchmarks.records.provenance import provenance, version_line
+    return {"tool": version_line(), **provenance(), "command": args.command_line,
+            "recording": str(Path(args.recording).resolve()), "sha256": record.sha256,
+            "columns": record.columns, "window_s": list(args.window) if args.window else None,
+            "law": args.law, "states": args.states, "detrend": args.detrend, "fixed": fixed,
+            "weights": list(args.weights) if args.weights else None,
+            "history": {"velocities_m_s": list(record.velocities),
+                        "switch_times_s": [s + record.t_offset for s in record.switch_times],
+                        "pieces": record.pieces.assign(
+                            t_start_s=record.pieces.t_start_s + record.t_offset,
+                            t_end_s=record.pieces.t_end_s + record.t_offset).to_dict(
+                            orient="records")},
+            "samples": fit.n, "parameters": table.to_dict(orient="records"),
+            "noise": {"model": "AR(1): sigma from the residuals, rho their lag-1 "
+                               "autocorrelation, covariance inflated by (1+rho)/(1-rho)",
+                      "sigma": fit.sigma, "rho": fit.rho, "inflation": fit.inflation},
+            "success": fit.success, "message": fit.message, "at_bound": list(fit.at_bound),
+            "notes": notes, "solves": fit.solves, "failed_solves": fit.failed_solves,
+            "wall_budget_s": args.wall_budget, "wall_s": fit.wall_s,
+            "profiles": {n: {"interval": list(p.interval), "closed": list(p.closed),
+                             "solves": p.solves, "wall_s": p.wall_s}
+                         for n, p in profiles.items()},
+            "solver_check": check, "inertia": inertia,
+            "posterior": None if posterior is None else {
+                "walkers": args.walkers, "steps": args.steps, "seed": args.seed,
+                "prior": posterior.prior, "likelihood": posterior.likelihood,
+                "acceptance": posterior.acceptance, "tau": posterior.tau,
+                "tau_reliable": posterior.tau_reliable,
+                "effective_samples": posterior.effective_samples, "solves": posterior.solves,
+                "wall_s": posterior.wall_s}}
 
 
 def _pieces_line(record) -> str:
@@ -300,8 +332,6 @@ def _num(v, unit) -> str:
 
 def _write(out: Path, fit, table, profiles, doc) -> None:
     import pandas as pd
-
-    from benchmarks.records.report import jsonable
     rec = fit.model.record
     write_table(table.assign(command=doc["command"], tool=doc["tool"]),
                 out / "lab_fit_parameters.csv")
@@ -362,7 +392,7 @@ def _plot(fit, profiles, path: Path) -> None:
 
 
 def add_parser(tests) -> None:
-    from benchmarks.lab.model import DEFAULT_ALGORITHM, DETRENDS, WALL_BUDGET
+    from benchmarks.lab.model import DETRENDS
     p = tests.add_parser("fit", help="fit (a, b, Dc) and the stiffness to a velocity-step or "
                          "slide-hold-slide record", description=__doc__.split("\n\n")[0])
     p.add_argument("recording", type=in_file, metavar="RECORDING",
@@ -378,7 +408,7 @@ def add_parser(tests) -> None:
     p.add_argument("--window", type=float, nargs=2, metavar=("START", "END"),
                    help="fit the part of the record from START to END, in the file's time, s "
                         "(default: all of it; it must start in steady sliding)")
-    p.add_argument("--law", choices=("aging", "slip", "nagata"), default="aging",
+    p.add_argument("--law", choices=tuple(LAWS), default="aging",
                    help="the friction law (default: aging)")
     p.add_argument("--states", type=int, choices=(1, 2), default=1,
                    help="state variables: 1, or 2 for a second evolution (b2, Dc2; b2 may be "
@@ -400,6 +430,17 @@ def add_parser(tests) -> None:
     p.add_argument("--radiation-damping", type=non_negative, metavar="N_S_PER_M",
                    help="radiation damping in N s/m: the check refits the damped (and, with "
                         "--mass, inertial) slider too (default: 0)")
+    _add_run_options(p)
+    p.add_argument("--out", type=out_dir, metavar="DIR",
+                   help="write lab_fit.json, lab_fit_parameters.csv, lab_fit_residuals.csv, "
+                        "lab_fit_profiles.csv and lab_fit.png there (default: print only)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(func=cmd_lab_fit)
+
+
+def _add_run_options(p) -> None:
+    """The integrator, the posterior, what to skip and the wall budget of each solve."""
+    from benchmarks.lab.model import DEFAULT_ALGORITHM, WALL_BUDGET
     p.add_argument("--integrator", metavar="NAME",
                    help=f"registry name of a method with dense output (default: "
                         f"{DEFAULT_ALGORITHM[0]})")
@@ -425,8 +466,3 @@ def add_parser(tests) -> None:
                         "posterior's and the solver check's (a reference over it fails the "
                         "check: exit status 1; the two-state model has a step budget instead) "
                         f"(default: {WALL_BUDGET:g} s per solve)")
-    p.add_argument("--out", type=out_dir, metavar="DIR",
-                   help="write lab_fit.json, lab_fit_parameters.csv, lab_fit_residuals.csv, "
-                        "lab_fit_profiles.csv and lab_fit.png there (default: print only)")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.set_defaults(func=cmd_lab_fit)

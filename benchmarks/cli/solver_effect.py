@@ -7,7 +7,7 @@
 
 Every candidate setting inverts the observations' means (ΔT and Δμ with their σ: J1; the
 file's slip-weakening curves are left out here) on the problem's own box and is compared with
-the inversion by a tight reference (:mod:`benchmarks.studies.solver_effect`); the settings whose
+the inversion by a tight reference (:mod:`benchmarks.inversion.solver_effect`); the settings whose
 posterior is indistinguishable from the reference's are ranked by their cost.
 """
 
@@ -16,7 +16,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from benchmarks.cli.args import in_file, out_dir, say
+from benchmarks.cli.args import b_range, bounded, flagged, in_file, lc_range, out_dir, say
 from benchmarks.records.files import adopt, claim_outputs, write_output
 from benchmarks.records.report import jsonable
 
@@ -30,9 +30,9 @@ __all__ = ["add_parsers"]
 def cmd_solver_effect(args) -> int:
     from benchmarks.inversion.invert import check_box
     from benchmarks.inversion.observations import read_observations
+    from benchmarks.inversion.solver_effect import QUICK_N, recommendation
     from benchmarks.records.provenance import provenance, version_line
-    from benchmarks.cli.args import flagged
-    from benchmarks.studies.solver_effect import QUICK_N, recommendation, solver_effect_study
+    from benchmarks.studies.solver_effect import solver_effect_study   # its files and figure
     from problems import load_problem
     problem = load_problem(args.problem)
     flagged("--b-range/--lc-range", check_box, problem, args.b_range, args.lc_range)
@@ -73,8 +73,7 @@ def cmd_solver_effect(args) -> int:
 
 
 def add_parsers(sub) -> None:
-    from benchmarks.cli.invert import b_range, bounded, lc_range
-    from benchmarks.studies.solver_effect import QUICK_N
+    from benchmarks.inversion.solver_effect import QUICK_N
     p = sub.add_parser("solver-effect", help="does the integrator change what your observations "
                        "infer on your problem? every candidate's posterior (J1: the means; "
                        "curves left out) against a tight reference's, the indistinguishable "

@@ -98,17 +98,21 @@ def cmd_sweep(args) -> int:
     if args.json:
         say(json.dumps(jsonable(s), indent=2))
     else:
-        say(f"{s['n_points']} points ({s['n_resumed']} resumed, {s['n_failed']} failed) in "
-              f"{s['wall_s']:.1f} s; {s['n_in_region']} in the 95 % region J1 ≤ 5.99")
-        if s["best_b"] is not None:
-            say(f"best ({s['best_by']}): b = {s['best_b']:.5g}, Lc = {s['best_lc_m'] * 1e6:.4g} µm,"
-                  f" J1 = {s['best_J1']:.3g}")
-        say(f"classification: {s['classification']}")
-        store = (f", {s['store']} (the store: benchmarks.ensemble.read_store reads it)"
-                 if s["store"] else "")
-        say(f"written: {out / 'sweep.csv'}, {out / 'summary.json'}{store}"
-            + ("" if args.no_plot else f", {out / 'maps.png'}"))
+        _report(s, out, args.no_plot)
     return 0
+
+
+def _report(s: dict, out: Path, no_plot: bool) -> None:
+    say(f"{s['n_points']} points ({s['n_resumed']} resumed, {s['n_failed']} failed) in "
+        f"{s['wall_s']:.1f} s; {s['n_in_region']} in the 95 % region J1 ≤ 5.99")
+    if s["best_b"] is not None:
+        say(f"best ({s['best_by']}): b = {s['best_b']:.5g}, Lc = {s['best_lc_m'] * 1e6:.4g} µm,"
+            f" J1 = {s['best_J1']:.3g}")
+    say(f"classification: {s['classification']}")
+    store = (f", {s['store']} (the store: benchmarks.ensemble.read_store reads it)"
+             if s["store"] else "")
+    say(f"written: {out / 'sweep.csv'}, {out / 'summary.json'}{store}"
+        + ("" if no_plot else f", {out / 'maps.png'}"))
 
 
 def synthetic_curves(problem, algorithm, n_events: int = 3, n_points: int = 25,
@@ -162,7 +166,13 @@ def cmd_slip_weakening(args) -> int:
     return 0
 
 
-def add_parsers(sub, preset_names) -> None:
+def add_parsers(sub) -> None:
+    from problems import PRESET_NAMES
+    _add_sweep(sub, PRESET_NAMES)
+    _add_slip_weakening(sub, PRESET_NAMES)
+
+
+def _add_sweep(sub, preset_names) -> None:
     from benchmarks.ensemble.executors import CONNECT_TIMEOUT_S, WORKER_TIMEOUT_S
     from benchmarks.inversion.sweep import MAX_GRID_POINTS
     s = sub.add_parser("sweep", help="J1/J2/J over a (b, Lc) grid: parallel, resumable")
@@ -211,6 +221,8 @@ def add_parsers(sub, preset_names) -> None:
     s.add_argument("--no-plot", action="store_true", help="do not draw maps.png")
     s.set_defaults(func=cmd_sweep)
 
+
+def _add_slip_weakening(sub, preset_names) -> None:
     c = sub.add_parser("slip-weakening", help="synthetic slip-weakening curves (CSV) from a run")
     add_problem_options(c, preset_names)
     add_integrator_options(c)

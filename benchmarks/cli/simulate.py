@@ -1,0 +1,188 @@
+"""``rsfbench simulate``, ``integrators`` and ``windows``: one problem run, the registry listed,
+the windows' limit cycles against their observed means.
+
+    rsfbench simulate --preset W2 --law aging --json
+    rsfbench integrators                    # the registry
+    rsfbench windows --out results          # W1–W4 limit cycles, both laws, CSV + Markdown
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from benchmarks.cli.args import (
+    add_integrator_options,
+    add_problem_options,
+    integrator_from_args,
+    out_dir,
+    out_file,
+    positive,
+    problem_from_args,
+    say,
+    show_progress,
+)
+from benchmarks.devtools.timing import warm_up
+from benchmarks.physics import metrics
+from benchmarks.physics.summary import (
+    integrator_rows,
+    integrators_markdown,
+    simulate_summary,
+)
+from benchmarks.records.files import claim_outputs, write_output, write_table, writing
+from benchmarks.records.report import jsonable as _jsonable
+from integrators import REGISTRY, solve
+from problems import LAWS, PRESET_NAMES, WINDOWS
+
+__all__ = ["add_parsers"]
+
+
+def _print_summary(s: dict) -> None:
+    lc = s["limit_cycle"]
+    say(f"{s['problem']}  (b = {s['b']:.5g}, Lc = {s['lc_m'] * 1e6:.4g} µm, {s['t_end']:g} s)")
+    say(f"  integrator  {s['integrator']}   {s['retcode']}  {s['message']}".rstrip())
+    if s.get("integrator_choice"):
+        say(f"              ({s['integrator_choice']})")
+    say(f"  cost        {s['steps']} steps, {s['nfev']} rhs evaluations, {s['wall_s']:.4g} s wall")
+    say(f"  events      {s['n_events']}   classification: {lc['classification']}")
+    if lc.get("reason"):
+        say(f"              ({lc['reason']})")
+    if lc["classification"] in metrics.CYCLES:
+        say(f"  limit cycle (period {lc['period']}, converged from event "
+            f"{lc['cycles_to_converge']}):")
+        say(f"    recurrence interval  {lc['recurrence_s']:.6g} s")
+        say(f"    friction drop        {lc['friction_drop']:.6g}")
+        say(f"    slip per event       {lc['slip_m'] * 1e3:.6g} mm")
+        say(f"    peak slip rate       {lc['peak_velocity_m_s']:.6g} m/s")
+    elif s["last_event"]:
+        e = s["last_event"]
+        recurrence = "n/a" if e["recurrence_s"] is None else f"{e['recurrence_s']:.6g} s"
+        say(f"  last event  at t = {e['t_start']:.6g} s: recurrence {recurrence}, "
+            f"friction drop {e['friction_drop']:.6g}, slip {e['slip_m'] * 1e3:.6g} mm, "
+            f"peak {e['peak_velocity_m_s']:.6g} m/s (not a limit cycle)")
+
+
+def cmd_simulate(args) -> int:
+    if args.save and args.save.suffix.lower() == ".parquet":
+        from benchmarks.records.optional import require
+        require("pyarrow", "ensemble", "--save FILE.parquet")
+    problem = problem_from_args(args)
+    algorithm, why = integrator_from_args(args)
+    claim_outputs([p for p in (args.save, args.save and args.save.with_name(
+        args.save.name + ".json"), args.plot) if p])   # a user's file there: refused now
+    warm_up(problem, algorithm, wall_budget=args.wall_budget)   # wall_s excludes compiling
+    # 20,000 points over the run; a figure draws each event from the dense output besides
+    sol = solve(problem, algorithm, max_points=20_000, progress=args.progress,
+                wall_budget=args.wall_budget)
+    summary = {**simulate_summary(sol), "integrator_choice": why}
+    if args.save:
+        summary["trajectory"] = _save_trajectory(sol, args.save, summary, args.command_line)
+    if args.plot:
+        from benchmarks.physics.plots import plot_solution
+        args.plot.parent.mkdir(parents=True, exist_ok=True)   # a creatable place (its check)
+        plot_solution(sol.resolved(), args.plot)     # a failed run comes back as it is
+    if args.json:
+        say(json.dumps(summary, indent=2))
+    else:
+        _print_summary(summary)
+        if args.save:
+            say(f"  trajectory  {args.save} (and {summary['trajectory']['about']})")
+        if args.plot:
+            say(f"  figure      {args.plot}")
+    return 0 if sol.success else 1
+
+
+def _save_trajectory(sol, path: Path, summary: dict, command: str) -> dict:
+    """Write ``sol``'s trajectory to ``path`` (.csv or .parquet: t, v, fs, ft, mu, theta) and
+    what it is to ``path`` + ".json" (units, command, versions, the run's summary)."""
+    from benchmarks.records.provenance import provenance, version_line
+    df = sol.to_dataframe()
+    path.parent.mkdir(parents=True, exist_ok=True)      # a creatable place (--save's check)
+    about = {"tool": version_line(), "command": command, **provenance(),
+             "columns": df.attrs["units"], "rows": len(df), "run": summary}
+    if path.suffix.lower() == ".parquet":
+        df.attrs["about"] = json.dumps(_jsonable(about))
+        with writing(path) as tmp:
+            df.to_parquet(tmp, index=False)
+    else:
+        write_table(df, path)
+    side = path.with_name(path.name + ".json")
+    write_output(side, json.dumps(_jsonable(about), indent=2))
+    return {"file": str(path), "about": str(side), "rows": len(df)}
+
+
+def cmd_integrators(args) -> int:
+    rows, missing = integrator_rows(), REGISTRY.unavailable()
+    if args.json:
+        say(json.dumps([{**r, "available": True} for r in rows]
+                       + [{**m, "available": False} for m in missing], indent=2))
+    elif args.markdown:
+        say(integrators_markdown(), end="")
+    else:
+        say(f"{'name':<22} {'order':>5}  {'adaptive':<8} {'family':<32} library")
+        for r in rows:
+            say(f"{r['name']:<22} {r['order']:>5}  {str(r['adaptive']):<8} {r['family']:<32} "
+                  f"{r['library']} ({r['version']})")
+        if missing:
+            say("\nnot available here (the library did not import):")
+            for m in missing:
+                say(f"  {m['name']:<22} {m['install']}  [{m['reason']}]")
+    return 0
+
+
+def cmd_windows(args) -> int:
+    from benchmarks.studies.windows import windows_table, write_windows
+    algorithm, why = integrator_from_args(args)
+    if args.out:                              # a user's file there: refused before the work
+        claim_outputs([Path(args.out) / "windows.csv", Path(args.out) / "windows.md"])
+    if not args.json:
+        say(f"integrator: {why}")
+    table = windows_table(laws=args.law, names=args.window, integrator=algorithm,
+                          t_end=args.t_end, wall_budget=args.wall_budget,
+                          progress=show_progress(args))
+    if args.out:
+        write_windows(table, Path(args.out))
+    if args.json:
+        say(table.to_json(orient="records", indent=2))
+    else:
+        say(table.to_string(index=False))
+    return 0
+
+
+
+def add_parsers(sub) -> None:
+    s = sub.add_parser("simulate", help="run one problem (a preset or your own file) and "
+                       "summarise its limit cycle")
+    add_problem_options(s, PRESET_NAMES)
+    add_integrator_options(s)
+    s.add_argument("--wall-budget", type=positive, metavar="S",
+                   help="stop after S seconds of wall time (default: no budget)")
+    s.add_argument("--json", action="store_true", help="print one JSON object")
+    s.add_argument("--plot", metavar="FILE.png", type=out_file(".png", ".pdf", ".svg"),
+                   help="draw v(t), μ(t) and the phase portrait (default: no figure)")
+    s.add_argument("--save", metavar="FILE", type=out_file(".csv", ".parquet"),
+                   help="write the trajectory (t s, v m/s, fs N, ft N, mu, theta) to FILE.csv "
+                        "or FILE.parquet, and what it is to FILE.csv.json or FILE.parquet.json "
+                        "beside it (default: not written)")
+    s.add_argument("--progress", action="store_true", help="show a progress bar")
+    s.set_defaults(func=cmd_simulate)
+
+    i = sub.add_parser("integrators", help="list the registry")
+    i.add_argument("--json", action="store_true", help="print one JSON array")
+    i.add_argument("--markdown", action="store_true", help="a Markdown table (for the README)")
+    i.set_defaults(func=cmd_integrators)
+
+    w = sub.add_parser("windows", help="limit cycles of W1–W4 against the observed means")
+    w.add_argument("--window", nargs="+", choices=sorted(WINDOWS), default=sorted(WINDOWS),
+                   type=str.upper, help="the windows to run")
+    w.add_argument("--law", nargs="+", choices=tuple(LAWS), default=["slip", "aging"],
+                   help="friction laws")
+    add_integrator_options(w)
+    w.add_argument("--t-end", type=positive, metavar="S",
+                   help="simulated time of each window in s (default: 40 s)")
+    w.add_argument("--wall-budget", type=positive, metavar="S",
+                   help="wall-time budget of each run in s (default: no budget)")
+    w.add_argument("--out", type=out_dir, metavar="DIR",
+                   help="directory for windows.csv and windows.md (default: write nothing)")
+    w.add_argument("--json", action="store_true", help="print one JSON array")
+    w.set_defaults(func=cmd_windows)

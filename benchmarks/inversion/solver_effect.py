@@ -1,0 +1,375 @@
+"""Does the choice of solver change what a data set infers? Every candidate setting inverts the
+same data (J1: the means and their σ), and is compared with the inversion by a tight
+``reference`` setting:
+
+* the posterior on the **zoom** (:mod:`benchmarks.inversion.grid`): a coarse reference map of
+  the box finds where any data set's posterior lives (nodes within 1e−6 of the maximum density),
+  and a fine ``n`` × ``n`` grid over that zoom (padded by one coarse node) carries every
+  setting's posterior. Compared: the shift of the posterior mean of b and of log10 Lc in units
+  of the reference posterior's standard deviation; the overlap of the two posteriors,
+  Σ min(p, q) (1 − the total variation distance); the Jaccard index of their 95 % HPD sets;
+* the posterior on the **whole box**, on a ``check_n`` × ``check_n`` grid for every setting: a
+  setting whose posterior has mass where the reference's has none (a spurious cycle matching the
+  data elsewhere) would look the same on the zoom; its whole-box overlap, and its mass outside
+  the zoom, show it;
+* the best fit: :func:`benchmarks.inversion.least_squares.fit` started from each setting's best
+  node, its shift from the reference's best fit in the same units (``fit_ok``: the fit
+  converged).
+
+A setting's inversion is **indistinguishable** from the reference's when both posterior-mean
+shifts are within :data:`SHIFT_SD` = 0.1 standard deviations and both overlaps (zoom and whole
+box) are at least :data:`MIN_OVERLAP` = 0.95: a tenth of the posterior's own width, far below
+what a user would read as a different answer. The comparison is **resolved** when the floor (a
+second tight setting of another method) is indistinguishable by that rule; an unresolved data
+set gets no recommendation. The grid's resolution is reported as nodes per reference standard
+deviation. The best-fit shift is reported beside the rule, not in it: where the misfit has a
+flat valley (Lc bounded only on one side) the best fit wanders along the valley with any
+perturbation while the posterior does not move.
+
+The reference and the floor run without a wall budget (a node that timed out would be read as
+without a cycle, and the reference would depend on the machine's load); the candidates run with
+``wall_budget`` per solve, and ``n_failed`` counts their nodes whose solve failed (they count as
+without a cycle, as :class:`~benchmarks.inversion.Misfit` defines).
+
+Cost: the mean wall time of one forward solve (the solves' own time over the fine grid, with as
+many solves at once as there are workers), and the cost of a 64,000-solve posterior on this
+machine, all workers and the harness included (:func:`posterior_cost`): what one ensemble costs
+whatever its size (its workers' start, compiling that no cache keeps: numbalsoda's driver is
+``@njit`` without a cache), measured as a 2 × 2 map's wall time, plus 64,000 × the fine map's
+extra time per extra node. Each setting first solves a 2 × 2 map in this process, untimed, so
+that its compilation (and the numba cache its worker processes load) is not in either: a cold
+cache once put 16 s of compiling into W1/slip's first Rosenbrock23 and Exprb32 maps, and
+64,000 × the map's time per node (the rule then) made that 20× their cost.
+
+The study over the windows and laws, its files and figure:
+:mod:`benchmarks.studies.solver_effect`; for a problem of one's own, ``rsfbench solver-effect``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from benchmarks.inversion.grid import GridPosterior, MetricMap, box_grid, metric_map
+from benchmarks.inversion.least_squares import fit
+from benchmarks.inversion.misfit import Misfit, synthetic
+from benchmarks.inversion.observations import Observations, observations
+from integrators import Algorithm
+from problems import preset
+
+__all__ = ["solver_effect", "candidates", "Candidate", "recommendation", "compare",
+           "same_inference", "posterior_cost", "SHIFT_SD", "MIN_OVERLAP", "POSTERIOR_SOLVES",
+           "QUICK_LADDERS", "QUICK_N"]
+
+#: the largest shift of a posterior mean, in reference standard deviations, called no change
+SHIFT_SD = 0.1
+#: the smallest overlap Σ min(p, q) of two posteriors called the same
+MIN_OVERLAP = 0.95
+#: the forward solves a posterior costs (the size of the inversion study's posterior target)
+POSTERIOR_SOLVES = 64_000
+#: a node is in a posterior's zoom when its density is within this factor of the maximum
+ZOOM_DENSITY = 1e-6
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """A setting to compare: its family (``own``, ``ETD``, ``LSODA``, ``SUNDIALS``,
+    ``reference``, ``floor``), a label, and the algorithm."""
+
+    family: str
+    label: str
+    algorithm: Algorithm
+
+
+def candidates(study: pd.DataFrame | None = None, own_ladders=None, etd_factors=(4, 1),
+               peer_levels=(1e-2, 1e-3, 1e-4)) -> list[Candidate]:
+    """The settings compared: the own methods over ``own_ladders`` ({method: tolerances}), ETD2
+    at the paper's Δτ rule scaled by ``etd_factors`` (1: the paper's), and from the
+    work-precision ``study`` the fastest LSODA and the fastest SUNDIALS setting whose worst
+    recurrence error is within each of ``peer_levels`` (:func:`benchmarks.devtools.work_precision.
+    recommend` within each family)."""
+    from benchmarks.devtools.work_precision import algorithm_at, recommend
+    from integrators import REGISTRY
+    own_ladders = own_ladders or {"Rodas5P": (1e-3, 1e-4, 1e-5, 1e-6, 1e-7),
+                                  "Rosenbrock23": (1e-3, 1e-4, 1e-5, 1e-6),
+                                  "Exprb43": (1e-3, 1e-4, 1e-5),
+                                  "Exprb32": (1e-3, 1e-4, 1e-5)}
+    out = [Candidate("own", f"{m} {tol:g}", algorithm_at(m, "numba", tol))
+           for m, tols in own_ladders.items() for tol in tols]
+    paper = REGISTRY["ETD2"]().dtau_cnst
+    out += [Candidate("ETD", f"ETD2 Δτcnst {paper * f:g}" + (" (paper)" if f == 1 else ""),
+                      algorithm_at("ETD2", "numba", paper * f)) for f in etd_factors]
+    if study is not None:
+        families = {"LSODA": study.integrator.str.contains("LSODA"),
+                    "SUNDIALS": study.integrator.str.contains("CVODE|CVode|IDA|ARKODE")}
+        for family, rows in families.items():
+            advice = recommend(study[rows], peer_levels).dropna(subset=["integrator"])
+            for a in advice.drop_duplicates(["integrator", "rhs_tier", "setting"]).itertuples():
+                out.append(Candidate(family, f"{a.integrator} [{a.rhs_tier}] {a.setting:g}",
+                                     algorithm_at(a.integrator, a.rhs_tier, float(a.setting))))
+    return out
+
+
+#: the candidates of the quick mode: the own methods' front settings and the paper's ETD2
+QUICK_LADDERS = {"Rodas5P": (1e-3, 1e-4, 1e-5), "Exprb43": (1e-3, 1e-4),
+                 "Rosenbrock23": (1e-3, 1e-4)}
+#: nodes per parameter of the quick mode's grids
+QUICK_N = 15
+
+
+def _datasets(name: str, law: str, reference_map: MetricMap, truth,
+              yours: Observations | None = None,
+              published: bool = True) -> dict[str, Observations]:
+    """The published means, for W2/slip one synthetic set at ``truth`` (seed 0, σ 5 %), and
+    ``yours`` when given (its curves left out: J1 is what the posteriors here score); for a
+    problem of one's own (``published`` False), ``yours`` alone."""
+    if not published:
+        return {"yours": dataclasses.replace(yours, curves=None)}
+    data = {"published": observations(name)}
+    if yours is not None:
+        data["yours"] = dataclasses.replace(yours, curves=None)
+    if (name, law) == ("W2", "slip"):
+        i = int(np.argmin(np.abs(reference_map.b - truth[0])))
+        j = int(np.argmin(np.abs(reference_map.log10_lc - np.log10(truth[1]))))
+        if reference_map.cycle[i, j]:
+            data["synthetic"] = synthetic(float(reference_map.recurrence_s[i, j]),
+                                          float(reference_map.friction_drop[i, j]), 0.05, 0)
+    return data
+
+
+def _zoom(coarse: MetricMap, data: dict) -> tuple[tuple, tuple]:
+    """The box of the coarse nodes where any data set's density is within ZOOM_DENSITY of its
+    maximum, padded by one node and clipped to the grid (the whole grid when no node has a
+    cycle)."""
+    keep = np.zeros(coarse.cycle.shape, bool)
+    if coarse.cycle.any():
+        for obs in data.values():
+            J = coarse.j1(obs)
+            keep |= coarse.cycle & (J - J[coarse.cycle].min() <= -2 * np.log(ZOOM_DENSITY))
+    else:
+        keep[:] = True
+    ii, jj = np.nonzero(keep)
+    nb, nl = len(coarse.b) - 1, len(coarse.log10_lc) - 1
+    i0, i1 = max(ii.min() - 1, 0), min(ii.max() + 1, nb)
+    j0, j1 = max(jj.min() - 1, 0), min(jj.max() + 1, nl)
+    hb = (coarse.b[1] - coarse.b[0]) / 2
+    hl = (coarse.log10_lc[1] - coarse.log10_lc[0]) / 2
+    return ((coarse.b[i0] - hb, coarse.b[i1] + hb),
+            (10.0 ** (coarse.log10_lc[j0] - hl), 10.0 ** (coarse.log10_lc[j1] + hl)))
+
+
+def compare(ref: GridPosterior, post: GridPosterior) -> dict:
+    """The comparison of a setting's grid posterior ``post`` with the reference's ``ref`` on the
+    same grid: mean shifts in reference standard deviations, overlap Σ min(p, q), Jaccard index
+    of the 95 % HPD sets (NaN where either posterior is not ``ok``)."""
+    if not (ref.ok and post.ok):
+        return {"mean_shift_b_sd": np.nan, "mean_shift_log10_lc_sd": np.nan,
+                "overlap": 0.0 if ref.ok else np.nan, "hpd_jaccard": np.nan}
+    union = (post.hpd | ref.hpd).sum()
+    return {"mean_shift_b_sd": (post.mean["b"] - ref.mean["b"]) / ref.std["b"],
+            "mean_shift_log10_lc_sd": (post.mean["log10_lc"] - ref.mean["log10_lc"])
+            / ref.std["log10_lc"],
+            "overlap": float(np.minimum(post.mass, ref.mass).sum()),
+            "hpd_jaccard": float((post.hpd & ref.hpd).sum() / union)}
+
+
+def posterior_cost(small: MetricMap, big: MetricMap, solves: int = POSTERIOR_SOLVES) -> float:
+    """s for ``solves`` solves in one ensemble, from two maps of one setting: the small map's
+    wall time (what an ensemble costs whatever its size, with its few solves) plus the big
+    map's extra wall time per extra solve for the rest."""
+    if big.n_solves <= small.n_solves:
+        raise ValueError(f"the big map must have more solves than the small one, got "
+                         f"{big.n_solves} and {small.n_solves}")
+    per = max(big.run_wall_s - small.run_wall_s, 0.0) / (big.n_solves - small.n_solves)
+    return small.run_wall_s + (solves - small.n_solves) * per
+
+
+def same_inference(c: dict) -> bool:
+    """The rule of the module docstring on :func:`compare`'s values (``overlap_box``: the
+    whole-box overlap, NaN when the reference has no posterior on the whole-box grid)."""
+    box = c.get("overlap_box", np.nan)
+    return bool(abs(c["mean_shift_b_sd"]) <= SHIFT_SD
+                and abs(c["mean_shift_log10_lc_sd"]) <= SHIFT_SD
+                and c["overlap"] >= MIN_OVERLAP and (np.isnan(box) or box >= MIN_OVERLAP))
+
+
+def _best_fit(problem, obs, algorithm, m: MetricMap, box, workers, wall_budget):
+    """(b, log10 Lc, converged) of the least-squares fit started at the map's best node."""
+    if not m.cycle.any():
+        return np.nan, np.nan, False
+    J = m.j1(obs)
+    i, j = np.unravel_index(np.argmin(J), J.shape)
+    res = fit(Misfit(problem, obs, algorithm, wall_budget=wall_budget, workers=workers), *box,
+              start=(m.b[i], 10.0 ** m.log10_lc[j]))
+    return res.b, np.log10(res.lc), bool(res.success)
+
+
+def solver_effect(settings: list[Candidate], reference: Algorithm, floor: Algorithm,
+                  windows=("W1", "W2", "W3", "W4"), laws=("slip", "aging"), n: int = 31,
+                  check_n: int | None = None, workers: int | None = None,
+                  wall_budget: float | None = 5.0, progress=None,
+                  yours: Observations | None = None, own=None) -> pd.DataFrame:
+    """One row per (window, law, data set, setting) with the comparison of the module
+    docstring; ``floor``: a second tight setting of another method, compared like the others.
+    ``yours``: a data set of one's own (an observations file of ``rsfbench observe`` read),
+    inverted on every window and law beside the others as the data set ``yours``.
+    ``check_n``: nodes per parameter of the whole-box grid (default n // 2). ``wall_budget``:
+    s per solve of a candidate (a solve over it is a failed node). ``progress``: a callable
+    given a line of text per map, or None. ``own`` = (label, problem, (b_range, lc_range)): a
+    problem of one's own with its prior box, inverted (``yours`` alone) beside the windows."""
+    say = progress or (lambda text: None)
+    if isinstance(n, bool) or not isinstance(n, int) or n < 3:
+        # the posterior's cost compares the fine map with a 2 × 2 one: it must have more nodes
+        raise ValueError(f"n must be an integer of at least 3, got {n!r}")
+    check_n = check_n or max(n // 2, 5)
+    everyone = [Candidate("reference", f"{reference.name} {_tol(reference)}", reference),
+                Candidate("floor", f"{floor.name} {_tol(floor)}", floor), *settings]
+    rows, warmed = [], set()
+    for name, law, problem, box, (b0, lc0), published in _cases(windows, laws, yours, own):
+        coarse = metric_map(problem, reference, *box_grid(*box, n, n, through=(b0, lc0)),
+                            workers=workers)
+        data = _datasets(name, law, coarse, (b0, lc0), yours, published)
+        zoom = _zoom(coarse, data)
+        grid, check = box_grid(*zoom, n, n), box_grid(*box, check_n, check_n)
+        inside = ((check[0] >= zoom[0][0]) & (check[0] <= zoom[0][1]))[:, None] & (
+            (check[1] >= np.log10(zoom[1][0])) & (check[1] <= np.log10(zoom[1][1])))[None]
+        maps, checks, smalls = {}, {}, {}
+        for c in everyone:
+            say(f"{name}/{law}: {c.label}")
+            budget = None if c.family in ("reference", "floor") else wall_budget
+            if c.label not in warmed:         # compile out of the timed map (docstring)
+                metric_map(problem, c.algorithm, *box_grid(*box, 2, 2), wall_budget=budget,
+                           workers=1)
+                warmed.add(c.label)
+            smalls[c.label] = metric_map(problem, c.algorithm, *box_grid(*zoom, 2, 2),
+                                         wall_budget=budget, workers=workers)
+            maps[c.label] = metric_map(problem, c.algorithm, *grid, wall_budget=budget,
+                                       workers=workers)
+            checks[c.label] = metric_map(problem, c.algorithm, *check, wall_budget=budget,
+                                         workers=workers)
+        say(f"{name}/{law}: best fits")
+        tail = {"zoom_b": f"{zoom[0][0]:.5f}:{zoom[0][1]:.5f}",
+                "zoom_lc_um": f"{zoom[1][0] * 1e6:.3g}..{zoom[1][1] * 1e6:.3g}",
+                "grid": f"{n}x{n}", "check_grid": f"{check_n}x{check_n}"}
+        for key, obs in data.items():
+            rows += _rows(everyone, (maps, checks, smalls), obs, (problem, box, inside, grid),
+                          workers, wall_budget, ({"window": name, "law": law, "data": key}, tail))
+    table = pd.DataFrame(rows)
+    if len(table):                       # the floor's verdict applies to its whole data set
+        table["resolved"] = table.groupby(["window", "law", "data"], sort=False)[
+            "resolved"].transform(lambda r: bool(r.dropna().all()) if r.notna().any() else False)
+    return table
+
+
+def _cases(windows, laws, yours, own) -> list:
+    """``(name, law, problem, box, centre, published)`` of each window and law on the paper
+    sweep's box, and of ``own`` (a problem of one's own with its box)."""
+    from benchmarks.inversion.published import GRID, T_END, best_fit, grid_around
+    cases = []
+    for law in laws:
+        for name in windows:
+            b0, lc0 = best_fit(name, law)
+            b_axis, lc_axis = grid_around(b0, lc0, **GRID[law])
+            cases.append((name, law, preset(name, law=law, t_end=T_END[name]),
+                          ((b_axis.min(), b_axis.max()), (lc_axis.min(), lc_axis.max())),
+                          (b0, lc0), True))
+    if own is not None:
+        if yours is None:
+            raise ValueError("a problem of one's own needs its observations (yours)")
+        label, problem, box = own
+        cases.append((label, problem.law.name, problem, box,
+                      (float(np.mean(box[0])), float(np.sqrt(box[1][0] * box[1][1]))), False))
+    return cases
+
+
+def _rows(everyone, maps, obs, where, workers, wall_budget, labels) -> list[dict]:
+    """A row per setting of ``everyone`` (the reference first, then the floor) on the data
+    ``obs``: its comparison with the reference's inversion on the zoom's maps, the whole box's
+    and the small maps of the cost (``maps``); ``where``: the problem, its box, the whole-box
+    nodes inside the zoom and the zoom's grid; ``labels``: the columns before and after."""
+    maps, checks, smalls = maps
+    problem, box, inside, grid = where
+    head, tail = labels
+    reference = everyone[0]
+    ref, ref_box = maps[reference.label].posterior(obs), checks[reference.label].posterior(obs)
+    ref_fit = _best_fit(problem, obs, reference.algorithm, maps[reference.label], box, workers,
+                        None)
+    floor_same, rows = None, []
+    for c in everyone:
+        m = maps[c.label]
+        post, post_box = m.posterior(obs), checks[c.label].posterior(obs)
+        budget = None if c.family in ("reference", "floor") else wall_budget
+        fb, fl, fit_ok = (ref_fit if c.family == "reference" else
+                          _best_fit(problem, obs, c.algorithm, m, box, workers, budget))
+        cmp = compare(ref, post)
+        cmp["overlap_box"] = (float(np.minimum(post_box.mass, ref_box.mass).sum())
+                              if ref_box.ok else np.nan)
+        row = {**head, "family": c.family, "setting": c.label, "integrator": c.algorithm.name,
+               "posterior_ok": post.ok, **cmp,
+               "outside_mass": (float(post_box.mass[~inside].sum()) if post_box.ok
+                                else np.nan)}
+        for p, f, rf in (("b", fb, ref_fit[0]), ("log10_lc", fl, ref_fit[1])):
+            row[f"mean_{p}"] = post.mean[p]
+            row[f"std_{p}"] = post.std[p]
+            row[f"fit_{p}"] = f
+            row[f"fit_shift_{p}_sd"] = (f - rf) / ref.std[p] if ref.ok else np.nan
+        row["fit_ok"] = fit_ok
+        row["n_cycle_nodes"] = int(m.cycle.sum())
+        row["n_failed"] = m.n_failed + checks[c.label].n_failed
+        row["wall_per_solve_ms"] = 1e3 * m.wall_s / m.n_solves
+        row["posterior_cost_s"] = posterior_cost(smalls[c.label], m)
+        row["nfev_per_solve"] = m.nfev / m.n_solves
+        row["indistinguishable"] = bool(post.ok and ref.ok and same_inference(cmp))
+        if c.family == "floor":
+            floor_same = row["indistinguishable"]
+        row["resolved"] = floor_same
+        row["ref_nodes_per_sd_b"] = ref.std["b"] / (grid[0][1] - grid[0][0])
+        row["ref_nodes_per_sd_log10_lc"] = ref.std["log10_lc"] / (grid[1][1] - grid[1][0])
+        rows.append({**row, **tail})
+    return rows
+
+
+def _tol(algorithm: Algorithm) -> str:
+    rtol = getattr(algorithm, "rtol", None)
+    return f"{rtol:g}" if rtol is not None else ""
+
+
+def recommendation(table: pd.DataFrame) -> pd.DataFrame:
+    """Per window/law/data set and over all: the cheapest setting (by wall time per solve)
+    whose inversion is indistinguishable from the reference's (the reference and the floor
+    themselves are not candidates), with its cost per posterior; none for a data set whose
+    comparison is not resolved (``resolved`` False: the floor itself differs)."""
+    cands = table[~table.family.isin(["reference", "floor"])]
+    rows = []
+    for key, group in cands.groupby(["window", "law", "data"], sort=False):
+        resolved = bool(group.resolved.all()) if "resolved" in group else True
+        ok = group[group.indistinguishable].sort_values("wall_per_solve_ms")
+        rows.append({"window": key[0], "law": key[1], "data": key[2],
+                     **(_pick(ok.iloc[0]) if len(ok) and resolved else _none()),
+                     "resolved": resolved})
+    if "resolved" in cands:
+        cands = cands.assign(indistinguishable=cands.indistinguishable & cands.resolved)
+    every = cands.groupby("setting").agg(all_ok=("indistinguishable", "all"),
+                                         wall_per_solve_ms=("wall_per_solve_ms", "mean"),
+                                         posterior_cost_s=("posterior_cost_s", "mean"),
+                                         family=("family", "first"))
+    ok = every[every.all_ok].sort_values("wall_per_solve_ms")
+    overall = ({"setting": ok.index[0], "family": ok.iloc[0].family,
+                "wall_per_solve_ms": ok.iloc[0].wall_per_solve_ms,
+                "posterior_cost_s": ok.iloc[0].posterior_cost_s} if len(ok) else _none())
+    rows.append({"window": "all", "law": "all", "data": "all", **overall,
+                 "resolved": bool(all(r["resolved"] for r in rows))})
+    return pd.DataFrame(rows)
+
+
+def _pick(row) -> dict:
+    return {"setting": row.setting, "family": row.family,
+            "wall_per_solve_ms": row.wall_per_solve_ms, "posterior_cost_s": row.posterior_cost_s}
+
+
+def _none() -> dict:
+    return {"setting": None, "family": None, "wall_per_solve_ms": np.nan,
+            "posterior_cost_s": np.nan}
