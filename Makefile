@@ -49,7 +49,7 @@ warm: $(WARM)
 
 $(WARM): $(STAMP) $(shell find integrators problems benchmarks -name '*.py')
 	$(MAKE) --no-print-directory numba-cache
-	$(PY) -m integrators.core.warm
+	$(PY) -m integrators.warm
 	$(PY) -m benchmarks.ensemble.warm
 	touch $@
 

@@ -1,7 +1,14 @@
 """The layers of the code are a contract: each room of ``benchmarks/`` imports only its own
 modules and the rooms below it, ``problems`` and ``integrators`` never import the harness, and
 no import goes round in a circle. The graph counts imports inside functions too
-(:func:`benchmarks.pipeline.manifest.import_graph`)."""
+(:func:`benchmarks.pipeline.manifest.import_graph`). import-linter checks the same contracts,
+stated in pyproject.toml, and chains through other modules besides."""
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
 
 import pytest
 
@@ -68,3 +75,35 @@ def test_problems_never_import_the_integrators():
 
 def test_no_import_goes_round_in_a_circle():
     assert find_cycles(GRAPH) == []
+
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("problems", "integrators", "benchmarks")
+
+
+def lint_imports(root: Path) -> subprocess.CompletedProcess:
+    """``lint-imports`` of this environment on the packages and pyproject.toml under ``root``
+    (no cache: nothing written into the checkout)."""
+    return subprocess.run([str(Path(sys.executable).parent / "lint-imports"), "--no-cache"],
+                          cwd=root, env={**os.environ, "PYTHONPATH": str(root)},
+                          capture_output=True, text=True, timeout=60)
+
+
+def test_import_linter_finds_every_contract_kept():
+    run = lint_imports(ROOT)
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    assert "4 kept, 0 broken" in run.stdout
+
+
+def test_import_linter_sees_the_methods_core_reach_up_through_the_package(tmp_path):
+    """``from integrators import ...`` in a function of ``integrators.core`` reaches the own
+    methods through the package's ``__init__``: a broken contract."""
+    for package in PACKAGES:
+        shutil.copytree(ROOT / package, tmp_path / package,
+                        ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copy(ROOT / "pyproject.toml", tmp_path)
+    with open(tmp_path / "integrators" / "core" / "solution.py", "a") as f:
+        f.write("\n\ndef _reaching_up():\n    from integrators import REGISTRY\n")
+    run = lint_imports(tmp_path)
+    assert run.returncode == 1
+    assert "integrators.core never imports the package above it BROKEN" in run.stdout

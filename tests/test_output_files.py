@@ -55,6 +55,20 @@ def test_a_file_rsfbench_wrote_and_the_user_changed_is_theirs(tmp_path):
     assert (tmp_path / "apparatus.toml").read_text() == "mass = 2  # edited by hand\n"
 
 
+def test_writers_into_one_directory_at_once_keep_each_other_s_entries(tmp_path):
+    """The ledger is read, changed and written under its lock; its lock file is hidden and
+    never a step's output."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from benchmarks.pipeline.manifest import snapshot
+    names = [f"f{i:03d}.txt" for i in range(96)]
+    with ThreadPoolExecutor(8) as pool:
+        list(pool.map(lambda name: write_output(tmp_path / name, name), names))
+    assert sorted(json.loads((tmp_path / LEDGER).read_text())) == names
+    assert sorted(snapshot(tmp_path)) == names
+    assert all(p.name.startswith(".") for p in tmp_path.iterdir() if p.name not in names)
+
+
 def test_remove_own_deletes_only_rsfbench_s_unchanged_file(tmp_path):
     write_output(tmp_path / "curves.csv", "x\n1\n")
     (tmp_path / "user.csv").write_text("x\n1\n")                 # same content, not in the ledger

@@ -144,6 +144,18 @@ def test_a_stray_file_is_ignored_and_reported(store, tmp_path, kind):
     assert (root / stray).exists()                       # reported, never deleted
 
 
+def test_locks_left_by_a_killed_run_are_no_strays(store):
+    """The store's lock and a ledger's (a run that wrote a file here) are the store's own."""
+    from benchmarks.records.files import LEDGER_LOCK
+    root, table = store
+    for name in (".lock", LEDGER_LOCK):
+        (root / name).touch()
+    read, seen = _read(root)
+    assert not seen and read.attrs["stray_files"] == []
+    again, seen = _run(root)
+    assert not seen and again.attrs["n_resumed"] == 4 and again.attrs["stray_files"] == []
+
+
 # --- a listed chunk that is not what the store wrote -------------------------------------------
 
 def _rewrite(path, change):

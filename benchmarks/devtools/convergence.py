@@ -180,7 +180,7 @@ def write_fixed_step_orders(table: pd.DataFrame, orders: dict, out) -> dict:
     import json
     from pathlib import Path
 
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
 
     from benchmarks.records.report import jsonable as _jsonable
     out = Path(out)
@@ -194,7 +194,8 @@ def write_fixed_step_orders(table: pd.DataFrame, orders: dict, out) -> dict:
     write_output(out / "convergence_fixed_steps.md", _fixed_step_markdown(table, orders))
     write_output(out / "convergence_fixed_steps.json",
                  json.dumps(_jsonable(summary), indent=2) + "\n")
-    fig, ax = plt.subplots(figsize=(7.5, 5.5), layout="constrained")
+    fig = Figure(figsize=(7.5, 5.5), layout="constrained")
+    ax = fig.subplots()
     colour = {name: f"C{i}" for i, name in enumerate(declared)}
     for (name, law), g in table.groupby(["integrator", "law"], sort=False):
         g = g.sort_values("h_tau")
@@ -211,5 +212,4 @@ def write_fixed_step_orders(table: pd.DataFrame, orders: dict, out) -> dict:
     ax.legend(fontsize=8, title="observed order (filled: points fitted)", title_fontsize=8)
     ax.set_title("fixed-step order on a stiff stick-phase segment (paper example)", fontsize=11)
     write_figure(fig, out / "convergence_fixed_steps.png", dpi=110)
-    plt.close(fig)
     return summary

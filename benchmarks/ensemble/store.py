@@ -24,13 +24,13 @@ in the directory is ignored and reported (:class:`StrayFileWarning`), never dele
 identity file is set aside and the store starts over (reported); a missing one, in a directory
 that holds files, is refused: nothing there can be verified.
 
-Two runs on one directory would interleave their chunks: a lock (``.lock``, ``flock``, released
-when the process ends, however it ends) makes the second stop with a clear error.
+Two runs on one directory would interleave their chunks: a lock (``.lock``, a ``filelock``
+FileLock: ``flock``, released when the process ends, however it ends) makes the second stop with
+a clear error.
 """
 
 from __future__ import annotations
 
-import fcntl
 import functools
 import hashlib
 import io
@@ -43,12 +43,13 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from filelock import FileLock, Timeout
 
 from benchmarks.ensemble.executors import RunStopped
 from benchmarks.ensemble.rows import METRIC_COLUMNS, columns_of
 from benchmarks.physics.metrics import CLASSIFICATIONS, CYCLES
 from benchmarks.records.files import _PREFIX as _TEMPORARY
-from benchmarks.records.files import atomic_write, remove_stale_temporaries
+from benchmarks.records.files import LEDGER_LOCK, atomic_write, remove_stale_temporaries
 from benchmarks.records.optional import require
 from integrators import ReturnCode
 
@@ -60,6 +61,9 @@ __all__ = ["ChunkStore", "read_store", "BadChunkWarning", "StrayFileWarning",
 SCHEMA = 2
 IDENTITY = "_ensemble.json"
 _LOCK, _README, _ASIDE = ".lock", "README.txt", ".bad-"
+#: the store's own files besides its identity, chunks and set-aside ones (a ledger's lock, left
+#: by a run that wrote a file here, is no stray either)
+_OWN = (_LOCK, LEDGER_LOCK, _README)
 _CHUNK = re.compile(r"_c(\d{9})-([0-9a-f]{24})\.parquet")
 _CHUNK_V1 = re.compile(r"c\d{9}-[0-9a-f]{24}\.parquet")        # layout 1's, cleared on reclaim
 _RETCODES = {r.value for r in ReturnCode}
@@ -151,20 +155,18 @@ class ChunkStore:
     def __enter__(self) -> "ChunkStore":
         if self.root.exists() and not self.root.is_dir():
             raise ValueError(f"the store {self.root} is a file, not a directory")
+        lock = FileLock(self.root / _LOCK, timeout=0)
         try:
             self.root.mkdir(parents=True, exist_ok=True)
-            self._lock = open(self.root / _LOCK, "a+")
-        except OSError as exc:             # a path through a file, a read-only place
-            raise ValueError(f"the store {self.root} cannot be written "
-                             f"({exc.strerror or exc}): give a directory you can write") from None
-        try:
-            fcntl.flock(self._lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            self._lock.close()
-            self._lock = None
+            lock.acquire()
+        except Timeout:
             raise StoreBusy(f"the store {self.root} is in use by another run (its lock "
                             f"{self.root / _LOCK} is held): wait for it, or use another "
                             "directory") from None
+        except OSError as exc:             # a path through a file, a read-only place
+            raise ValueError(f"the store {self.root} cannot be written "
+                             f"({exc.strerror or exc}): give a directory you can write") from None
+        self._lock = lock
         try:
             remove_stale_temporaries(self.root)
             self._claim()
@@ -177,8 +179,7 @@ class ChunkStore:
 
     def __exit__(self, *exc) -> None:
         if self._lock is not None:
-            fcntl.flock(self._lock, fcntl.LOCK_UN)
-            self._lock.close()
+            self._lock.release()
             self._lock = None
 
     def _claim(self) -> None:
@@ -408,16 +409,16 @@ def _aside(path: Path) -> Path:
 
 
 def _ours(name: str) -> bool:
-    """The store's own files other than chunks: lock, README, set-aside and temporary files."""
-    return name in (_LOCK, _README) or name.startswith((_ASIDE, _TEMPORARY))
+    """The store's own files other than chunks: locks, README, set-aside and temporary files."""
+    return name in _OWN or name.startswith((_ASIDE, _TEMPORARY))
 
 
 def _strays(root: Path, known: set[str]) -> list[str]:
-    """The files of ``root`` a store does not know: not its identity file, lock or README, not
+    """The files of ``root`` a store does not know: not its identity file, locks or README, not
     a set-aside file (reported when it was set aside), not one of ``known``. A temporary file
     of a killed writer is a stray until it is old enough to be removed."""
     return sorted(p.name for p in root.iterdir()
-                  if p.name not in known and p.name not in (IDENTITY, _LOCK, _README)
+                  if p.name not in known and p.name not in (IDENTITY, *_OWN)
                   and not p.name.startswith(_ASIDE))
 
 

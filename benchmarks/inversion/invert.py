@@ -305,10 +305,10 @@ def inversion_files(out: Path, parameters=("b", "log10_lc")) -> list[Path]:
 
 
 def _plot_profiles(inv: Inversion, path: Path) -> None:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig, axes = plt.subplots(1, 2, figsize=(9, 3.6))
+    from matplotlib.figure import Figure
+    from matplotlib.ticker import MaxNLocator
+    fig = Figure(figsize=(9, 3.6))
+    axes = fig.subplots(1, 2)
     for ax, (name, p) in zip(axes, inv.profiles.items()):
         J = p.table.misfit.to_numpy()
         x = p.table[name].to_numpy()
@@ -323,7 +323,7 @@ def _plot_profiles(inv: Inversion, path: Path) -> None:
         else:
             ax.text(0.5, 0.5, "no limit cycle on this profile", ha="center",
                     transform=ax.transAxes)
-        ax.xaxis.set_major_locator(plt.MaxNLocator(5))
+        ax.xaxis.set_major_locator(MaxNLocator(5))
         ax.set_xlabel("b" if name == "b" else "log10 Lc (m)")
         ax.set_ylabel("misfit − its minimum (profile)")
         if ax.get_legend_handles_labels()[0]:
@@ -331,24 +331,22 @@ def _plot_profiles(inv: Inversion, path: Path) -> None:
     fig.suptitle(f"{inv.misfit.problem.name}: profiles ({inv.misfit.algorithm.name})", fontsize=10)
     fig.tight_layout()
     write_figure(fig, path, dpi=110)
-    plt.close(fig)
 
 
 def _plot_corner(inv: Inversion, path: Path) -> None:
     from benchmarks.records.optional import require
     require("corner", "inversion", "the corner plot of a posterior")
     import corner
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
     s = (inv.posterior.sample(20_000, inv.seed) if isinstance(inv.posterior, CellPosterior)
          else inv.posterior.samples)
     truths = ([inv.fit.b, np.log10(inv.fit.lc)] if np.isfinite(inv.fit.misfit) and inv.fit.lc > 0
               else None)
-    fig = corner.corner(s[["b", "log10_lc"]].to_numpy(), labels=["b", "log10 Lc (m)"],
+    # corner's own size for two parameters (it draws into a figure it is given)
+    fig = corner.corner(s[["b", "log10_lc"]].to_numpy(), fig=Figure(figsize=(5.5, 5.5)),
+                        labels=["b", "log10 Lc (m)"],
                         quantiles=[0.025, 0.5, 0.975], show_titles=True, title_fmt=".4g",
                         truths=truths, truth_color="C3")
     fig.suptitle(f"{inv.misfit.problem.name}: posterior ({inv.method}, "
                  f"{inv.misfit.algorithm.name}); red: least-squares fit", fontsize=9, y=1.02)
     write_figure(fig, path, dpi=110, bbox_inches="tight")
-    plt.close(fig)

@@ -9,14 +9,11 @@ the best point; a white plus, a reference point such as the published best fit.
 
 from __future__ import annotations
 
-import matplotlib
+import numpy as np
+from matplotlib.colors import LogNorm
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.colors import LogNorm  # noqa: E402
-
-from benchmarks.records.files import write_figure  # noqa: E402
+from benchmarks.records.files import write_figure
 
 __all__ = ["plot_sweep"]
 
@@ -31,8 +28,8 @@ def plot_sweep(table, path, title: str = "", mark=None, best=None,
     # no limit cycle anywhere in the grid: one panel of the classes alone
     panels = ([p for p in _PANELS if p[0] in table and table[p[0]].notna().any()]
               or [(None, "no limit cycle in the grid", False)])
-    fig, axes = plt.subplots(1, max(len(panels), 1), figsize=(4.2 * max(len(panels), 1), 3.8),
-                             squeeze=False, constrained_layout=True)
+    fig = Figure(figsize=(4.2 * max(len(panels), 1), 3.8), constrained_layout=True)
+    axes = fig.subplots(1, max(len(panels), 1), squeeze=False)
     b = table.b.to_numpy()
     y = np.log10(table.lc_m.to_numpy() * 1e6)
     for ax, (col, label, log) in zip(axes[0], panels):
@@ -64,7 +61,6 @@ def plot_sweep(table, path, title: str = "", mark=None, best=None,
     if title:
         fig.suptitle(title)
     write_figure(fig, path, dpi=110)
-    plt.close(fig)
 
 
 #: the marks of the runs that are not a limit cycle, by classification

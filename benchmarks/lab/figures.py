@@ -16,14 +16,12 @@ MAX_DRAWN = 50_000
 def plot_recording(rec, analysis, path) -> Path:
     """Write the figure of ``analysis`` (:class:`~benchmarks.lab.events.Analysis`)
     of the recording ``rec`` to ``path`` (PNG)."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
 
     ev = analysis.events
     has_curves = analysis.curves is not None and len(analysis.curves)
-    fig, axes = plt.subplots(3 if has_curves else 2, 1, figsize=(9, 9 if has_curves else 6.5),
-                             constrained_layout=True)
+    fig = Figure(figsize=(9, 9 if has_curves else 6.5), constrained_layout=True)
+    axes = fig.subplots(3 if has_curves else 2, 1)
     step = max(1, len(rec.t) // MAX_DRAWN)
     mu = rec["shear_force"] / rec["normal_force"]
     ax = axes[0]
@@ -51,5 +49,4 @@ def plot_recording(rec, analysis, path) -> Path:
                title="slip-weakening curves, one per event")
     path = Path(path)
     write_figure(fig, path, dpi=110)
-    plt.close(fig)
     return path

@@ -4,13 +4,11 @@
 from __future__ import annotations
 
 import matplotlib
+import numpy as np
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from integrators.core.plotting import draw_rate_and_friction  # noqa: E402
-from benchmarks.records.files import write_figure  # noqa: E402
+from integrators.core.plotting import draw_rate_and_friction
+from benchmarks.records.files import write_figure
 
 __all__ = ["plot_solution", "plot_work_precision", "plot_convergence"]
 
@@ -18,7 +16,7 @@ __all__ = ["plot_solution", "plot_work_precision", "plot_convergence"]
 def plot_solution(solution, path, title: str | None = None) -> None:
     """Write a three-panel PNG of ``solution`` to ``path``."""
     p = solution.problem
-    fig = plt.figure(figsize=(11, 6.5), layout="constrained")
+    fig = Figure(figsize=(11, 6.5), layout="constrained")
     grid = fig.add_gridspec(2, 2, width_ratios=(1.6, 1))
     ax_v = fig.add_subplot(grid[0, 0])
     ax_mu = fig.add_subplot(grid[1, 0], sharex=ax_v)
@@ -42,12 +40,11 @@ def plot_solution(solution, path, title: str | None = None) -> None:
                            f"b = {law.b:.5g}, Lc = {law.lc * 1e6:.4g} µm, k = {p.stiffness:.3g} N/m"),
                  fontsize=11)
     write_figure(fig, path, dpi=110)
-    plt.close(fig)
 
 
 def _styles(keys):
     """A (colour, marker) per integrator: ten colours × four markers tell ~40 lines apart."""
-    colors = plt.get_cmap("tab10").colors
+    colors = matplotlib.colormaps["tab10"].colors
     markers = "os^D"
     names = sorted({k[0] for k in keys}, key=str.lower)
     return {n: (colors[i % 10], markers[(i // 10) % 4]) for i, n in enumerate(names)}
@@ -60,7 +57,8 @@ def plot_work_precision(df, path, error: str = "err_recurrence", title: str | No
     the cost they incurred (the error they would have had is unknown)."""
     keys = list(df.groupby(["integrator", "rhs_tier"], sort=False).groups)
     look = _styles(keys)
-    fig, axes = plt.subplots(1, 2, figsize=(14, 6.5), layout="constrained", sharey=True)
+    fig = Figure(figsize=(14, 6.5), layout="constrained")
+    axes = fig.subplots(1, 2, sharey=True)
     ok = df[(df.retcode == "Success") & (df[error] > 0)]
     top = 10 ** np.ceil(np.log10(ok[error].max())) if len(ok) else 1.0
     for (name, tier) in keys:
@@ -85,13 +83,13 @@ def plot_work_precision(df, path, error: str = "err_recurrence", title: str | No
                    title_fontsize=7)
     fig.suptitle(title or f"work-precision: {df.problem.iloc[0]}", fontsize=11)
     write_figure(fig, path, dpi=100)
-    plt.close(fig)
 
 
 def plot_convergence(df, orders: dict, path, error: str = "err_recurrence",
                      title: str | None = None) -> None:
     """Error against step size (Δτcnst) of the fixed-step methods, with the fitted slopes."""
-    fig, ax = plt.subplots(figsize=(7.5, 5.5), layout="constrained")
+    fig = Figure(figsize=(7.5, 5.5), layout="constrained")
+    ax = fig.subplots()
     for i, (name, g) in enumerate(df.groupby("integrator", sort=False)):
         g = g.sort_values("dtau_cnst")
         fitted = g[g.fitted]
@@ -106,4 +104,3 @@ def plot_convergence(df, orders: dict, path, error: str = "err_recurrence",
     ax.legend(fontsize=8, title="filled: points in the least-squares fit", title_fontsize=8)
     ax.set_title(title or f"convergence: {df.problem.iloc[0]}", fontsize=11)
     write_figure(fig, path, dpi=110)
-    plt.close(fig)

@@ -25,11 +25,12 @@ import time
 from pathlib import Path
 
 import pandas as pd
+from filelock import FileLock
 
 __all__ = ["BadResultsFile", "OutputExists", "atomic_write", "writing", "write_output",
            "write_table", "write_figure", "claim_outputs", "adopt", "remove_own", "note_input",
            "allow_overwrite", "begin_run", "written", "is_own", "overwriting", "permit", "remove_stale_temporaries",
-           "read_json_record", "read_table", "STALE_AFTER_S", "LEDGER"]
+           "read_json_record", "read_table", "STALE_AFTER_S", "LEDGER", "LEDGER_LOCK"]
 
 #: a temporary file older than this (s) belongs to a writer that was killed: any write here
 #: (one small JSON or CSV file) takes milliseconds
@@ -82,6 +83,9 @@ def _temporary(path: Path):
 
 #: the ledger of the files rsfbench wrote in a directory (module docstring)
 LEDGER = ".rsfbench-files.json"
+#: the lock held while the ledger is changed: hidden, never an output (removed on release by
+#: filelock 4; left, empty, by earlier versions and by a killed run)
+LEDGER_LOCK = ".rsfbench-files.lock"
 
 
 class OutputExists(ValueError):
@@ -247,17 +251,10 @@ def write_figure(fig, path, **savefig) -> Path:
     return path
 
 
-@contextlib.contextmanager
-def _ledger_lock(directory: Path):
-    """The directory locked (flock on it) while its ledger is read, changed and written: runs
-    writing into one directory at once keep each other's entries."""
-    import fcntl
-    fd = os.open(directory, os.O_RDONLY)
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX)
-        yield
-    finally:
-        os.close(fd)                     # releases the lock
+def _ledger_lock(directory: Path) -> FileLock:
+    """The directory's ledger locked (:data:`LEDGER_LOCK`) while it is read, changed and
+    written: runs writing into one directory at once keep each other's entries."""
+    return FileLock(directory / LEDGER_LOCK)
 
 
 def _record(path: Path) -> None:

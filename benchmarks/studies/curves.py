@@ -346,10 +346,9 @@ def _markdown(info: dict) -> str:
 
 
 def _plot(table: pd.DataFrame, path: Path) -> None:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig, axes = plt.subplots(1, 2, figsize=(9, 3.6))
+    from matplotlib.figure import Figure
+    fig = Figure(figsize=(9, 3.6))
+    axes = fig.subplots(1, 2)
     for ax, name, label in ((axes[0], "b", "b"), (axes[1], "log10_lc", "log10 Lc (m)")):
         data = [g[f"{name}_width"].to_numpy() for _, g in table.groupby("model", sort=False)]
         ax.boxplot(data, tick_labels=list(table.model.unique()), showfliers=False)
@@ -358,7 +357,6 @@ def _plot(table: pd.DataFrame, path: Path) -> None:
     fig.suptitle("W2/slip synthetic data: interval widths over seeds", fontsize=10)
     fig.tight_layout()
     write_figure(fig, path, dpi=110)
-    plt.close(fig)
 
 
 def run(out: Path, seeds: int, n: int, recordings: int) -> None:

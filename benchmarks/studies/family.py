@@ -314,11 +314,10 @@ def _refused(df: pd.DataFrame) -> str:
 
 
 def _plot(df: pd.DataFrame, path: Path) -> None:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
     problems = list(dict.fromkeys(df.problem))
-    fig, axes = plt.subplots(1, len(problems), figsize=(4.2 * len(problems), 4.2), squeeze=False)
+    fig = Figure(figsize=(4.2 * len(problems), 4.2))
+    axes = fig.subplots(1, len(problems), squeeze=False)
     for ax, problem in zip(axes[0], problems):
         g = df[(df.problem == problem) & (df.retcode == "Success")]
         error = "err_peak" if g.kind.iloc[0] == "lab" else "err_recurrence"
@@ -333,7 +332,6 @@ def _plot(df: pd.DataFrame, path: Path) -> None:
     axes[0][-1].legend(fontsize=5, ncol=2, loc="best")
     fig.tight_layout()
     write_figure(fig, path, dpi=110)
-    plt.close(fig)
 
 
 def write_lab_checks(out: Path) -> dict:
@@ -389,10 +387,9 @@ def write_lab_checks(out: Path) -> dict:
              markdown_table(heal, ".6g"), "",
              f"Provenance: {provenance()}", ""]
     atomic_write(out / "problem_family.md", "\n".join(lines))
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(figsize=(5, 3.8))
+    from matplotlib.figure import Figure
+    fig = Figure(figsize=(5, 3.8))
+    ax = fig.subplots()
     for law, h in heals.items():
         ax.semilogx(h.hold_s, h.delta_mu_peak, "o-", label=f"{law} ({rates[law]:.3g}/decade)")
     ax.set_xlabel("hold time (s)")
@@ -401,7 +398,6 @@ def write_lab_checks(out: Path) -> dict:
     ax.legend(fontsize=8)
     fig.tight_layout()
     write_figure(fig, out / "problem_family_healing.png", dpi=110)
-    plt.close(fig)
     return {"marone": marone, "steps": steps, "healing": heal, "rates": rates}
 
 

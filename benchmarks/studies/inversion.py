@@ -221,11 +221,10 @@ def _checks_markdown(c: pd.DataFrame) -> str:
 
 
 def _plot_calibration(cal, path: Path) -> None:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
     s = cal.summary
-    fig, ax = plt.subplots(figsize=(7.5, 4.2))
+    fig = Figure(figsize=(7.5, 4.2))
+    ax = fig.subplots()
     y = np.arange(len(s))
     ax.errorbar(s.coverage, y, xerr=[s.coverage - s.cp_low, s.cp_high - s.coverage], fmt="o",
                 capsize=3, label="coverage (Clopper–Pearson 95 %)")
@@ -240,7 +239,6 @@ def _plot_calibration(cal, path: Path) -> None:
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.3, -0.2), ncol=3)
     fig.tight_layout()
     write_figure(fig, path, dpi=110)
-    plt.close(fig)
 
 
 def run(out: Path) -> None:

@@ -184,11 +184,9 @@ def _real(root: Path, out: Path) -> list[dict]:
 
 
 def _plot(figures, path: Path) -> None:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig, axes = plt.subplots(2, len(figures), figsize=(4.2 * len(figures), 5.2),
-                             gridspec_kw={"height_ratios": [3, 1]}, squeeze=False)
+    from matplotlib.figure import Figure
+    fig = Figure(figsize=(4.2 * len(figures), 5.2))
+    axes = fig.subplots(2, len(figures), gridspec_kw={"height_ratios": [3, 1]}, squeeze=False)
     for col, (label, fit) in enumerate(figures):
         rec = fit.model.record
         x = rec.load_point * 1e6
@@ -203,7 +201,6 @@ def _plot(figures, path: Path) -> None:
         axes[1, col].set_xlabel("load-point displacement (µm)")
     fig.tight_layout()
     write_figure(fig, path, dpi=110)
-    plt.close(fig)
 
 
 def lab_fit_study(out: Path, seeds: int = 200, profile_seeds: int = 100,

@@ -211,10 +211,9 @@ def _ratios(df: pd.DataFrame) -> pd.DataFrame:
 
 
 def _plot(df: pd.DataFrame, path: Path) -> None:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4.2), sharey=True)
+    from matplotlib.figure import Figure
+    fig = Figure(figsize=(10, 4.2))
+    axes = fig.subplots(1, 2, sharey=True)
     floor = df[df.mass_kg > 0].mass_kg.min() / 10.0      # where m = 0 is drawn
     for ax, ladder in zip(axes, ("undamped", "damped")):
         g = df[df.ladder == ladder]
@@ -238,7 +237,6 @@ def _plot(df: pd.DataFrame, path: Path) -> None:
     axes[0].legend(fontsize=7, loc="center right")
     fig.tight_layout()
     write_figure(fig, path, dpi=110)
-    plt.close(fig)
 
 
 def run(out: Path) -> None:

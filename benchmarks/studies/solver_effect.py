@@ -141,14 +141,12 @@ def _solver_effect_markdown(table, advice, study_name, wall, shift_sd, min_overl
 
 
 def _plot_solver_effect(table, path: Path, min_overlap: float) -> None:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
     groups = list(table.groupby(["window", "law", "data"], sort=False))
     cols = 3
     rows = -(-len(groups) // cols)
-    fig, axes = plt.subplots(rows, cols, figsize=(4 * cols, 3.2 * rows), squeeze=False,
-                             sharey=True)
+    fig = Figure(figsize=(4 * cols, 3.2 * rows))
+    axes = fig.subplots(rows, cols, squeeze=False, sharey=True)
     families = ["own", "ETD", "LSODA", "SUNDIALS", "floor"]
     for ax, ((w, law, data), g) in zip(axes.flat, groups):
         for k, fam in enumerate(families):
@@ -176,7 +174,6 @@ def _plot_solver_effect(table, path: Path, min_overlap: float) -> None:
                  fontsize=9)
     fig.tight_layout()
     write_figure(fig, path, dpi=100)
-    plt.close(fig)
 
 
 def run(out: Path, n: int, windows: str, laws: str, observations: str) -> None:

@@ -4,9 +4,10 @@ coarser than an event, a crawling setting under a budget, one warning a value an
 
 from __future__ import annotations
 
-import fcntl
 import json
 import time
+
+from filelock import FileLock
 
 from probe.harness import Case, Observed, Wrong, cli, cli_outcome
 
@@ -42,8 +43,7 @@ def _runs(*args, expect_status=0):
 def _store_in_use(tmp):
     chunks = tmp / "s" / "chunks"
     chunks.mkdir(parents=True)
-    with open(chunks / ".lock", "a+") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)      # another run holds it
+    with FileLock(chunks / ".lock", timeout=0):             # another run holds it
         run = cli("sweep", "--preset", "W2", "--b", "0.0093:0.0094:0.0001", "--lc", "3e-7:4e-7:2",
                   "--t-end", "5", "--integrator", "Rodas5P", "--rtol", "1e-6", "--atol", "1e-6",
                   "--workers", "1", "--no-progress", "--no-plot", "--out", str(tmp / "s"))

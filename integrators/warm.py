@@ -1,4 +1,4 @@
-"""Compile every kernel once, into numba's on-disk cache: ``python -m integrators.core.warm``.
+"""Compile every kernel once, into numba's on-disk cache: ``python -m integrators.warm``.
 
 numba compiles a method's kernels for each friction law and for the slider with and without mass
 the first time they run, and keeps them in its cache beside the sources (``__pycache__``). A
