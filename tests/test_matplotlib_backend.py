@@ -8,10 +8,6 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("problems", "integrators", "benchmarks")
-#: commands that still draw with pyplot on another branch of issue 46 (``benchmarks/cli`` is
-#: rewritten there); empty this when it lands
-PENDING = {"benchmarks/cli/lab.py", "benchmarks/cli/lab_fit.py"}
-
 #: imports every module (a ``__main__`` runs a command) under a backend nobody would choose
 #: by default, then prints the backend
 _IMPORT_ALL = f"""
@@ -36,4 +32,4 @@ def test_no_module_selects_a_backend():
     selecting = [str(path.relative_to(ROOT)) for package in PACKAGES
                  for path in sorted((ROOT / package).rglob("*.py"))
                  if "matplotlib.use(" in path.read_text(encoding="utf-8")]
-    assert sorted(set(selecting) - PENDING) == []
+    assert selecting == []

@@ -189,11 +189,10 @@ def cmd_lab(args) -> int:
 
 
 def _plot(sol, heal, path: Path) -> None:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
     n = 3 if len(heal) >= 2 else 2
-    fig, axes = plt.subplots(1, n, figsize=(4.5 * n, 3.8))
+    fig = Figure(figsize=(4.5 * n, 3.8))
+    axes = fig.subplots(1, n)
     mu = sol.fs / sol.problem.normal_force
     axes[0].plot(sol.t, mu, lw=0.8)
     axes[0].set_xlabel("t (s)")
@@ -209,7 +208,6 @@ def _plot(sol, heal, path: Path) -> None:
     fig.suptitle(sol.problem.name, fontsize=9)
     fig.tight_layout()
     write_figure(fig, path, dpi=110)
-    plt.close(fig)
 
 
 def add_parsers(sub) -> None:

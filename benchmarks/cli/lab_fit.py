@@ -349,13 +349,12 @@ def _write(out: Path, fit, table, profiles, doc) -> None:
 
 def _plot(fit, profiles, path: Path) -> None:
     """Data and fit, residuals (against the load point), and each profile in its own panel."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
+
     from benchmarks.lab.fit import _LOG
     rec = fit.model.record
     cols = max(len(profiles), 1)
-    fig = plt.figure(figsize=(max(8, 2.6 * cols), 7.6 if profiles else 5.6))
+    fig = Figure(figsize=(max(8, 2.6 * cols), 7.6 if profiles else 5.6))
     grid = fig.add_gridspec(3 if profiles else 2, cols, height_ratios=[3, 1.4, 2][:2 + bool(
         profiles)])
     x = rec.load_point * 1e6
@@ -388,7 +387,6 @@ def _plot(fit, profiles, path: Path) -> None:
     fig.suptitle(Path(rec.source).name, fontsize=9)
     fig.tight_layout()
     write_figure(fig, path, dpi=110)
-    plt.close(fig)
 
 
 def add_parser(tests) -> None:
