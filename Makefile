@@ -43,14 +43,16 @@ numba-cache:
 	newest=$$(ls -t $$(find integrators problems benchmarks -name '*.py') | head -1); \
 	find benchmarks -name '*.nb[ic]' ! -newer "$$newest" -delete
 
-# compile every kernel once into numba's cache (a fresh checkout has none; ~5 min on 2 cores),
+# compile every kernel once into numba's cache (a fresh checkout has none), in three processes
+# side by side (the two halves of the registry and the batch kernels; they share the cores),
 # again after a source file changed: the tests and a first run then pay no compiling
 warm: $(WARM)
 
 $(WARM): $(STAMP) $(shell find integrators problems benchmarks -name '*.py')
 	$(MAKE) --no-print-directory numba-cache
-	$(PY) -m integrators.warm
-	$(PY) -m benchmarks.ensemble.warm
+	@s=0; $(PY) -m integrators.warm 1/2 & a=$$!; $(PY) -m integrators.warm 2/2 & b=$$!; \
+	  $(PY) -m benchmarks.ensemble.warm & c=$$!; \
+	  wait $$a || s=1; wait $$b || s=1; wait $$c || s=1; exit $$s
 	touch $@
 
 # the documentation site, into docs/_build/html; a warning (a broken link or reference) fails it

@@ -1,4 +1,5 @@
-"""Compile every kernel once, into numba's on-disk cache: ``python -m integrators.warm``.
+"""Compile every kernel once, into numba's on-disk cache: ``python -m integrators.warm``
+(``python -m integrators.warm 1/2`` and ``2/2`` in two processes side by side: each half).
 
 numba compiles a method's kernels for each friction law and for the slider with and without mass
 the first time they run, and keeps them in its cache beside the sources (``__pycache__``). A
@@ -76,7 +77,19 @@ def _warm_fixed_steps(cls) -> None:
     cls(rtol=1e-6, atol=1e-6).fixed_steps(nd, to_ode_state(nd.law_code, nd.beta, nd.x0), 1e-3, 2)
 
 
+def part(text: str, names: list[str]) -> list[str]:
+    """The names of part ``"I/N"`` of ``names``: every N-th from the I-th, so that processes
+    warming the parts side by side share the costly own methods."""
+    i, _, n = text.partition("/")
+    if not (i.isdigit() and n.isdigit() and 1 <= int(i) <= int(n)):
+        raise SystemExit(f"part = {text!r}: give I/N with 1 <= I <= N, such as 1/2")
+    return names[int(i) - 1::int(n)]
+
+
 if __name__ == "__main__":
-    took = warm(progress=sys.stderr.isatty())
+    from integrators import REGISTRY
+    every = sorted(REGISTRY, key=str.lower)
+    took = warm(part(sys.argv[1], every) if len(sys.argv) > 1 else every,
+                progress=sys.stderr.isatty())
     print(f"compiled the kernels of {len(took)} integrators in {sum(took.values()):.0f} s "
           f"(slowest: {max(took, key=took.get)}, {max(took.values()):.0f} s)")
