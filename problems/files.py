@@ -58,7 +58,29 @@ _REQUIRED = ("mass", "stiffness", "normal_force", "t_end", "law", "loading")
 
 
 def load_problem(path) -> SpringSlider:
-    """The :class:`SpringSlider` a TOML or JSON file describes (module docstring)."""
+    """The :class:`SpringSlider` a TOML or JSON file describes (the keys: module docstring).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A ``.toml`` or ``.json`` file, SI units.
+
+    Returns
+    -------
+    SpringSlider
+        Named by the file's ``name``, else by its stem.
+
+    Raises
+    ------
+    ValueError
+        In one line naming the file (and the key): a file that cannot be read or parsed, an
+        unknown or missing key, a value that is not a number, or one the problem refuses.
+
+    Warns
+    -----
+    UnitWarning
+        For a value implausible in its unit, naming the key, the value and the unit expected.
+    """
     if not isinstance(path, (str, os.PathLike)):
         raise ValueError(f"the problem file must be a path, got {_show(path)}")
     path = Path(path)

@@ -183,6 +183,7 @@ class NagataLaw(AgingLaw):
         return self.c
 
 
+#: each law by the short name :func:`law_from_name` takes
 LAWS: dict[str, type[FrictionLaw]] = {"slip": SlipLaw, "aging": AgingLaw, "nagata": NagataLaw}
 
 

@@ -65,6 +65,7 @@ class Window:
     nominal_vl: float           # m/s
 
 
+#: the paper's windows W1..W4 (Table 3), by name
 WINDOWS: dict[str, Window] = {w.name: w for w in (
     Window("W1", "LB01-127 short disp.", 1.42e8, 0.0753e-3, 0.9622e-3, 0.039, 0.0085, 0.09e-6,
            2.6e-2, 2.4e-2, 0.31, 1.5, 0.022, 0.14e-3, 0.02, 0.1e-3),
@@ -99,8 +100,31 @@ def paper_example(law: str = "slip", b: float = 0.0092, lc: float = 0.5e-6,
                   stiffness: float | None = None) -> SpringSlider:
     """The speed-up example of Appendix 1.4: constant vL = 0.1 mm/s, b = 0.0092, Lc = 0.5 µm, 20 s.
 
-    The paper does not state k for it; the default is W2's 1.48e8 N/m (the stiffness of the
-    LB01-127 experiment it was drawn from, and that of W2–W4).
+    Parameters
+    ----------
+    law : str
+        The friction law's short name: ``"slip"``, ``"aging"`` or ``"nagata"``.
+    b : float
+        The evolution effect (dimensionless).
+    lc : float
+        The characteristic slip distance Lc (m).
+    t_end : float
+        The simulated time (s).
+    vl : float
+        The constant load-point velocity (m/s).
+    stiffness : float, optional
+        k (N/m). The paper does not state it for this example; the default is W2's 1.48e8 N/m
+        (the stiffness of the LB01-127 experiment it was drawn from, and that of W2–W4).
+
+    Returns
+    -------
+    SpringSlider
+        Named ``paper-example/<law>``.
+
+    Raises
+    ------
+    ValueError
+        For an unknown law or a parameter the problem refuses.
     """
     k = WINDOWS["W2"].stiffness if stiffness is None else stiffness
     friction = law_from_name(law, a=A, b=b, lc=lc, v0=V0)
@@ -111,7 +135,28 @@ def window(name: str, law: str = "slip", b: float | None = None, lc: float | Non
            t_end: float = WINDOW_T_END) -> SpringSlider:
     """Window ``W1``..``W4`` with its stiffness, two-speed loading and the law's best fit.
 
-    ``b`` and ``lc`` override the best fit.
+    Parameters
+    ----------
+    name : str
+        ``W1``..``W4`` (any case).
+    law : str
+        The friction law's short name: ``"slip"``, ``"aging"`` or ``"nagata"``.
+    b : float, optional
+        The evolution effect (dimensionless), overriding the law's best fit.
+    lc : float, optional
+        The characteristic slip distance Lc (m), overriding the law's best fit.
+    t_end : float
+        The simulated time (s; default 40, ~10–90 cycles).
+
+    Returns
+    -------
+    SpringSlider
+        Named ``<window>/<law>``.
+
+    Raises
+    ------
+    ValueError
+        For an unknown window or law, or a parameter the problem refuses.
     """
     try:
         w = WINDOWS[name.upper()]
@@ -125,12 +170,33 @@ def window(name: str, law: str = "slip", b: float | None = None, lc: float | Non
                    f"{w.name}/{law.lower()}")
 
 
+#: the names :func:`preset` takes (the CLI's ``--preset``)
 PRESET_NAMES = ("paper-example", "W1", "W2", "W3", "W4")
 
 
 def preset(name: str, law: str = "slip", b: float | None = None, lc: float | None = None,
            t_end: float | None = None) -> SpringSlider:
-    """A preset by its CLI name: ``paper-example`` or ``W1``..``W4``; ``None`` keeps the default."""
+    """A preset by its CLI name: :func:`paper_example` or :func:`window`.
+
+    Parameters
+    ----------
+    name : str
+        ``paper-example`` or ``W1``..``W4`` (:data:`PRESET_NAMES`).
+    law : str
+        The friction law's short name: ``"slip"``, ``"aging"`` or ``"nagata"``.
+    b, lc, t_end : float, optional
+        The evolution effect (dimensionless), Lc (m) and the simulated time (s); ``None``
+        keeps the preset's own.
+
+    Returns
+    -------
+    SpringSlider
+
+    Raises
+    ------
+    ValueError
+        For an unknown preset or law, or a parameter the problem refuses.
+    """
     kw = {k: v for k, v in dict(b=b, lc=lc, t_end=t_end).items() if v is not None}
     if isinstance(name, str) and name.lower() == "paper-example":
         return paper_example(law=law, **kw)

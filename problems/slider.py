@@ -388,10 +388,32 @@ def variant_fields(problem: SpringSlider) -> tuple[str, ...]:
 
 
 def variant(problem: SpringSlider, **changes: float) -> SpringSlider:
-    """``problem`` with scalar fields replaced by name (:func:`variant_fields`), validated as any
-    problem is: ``variant(p, b=0.0094, lc=3e-7, stiffness=1.2e8)``. ValueError names an unknown
-    field and the ones there are. A :class:`~problems._validate.UnitWarning` is given for the
-    changed values only (the base problem warned for its own when it was made)."""
+    """``problem`` with scalar fields replaced by name, validated as any problem is:
+    ``variant(p, b=0.0094, lc=3e-7, stiffness=1.2e8)``.
+
+    Parameters
+    ----------
+    problem : SpringSlider
+        The base problem, left as it is.
+    **changes : float
+        New values by field name, in the field's SI unit (:func:`variant_fields` lists them).
+
+    Returns
+    -------
+    SpringSlider
+        A new problem.
+
+    Raises
+    ------
+    ValueError
+        Naming an unknown field and the ones there are, or a value the problem refuses.
+
+    Warns
+    -----
+    UnitWarning
+        (:class:`~problems._validate.UnitWarning`) For the changed values only: the base problem
+        warned for its own when it was made.
+    """
     known = variant_fields(problem)
     unknown = [k for k in changes if k not in known]
     if unknown:

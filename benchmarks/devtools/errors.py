@@ -3,7 +3,7 @@
 Headline accuracy — relative errors of the limit-cycle metrics, compared on the reference's last
 complete event N (for a converged stick–slip cycle these are the limit-cycle values):
 
-* ``err_recurrence``     |ΔT_N − ΔT_N,ref| / ΔT_N,ref
+* ``err_recurrence``     ``|ΔT_N − ΔT_N,ref| / ΔT_N,ref``
 * ``err_drop``           friction drop Δμ, likewise
 * ``err_slip``           slip per event, likewise
 * ``err_peak_velocity``  peak slip rate, likewise
@@ -11,8 +11,8 @@ complete event N (for a converged stick–slip cycle these are the limit-cycle v
 For reference only (they measure phase, which accumulates over the run and saturates, rather than
 the shape of the cycle an inversion fits):
 
-* ``err_event_time``     |t_N − t_N,ref| / ΔT_N,ref: the drift of event N's start, in cycles;
-* ``err_trajectory``     max over a uniform grid of |μ − μ_ref| / Δμ_ref (μ = Fs/Fn linearly
+* ``err_event_time``     ``|t_N − t_N,ref| / ΔT_N,ref``: the drift of event N's start, in cycles;
+* ``err_trajectory``     max over a uniform grid of ``|μ − μ_ref| / Δμ_ref`` (μ = Fs/Fn linearly
   interpolated from the saved points): of order 1 as soon as the phase drift is comparable to
   the duration of an event.
 

@@ -1,5 +1,7 @@
 """Ensembles: one problem and one algorithm at many points, as one table.
 
+::
+
     from benchmarks.ensemble import ensemble, grid, read_store
     table = ensemble(window("W2", "slip", t_end=40.0), Rodas5P(rtol=1e-4, atol=1e-4),
                      grid(b=np.arange(0.0084, 0.01045, 1e-4), lc=np.geomspace(3e-8, 3e-6, 21)),

@@ -136,7 +136,7 @@ class EndState:
 
     @property
     def offset(self) -> float:
-        """The largest of the three offsets (A; |ln v/vLs| counts as one)."""
+        """The largest of the three offsets (A; ``|ln v/vLs|`` counts as one)."""
         return max(abs(self.log_v), self.state_offset, self.force_offset)
 
     @property

@@ -227,16 +227,33 @@ class Solution:
         return self.fs / self.problem.normal_force
 
     def __call__(self, t) -> pd.DataFrame:
-        """The run at the times ``t`` (s; a number or an increasing array within the run), as
-        :meth:`to_dataframe` has it, from the method's own dense output: the solve is repeated
+        """The run at the times ``t``, from the method's own dense output: the solve is repeated
         with ``save_at=t`` and the values are its interpolant's at exactly t. Costs one solve:
-        ask for all the times at once. A method that saves at its own step ends (the ETD
-        family) has no dense output and refuses, as does a run that did not reach its end.
+        ask for all the times at once.
 
         The own methods take the same steps whatever they save; a library may not (SUNDIALS
         steps to each output time, and root brackets move with them), so the repeat is
-        accepted when it is the same run within its accuracy (:meth:`repeats`); otherwise
-        :class:`RunNotRepeated` (a ``ValueError``) says which event and column disagreed."""
+        accepted when it is the same run within its accuracy (:meth:`repeats`).
+
+        Parameters
+        ----------
+        t : float or array_like
+            A time or an increasing array of times (s) within the run.
+
+        Returns
+        -------
+        pandas.DataFrame
+            As :meth:`to_dataframe` has it, one row per time.
+
+        Raises
+        ------
+        ValueError
+            For a method that saves at its own step ends (the ETD family: no dense output), a
+            run that did not reach its end, or a ``t`` that is not times.
+        RunNotRepeated
+            (a ``ValueError``) When the repeat is not the same run, saying which event and
+            column disagreed.
+        """
         try:
             times = np.atleast_1d(np.asarray(t, dtype=float))
         except (TypeError, ValueError):
@@ -268,9 +285,29 @@ class Solution:
     def resolved(self, per_event: int = 200) -> Solution:
         """This run at its saved times and ``per_event`` more across each completed event
         (:meth:`__call__`: the method's dense output), so that a figure draws a 10 ms event as
-        a curve and not as the few saved points it spans. A run without events, or by a method
-        without dense output, comes back as it is; so does a run whose repeat is not the same
-        run (:meth:`repeats`), with a ``RuntimeWarning`` saying why."""
+        a curve and not as the few saved points it spans.
+
+        Parameters
+        ----------
+        per_event : int
+            The times added across each event.
+
+        Returns
+        -------
+        Solution
+            The denser run; or this one as it is, for a run without events, by a method
+            without dense output, or whose repeat is not the same run (:meth:`repeats`).
+
+        Raises
+        ------
+        ValueError
+            For a ``per_event`` that is not an integer ≥ 1.
+
+        Warns
+        -----
+        RuntimeWarning
+            When the repeat is not the same run, saying why.
+        """
         per_event = check_count("per_event", per_event)
         ev = self.event_array
         if not len(ev) or not self.success or not self.algorithm.saves_at_times:
@@ -285,8 +322,9 @@ class Solution:
             return self
 
     def repeats(self, again: Solution) -> str:
-        """Is ``again`` (this solve repeated, saving at other times) the same run? "" if so,
-        else what disagreed. The same run: it succeeded, has as many events, and each event's
+        """Is ``again`` (this solve repeated, saving at other times) the same run?
+
+        The same run: it succeeded, has as many events, and each event's
         times, peak slip rate, least spring force and slips agree with this run's within
         min(:data:`REPEAT_FACTOR` · max(rtol, atol), :data:`REPEAT_CAP`) relative (1e-9 for
         a method without tolerances). Two runs at one tolerance each lie within their error
@@ -296,7 +334,18 @@ class Solution:
         15·rtol at 1e-9), scipy's Radau and LSODA within 2e-11, rounding in their root
         brackets. Every column is compared: the extremes of the spring force are read at
         roots, segment ends and step ends, never at save points (integrators/core/events.py),
-        so a denser save grid cannot move them."""
+        so a denser save grid cannot move them.
+
+        Parameters
+        ----------
+        again : Solution
+            This solve repeated, saving at other times.
+
+        Returns
+        -------
+        str
+            ``""`` if it is the same run, else what disagreed.
+        """
         if not again.success:
             return (f"the repeat ended {again.retcode.value} at t = {again.t_reached:.6g} s "
                     f"({again.message})")
@@ -332,10 +381,24 @@ class Solution:
         return df
 
     def plot(self, path=None, resolve_events: bool = True):
-        """A figure of the run: the slip rate (log) and μ against time, events marked, each
-        event drawn from the dense output (:meth:`resolved`) unless ``resolve_events`` is
-        False; written to ``path`` (.png, .pdf, .svg) when given. Returns the Figure. A
-        ``path`` that is not a figure's file name is refused first, in one line."""
+        """A figure of the run: the slip rate (log) and μ against time, events marked.
+
+        Parameters
+        ----------
+        path : str or os.PathLike, optional
+            A file to write the figure to (.png, .pdf, .svg), or an open binary file.
+        resolve_events : bool
+            Draw each event from the dense output (:meth:`resolved`).
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+
+        Raises
+        ------
+        ValueError
+            For a ``path`` that is not a figure's file name, first, in one line.
+        """
         from integrators.core.plotting import check_figure_path, plot_run
         check_figure_path(path)
         return plot_run(self.resolved() if resolve_events else self, path)

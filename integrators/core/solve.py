@@ -43,12 +43,8 @@ def solve(problem: SpringSlider, algorithm: Algorithm, *, save_every: float | No
           progress: bool = False) -> Solution:
     """Integrate ``problem`` with ``algorithm`` from t = 0 to ``problem.t_end``.
 
-    The trajectory is saved every ``save_every`` seconds, or else at ``max_points`` points in
-    all (default 20,000); with ``save_every``, ``max_points`` caps the saved points (default
-    10⁷, see :class:`~integrators.core.solution.Output`); with ``save_at`` (an increasing array
-    of times in s), at exactly those times, from each method's dense output (the ETD family,
-    which saves at its own step ends, refuses it). Events are recorded exactly either way.
-    The saved grid never changes the steps a method takes. How each backend fills it:
+    The saved grid never changes the steps a method takes, and events are recorded exactly
+    whatever is saved. How each backend fills the grid:
 
     * the own adaptive methods (CashKarp45, Rosenbrock23, Rodas5P, RadauIIA5, Exprb32,
       Exprb43): from the step's dense output, inside the compiled solve; steps land only on the
@@ -59,12 +55,43 @@ def solve(problem: SpringSlider, algorithm: Algorithm, *, save_every: float | No
       end only; scikit-SUNDAE: one step at a time): SUNDIALS' interpolation; assimulo: its
       ``interpolate``; numbalsoda: LSODA's own interpolation at the requested times.
 
-    ``wall_budget`` (s) stops a run that takes longer (retcode ``WallTime``); it counts the run
-    only, never compiling: the first budgeted solve of a method in a process first runs it on a
-    short piece of the problem (:func:`compile_ahead`; its running, not its compiling, bounded
-    by a tenth of the budget), then starts the clock.
-    ``progress`` shows a progress bar. A numerical failure comes back as a Solution with a failure retcode (and
-    ``Solution.reached_end`` false); misuse (bad arguments) raises ``ValueError`` before any work.
+    Parameters
+    ----------
+    problem : SpringSlider
+        The problem to integrate.
+    algorithm : Algorithm
+        The method and its options, e.g. ``Rodas5P(rtol=1e-6, atol=1e-6)``.
+    save_every : float, optional
+        Save the trajectory every ``save_every`` seconds; without it (and without ``save_at``),
+        at ``max_points`` points in all.
+    max_points : int, optional
+        The saved points in all (default 20,000); with ``save_every``, a cap on them (default
+        10⁷, see :class:`~integrators.core.solution.Output`).
+    save_at : array_like, optional
+        An increasing array of times (s) to save at exactly, from each method's dense output
+        (the ETD family, which saves at its own step ends, refuses it).
+    wall_budget : float, optional
+        Stop a run that takes longer (s; retcode ``WallTime``). It counts the run only, never
+        compiling: the first budgeted solve of a method in a process first runs it on a short
+        piece of the problem (:func:`compile_ahead`; its running, not its compiling, bounded by
+        a tenth of the budget), then starts the clock.
+    progress : bool
+        Show a progress bar.
+
+    Returns
+    -------
+    Solution
+        Always, a numerical failure included: it comes back with a failure retcode (and
+        ``Solution.reached_end`` false).
+
+    Raises
+    ------
+    ValueError
+        On misuse (bad arguments, ``save_at`` for a method without dense output), before any
+        work.
+    ProblemNotSupported
+        When the method cannot integrate the problem at all (the paper's ETD without mass),
+        before any work; a ``ValueError`` too.
     """
     if not isinstance(problem, SpringSlider):
         raise ValueError(f"problem must be a SpringSlider, got {type(problem).__name__}")

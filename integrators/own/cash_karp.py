@@ -120,7 +120,7 @@ class CashKarp45(CompiledAlgorithm):
     """Cash–Karp embedded Runge–Kutta 4(5), explicit, adaptive, with the step control of
     Numerical Recipes §16.2 (``rkqs``). Order 5: the 5th-order solution is propagated.
 
-    Needs ``rtol`` and ``atol`` (the test is |err_i| ≤ atol + rtol·(|z_i| + |h f_i|): NR's
+    Needs ``rtol`` and ``atol`` (the test is ``|err_i| ≤ atol + rtol·(|z_i| + |h f_i|)``: NR's
     yscal, with atol as the absolute floor) and the compiled right-hand side (``rhs="numba"``
     only). ``max_steps`` (accepted steps, whole solve) defaults to ETD's 2e8, not 5e7: in the
     stick phase stability, not accuracy, sets the step: the 20 s paper example takes 6.3e7
