@@ -35,7 +35,8 @@ def test_the_site_builds_without_a_warning(site):
 @pytest.mark.needs("sphinx", "myst_parser", "furo")
 def test_the_reference_documents_every_public_name(site):
     # each package's page links a page per name of its __all__, and that page documents the
-    # name itself (a function named as its module, benchmarks.lab.observe, is not the module)
+    # name itself (a function named as its module, benchmarks.devtools.errors, is not the
+    # module)
     import runpy
     run, html = site
     public_api = runpy.run_path(str(DOCS / "conf.py"))["public_api"]()
@@ -78,7 +79,7 @@ def test_no_page_names_an_internal_issue(page):
 def test_every_example_file_loads(name):
     # the problem files as `rsfbench simulate --problem` reads them, the column file as
     # `rsfbench observe --columns` does
-    from benchmarks.lab.observe import read_column_file
+    from benchmarks.lab.observe_recording import read_column_file
     from problems import SpringSlider, load_problem
     path = DOCS / "examples" / name
     if name == "columns.toml":

@@ -12,8 +12,8 @@ import pytest
 
 import integrators as I
 import problems as P
-from benchmarks.lab.measures import (SETTLED, STEP_REFERENCE, PeakNotReached, UnsettledWarning, healing,
-                            step_reference, step_response)
+from benchmarks.lab.measures import (SETTLED, STEP_REFERENCE, PeakNotReached, UnsettledWarning,
+                                     healing, step_reference, step_response)
 from probe.harness import cli, cli_outcome
 from problems.files import problem_dict
 

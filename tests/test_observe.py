@@ -15,7 +15,7 @@ import pandas as pd
 import pytest
 
 from benchmarks.inversion.observations import read_observations, write_observations
-from benchmarks.lab.observe import observe, read_column_file
+from benchmarks.lab.observe_recording import observe, read_column_file
 from benchmarks.lab.events import analyse
 from benchmarks.lab.channels import column_spec, read_recording, recording_from
 from benchmarks.lab.synthetic import synthetic_recording

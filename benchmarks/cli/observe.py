@@ -7,7 +7,7 @@
     rsfbench invert --problem obs_run42/apparatus.toml \\
         --observations obs_run42/observations.json --b-range 0.0086,0.0102 --lc-range 3e-8,3e-6
 
-See :mod:`benchmarks.lab.observe` for the files written and the column file, and
+See :mod:`benchmarks.lab.observe_recording` for the files written and the column file, and
 :mod:`benchmarks.lab.events` for how each quantity is measured.
 """
 
@@ -39,7 +39,7 @@ and the curves; the table's position gives vLs, vLf, df and the stiffness."""
 
 
 def cmd_observe(args) -> int:
-    from benchmarks.lab.observe import observe, read_column_file
+    from benchmarks.lab.observe_recording import observe, read_column_file
     from benchmarks.records.provenance import provenance
     from benchmarks.lab.channels import column_spec
     columns, constants = read_column_file(args.columns) if args.columns else ({}, {})

@@ -3,7 +3,7 @@ slip-weakening curves' χ² under a stated noise model
 (:mod:`~benchmarks.inversion.curve_likelihood`), with what a point without a limit cycle is to
 each reader (:func:`~benchmarks.inversion.objectives.scores`);
 the observations, typed in or read from a file (:mod:`~benchmarks.inversion.observations`;
-measured on a recording by :mod:`benchmarks.lab.observe`); the misfit as a function
+measured on a recording by :mod:`benchmarks.lab.observe_recording`); the misfit as a function
 (:mod:`~benchmarks.inversion.misfit`), the multi-start least-squares fit with its covariance
 (:mod:`~benchmarks.inversion.least_squares`), profile likelihoods
 (:mod:`~benchmarks.inversion.profile`), the posterior on a grid refined where its mass is

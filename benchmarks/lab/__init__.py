@@ -2,8 +2,9 @@
 
 A stick–slip recording: read and checked (:mod:`~benchmarks.lab.channels`), its events and the
 fault's friction measured (:mod:`~benchmarks.lab.events`), turned into the observations of an
-inversion (:mod:`~benchmarks.lab.observe`) with its figure (:mod:`~benchmarks.lab.figures`), or
-made by the forward model to be read back (:mod:`~benchmarks.lab.synthetic`).
+inversion (:mod:`~benchmarks.lab.observe_recording`) with its figure
+(:mod:`~benchmarks.lab.figures`), or made by the forward model to be read back
+(:mod:`~benchmarks.lab.synthetic`).
 
 A velocity-step or slide-hold-slide test: what it measures on a run
 (:mod:`~benchmarks.lab.measures`); a record read for a fit (:mod:`~benchmarks.lab.step_data`)
@@ -22,7 +23,7 @@ from benchmarks._api import lazy_api
 __getattr__, __dir__, __all__ = lazy_api(__name__, {
     "channels": ("read_recording", "recording_from", "Recording", "CHANNELS", "UNITS"),
     "events": ("analyse", "Analysis"),
-    "observe": ("observe",),
+    "observe_recording": ("observe",),
     "synthetic": ("synthetic_recording",),
     "measures": ("step_response", "healing", "healing_rate", "step_reference",
                  "UnsettledWarning", "PeakNotReached"),

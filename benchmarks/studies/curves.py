@@ -21,7 +21,7 @@ b ∈ [0.0086, 0.0102], Lc ∈ [3e−8, 3e−6] m:
   solver check's cost beside the inversion's (target: ≤ 10 %);
 * **through a recording**: ``recordings`` synthetic recordings of the truth
   (:func:`benchmarks.lab.synthetic.synthetic_recording`, 1 % noise) measured by
-  :func:`benchmarks.lab.observe.observe` and inverted from its observations file with and without
+  :func:`benchmarks.lab.observe_recording.observe` and inverted from its observations file with and without
   the curves: the recording route end to end.
 """
 
@@ -236,7 +236,7 @@ def _through_a_recording(problem, algorithm, seed: int, out: Path) -> dict:
     from benchmarks.inversion import Misfit
     from benchmarks.inversion.adaptive import grid_posterior
     from benchmarks.inversion.observations import read_observations
-    from benchmarks.lab.observe import observe
+    from benchmarks.lab.observe_recording import observe
     from benchmarks.lab.synthetic import synthetic_recording
     rec, _ = synthetic_recording(dataclasses.replace(problem, t_end=RECORDING_S),
                                  t_skip=RECORDING_SKIP_S, noise=0.01, seed=seed)

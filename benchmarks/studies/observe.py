@@ -3,7 +3,7 @@ model (:func:`benchmarks.lab.synthetic.synthetic_recording`: 10 kHz, a causal
 anti-alias filter at 4 kHz, white noise and a linear drift, both as fractions of what one event
 changes) of W1–W4 under both laws, at three noise levels and with four sets of channels, each
 measured by :func:`benchmarks.lab.events.analyse` and compared with the model's own
-event table; and the time :func:`benchmarks.lab.observe.observe` takes on a 400 s record
+event table; and the time :func:`benchmarks.lab.observe_recording.observe` takes on a 400 s record
 at 10 kHz (4 million rows) in CSV and in Parquet, after one run that warms the caches.
 
 The targets, met or missed row by row: at 1 % noise ΔT and Δμ within 0.5 % of the
@@ -82,7 +82,7 @@ def _err(measured, true) -> float:
 def observe_speed(repeats: int = 3) -> pd.DataFrame:
     """Wall time of :func:`observe` on a 400 s record at 10 kHz with 1 % noise, as CSV and as
     Parquet, with and without the figure: the fastest of ``repeats`` runs after a warm-up."""
-    from benchmarks.lab.observe import observe
+    from benchmarks.lab.observe_recording import observe
     from benchmarks.lab.synthetic import synthetic_recording
     from problems import preset
     problem = preset("W2", law="slip", t_end=400.0)
