@@ -3,14 +3,15 @@
 Tests, benchmarks and the CLI iterate over :data:`REGISTRY`; adding an algorithm class with
 :func:`register` enrolls it everywhere. The adapters to external libraries are *declared* by
 name (:meth:`Registry.declare`) and imported on first use: looking one name up (``[]``, ``get``,
-``in``) imports its module; iterating or ``len`` imports every declared module (a library that fails to
-import is left out, with the reason in :data:`UNAVAILABLE`).
+``in``) imports its module; iterating or ``len`` imports every declared module (a library that
+fails to import is left out, with the reason in :data:`UNAVAILABLE`).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import importlib
+from collections.abc import Mapping
 from typing import ClassVar
 
 from problems._validate import check_count, check_positive
@@ -128,14 +129,25 @@ def make_algorithm(name: str, rtol: float | None = None, atol: float | None = No
     return cls(**given)
 
 
-class Registry(dict):
-    """Name → algorithm class; names declared for a module are resolved by importing it."""
+class Registry(Mapping):
+    """Name → algorithm class, read-only but for :meth:`register`; names declared for a module
+    are resolved by importing it."""
 
     def __init__(self):
-        super().__init__()
+        self._classes: dict[str, type[Algorithm]] = {}
         self._declared: dict[str, str] = {}      # name → module, until the module is imported
         self.origin: dict[str, str] = {}         # name → the module declared for it
         self.install: dict[str, str] = {}        # module → how to install what it needs
+
+    def register(self, cls: type[Algorithm]) -> type[Algorithm]:
+        """Enter ``cls`` under ``cls.name`` (the one way in: :func:`register` calls it), once."""
+        if not cls.name:
+            raise ValueError(f"{cls.__qualname__} has no name")
+        if cls.name in self._classes:
+            raise ValueError(f"integrator name {cls.name!r} registered twice")
+        self._declared.pop(cls.name, None)
+        self._classes[cls.name] = cls
+        return cls
 
     def declare(self, module: str, names, install: str = "") -> None:
         """``module`` registers ``names`` when imported; import it on first use only.
@@ -144,7 +156,7 @@ class Registry(dict):
             self.install[module] = install
         for name in names:
             self.origin[name] = module
-            if not dict.__contains__(self, name):
+            if name not in self._classes:
                 self._declared[name] = module
 
     def _load(self, module: str) -> None:
@@ -156,7 +168,7 @@ class Registry(dict):
         finally:
             for name in names:
                 self._declared.pop(name, None)
-        missing = [n for n in names if module not in UNAVAILABLE and not dict.__contains__(self, n)]
+        missing = [n for n in names if module not in UNAVAILABLE and n not in self._classes]
         if missing:
             raise RuntimeError(f"{module} was declared to register {missing} but did not")
 
@@ -168,13 +180,20 @@ class Registry(dict):
     def __getitem__(self, name):
         if name in self._declared:
             self._load(self._declared[name])
-        return dict.__getitem__(self, name)
+        return self._classes[name]
 
-    def get(self, name, default=None):
-        try:
-            return self[name]
-        except KeyError:
-            return default
+    def __contains__(self, name):
+        if name in self._declared:          # only the module that would register it
+            self._load(self._declared[name])
+        return name in self._classes
+
+    def __iter__(self):
+        self.load_all()
+        return iter(self._classes)
+
+    def __len__(self):
+        self.load_all()
+        return len(self._classes)
 
     def unavailable(self) -> list[dict]:
         """Every declared name whose module did not import: ``name``, ``module``, ``reason`` and
@@ -183,36 +202,11 @@ class Registry(dict):
         return [{"name": name, "module": module, "reason": UNAVAILABLE[module],
                  "install": self.install.get(module, "")}
                 for name, module in sorted(self.origin.items(), key=lambda kv: kv[0].lower())
-                if module in UNAVAILABLE and not dict.__contains__(self, name)]
+                if module in UNAVAILABLE and name not in self._classes]
 
     def names(self) -> list[str]:
         """Every registered or declared name, importing nothing."""
-        return sorted({*dict.keys(self), *self._declared})
-
-    def __contains__(self, name):
-        if name in self._declared:          # only the module that would register it
-            self._load(self._declared[name])
-        return dict.__contains__(self, name)
-
-    def __iter__(self):
-        self.load_all()
-        return dict.__iter__(self)
-
-    def __len__(self):
-        self.load_all()
-        return dict.__len__(self)
-
-    def keys(self):
-        self.load_all()
-        return dict.keys(self)
-
-    def values(self):
-        self.load_all()
-        return dict.values(self)
-
-    def items(self):
-        self.load_all()
-        return dict.items(self)
+        return sorted({*self._classes, *self._declared})
 
 
 REGISTRY = Registry()
@@ -223,14 +217,9 @@ RTOL_MIN = 100 * 2.0 ** -52
 
 
 def register(cls: type[Algorithm]) -> type[Algorithm]:
-    """Class decorator: enter ``cls`` in :data:`REGISTRY` under ``cls.name``."""
-    if not cls.name:
-        raise ValueError(f"{cls.__qualname__} has no name")
-    if dict.__contains__(REGISTRY, cls.name):
-        raise ValueError(f"integrator name {cls.name!r} registered twice")
-    REGISTRY._declared.pop(cls.name, None)
-    dict.__setitem__(REGISTRY, cls.name, cls)
-    return cls
+    """Class decorator: enter ``cls`` in :data:`REGISTRY` under ``cls.name``
+    (:meth:`Registry.register`)."""
+    return REGISTRY.register(cls)
 
 
 def algorithm_class(name: str) -> type[Algorithm]:
