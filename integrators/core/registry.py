@@ -5,6 +5,11 @@ Tests, benchmarks and the CLI iterate over :data:`REGISTRY`; adding an algorithm
 name (:meth:`Registry.declare`) and imported on first use: looking one name up (``[]``, ``get``,
 ``in``) imports its module; iterating or ``len`` imports every declared module (a library that
 fails to import is left out, with the reason in :data:`UNAVAILABLE`).
+
+Families are tags, not spellings (DiffEqDevTools' ``:tags`` and ``filter_by_tags``): each class
+carries :attr:`Algorithm.tags`, derived from the facts it declares, and a study takes a family
+with :meth:`Registry.select` (``REGISTRY.select("lsoda", "compiled")``), never by a library
+name or a pattern of names.
 """
 
 from __future__ import annotations
@@ -16,8 +21,23 @@ from typing import ClassVar
 
 from problems._validate import check_count, check_positive
 
-__all__ = ["Algorithm", "AdaptiveAlgorithm", "ProblemNotSupported", "REGISTRY", "Registry", "UNAVAILABLE", "register",
-           "algorithm_class", "make_algorithm"]
+__all__ = ["Algorithm", "AdaptiveAlgorithm", "ProblemNotSupported", "REGISTRY", "Registry",
+           "UNAVAILABLE", "register", "algorithm_class", "make_algorithm", "filter_by_tags",
+           "LIBRARIES", "KINDS", "CODES", "TAGS"]
+
+#: the library tags, one per algorithm (:attr:`Algorithm.package`): "own" is this project's
+#: compiled methods, "sundials-c" SUNDIALS called from C; the others name the Python package
+LIBRARIES = ("own", "scipy", "numbalsoda", "scikits-odes", "assimulo", "scikit-sundae",
+             "sundials-c", "cyrk")
+#: the kind tags, one per algorithm (:attr:`Algorithm.kind`): "explicit" and "implicit" are
+#: Runge–Kutta methods (implicit: Radau IIA, additive IMEX), "multistep" BDF, Adams and LSODA
+KINDS = ("explicit", "implicit", "rosenbrock", "exponential", "multistep")
+#: the numerical codes more than one adapter calls (:attr:`Algorithm.code`): a tag, so that a
+#: study takes every way of calling one (SUNDIALS' CVODE, IDA and ARKODE; LSODA and its ports)
+CODES = ("sundials", "lsoda")
+#: every tag an algorithm may carry; "sensitivities" none does yet (no method computes them)
+TAGS = frozenset((*LIBRARIES, *KINDS, *CODES, "compiled", "adaptive", "fixed-step", "stiff",
+                  "dense-output", "events", "dae", "sensitivities"))
 
 
 class ProblemNotSupported(ValueError):
@@ -31,7 +51,12 @@ class Algorithm:
 
     Class attributes describe the method: ``family``, ``order`` (classical order, in the
     non-stiff limit), ``stiff_order`` (observed order on the stiff stick–slip problem, where it
-    differs: order reduction; 0 when the error meets a step-independent floor there), ``adaptive``, ``library``.
+    differs: order reduction; 0 when the error meets a step-independent floor there),
+    ``adaptive``, ``library``. ``tags`` is derived from the facts, when the class is made: the
+    ``package`` and the ``kind`` (one of :data:`LIBRARIES` and :data:`KINDS`, required of a
+    registered class), the ``code`` if set, "compiled", "adaptive" or "fixed-step", "stiff",
+    "dense-output" (``saves_at_times``), "events" (``locates_events``) and "dae" where true.
+    A new method gets its tags by declaring its facts; no class sets ``tags`` itself.
     """
 
     name: ClassVar[str] = ""
@@ -43,6 +68,26 @@ class Algorithm:
     library: ClassVar[str] = ""
     #: it saves at any given times (``solve(..., save_at=)``) from its dense output
     saves_at_times: ClassVar[bool] = True
+    #: the library tag (:data:`LIBRARIES`), the kind (:data:`KINDS`), the shared code
+    #: (:data:`CODES`, or none)
+    package: ClassVar[str] = ""
+    kind: ClassVar[str] = ""
+    code: ClassVar[str] = ""
+    #: its step loop calls a compiled right-hand side without the interpreter (numba, C, C++)
+    compiled: ClassVar[bool] = False
+    #: it reports the stick–slip events (``Solution.events``); it integrates the implicit (DAE)
+    #: form
+    locates_events: ClassVar[bool] = True
+    dae: ClassVar[bool] = False
+    tags: ClassVar[frozenset[str]] = frozenset()
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        flags = {"compiled": cls.compiled, "stiff": cls.stiff, "dense-output": cls.saves_at_times,
+                 "events": cls.locates_events, "dae": cls.dae}
+        cls.tags = frozenset({cls.package, cls.kind, cls.code,
+                              "adaptive" if cls.adaptive else "fixed-step",
+                              *(tag for tag, true in flags.items() if true)} - {""})
 
     @classmethod
     def library_version(cls) -> str:
@@ -140,11 +185,16 @@ class Registry(Mapping):
         self.install: dict[str, str] = {}        # module → how to install what it needs
 
     def register(self, cls: type[Algorithm]) -> type[Algorithm]:
-        """Enter ``cls`` under ``cls.name`` (the one way in: :func:`register` calls it), once."""
+        """Enter ``cls`` under ``cls.name`` (the one way in: :func:`register` calls it), once,
+        with one library and one kind among its tags."""
         if not cls.name:
             raise ValueError(f"{cls.__qualname__} has no name")
         if cls.name in self._classes:
             raise ValueError(f"integrator name {cls.name!r} registered twice")
+        for fact, allowed in (("package", LIBRARIES), ("kind", KINDS), ("code", ("", *CODES))):
+            if getattr(cls, fact) not in allowed:
+                raise ValueError(f"{cls.name}: {fact} must be one of {allowed}, "
+                                 f"got {getattr(cls, fact)!r}")
         self._declared.pop(cls.name, None)
         self._classes[cls.name] = cls
         return cls
@@ -208,6 +258,11 @@ class Registry(Mapping):
         """Every registered or declared name, importing nothing."""
         return sorted({*self._classes, *self._declared})
 
+    def select(self, *tags: str, exclude=()) -> list[str]:
+        """The names, sorted, of the algorithms carrying every one of ``tags`` and none of
+        ``exclude`` (:func:`filter_by_tags`); imports every declared module."""
+        return sorted(cls.name for cls in filter_by_tags(self.values(), *tags, exclude=exclude))
+
 
 REGISTRY = Registry()
 #: declared modules whose library did not import: module → the reason
@@ -220,6 +275,18 @@ def register(cls: type[Algorithm]) -> type[Algorithm]:
     """Class decorator: enter ``cls`` in :data:`REGISTRY` under ``cls.name``
     (:meth:`Registry.register`)."""
     return REGISTRY.register(cls)
+
+
+def filter_by_tags(algorithms, *tags: str, exclude=()) -> list:
+    """The algorithms (classes or instances) carrying every one of ``tags`` and none of
+    ``exclude``, in their order: DiffEqDevTools' ``filter_by_tags``. A tag outside :data:`TAGS`
+    is a ValueError naming it and the known ones."""
+    tags, exclude = frozenset(tags), frozenset(exclude)
+    unknown = sorted((tags | exclude) - TAGS)
+    if unknown:
+        raise ValueError(f"unknown tag(s) {', '.join(map(repr, unknown))}; known: "
+                         f"{', '.join(sorted(TAGS))}")
+    return [a for a in algorithms if tags <= a.tags and not exclude & a.tags]
 
 
 def algorithm_class(name: str) -> type[Algorithm]:
