@@ -1,5 +1,5 @@
-"""Tags on algorithms: each registered class carries the tags of the facts it declares, and the
-registry is a read-only Mapping."""
+"""Tags on algorithms: each registered class carries the tags of the facts it declares, the
+studies and the CLI select families by tag, and the registry is a read-only Mapping."""
 
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -7,6 +7,7 @@ from typing import ClassVar
 
 import pytest
 
+from benchmarks.studies.target import groups, target_integrators
 from integrators import REGISTRY
 from integrators.core.registry import (CODES, KINDS, LIBRARIES, TAGS, Algorithm, Registry,
                                        filter_by_tags)
@@ -23,6 +24,32 @@ def test_every_algorithm_has_one_library_and_one_kind(name):
     assert ("stiff" in tags) == REGISTRY[name].stiff
     assert ("dense-output" in tags) == REGISTRY[name].saves_at_times
     assert "sensitivities" not in tags            # no method computes them yet
+
+
+# The expected sets below are the selections of the code before tags, evaluated on this registry
+# (every library installed): target.groups() picked by library strings and lists of names, the
+# CLI's default of `work-precision --problem` by library-string prefixes
+# ("rsfbench", "CyRK", "numbalsoda", "SUNDIALS (C").
+OWN = ["CashKarp45", "ETD1", "ETD2", "ETDIterated", "Exprb32", "Exprb43", "RadauIIA5",
+       "Rodas5P", "Rosenbrock23"]
+SUNDIALS = ["assimulo-CVode", "assimulo-IDA", "odes-CVODE-Adams", "odes-CVODE-BDF", "odes-IDA",
+            "sundae-CVODE", "sundae-IDA", "sundials-ARKODE-ERK", "sundials-ARKODE-IMEX",
+            "sundials-CVODE-Adams", "sundials-CVODE-BDF", "sundials-IDA"]
+COMPILED = sorted(OWN + ["CyRK-BDF", "CyRK-DOP853", "CyRK-LSODA", "CyRK-RK45", "CyRK-Radau",
+                         "CyRK-Tsit5", "numbalsoda-LSODA", "numbalsoda-LSODA-grid",
+                         "sundials-ARKODE-ERK", "sundials-ARKODE-IMEX", "sundials-CVODE-Adams",
+                         "sundials-CVODE-BDF", "sundials-IDA"])
+
+
+def test_the_target_sides_are_the_families_they_were():
+    assert groups() == {"own": OWN, "lsoda": ["CyRK-LSODA", "numbalsoda-LSODA",
+                                              "numbalsoda-LSODA-grid"],
+                        "sundials": SUNDIALS, "cyrk": ["CyRK-BDF", "CyRK-Radau"]}
+    assert "CashKarp45" not in target_integrators() and "sundials-CVODE-BDF" in target_integrators()
+
+
+def test_the_cli_default_of_a_problem_file_is_the_compiled_ones():
+    assert REGISTRY.select("compiled") == COMPILED
 
 
 def test_select_keeps_all_tags_and_drops_the_excluded():

@@ -320,7 +320,7 @@ def cmd_work_precision(args) -> int:
             return _fail(f"work-precision: {_one_line(exc)}", 1, args.json)
     tiers = tuple(args.tiers or ("numba", "python"))
     if args.problem and names is None:       # on your problem: the compiled ones, in minutes
-        names = [n for n, c in sorted(REGISTRY.items()) if c.library.startswith(COMPILED)]
+        names = REGISTRY.select("compiled")
         tiers = tuple(args.tiers or ("numba",))
     df = work_precision(problems, ladder, names=names, tiers=tiers,
                         progress=show_progress(args))
@@ -355,11 +355,6 @@ def cmd_work_precision(args) -> int:
                 "no setting of this study is accurate enough on every problem"))
         say("written: " + ", ".join(str(p) for p in paths.values()))
     return 0
-
-
-#: the libraries whose integrators a work-precision study of a problem file runs by default
-#: (compiled: the whole solve, or every call of the right-hand side, without Python)
-COMPILED = ("rsfbench", "CyRK", "numbalsoda", "SUNDIALS (C")
 
 
 def _limits_of(path) -> dict:
