@@ -118,7 +118,7 @@ def test_step_budget_is_a_retcode(name):
 
 
 @pytest.mark.parametrize("name", [
-    pytest.param(n, marks=pytest.mark.slow) if n.startswith("assimulo-") else n
+    pytest.param(n, marks=pytest.mark.slow) if "assimulo" in REGISTRY[n].tags else n
     for n in NAMES if REGISTRY[n].adaptive])      # assimulo's Python tier: 4-6 s each
 def test_python_and_numba_rhs_tiers_agree(name):
     cls = REGISTRY[name]
@@ -165,7 +165,7 @@ def test_velocity_strengthening_sliding_settles_without_events(name, b, lc):
     assert len(sol.events) == 0
 
 
-OWN_ADAPTIVE = [n for n in NAMES if REGISTRY[n].library.startswith("rsfbench") and REGISTRY[n].adaptive]
+OWN_ADAPTIVE = REGISTRY.select("own", "adaptive")
 
 
 @pytest.mark.parametrize("name", OWN_ADAPTIVE)
@@ -201,7 +201,7 @@ def test_save_at_saves_exactly_there_from_the_dense_output(name):
     assert np.all(np.isfinite(sol.fs))
     at = I.solve(p, alg, save_at=[0.015, 0.02])
     np.testing.assert_allclose(at.fs, grid.fs[[15, 20]], rtol=1e-7)
-    if REGISTRY[name].library.startswith("rsfbench"):
+    if "own" in REGISTRY[name].tags:
         assert (sol.stats.steps, sol.stats.nfev) == (grid.stats.steps, grid.stats.nfev)
 
 

@@ -315,7 +315,7 @@ def short_family_references():
 
 
 @pytest.mark.parametrize("name", [
-    pytest.param(n, marks=pytest.mark.slow) if n.startswith("assimulo-") else n
+    pytest.param(n, marks=pytest.mark.slow) if "assimulo" in I.REGISTRY[n].tags else n
     for n in sorted(I.REGISTRY)])                 # assimulo's: 4 s each, to make test-slow
 def test_every_backend_runs_a_history_without_mass_and_a_damped_nagata_slider(
         name, short_family_references):

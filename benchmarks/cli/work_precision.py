@@ -132,7 +132,7 @@ def cmd_work_precision(args) -> int:
     _check_references(problems)
     tiers = tuple(args.tiers or ("numba", "python"))
     if args.problem and names is None:       # on your problem: the compiled ones, in minutes
-        names = [n for n, c in sorted(REGISTRY.items()) if c.library.startswith(COMPILED)]
+        names = REGISTRY.select("compiled")
         tiers = tuple(args.tiers or ("numba",))
     df = work_precision(problems, ladder, names=names, tiers=tiers,
                         progress=show_progress(args))
@@ -212,11 +212,6 @@ def _your_sigma_line(yours: dict, limits: dict) -> str:
         f"{c['total_wall_s']:.3g} s over the problems; {yours['n_within'] - 1} other "
         "settings also qualify" if c is not None else
         "no setting of this study is accurate enough on every problem")
-
-
-#: the libraries whose integrators a work-precision study of a problem file runs by default
-#: (compiled: the whole solve, or every call of the right-hand side, without Python)
-COMPILED = ("rsfbench", "CyRK", "numbalsoda", "SUNDIALS (C")
 
 
 def _limits_of(path) -> dict:

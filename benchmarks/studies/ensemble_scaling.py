@@ -73,8 +73,8 @@ def fastest_peer(level: float, csv=STUDY_CSV):
     if not path.exists():
         return None, f"no work-precision study at {path}"
     df = read_study(path)
-    peers = [n for n in df.integrator.unique()
-             if n in REGISTRY and not REGISTRY[n].library.startswith("rsfbench")]
+    others = REGISTRY.select(exclude=("own",))
+    peers = [n for n in df.integrator.unique() if n in others]
     advice = recommend(df[df.integrator.isin(peers) & (df.rhs_tier == "numba")], [level])
     advice = advice.iloc[0]
     if pd.isna(advice.get("integrator")):

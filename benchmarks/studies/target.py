@@ -32,18 +32,14 @@ TARGET_WALL_BUDGET = 10.0       # s per run of the full study, as in the quick o
 
 
 def groups() -> dict[str, list[str]]:
-    """The sides of the comparison, by registry name: the own integrators; every way of calling
-    LSODA that is compiled (numbalsoda's block adapter and plain grid call, CyRK's C++ port);
-    every way of calling SUNDIALS (from C with cfunc callbacks, and the three Python bindings);
-    CyRK's other compiled stiff methods."""
-    sundials = [n for n, c in REGISTRY.items()
-                if c.library in ("scikits-odes", "scikit-sundae") or c.library.startswith("SUNDIALS")
-                or n in ("assimulo-CVode", "assimulo-IDA")]
-    return {"own": [n for n, c in REGISTRY.items() if c.library.startswith("rsfbench")],
-            "lsoda": [n for n in ("numbalsoda-LSODA", "numbalsoda-LSODA-grid", "CyRK-LSODA")
-                      if n in REGISTRY],
-            "sundials": sundials,
-            "cyrk": [n for n in ("CyRK-BDF", "CyRK-Radau") if n in REGISTRY]}
+    """The sides of the comparison, by registry name, selected by tag: the own integrators;
+    every way of calling LSODA that is compiled (numbalsoda's block adapter and plain grid call,
+    CyRK's C++ port); every way of calling SUNDIALS (from C with cfunc callbacks, and the three
+    Python bindings); CyRK's other stiff methods (BDF and Radau)."""
+    return {"own": REGISTRY.select("own"),
+            "lsoda": REGISTRY.select("lsoda", "compiled"),
+            "sundials": REGISTRY.select("sundials"),
+            "cyrk": REGISTRY.select("cyrk", "stiff", exclude=("lsoda",))}
 
 
 def target_integrators() -> list[str]:

@@ -3,20 +3,41 @@
 Tests, benchmarks and the CLI iterate over :data:`REGISTRY`; adding an algorithm class with
 :func:`register` enrolls it everywhere. The adapters to external libraries are *declared* by
 name (:meth:`Registry.declare`) and imported on first use: looking one name up (``[]``, ``get``,
-``in``) imports its module; iterating or ``len`` imports every declared module (a library that fails to
-import is left out, with the reason in :data:`UNAVAILABLE`).
+``in``) imports its module; iterating or ``len`` imports every declared module (a library that
+fails to import is left out, with the reason in :data:`UNAVAILABLE`).
+
+Families are tags, not spellings (DiffEqDevTools' ``:tags`` and ``filter_by_tags``): each class
+carries :attr:`Algorithm.tags`, derived from the facts it declares, and a study takes a family
+with :meth:`Registry.select` (``REGISTRY.select("lsoda", "compiled")``), never by a library
+name or a pattern of names.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import importlib
+from collections.abc import Mapping
 from typing import ClassVar
 
 from problems._validate import check_count, check_positive
 
-__all__ = ["Algorithm", "AdaptiveAlgorithm", "ProblemNotSupported", "REGISTRY", "Registry", "UNAVAILABLE", "register",
-           "algorithm_class", "make_algorithm"]
+__all__ = ["Algorithm", "AdaptiveAlgorithm", "ProblemNotSupported", "REGISTRY", "Registry",
+           "UNAVAILABLE", "register", "algorithm_class", "make_algorithm", "filter_by_tags",
+           "LIBRARIES", "KINDS", "CODES", "TAGS"]
+
+#: the library tags, one per algorithm (:attr:`Algorithm.package`): "own" is this project's
+#: compiled methods, "sundials-c" SUNDIALS called from C; the others name the Python package
+LIBRARIES = ("own", "scipy", "numbalsoda", "scikits-odes", "assimulo", "scikit-sundae",
+             "sundials-c", "cyrk")
+#: the kind tags, one per algorithm (:attr:`Algorithm.kind`): "explicit" and "implicit" are
+#: Runge–Kutta methods (implicit: Radau IIA, additive IMEX), "multistep" BDF, Adams and LSODA
+KINDS = ("explicit", "implicit", "rosenbrock", "exponential", "multistep")
+#: the numerical codes more than one adapter calls (:attr:`Algorithm.code`): a tag, so that a
+#: study takes every way of calling one (SUNDIALS' CVODE, IDA and ARKODE; LSODA and its ports)
+CODES = ("sundials", "lsoda")
+#: every tag an algorithm may carry; "sensitivities" none does yet (no method computes them)
+TAGS = frozenset((*LIBRARIES, *KINDS, *CODES, "compiled", "adaptive", "fixed-step", "stiff",
+                  "dense-output", "events", "dae", "sensitivities"))
 
 
 class ProblemNotSupported(ValueError):
@@ -30,7 +51,12 @@ class Algorithm:
 
     Class attributes describe the method: ``family``, ``order`` (classical order, in the
     non-stiff limit), ``stiff_order`` (observed order on the stiff stick–slip problem, where it
-    differs: order reduction; 0 when the error meets a step-independent floor there), ``adaptive``, ``library``.
+    differs: order reduction; 0 when the error meets a step-independent floor there),
+    ``adaptive``, ``library``. ``tags`` is derived from the facts, when the class is made: the
+    ``package`` and the ``kind`` (one of :data:`LIBRARIES` and :data:`KINDS`, required of a
+    registered class), the ``code`` if set, "compiled", "adaptive" or "fixed-step", "stiff",
+    "dense-output" (``saves_at_times``), "events" (``locates_events``) and "dae" where true.
+    A new method gets its tags by declaring its facts; no class sets ``tags`` itself.
     """
 
     name: ClassVar[str] = ""
@@ -42,6 +68,26 @@ class Algorithm:
     library: ClassVar[str] = ""
     #: it saves at any given times (``solve(..., save_at=)``) from its dense output
     saves_at_times: ClassVar[bool] = True
+    #: the library tag (:data:`LIBRARIES`), the kind (:data:`KINDS`), the shared code
+    #: (:data:`CODES`, or none)
+    package: ClassVar[str] = ""
+    kind: ClassVar[str] = ""
+    code: ClassVar[str] = ""
+    #: its step loop calls a compiled right-hand side without the interpreter (numba, C, C++)
+    compiled: ClassVar[bool] = False
+    #: it reports the stick–slip events (``Solution.events``); it integrates the implicit (DAE)
+    #: form
+    locates_events: ClassVar[bool] = True
+    dae: ClassVar[bool] = False
+    tags: ClassVar[frozenset[str]] = frozenset()
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        flags = {"compiled": cls.compiled, "stiff": cls.stiff, "dense-output": cls.saves_at_times,
+                 "events": cls.locates_events, "dae": cls.dae}
+        cls.tags = frozenset({cls.package, cls.kind, cls.code,
+                              "adaptive" if cls.adaptive else "fixed-step",
+                              *(tag for tag, true in flags.items() if true)} - {""})
 
     @classmethod
     def library_version(cls) -> str:
@@ -128,14 +174,30 @@ def make_algorithm(name: str, rtol: float | None = None, atol: float | None = No
     return cls(**given)
 
 
-class Registry(dict):
-    """Name → algorithm class; names declared for a module are resolved by importing it."""
+class Registry(Mapping):
+    """Name → algorithm class, read-only but for :meth:`register`; names declared for a module
+    are resolved by importing it."""
 
     def __init__(self):
-        super().__init__()
+        self._classes: dict[str, type[Algorithm]] = {}
         self._declared: dict[str, str] = {}      # name → module, until the module is imported
         self.origin: dict[str, str] = {}         # name → the module declared for it
         self.install: dict[str, str] = {}        # module → how to install what it needs
+
+    def register(self, cls: type[Algorithm]) -> type[Algorithm]:
+        """Enter ``cls`` under ``cls.name`` (the one way in: :func:`register` calls it), once,
+        with one library and one kind among its tags."""
+        if not cls.name:
+            raise ValueError(f"{cls.__qualname__} has no name")
+        if cls.name in self._classes:
+            raise ValueError(f"integrator name {cls.name!r} registered twice")
+        for fact, allowed in (("package", LIBRARIES), ("kind", KINDS), ("code", ("", *CODES))):
+            if getattr(cls, fact) not in allowed:
+                raise ValueError(f"{cls.name}: {fact} must be one of {allowed}, "
+                                 f"got {getattr(cls, fact)!r}")
+        self._declared.pop(cls.name, None)
+        self._classes[cls.name] = cls
+        return cls
 
     def declare(self, module: str, names, install: str = "") -> None:
         """``module`` registers ``names`` when imported; import it on first use only.
@@ -144,7 +206,7 @@ class Registry(dict):
             self.install[module] = install
         for name in names:
             self.origin[name] = module
-            if not dict.__contains__(self, name):
+            if name not in self._classes:
                 self._declared[name] = module
 
     def _load(self, module: str) -> None:
@@ -156,7 +218,7 @@ class Registry(dict):
         finally:
             for name in names:
                 self._declared.pop(name, None)
-        missing = [n for n in names if module not in UNAVAILABLE and not dict.__contains__(self, n)]
+        missing = [n for n in names if module not in UNAVAILABLE and n not in self._classes]
         if missing:
             raise RuntimeError(f"{module} was declared to register {missing} but did not")
 
@@ -168,13 +230,20 @@ class Registry(dict):
     def __getitem__(self, name):
         if name in self._declared:
             self._load(self._declared[name])
-        return dict.__getitem__(self, name)
+        return self._classes[name]
 
-    def get(self, name, default=None):
-        try:
-            return self[name]
-        except KeyError:
-            return default
+    def __contains__(self, name):
+        if name in self._declared:          # only the module that would register it
+            self._load(self._declared[name])
+        return name in self._classes
+
+    def __iter__(self):
+        self.load_all()
+        return iter(self._classes)
+
+    def __len__(self):
+        self.load_all()
+        return len(self._classes)
 
     def unavailable(self) -> list[dict]:
         """Every declared name whose module did not import: ``name``, ``module``, ``reason`` and
@@ -183,36 +252,16 @@ class Registry(dict):
         return [{"name": name, "module": module, "reason": UNAVAILABLE[module],
                  "install": self.install.get(module, "")}
                 for name, module in sorted(self.origin.items(), key=lambda kv: kv[0].lower())
-                if module in UNAVAILABLE and not dict.__contains__(self, name)]
+                if module in UNAVAILABLE and name not in self._classes]
 
     def names(self) -> list[str]:
         """Every registered or declared name, importing nothing."""
-        return sorted({*dict.keys(self), *self._declared})
+        return sorted({*self._classes, *self._declared})
 
-    def __contains__(self, name):
-        if name in self._declared:          # only the module that would register it
-            self._load(self._declared[name])
-        return dict.__contains__(self, name)
-
-    def __iter__(self):
-        self.load_all()
-        return dict.__iter__(self)
-
-    def __len__(self):
-        self.load_all()
-        return dict.__len__(self)
-
-    def keys(self):
-        self.load_all()
-        return dict.keys(self)
-
-    def values(self):
-        self.load_all()
-        return dict.values(self)
-
-    def items(self):
-        self.load_all()
-        return dict.items(self)
+    def select(self, *tags: str, exclude=()) -> list[str]:
+        """The names, sorted, of the algorithms carrying every one of ``tags`` and none of
+        ``exclude`` (:func:`filter_by_tags`); imports every declared module."""
+        return sorted(cls.name for cls in filter_by_tags(self.values(), *tags, exclude=exclude))
 
 
 REGISTRY = Registry()
@@ -223,14 +272,21 @@ RTOL_MIN = 100 * 2.0 ** -52
 
 
 def register(cls: type[Algorithm]) -> type[Algorithm]:
-    """Class decorator: enter ``cls`` in :data:`REGISTRY` under ``cls.name``."""
-    if not cls.name:
-        raise ValueError(f"{cls.__qualname__} has no name")
-    if dict.__contains__(REGISTRY, cls.name):
-        raise ValueError(f"integrator name {cls.name!r} registered twice")
-    REGISTRY._declared.pop(cls.name, None)
-    dict.__setitem__(REGISTRY, cls.name, cls)
-    return cls
+    """Class decorator: enter ``cls`` in :data:`REGISTRY` under ``cls.name``
+    (:meth:`Registry.register`)."""
+    return REGISTRY.register(cls)
+
+
+def filter_by_tags(algorithms, *tags: str, exclude=()) -> list:
+    """The algorithms (classes or instances) carrying every one of ``tags`` and none of
+    ``exclude``, in their order: DiffEqDevTools' ``filter_by_tags``. A tag outside :data:`TAGS`
+    is a ValueError naming it and the known ones."""
+    tags, exclude = frozenset(tags), frozenset(exclude)
+    unknown = sorted((tags | exclude) - TAGS)
+    if unknown:
+        raise ValueError(f"unknown tag(s) {', '.join(map(repr, unknown))}; known: "
+                         f"{', '.join(sorted(TAGS))}")
+    return [a for a in algorithms if tags <= a.tags and not exclude & a.tags]
 
 
 def algorithm_class(name: str) -> type[Algorithm]:

@@ -58,8 +58,8 @@ class _Assimulo(AdaptiveAlgorithm):
     """Options of every assimulo backend: those of :class:`AdaptiveAlgorithm`."""
 
     library: ClassVar[str] = "assimulo"
+    package: ClassVar[str] = "assimulo"
     solver: ClassVar[str] = ""                 # class name in assimulo.solvers
-    dae: ClassVar[bool] = False
     uses_jacobian: ClassVar[bool] = True
     root_directions: ClassVar[bool] = True     # does the event info carry the direction?
 
@@ -305,6 +305,9 @@ def _failure(exc: Exception, sim) -> Advance:
 
 
 class _Sundials(_Assimulo):
+    kind: ClassVar[str] = "multistep"
+    code: ClassVar[str] = "sundials"
+
     @classmethod
     def library_version(cls) -> str:
         v = ".".join(str(i) for i in get_sundials_version())
@@ -351,6 +354,7 @@ class AssimuloRadau5ODE(_Assimulo):
 
     Order 5, adaptive; analytic Jacobian. Hairer & Wanner (1996), Solving ODEs II, Sect. IV.8."""
     name: ClassVar[str] = "assimulo-Radau5ODE"
+    kind: ClassVar[str] = "implicit"
     family: ClassVar[str] = "implicit Runge-Kutta"
     order: ClassVar[int] = 5
     solver: ClassVar[str] = "Radau5ODE"
@@ -365,6 +369,8 @@ class AssimuloLSODAR(_Assimulo):
     direction (see the module doc). Hindmarsh (1983), ODEPACK; Petzold (1983), SIAM J. Sci.
     Stat. Comput. 4, 136–148."""
     name: ClassVar[str] = "assimulo-LSODAR"
+    kind: ClassVar[str] = "multistep"
+    code: ClassVar[str] = "lsoda"
     family: ClassVar[str] = "Adams/BDF (LSODA)"
     order: ClassVar[int] = 12
     solver: ClassVar[str] = "LSODAR"
@@ -378,6 +384,7 @@ class AssimuloRodasODE(_Assimulo):
 
     Order 4, adaptive; analytic Jacobian. Hairer & Wanner (1996), Solving ODEs II, Sect. IV.7."""
     name: ClassVar[str] = "assimulo-RodasODE"
+    kind: ClassVar[str] = "rosenbrock"
     family: ClassVar[str] = "Rosenbrock"
     order: ClassVar[int] = 4
     solver: ClassVar[str] = "RodasODE"
@@ -391,6 +398,7 @@ class AssimuloDopri5(_Assimulo):
     Order 5, adaptive; not for stiff problems: between events its steps are held at the
     stability limit (~w/D). Hairer, Nørsett & Wanner (1993), Solving ODEs I, Sect. II.5."""
     name: ClassVar[str] = "assimulo-Dopri5"
+    kind: ClassVar[str] = "explicit"
     family: ClassVar[str] = "explicit Runge-Kutta"
     order: ClassVar[int] = 5
     solver: ClassVar[str] = "Dopri5"

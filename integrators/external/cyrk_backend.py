@@ -256,6 +256,8 @@ class _CyRK(AdaptiveAlgorithm):
     counts CyRK's steps taken). Compiled right-hand side only (module docstring)."""
 
     library: ClassVar[str] = "CyRK"
+    package: ClassVar[str] = "cyrk"
+    compiled: ClassVar[bool] = True
     method: ClassVar[str] = ""
     rhs_tiers: ClassVar[tuple[str, ...]] = ("numba",)
     rhs_tiers_reason: ClassVar[str] = (
@@ -302,6 +304,7 @@ class CyRKRK45(_CyRK):
     output. Reference: Dormand & Prince (1980), J. Comput. Appl. Math. 6, 19–26."""
 
     name: ClassVar[str] = "CyRK-RK45"
+    kind: ClassVar[str] = "explicit"
     family: ClassVar[str] = "explicit Runge–Kutta"
     order: ClassVar[int] = 5
     stiff: ClassVar[bool] = False
@@ -315,6 +318,7 @@ class CyRKDOP853(_CyRK):
     output. Reference: Hairer, Nørsett & Wanner (1993), Solving ODEs I, §II.10."""
 
     name: ClassVar[str] = "CyRK-DOP853"
+    kind: ClassVar[str] = "explicit"
     family: ClassVar[str] = "explicit Runge–Kutta"
     order: ClassVar[int] = 8
     stiff: ClassVar[bool] = False
@@ -328,6 +332,7 @@ class CyRKTsit5(_CyRK):
     (2011), Comput. Math. Appl. 62, 770–775."""
 
     name: ClassVar[str] = "CyRK-Tsit5"
+    kind: ClassVar[str] = "explicit"
     family: ClassVar[str] = "explicit Runge–Kutta"
     order: ClassVar[int] = 5
     stiff: ClassVar[bool] = False
@@ -342,6 +347,7 @@ class CyRKBDF(_CyRK):
     Sci. Comput. 18, 1–22."""
 
     name: ClassVar[str] = "CyRK-BDF"
+    kind: ClassVar[str] = "multistep"
     family: ClassVar[str] = "BDF"
     order: ClassVar[int] = 5
     method: ClassVar[str] = "BDF"
@@ -354,6 +360,7 @@ class CyRKRadau(_CyRK):
     Reference: Hairer & Wanner (1996), Solving ODEs II, §IV.8."""
 
     name: ClassVar[str] = "CyRK-Radau"
+    kind: ClassVar[str] = "implicit"
     family: ClassVar[str] = "implicit Runge–Kutta (Radau IIA)"
     order: ClassVar[int] = 5
     method: ClassVar[str] = "RADAU"
@@ -366,6 +373,8 @@ class CyRKLSODA(_CyRK):
     Petzold (1983), SIAM J. Sci. Stat. Comput. 4, 136–148."""
 
     name: ClassVar[str] = "CyRK-LSODA"
+    kind: ClassVar[str] = "multistep"
+    code: ClassVar[str] = "lsoda"
     family: ClassVar[str] = "Adams/BDF (LSODA)"
     order: ClassVar[int] = 12
     method: ClassVar[str] = "LSODA"

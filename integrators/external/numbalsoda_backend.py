@@ -363,6 +363,10 @@ class NumbaLSODA(AdaptiveAlgorithm):
     family: ClassVar[str] = "Adams/BDF (LSODA)"
     order: ClassVar[int] = 12
     library: ClassVar[str] = "numbalsoda"
+    package: ClassVar[str] = "numbalsoda"
+    kind: ClassVar[str] = "multistep"
+    code: ClassVar[str] = "lsoda"
+    compiled: ClassVar[bool] = True
     rhs_tiers: ClassVar[tuple[str, ...]] = ("numba",)
     rhs_tiers_reason: ClassVar[str] = (
         "numbalsoda calls the right-hand side from C through a function pointer, a numba "

@@ -89,6 +89,9 @@ class _Odes(AdaptiveAlgorithm):
     """Options of every scikits-odes backend: those of :class:`AdaptiveAlgorithm`."""
 
     library: ClassVar[str] = "scikits-odes"
+    package: ClassVar[str] = "scikits-odes"
+    kind: ClassVar[str] = "multistep"
+    code: ClassVar[str] = "sundials"
     lmm: ClassVar[str] = "BDF"          # CVODE's linear multistep method
 
     @classmethod
@@ -416,6 +419,7 @@ class OdesIDA(_Odes):
     """
 
     name: ClassVar[str] = "odes-IDA"
+    dae: ClassVar[bool] = True
     family: ClassVar[str] = "BDF (DAE)"
     order: ClassVar[int] = 5
     _stepper: ClassVar[type] = _IdaStepper

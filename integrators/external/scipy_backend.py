@@ -28,6 +28,7 @@ class _Scipy(AdaptiveAlgorithm):
     """Options of every scipy backend: those of :class:`AdaptiveAlgorithm`."""
 
     library: ClassVar[str] = "scipy"
+    package: ClassVar[str] = "scipy"
     method: ClassVar[type] = None
     uses_jacobian: ClassVar[bool] = False
 
@@ -68,6 +69,7 @@ class _ScipyStepper(DenseStepper):
 class ScipyRK45(_Scipy):
     """Explicit Runge–Kutta 5(4), Dormand–Prince, adaptive. Order 5."""
     name: ClassVar[str] = "scipy-RK45"
+    kind: ClassVar[str] = "explicit"
     family: ClassVar[str] = "explicit Runge-Kutta"
     order: ClassVar[int] = 5
     stiff: ClassVar[bool] = False
@@ -79,6 +81,7 @@ class ScipyRK45(_Scipy):
 class ScipyDOP853(_Scipy):
     """Explicit Runge–Kutta 8(5,3), Dormand–Prince, adaptive. Order 8."""
     name: ClassVar[str] = "scipy-DOP853"
+    kind: ClassVar[str] = "explicit"
     family: ClassVar[str] = "explicit Runge-Kutta"
     order: ClassVar[int] = 8
     stiff: ClassVar[bool] = False
@@ -90,6 +93,7 @@ class ScipyDOP853(_Scipy):
 class ScipyRadau(_Scipy):
     """Implicit Runge–Kutta Radau IIA, 3 stages, adaptive, analytic Jacobian. Order 5."""
     name: ClassVar[str] = "scipy-Radau"
+    kind: ClassVar[str] = "implicit"
     family: ClassVar[str] = "implicit Runge-Kutta"
     order: ClassVar[int] = 5
     method: ClassVar[type] = integrate.Radau
@@ -101,6 +105,7 @@ class ScipyRadau(_Scipy):
 class ScipyBDF(_Scipy):
     """Variable-order BDF (NDF), orders 1–5, adaptive, analytic Jacobian."""
     name: ClassVar[str] = "scipy-BDF"
+    kind: ClassVar[str] = "multistep"
     family: ClassVar[str] = "BDF"
     order: ClassVar[int] = 5
     method: ClassVar[type] = integrate.BDF
@@ -112,6 +117,8 @@ class ScipyBDF(_Scipy):
 class ScipyLSODA(_Scipy):
     """ODEPACK LSODA: Adams/BDF switching on stiffness, adaptive, analytic Jacobian."""
     name: ClassVar[str] = "scipy-LSODA"
+    kind: ClassVar[str] = "multistep"
+    code: ClassVar[str] = "lsoda"
     family: ClassVar[str] = "Adams/BDF (LSODA)"
     order: ClassVar[int] = 12
     method: ClassVar[type] = integrate.LSODA

@@ -53,6 +53,9 @@ class _Sundae(AdaptiveAlgorithm):
     """Options of every scikit-sundae backend: those of :class:`AdaptiveAlgorithm`."""
 
     library: ClassVar[str] = "scikit-sundae"
+    package: ClassVar[str] = "scikit-sundae"
+    kind: ClassVar[str] = "multistep"
+    code: ClassVar[str] = "sundials"
 
     @classmethod
     def library_version(cls) -> str:
@@ -368,6 +371,7 @@ class SundaeIDA(_Sundae):
     """
 
     name: ClassVar[str] = "sundae-IDA"
+    dae: ClassVar[bool] = True
     family: ClassVar[str] = "BDF (DAE)"
     order: ClassVar[int] = 5
     _stepper: ClassVar[type] = _IdaStepper

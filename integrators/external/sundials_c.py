@@ -337,6 +337,10 @@ class _SundialsC(AdaptiveAlgorithm):
     """Options of the compiled SUNDIALS backends: those of :class:`AdaptiveAlgorithm`."""
 
     library: ClassVar[str] = "SUNDIALS (C, numba cfunc callbacks)"
+    package: ClassVar[str] = "sundials-c"
+    kind: ClassVar[str] = "multistep"
+    code: ClassVar[str] = "sundials"
+    compiled: ClassVar[bool] = True
     rhs_tiers: ClassVar[tuple[str, ...]] = ("numba",)
     rhs_tiers_reason: ClassVar[str] = (
         "SUNDIALS is called from C here: its callbacks are compiled numba cfuncs")
@@ -686,6 +690,7 @@ class SundialsIDA(_SundialsC):
     """
 
     name: ClassVar[str] = "sundials-IDA"
+    dae: ClassVar[bool] = True
     family: ClassVar[str] = "BDF (DAE)"
     order: ClassVar[int] = 5
     _stepper: ClassVar[type] = _Ida
@@ -703,6 +708,7 @@ class SundialsARKodeIMEX(_SundialsC):
     """
 
     name: ClassVar[str] = "sundials-ARKODE-IMEX"
+    kind: ClassVar[str] = "implicit"
     family: ClassVar[str] = "additive Runge–Kutta (IMEX)"
     order: ClassVar[int] = 4
     _stepper: ClassVar[type] = _ArkStep
@@ -718,6 +724,7 @@ class SundialsARKodeERK(_SundialsC):
     """
 
     name: ClassVar[str] = "sundials-ARKODE-ERK"
+    kind: ClassVar[str] = "explicit"
     family: ClassVar[str] = "explicit Runge–Kutta"
     order: ClassVar[int] = 4
     stiff: ClassVar[bool] = False

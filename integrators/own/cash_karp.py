@@ -131,6 +131,7 @@ class CashKarp45(CompiledAlgorithm):
     max_steps: int = 200_000_000
 
     name: ClassVar[str] = "CashKarp45"
+    kind: ClassVar[str] = "explicit"
     family: ClassVar[str] = "explicit Runge–Kutta (Cash–Karp 4(5))"
     order: ClassVar[int] = 5
     stiff: ClassVar[bool] = False

@@ -63,6 +63,8 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
     loading switches, save grid, budgets) runs in numba, so it offers the numba tier only."""
 
     library: ClassVar[str] = "rsfbench (numba)"
+    package: ClassVar[str] = "own"
+    compiled: ClassVar[bool] = True
     rhs_tiers: ClassVar[tuple[str, ...]] = ("numba",)
     #: the compiled entry points (set by each method module) and the method's workspace
     #: (a compiled function returning its scratch arrays: the kernel allocates nothing)

@@ -120,6 +120,9 @@ class _ETD(Algorithm):
     adaptive: ClassVar[bool] = False
     saves_at_times: ClassVar[bool] = False
     library: ClassVar[str] = "rsfbench (numba)"
+    package: ClassVar[str] = "own"
+    kind: ClassVar[str] = "exponential"
+    compiled: ClassVar[bool] = True
     n_iter: ClassVar[int] = 1
 
     def __post_init__(self) -> None:

@@ -93,6 +93,7 @@ class Exprb32(CompiledAlgorithm):
     and its φ-functions, adaptive. ``rhs="numba"`` only."""
 
     name: ClassVar[str] = "Exprb32"
+    kind: ClassVar[str] = "exponential"
     family: ClassVar[str] = "exponential Rosenbrock (exact Jacobian)"
     order: ClassVar[int] = 3
     stiff: ClassVar[bool] = True

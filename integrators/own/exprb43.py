@@ -97,6 +97,7 @@ class Exprb43(CompiledAlgorithm):
     embedded order 3, exact 3×3 Jacobian and its φ-functions, adaptive. ``rhs="numba"`` only."""
 
     name: ClassVar[str] = "Exprb43"
+    kind: ClassVar[str] = "exponential"
     family: ClassVar[str] = "exponential Rosenbrock (exact Jacobian)"
     order: ClassVar[int] = 4
     stiff: ClassVar[bool] = True

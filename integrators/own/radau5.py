@@ -252,6 +252,7 @@ class RadauIIA5(CompiledAlgorithm):
     ``rhs="numba"``. Hairer & Wanner, Solving ODEs II, §IV.8."""
 
     name: ClassVar[str] = "RadauIIA5"
+    kind: ClassVar[str] = "implicit"
     family: ClassVar[str] = "implicit Runge–Kutta (Radau IIA 5, analytic Jacobian)"
     order: ClassVar[int] = 5
     stiff: ClassVar[bool] = True

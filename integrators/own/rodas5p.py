@@ -140,6 +140,7 @@ class Rodas5P(CompiledAlgorithm):
     OrdinaryDiffEq.jl."""
 
     name: ClassVar[str] = "Rodas5P"
+    kind: ClassVar[str] = "rosenbrock"
     family: ClassVar[str] = "Rosenbrock (Rodas5P 5(4), analytic Jacobian)"
     order: ClassVar[int] = 5
     stiff: ClassVar[bool] = True

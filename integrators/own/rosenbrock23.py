@@ -113,6 +113,7 @@ class Rosenbrock23(CompiledAlgorithm):
     1e−9). Needs ``rtol``, ``atol`` and ``rhs="numba"``."""
 
     name: ClassVar[str] = "Rosenbrock23"
+    kind: ClassVar[str] = "rosenbrock"
     family: ClassVar[str] = "Rosenbrock (Shampine–Reichelt 2(3), analytic Jacobian)"
     order: ClassVar[int] = 2
     stiff: ClassVar[bool] = True

@@ -164,8 +164,7 @@ def _case(method: str, label: str, make, lock: bool, representable: bool) -> Cas
 
 def _methods():
     from integrators import REGISTRY
-    from integrators.own.compiled import CompiledAlgorithm
-    return sorted(name for name, cls in REGISTRY.items() if issubclass(cls, CompiledAlgorithm))
+    return REGISTRY.select("own", "adaptive")       # the compiled engine's methods
 
 
 def cases() -> list[Case]:
