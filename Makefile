@@ -65,7 +65,7 @@ test: setup numba-cache warm
 # the slow tests: kills, Ctrl-C, subprocesses, a Dask cluster losing its workers, the README's
 # and the docs' pages run as written (~30 min on 2 cores)
 test-slow: setup numba-cache warm
-	$(PY) -m pytest --require-all -m slow
+	$(PY) -m pytest --require-all -m "slow and not study"
 
 # the quick plan: reruns the quick steps whose inputs (code, package versions, settings, files
 # read, the machine for timings) changed, reuses the others and keeps the files of the full

@@ -27,13 +27,18 @@ REFERENCES = {
 }
 STIFF_ADAPTIVE = sorted(n for n, c in REGISTRY.items() if c.adaptive and c.stiff)
 #: runs moved to make test-slow (pytest --durations on 2 cores) to keep make test under 8 min
-SLOW = {("assimulo-LSODAR", "paper-example"): "637 s", ("scipy-Radau", "W2"): "5 s",
-        ("scipy-Radau", "paper-example"): "4 s"}
+SLOW = {("scipy-Radau", "W2"): "5 s", ("scipy-Radau", "paper-example"): "4 s"}
+#: not run: assimulo-LSODAR at 1e-10 on the paper example took 637 s (over 10 min of a 60-min
+#: CI for one case); its agreement at 1e-10 is checked on W2 here, and the work-precision
+#: study (results/wp_quick.csv) measures its error on the paper example at every tolerance
+SKIPPED = {("assimulo-LSODAR", "paper-example")}
 
 
 def _cases():
     for name in STIFF_ADAPTIVE:
         for preset in sorted(REFERENCES):
+            if (name, preset) in SKIPPED:
+                continue
             marks = [pytest.mark.slow] if (name, preset) in SLOW else []
             yield pytest.param(name, preset, marks=marks, id=f"{name}-{preset}")
 

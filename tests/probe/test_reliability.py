@@ -20,20 +20,60 @@ LONG = {"budgets/CyRK-BDF: wall budget 0.5 s",
         "or at 0+"}
 
 
-def _param(case):
+def _study_only(cases) -> set[str]:
+    """The slow cases only the probe study runs (``rsfbench study probe`` runs every case).
+    A backend matrix is a kind of slow case run once per backend ("NAME: scenario", NAME
+    registered) for one or more scenarios; ``make test-slow`` runs one backend per library of
+    each, the libraries taking the scenarios in turn. The two matrices took 11.4 of the slow
+    cases' 16 min (``results/reliability.csv``, column ``seconds``, the study's last run)."""
+    from integrators import REGISTRY
+    matrices: dict[tuple[str, str], dict[str, dict[str, list[str]]]] = {}
+    for case in cases:
+        backend, _, scenario = case.name.partition(": ")
+        if case.slow and scenario and backend in REGISTRY.names():
+            family = (case.kind, " ".join(w.strip(",") for w in scenario.split()[:2]))
+            matrices.setdefault(family, {}).setdefault(REGISTRY[backend].package, {}) \
+                .setdefault(scenario, []).append(case.id)
+    study = set()
+    for libraries in matrices.values():
+        for turn, library in enumerate(sorted(libraries)):
+            scenarios = libraries[library]
+            kept = scenarios[sorted(scenarios)[turn % len(scenarios)]][0]
+            study |= {i for ids in scenarios.values() for i in ids} - {kept}
+    return study
+
+
+def _param(case, study_only):
     marks = [pytest.mark.slow] if case.slow or case.id in LONG else []
+    if case.id in study_only:
+        marks.append(pytest.mark.study)
     return pytest.param(case, id=case.id, marks=marks)
+
+
+STUDY_ONLY = _study_only(CASES)
+
+
+@pytest.mark.parametrize("case", [_param(c, STUDY_ONLY) for c in CASES])
+def test_probe_case(case, observe):
+    got = observe(case)
+    assert got.outcome not in BAD_OUTCOMES, f"{got.outcome}: {got.detail}"
+    assert got.outcome == case.expect, f"expected {case.expect}, observed {got.outcome}: {got.detail}"
 
 
 def test_the_long_cases_exist():
     assert LONG <= {c.id for c in CASES}
 
 
-@pytest.mark.parametrize("case", [_param(c) for c in CASES])
-def test_probe_case(case, observe):
-    got = observe(case)
-    assert got.outcome not in BAD_OUTCOMES, f"{got.outcome}: {got.detail}"
-    assert got.outcome == case.expect, f"expected {case.expect}, observed {got.outcome}: {got.detail}"
+def test_make_test_slow_runs_every_library_of_each_backend_matrix():
+    from integrators import REGISTRY
+
+    def library(case):
+        return case.kind, REGISTRY[case.name.partition(": ")[0]].package
+    matrix = [c for c in CASES if c.id in STUDY_ONLY]
+    kept = {library(c) for c in CASES if c.slow and c.id not in STUDY_ONLY
+            and c.name.partition(": ")[0] in REGISTRY.names()}
+    assert len(matrix) > 50               # the switch ladder and the explicit load histories
+    assert {library(c) for c in matrix} <= kept
 
 
 def test_the_probe_is_at_least_300_cases_of_every_kind():
