@@ -60,12 +60,12 @@ docs: setup
 	$(PY) -m sphinx -W --keep-going -q -b html docs docs/_build/html
 
 test: setup numba-cache warm
-	$(PY) -m pytest --require-all
+	$(PY) -m pytest --require-all --durations=15
 
 # the slow tests: kills, Ctrl-C, subprocesses, a Dask cluster losing its workers, the README's
 # and the docs' pages run as written (~30 min on 2 cores)
 test-slow: setup numba-cache warm
-	$(PY) -m pytest --require-all -m "slow and not study"
+	$(PY) -m pytest --require-all --durations=25 -m "slow and not study"
 
 # the quick plan: reruns the quick steps whose inputs (code, package versions, settings, files
 # read, the machine for timings) changed, reuses the others and keeps the files of the full
