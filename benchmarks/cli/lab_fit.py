@@ -182,7 +182,7 @@ def _posterior(args, fit):
         return sample_lab(fit, walkers=args.walkers, steps=args.steps, seed=args.seed,
                           progress=not args.json and not args.no_progress)
     except KeyboardInterrupt as exc:      # one line (main), never emcee's traceback
-        raise KeyboardInterrupt(f"lab fit interrupted (Ctrl-C): {exc or 'the posterior'}; "
+        raise KeyboardInterrupt(f"lab fit interrupted (Ctrl-C): {str(exc) or 'the posterior'}; "
                                 "nothing written") from None
 
 

@@ -29,7 +29,7 @@ import pandas as pd
 
 from benchmarks.inversion.misfit import Misfit
 
-__all__ = ["sample", "Posterior", "check_sampler", "MAX_POSTERIOR_SOLVES"]
+__all__ = ["sample", "Posterior", "check_sampler", "run_sampler", "MAX_POSTERIOR_SOLVES"]
 
 #: walkers × steps at most: each is a forward solve (hours at a few ms each on 2 cores), and
 #: emcee keeps every sample in memory
@@ -73,6 +73,23 @@ def check_sampler(b_range, lc_range, walkers: int, steps: int, burn: int | None 
     return burn
 
 
+def run_sampler(sampler, p0, steps: int, progress: bool, stopped: list) -> None:
+    """Run an emcee ``sampler`` from ``p0`` for ``steps`` steps. A Ctrl-C caught inside the
+    log-probability (which then appends to ``stopped`` and returns −∞ until the step ends) or
+    in emcee's own code between two calls is raised here as one ``KeyboardInterrupt`` naming
+    the step it came in."""
+    done = 0
+    try:
+        for done, _ in enumerate(sampler.sample(p0, iterations=steps, progress=progress), 1):
+            if stopped:
+                done -= 1                     # the step the Ctrl-C came in
+                break
+    except KeyboardInterrupt:
+        stopped.append(True)
+    if stopped:
+        raise KeyboardInterrupt(f"the posterior was interrupted at step {done + 1} of {steps}")
+
+
 def sample(misfit: Misfit, b_range, lc_range, start, walkers: int = 32, steps: int = 2000,
            burn: int | None = None, seed: int = 0, progress: bool = False) -> Posterior:
     """Sample the posterior (module docstring) with ``walkers`` walkers for ``steps`` steps,
@@ -109,9 +126,7 @@ def sample(misfit: Misfit, b_range, lc_range, start, walkers: int = 32, steps: i
     sampler = emcee.EnsembleSampler(walkers, 2, log_prob, vectorize=True)
     sampler.random_state = np.random.RandomState(int(rng.integers(2**31))).get_state()
     started = time.perf_counter()
-    for done, _ in enumerate(sampler.sample(p0, iterations=steps, progress=progress), 1):
-        if stopped:
-            raise KeyboardInterrupt(f"the posterior was interrupted at step {done} of {steps}")
+    run_sampler(sampler, p0, steps, progress, stopped)
     wall = time.perf_counter() - started
     chain = sampler.get_chain(discard=burn, flat=True)
     with np.errstate(divide="ignore", invalid="ignore"):    # a walker that never moved

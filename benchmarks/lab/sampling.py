@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from benchmarks.inversion.posterior import run_sampler
 from benchmarks.lab.fit import _LOG, BOUNDS, PARAMETER_UNITS, LabFit, _Problem
 
 __all__ = ["LabPosterior", "sample_lab"]
@@ -86,9 +87,7 @@ def sample_lab(fit: LabFit, walkers: int = 32, steps: int = 600, seed: int = 0,
     sampler = emcee.EnsembleSampler(walkers, n, log_prob)
     sampler.random_state = np.random.RandomState(int(rng.integers(2 ** 31))).get_state()
     started = time.perf_counter()
-    for done, _ in enumerate(sampler.sample(p0, iterations=steps, progress=progress), 1):
-        if stopped:
-            raise KeyboardInterrupt(f"the posterior was interrupted at step {done} of {steps}")
+    run_sampler(sampler, p0, steps, progress, stopped)
     wall = time.perf_counter() - started
     burn = steps // 4
     chain = sampler.get_chain(discard=burn, flat=True)
