@@ -1,6 +1,6 @@
 """Compile the own methods' batch kernels once, into numba's on-disk cache:
 ``python -m benchmarks.ensemble.warm`` (``make setup`` runs it after
-``python -m integrators.core.warm``, which compiles the single solves).
+``python -m integrators.warm``, which compiles the single solves).
 
 An ensemble of an own method runs one compiled batch per chunk (:mod:`integrators.own.batch`):
 serially in a process of a pool, or over numba's threads. Each is compiled for every method and
@@ -23,7 +23,7 @@ def warm(progress: bool = True) -> dict[str, float]:
 
     from benchmarks.ensemble.run import batched, ensemble
     from integrators import REGISTRY
-    from integrators.core.warm import problems_to_warm
+    from integrators.warm import problems_to_warm
     names = [n for n in sorted(REGISTRY, key=str.lower)
              if REGISTRY[n].adaptive and batched(REGISTRY[n](rtol=1e-6, atol=1e-6))]
     problems = [p for p in problems_to_warm() if p.t_end <= 2.0]

@@ -23,7 +23,7 @@ from pathlib import Path
 __all__ = ["drop_stale_caches", "announce_compile", "ROOT", "FIRST_COMPILE"]
 
 #: what compiling one method's kernels costs on this project's 2-core machines (the warm-up
-#: module, :mod:`integrators.core.warm`, reports each)
+#: module, :mod:`integrators.warm`, reports each)
 FIRST_COMPILE = "about 10 to 60 s"
 #: the dispatchers announced, by id (held, so that an id is never reused)
 _ANNOUNCED: dict = {}
