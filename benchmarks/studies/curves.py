@@ -79,29 +79,10 @@ def _with(means, curves, model, noise):
                                curve_sigma=noise if given else None)
 
 
-def curves_study(out, seeds: int = 200, n: int = 61, sigma_rel: float = 0.01,
-                 curve_noise: float = 2e-3, events: int = 10, points: int = 50,
-                 recordings: int = 3, progress: bool = False) -> dict:
-    """Run the study of the module docstring; write ``out/curves.{csv,json,md,png}``."""
-    from benchmarks.devtools.recommendation import recommended
-    from benchmarks.inversion.calibration import binomial_check
+def _maps(problem, algorithm, boxes, n, means, curves, curve_noise, say):
+    """Each box's grid and metric map, and the solver check that chose its integrator."""
     from benchmarks.inversion.grid import box_grid, metric_map
-    from benchmarks.physics.metrics import summarize
-    from integrators import Rodas5P, solve
-    from problems import window
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    say = (lambda text: print(f"  {text}", flush=True)) if progress else (lambda text: None)
-    started = time.perf_counter()
-    problem = window("W2", "slip")
-    sol = solve(problem, Rodas5P(rtol=1e-10, atol=1e-10), save_every=5e-6, max_points=10 ** 8)
-    truth_cycle = summarize(sol)
-    algorithm, why = recommended(1e-3)
     from benchmarks.inversion.solver_check import check_solver
-    boxes = {"box": BOX, **{k: ((TRUTH[0] - db, TRUTH[0] + db),
-                                (TRUTH[1] * 10 ** -dl, TRUTH[1] * 10 ** dl))
-                            for k, (db, dl) in ZOOMS.items()}}
-    means, curves = _data(sol, truth_cycle, 0, sigma_rel, events, points, curve_noise)
     grids, maps, checks = {}, {}, {}
     for name, box in boxes.items():
         # the integrator checked for the sharpest likelihood read on this map (seed 0's data)
@@ -113,6 +94,12 @@ def curves_study(out, seeds: int = 200, n: int = 61, sigma_rel: float = 0.01,
         say(f"the map of the {name}: {n} × {n} nodes with curves; {check.message}")
         grids[name] = box_grid(*box, n, n)
         maps[name] = metric_map(problem, check.algorithm, *grids[name], curves=True)
+    return grids, maps, checks
+
+
+def _posterior_rows(sol, truth_cycle, maps, seeds, sigma_rel, events, points,
+                    curve_noise) -> pd.DataFrame:
+    """One row per seed and likelihood: the posterior's intervals, moments and coverage."""
     rows = []
     for seed in range(seeds):
         means, curves = _data(sol, truth_cycle, seed, sigma_rel, events, points, curve_noise)
@@ -129,8 +116,12 @@ def curves_study(out, seeds: int = 200, n: int = 61, sigma_rel: float = 0.01,
             row["correlation"] = _correlation(m, post)
             row["edge_mass"] = post.edge_mass
             rows.append(row)
-    table = pd.DataFrame(rows)
-    write_table(table, out / "curves.csv")
+    return pd.DataFrame(rows)
+
+
+def _coverage(table: pd.DataFrame, grids: dict) -> list[dict]:
+    """Per likelihood: each marginal's and the HPD set's coverage, widths in grid nodes."""
+    from benchmarks.inversion.calibration import binomial_check
     coverage = []
     for label, g in table.groupby("model", sort=False):
         grid = grids[g["map"].iloc[0]]
@@ -152,6 +143,34 @@ def curves_study(out, seeds: int = 200, n: int = 61, sigma_rel: float = 0.01,
                          "median_sd_in_nodes": transverse,
                          "median_correlation": float(g.correlation.median()),
                          **binomial_check(int(g.hpd_covered.sum()), len(g))})
+    return coverage
+
+
+def curves_study(out, seeds: int = 200, n: int = 61, sigma_rel: float = 0.01,
+                 curve_noise: float = 2e-3, events: int = 10, points: int = 50,
+                 recordings: int = 3, progress: bool = False) -> dict:
+    """Run the study of the module docstring; write ``out/curves.{csv,json,md,png}``."""
+    from benchmarks.devtools.recommendation import recommended
+    from benchmarks.physics.metrics import summarize
+    from integrators import Rodas5P, solve
+    from problems import window
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    say = (lambda text: print(f"  {text}", flush=True)) if progress else (lambda text: None)
+    started = time.perf_counter()
+    problem = window("W2", "slip")
+    sol = solve(problem, Rodas5P(rtol=1e-10, atol=1e-10), save_every=5e-6, max_points=10 ** 8)
+    truth_cycle = summarize(sol)
+    algorithm, why = recommended(1e-3)
+    boxes = {"box": BOX, **{k: ((TRUTH[0] - db, TRUTH[0] + db),
+                                (TRUTH[1] * 10 ** -dl, TRUTH[1] * 10 ** dl))
+                            for k, (db, dl) in ZOOMS.items()}}
+    means, curves = _data(sol, truth_cycle, 0, sigma_rel, events, points, curve_noise)
+    grids, maps, checks = _maps(problem, algorithm, boxes, n, means, curves, curve_noise, say)
+    table = _posterior_rows(sol, truth_cycle, maps, seeds, sigma_rel, events, points,
+                            curve_noise)
+    write_table(table, out / "curves.csv")
+    coverage = _coverage(table, grids)
     say("targets: the refined grid and emcee with the curves")
     means, curves = _data(sol, truth_cycle, 0, sigma_rel, events, points, curve_noise)
     targets = _targets(problem, algorithm, _with(means, curves, MODELS[1], curve_noise))
@@ -262,8 +281,7 @@ def _through_a_recording(problem, algorithm, seed: int, out: Path) -> dict:
     return result
 
 
-def _markdown(info: dict) -> str:
-    cov = pd.DataFrame(info["coverage"])
+def _coverage_rows(cov: pd.DataFrame) -> list[dict]:
     rows = []
     for c in cov.itertuples():
         rows.append({"likelihood": c.model, "map": c.map, "parameter": c.parameter,
@@ -277,11 +295,12 @@ def _markdown(info: dict) -> str:
                      "Binomial 95 % range": f"{c.binomial_low}–{c.binomial_high}",
                      "consistent": "yes" if c.consistent else "**no**",
                      "edge mass (max)": f"{c.max_edge_mass:.1g}"})
-    t = info["targets"]
-    widths = cov[cov.parameter == "log10_lc"].set_index("model").median_width
-    narrowing = widths.get("scatter", np.nan) / widths.get("means only", np.nan)
+    return rows
+
+
+def _recording_rows(recordings: list[dict]) -> list[dict]:
     rec_rows = []
-    for r in info["recordings"]:
+    for r in recordings:
         for label in ("means only", "scatter"):
             i = r[label]["interval"]
             rec_rows.append({"recording seed": r["seed"], "likelihood": label,
@@ -293,6 +312,16 @@ def _markdown(info: dict) -> str:
                              "curve events": r[label]["n_events"] or "",
                              "σ ΔT (s)": f"{r[label]['sigma_recurrence_s']:.3g}",
                              "settled": "yes" if r[label]["settled"] else "no"})
+    return rec_rows
+
+
+def _markdown(info: dict) -> str:
+    cov = pd.DataFrame(info["coverage"])
+    rows = _coverage_rows(cov)
+    t = info["targets"]
+    widths = cov[cov.parameter == "log10_lc"].set_index("model").median_width
+    narrowing = widths.get("scatter", np.nan) / widths.get("means only", np.nan)
+    rec_rows = _recording_rows(info["recordings"])
     g, e, ch = t["grid"], t["emcee"], t["check"]
     return (
         "# What the slip-weakening curves add\n\n"

@@ -321,8 +321,8 @@ def _met(ok: bool) -> str:
     return "met" if ok else "**missed**"
 
 
-def scaling_markdown(s: dict) -> str:
-    g, t = s["grid"], s["targets"]
+def _grid_rows(g: dict, t: dict) -> list[dict]:
+    """The grid's targets: its wall (and the fastest setting within the level), threads."""
     acc = g.get("accuracy", {})
     rec = acc.get("recommended")
     rows = [
@@ -340,7 +340,7 @@ def scaling_markdown(s: dict) -> str:
                                   f"{best['rtol']:g}, worst {fmt(best['worst_dt_error'])})"
                                   if best else "none within the level"),
                      "": _met(best is not None and best["wall_2_threads_s"] <= t["grid_wall_s"])})
-    rows += [
+    return rows + [
         {"target": "2 threads against 1", "goal": f"≥ {t['thread_speedup']}×",
          "measured": f"{fmt(g['thread_speedup'])}× ({fmt(g['wall_1_thread_s'])} s on 1)",
          "": _met(g["thread_speedup"] >= t["thread_speedup"])},
@@ -348,40 +348,75 @@ def scaling_markdown(s: dict) -> str:
          "goal": f"≤ {t['per_point_ratio']}", "measured": fmt(g["per_point_ratio"]),
          "": _met(g["per_point_ratio"] <= t["per_point_ratio"])},
     ]
+
+
+def _peer_row(peer: dict, t: dict) -> dict:
+    goal = t.get("peer_loop_ratio", 2.0)
+    return {"target": f"against a plain loop of {peer['choice']} (1 thread)",
+            "goal": f"≥ {goal:g}× on 1 thread",
+            "measured": f"{fmt(peer['ratio_1_thread'])}× on 1 thread, "
+                        f"{fmt(peer['ratio_2_threads'])}× on 2 (loop "
+                        f"{fmt(peer['loop_wall_s'])} s, {peer['failed']} failed"
+                        + (f"; worst ΔT error {fmt(peer['accuracy']['worst_dt_error'])}"
+                           if "accuracy" in peer else "") + ")",
+            "": _met(peer["ratio_1_thread"] >= goal)}
+
+
+def _big_rows(b: dict, t: dict) -> list[dict]:
+    """The 10⁵-point run's targets: its wall, its store, and the kills it survived."""
+    return [
+        {"target": f"{b['n_points']} points (W2, 20 s each) on 2 cores",
+         "goal": f"≤ {t['big_wall_s']:g} s", "measured": f"{fmt(b['wall_s'])} s",
+         "": _met(b["wall_s"] <= t["big_wall_s"])},
+        {"target": "its Parquet store", "goal": f"≤ {t['big_store_mb']:g} MB",
+         "measured": f"{fmt(b['store_mb'])} MB", "": _met(b["store_mb"] <= t["big_store_mb"])},
+        {"target": f"killed {sum(b['kills_landed'])}× mid-run (SIGKILL) and restarted",
+         "goal": "same table, each point once",
+         "measured": f"{'same' if b['same_table_after_kills'] else 'DIFFERENT'}; "
+                     f"{b['stored_rows']} rows stored, {b['stored_duplicates']} duplicated",
+         "": _met(b["same_table_after_kills"] and b["stored_equals_table"]
+                  and b["stored_duplicates"] == 0 and all(b["kills_landed"]))},
+    ]
+
+
+def _dask_row(d: dict) -> dict:
+    return {"target": f"{d['n_points']} points on a local Dask cluster (2 workers)",
+            "goal": "the local table", "measured":
+            f"{'same' if d['same_as_local'] else 'DIFFERENT'}; {fmt(d['wall_dask_s'])} s "
+            f"(local {fmt(d['wall_local_s'])} s), overhead "
+            f"{fmt(1e6 * d['overhead_per_point_s'])} µs/point",
+            "": _met(d["same_as_local"])}
+
+
+def _settings_lines(acc: dict) -> list[str]:
+    """The ΔT error of every setting on the grid's points, with how it was measured."""
+    rec = acc.get("recommended")
+    table = pd.DataFrame([
+        {"integrator": r["integrator"], "rtol": f"{r['rtol']:g}",
+         "wall, 2 threads (s)": fmt(r["wall_2_threads_s"]),
+         "worst ΔT error": fmt(r["worst_dt_error"]), "95th percentile": fmt(r["p95_dt_error"]),
+         "same class": f"{r['same_class']:.1%}"} for r in acc["settings"]])
+    return ["", f"ΔT error on the grid's points, relative, against {acc['references']} "
+            f"(they agree to {fmt(acc['references_agree'])} on the "
+            f"{rec['points_compared']} points compared; {acc['points_left_out']} points "
+            "are left out, where the references differ in class or have no ΔT: long "
+            "transients, near-chaotic cycles). A point compared where a setting has no ΔT "
+            "(classified otherwise) or failed counts as an infinite error. \"same class\": "
+            "the fraction of all points classified as the reference does.", "",
+            markdown_table(table)]
+
+
+def scaling_markdown(s: dict) -> str:
+    g, t = s["grid"], s["targets"]
+    acc = g.get("accuracy", {})
+    rows = _grid_rows(g, t)
     peer = s.get("peer", {})
     if "loop_wall_s" in peer:
-        goal = t.get("peer_loop_ratio", 2.0)
-        rows.append({"target": f"against a plain loop of {peer['choice']} (1 thread)",
-                     "goal": f"≥ {goal:g}× on 1 thread",
-                     "measured": f"{fmt(peer['ratio_1_thread'])}× on 1 thread, "
-                                 f"{fmt(peer['ratio_2_threads'])}× on 2 (loop "
-                                 f"{fmt(peer['loop_wall_s'])} s, {peer['failed']} failed"
-                                 + (f"; worst ΔT error {fmt(peer['accuracy']['worst_dt_error'])}"
-                                    if "accuracy" in peer else "") + ")",
-                     "": _met(peer["ratio_1_thread"] >= goal)})
+        rows.append(_peer_row(peer, t))
     if "big" in s:
-        b = s["big"]
-        rows += [
-            {"target": f"{b['n_points']} points (W2, 20 s each) on 2 cores",
-             "goal": f"≤ {t['big_wall_s']:g} s", "measured": f"{fmt(b['wall_s'])} s",
-             "": _met(b["wall_s"] <= t["big_wall_s"])},
-            {"target": "its Parquet store", "goal": f"≤ {t['big_store_mb']:g} MB",
-             "measured": f"{fmt(b['store_mb'])} MB", "": _met(b["store_mb"] <= t["big_store_mb"])},
-            {"target": f"killed {sum(b['kills_landed'])}× mid-run (SIGKILL) and restarted",
-             "goal": "same table, each point once",
-             "measured": f"{'same' if b['same_table_after_kills'] else 'DIFFERENT'}; "
-                         f"{b['stored_rows']} rows stored, {b['stored_duplicates']} duplicated",
-             "": _met(b["same_table_after_kills"] and b["stored_equals_table"]
-                      and b["stored_duplicates"] == 0 and all(b["kills_landed"]))},
-        ]
+        rows += _big_rows(s["big"], t)
     if "dask" in s:
-        d = s["dask"]
-        rows.append({"target": f"{d['n_points']} points on a local Dask cluster (2 workers)",
-                     "goal": "the local table", "measured":
-                     f"{'same' if d['same_as_local'] else 'DIFFERENT'}; {fmt(d['wall_dask_s'])} s "
-                     f"(local {fmt(d['wall_local_s'])} s), overhead "
-                     f"{fmt(1e6 * d['overhead_per_point_s'])} µs/point",
-                     "": _met(d["same_as_local"])})
+        rows.append(_dask_row(s["dask"]))
     lines = [f"Integrator: {s['integrator_choice']}. Walls are the minimum of the repeats after "
              "a warm-up (the grid) or one run (10⁵, Dask); \"stand-alone\" is one "
              "`integrators.solve` per point, Σ of their own wall times "
@@ -389,18 +424,7 @@ def scaling_markdown(s: dict) -> str:
              f"solves sum to {fmt(g['sum_batch_solve_s'])} s).", "",
              markdown_table(pd.DataFrame(rows))]
     if "settings" in acc:
-        table = pd.DataFrame([
-            {"integrator": r["integrator"], "rtol": f"{r['rtol']:g}",
-             "wall, 2 threads (s)": fmt(r["wall_2_threads_s"]),
-             "worst ΔT error": fmt(r["worst_dt_error"]), "95th percentile": fmt(r["p95_dt_error"]),
-             "same class": f"{r['same_class']:.1%}"} for r in acc["settings"]])
-        lines += ["", f"ΔT error on the grid's points, relative, against {acc['references']} "
-                  f"(they agree to {fmt(acc['references_agree'])} on the "
-                  f"{rec['points_compared']} points compared; {acc['points_left_out']} points "
-                  "are left out, where the references differ in class or have no ΔT: long "
-                  "transients, near-chaotic cycles). A point compared where a setting has no ΔT "
-                  "(classified otherwise) or failed counts as an infinite error. \"same class\": "
-                  "the fraction of all points classified as the reference does.", "", markdown_table(table)]
+        lines += _settings_lines(acc)
     if "big" in s:
         b = s["big"]
         lines += ["", f"Each kill came once the store held a random number of finished chunks "

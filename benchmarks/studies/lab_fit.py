@@ -240,50 +240,58 @@ def lab_fit_study(out: Path, seeds: int = 200, profile_seeds: int = 100,
     return info
 
 
-def _markdown(info: dict) -> str:
-    cov_rows = [{"parameter": k.rsplit("_", 1)[0], "interval": k.rsplit("_", 1)[1],
-                 "hold the truth": f"{v['hits']}/{v['n']}",
-                 "binomial 95 % range": f"{v['binomial_low']}–{v['binomial_high']}",
-                 "consistent": "yes" if v["consistent"] else "**no**"}
-                for k, v in info["coverage"].items()]
-    err_rows = [{"parameter": k, "median |error|": f"{v['median_abs']:.2%}",
-                 "largest |error|": f"{v['max_abs']:.2%}",
-                 "target": f"{v['target']:.0%}" if v["target"] else "",
-                 "met": ("yes" if v["met"] else "**no**") if v["met"] is not None else ""}
-                for k, v in info["errors"].items()]
-    real_rows = []
-    for r in info["real"]:
-        p = r["parameters"]
+def _coverage_rows(coverage: dict) -> list[dict]:
+    return [{"parameter": k.rsplit("_", 1)[0], "interval": k.rsplit("_", 1)[1],
+             "hold the truth": f"{v['hits']}/{v['n']}",
+             "binomial 95 % range": f"{v['binomial_low']}–{v['binomial_high']}",
+             "consistent": "yes" if v["consistent"] else "**no**"}
+            for k, v in coverage.items()]
 
-        def interval(n, kind="profile"):
-            if n not in p:
-                return ""
-            lo, hi = p[n][kind]
-            scale = 1e6 if n.startswith("dc") else 1.0
-            return f"{lo * scale:.3g}–{hi * scale:.3g}"
 
-        says = []
-        if not r["success"]:
-            says.append("did not converge")
-        if r["at_bound"]:
-            says.append("at a bound: " + ", ".join(r["at_bound"]))
-        if r["open"]:
-            says.append("not bounded: " + ", ".join(r["open"]))
-        if any("cannot resolve" in n for n in r["notes"]):
-            says.append("Dc below the sampling")
-        real_rows.append({
-            "record": r["record"], "law": r["law"], "states": r["states"],
-            "a": f"{p['a']['value']:.4g}", "b": f"{p['b']['value']:.4g}",
-            "a − b": f"{p['a_minus_b']['value']:.3g}", "Dc (µm)": f"{p['dc']['value'] * 1e6:.4g}",
-            "b2": f"{p['b2']['value']:.3g}" if "b2" in p else "",
-            "Dc2 (µm)": f"{p['dc2']['value'] * 1e6:.4g}" if "dc2" in p else "",
-            "k′ (1/µm)": f"{p['k']['value'] * 1e-6:.3g}",
-            "a 95 %": interval("a"), "b 95 %": interval("b"), "Dc 95 % (µm)": interval("dc"),
-            "σ": f"{r['sigma']:.2g}", "ρ": f"{r['rho']:.2f}",
-            "check": ("not run" if not r["solver_check"].get("checked", True) else
-                      "passed" if r["solver_check"]["passed"] else "**failed**"),
-            "the fit says": "; ".join(says)})
-    inertia_rows = [{
+def _error_rows(errors: dict) -> list[dict]:
+    return [{"parameter": k, "median |error|": f"{v['median_abs']:.2%}",
+             "largest |error|": f"{v['max_abs']:.2%}",
+             "target": f"{v['target']:.0%}" if v["target"] else "",
+             "met": ("yes" if v["met"] else "**no**") if v["met"] is not None else ""}
+            for k, v in errors.items()]
+
+
+def _real_row(r: dict) -> dict:
+    """One real record's row: the fitted values, profile intervals and what the fit says."""
+    p = r["parameters"]
+
+    def interval(n, kind="profile"):
+        if n not in p:
+            return ""
+        lo, hi = p[n][kind]
+        scale = 1e6 if n.startswith("dc") else 1.0
+        return f"{lo * scale:.3g}–{hi * scale:.3g}"
+
+    says = []
+    if not r["success"]:
+        says.append("did not converge")
+    if r["at_bound"]:
+        says.append("at a bound: " + ", ".join(r["at_bound"]))
+    if r["open"]:
+        says.append("not bounded: " + ", ".join(r["open"]))
+    if any("cannot resolve" in n for n in r["notes"]):
+        says.append("Dc below the sampling")
+    return {
+        "record": r["record"], "law": r["law"], "states": r["states"],
+        "a": f"{p['a']['value']:.4g}", "b": f"{p['b']['value']:.4g}",
+        "a − b": f"{p['a_minus_b']['value']:.3g}", "Dc (µm)": f"{p['dc']['value'] * 1e6:.4g}",
+        "b2": f"{p['b2']['value']:.3g}" if "b2" in p else "",
+        "Dc2 (µm)": f"{p['dc2']['value'] * 1e6:.4g}" if "dc2" in p else "",
+        "k′ (1/µm)": f"{p['k']['value'] * 1e-6:.3g}",
+        "a 95 %": interval("a"), "b 95 %": interval("b"), "Dc 95 % (µm)": interval("dc"),
+        "σ": f"{r['sigma']:.2g}", "ρ": f"{r['rho']:.2f}",
+        "check": ("not run" if not r["solver_check"].get("checked", True) else
+                  "passed" if r["solver_check"]["passed"] else "**failed**"),
+        "the fit says": "; ".join(says)}
+
+
+def _inertia_rows(inertia: list[dict]) -> list[dict]:
+    return [{
         "v1 (µm/s)": f"{r['v1_m_s'] * 1e6:g}", "mass (kg)": f"{r['mass_kg']:g}",
         "period / (Dc/v2)": f"{r['period_over_dc_time']:.2g}",
         "shift (se): a, b, Dc, k′": ", ".join(f"{r['shift_se'][n]:+.2g}" for n in TRUTH),
@@ -292,7 +300,14 @@ def _markdown(info: dict) -> str:
         "inertial error: a, b, Dc": ", ".join(f"{r['inertial_error'][n]:+.1%}"
                                              for n in ("a", "b", "dc")),
         "the check says": "the inertia matters" if r["matters"] else "quasi-static stands"}
-        for r in info["inertia"]]
+        for r in inertia]
+
+
+def _markdown(info: dict) -> str:
+    cov_rows = _coverage_rows(info["coverage"])
+    err_rows = _error_rows(info["errors"])
+    real_rows = [_real_row(r) for r in info["real"]]
+    inertia_rows = _inertia_rows(info["inertia"])
     c = info["cost"]
     return (
         "# Fitting velocity steps\n\n"
