@@ -477,82 +477,100 @@ def _integrated(t, acc_f, a: int, b: int, quiet_before: int, quiet_after: int):
     return v, cumulative_trapezoid(v, tt, initial=0.0), sigma
 
 
-def _events(rec, drops, fs_smooth, acc, vls, slip_source, noise, notes) -> pd.DataFrame:
+def _slip_rate(rec, vls, noise):
+    """The slip column smoothed for timing, its slip rate, a less smoothed rate for the peak,
+    and the timing rate's noise; the noises and the smoothing chosen go into ``noise``."""
+    t, rate = rec.t, rec.rate
+    # the least smoothing whose slip-rate noise is a fifth of the start's threshold: the
+    # events are timed as sharply as the noise allows (a heavy smoothing spreads a short
+    # event's slip beyond its start and end)
+    sigma_u = noise["slip"] = _noise(rec["slip"])
+    level = TIMING_HZ[-1]
+    for level in TIMING_HZ:
+        if sigma_u * _rate_gain(level, rate) <= 2.0 * (vls or 0.0):
+            break
+    u_s = _smooth(rec["slip"], level, rate)
+    v_s = np.gradient(u_s, t)
+    v_fast = np.gradient(_smooth(rec["slip"], TABLE_HZ * 4, rate), t)
+    sigma_v = sigma_u * _rate_gain(level, rate)
+    noise["slip_rate"] = sigma_v
+    noise["slip_timing_hz"] = level
+    return u_s, v_s, v_fast, sigma_v
+
+
+def _time_by_rate(rec, imax, v, u, sv, lo, hi, off, vls, peak_of) -> dict:
+    """One event's columns from its slip rate ``v`` and slip ``u`` (both from sample ``off``,
+    noise ``sv``), searched in ``v[lo:hi]``: it starts above 10·vLs (10·sv without vLs) and
+    ends below max(vLs, 3·sv); one reaching the window's edge is open (``_i1`` −1).
+    ``peak_of`` is the (t, slip, rate) its peak slip rate is read from."""
+    t = rec.t
+    start_level, end_level = 10.0 * vls if vls else 10.0 * sv, max(vls or 0.0, 3.0 * sv)
+    peak = lo + int(np.argmax(v[lo:hi]))
+    if v[peak] < start_level:           # no event could start: vLs is wrong
+        raise ValueError(
+            f"{rec.source}: the event at t = {t[imax]:.6g} s slips at "
+            f"{v[peak]:.3g} m/s at its fastest, below the rate that starts an event "
+            f"(10·vLs = {start_level:.3g} m/s, vLs {vls:.3g} m/s): vLs is the load "
+            "point's slow speed in m/s (75 µm/s is 7.5e-05)" if vls else
+            f"{rec.source}: the event at t = {t[imax]:.6g} s does not slip above the "
+            "noise of the slip rate")
+    i0 = peak
+    while i0 > lo and v[i0 - 1] >= start_level:
+        i0 -= 1
+    i1 = peak
+    while i1 < hi and v[i1] >= end_level:
+        i1 += 1
+    if i1 >= hi or i0 <= lo:
+        return {"_i0": i0 + off, "_i1": -1}            # not timed: an open event
+    ts = _crossing(t[off:], v, start_level, i0)
+    te = _crossing(t[off:], v, end_level, i1)
+    return {"_i0": i0 + off, "_i1": i1 + off, "t_start": ts, "t_end": te,
+            "slip_m": float(np.interp(te, t[off:off + len(u)], u)
+                            - np.interp(ts, t[off:off + len(u)], u)),
+            "peak_velocity_m_s": _peak_rate(*peak_of, i0, i1 + 1)}
+
+
+def _drop_columns(rec, fs_smooth, imax, imin, prev_end, next_start, sigma) -> dict:
+    """One event's friction drop between its force extremes, the same on the raw samples
+    over the whole stick and event, and the samples between the extremes."""
     t, fs, fn, rate = rec.t, rec["shear_force"], rec["normal_force"], rec.rate
+    drop = fs_smooth[imax] - fs_smooth[imin]
+    fs_max, jmax = _extremum(t, fs, imax, drop, 1.0, prev_end, imin, rate, sigma)
+    fs_min, jmin = _extremum(t, fs, imin, drop, -1.0, imax + 1, next_start, rate, sigma)
+    fn_event = float(np.median(fn[imax:imin + 1]))
+    # the definition on the raw samples alone, over the whole stick and the whole event
+    return {"friction_drop": (fs_max - fs_min) / fn_event,
+            "friction_drop_raw": (float(np.max(fs[prev_end:imin + 1]))
+                                  - float(np.min(fs[imax:next_start]))) / fn_event,
+            "drop_samples": jmin - jmax}
+
+
+def _events(rec, drops, fs_smooth, acc, vls, slip_source, noise, notes) -> pd.DataFrame:
+    t, fn, rate = rec.t, rec["normal_force"], rec.rate
     n = len(t)
     if slip_source == "slip column":
-        # the least smoothing whose slip-rate noise is a fifth of the start's threshold: the
-        # events are timed as sharply as the noise allows (a heavy smoothing spreads a short
-        # event's slip beyond its start and end)
-        sigma_u = noise["slip"] = _noise(rec["slip"])
-        level = TIMING_HZ[-1]
-        for level in TIMING_HZ:
-            if sigma_u * _rate_gain(level, rate) <= 2.0 * (vls or 0.0):
-                break
-        u_s = _smooth(rec["slip"], level, rate)
-        v_s = np.gradient(u_s, t)
-        v_fast = np.gradient(_smooth(rec["slip"], TABLE_HZ * 4, rate), t)
-        sigma_v = sigma_u * _rate_gain(level, rate)
-        noise["slip_rate"] = sigma_v
-        noise["slip_timing_hz"] = level
+        u_s, v_s, v_fast, sigma_v = _slip_rate(rec, vls, noise)
     acc_f = _lowpass(acc, ACCELERATION_HZ, rate) if acc is not None else None
     rows, integrated = [], {}
     quiet = max(int(0.01 * rate), 10)
     for j, (imax, imin) in enumerate(drops):
         prev_end = drops[j - 1][1] if j else 0
         next_start = drops[j + 1][0] if j + 1 < len(drops) else n
-        drop = fs_smooth[imax] - fs_smooth[imin]
         q = max(quiet, imin - imax)
         a, b = max(prev_end, imax - q, 0), min(next_start, imin + q, n)
         row = {"_imax": imax, "_imin": imin, "_drop": j}
-        if slip_source == "slip column" or (slip_source == "accelerations"):
-            if slip_source == "slip column":
-                v, u, sv = v_s, u_s, sigma_v
-                lo, hi, off = a, b, 0
-            else:
-                v, u, sv = _integrated(t, acc_f, a, b, imax, imin)
-                integrated[j] = (a, v, u)
-                lo, hi, off = 0, b - a, a
-            start_level, end_level = 10.0 * vls if vls else 10.0 * sv, max(vls or 0.0, 3.0 * sv)
-            peak = lo + int(np.argmax(v[lo:hi]))
-            if v[peak] < start_level:           # no event could start: vLs is wrong
-                raise ValueError(
-                    f"{rec.source}: the event at t = {t[imax]:.6g} s slips at "
-                    f"{v[peak]:.3g} m/s at its fastest, below the rate that starts an event "
-                    f"(10·vLs = {start_level:.3g} m/s, vLs {vls:.3g} m/s): vLs is the load "
-                    "point's slow speed in m/s (75 µm/s is 7.5e-05)" if vls else
-                    f"{rec.source}: the event at t = {t[imax]:.6g} s does not slip above the "
-                    "noise of the slip rate")
-            i0 = peak
-            while i0 > lo and v[i0 - 1] >= start_level:
-                i0 -= 1
-            i1 = peak
-            while i1 < hi and v[i1] >= end_level:
-                i1 += 1
-            if i1 >= hi or i0 <= lo:
-                row.update(_i0=i0 + off, _i1=-1)            # not timed: an open event
-            else:
-                ts = _crossing(t[off:], v, start_level, i0)
-                te = _crossing(t[off:], v, end_level, i1)
-                row.update(_i0=i0 + off, _i1=i1 + off, t_start=ts, t_end=te,
-                           slip_m=float(np.interp(te, t[off:off + len(u)], u)
-                                        - np.interp(ts, t[off:off + len(u)], u)))
-                if slip_source == "slip column":
-                    row["peak_velocity_m_s"] = _peak_rate(t, rec["slip"], v_fast, i0, i1 + 1)
-                else:
-                    row["peak_velocity_m_s"] = _peak_rate(t[off:], u, v, i0, i1 + 1)
+        if slip_source == "slip column":
+            row.update(_time_by_rate(rec, imax, v_s, u_s, sigma_v, a, b, 0, vls,
+                                     (t, rec["slip"], v_fast)))
+        elif slip_source == "accelerations":
+            v, u, sv = _integrated(t, acc_f, a, b, imax, imin)
+            integrated[j] = (a, v, u)
+            row.update(_time_by_rate(rec, imax, v, u, sv, 0, b - a, a, vls, (t[a:], u, v)))
         else:
             row.update(_i0=imax, _i1=imin if imin < n - 1 else -1, t_start=float(t[imax]),
                        t_end=float(t[imin]), slip_m=math.nan, peak_velocity_m_s=math.nan)
-        sigma = noise["shear_force"]
-        fs_max, jmax = _extremum(t, fs, imax, drop, 1.0, prev_end, imin, rate, sigma)
-        fs_min, jmin = _extremum(t, fs, imin, drop, -1.0, imax + 1, next_start, rate, sigma)
-        fn_event = float(np.median(fn[imax:imin + 1]))
-        row["friction_drop"] = (fs_max - fs_min) / fn_event
-        # the definition on the raw samples alone, over the whole stick and the whole event
-        row["friction_drop_raw"] = (float(np.max(fs[prev_end:imin + 1]))
-                                    - float(np.min(fs[imax:next_start]))) / fn_event
-        row["drop_samples"] = jmin - jmax
+        row.update(_drop_columns(rec, fs_smooth, imax, imin, prev_end, next_start,
+                                 noise["shear_force"]))
         rows.append(row)
     table = pd.DataFrame(rows)
     for column in ("t_start", "t_end", "slip_m", "peak_velocity_m_s"):
