@@ -183,10 +183,8 @@ def ensemble(problem, algorithm, params, *, store=None, chunk_size: int | None =
     if curve_dt and not batch:                            # the saved trajectory fits memory
         Output(save_every=curve_dt).interval(max(p.t_end for p in problems))
     own_threads = batch and backend == "threads" and scheduler is None
-    chunks = [Chunk(problem, algorithm, names, values[i:i + chunk_size], i, wall_budget,
-                    threads=workers if own_threads else 1, curve_dt=curve_dt,
-                    problems=tuple(problems[i:i + chunk_size]) if own_threads else None)
-              for i in range(0, len(values), chunk_size)]
+    chunks = _chunks(problem, algorithm, names, values, problems, chunk_size, wall_budget,
+                     curve_dt, workers if own_threads else None)
     chunk_store = (ChunkStore(store, identity_of(problem, algorithm, names, values, chunk_size,
                                                  wall_budget, curve_dt), reclaim_store)
                    if store is not None else None)
@@ -207,20 +205,8 @@ def ensemble(problem, algorithm, params, *, store=None, chunk_size: int | None =
         n_resumed = n_kept = len(values) - sum(len(c.values) for c in todo)
         bar = tqdm(total=len(values), initial=n_resumed, unit="point", disable=not progress,
                    desc=label or f"ensemble {problem.name or 'problem'}")
-        try:
-            with bar:
-                for chunk, table in _solve(todo, own_threads, workers, backend, client,
-                                           worker_timeout):
-                    if chunk_store is not None and not table.attrs.get("transient"):
-                        chunk_store.save(chunk.first, chunk.values, table)
-                        n_kept += len(chunk.values)
-                    tables[chunk.first] = table
-                    bar.update(len(chunk.values))
-        except RunStopped as exc:             # the cluster is gone: say what is kept
-            kept = (f"{n_kept} of {len(values)} points are done and kept in {store}: run the "
-                    "same ensemble again to resume it" if chunk_store is not None else
-                    f"the {len(values)} points are lost (an ensemble resumes only with a store)")
-            raise type(exc)(f"{exc}; {kept}") from None
+        _run_chunks(todo, tables, chunk_store, bar, n_kept, len(values), store,
+                    (own_threads, workers, backend, client, worker_timeout))
     table = pd.concat([tables[c.first] for c in chunks], ignore_index=True)
     table.attrs = {"n_points": len(values), "n_run": len(values) - n_resumed,
                    "n_resumed": n_resumed, "wall_s": time.perf_counter() - start,
@@ -230,6 +216,36 @@ def ensemble(problem, algorithm, params, *, store=None, chunk_size: int | None =
                    "bad_chunks": list(chunk_store.bad) if chunk_store else [],
                    "stray_files": list(chunk_store.strays) if chunk_store else []}
     return table
+
+
+def _chunks(problem, algorithm, names, values, problems, chunk_size, wall_budget, curve_dt,
+            threads: int | None) -> list[Chunk]:
+    """The points cut into chunks of ``chunk_size``; with ``threads`` (a compiled batch on
+    this machine) each chunk carries its points' problems and runs on that many threads."""
+    return [Chunk(problem, algorithm, names, values[i:i + chunk_size], i, wall_budget,
+                  threads=threads or 1, curve_dt=curve_dt,
+                  problems=tuple(problems[i:i + chunk_size]) if threads else None)
+            for i in range(0, len(values), chunk_size)]
+
+
+def _run_chunks(todo, tables: dict, chunk_store, bar, n_kept: int, n_points: int, store,
+                solving: tuple) -> None:
+    """Solve the chunks ``todo`` (``solving``: :func:`_solve`'s other arguments) into
+    ``tables`` by first point, storing each finished one; a lost cluster's
+    :class:`RunStopped` is raised again saying which points are kept."""
+    try:
+        with bar:
+            for chunk, table in _solve(todo, *solving):
+                if chunk_store is not None and not table.attrs.get("transient"):
+                    chunk_store.save(chunk.first, chunk.values, table)
+                    n_kept += len(chunk.values)
+                tables[chunk.first] = table
+                bar.update(len(chunk.values))
+    except RunStopped as exc:             # the cluster is gone: say what is kept
+        kept = (f"{n_kept} of {n_points} points are done and kept in {store}: run the "
+                "same ensemble again to resume it" if chunk_store is not None else
+                f"the {n_points} points are lost (an ensemble resumes only with a store)")
+        raise type(exc)(f"{exc}; {kept}") from None
 
 
 def _close(client) -> None:
