@@ -38,6 +38,18 @@ class Budget:
         return math.inf if self.wall_s is None else self.start + self.wall_s
 
 
+def _check_arguments(problem, algorithm, wall_budget) -> None:
+    """Refuse what :func:`solve` cannot take: a wrong type, a bad budget, a problem the method
+    cannot integrate (:class:`ProblemNotSupported`)."""
+    if not isinstance(problem, SpringSlider):
+        raise ValueError(f"problem must be a SpringSlider, got {type(problem).__name__}")
+    if not isinstance(algorithm, Algorithm):
+        raise ValueError(f"algorithm must be an Algorithm instance, got {algorithm!r}")
+    if wall_budget is not None:
+        check_positive("wall_budget", wall_budget)
+    algorithm.check_problem(problem)
+
+
 def solve(problem: SpringSlider, algorithm: Algorithm, *, save_every: float | None = None,
           max_points: int | None = None, save_at=None, wall_budget: float | None = None,
           progress: bool = False) -> Solution:
@@ -93,13 +105,7 @@ def solve(problem: SpringSlider, algorithm: Algorithm, *, save_every: float | No
         When the method cannot integrate the problem at all (the paper's ETD without mass),
         before any work; a ``ValueError`` too.
     """
-    if not isinstance(problem, SpringSlider):
-        raise ValueError(f"problem must be a SpringSlider, got {type(problem).__name__}")
-    if not isinstance(algorithm, Algorithm):
-        raise ValueError(f"algorithm must be an Algorithm instance, got {algorithm!r}")
-    if wall_budget is not None:
-        check_positive("wall_budget", wall_budget)
-    algorithm.check_problem(problem)
+    _check_arguments(problem, algorithm, wall_budget)
     output = Output(save_every=save_every, max_points=max_points, save_at=save_at)
     if save_at is not None and not algorithm.saves_at_times:
         raise ValueError(f"{algorithm.name} saves at its own step ends: save_at needs a method "
