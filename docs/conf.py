@@ -5,7 +5,6 @@ cannot read)."""
 import importlib
 import pkgutil
 import sys
-import types
 from pathlib import Path
 
 from sphinx.pycode import ModuleAnalyzer
@@ -25,10 +24,6 @@ def public_api() -> dict[str, list[str]]:
     for m in modules:
         for name in getattr(m, "__all__", ()):
             getattr(m, name)        # a room imports the module that holds the name
-            # a room's function named as its module (benchmarks.devtools.errors): importing the
-            # module bound the name to the module; the room's __getattr__ gives the function
-            if isinstance(m.__dict__.get(name), types.ModuleType) and "__getattr__" in m.__dict__:
-                setattr(m, name, m.__getattr__(name))
     return {m.__name__: list(m.__all__) for m in modules if hasattr(m, "__all__")}
 
 

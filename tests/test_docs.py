@@ -35,8 +35,7 @@ def test_the_site_builds_without_a_warning(site):
 @pytest.mark.needs("sphinx", "myst_parser", "furo")
 def test_the_reference_documents_every_public_name(site):
     # each package's page links a page per name of its __all__, and that page documents the
-    # name itself (a function named as its module, benchmarks.devtools.errors, is not the
-    # module)
+    # name itself, not a module of the same name
     import runpy
     run, html = site
     public_api = runpy.run_path(str(DOCS / "conf.py"))["public_api"]()

@@ -10,9 +10,9 @@ recommendation they give (:mod:`~benchmarks.devtools.work_precision`,
 from benchmarks._api import lazy_api
 
 __getattr__, __dir__, __all__ = lazy_api(__name__, {
-    "reference": ("reference", "Reference", "ReferenceDisagreement"),
-    "errors": ("errors", "ERROR_COLUMNS"),
-    "work_precision": ("work_precision", "study_problems", "recommend", "pareto_front",
+    "reference": ("Reference", "ReferenceDisagreement"),
+    "errors": ("ERROR_COLUMNS",),
+    "work_precision": ("study_problems", "recommend", "pareto_front",
                        "read_study", "QUICK", "FULL"),
     "recommendation": ("recommended",),
     "wp_files": ("write_work_precision",),

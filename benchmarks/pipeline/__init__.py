@@ -6,7 +6,6 @@ generated blocks (:mod:`~benchmarks.pipeline.readme`)."""
 from benchmarks._api import lazy_api
 
 __getattr__, __dir__, __all__ = lazy_api(__name__, {
-    "reproduce": ("reproduce",),
     "plan": ("studies", "study_named"),
     "readme": ("refresh",),
 })

@@ -6,6 +6,6 @@ from benchmarks._api import lazy_api
 
 __getattr__, __dir__, __all__ = lazy_api(__name__, {
     "files": ("BadResultsFile", "atomic_write", "read_table", "read_json_record"),
-    "provenance": ("provenance", "git_commit", "version_line"),
+    "provenance": ("git_commit", "version_line"),
     "report": ("markdown_table", "jsonable", "fmt"),
 })
