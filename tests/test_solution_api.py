@@ -2,6 +2,7 @@
 events resolved, ``to_dataframe()``, ``plot()``; ``rsfbench simulate --save``; the one line a
 first compile prints."""
 
+import dataclasses
 import json
 import types
 
@@ -10,7 +11,7 @@ import pandas as pd
 import pytest
 
 from benchmarks.cli import main
-from integrators import ETD2, RadauIIA5, Rodas5P, algorithm_class, solve
+from integrators import ETD2, RadauIIA5, Rodas5P, Stats, algorithm_class, solve
 from integrators.core import cache
 from problems import paper_example, window
 
@@ -152,3 +153,13 @@ def test_a_solution_pickles_and_interpolates_after(sol):
     import pickle
     back = pickle.loads(pickle.dumps(sol))
     assert back(sol.t[:3]).equals(sol(sol.t[:3]))
+
+
+def test_stats_is_a_frozen_value_whose_sum_adds_every_counter(sol):
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        sol.stats.nfev = 0
+    a = Stats(nfev=1, njev=2, steps=3, rejected=4, wall_s=0.5)
+    b = Stats(nfev=10, njev=20, steps=30, rejected=40, wall_s=0.25)
+    assert (a + b).as_dict() == {"nfev": 11, "njev": 22, "steps": 33, "rejected": 44,
+                                 "wall_s": 0.75}
+    assert sum([a, b, a], Stats()) == Stats(nfev=12, njev=24, steps=36, rejected=48, wall_s=1.25)

@@ -8,12 +8,14 @@ earliest with Brent's method, as ``solve_ivp`` does for its events.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 from scipy.optimize import brentq
 
 from integrators.core.events import AT_ROOT, DIRECTIONS, RootFunctions, sign_change
 from integrators.core.segments import Advance
-from integrators.core.solution import ReturnCode
+from integrators.core.solution import ReturnCode, Stats
 
 __all__ = ["DenseStepper"]
 
@@ -23,17 +25,23 @@ _EPS = 4 * np.finfo(float).eps
 class DenseStepper:
     """Adapter base: subclasses implement ``_new_solver(tau0, z0, e, t_bound)`` returning an
     object with ``step()``, ``status``, ``t``, ``t_old``, ``y`` and ``dense_output()``, and
-    ``_count(solver)`` adding its counters to ``self.stats``."""
+    ``_count(solver)`` returning its counters other than steps as a :class:`Stats`."""
 
-    def __init__(self, nd, stats, budget=None):
+    def __init__(self, nd, budget=None):
         self.nd = nd
-        self.stats = stats
         self.budget = budget        # checked inside long advances, not only between them
+        self.steps = 0              # accepted steps over the whole solve
+        self._counted = Stats()     # the finished solvers' counters
         self._solver = None
+
+    @property
+    def stats(self) -> Stats:
+        """The counters so far, summed over restarts (the live solver's once ``finish``ed)."""
+        return dataclasses.replace(self._counted, steps=self.steps)
 
     def start(self, tau0, z0, e, t_bound):
         if self._solver is not None:
-            self._count(self._solver)
+            self._counted += self._count(self._solver)
         self._e = e
         self._solver = self._new_solver(tau0, np.asarray(z0, float), e, t_bound)
         self._cursor, self._z_cursor = tau0, np.asarray(z0, float)
@@ -43,7 +51,7 @@ class DenseStepper:
 
     def finish(self):
         if self._solver is not None:
-            self._count(self._solver)
+            self._counted += self._count(self._solver)
             self._solver = None
 
     def _g_at(self, t):
@@ -65,8 +73,8 @@ class DenseStepper:
             if s.status != "running":      # reached t_bound
                 return Advance(self._cursor, self._z_cursor)
             message = s.step()
-            self.stats.steps += 1
-            if self.budget is not None and self.stats.steps % 100 == 0 and self.budget.exceeded():
+            self.steps += 1
+            if self.budget is not None and self.steps % 100 == 0 and self.budget.exceeded():
                 return Advance(s.t, s.y, retcode=ReturnCode.WALL_TIME,
                                message=f"wall-time budget of {self.budget.wall_s} s used up at "
                                        f"t = {s.t * self.nd.time_scale:.6g} s")

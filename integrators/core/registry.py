@@ -147,11 +147,13 @@ class AdaptiveAlgorithm(Algorithm):
         from integrators.core.segments import run_segments
         stepper = self.make_stepper(problem.nondimensional(), budget)
         try:
-            return run_segments(problem, stepper, output, budget, progress)
+            raw = run_segments(problem, stepper, output, budget, progress)
         finally:   # adapters that hold a library solver fold its counters in and release it
             finish = getattr(stepper, "finish", None)
             if finish is not None:
                 finish()
+        raw.stats = stepper.stats      # with the counters ``finish`` folded in
+        return raw
 
 
 def make_algorithm(name: str, rtol: float | None = None, atol: float | None = None,

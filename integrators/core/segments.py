@@ -7,7 +7,9 @@ A backend supplies a :class:`SegmentSolver`, a thin adapter over its library:
 * ``advance(t_out)`` — integrate towards ``t_out`` (≤ t_bound) and return an :class:`Advance`:
   either at ``t_out`` or earlier, at the first root of the four root functions of
   :mod:`integrators.core.events`, located by the library's own root finding;
-* ``stats`` — a :class:`Stats` whose counters the adapter keeps summed over restarts.
+* ``stats`` — the counters so far, a :class:`Stats` summed over restarts (a frozen value the
+  adapter replaces as it counts); an adapter with a ``finish()`` folds its live solver's
+  counters in there, so the run's are read after it (``AdaptiveAlgorithm.run``).
 
 The driver owns what is common: the loading state (a segment per piece of the load-point
 history, :func:`problems.loading.load_segment`; the overshoot after an event's end), the :class:`EventRecorder`, the save grid, progress and budgets, and the

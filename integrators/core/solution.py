@@ -65,16 +65,26 @@ class ReturnCode(enum.Enum):
         return self is ReturnCode.SUCCESS
 
 
-@dataclass
+@dataclass(frozen=True)
 class Stats:
     """Cost counters, summed over restarts. ``nfev`` counts right-hand-side evaluations (for ETD:
-    evaluations of the frozen coefficients, which cost the same as one right-hand side)."""
+    evaluations of the frozen coefficients, which cost the same as one right-hand side).
+
+    A value: ``a + b`` sums every counter (a run's are its segments' summed), and
+    ``dataclasses.replace`` sets one.
+    """
 
     nfev: int = 0
     njev: int = 0
     steps: int = 0
     rejected: int = 0
     wall_s: float = 0.0
+
+    def __add__(self, other: Stats) -> Stats:
+        if not isinstance(other, Stats):
+            return NotImplemented
+        return Stats(self.nfev + other.nfev, self.njev + other.njev, self.steps + other.steps,
+                     self.rejected + other.rejected, self.wall_s + other.wall_s)
 
     def as_dict(self) -> dict:
         return {"nfev": self.nfev, "njev": self.njev, "steps": self.steps,

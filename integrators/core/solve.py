@@ -127,7 +127,7 @@ def solve(problem: SpringSlider, algorithm: Algorithm, *, save_every: float | No
     finally:
         if bar:
             bar.close()
-    raw.stats.wall_s = time.perf_counter() - budget.start
+    raw.stats = dataclasses.replace(raw.stats, wall_s=time.perf_counter() - budget.start)
     return _solution(problem, algorithm, raw)
 
 

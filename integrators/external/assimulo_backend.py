@@ -68,7 +68,7 @@ class _Assimulo(AdaptiveAlgorithm):
         return f"assimulo {_VERSION}"
 
     def make_stepper(self, nd, budget):
-        return _AssimuloStepper(self, nd, Stats(), budget)
+        return _AssimuloStepper(self, nd, budget)
 
     def make_solver(self, nd, e, tau0, z0, link, steps_left: int):
         """The assimulo solver of one segment, its problem calling back into ``link``."""
@@ -158,8 +158,9 @@ class _AssimuloStepper:
     (``after_step``, ``on_event``), which answer requests and block for the next one.
     """
 
-    def __init__(self, algorithm: _Assimulo, nd, stats: Stats, budget=None):
-        self.algorithm, self.nd, self.stats, self.budget = algorithm, nd, stats, budget
+    def __init__(self, algorithm: _Assimulo, nd, budget=None):
+        self.algorithm, self.nd, self.budget = algorithm, nd, budget
+        self.stats = Stats()           # the finished simulations' counters
         self.steps = 0                 # accepted steps over the whole solve (the budget)
         self._thread = None
 
@@ -269,10 +270,9 @@ class _AssimuloStepper:
 
     def _count(self, sim):
         st = sim.get_statistics()
-        self.stats.nfev += int(st["nfcns"] + st["nfcnjacs"])
-        self.stats.njev += int(st["njacs"])
-        self.stats.steps += int(st["nsteps"])
-        self.stats.rejected += int(st["nerrfails"] + st["nnfails"])
+        self.stats += Stats(nfev=int(st["nfcns"] + st["nfcnjacs"]), njev=int(st["njacs"]),
+                            steps=int(st["nsteps"]),
+                            rejected=int(st["nerrfails"] + st["nnfails"]))
 
 
 #: library failure codes → return codes (CVODE/IDA flags, RADAU5/DOPRI5/RODAS IDID, LSODAR ISTATE)

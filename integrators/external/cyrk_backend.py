@@ -286,7 +286,7 @@ class _CyRK(AdaptiveAlgorithm):
         # the step budget)
         wasted, density = raw
         stepper = self.make_stepper(nd, budget)
-        stepper.stats.steps = wasted.steps
+        stepper.stats = Stats(steps=wasted.steps)
         stepper._counters[_NFEV], stepper._counters[_NJEV] = wasted.nfev, wasted.njev
         stepper._density = density
         try:
@@ -484,9 +484,9 @@ class _CyRKStepper:
             r = self._result = _call(self._rhs, t0, t1, z0, a.method, self._args, a.rtol, a.atol,
                                      min(cap, left))
             status, taken = int(r.status), int(r.steps_taken)
-            self.stats.steps += taken
-            self.stats.nfev = int(self._counters[_NFEV])
-            self.stats.njev = int(self._counters[_NJEV])
+            # the rhs cfunc counts into _counters over the whole solve; steps are per call
+            self.stats = Stats(nfev=int(self._counters[_NFEV]), njev=int(self._counters[_NJEV]),
+                               steps=self.stats.steps + taken)
             T = np.array(r.t)
             if taken > 0 and T[-1] > t0:
                 self._density = max(taken / (T[-1] - t0), 1e-300)

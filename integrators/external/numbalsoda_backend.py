@@ -23,6 +23,7 @@ numbalsoda: N. Wogan, https://github.com/Nicholaswogan/numbalsoda (LSODA.cpp).
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import importlib.metadata
 import importlib.util
@@ -502,9 +503,8 @@ class _LsodaStepper:
         te[:] = t_eval                      # a copy: _cut may write into it
         ok = self._lsoda(self._funcptr, np.ascontiguousarray(z0, dtype=float), te, self._buf,
                          a.rtol, a.atol, _MXSTEP, self._ubuf)
-        self.stats.nfev = int(d[_NFEV])
-        self.stats.njev = int(d[_NJEV])
-        self.stats.steps = int(d[_ATTEMPTS])
+        # the cfunc keeps the counters in the data array over the whole solve
+        self.stats = Stats(nfev=int(d[_NFEV]), njev=int(d[_NJEV]), steps=int(d[_ATTEMPTS]))
         n = _reached(self._ubuf, t_eval, d[_KILL_T])
         rows = self._ubuf[:n].copy()
         _reset(self._ubuf)
@@ -632,7 +632,7 @@ class _LsodaStepper:
         R = np.empty((4 * _N_SUB, 6))
         m, nfev = _sub_roots(self._q, ts, usol, self._G[k], self._G[k + 1], R)
         self._data[_NFEV] += nfev
-        self.stats.nfev = int(self._data[_NFEV])
+        self.stats = dataclasses.replace(self.stats, nfev=int(self._data[_NFEV]))
         roots = [(R[i, 0], int(R[i, 1]), int(R[i, 2]), R[i, 3:6].copy()) for i in range(m)]
         roots.sort(key=lambda r: r[0])
         queue_crossings(self._queue, roots)

@@ -294,10 +294,8 @@ class _CvodeStepper(_Stepper):
     def _close_segment(self):
         if self._live:
             info = self._solver.get_info()
-            self.stats.nfev += info["NumRhsEvals"]
-            self.stats.steps += info["NumSteps"]
-            self.stats.rejected += info["NumErrTestFails"]
-            self.stats.njev += self._njev
+            self.stats += Stats(nfev=info["NumRhsEvals"], njev=self._njev,
+                                steps=info["NumSteps"], rejected=info["NumErrTestFails"])
         self._seg_steps = self._njev = 0
         self._live = False
 
@@ -359,9 +357,7 @@ class _IdaStepper(_Stepper):
         return sol
 
     def _close_segment(self):
-        self.stats.steps += self._seg_steps
-        self.stats.nfev += self._nres
-        self.stats.njev += self._njev
+        self.stats += Stats(nfev=self._nres, njev=self._njev, steps=self._seg_steps)
         self._seg_steps = self._njev = self._nres = 0
         self._live = False
 

@@ -37,14 +37,14 @@ class _Scipy(AdaptiveAlgorithm):
         return f"scipy {scipy.__version__}"
 
     def make_stepper(self, nd, budget):
-        return _ScipyStepper(self, nd, Stats(), budget)
+        return _ScipyStepper(self, nd, budget)
 
 
 class _ScipyStepper(DenseStepper):
     """scipy ``OdeSolver`` under the segment protocol, with the step budget."""
 
-    def __init__(self, algorithm: _Scipy, nd, stats, budget):
-        super().__init__(nd, stats, budget)
+    def __init__(self, algorithm: _Scipy, nd, budget):
+        super().__init__(nd, budget)
         self.algorithm = algorithm
 
     def _new_solver(self, tau0, z0, e, t_bound):
@@ -54,11 +54,11 @@ class _ScipyStepper(DenseStepper):
         return a.method(form.f, tau0, z0, t_bound, rtol=a.rtol, atol=a.atol, **kw)
 
     def _count(self, solver):
-        self.stats.nfev += int(solver.nfev)
-        self.stats.njev += int(getattr(solver, "njev", 0) or 0)     # LSODA's is a numpy int32
+        return Stats(nfev=int(solver.nfev),
+                     njev=int(getattr(solver, "njev", 0) or 0))     # LSODA's is a numpy int32
 
     def advance(self, t_out):
-        if self.stats.steps >= self.algorithm.max_steps:
+        if self.steps >= self.algorithm.max_steps:
             return Advance(self._cursor, self._z_cursor, retcode=ReturnCode.MAX_STEPS,
                            message=f"step budget of {self.algorithm.max_steps} used up")
         return super().advance(t_out)

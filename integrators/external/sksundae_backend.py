@@ -73,10 +73,16 @@ class _OneStepper:
         self.algorithm = algorithm
         self.nd = nd
         self.budget = budget       # checked inside advance: one advance can be many steps
-        self.stats = Stats()
+        self.steps = 0                 # accepted steps over the whole solve
         self._solver = None
-        self._base = (0, 0)            # nfev, njev of the finished segments
+        self._base = Stats()           # the finished segments' nfev, njev
+        self._nfev = self._njev = 0    # the current segment's
         self._tier = algorithm.rhs
+
+    @property
+    def stats(self) -> Stats:
+        """The counters so far, summed over restarts."""
+        return self._base + Stats(nfev=self._nfev, njev=self._njev, steps=self.steps)
 
     # --- callbacks ------------------------------------------------------------------------------
 
@@ -173,7 +179,7 @@ class _OneStepper:
                 return self._interpolate(t_out)
             if self._tn >= t_out:
                 return self._interpolate(t_out)
-            if self.stats.steps >= a.max_steps:
+            if self.steps >= a.max_steps:
                 return Advance(self._t, self._z, retcode=ReturnCode.MAX_STEPS,
                                message=f"step budget of {a.max_steps} used up at "
                                        f"tau = {self._t:.9g}")
@@ -189,8 +195,6 @@ class _OneStepper:
             getattr(self._eventsfn, log, []).clear()
         res = self._solver.step(t, method=method, tstop=tstop)
         self._nfev, self._njev = int(res.nfev), int(res.njev)
-        self.stats.nfev = self._base[0] + self._nfev
-        self.stats.njev = self._base[1] + self._njev
         return res
 
     def _one_step(self) -> Advance | None:
@@ -203,7 +207,7 @@ class _OneStepper:
             if flag < 0:
                 return self._failed(flag, res)
             if self._nfev > before:            # a new internal step (only the first call)
-                self.stats.steps += 1
+                self.steps += 1
             t, z = float(res.t), np.array(res.y[:3], dtype=float)
             if flag == _ROOT:
                 signs = [int(x) for x in np.asarray(res.i_events)[-1]]
@@ -271,7 +275,7 @@ class _OneStepper:
 
     def _close_segment(self):
         if self._solver is not None:
-            self._base = (self.stats.nfev, self.stats.njev)
+            self._base += Stats(nfev=self._nfev, njev=self._njev)
         self._nfev = self._njev = 0
 
 

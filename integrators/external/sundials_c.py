@@ -516,12 +516,11 @@ class _Stepper:
     def _close_segment(self) -> None:
         """Fold the segment's counters in (a re-initialisation zeroes SUNDIALS' own)."""
         if self._live:
-            ns, s = self._ns, self.stats
-            s.steps += self._get(ns.GetNumSteps)
-            s.nfev += self._nfev()
-            s.rejected += self._get(ns.GetNumErrTestFails)
-            if ns.implicit:
-                s.njev += self._get(ns.GetNumJacEvals)
+            ns = self._ns
+            self.stats += Stats(nfev=self._nfev(),
+                                njev=self._get(ns.GetNumJacEvals) if ns.implicit else 0,
+                                steps=self._get(ns.GetNumSteps),
+                                rejected=self._get(ns.GetNumErrTestFails))
         self._live = False
 
     def _nfev(self) -> int:
