@@ -64,5 +64,14 @@ def constant_doc(app, what, name, obj, options, lines):
     lines[:] = []
 
 
+def clear_stubs(app):
+    """Delete the pages an earlier build's autosummary wrote into ``api/``: a name no longer in
+    an ``__all__`` would leave its page in no toctree (a warning, so a failed build). Runs
+    before autosummary writes them afresh (priority 100 < its 500)."""
+    for page in (Path(app.srcdir) / "api").glob("*.rst"):
+        page.unlink()
+
+
 def setup(app):
+    app.connect("builder-inited", clear_stubs, priority=100)
     app.connect("autodoc-process-docstring", constant_doc)
