@@ -33,7 +33,25 @@ __all__ = ["FrictionLaw", "SlipLaw", "AgingLaw", "NagataLaw", "LAWS", "law_from_
 
 @dataclass(frozen=True)
 class FrictionLaw:
-    """Common parameters of a rate-and-state law: a, b (dimensionless), Lc (m), v0 (m/s)."""
+    """Common parameters of a rate-and-state law: a, b (dimensionless), Lc (m), v0 (m/s).
+
+    Parameters
+    ----------
+    a : float
+        The direct effect (dimensionless, 0 < a < 1).
+    b : float
+        The evolution effect (dimensionless, 0 ≤ b < 1).
+    lc : float
+        The critical slip distance Lc (m, positive).
+    v0 : float
+        The reference slip rate (m/s, positive).
+
+    Raises
+    ------
+    ValueError
+        Naming a parameter out of its range (a value of 1 or more for a or b is refused as a
+        percentage).
+    """
 
     a: float
     b: float
@@ -99,7 +117,22 @@ class FrictionLaw:
 
 @dataclass(frozen=True)
 class SlipLaw(FrictionLaw):
-    """Slip (Ruina) law; the state θ is a force in newtons (Eqs. 6–7)."""
+    """Slip (Ruina) law; the state θ is a force in newtons (Eqs. 6–7).
+
+    Parameters
+    ----------
+    a, b : float
+        The direct and evolution effects (dimensionless).
+    lc : float
+        The critical slip distance Lc (m).
+    v0 : float
+        The reference slip rate (m/s).
+
+    Raises
+    ------
+    ValueError
+        As :class:`FrictionLaw`.
+    """
 
     name: ClassVar[str] = "slip"
     code: ClassVar[int] = 0
@@ -131,7 +164,22 @@ class SlipLaw(FrictionLaw):
 
 @dataclass(frozen=True)
 class AgingLaw(FrictionLaw):
-    """Aging (Dieterich) law; the state θ is a time in seconds (Eqs. 8–9)."""
+    """Aging (Dieterich) law; the state θ is a time in seconds (Eqs. 8–9).
+
+    Parameters
+    ----------
+    a, b : float
+        The direct and evolution effects (dimensionless).
+    lc : float
+        The critical slip distance Lc (m).
+    v0 : float
+        The reference slip rate (m/s).
+
+    Raises
+    ------
+    ValueError
+        As :class:`FrictionLaw`.
+    """
 
     name: ClassVar[str] = "aging"
     code: ClassVar[int] = 1
@@ -161,7 +209,24 @@ class NagataLaw(AgingLaw):
     """Nagata et al. (2012): the aging law's friction and state, whose evolution also weakens
     with the shear stress rate, dθ/dt = 1 − vθ/Lc − (c/b) θ dμ/dt (c dimensionless, ≥ 0; c = 0
     is the aging law). Steady sliding is the aging law's (θ = Lc/v); the quasi-static critical
-    stiffness is Fn (b − a)/(Lc (1 + c)) (:mod:`problems.stability`)."""
+    stiffness is Fn (b − a)/(Lc (1 + c)) (:mod:`problems.stability`).
+
+    Parameters
+    ----------
+    a, b : float
+        The direct and evolution effects (dimensionless; b > 0).
+    lc : float
+        The critical slip distance Lc (m).
+    v0 : float
+        The reference slip rate (m/s).
+    c : float
+        The stress-rate coefficient (dimensionless, ≥ 0; default 2).
+
+    Raises
+    ------
+    ValueError
+        As :class:`FrictionLaw`, for a negative c, or for b = 0.
+    """
 
     c: float = 2.0
 
@@ -188,7 +253,26 @@ LAWS: dict[str, type[FrictionLaw]] = {"slip": SlipLaw, "aging": AgingLaw, "nagat
 
 
 def law_from_name(name: str, **params) -> FrictionLaw:
-    """Build a law by its short name (``"slip"``, ``"aging"`` or ``"nagata"``)."""
+    """Build a law by its short name (``"slip"``, ``"aging"`` or ``"nagata"``).
+
+    Parameters
+    ----------
+    name : str
+        The law's short name, any case (:data:`LAWS`).
+    **params : float
+        The law's parameters by name (``a``, ``b``, ``lc`` in m, ``v0`` in m/s; ``c`` for
+        the Nagata law).
+
+    Returns
+    -------
+    FrictionLaw
+        An instance of the named law's class.
+
+    Raises
+    ------
+    ValueError
+        For an unknown name, a parameter the law does not have, or a value it refuses.
+    """
     try:
         cls = LAWS[name.lower()]
     except (KeyError, AttributeError):

@@ -55,6 +55,26 @@ class LoadHistory:
     ``overshoot_velocity``/``overshoot_duration``: after each event ends, the load point runs at
     that velocity for that long (s) instead (0 duration: no overshoot). ``reference_velocity``:
     the event thresholds' v_slow (default: the largest velocity of the history).
+
+    Parameters
+    ----------
+    velocities : tuple of float
+        The load-point velocity of each piece (m/s, ≥ 0, at least one positive).
+    switch_times : tuple of float
+        The times the velocity switches (s, positive, strictly increasing); one fewer than
+        ``velocities``.
+    overshoot_velocity : float
+        The load point's velocity after each event (m/s; positive when
+        ``overshoot_duration`` is).
+    overshoot_duration : float
+        How long the overshoot lasts (s, ≥ 0; 0 is none).
+    reference_velocity : float, optional
+        The event thresholds' v_slow (m/s); ``None`` takes the largest of ``velocities``.
+
+    Raises
+    ------
+    ValueError
+        Naming the field that is out of range or inconsistent with the others.
     """
 
     velocities: tuple[float, ...]
@@ -140,7 +160,18 @@ class LoadHistory:
 
 @dataclass(frozen=True)
 class ConstantLoading:
-    """The load point moves at a constant velocity ``vl`` (m/s)."""
+    """The load point moves at a constant velocity ``vl`` (m/s).
+
+    Parameters
+    ----------
+    vl : float
+        The load-point velocity (m/s, positive).
+
+    Raises
+    ------
+    ValueError
+        For a velocity that is not positive.
+    """
 
     vl: float
 
@@ -175,6 +206,20 @@ class TwoSpeedLoading:
 
     Velocities in m/s, ``df`` in s (Table 2 of the paper). As a history: one piece at ``vls``
     and an overshoot at ``vlf`` for ``df`` (none when ``df`` is 0 or ``vlf`` equals ``vls``).
+
+    Parameters
+    ----------
+    vls : float
+        The slow load-point velocity (m/s, positive).
+    vlf : float
+        The overshoot's velocity after each event (m/s, positive).
+    df : float
+        The overshoot's duration (s, ≥ 0).
+
+    Raises
+    ------
+    ValueError
+        Naming a value out of range.
     """
 
     vls: float
@@ -216,7 +261,25 @@ LOADINGS = (ConstantLoading, TwoSpeedLoading, LoadHistory)
 
 def velocity_step(v1: float, v2: float, t_step: float) -> LoadHistory:
     """The load point at ``v1`` (m/s) until ``t_step`` (s), then at ``v2``: the standard
-    velocity-step test (up when v2 > v1, down when v2 < v1)."""
+    velocity-step test (up when v2 > v1, down when v2 < v1).
+
+    Parameters
+    ----------
+    v1, v2 : float
+        The load-point velocities before and after the step (m/s, positive).
+    t_step : float
+        The time of the step (s, positive).
+
+    Returns
+    -------
+    LoadHistory
+        Two pieces, one switch.
+
+    Raises
+    ------
+    ValueError
+        For a velocity or time that is not positive.
+    """
     check_positive("v1", v1)
     check_positive("v2", v2)
     return LoadHistory((float(v1), float(v2)), (float(check_positive("t_step", t_step)),))
@@ -226,7 +289,29 @@ def slide_hold_slide(v: float, holds, slide: float, first_slide: float | None = 
     """A slide-hold-slide sequence: slide at ``v`` (m/s) for ``first_slide`` s (default
     ``slide``), then for each hold time in ``holds`` (s) hold the load point at rest and slide
     again for ``slide`` s. Each reloading's peak spring force against log hold time is the
-    healing (:func:`benchmarks.lab.measures.healing`)."""
+    healing (:func:`benchmarks.lab.measures.healing`).
+
+    Parameters
+    ----------
+    v : float
+        The sliding velocity (m/s, positive).
+    holds : sequence of float
+        The hold times (s, positive), in order; at least one.
+    slide : float
+        The duration of each slide after a hold (s, positive).
+    first_slide : float, optional
+        The duration of the first slide (s); ``None`` takes ``slide``.
+
+    Returns
+    -------
+    LoadHistory
+        Velocities v, 0, v, 0, …, v switching at each hold's start and end.
+
+    Raises
+    ------
+    ValueError
+        For an empty or non-sequence ``holds``, or a time or velocity that is not positive.
+    """
     check_positive("v", v)
     check_positive("slide", slide)
     first = slide if first_slide is None else check_positive("first_slide", first_slide)
@@ -247,7 +332,18 @@ def slide_hold_slide(v: float, holds, slide: float, first_slide: float | None = 
 
 
 def event_thresholds(loading) -> tuple[float, float]:
-    """(start, end) slip-rate thresholds of an event in m/s: (10·vLs, vLs)."""
+    """(start, end) slip-rate thresholds of an event in m/s: (10·vLs, vLs).
+
+    Parameters
+    ----------
+    loading : ConstantLoading, TwoSpeedLoading or LoadHistory
+        The loading whose ``v_slow`` (m/s) is vLs.
+
+    Returns
+    -------
+    tuple of float
+        An event starts when v exceeds the first (m/s) and ends when v falls to the second.
+    """
     return EVENT_START_FACTOR * loading.v_slow, loading.v_slow
 
 

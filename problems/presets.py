@@ -82,6 +82,16 @@ def aging_best_fit(w: Window) -> tuple[float, float]:
     """(b, Lc) of the aging-law best fit, solved from Table 3's κ and the nucleation length Lb.
 
     Lc/b = Lb (1 − ν) σn / G and Lc/(b − a) = κ Fn / k give b = r2 a/(r2 − r1), Lc = r1 b.
+
+    Parameters
+    ----------
+    w : Window
+        One of :data:`WINDOWS`.
+
+    Returns
+    -------
+    tuple of float
+        b (dimensionless) and Lc (m).
     """
     r1 = w.nucleation_length * (1.0 - POISSON_RATIO) * NORMAL_STRESS / SHEAR_MODULUS
     r2 = w.kappa_aging * NORMAL_FORCE / w.stiffness
@@ -230,7 +240,37 @@ def velocity_step_test(law: str = "aging", v1: float = 1e-6, v2: float = 1e-5,
                        stiffness: float | None = None) -> SpringSlider:
     """A velocity step on the laboratory apparatus of :data:`LAB`: steady sliding at ``v1`` (m/s)
     until ``t_step`` (s), then the load point at ``v2``; quasi-static by default (``mass`` 0),
-    as in Marone's code and rsfmodel. ``c``: the Nagata law's stress coefficient."""
+    as in Marone's code and rsfmodel. ``c``: the Nagata law's stress coefficient.
+
+    Parameters
+    ----------
+    law : str
+        The friction law's short name: ``"slip"``, ``"aging"`` or ``"nagata"``.
+    v1, v2 : float
+        The load-point velocities before and after the step (m/s).
+    t_step : float
+        The time of the step (s).
+    t_end : float
+        The end of the run (s).
+    mass : float
+        The slider's mass (kg; 0 is quasi-static).
+    radiation_damping : float
+        ηr (N s/m).
+    c : float, optional
+        The Nagata law's stress coefficient (dimensionless); ``None`` keeps its default.
+    stiffness : float, optional
+        The spring's stiffness (N/m); ``None`` takes :data:`LAB`'s.
+
+    Returns
+    -------
+    SpringSlider
+        Started from :class:`BalancedStart` (1.0): steady sliding at ``v1``.
+
+    Raises
+    ------
+    ValueError
+        For an unknown law, or a value the loading or the problem refuses.
+    """
     from problems.loading import velocity_step
     return _lab_slider(law, velocity_step(v1, v2, t_step), t_end,
                        f"velocity-step/{law}", mass, radiation_damping, c, stiffness)
@@ -243,7 +283,37 @@ def slide_hold_slide_test(law: str = "aging", holds=(1.0, 3.0, 10.0, 30.0, 100.0
                           stiffness: float | None = None) -> SpringSlider:
     """A slide-hold-slide sequence on the apparatus of :data:`LAB`: steady sliding at ``v``
     (m/s) for ``first_slide`` s, then each hold of ``holds`` (s) followed by ``slide`` s of
-    sliding at ``v``. The run ends at the end of the last slide."""
+    sliding at ``v``. The run ends at the end of the last slide.
+
+    Parameters
+    ----------
+    law : str
+        The friction law's short name: ``"slip"``, ``"aging"`` or ``"nagata"``.
+    holds : sequence of float
+        The hold times (s).
+    v : float
+        The sliding velocity (m/s).
+    slide, first_slide : float
+        The duration of each slide after a hold, and of the first slide (s).
+    mass : float
+        The slider's mass (kg; 0 is quasi-static).
+    radiation_damping : float
+        ηr (N s/m).
+    c : float, optional
+        The Nagata law's stress coefficient (dimensionless); ``None`` keeps its default.
+    stiffness : float, optional
+        The spring's stiffness (N/m); ``None`` takes :data:`LAB`'s.
+
+    Returns
+    -------
+    SpringSlider
+        Started from :class:`BalancedStart` (1.0): steady sliding at ``v``.
+
+    Raises
+    ------
+    ValueError
+        For an unknown law, or a value the loading or the problem refuses.
+    """
     from problems.loading import slide_hold_slide
     loading = slide_hold_slide(v, holds, slide, first_slide)
     t_end = first_slide + sum(holds) + slide * len(holds)

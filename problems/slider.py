@@ -46,7 +46,22 @@ TAU_END_MAX = 1e12
 
 @dataclass(frozen=True)
 class InitialState:
-    """Initial slip rate ``v`` (m/s), state ``theta`` (the law's units) and spring force ``fs`` (N)."""
+    """Initial slip rate ``v`` (m/s), state ``theta`` (the law's units) and spring force ``fs`` (N).
+
+    Parameters
+    ----------
+    v : float
+        The slip rate (m/s, positive).
+    theta : float
+        The state, in the law's unit (N for the slip law, s for the aging and Nagata laws).
+    fs : float
+        The spring force (N).
+
+    Raises
+    ------
+    ValueError
+        For a slip rate that is not positive, or a state or force that is not finite.
+    """
 
     v: float
     theta: float
@@ -62,7 +77,30 @@ class InitialState:
 def steady_initial_state(law: FrictionLaw, fn: float, mu0: float, v_ss: float,
                          v: float | None = None) -> InitialState:
     """Steady sliding at ``v_ss`` (state and spring force at their steady values), optionally
-    started at another slip rate ``v`` to perturb it."""
+    started at another slip rate ``v`` to perturb it.
+
+    Parameters
+    ----------
+    law : FrictionLaw
+        The friction law.
+    fn : float
+        The normal force (N).
+    mu0 : float
+        The reference friction coefficient F0/Fn (dimensionless).
+    v_ss : float
+        The steady sliding speed the state and spring force belong to (m/s).
+    v : float, optional
+        The initial slip rate (m/s); ``None`` takes ``v_ss``.
+
+    Returns
+    -------
+    InitialState
+
+    Raises
+    ------
+    ValueError
+        For a slip rate that is not positive.
+    """
     f0 = mu0 * fn
     return InitialState(v=v_ss if v is None else v, theta=law.steady_state(v_ss, fn),
                         fs=float(law.steady_friction(v_ss, fn, f0)))
@@ -72,7 +110,32 @@ def balanced_initial_state(law: FrictionLaw, fn: float, mu0: float, v: float,
                            theta: float, damping: float = 0.0) -> InitialState:
     """Slip rate ``v`` and state ``theta`` with the spring force balancing friction and
     radiation damping ``damping`` (Fs = Ft + ηr v, so dv/dt = 0): a start on the slow manifold,
-    with no fast initial layer (and the only consistent start without mass)."""
+    with no fast initial layer (and the only consistent start without mass).
+
+    Parameters
+    ----------
+    law : FrictionLaw
+        The friction law.
+    fn : float
+        The normal force (N).
+    mu0 : float
+        The reference friction coefficient F0/Fn (dimensionless).
+    v : float
+        The slip rate (m/s).
+    theta : float
+        The state, in the law's unit (N for the slip law, s for the aging and Nagata laws).
+    damping : float
+        The radiation damping ηr (N s/m).
+
+    Returns
+    -------
+    InitialState
+
+    Raises
+    ------
+    ValueError
+        For a slip rate that is not positive.
+    """
     return InitialState(v=v, theta=theta,
                         fs=float(law.friction(v, theta, fn, mu0 * fn)) + damping * v)
 
@@ -86,6 +149,17 @@ class BalancedStart:
 
     A rule, not values: it is resolved against the problem's own law, normal force, μ0 and
     loading, so a variant with other friction parameters starts from the same rule.
+
+    Parameters
+    ----------
+    slowdown : float
+        The state is steady sliding's at the initial slip rate divided by this (dimensionless,
+        positive; default 1.1).
+
+    Raises
+    ------
+    ValueError
+        For a slowdown that is not positive.
     """
 
     slowdown: float = 1.1
@@ -145,6 +219,35 @@ class Nondimensional(NamedTuple):
     slow phase changes by O(1) (half an inertial period π/√C with mass; without, the shortest of
     the time to load one Lc at the fastest load-point speed, the relaxation time 1/(K E) there
     and R/K), which backends without dense root finding use to space their scans.
+
+    Parameters
+    ----------
+    law_code : int
+        The law's code (0 slip, 1 aging, 2 Nagata).
+    beta : float
+        β = b/a (dimensionless).
+    c, d, g : float
+        The coefficients C, D, G with mass, K, 0, R without (dimensionless).
+    e_slow, e_fast : float
+        vL/v0 of the reference velocity and of the overshoot (dimensionless).
+    tau_fast, tau_end : float
+        The overshoot's duration and the end of the run, in τ = v0 t/Lc.
+    x0 : numpy.ndarray
+        The initial (h, η, Ψ), read-only.
+    time_scale : float
+        Seconds per unit of τ: Lc/v0 (s).
+    force_h : float
+        Newtons per unit of h: k Lc (N).
+    force_eta : float
+        Newtons per unit of η: A = a Fn (N).
+    quasi_static : bool
+        No mass: the force balance is algebraic.
+    law_param : float
+        The law's own parameter γ (dimensionless; 0 for the slip and aging laws).
+    history : numpy.ndarray, optional
+        The loading's compiled form.
+    grid_tau : float
+        The time over which the slow phase changes by O(1), in τ.
     """
 
     law_code: int
@@ -185,6 +288,37 @@ class SpringSlider:
     :class:`BalancedStart`, resolved against this problem's law and loading
     (:attr:`initial_state`). ``mu0`` = F0/Fn is the reference friction coefficient at v0; it only
     shifts the friction level (Urata et al. 2017, Sect. 4.1).
+
+    Parameters
+    ----------
+    mass : float
+        The slider's mass (kg, ≥ 0; 0 is the quasi-static limit).
+    stiffness : float
+        The spring's stiffness k (N/m, positive).
+    normal_force : float
+        The normal force Fn (N, positive).
+    law : FrictionLaw
+        :class:`SlipLaw`, :class:`AgingLaw` or :class:`NagataLaw`.
+    loading : ConstantLoading, TwoSpeedLoading or LoadHistory
+        The load point's velocity protocol.
+    initial : InitialState or BalancedStart
+        The initial state, or the rule that gives it.
+    t_end : float
+        The end of the run (s, positive; every switch of the loading before it).
+    mu0 : float
+        The reference friction coefficient F0/Fn at v0 (dimensionless, ≥ 0).
+    name : str
+        A label for tables and plots.
+    radiation_damping : float
+        ηr (N s/m, ≥ 0).
+
+    Raises
+    ------
+    ValueError
+        At construction, naming the field: a value out of its range, a law or loading of
+        another class, an initial state that is not positive for an aging-type law, or without
+        mass one whose spring force does not balance friction, a switch at or after ``t_end``,
+        or a ``t_end`` too long for double precision in τ.
     """
 
     mass: float
@@ -380,7 +514,18 @@ def variant_fields(problem: SpringSlider) -> tuple[str, ...]:
     such as the Nagata law's c); the problem's mass, stiffness, normal_force, mu0, t_end,
     radiation_damping; its loading's scalars: vl (constant), vls, vlf, df (two speeds), the
     overshoot of a history; a :class:`BalancedStart`'s slowdown, or an :class:`InitialState`'s
-    v, theta, fs as initial_v, initial_theta, initial_fs."""
+    v, theta, fs as initial_v, initial_theta, initial_fs.
+
+    Parameters
+    ----------
+    problem : SpringSlider
+        The problem whose fields are listed.
+
+    Returns
+    -------
+    tuple of str
+        The field names, law's first.
+    """
     initial = (("slowdown",) if isinstance(problem.initial, BalancedStart)
                else ("initial_v", "initial_theta", "initial_fs"))
     return (_scalar_fields(problem.law) + _PROBLEM_FIELDS + _scalar_fields(problem.loading)

@@ -33,7 +33,22 @@ def characteristic_polynomial(problem: SpringSlider, v: float | None = None,
                               stiffness: float | None = None) -> np.ndarray:
     """Coefficients (highest power first) of the characteristic polynomial at steady sliding
     speed ``v`` (default: the load speed at the end of the run, ``steady_velocity``), at
-    ``stiffness`` (default: the problem's)."""
+    ``stiffness`` (default: the problem's).
+
+    Parameters
+    ----------
+    problem : SpringSlider
+        The problem linearised.
+    v : float, optional
+        The steady sliding speed (m/s); ``None`` takes ``problem.steady_velocity``.
+    stiffness : float, optional
+        The spring's stiffness (N/m); ``None`` takes the problem's.
+
+    Returns
+    -------
+    numpy.ndarray
+        Four coefficients, of s³ down to s⁰ (the s³ one is 0 without mass).
+    """
     law, fn, v = problem.law, problem.normal_force, _velocity(problem, v)
     m, eta = problem.mass, problem.radiation_damping
     k = problem.stiffness if stiffness is None else stiffness
@@ -44,7 +59,20 @@ def characteristic_polynomial(problem: SpringSlider, v: float | None = None,
 
 def critical_stiffness(problem: SpringSlider, v: float | None = None) -> float:
     """kcr (N/m) at steady sliding speed ``v`` (default: ``steady_velocity``): the stiffness
-    at which the Routh–Hurwitz condition a2 a1 > a3 a0 of the polynomial turns."""
+    at which the Routh–Hurwitz condition a2 a1 > a3 a0 of the polynomial turns.
+
+    Parameters
+    ----------
+    problem : SpringSlider
+        The problem linearised.
+    v : float, optional
+        The steady sliding speed (m/s); ``None`` takes ``problem.steady_velocity``.
+
+    Returns
+    -------
+    float
+        kcr (N/m); zero or negative when steady sliding is stable at every stiffness.
+    """
     law, fn, v = problem.law, problem.normal_force, _velocity(problem, v)
     m, eta = problem.mass, problem.radiation_damping
     A, B, lam, c = law.a * fn, law.b * fn, v / law.lc, law.stress_coefficient
@@ -55,7 +83,25 @@ def critical_stiffness(problem: SpringSlider, v: float | None = None) -> float:
 
 def neutral_frequency(problem: SpringSlider, v: float | None = None) -> float:
     """Angular frequency ω (rad/s) of the neutrally stable oscillation at k = kcr: there the
-    polynomial is (s² + ω²)(a3 s + a2), so ω² = a0/a2."""
+    polynomial is (s² + ω²)(a3 s + a2), so ω² = a0/a2.
+
+    Parameters
+    ----------
+    problem : SpringSlider
+        The problem linearised.
+    v : float, optional
+        The steady sliding speed (m/s); ``None`` takes ``problem.steady_velocity``.
+
+    Returns
+    -------
+    float
+        ω (rad/s).
+
+    Raises
+    ------
+    ValueError
+        When kcr ≤ 0: steady sliding is stable at every stiffness.
+    """
     v = _velocity(problem, v)
     kcr = critical_stiffness(problem, v)
     if not kcr > 0:
@@ -67,7 +113,20 @@ def neutral_frequency(problem: SpringSlider, v: float | None = None) -> float:
 
 
 def characteristic_roots(problem: SpringSlider, v: float | None = None) -> np.ndarray:
-    """Roots s (1/s) of the characteristic polynomial; Re s > 0 means unstable steady sliding."""
+    """Roots s (1/s) of the characteristic polynomial; Re s > 0 means unstable steady sliding.
+
+    Parameters
+    ----------
+    problem : SpringSlider
+        The problem linearised.
+    v : float, optional
+        The steady sliding speed (m/s); ``None`` takes ``problem.steady_velocity``.
+
+    Returns
+    -------
+    numpy.ndarray
+        Three complex roots with mass, two without (1/s).
+    """
     coeffs = characteristic_polynomial(problem, v)
     return np.roots(coeffs if coeffs[0] != 0 else coeffs[1:])
 
@@ -81,7 +140,20 @@ def growth_rate(problem: SpringSlider, v: float | None = None) -> float:
     mass or stiffness near the float limits; without its cubic term when μ is below the
     round-off of the next one (the inertial root −(μ + 1)/μ is then beyond any other). The
     complex pair's real part comes from the sum of the roots (−p2/p3 = r + 2 Re), with the real
-    root r polished by Newton: np.roots rounds Re away beside a huge Im (k → ∞)."""
+    root r polished by Newton: np.roots rounds Re away beside a huge Im (k → ∞).
+
+    Parameters
+    ----------
+    problem : SpringSlider
+        The problem linearised.
+    v : float, optional
+        The steady sliding speed (m/s); ``None`` takes ``problem.steady_velocity``.
+
+    Returns
+    -------
+    float
+        max Re s (1/s); NaN when the roots are not finite.
+    """
     law = problem.law
     v = _velocity(problem, v)
     A, lam = law.a * problem.normal_force, v / law.lc
