@@ -57,6 +57,8 @@ class Algorithm:
     registered class), the ``code`` if set, "compiled", "adaptive" or "fixed-step", "stiff",
     "dense-output" (``saves_at_times``), "events" (``locates_events``) and "dae" where true.
     A new method gets its tags by declaring its facts; no class sets ``tags`` itself.
+
+    The base class takes no options; each method's class lists its own under ``Parameters``.
     """
 
     name: ClassVar[str] = ""
@@ -159,7 +161,30 @@ class AdaptiveAlgorithm(Algorithm):
 def make_algorithm(name: str, rtol: float | None = None, atol: float | None = None,
                    rhs: str | None = None, **options) -> Algorithm:
     """Build a registry entry from CLI-style options, with a clear error for options the method
-    does not take (a fixed-step method has no tolerances, an adaptive one needs both)."""
+    does not take (a fixed-step method has no tolerances, an adaptive one needs both).
+
+    Parameters
+    ----------
+    name : str
+        The registry name, any case (``"Rodas5P"``, ``"scipy-LSODA"``).
+    rtol, atol : float, optional
+        The tolerances of an adaptive method (dimensionless; a fixed-step method refuses them).
+    rhs : str, optional
+        The right-hand side's tier of an adaptive method: ``"numba"`` or ``"python"``.
+    **options
+        The method's other options by name (``dtau_max``, ``max_steps``, …).
+
+    Returns
+    -------
+    Algorithm
+        An instance of the named class.
+
+    Raises
+    ------
+    ValueError
+        For an unknown or unavailable name, an option the method does not take, or a value it
+        refuses.
+    """
     cls = algorithm_class(name)
     given = dict(options)
     if cls.adaptive:
@@ -275,7 +300,24 @@ RTOL_MIN = 100 * 2.0 ** -52
 
 def register(cls: type[Algorithm]) -> type[Algorithm]:
     """Class decorator: enter ``cls`` in :data:`REGISTRY` under ``cls.name``
-    (:meth:`Registry.register`)."""
+    (:meth:`Registry.register`).
+
+    Parameters
+    ----------
+    cls : type
+        A subclass of :class:`Algorithm` with its ``name``, ``package`` and ``kind`` set.
+
+    Returns
+    -------
+    type
+        ``cls`` itself.
+
+    Raises
+    ------
+    ValueError
+        For a class without a name, a name registered already, or a ``package``, ``kind`` or
+        ``code`` outside :data:`LIBRARIES`, :data:`KINDS`, :data:`CODES`.
+    """
     return REGISTRY.register(cls)
 
 
@@ -293,7 +335,24 @@ def filter_by_tags(algorithms, *tags: str, exclude=()) -> list:
 
 def algorithm_class(name: str) -> type[Algorithm]:
     """Registry lookup, case-insensitive, with the known names in the error; imports only the
-    module that registers ``name``."""
+    module that registers ``name``.
+
+    Parameters
+    ----------
+    name : str
+        The registry name, any case.
+
+    Returns
+    -------
+    type
+        The :class:`Algorithm` subclass.
+
+    Raises
+    ------
+    ValueError
+        For an unknown name (listing the known ones), or one whose library did not import
+        (with the reason and how to install it).
+    """
     for key in REGISTRY.names():
         if isinstance(name, str) and key.lower() == name.lower():
             try:

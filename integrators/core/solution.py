@@ -72,6 +72,19 @@ class Stats:
 
     A value: ``a + b`` sums every counter (a run's are its segments' summed), and
     ``dataclasses.replace`` sets one.
+
+    Parameters
+    ----------
+    nfev : int
+        Right-hand-side evaluations.
+    njev : int
+        Jacobian evaluations.
+    steps : int
+        Accepted steps.
+    rejected : int
+        Rejected steps (for ETD: steps redone).
+    wall_s : float
+        Wall time of the run (s).
     """
 
     nfev: int = 0
@@ -99,6 +112,21 @@ class Output:
     saved points (default :data:`SAVE_LIMIT`), so a typo cannot fill the memory.
 
     Events are always recorded exactly, whatever the decimation.
+
+    Parameters
+    ----------
+    save_every : float, optional
+        The save interval (s, positive).
+    max_points : int, optional
+        The saved points in all, or with ``save_every`` their cap (≥ 2).
+    save_at : numpy.ndarray, optional
+        The save times (s), increasing, within the run.
+
+    Raises
+    ------
+    ValueError
+        From :meth:`interval` and :meth:`times`, which check the options before any work: an
+        interval that is not positive, fewer than 2 points, more than ``max_points``.
     """
 
     save_every: float | None = None
@@ -191,6 +219,29 @@ class Solution:
     ``event_array`` (the same table as a float array, one column per name: what a loop over
     many solves should read). ``meta`` holds a method's own diagnostics (the ETD family:
     ``step_rule_max``, the largest slip of a step over what its step rule allows).
+
+    Parameters
+    ----------
+    problem : SpringSlider
+        The problem solved.
+    algorithm : Algorithm
+        The method and its options.
+    t : numpy.ndarray
+        The saved times (s).
+    v, fs, ft, theta : numpy.ndarray
+        Slip rate (m/s), spring force (N), friction (N) and state (the law's unit) at ``t``.
+    event_array : numpy.ndarray
+        The events, one row each, one column per name of :data:`EVENT_COLUMNS` (SI units).
+    stats : Stats
+        The run's cost counters.
+    retcode : ReturnCode
+        The outcome.
+    message : str
+        What happened, in words (empty on success).
+    meta : dict
+        The method's own diagnostics.
+    rerun : callable, optional
+        Repeats the solve saving at given times (s); set by :func:`~integrators.solve`.
     """
 
     problem: object

@@ -24,7 +24,15 @@ __all__ = ["solve", "Budget", "compile_ahead", "short_piece"]
 
 @dataclass
 class Budget:
-    """Wall-time budget of one solve (``None``: unlimited), checked by the backends as they go."""
+    """Wall-time budget of one solve (``None``: unlimited), checked by the backends as they go.
+
+    Parameters
+    ----------
+    wall_s : float, optional
+        The budget (s); ``None`` is unlimited.
+    start : float
+        The ``time.perf_counter()`` value the budget counts from (s).
+    """
 
     wall_s: float | None = None
     start: float = 0.0
@@ -158,7 +166,24 @@ def compile_ahead(problem: SpringSlider, algorithm: Algorithm, fraction: float =
     is read (three saved points: one between steps, from the dense output). ``wall_budget``
     bounds the piece's run, not its compiling (a budget is first checked after the kernels
     ran), so a setting that crawls cannot hang the warm-up. Its outcome is not looked at: the
-    real run reports its own."""
+    real run reports its own.
+
+    Parameters
+    ----------
+    problem : SpringSlider
+        The problem the real run will solve.
+    algorithm : Algorithm
+        The method and options the real run will use.
+    fraction : float
+        The part of the run the piece covers (dimensionless, default 1e-3).
+    wall_budget : float, optional
+        Bounds the piece's run, not its compiling (s).
+
+    Raises
+    ------
+    ValueError
+        As :func:`solve`, for arguments it refuses.
+    """
     solve(short_piece(problem, fraction), algorithm, max_points=3, wall_budget=wall_budget)
 
 

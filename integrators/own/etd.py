@@ -303,7 +303,31 @@ def _events_si(problem, nd, ev: np.ndarray) -> np.ndarray:
 @dataclass(frozen=True)
 class ETD1(_ETD):
     """First-order ETD: one step with coefficients frozen at its start (the starred values,
-    Eqs. 33–41). Order 1, fixed step rule (Eq. 53)."""
+    Eqs. 33–41). Order 1, fixed step rule (Eq. 53).
+
+    Parameters
+    ----------
+    dtau_max : float
+        Δτmax of the step rule Δτ = min(Δτmax, Δτcnst·vmax/v), in τ = v0 t/Lc (default 0.01).
+    dtau_cnst : float
+        Δτcnst of the step rule, in τ (default 1e-5).
+    v_max : float
+        vmax of the step rule (m/s, default 0.05).
+    max_steps : int
+        The step budget over the whole solve (retcode ``MaxSteps`` when used up).
+    rule_ratio_max : float
+        A step's slip over what Eq. 53 allows, at the fastest state it evaluated, above which
+        the run stops ``Unresolved`` (≥ 1, default 100).
+    load_max : float
+        The spring force a step may add, in units of A = a·Fn (default 0.1).
+
+    Raises
+    ------
+    ValueError
+        For an option out of range (at construction); :class:`ProblemNotSupported` from
+        :func:`~integrators.solve` for a problem without mass, or a step that would slip more
+        than 0.5 Lc or be too long at steady sliding.
+    """
 
     name: ClassVar[str] = "ETD1"
     order: ClassVar[int] = 1
@@ -315,7 +339,31 @@ class ETD1(_ETD):
 class ETD2(_ETD):
     """The paper's second-order ETD: half a step with the coefficients at the start, half with
     them re-evaluated at the first-order end values (Eqs. 42–52). Order 2 when the fast mode
-    is resolved, order 1 on the stiff stick–slip problem (see the module docstring)."""
+    is resolved, order 1 on the stiff stick–slip problem (see the module docstring).
+
+    Parameters
+    ----------
+    dtau_max : float
+        Δτmax of the step rule Δτ = min(Δτmax, Δτcnst·vmax/v), in τ = v0 t/Lc (default 0.01).
+    dtau_cnst : float
+        Δτcnst of the step rule, in τ (default 1e-5).
+    v_max : float
+        vmax of the step rule (m/s, default 0.05).
+    max_steps : int
+        The step budget over the whole solve (retcode ``MaxSteps`` when used up).
+    rule_ratio_max : float
+        A step's slip over what Eq. 53 allows, at the fastest state it evaluated, above which
+        the run stops ``Unresolved`` (≥ 1, default 100).
+    load_max : float
+        The spring force a step may add, in units of A = a·Fn (default 0.1).
+
+    Raises
+    ------
+    ValueError
+        For an option out of range (at construction); :class:`ProblemNotSupported` from
+        :func:`~integrators.solve` for a problem without mass, or a step that would slip more
+        than 0.5 Lc or be too long at steady sliding.
+    """
 
     name: ClassVar[str] = "ETD2"
     order: ClassVar[int] = 2
@@ -331,7 +379,33 @@ class ETDIterated(_ETD):
     fast mode is resolved. On the stiff stick–slip problem ``n_iterations`` >= 2 removes ETD2's
     one-step lag (errors ~70× smaller at the paper's steps, 1 + ``n_iterations`` evaluations
     per step) but meets the frozen-target error floor (module docstring): no asymptotic order
-    there, ``stiff_order = 0``."""
+    there, ``stiff_order = 0``.
+
+    Parameters
+    ----------
+    dtau_max : float
+        Δτmax of the step rule Δτ = min(Δτmax, Δτcnst·vmax/v), in τ = v0 t/Lc (default 0.01).
+    dtau_cnst : float
+        Δτcnst of the step rule, in τ (default 1e-5).
+    v_max : float
+        vmax of the step rule (m/s, default 0.05).
+    max_steps : int
+        The step budget over the whole solve (retcode ``MaxSteps`` when used up).
+    rule_ratio_max : float
+        A step's slip over what Eq. 53 allows, at the fastest state it evaluated, above which
+        the run stops ``Unresolved`` (≥ 1, default 100).
+    load_max : float
+        The spring force a step may add, in units of A = a·Fn (default 0.1).
+    n_iterations : int
+        How many times the second half-step is re-evaluated (≥ 1; default 2).
+
+    Raises
+    ------
+    ValueError
+        For an option out of range (at construction); :class:`ProblemNotSupported` from
+        :func:`~integrators.solve` for a problem without mass, or a step that would slip more
+        than 0.5 Lc or be too long at steady sliding.
+    """
 
     n_iterations: int = 2
 
