@@ -33,10 +33,13 @@ LEFT = {
     "benchmarks.inversion.profile", "benchmarks.inversion.Profile",  # inversion/profile.py
     "benchmarks.inversion.sample", "benchmarks.inversion.Posterior",  # inversion/posterior.py
     "benchmarks.inversion.scores", "benchmarks.inversion.Scores",  # inversion/objectives.py
+    # its sixteen parameters' sections would take it past the 80-line limit of
+    # tests/test_function_length.py: its body is split into helpers first
+    "benchmarks.ensemble.ensemble",
 }
 
 #: packages whose docstrings are still being written on this branch (emptied as each lands)
-PENDING = {"integrators", "benchmarks.devtools", "benchmarks.ensemble", "benchmarks.inversion",
+PENDING = {"benchmarks.inversion",
            "benchmarks.lab", "benchmarks.physics", "benchmarks.pipeline", "benchmarks.records"}
 
 

@@ -35,7 +35,23 @@ FLOOR_FACTOR = 100.0
 
 
 def observed_order(steps, errors) -> float:
-    """Least-squares slope of log(error) against log(step)."""
+    """Least-squares slope of log(error) against log(step).
+
+    Parameters
+    ----------
+    steps, errors : array_like
+        The step sizes (any unit) and the errors at them (positive, at least two).
+
+    Returns
+    -------
+    float
+        The observed order (dimensionless).
+
+    Raises
+    ------
+    ValueError
+        For fewer than two points, or a step or error that is not positive.
+    """
     steps, errors = np.asarray(steps, float), np.asarray(errors, float)
     if len(steps) < 2 or np.any(errors <= 0) or np.any(steps <= 0):
         raise ValueError(f"need >= 2 positive steps and errors, got {steps!r}, {errors!r}")
@@ -45,7 +61,38 @@ def observed_order(steps, errors) -> float:
 def convergence_study(problem, names=None, factors=CONVERGENCE_FACTORS, fit_points: int = 4,
                       error: str = "err_recurrence", progress: bool = True):
     """Run the ladder; return ``(table, orders)``: one row per (method, factor) with a ``fitted``
-    flag, and the observed order of each method (NaN if fewer than two points are usable)."""
+    flag, and the observed order of each method (NaN if fewer than two points are usable).
+
+    Parameters
+    ----------
+    problem : SpringSlider
+        The problem (its reference is computed or read from the cache).
+    names : list of str, optional
+        Fixed-step registry names; ``None`` takes every fixed-step method.
+    factors : sequence of float
+        The multiples of each method's default ``dtau_cnst`` and ``dtau_max`` (dimensionless).
+    fit_points : int
+        How many of the smallest usable steps the order is fitted on.
+    error : str
+        The error column fitted (:data:`ERROR_COLUMNS`).
+    progress : bool
+        Show a progress bar.
+
+    Returns
+    -------
+    table : pandas.DataFrame
+        One row per (method, factor): steps, retcode, wall_s (s), counters, the errors of
+        :data:`ERROR_COLUMNS` and ``fitted``.
+    orders : dict of str to float
+        The observed order by method name.
+
+    Raises
+    ------
+    ValueError
+        For an adaptive method (its convergence is a work-precision question).
+    ReferenceDisagreement
+        When the two reference solvers do not agree on the problem.
+    """
     names = [n for n in REGISTRY if not REGISTRY[n].adaptive] if names is None else list(names)
     ref = reference(problem)
     floor = FLOOR_FACTOR * ref.agreement["max"]

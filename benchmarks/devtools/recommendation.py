@@ -39,7 +39,20 @@ FRONT = (
 
 def recommended(level: float):
     """``(algorithm, reason)``: the fastest setting of :data:`FRONT` whose worst error is within
-    ``level``, or ETD2 at the paper's settings when none is."""
+    ``level``, or ETD2 at the paper's settings when none is.
+
+    Parameters
+    ----------
+    level : float
+        The worst relative error in the recurrence interval to meet (dimensionless).
+
+    Returns
+    -------
+    algorithm : Algorithm
+        The method at its setting.
+    reason : str
+        Why, naming the study it was read from.
+    """
     from benchmarks.devtools.work_precision import algorithm_at
     from integrators import ETD2, REGISTRY
     for worst, _wall, name, tier, setting in FRONT:

@@ -76,7 +76,29 @@ _REQUIRED = ("format", "key", "problem", "events", "grid_t", "grid_mu", "normal_
 @dataclass
 class Reference:
     """A reference run of one problem: its events, its spring force on a common grid, which
-    event the errors are measured on, and how well the two solvers agreed."""
+    event the errors are measured on, and how well the two solvers agreed.
+
+    Parameters
+    ----------
+    key : str
+        The cache key of the problem.
+    problem_repr : str
+        The problem's ``repr``.
+    events : pandas.DataFrame
+        The events, columns :data:`~integrators.EVENT_COLUMNS` (SI units).
+    grid_t : numpy.ndarray
+        Uniform times on [0, t_end] (s).
+    grid_mu : numpy.ndarray
+        The spring force over the normal force, Fs/Fn, at ``grid_t`` (dimensionless).
+    normal_force : float
+        Fn (N).
+    event_index : int
+        The row of ``events`` whose metrics the errors compare.
+    solvers : list of dict
+        Each reference solver's name, tolerance, wall time (s), evaluations and measures.
+    agreement : dict
+        The largest relative disagreement of the two solvers, by measure and ``"max"``.
+    """
 
     key: str
     problem_repr: str

@@ -73,7 +73,22 @@ QUICK = Ladder(tolerances=tuple(10.0 ** -k for k in range(3, 11)),
 
 def study_problems(which: str = "full"):
     """``full``: the paper example and W1–W4 under both laws (the full study set);
-    ``quick``: the paper example and W2 under the aging law."""
+    ``quick``: the paper example and W2 under the aging law.
+
+    Parameters
+    ----------
+    which : str
+        ``"full"`` or ``"quick"``.
+
+    Returns
+    -------
+    list of SpringSlider
+
+    Raises
+    ------
+    ValueError
+        For any other ``which``.
+    """
     if which == "quick":
         return [paper_example(), window("W2", "aging")]
     if which == "full":
@@ -221,7 +236,23 @@ def recommend(df: pd.DataFrame, levels, error: str = "err_recurrence") -> pd.Dat
     """One setting for the whole problem set, as an inversion over (b, Lc) needs: for each error
     level, the (integrator, tier, setting) whose worst error over the study problems is within
     the level at the least total wall time. Only rows that succeeded on every problem count, and
-    a setting counts for a level only if it reaches it reliably (:func:`reliable_error`)."""
+    a setting counts for a level only if it reaches it reliably (:func:`reliable_error`).
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        A work-precision study (:func:`read_study`).
+    levels : sequence of float
+        The error levels (relative, dimensionless).
+    error : str
+        The error column compared (:data:`ERROR_COLUMNS`).
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per level: integrator, rhs_tier, setting, worst_error, total_wall_s (s) and
+        the next-fastest other integrator; only ``level`` where no setting reaches it.
+    """
     n_problems = df.problem.nunique()
     df = df.assign(**{error: reliable_error(df, error)})
     keys = ["integrator", "rhs_tier", "setting"]
@@ -278,7 +309,22 @@ def algorithm_at(integrator: str, rhs_tier: str, setting: float):
 
 def read_study(path) -> pd.DataFrame:
     """A work-precision study written by :func:`benchmarks.devtools.wp_files.write_work_precision`, its
-    columns checked (:class:`benchmarks.records.files.BadResultsFile` otherwise)."""
+    columns checked (:class:`benchmarks.records.files.BadResultsFile` otherwise).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The study's CSV file.
+
+    Returns
+    -------
+    pandas.DataFrame
+
+    Raises
+    ------
+    BadResultsFile
+        For a missing or unreadable file, or one without the study's columns.
+    """
     from benchmarks.records.files import read_table
     return read_table(path, WP_COLUMNS, what="work-precision study",
                       hint="`rsfbench work-precision` writes one")
@@ -288,7 +334,20 @@ def pareto_front(df: pd.DataFrame, error: str = "err_recurrence") -> pd.DataFram
     """The study's front for one setting over the whole problem set: the (integrator, tier,
     setting) rows of :func:`recommend`'s table (succeeded on every problem, reliable worst
     error) that no faster row beats in worst error, fastest first. The fastest front row within
-    a level is :func:`recommend`'s choice for that level."""
+    a level is :func:`recommend`'s choice for that level.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        A work-precision study (:func:`read_study`).
+    error : str
+        The error column compared (:data:`ERROR_COLUMNS`).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns worst_error, total_wall_s (s), integrator, rhs_tier, setting.
+    """
     n_problems = df.problem.nunique()
     df = df.assign(**{error: reliable_error(df, error)})
     keys = ["integrator", "rhs_tier", "setting"]

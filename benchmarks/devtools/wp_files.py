@@ -21,7 +21,25 @@ def write_work_precision(df: pd.DataFrame, out: Path, name: str,
                          error: str = "err_recurrence") -> dict[str, Path]:
     """Write a study: ``wp_<name>.csv`` (every point), ``wp_<name>_pareto.csv/.md`` (the fastest
     integrator per problem and error level, and the one setting to use across all problems) and
-    one ``wp_<name>_<problem>.png`` per problem. Returns the paths."""
+    one ``wp_<name>_<problem>.png`` per problem. Returns the paths.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        The study, one row per (problem, integrator, tier, setting).
+    out : pathlib.Path
+        The directory written into (made if missing).
+    name : str
+        The study's name, in every file name.
+    error : str
+        The error column compared (:data:`ERROR_COLUMNS`).
+
+    Returns
+    -------
+    dict of str to pathlib.Path
+        Each file written, by kind (``csv``, ``pareto_csv``, ``pareto_md``,
+        ``png_<problem>``).
+    """
     from benchmarks.devtools.work_precision import best_at_levels, recommend
     from benchmarks.physics.plots import plot_work_precision
 

@@ -28,7 +28,23 @@ MAX_POINTS = 1_000_000
 def grid(**axes) -> dict[str, np.ndarray]:
     """The columns of the outer product of ``axes`` (name → values), the first axis outermost:
     ``grid(b=[0.009, 0.01], lc=[1e-7, 1e-6])`` has b = (0.009, 0.009, 0.01, 0.01) and
-    lc = (1e-7, 1e-6, 1e-7, 1e-6)."""
+    lc = (1e-7, 1e-6, 1e-7, 1e-6).
+
+    Parameters
+    ----------
+    **axes : array_like
+        Each axis's values by field name, in the field's SI unit.
+
+    Returns
+    -------
+    dict of str to numpy.ndarray
+        One column per axis, of the product's length.
+
+    Raises
+    ------
+    ValueError
+        Without an axis, or for an axis that is not a list of finite numbers.
+    """
     if not axes:
         raise ValueError("grid needs at least one axis, e.g. grid(b=[...], lc=[...])")
     values = [_column(name, x) for name, x in axes.items()]
@@ -55,7 +71,29 @@ def check_points(problem: SpringSlider, params, max_points: int = MAX_POINTS):
     """``(names, values)``: the parameter names and an (n, k) array of their values, one row a
     point, or ValueError naming the bad parameter: a SpringSlider, fields its variants can
     change, columns of finite numbers of one length, at most ``max_points`` points. An axis
-    outside the plausible range for its units warns once (not once a point)."""
+    outside the plausible range for its units warns once (not once a point).
+
+    Parameters
+    ----------
+    problem : SpringSlider
+        The base problem.
+    params : mapping of str to array_like
+        The values of each varied field (SI units), one per point.
+    max_points : int
+        The most points accepted.
+
+    Returns
+    -------
+    names : tuple of str
+        The parameter names.
+    values : numpy.ndarray
+        The points, shape (n, len(names)).
+
+    Raises
+    ------
+    ValueError
+        Naming the bad parameter.
+    """
     if not isinstance(problem, SpringSlider):
         raise ValueError(f"problem must be a SpringSlider, got {type(problem).__name__}")
     if not hasattr(params, "items") or not params:
@@ -84,7 +122,28 @@ def check_points(problem: SpringSlider, params, max_points: int = MAX_POINTS):
 
 def point_problems(problem: SpringSlider, names, values, first: int = 0) -> list[SpringSlider]:
     """The problem of each row of ``values`` (its index offset by ``first`` in a message), or
-    ValueError naming the point and its bad value."""
+    ValueError naming the point and its bad value.
+
+    Parameters
+    ----------
+    problem : SpringSlider
+        The base problem.
+    names : sequence of str
+        The varied fields.
+    values : numpy.ndarray
+        The points, one row each (SI units).
+    first : int
+        The index of the first row in the ensemble, for messages.
+
+    Returns
+    -------
+    list of SpringSlider
+
+    Raises
+    ------
+    ValueError
+        Naming the point, its values and why the problem refuses them.
+    """
     out = []
     with units_checked_already():            # check_points warned once per axis
         for i, row in enumerate(values):

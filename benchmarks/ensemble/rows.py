@@ -86,7 +86,31 @@ def batch_rows(problems, algorithm, names, values, wall_budget=None,
     batch of the own ``algorithm``, on numba's threads or (``parallel`` False) on this one;
     with ``curves``, each row with a limit cycle has its slip-weakening curve
     (:data:`CURVE_COLUMNS`) at :data:`CURVE_POINTS` times over its last event, from the
-    method's dense output (:mod:`integrators.own.batch`)."""
+    method's dense output (:mod:`integrators.own.batch`).
+
+    Parameters
+    ----------
+    problems : list of SpringSlider
+        The points' problems.
+    algorithm : Algorithm
+        An own compiled method.
+    names : sequence of str
+        The varied fields.
+    values : numpy.ndarray
+        The points, one row each (SI units).
+    wall_budget : float, optional
+        Each point's wall-time budget (s).
+    parallel : bool
+        Spread the points over numba's threads.
+    curves : bool
+        Add each limit cycle's slip-weakening curve.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per point: its parameters, then :data:`RESULT_COLUMNS` (and
+        :data:`CURVE_COLUMNS` with ``curves``).
+    """
     if curves:
         R, states = algorithm.solve_batch(problems, wall_budget, parallel, CURVE_POINTS)
     else:
@@ -154,7 +178,29 @@ def point_rows(problems, algorithm, names, values, wall_budget=None,
                curve_dt: float | None = None) -> pd.DataFrame:
     """The rows of ``problems`` solved one by one with :func:`integrators.solve` (any backend),
     as :func:`batch_rows` writes them; with ``curve_dt`` (s) the trajectory is saved that finely
-    and each row has its slip-weakening curve (:data:`CURVE_COLUMNS`)."""
+    and each row has its slip-weakening curve (:data:`CURVE_COLUMNS`).
+
+    Parameters
+    ----------
+    problems : list of SpringSlider
+        The points' problems.
+    algorithm : Algorithm
+        Any registered method.
+    names : sequence of str
+        The varied fields.
+    values : numpy.ndarray
+        The points, one row each (SI units).
+    wall_budget : float, optional
+        Each point's wall-time budget (s).
+    curve_dt : float, optional
+        The save interval for the curves (s).
+
+    Returns
+    -------
+    pandas.DataFrame
+        As :func:`batch_rows`; a point whose solve raised is a failed row, and the table's
+        ``attrs["transient"]`` is then set (it is not stored).
+    """
     from benchmarks.physics.curves import event_curve
     save = dict(save_every=curve_dt) if curve_dt else dict(max_points=2)
     rows, crashed = [], False

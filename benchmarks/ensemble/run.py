@@ -58,7 +58,29 @@ BACKENDS = ("threads", "processes")
 @dataclass(frozen=True, eq=False)
 class Chunk:
     """Consecutive points ``first``… of an ensemble, and how to solve them; ``threads``: numba
-    threads for an own method's batch (None: numba's setting)."""
+    threads for an own method's batch (None: numba's setting).
+
+    Parameters
+    ----------
+    problem : SpringSlider
+        The ensemble's base problem.
+    algorithm : Algorithm
+        The method and its options.
+    names : tuple of str
+        The parameters that vary (fields of :func:`~problems.variant`).
+    values : numpy.ndarray
+        The chunk's points, one row each, one column per name (SI units).
+    first : int
+        The index of the chunk's first point in the ensemble.
+    wall_budget : float, optional
+        Each point's wall-time budget (s).
+    threads : int, optional
+        numba threads for an own method's batch.
+    curve_dt : float, optional
+        With it, each point's slip-weakening curve too (s; :func:`ensemble`).
+    problems : tuple of SpringSlider, optional
+        The points' problems, built and checked already in this process.
+    """
 
     problem: object
     algorithm: Algorithm
@@ -91,7 +113,18 @@ def auto_chunk_size(n: int, algorithm) -> int:
 
 
 def run_chunk(chunk: Chunk) -> pd.DataFrame:
-    """The rows of a chunk (never raises for a failing point: it is a row)."""
+    """The rows of a chunk (never raises for a failing point: it is a row).
+
+    Parameters
+    ----------
+    chunk : Chunk
+        The points and how to solve them.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per point: its parameters, then :data:`RESULT_COLUMNS`.
+    """
     problems = (list(chunk.problems) if chunk.problems is not None
                 else point_problems(chunk.problem, chunk.names, chunk.values, chunk.first))
     if not batched(chunk.algorithm):

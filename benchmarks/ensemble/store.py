@@ -139,7 +139,26 @@ def identity_of(problem, algorithm, names, values, chunk_size: int, wall_budget,
 class ChunkStore:
     """The chunks of one ensemble under ``root`` (module docstring). Use as a context manager:
     it holds the lock from ``__enter__`` to ``__exit__``. ``bad``: the chunk files found
-    untrustworthy (set aside, to be recomputed); ``strays``: the other files ignored."""
+    untrustworthy (set aside, to be recomputed); ``strays``: the other files ignored.
+
+    Parameters
+    ----------
+    root : str or pathlib.Path
+        The store's directory (made if missing).
+    identity : dict
+        What the ensemble is (problem, algorithm, points, chunking): a store of another
+        identity is refused.
+    reclaim : bool
+        Clear a store of another ensemble instead of refusing it.
+
+    Raises
+    ------
+    StoreBusy
+        On entry, when another run holds the store's lock.
+    ValueError
+        On entry, for a root that is a file or cannot be written, or that holds another
+        ensemble (without ``reclaim``).
+    """
 
     def __init__(self, root, identity: dict, reclaim: bool = False) -> None:
         require("pyarrow", "ensemble", "a store of an ensemble (Parquet chunks)")
@@ -326,12 +345,24 @@ class ChunkStore:
 
 def read_store(root) -> pd.DataFrame:
     """The rows of the ensemble stored in ``root``, in the order of its points: only the chunks
-    its identity file lists, each checked against its SHA-256 and its rows checked. A listed
-    chunk that fails is left out (:class:`BadChunkWarning`; a rerun of the ensemble recomputes
-    it), every other file is ignored (:class:`StrayFileWarning`), and a store holding fewer
-    points than its ensemble warns (:class:`IncompleteStoreWarning`). ``df.attrs``: n_points,
-    n_stored, complete, bad_chunks, stray_files. A directory that is not a store (no identity
-    file, or a damaged one, or another layout) is a ``ValueError`` naming it."""
+    its identity file lists, each checked against its SHA-256 and its rows checked.
+
+    Parameters
+    ----------
+    root : str or pathlib.Path
+        The store's directory.
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``attrs``: n_points, n_stored, complete, bad_chunks, stray_files. A listed chunk that
+        fails is left out (:class:`BadChunkWarning`), any other file ignored
+        (:class:`StrayFileWarning`), a part store warns (:class:`IncompleteStoreWarning`).
+
+    Raises
+    ------
+    ValueError
+        Naming a directory that is not a store (no identity file, or a damaged one)."""
     root = Path(root)
     if not root.is_dir():
         raise ValueError(f"the store {root} is not a directory" if root.exists() else
