@@ -82,7 +82,31 @@ def _contrasts(k: int) -> np.ndarray:
 @dataclass(frozen=True)
 class CurveLikelihood:
     """The curves' χ² of a model curve against observed ``curves`` (module docstring):
-    :meth:`from_curves` builds it and refuses what it cannot use."""
+    :meth:`from_curves` builds it and refuses what it cannot use.
+
+    Parameters
+    ----------
+    noise : str
+        The noise model: ``"scatter"`` or ``"sample"``.
+    reading : str
+        ``"std"`` (a typical event) or ``"sem"`` (the mean curve).
+    n_events : int
+        The observed events.
+    dof : int
+        The χ²'s degrees of freedom.
+    sigma : float, optional
+        The σ per sample of ``"sample"`` (units of μ, dimensionless).
+    slips : numpy.ndarray, optional
+        The K common slips of ``"scatter"`` (m).
+    mean : numpy.ndarray, optional
+        The events' mean curve at ``slips`` (units of μ).
+    whiten : numpy.ndarray, optional
+        The matrix that whitens the contrasts' residuals (``"scatter"``).
+    shrinkage : float, optional
+        Ledoit and Wolf's shrinkage intensity (``"scatter"``, in [0, 1]).
+    observed : EventSamples, optional
+        Every observed sample (``"sample"``).
+    """
 
     noise: str
     reading: str

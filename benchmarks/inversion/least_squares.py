@@ -29,7 +29,30 @@ class FitResult:
     """The best fit (b, Lc in m, the misfit there: J1, plus the curves' χ² with curves), the
     covariance of (b, log10 Lc) and the standard
     errors of b and of log10 Lc (NaN where the Jacobian is singular and the covariance has no
-    meaning), the number of forward solves, and every start's end point."""
+    meaning), the number of forward solves, and every start's end point.
+
+    Parameters
+    ----------
+    b : float
+        The best-fit evolution effect (dimensionless).
+    lc : float
+        The best-fit Lc (m).
+    misfit : float
+        The misfit there (−2 log L + const, dimensionless).
+    covariance : numpy.ndarray
+        The 2×2 covariance of (b, log10 Lc) from the Jacobian.
+    sigma_b, sigma_log10_lc : float
+        The standard errors of b and of log10 Lc (NaN where the covariance has no meaning).
+    n_solves : int
+        Forward solves, the scan's included.
+    starts : pandas.DataFrame
+        Each start and where it ended: b_start, lc_start (m), b, lc (m), misfit, status,
+        message.
+    success : bool
+        False for a failed fit (no limit cycle on the scan).
+    message : str
+        The optimiser's message, or why the fit failed.
+    """
 
     b: float
     lc: float
@@ -46,10 +69,35 @@ class FitResult:
 def fit(misfit: Misfit, b_range=(0.005, 0.02), lc_range=(1e-8, 1e-5), grid: int = 9,
         starts: int = 3, diff_step: float = 1e-3, max_solves: int = 2000,
         start=None) -> FitResult:
-    """Fit (b, Lc) within the box ``b_range`` × ``lc_range`` (m), from the ``starts`` best points
-    of a ``grid`` × ``grid`` scan (module docstring), or from the one point ``start`` = (b, Lc)
-    without a scan; at most ``max_solves`` forward solves per start. A box with no limit cycle
-    on its scan is a failed fit (``success`` False), not a guess."""
+    """Fit (b, Lc) within the box ``b_range`` × ``lc_range``, from the ``starts`` best points
+    of a ``grid`` × ``grid`` scan (module docstring), or from one ``start`` without a scan. A
+    box with no limit cycle on its scan is a failed fit (``success`` False), not a guess.
+
+    Parameters
+    ----------
+    misfit : Misfit
+        The objective.
+    b_range, lc_range : tuple of float
+        (low, high) of b (dimensionless) and of Lc (m; fitted in log10 Lc).
+    grid, starts : int
+        Points per axis of the scan; how many of its best points start a fit.
+    diff_step : float
+        The relative step of the finite-difference Jacobian (scipy's ``diff_step``).
+    max_solves : int
+        Forward solves per start at most.
+    start : tuple of float, optional
+        One start (b, Lc in m) instead of the scan.
+
+    Returns
+    -------
+    FitResult
+        The best of the starts' fits.
+
+    Raises
+    ------
+    ValueError
+        For a box without 0 ≤ b_lo < b_hi and 0 < lc_lo < lc_hi.
+    """
     from scipy.optimize import least_squares
     (b_lo, b_hi), (lc_lo, lc_hi) = b_range, lc_range
     if not (0 <= b_lo < b_hi and 0 < lc_lo < lc_hi):

@@ -43,7 +43,28 @@ class Misfit:
     ``curve_dt``: s between saved points of the trajectory J2 compares (with curves only).
 
     A solve that fails or runs out of its budget is a failed point: no limit cycle is read from
-    it (the misfit of a point without one), and :attr:`failures` counts it."""
+    it (the misfit of a point without one), and :attr:`failures` counts it.
+
+    Parameters
+    ----------
+    problem : SpringSlider
+        The forward problem; each point is its variant with b and lc replaced.
+    obs : Observations
+        What the points are scored against.
+    algorithm : Algorithm
+        The forward solver and its options.
+    wall_budget : float, optional
+        Each forward solve's wall-time budget (s).
+    workers : int, optional
+        Threads (or processes) of a batch of points.
+    curve_dt : float
+        The save interval of the trajectory the curves are read from (s).
+
+    Raises
+    ------
+    ValueError
+        For a problem, observations or algorithm of another type.
+    """
 
     problem: SpringSlider
     obs: Observations
@@ -125,7 +146,28 @@ class Misfit:
 def synthetic(recurrence_s: float, friction_drop: float, sigma_rel: float,
               seed: int) -> Observations:
     """Observations of a limit cycle with true ΔT = ``recurrence_s``, Δμ = ``friction_drop``:
-    each plus N(0, σ²) with σ = ``sigma_rel`` × its true value, from ``default_rng(seed)``."""
+    each plus N(0, σ²) with σ = ``sigma_rel`` × its true value, from ``default_rng(seed)``.
+
+    Parameters
+    ----------
+    recurrence_s : float
+        The true recurrence interval ΔT (s).
+    friction_drop : float
+        The true friction drop Δμ (dimensionless).
+    sigma_rel : float
+        Each σ over its true value (dimensionless, in (0, 1)).
+    seed : int
+        The random generator's seed.
+
+    Returns
+    -------
+    Observations
+
+    Raises
+    ------
+    ValueError
+        For ``sigma_rel`` outside (0, 1).
+    """
     if not 0 < sigma_rel < 1:
         raise ValueError(f"sigma_rel must be in (0, 1), got {sigma_rel!r}")
     import warnings

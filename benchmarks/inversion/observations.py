@@ -143,7 +143,34 @@ def write_observations(path, events: pd.DataFrame, curves: pd.DataFrame | None =
                        recording: dict | None = None, sigma: str = "std",
                        provenance: dict | None = None) -> dict:
     """Write the observations file ``path`` (module docstring) from a per-event table
-    (``t_start``, ``t_end`` and the metrics) and return the document."""
+    (``t_start``, ``t_end`` and the metrics) and return the document.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The JSON file written.
+    events : pandas.DataFrame
+        One row per event: t_start, t_end (s) and the metrics (recurrence_s in s,
+        friction_drop, …).
+    curves : pandas.DataFrame, optional
+        The slip-weakening curves (:func:`benchmarks.physics.check_curves`' columns).
+    apparatus, how, recording, provenance : dict, optional
+        What the record came from and how it was read, kept as given.
+    notes : sequence of str
+        Remarks, kept as given.
+    sigma : str
+        Which spread the file names as σ: ``"std"`` or ``"sem"``.
+
+    Returns
+    -------
+    dict
+        The document written.
+
+    Raises
+    ------
+    ValueError
+        For an unknown ``sigma``.
+    """
     from benchmarks.records.files import write_output
     from benchmarks.records.report import jsonable
     if sigma not in SIGMAS:
@@ -178,7 +205,28 @@ def read_observations(path, sigma: str | None = None, curve_noise: str = "scatte
     """The :class:`Observations` of an observations file: the means of ΔT and Δμ, with the σ
     the file names (``std`` unless it says otherwise) or ``sigma``, and the curves if any, in
     the likelihood under ``curve_noise`` (:mod:`benchmarks.inversion.curve_likelihood`; the
-    curves' spread read as the same σ); or ``ValueError`` naming the file and what is wrong."""
+    curves' spread read as the same σ); or ``ValueError`` naming the file and what is wrong.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The observations file (:func:`write_observations`).
+    sigma : str, optional
+        ``"std"`` or ``"sem"``; ``None`` takes the file's.
+    curve_noise : str
+        The curves' noise model: ``"scatter"``, ``"sample"`` or ``"none"``.
+    curve_sigma : float, optional
+        The σ per sample of ``"sample"`` (units of μ, dimensionless).
+
+    Returns
+    -------
+    Observations
+
+    Raises
+    ------
+    ValueError
+        Naming the file and what is wrong with it, or an unknown ``sigma``.
+    """
     from benchmarks.records.files import BadResultsFile, read_json_record
     if sigma is not None and sigma not in SIGMAS:
         raise ValueError(f"sigma must be one of {SIGMAS}, got {sigma!r}")
