@@ -67,7 +67,19 @@ _CLIPPED = ("shear_force", "acceleration", "acceleration_lower")
 class Recording:
     """Samples in SI units: ``t`` (s) and one array per channel in ``channels``; ``columns``
     names each channel's column in the file (for messages), ``source`` the file and ``sha256``
-    its hash. ``normal_force`` is a channel array even when the apparatus gave a constant."""
+    its hash. ``normal_force`` is a channel array even when the apparatus gave a constant.
+
+    Parameters
+    ----------
+    t : numpy.ndarray
+        Sample times (s).
+    channels : dict of str to numpy.ndarray
+        Each channel's samples in SI units (:data:`UNITS`).
+    columns : dict of str to str
+        Each channel's column in the file.
+    source, sha256 : str
+        The file and its hash.
+    """
 
     t: np.ndarray = field(repr=False)
     channels: dict = field(repr=False)
@@ -132,7 +144,26 @@ def explicit_unit(channel: str, column: str, unit: str,
 def read_recording(path, columns, normal_force: float | None = None) -> Recording:
     """The recording in ``path`` (``.csv``, ``.txt``, ``.tsv`` or ``.parquet``) with
     ``columns`` (channel → ``(column, unit)``, or specs ``CHANNEL=COLUMN:UNIT``), checked (see
-    the module docstring); ``normal_force`` (N) stands for a normal-force column."""
+    the module docstring); ``normal_force`` (N) stands for a normal-force column.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The recording's file.
+    columns : dict or list of str
+        Channel → ``(column, unit)``, or specs ``CHANNEL=COLUMN:UNIT``.
+    normal_force : float, optional
+        The normal force (N), standing for a normal-force column.
+
+    Returns
+    -------
+    Recording
+
+    Raises
+    ------
+    ValueError
+        Naming the file, column or row that is wrong.
+    """
     if not isinstance(path, (str, PathLike)):
         raise ValueError(f"path must be the recording's file name (str or os.PathLike), got "
                         f"{path!r}")
@@ -153,7 +184,26 @@ def read_recording(path, columns, normal_force: float | None = None) -> Recordin
 def recording_from(table: pd.DataFrame, columns, normal_force: float | None = None,
                    source: str = "table", sha256: str = "") -> Recording:
     """A :class:`Recording` of a DataFrame already in memory (the checks of
-    :func:`read_recording`)."""
+    :func:`read_recording`).
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        The recording's columns.
+    columns, normal_force
+        As :func:`read_recording`.
+    source, sha256 : str
+        Where the table came from, for messages and provenance.
+
+    Returns
+    -------
+    Recording
+
+    Raises
+    ------
+    ValueError
+        As :func:`read_recording`.
+    """
     mapping = column_map(columns)
     if "normal_force" in mapping and normal_force is not None:
         raise ValueError("the normal force is a column or a constant, not both")

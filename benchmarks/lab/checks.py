@@ -60,7 +60,18 @@ def check_lab_solver(fit: LabFit) -> dict:
     (``references_agree`` False). A fit that failed is not checked (``checked`` False): its
     failure is the fit's, not the integrator's. A solve that fails or runs out of its budget
     (the model's ``wall_budget``, s per solve) fails the check (``passed`` False, ``reason``
-    names it): an unfinished reference vouches for nothing."""
+    names it): an unfinished reference vouches for nothing.
+
+    Parameters
+    ----------
+    fit : LabFit
+        The fit whose integrator is checked.
+
+    Returns
+    -------
+    dict
+        The errors (in σ), ``passed``, ``checked``, ``references_agree`` and ``reason``.
+    """
     algorithm = fit.model.algorithm
     if not fit.success or not np.isfinite(fit.sigma):
         return {"integrator": algorithm.name if algorithm is not None else "the two-state model",
@@ -101,7 +112,26 @@ def inertia_check(fit: LabFit, mass: float, normal_force: float,
     """Refit with the slider's ``mass`` (kg) on ``normal_force`` (N), from the quasi-static
     ``fit`` and from the record's own starts (the better kept: where the inertia matters, the
     quasi-static fit can be far off); per parameter, how far it moved in the quasi-static fit's
-    standard errors."""
+    standard errors.
+
+    Parameters
+    ----------
+    fit : LabFit
+        The quasi-static fit.
+    mass : float
+        The slider's mass (kg).
+    normal_force : float
+        The normal force (N).
+    radiation_damping : float
+        ηr (N s/m).
+
+    Returns
+    -------
+    refit : LabFit
+        The better of the two refits with mass.
+    moved : pandas.DataFrame
+        Per parameter, how far it moved, in the quasi-static fit's standard errors.
+    """
     import dataclasses
     model = dataclasses.replace(fit.model, mass=mass, normal_force=normal_force,
                                 radiation_damping=radiation_damping)

@@ -81,7 +81,25 @@ class Analysis:
     slip-weakening curves (``event_id``, ``slip_m``, ``friction``; None without accelerations),
     the apparatus (``stiffness`` N/m, ``vls``, ``vlf`` m/s, ``df`` s, ``normal_force`` N,
     ``mass`` kg, each None where it cannot be read) with how each was had (``how``), and the
-    assumptions made (``notes``)."""
+    assumptions made (``notes``).
+
+    Parameters
+    ----------
+    events : pandas.DataFrame
+        One row per event: ``t_start``, ``t_end`` (s) and the metrics.
+    curves : pandas.DataFrame, optional
+        The slip-weakening curves: ``event_id``, ``slip_m`` (m), ``friction``.
+    apparatus : dict
+        stiffness (N/m), vls, vlf (m/s), df (s), normal_force (N), mass (kg).
+    how : dict
+        How each apparatus value was had, by name.
+    notes : list of str
+        The assumptions made.
+    noise : dict
+        The noise measured on the channels.
+    slip_source : str
+        Which channel the slip was read from.
+    """
 
     events: pd.DataFrame = field(repr=False)
     curves: pd.DataFrame | None = field(repr=False)
@@ -95,8 +113,25 @@ class Analysis:
 def analyse(rec, mass: float | None = None, vls: float | None = None,
             stiffness: float | None = None) -> Analysis:
     """Measure the recording ``rec`` (:class:`benchmarks.lab.channels.Recording`).
-    ``mass`` (kg): the slider's, for Ft = Fs − m·a; ``vls`` (m/s) and ``stiffness`` (N/m)
-    stand for what the table's position would give (and are then not measured)."""
+
+    Parameters
+    ----------
+    rec : Recording
+        The recording.
+    mass : float, optional
+        The slider's mass (kg), for Ft = Fs − m·a.
+    vls, stiffness : float, optional
+        The slow load-point speed (m/s) and stiffness (N/m), standing for what the table's
+        position would give (and then not measured).
+
+    Returns
+    -------
+    Analysis
+
+    Raises
+    ------
+    ValueError
+        Naming the record and the check it fails (no event, channels that disagree, …)."""
     from problems._validate import check_positive, warn_implausible
     mass = None if mass is None else check_positive("mass", mass)
     vls = None if vls is None else check_positive("vls", vls)

@@ -74,7 +74,47 @@ class LabFit:
     fixed, and a − b, μ_ref, the trend's slopes); ``free`` the fitted nonlinear ones;
     ``covariance`` is over ``free`` in the fitted coordinates (ln for Dc and k′); ``table()``
     has values, standard errors and 95 % Wald intervals (within the bounds), and whether each
-    is fitted, derived (a − b) or fixed."""
+    is fitted, derived (a − b) or fixed.
+
+    Parameters
+    ----------
+    model : LabModel
+        The model and its record.
+    free : tuple of str
+        The fitted nonlinear parameters.
+    values : dict of str to float
+        Every parameter's value (Dc in m, k in 1/m, the rest dimensionless).
+    covariance : numpy.ndarray
+        Over ``free``, in the fitted coordinates (ln Dc, ln k′).
+    linear, linear_se : dict of str to float
+        The linear parameters (μ_ref, the trend's slopes) and their standard errors.
+    residuals, mu_model : numpy.ndarray
+        μ observed − model, and the model's μ, at the record's samples.
+    rss, sigma, rho : float
+        The residual sum of squares, the residuals' σ and their lag-1 correlation.
+    n : int
+        Samples fitted.
+    at_bound : tuple of str
+        The parameters at a bound.
+    notes : list of str
+        What the fit says about itself.
+    solves : int
+        Forward solves.
+    wall_s : float
+        The fit's wall time (s).
+    weights : numpy.ndarray, optional
+        Each sample's weight.
+    failed_solves : int
+        Solves that failed or ran out of their budget.
+    fixed : dict of str to float
+        The parameters held at given values.
+    piece_weights : numpy.ndarray, optional
+        One weight per piece of the history.
+    success : bool
+        The optimiser's success.
+    message : str
+        The optimiser's message.
+    """
 
     model: object
     free: tuple
@@ -312,7 +352,30 @@ def fit_lab(model, fixed: dict | None = None, weights=None, start: dict | None =
     """Least squares of ``model`` (a :class:`~benchmarks.lab.model.LabModel`) to its
     record. ``fixed``: parameters held at given values (``k`` in 1/m: friction per metre of
     load-point travel; ``c`` of the Nagata law, whose default is fitted); ``weights``: one per
-    piece of the history; ``start``: starting values instead of the record's own."""
+    piece of the history; ``start``: starting values instead of the record's own.
+
+    Parameters
+    ----------
+    model : LabModel
+        The model and the record it is fitted to.
+    fixed : dict of str to float, optional
+        Parameters held at given values, in their units (Dc in m, k in 1/m).
+    weights : sequence of float, optional
+        One non-negative weight per piece of the history.
+    start : dict of str to float, optional
+        Starting values.
+    dc_starts : sequence of float
+        The Dc values (m) the fit also starts from.
+
+    Returns
+    -------
+    LabFit
+
+    Raises
+    ------
+    ValueError
+        For an unknown or ill-valued fixed parameter, bad weights, or nothing left to fit.
+    """
     t0 = time.perf_counter()
     fixed = dict(fixed or {})
     names = model.parameters

@@ -79,7 +79,38 @@ def reference_friction(t, velocities, switch_times, a, b, dc, k, law="aging", c=
     """μ at times ``t`` (s, from 0) of the load point at ``velocities`` (m/s) between
     ``switch_times`` (s); parameters in the module docstring's units. ``wall_budget``: s for the
     whole run (None: none). A run that fails, or runs out of its budget, raises
-    ``RuntimeError`` saying which."""
+    ``RuntimeError`` saying which.
+
+    Parameters
+    ----------
+    t : array_like
+        The times (s, from 0).
+    velocities, switch_times : sequence of float
+        The load point's history: velocities (m/s) between switch times (s).
+    a, b : float
+        The direct and evolution effects (dimensionless).
+    dc : float
+        The critical slip distance Dc (m).
+    k : float
+        The stiffness k′ in friction per metre of load point (1/m).
+    law : str
+        ``"aging"``, ``"slip"`` or ``"nagata"``.
+    c : float
+        The Nagata law's stress coefficient (dimensionless).
+    b2, dc2 : float
+        A second state's b (dimensionless; 0: none) and Dc (m).
+    mu0 : float
+        The friction at steady sliding at the first speed (dimensionless).
+    rtol, atol : float
+        Radau's tolerances.
+    wall_budget : float, optional
+        The run's wall-time budget (s).
+
+    Returns
+    -------
+    numpy.ndarray
+        μ at ``t``.
+    """
     if wall_budget is not None and not (math.isfinite(wall_budget) and wall_budget > 0):
         raise ValueError(f"wall_budget must be a positive number of s, got {wall_budget!r}")
     deadline = math.inf if wall_budget is None else time.perf_counter() + wall_budget
@@ -117,7 +148,31 @@ def synthetic_record(t, velocities, switch_times, a, b, dc, k, law="aging", c=0.
                      seed=0) -> pd.DataFrame:
     """A record as a laboratory would write it: columns ``time_s``, ``load_point_um`` and
     ``friction``. ``noise`` is σ of μ, ``displacement_noise`` σ of the load point (m),
-    ``drift`` dμ per metre of load-point travel."""
+    ``drift`` dμ per metre of load-point travel.
+
+    Parameters
+    ----------
+    t, velocities, switch_times, a, b, dc, k, law, c, b2, dc2, mu0
+        As :func:`reference_friction`.
+    noise : float
+        σ of μ (dimensionless).
+    displacement_noise : float
+        σ of the load point (m).
+    drift : float
+        dμ per metre of load-point travel (1/m).
+    seed : int
+        The random generator's seed.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns ``time_s`` (s), ``load_point_um`` (µm) and ``friction``.
+
+    Raises
+    ------
+    RuntimeError
+        When the forward run fails.
+    """
     rng = np.random.default_rng(seed)
     t = np.asarray(t, dtype=float)
     bounds = np.array([0.0, *switch_times])

@@ -128,7 +128,35 @@ def step_reference(law: str, mass: float, ratio: float, t_guess: float, solver: 
     """(time after the step, μ_extreme − μ_before) of a step from steady sliding at 1 µm/s to
     ``ratio`` µm/s on the laboratory apparatus, independently of :func:`step_response`: the run
     starts at the step and lasts 2 ``t_guess``; the largest ±μ on ``points`` even samples is
-    refined by the parabola through it and its neighbours (:data:`STEP_REFERENCE`)."""
+    refined by the parabola through it and its neighbours (:data:`STEP_REFERENCE`).
+
+    Parameters
+    ----------
+    law : str
+        The friction law's short name.
+    mass : float
+        The slider's mass (kg).
+    ratio : float
+        The speed after the step over the speed before (dimensionless).
+    t_guess : float
+        About when the extreme comes (s).
+    solver : str
+        The registry name of the solver.
+    tol : float
+        Its rtol and atol.
+    points : int
+        Even samples searched.
+
+    Returns
+    -------
+    tuple of float
+        The extreme's time after the step (s) and μ_extreme − μ_before.
+
+    Raises
+    ------
+    PeakNotReached
+        When the solve fails or the extreme is at an edge of the run.
+    """
     from integrators import make_algorithm, solve
     from problems import ConstantLoading, steady_initial_state, velocity_step_test
     base = velocity_step_test(law, v2=1e-6 * ratio, mass=mass)
@@ -165,7 +193,15 @@ STEP_COLUMNS = ("t_step_s", "v_before", "v_after", "mu_before", "mu_extreme", "t
 
 class PeakNotReached(ValueError):
     """The extreme after a switch cannot be located in its piece. ``too_short``: the piece ends
-    before it (a longer piece would show it); otherwise Fs turns the wrong way at the switch."""
+    before it (a longer piece would show it); otherwise Fs turns the wrong way at the switch.
+
+    Parameters
+    ----------
+    message : str
+        What was not reached, and where.
+    too_short : bool
+        Whether the piece ends before the extreme.
+    """
 
     def __init__(self, message: str, too_short: bool = True):
         super().__init__(message)
@@ -390,8 +426,25 @@ def step_response(solution) -> pd.DataFrame:
     μ at the step, the first extreme of μ after it and its time (module docstring), μ at the end
     of the piece after it, ``delta_mu_end`` = μ_end − μ_before, the steady-state change it
     should settle to, and ``delta_mu_ss`` (= ``delta_mu_end`` when the pieces before and after
-    the step have settled, else NaN). :class:`PeakNotReached` if a piece ends before its
-    extreme; ValueError for a failed run."""
+    the step have settled, else NaN).
+
+    Parameters
+    ----------
+    solution : Solution
+        A run that reached its end, without an overshoot.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per step, :data:`STEP_COLUMNS` (times in s).
+
+    Raises
+    ------
+    PeakNotReached
+        If a piece ends before its extreme.
+    ValueError
+        For a run that failed or has two-speed loading.
+    """
     hist = _checked(solution)
     p, edges = solution.problem, _edges(solution)
     rows, warned = [], set()
@@ -426,7 +479,23 @@ def healing(solution) -> pd.DataFrame:
     ``delta_mu_peak`` = μ_peak − μ_before, and ``settled_before``: had the slide before the hold
     settled at its speed (a hold that opens the run is judged against the speed after it)? A
     hold that ends the run has no reloading and no row; consecutive holds are one hold.
-    :class:`PeakNotReached` if a slide ends before its peak; ValueError for a failed run."""
+
+    Parameters
+    ----------
+    solution : Solution
+        A run that reached its end.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per hold, :data:`HEALING_COLUMNS` (times in s).
+
+    Raises
+    ------
+    PeakNotReached
+        If a slide ends before its peak.
+    ValueError
+        For a run that failed."""
     hist = _checked(solution)
     p, edges, vel = solution.problem, _edges(solution), hist.velocities
     rows = []
@@ -465,7 +534,18 @@ def healing(solution) -> pd.DataFrame:
 
 def healing_rate(table: pd.DataFrame) -> float:
     """The least-squares slope of Δμ_peak against log10(hold time): healing per decade. NaN
-    with fewer than two different hold times."""
+    with fewer than two different hold times.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        :func:`healing`'s table.
+
+    Returns
+    -------
+    float
+        Δμ_peak per decade of hold time (dimensionless).
+    """
     if table.hold_s.nunique() < 2:
         return math.nan
     return float(np.polyfit(np.log10(table.hold_s), table.delta_mu_peak, 1)[0])

@@ -114,7 +114,39 @@ def observe(path, columns, out, normal_force: float | None = None, mass: float |
             vls: float | None = None, stiffness: float | None = None, sigma: str = "std",
             plot: bool = True, provenance: dict | None = None) -> dict:
     """Measure the recording ``path`` and write the files of the module docstring to ``out``;
-    returns the observations document with the files written (``files``)."""
+    returns the observations document with the files written (``files``).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The recording's file.
+    columns : dict or list of str
+        Channel → ``(column, unit)``, or specs ``CHANNEL=COLUMN:UNIT``.
+    out : str or pathlib.Path
+        The directory written into.
+    normal_force : float, optional
+        The normal force (N), standing for a normal-force column.
+    mass : float, optional
+        The slider's mass (kg).
+    vls, stiffness : float, optional
+        The slow load-point speed (m/s) and stiffness (N/m), instead of measuring them.
+    sigma : str
+        ``"std"`` or ``"sem"``: the spread the observations name as σ.
+    plot : bool
+        Also draw the figures.
+    provenance : dict, optional
+        Kept in the document as given.
+
+    Returns
+    -------
+    dict
+        The observations document, with ``files``.
+
+    Raises
+    ------
+    ValueError
+        As :func:`read_recording` and :func:`analyse`.
+    """
     from benchmarks.lab.events import analyse
     from benchmarks.lab.channels import column_map, read_recording
     if sigma not in SIGMAS:

@@ -36,7 +36,30 @@ __all__ = ["LabPosterior", "sample_lab"]
 @dataclass
 class LabPosterior:
     """Samples (``samples``, the parameters in their own units), their 2.5/50/97.5 %
-    ``quantiles``, the chain's diagnostics, its cost and the ``prior``."""
+    ``quantiles``, the chain's diagnostics, its cost and the ``prior``.
+
+    Parameters
+    ----------
+    samples : pandas.DataFrame
+        The chain after burn-in, one column per free parameter (Dc in m, k′ in 1/m; a − b
+        added when a and b are free).
+    quantiles : dict of str to list of float
+        The 2.5, 50 and 97.5 % quantiles of each column.
+    acceptance : float
+        The walkers' mean acceptance fraction.
+    tau : dict of str to float
+        The integrated autocorrelation time of each parameter (steps).
+    tau_reliable : bool
+        Whether the chain is at least 50 τ long after burn-in.
+    effective_samples : float
+        Independent samples, about (NaN where τ is not finite).
+    solves : int
+        Forward solves.
+    wall_s : float
+        The chain's wall time (s).
+    prior, likelihood : str
+        The prior and the likelihood, in words.
+    """
 
     samples: pd.DataFrame = field(repr=False)
     quantiles: dict
@@ -52,7 +75,23 @@ class LabPosterior:
 
 def sample_lab(fit: LabFit, walkers: int = 32, steps: int = 600, seed: int = 0,
                progress: bool = False) -> LabPosterior:
-    """emcee over ``fit``'s free parameters (module docstring); ``walkers`` × ``steps`` solves."""
+    """emcee over ``fit``'s free parameters (module docstring); ``walkers`` × ``steps`` solves.
+
+    Parameters
+    ----------
+    fit : LabFit
+        The best fit the chain starts about.
+    walkers, steps : int
+        Walkers (even, ≥ twice the free parameters) and steps (≥ 20): else ValueError.
+    seed : int
+        The random generator's seed.
+    progress : bool
+        Show a progress bar.
+
+    Returns
+    -------
+    LabPosterior
+    """
     from benchmarks.records.optional import require
     require("emcee", "inversion", "a posterior sample")
     import emcee

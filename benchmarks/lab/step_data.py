@@ -60,7 +60,29 @@ class LabRecord:
     piece's fitted speed and its standard error
     (:data:`~benchmarks.lab.history.PIECE_COLUMNS`). ``t_offset`` is the
     file's time of the first sample; ``source``, ``sha256`` and ``columns`` say where it came
-    from."""
+    from.
+
+    Parameters
+    ----------
+    t : numpy.ndarray
+        Sample times from 0 (s).
+    mu : numpy.ndarray
+        The friction coefficient (dimensionless).
+    load_point : numpy.ndarray
+        The load point's displacement from 0 (m).
+    velocities : tuple of float
+        The history's velocities (m/s).
+    switch_times : tuple of float
+        The history's switch times (s).
+    pieces : pandas.DataFrame
+        Each piece's fitted speed (m/s) and its standard error.
+    t_offset : float
+        The file's time of the first sample (s).
+    source, sha256 : str
+        The file and its hash.
+    columns : dict
+        Each channel's column in the file.
+    """
 
     t: np.ndarray = field(repr=False)
     mu: np.ndarray = field(repr=False)
@@ -92,7 +114,28 @@ def read_lab_record(path, columns, normal_force: float | None = None,
                     window: tuple[float, float] | None = None) -> LabRecord:
     """The record in ``path`` with ``columns`` (channel → ``(column, unit)`` or specs
     ``CHANNEL=COLUMN[:UNIT]``); ``normal_force`` (N) stands for a normal-force column;
-    ``window`` = (start, end) in the file's time (s) keeps that part only."""
+    ``window`` = (start, end) in the file's time (s) keeps that part only.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The record's file.
+    columns : dict or list of str
+        Channel → ``(column, unit)``, or specs ``CHANNEL=COLUMN[:UNIT]``.
+    normal_force : float, optional
+        The normal force (N), standing for a normal-force column.
+    window : tuple of float, optional
+        (start, end) in the file's time (s).
+
+    Returns
+    -------
+    LabRecord
+
+    Raises
+    ------
+    ValueError
+        Naming the file and what is wrong with it or with the mapping.
+    """
     mapping = _mapping(columns, normal_force)
     path = Path(path)
     if not path.is_file():
@@ -123,7 +166,25 @@ def lab_record_from(table: pd.DataFrame, columns, normal_force: float | None = N
                     window: tuple[float, float] | None = None, source: str = "table",
                     sha256: str = "") -> LabRecord:
     """A :class:`LabRecord` of a DataFrame already in memory (the checks of
-    :func:`read_lab_record`)."""
+    :func:`read_lab_record`).
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        The record's columns.
+    columns, normal_force, window
+        As :func:`read_lab_record`.
+    source, sha256 : str
+        Where the table came from, for messages and provenance.
+
+    Returns
+    -------
+    LabRecord
+
+    Raises
+    ------
+    ValueError
+        As :func:`read_lab_record`."""
     mapping = _mapping(columns, normal_force)
     missing = [c for c, _ in mapping.values() if c not in table.columns]
     if missing:

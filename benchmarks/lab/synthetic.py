@@ -78,11 +78,33 @@ def synthetic_recording(problem, rate: float = 10_000.0, t_skip: float = 0.0,
                         noise: float = 0.0, drift: float = 0.0, anti_alias: float | None = 0.4,
                         seed: int = 0, shake: float = 0.0,
                         algorithm=None) -> tuple[pd.DataFrame, Truth]:
-    """The recording of ``problem`` (a SpringSlider with mass) from ``t_skip`` to its ``t_end``
-    at ``rate`` samples per second (module docstring). Columns: ``time`` (s), ``shear_force``
-    (N), ``acceleration`` (m/s²), ``slip`` (m), ``table`` (m), and ``acceleration_lower``
-    (m/s²) when ``shake`` > 0. ``algorithm``: the forward solver (default Rodas5P at
-    rtol = atol = 1e−10)."""
+    """The recording of ``problem`` (with mass) from ``t_skip`` to ``t_end`` (module docstring).
+
+    Parameters
+    ----------
+    problem : SpringSlider
+    rate, t_skip, shake : float
+        Samples per second (Hz); the start (s, in [0, t_end)); the lower specimen's vibration
+        (m/s² rms, ≥ 0; then an ``acceleration_lower`` column).
+    noise, drift : float
+        White noise σ and the drift at the end, as fractions of each channel's per-event scale.
+    anti_alias : float, optional
+        The anti-alias filter's cutoff over the rate (dimensionless); ``None``: no filter.
+    seed : int
+        The random generator's seed.
+    algorithm : Algorithm, optional
+        The forward solver; ``None``: Rodas5P at rtol = atol = 1e−10.
+
+    Returns
+    -------
+    table : pandas.DataFrame
+        ``time`` (s), ``shear_force`` (N), ``acceleration`` (m/s²), ``slip`` and ``table`` (m).
+    truth : Truth
+
+    Raises
+    ------
+    ValueError
+        Without mass, or ``t_skip`` or ``shake`` out of range; RuntimeError: a failed run."""
     from scipy import signal
 
     from benchmarks.physics.metrics import event_metrics
