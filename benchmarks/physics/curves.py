@@ -31,7 +31,23 @@ CURVE_COLUMNS = ("event_id", "slip_m", "friction")
 
 def read_curves(path) -> pd.DataFrame:
     """Observed slip-weakening curves from a CSV with :data:`CURVE_COLUMNS` (see the module doc),
-    or ``ValueError`` naming the file and what is wrong (:func:`check_curves`)."""
+    or ``ValueError`` naming the file and what is wrong (:func:`check_curves`).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The CSV file.
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``event_id``, ``slip_m`` (m), ``friction`` (dimensionless).
+
+    Raises
+    ------
+    ValueError
+        Naming the file and what is wrong.
+    """
     from benchmarks.records.files import read_table
     df = read_table(path, CURVE_COLUMNS, what="slip-weakening file",
                     hint="it needs the columns event_id, slip_m (m), friction (Ft/Fn)")
@@ -40,7 +56,25 @@ def read_curves(path) -> pd.DataFrame:
 
 def check_curves(df, source: str = "slip-weakening curves") -> pd.DataFrame:
     """``df`` as curves (:data:`CURVE_COLUMNS`, numbers finite, every event_id given, at least
-    two samples per event), or ``ValueError`` naming ``source`` and what is wrong."""
+    two samples per event), or ``ValueError`` naming ``source`` and what is wrong.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        The curves: ``event_id``, ``slip_m`` (m), ``friction`` (dimensionless).
+    source : str
+        What the curves are, for messages.
+
+    Returns
+    -------
+    pandas.DataFrame
+        The curves, checked.
+
+    Raises
+    ------
+    ValueError
+        Naming ``source`` and what is wrong.
+    """
     if not isinstance(df, pd.DataFrame):
         raise ValueError(f"{source} must be a DataFrame with columns {list(CURVE_COLUMNS)}, "
                          f"got {type(df).__name__}")
@@ -68,7 +102,15 @@ def check_curves(df, source: str = "slip-weakening curves") -> pd.DataFrame:
 
 def write_curves(df: pd.DataFrame, path) -> None:
     """Write the curves to ``path`` (CSV), never over a file of the user's
-    (:func:`benchmarks.records.files.writing`)."""
+    (:func:`benchmarks.records.files.writing`).
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        The curves (:data:`CURVE_COLUMNS`).
+    path : str or pathlib.Path
+        The CSV file.
+    """
     from benchmarks.records.files import write_table
     write_table(df[list(CURVE_COLUMNS)], path)
 
@@ -81,6 +123,20 @@ def event_curve(sol, index: int = -1) -> tuple[np.ndarray, np.ndarray]:
     since the event started is Δu = vL·(t − t_start) − ΔFs/k, exact for the spring with the load
     point at its slow speed (the fast phase of two-speed loading starts when an event ends).
     Returns empty arrays when the run has no complete event.
+
+    Parameters
+    ----------
+    sol : Solution
+        A run saved finely enough to resolve the event.
+    index : int
+        The event's row in ``sol.events``.
+
+    Returns
+    -------
+    slip : numpy.ndarray
+        The slip since the event started (m).
+    friction : numpy.ndarray
+        Ft/Fn (dimensionless).
     """
     if not len(sol.events):
         return np.empty(0), np.empty(0)
@@ -107,7 +163,28 @@ def sample_curves(sol, n_events: int = 3, n_points: int = 25, noise: float = 0.0
     its total slip; ``"time"``: at (j + ½)/n of its duration, as a recorder samples (many points
     at the slow start, where the weakening over a few Lc happens), from the saved trajectory
     (save finely). Not at the ends: there the curve is vertical (the friction changes while the
-    slip does not), where a sample would weigh the slip at which a curve ends, not its shape."""
+    slip does not), where a sample would weigh the slip at which a curve ends, not its shape.
+
+    Parameters
+    ----------
+    sol : Solution
+        The run.
+    n_events, n_points : int
+        The events taken (the last ones) and the samples per event.
+    noise : float
+        σ of the Gaussian noise on the friction (dimensionless).
+    seed : int
+        The random generator's seed.
+    curve : callable
+        ``curve(sol, index) -> (slip, friction)``.
+    spacing : str
+        ``"slip"`` or ``"time"``.
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``event_id``, ``slip_m`` (m), ``friction``.
+    """
     if spacing not in ("slip", "time"):
         raise ValueError(f"spacing must be 'slip' or 'time', got {spacing!r}")
     rng = np.random.default_rng(seed)

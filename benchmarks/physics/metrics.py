@@ -83,7 +83,21 @@ def _metric_columns(events: pd.DataFrame, normal_force: float) -> tuple[np.ndarr
 
 
 def event_metrics(events: pd.DataFrame, normal_force: float) -> pd.DataFrame:
-    """One row per event: its start time and the four metrics (ΔT is NaN for the first event)."""
+    """One row per event: its start time and the four metrics (ΔT is NaN for the first event).
+
+    Parameters
+    ----------
+    events : pandas.DataFrame
+        A run's events, :data:`~integrators.EVENT_COLUMNS` (SI units).
+    normal_force : float
+        Fn (N), to make the friction drop a coefficient.
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``t_start`` (s), ``recurrence_s`` (s), ``friction_drop`` (dimensionless), ``slip_m``
+        (m), ``peak_velocity_m_s`` (m/s).
+    """
     t, x = _metric_columns(events, normal_force)
     return pd.DataFrame({"t_start": t, **{name: x[:, i] for i, name in enumerate(METRICS)}})
 
@@ -96,6 +110,31 @@ class LimitCycle:
     recurrence intervals of that period are in ``recurrence_values``); they are NaN unless the
     classification is in :data:`CYCLES`, and ``reason`` then says why. ``cycles_to_converge`` is
     the index of the first event from which the metrics repeat within ``rtol``.
+
+    Parameters
+    ----------
+    classification : str
+        One of :data:`CLASSIFICATIONS`.
+    period : int
+        Events per period (0 without a cycle).
+    recurrence_s : float
+        The recurrence interval ΔT (s).
+    friction_drop : float
+        The friction drop Δμ (dimensionless).
+    slip_m : float
+        The slip per event (m).
+    peak_velocity_m_s : float
+        The peak slip rate (m/s).
+    cycles_to_converge : int, optional
+        The first event from which the metrics repeat.
+    n_events : int
+        The run's events.
+    rtol : float
+        The relative tolerance of the repetition.
+    recurrence_values : list of float
+        The period's recurrence intervals (s).
+    reason : str
+        Why there are no metrics, when there are none.
     """
 
     classification: str
@@ -122,7 +161,19 @@ class EndState:
     stable (``growth_rate`` σ, the largest real part of the characteristic roots, 1/s, < 0;
     0 at neutral stability, NaN when it could not be computed); ``longest_run``, the longest
     run (s) the problem allows (τ = ``TAU_END_MAX``; NaN when not known), which says whether
-    a promise to run longer can be kept."""
+    a promise to run longer can be kept.
+
+    Parameters
+    ----------
+    log_v : float
+        ln(v/vLs) (dimensionless).
+    state_offset, force_offset : float
+        The state's and the spring's distance from steady sliding, in units of A = a·Fn.
+    growth_rate : float
+        σ (1/s).
+    longest_run : float
+        The longest run the problem allows (s).
+    """
 
     log_v: float
     state_offset: float
@@ -163,7 +214,16 @@ class EndState:
 
 
 def end_state(solution) -> EndState:
-    """The :class:`EndState` of a Solution (its last saved state)."""
+    """The :class:`EndState` of a Solution (its last saved state).
+
+    Parameters
+    ----------
+    solution : Solution
+
+    Returns
+    -------
+    EndState
+    """
     from problems.slider import TAU_END_MAX
     p = solution.problem
     law, fn = p.law, p.normal_force
@@ -211,6 +271,29 @@ def limit_cycle(events: pd.DataFrame, normal_force: float, t_end: float, rtol: f
     ``end`` (how the run ended) tells stable sliding from a run too short to classify; without
     it such a run is never called stable sliding. The search is
     :func:`integrators.core.cycles.find_cycle`, the one the ensemble kernel runs.
+
+    Parameters
+    ----------
+    events : pandas.DataFrame
+        The run's events, :data:`~integrators.EVENT_COLUMNS` (SI units).
+    normal_force : float
+        Fn (N).
+    t_end : float
+        The end of the run (s).
+    rtol : float
+        The relative tolerance of a repetition.
+    max_period : int
+        The longest period looked for (events).
+    min_repeats : int
+        How many times a period must repeat.
+    v_slow : float, optional
+        The slow loading speed (m/s).
+    end : EndState, optional
+        How the run ended.
+
+    Returns
+    -------
+    LimitCycle
     """
     if not 1 <= max_period <= cycles.MAX_PERIOD:
         raise ValueError(f"max_period must be in 1..{cycles.MAX_PERIOD}, got {max_period!r}")
@@ -319,7 +402,18 @@ def _round_up(x: float, digits: int = 4) -> float:
 
 def summarize(solution, rtol: float = 1e-3) -> LimitCycle:
     """:func:`limit_cycle` of a Solution; a run that did not reach its end is ``failed``, never
-    classified as physics."""
+    classified as physics.
+
+    Parameters
+    ----------
+    solution : Solution
+    rtol : float
+        The relative tolerance of a repetition.
+
+    Returns
+    -------
+    LimitCycle
+    """
     p = solution.problem
     events = solution.events
     if not solution.success or not solution.reached_end:

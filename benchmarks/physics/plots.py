@@ -14,7 +14,17 @@ __all__ = ["plot_solution", "plot_work_precision", "plot_convergence"]
 
 
 def plot_solution(solution, path, title: str | None = None) -> None:
-    """Write a three-panel PNG of ``solution`` to ``path``."""
+    """Write a three-panel PNG of ``solution`` to ``path``.
+
+    Parameters
+    ----------
+    solution : Solution
+        The run drawn.
+    path : str or pathlib.Path
+        The PNG file.
+    title : str, optional
+        The figure's title; ``None``: the problem's and method's names.
+    """
     p = solution.problem
     fig = Figure(figsize=(11, 6.5), layout="constrained")
     grid = fig.add_gridspec(2, 2, width_ratios=(1.6, 1))
@@ -54,7 +64,19 @@ def plot_work_precision(df, path, error: str = "err_recurrence", title: str | No
     """Log–log work-precision diagram of one problem: ``error`` against wall time (left) and
     against rhs evaluations (right), one line per (integrator, rhs tier); numba tier solid,
     Python tier dashed. Runs that failed or ran out of budget are crosses on the top edge at
-    the cost they incurred (the error they would have had is unknown)."""
+    the cost they incurred (the error they would have had is unknown).
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        One problem's rows of a work-precision study.
+    path : str or pathlib.Path
+        The PNG file.
+    error : str
+        The error column drawn.
+    title : str, optional
+        The figure's title.
+    """
     keys = list(df.groupby(["integrator", "rhs_tier"], sort=False).groups)
     look = _styles(keys)
     fig = Figure(figsize=(14, 6.5), layout="constrained")
@@ -87,7 +109,21 @@ def plot_work_precision(df, path, error: str = "err_recurrence", title: str | No
 
 def plot_convergence(df, orders: dict, path, error: str = "err_recurrence",
                      title: str | None = None) -> None:
-    """Error against step size (Δτcnst) of the fixed-step methods, with the fitted slopes."""
+    """Error against step size (Δτcnst) of the fixed-step methods, with the fitted slopes.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        A convergence study's table (:func:`benchmarks.devtools.convergence_study`).
+    orders : dict of str to float
+        The fitted order of each method.
+    path : str or pathlib.Path
+        The PNG file.
+    error : str
+        The error column drawn.
+    title : str, optional
+        The figure's title.
+    """
     fig = Figure(figsize=(7.5, 5.5), layout="constrained")
     ax = fig.subplots()
     for i, (name, g) in enumerate(df.groupby("integrator", sort=False)):

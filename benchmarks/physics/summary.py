@@ -14,7 +14,18 @@ __all__ = ["simulate_summary", "integrator_rows", "integrators_markdown"]
 
 
 def simulate_summary(sol) -> dict:
-    """The JSON summary of one run (the keys ``rsfbench simulate --json`` promises)."""
+    """The JSON summary of one run (the keys ``rsfbench simulate --json`` promises).
+
+    Parameters
+    ----------
+    sol : Solution
+        The run.
+
+    Returns
+    -------
+    dict
+        JSON-ready: the problem, method, retcode, counters, limit cycle and last event (SI).
+    """
     lc = metrics.summarize(sol)
     p = sol.problem
     per_event = metrics.event_metrics(sol.events, p.normal_force)

@@ -17,7 +17,23 @@ __all__ = ["studies", "check_plan", "study_named", "list_markdown", "study_input
 @functools.cache
 def studies(package: str = "benchmarks.studies") -> tuple:
     """Every study declared in ``package`` (a module-level ``STUDY``), in their declared order;
-    checked by :func:`check_plan`."""
+    checked by :func:`check_plan`.
+
+    Parameters
+    ----------
+    package : str
+        The package whose modules declare the studies.
+
+    Returns
+    -------
+    tuple
+        The studies, in order.
+
+    Raises
+    ------
+    ValueError
+        From :func:`check_plan`, for a plan that does not hold together.
+    """
     pkg = importlib.import_module(package)
     found = []
     for info in pkgutil.iter_modules(pkg.__path__):
@@ -52,7 +68,24 @@ def check_plan(plan) -> None:
 
 
 def study_named(name: str, plan=None):
-    """The study called ``name``, or ``ValueError`` naming the known ones."""
+    """The study called ``name``, or ``ValueError`` naming the known ones.
+
+    Parameters
+    ----------
+    name : str
+        The study's name.
+    plan : sequence, optional
+        The studies looked in; ``None``: :func:`studies`.
+
+    Returns
+    -------
+    Study
+
+    Raises
+    ------
+    ValueError
+        For an unknown name.
+    """
     plan = studies() if plan is None else plan
     for study in plan:
         if study.name == name:

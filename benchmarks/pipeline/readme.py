@@ -191,7 +191,22 @@ def refresh(path: Path = ROOT / "README.md", check: bool = False,
             root: Path | None = None) -> list[str]:
     """Rewrite the blocks of the page ``path`` (or with ``check`` only compare), rendered from
     ``root``'s results (default: the page's directory); returns the sources of the blocks that
-    were out of date."""
+    were out of date.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The page (default: the README).
+    check : bool
+        Only compare; write nothing.
+    root : pathlib.Path, optional
+        The directory the results are read from; ``None``: the page's.
+
+    Returns
+    -------
+    list of str
+        The sources of the blocks that were out of date.
+    """
     root = path.parent if root is None else root
     old = path.read_text()
     _NOW.clear()

@@ -47,7 +47,15 @@ def atomic_write(path: Path, text: str | bytes) -> None:
     """Write ``text`` (or bytes) to ``path`` so that readers see the old file or the new one,
     never half. The file gets the permissions a plain ``open`` would give it (``mkstemp``'s are
     0600). No ownership check: for the files of a store or cache rsfbench owns (a user's
-    output goes through :func:`write_output`)."""
+    output goes through :func:`write_output`).
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The file written.
+    text : str or bytes
+        Its new content.
+    """
     path = Path(path)
     with _temporary(path) as tmp:
         with open(tmp, "wb" if isinstance(text, bytes) else "w") as f:
@@ -314,7 +322,26 @@ def remove_stale_temporaries(directory: Path, older_than: float = STALE_AFTER_S)
 
 
 def read_json_record(path: Path, required: tuple[str, ...] = (), what: str = "file") -> dict:
-    """A JSON object from ``path`` that has the ``required`` keys, or :class:`BadResultsFile`."""
+    """A JSON object from ``path`` that has the ``required`` keys, or :class:`BadResultsFile`.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The JSON file.
+    required : tuple of str
+        The keys it must have.
+    what : str
+        What the file is, for messages.
+
+    Returns
+    -------
+    dict
+
+    Raises
+    ------
+    BadResultsFile
+        For a missing or unreadable file, or one without a required key.
+    """
     path = Path(path)
     try:
         record = json.loads(path.read_text(encoding="utf-8"))
@@ -334,7 +361,28 @@ def read_json_record(path: Path, required: tuple[str, ...] = (), what: str = "fi
 def read_table(path: Path, required: tuple[str, ...] = (), what: str = "table",
                hint: str = "") -> pd.DataFrame:
     """A CSV table from ``path`` with the ``required`` columns and at least one row, or
-    :class:`BadResultsFile` (``hint`` says how to make a good one)."""
+    :class:`BadResultsFile` (``hint`` says how to make a good one).
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The CSV file.
+    required : tuple of str
+        The columns it must have.
+    what : str
+        What the table is, for messages.
+    hint : str
+        How to make a good one, for messages.
+
+    Returns
+    -------
+    pandas.DataFrame
+
+    Raises
+    ------
+    BadResultsFile
+        For a missing, unreadable or empty table, or one without a required column.
+    """
     path = Path(path)
     tail = f"; {hint}" if hint else ""
     if not path.is_file():

@@ -40,7 +40,12 @@ def checkout() -> Path | None:
 def git_commit() -> str:
     """The commit of the checkout the harness runs from, ``+dirty`` if it has local changes
     outside ``results/`` (a run rewriting the results it records is not a change of what ran);
-    ``"unknown"`` for an installed package."""
+    ``"unknown"`` for an installed package.
+
+    Returns
+    -------
+    str
+    """
     root = checkout()
     if root is None:
         return "unknown"
@@ -63,7 +68,12 @@ def _version(package: str) -> str:
 
 
 def version_line() -> str:
-    """``rsfbench --version``: the package's version, the commit of a checkout, Python's."""
+    """``rsfbench --version``: the package's version, the commit of a checkout, Python's.
+
+    Returns
+    -------
+    str
+    """
     commit = git_commit()
     where = f", commit {commit}" if commit != "unknown" else ""
     return f"rsfbench {_version('rsfbench')}{where} (Python {platform.python_version()})"

@@ -12,7 +12,19 @@ __all__ = ["markdown_table", "jsonable", "fmt"]
 
 def markdown_table(df: pd.DataFrame, floatfmt: str | None = None) -> str:
     """A GitHub-flavoured Markdown table of ``df`` (values as ``str``; floats with ``floatfmt``
-    if given, NaN as a gap)."""
+    if given, NaN as a gap).
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        The table.
+    floatfmt : str, optional
+        A format spec for floats (``".3g"``).
+
+    Returns
+    -------
+    str
+    """
     def cell(v):
         if floatfmt is not None and isinstance(v, (float, np.floating)):
             return fmt(float(v), floatfmt)
@@ -24,7 +36,18 @@ def markdown_table(df: pd.DataFrame, floatfmt: str | None = None) -> str:
 
 
 def jsonable(x):
-    """``x`` with numpy scalars as Python numbers and NaN/inf as None (valid JSON)."""
+    """``x`` with numpy scalars as Python numbers and NaN/inf as None (valid JSON).
+
+    Parameters
+    ----------
+    x : object
+        A value, or dicts, lists and tuples of them.
+
+    Returns
+    -------
+    object
+        The same structure, JSON-ready.
+    """
     if isinstance(x, np.generic):
         x = x.item()
     if isinstance(x, float) and not math.isfinite(x):
@@ -37,7 +60,19 @@ def jsonable(x):
 
 
 def fmt(x, spec: str = ".3g") -> str:
-    """``format(x, spec)``, or an empty string for None/NaN (tables show a gap, not "nan")."""
+    """``format(x, spec)``, or an empty string for None/NaN (tables show a gap, not "nan").
+
+    Parameters
+    ----------
+    x : float or None
+        The value.
+    spec : str
+        The format spec.
+
+    Returns
+    -------
+    str
+    """
     if x is None or (isinstance(x, float) and x != x):
         return ""
     return format(x, spec)
