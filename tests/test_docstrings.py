@@ -39,7 +39,6 @@ LEFT = {
 }
 
 
-
 def _public_callables():
     api = runpy.run_path(str(DOCS / "conf.py"))["public_api"]()
     found = []
