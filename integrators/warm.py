@@ -23,10 +23,10 @@ __all__ = ["problems_to_warm", "warm"]
 
 def problems_to_warm() -> list:
     """One short problem per (law, formulation) the kernels are specialised for."""
-    from problems import preset, velocity_step_test
+    from problems import LAWS, preset, velocity_step_test
     from problems.presets import fault_radiation_damping
     out = []
-    for law in ("slip", "aging", "nagata"):
+    for law in LAWS:
         inertial = preset("W2", law=law, t_end=2.0)
         out += [inertial, dataclasses.replace(inertial, mass=0.0),
                 dataclasses.replace(inertial, radiation_damping=fault_radiation_damping()),

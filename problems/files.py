@@ -42,7 +42,7 @@ import os
 import tomllib
 from pathlib import Path
 
-from problems.friction import law_from_name
+from problems.friction import LAWS, law_from_name, law_parameters
 from problems.loading import ConstantLoading, LoadHistory, TwoSpeedLoading
 from problems.slider import BalancedStart, InitialState, SpringSlider
 
@@ -127,12 +127,12 @@ def problem_from_dict(data, default_name: str = "") -> SpringSlider:
     table = _table(data, "the file")
     _keys(table, _TOP, _REQUIRED, "the file")
     law = _table(table["law"], "[law]")
-    nagata = isinstance(law.get("name"), str) and law["name"].lower() == "nagata"
-    allowed = {"name", "a", "b", "lc", "v0"} | ({"c"} if nagata else set())
-    _keys(law, allowed, ("name", "a", "b", "lc"), "[law]")
-    if not isinstance(law["name"], str):
-        raise ValueError(f"[law] name must be \"slip\", \"aging\" or \"nagata\", got "
-                         f"{_show(law['name'])}")
+    name = law.get("name")
+    known = isinstance(name, str) and name.lower() in LAWS
+    own = law_parameters(name) if known else ()
+    _keys(law, {"name", "a", "b", "lc", "v0", *own}, ("name", "a", "b", "lc"), "[law]")
+    if not known:
+        raise ValueError(f"[law] name: law must be one of {sorted(LAWS)}, got {_show(name)}")
     law = law_from_name(law["name"], **{k: _number(law, k, "[law]") for k in law if k != "name"})
     loading = _table(table["loading"], "[loading]")
     if "vl" in loading:

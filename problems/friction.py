@@ -28,7 +28,8 @@ import numpy as np
 from problems._validate import check_non_negative, check_positive, check_possible
 from problems.formulations import LAW_CODES, check_law_code
 
-__all__ = ["FrictionLaw", "SlipLaw", "AgingLaw", "NagataLaw", "LAWS", "law_from_name", "compiled_law_code"]
+__all__ = ["FrictionLaw", "SlipLaw", "AgingLaw", "NagataLaw", "LAWS", "law_from_name", "compiled_law_code",
+           "law_parameters"]
 
 
 @dataclass(frozen=True)
@@ -273,16 +274,41 @@ def law_from_name(name: str, **params) -> FrictionLaw:
     ValueError
         For an unknown name, a parameter the law does not have, or a value it refuses.
     """
-    try:
-        cls = LAWS[name.lower()]
-    except (KeyError, AttributeError):
-        raise ValueError(f"law must be one of {sorted(LAWS)}, got {name!r}") from None
-    known = {f.name for f in dataclasses.fields(cls)}
+    own = law_parameters(name)
+    cls = LAWS[name.lower()]
+    known = {f.name for f in dataclasses.fields(FrictionLaw)} | set(own)
     unknown = sorted(set(params) - known)
     if unknown:              # a TypeError from the constructor would be a traceback
         raise ValueError(f"{unknown[0]!r} is not a parameter of the {cls.name} law; its "
                          f"parameters are {', '.join(sorted(known))}")
     return cls(**params)
+
+
+def law_parameters(name: str) -> tuple[str, ...]:
+    """The parameters of the law called ``name`` beyond a, b, lc and v0 (the Nagata law's
+    ``("c",)``); ValueError for a name not in :data:`LAWS`.
+
+    Parameters
+    ----------
+    name : str
+        A law's short name (a key of :data:`LAWS`, any case).
+
+    Returns
+    -------
+    tuple of str
+        The names of its own fields, in declaration order.
+
+    Raises
+    ------
+    ValueError
+        If no law has that name.
+    """
+    try:
+        cls = LAWS[name.lower()]
+    except (KeyError, AttributeError):
+        raise ValueError(f"law must be one of {sorted(LAWS)}, got {name!r}") from None
+    common = {f.name for f in dataclasses.fields(FrictionLaw)}
+    return tuple(f.name for f in dataclasses.fields(cls) if f.name not in common)
 
 
 def compiled_law_code(law: FrictionLaw) -> int:

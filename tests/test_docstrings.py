@@ -23,7 +23,6 @@ DOCS = Path(__file__).resolve().parents[1] / "docs"
 LEFT = {
     "integrators.Rodas5P",                                  # integrators/own/rodas5p.py
     "benchmarks.cli.main", "benchmarks.cli.build_parser",   # benchmarks/cli/
-    "benchmarks.lab.two_state_friction",                    # benchmarks/lab/two_state.py
     "benchmarks.lab.LabModel",                              # benchmarks/lab/model.py
     "benchmarks.lab.LabProfile", "benchmarks.lab.profile_lab",  # lab/profile_intervals.py
     "benchmarks.inversion.metric_map", "benchmarks.inversion.MetricMap",     # inversion/grid.py

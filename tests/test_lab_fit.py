@@ -191,6 +191,29 @@ def test_the_two_state_model_agrees_with_the_independent_one(law, extra):
     assert np.max(np.abs(0.6 + g - one)) < 1e-9
 
 
+def test_the_two_state_model_refuses_an_unknown_law_and_gives_nan_for_an_unknown_code():
+    """The two-state model reads the problems' law codes (problems.formulations.LAW_CODES):
+    an unknown name is refused before any work, and an unknown code reaching compiled code
+    gives NaN, never another law's formulas (once an ``else`` meant the aging law)."""
+    from benchmarks.lab import two_state
+    from problems.formulations import AGING_LAW, LAW_CODES, Q_LAW
+    with pytest.raises(ValueError, match="law must be one of"):
+        two_state.two_state_friction(T, VELOCITIES, SWITCHES, **TRUTH, law="ruina")
+    extra = dict(b2=0.004, dc2=80e-6, c=0.0, v0=VELOCITIES[0], mu0=0.6)
+    p = two_state._parameters("aging", **TRUTH, **extra)
+    assert p[two_state._Q1 + Q_LAW] == p[two_state._Q2 + Q_LAW] == AGING_LAW
+    bounds = np.array([0.0, *SWITCHES, T[-1]])
+    for where in (two_state._Q1, two_state._Q2):
+        bad = p.copy()
+        bad[where + Q_LAW] = max(LAW_CODES) + 1
+        out = np.zeros(len(T))
+        steps = two_state._run(bad, np.array(VELOCITIES), bounds, T, 1e-10, 1e-10, out)
+        assert steps == -1
+    good = np.zeros(len(T))
+    assert two_state._run(p.copy(), np.array(VELOCITIES), bounds, T, 1e-10, 1e-10, good) > 0
+    assert np.isfinite(good).all()
+
+
 def test_a_second_state_that_strengthens_is_recovered():
     """b2 < 0 over a long Dc2 (μ keeps rising after the peak, as in clays): the two-state fit
     recovers it from a record of the independent model; the one-state fit cannot, and says
@@ -390,7 +413,7 @@ def test_a_failed_solver_check_is_a_failed_command():
 @pytest.mark.parametrize("args, match", [
     (["--column=time=Time(s):s", "--column=friction=Friction"], "load_point channel"),
     (["--column=time=Time(s):s", "--column=friction=Friction",
-      "--column=load_point=Displ(microns):um", "--c", "2"], "needs --law nagata"),
+      "--column=load_point=Displ(microns):um", "--c", "2"], "the aging law has none"),
     (["--column=time=Time(s):s", "--column=friction=Friction",
       "--column=load_point=Displ(microns):um", "--mass", "1"], "--normal-force"),
     (["--column=time=Time(s):s", "--column=friction=Friction",

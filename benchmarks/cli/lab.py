@@ -36,7 +36,7 @@ from benchmarks.cli.args import (
     show_progress,
 )
 from benchmarks.records.files import claim_outputs, write_figure, write_table
-from problems import LAWS
+from problems import LAWS, law_parameters
 
 __all__ = ["add_parsers"]
 
@@ -87,8 +87,9 @@ def _problem(args):
     kw = dict(law=args.law or "aging", mass=args.mass or 0.0,
               radiation_damping=args.radiation_damping or 0.0, c=args.c,
               stiffness=args.stiffness)
-    if kw["c"] is not None and kw["law"] != "nagata":
-        raise ValueError("--c is the Nagata law's stress coefficient: it needs --law nagata")
+    if kw["c"] is not None and "c" not in law_parameters(kw["law"]):
+        raise ValueError(f"--c is a stress coefficient (the Nagata law's): the {kw['law']} law "
+                         "has none")
     if args.test == "step" and opt["v1"] == opt["v2"]:
         raise ValueError(f"--v2 = {opt['v2']:g} m/s equals --v1: a velocity step needs two "
                          "different speeds")

@@ -21,7 +21,7 @@ from pathlib import Path
 from benchmarks.cli.args import in_file, non_negative, out_dir, positive, say, show_progress
 from benchmarks.records.files import claim_outputs, write_figure, write_output, write_table
 from benchmarks.records.report import jsonable
-from problems import LAWS
+from problems import LAWS, law_parameters
 
 #: the files ``lab fit --out DIR`` may write
 LAB_FIT_FILES = ("lab_fit.json", "lab_fit_parameters.csv", "lab_fit_residuals.csv",
@@ -68,8 +68,9 @@ def _model(args, record):
 
 
 def _check_flags(args) -> None:
-    if args.c is not None and args.law != "nagata":
-        raise ValueError("--c is the Nagata law's stress coefficient: it needs --law nagata")
+    if args.c is not None and "c" not in law_parameters(args.law):
+        raise ValueError(f"--c is a stress coefficient (the Nagata law's): the {args.law} law "
+                         "has none")
     if (args.mass is not None or args.radiation_damping is not None) and args.normal_force is None:
         raise ValueError("--mass and --radiation-damping need --normal-force (N): the inertial "
                          "slider's friction depends on it")

@@ -27,6 +27,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from problems.friction import law_parameters
+
 __all__ = ["LabModel", "DETRENDS", "NOMINAL_NORMAL_FORCE", "LAB_MU0", "DEFAULT_ALGORITHM",
            "WALL_BUDGET"]
 
@@ -142,7 +144,7 @@ class LabModel:
         from problems.friction import law_from_name
         from problems.slider import BalancedStart, SpringSlider
         params = dict(a=a, b=b, lc=dc, v0=self.v0)
-        if self.law == "nagata":
+        if "c" in law_parameters(self.law):
             params["c"] = 2.0 if c is None else c
         with units_checked_already():      # a fit's trial values are no user's typing
             return SpringSlider(mass=self.mass, stiffness=k * self.fn, normal_force=self.fn,
@@ -155,7 +157,7 @@ class LabModel:
     @property
     def parameters(self) -> tuple[str, ...]:
         """The law's parameters, in the order a fit lists them."""
-        return (("a", "b", "dc", "k") + (("c",) if self.law == "nagata" else ())
+        return (("a", "b", "dc", "k") + (("c",) if "c" in law_parameters(self.law) else ())
                 + (("b2", "dc2") if self.states == 2 else ()))
 
     def response(self, a, b, dc, k, c=None, b2=None, dc2=None, algorithm=None,

@@ -30,7 +30,7 @@ from integrators.own import batch, engine
 from integrators.own.compiled import CompiledAlgorithm
 from integrators.own.linalg import factor, lu_solve3
 
-__all__ = ["Rodas5P"]
+__all__ = ["Rodas5P", "stages", "workspace"]
 
 # Rodas5P (Steinebach 2023), from OrdinaryDiffEq.jl's Rodas5PTableau; C padded to 8×8
 G5P = 0.21193756319429014
@@ -65,16 +65,20 @@ H5P = np.array([
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _workspace():
+def workspace():
     """J, M (the LU), piv, K (the stages), u (a stage's argument), fb (f there)."""
     return (np.empty((3, 3)), np.empty((3, 3)), np.empty(3, np.int64), np.empty((8, 3)),
             np.empty(3), np.empty(3))
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _attempt(p, hs, ws, z0, f0, z1, f1, D):
+def stages(rhs, p, rtol, atol, hs, ws, z0, f0, z1, D):
+    """One attempt of a step ``hs`` from ``z0`` (``f0`` = f(z0), ws[0] = J(z0)) for the
+    right-hand side ``rhs(p, z, out)``: z1 into ``z1``, the dense output's D (an accepted
+    attempt only); returns the scaled error (inf if M is singular or the error not finite).
+    The slider's kernel and the laboratory's two-state model (:mod:`benchmarks.lab.two_state`)
+    share it."""
     J, M, piv, K, u, fb = ws
-    rtol, atol = p[engine.P_RTOL], p[engine.P_ATOL]
     hg = hs * G5P
     regular = factor(hg, J, M, piv)
     for s in range(8):
@@ -87,7 +91,7 @@ def _attempt(p, hs, ws, z0, f0, z1, f1, D):
             for i in range(3):
                 fb[i] = f0[i]
         else:
-            engine.f_of(p, u, fb)
+            rhs(p, u, fb)
         for i in range(3):
             acc = 0.0
             for j in range(s):
@@ -110,6 +114,11 @@ def _attempt(p, hs, ws, z0, f0, z1, f1, D):
     return errmax if regular and np.isfinite(errmax) else np.inf
 
 
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _attempt(p, hs, ws, z0, f0, z1, f1, D):
+    return stages(engine.f_of, p, p[engine.P_RTOL], p[engine.P_ATOL], hs, ws, z0, f0, z1, D)
+
+
 @njit(**engine.NO_NRT)
 def kernel(ws, sc, st, p, Z, G, dirs, grid, saved, ev, n_max):
     return engine.run(engine.prepare_jacobian, _attempt, engine.rodas_reject, engine.rodas_accept,
@@ -118,17 +127,17 @@ def kernel(ws, sc, st, p, Z, G, dirs, grid, saved, ev, n_max):
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def fixed(p, z0, hs, n):
-    return engine.fixed_steps(engine.prepare_jacobian, _attempt, _workspace, p, z0, hs, n)
+    return engine.fixed_steps(engine.prepare_jacobian, _attempt, workspace, p, z0, hs, n)
 
 
 @njit(**batch.BATCH)
 def solve_batch(P, Z0, C, dirs, R, order, CURVE):
-    batch.run_batch(kernel, _workspace, P, Z0, C, dirs, R, order, CURVE)
+    batch.run_batch(kernel, workspace, P, Z0, C, dirs, R, order, CURVE)
 
 
 @njit(**batch.SERIAL)
 def solve_batch_serial(P, Z0, C, dirs, R, CURVE):
-    batch.run_serial(kernel, _workspace, P, Z0, C, dirs, R, CURVE)
+    batch.run_serial(kernel, workspace, P, Z0, C, dirs, R, CURVE)
 
 
 @register
@@ -148,7 +157,7 @@ class Rodas5P(CompiledAlgorithm):
         "its step loop is compiled with numba and calls the compiled right-hand side and "
         "Jacobian")
     kernel: ClassVar = kernel
-    workspace: ClassVar = _workspace
+    workspace: ClassVar = workspace
     fixed: ClassVar = fixed
     batch_kernel: ClassVar = solve_batch
     batch_serial: ClassVar = solve_batch_serial
