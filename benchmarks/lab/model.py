@@ -48,11 +48,40 @@ WALL_BUDGET = 120.0
 
 @dataclass(frozen=True)
 class LabModel:
-    """μ(t) of ``law`` (``"aging"``, ``"slip"`` or ``"nagata"``) on ``record``'s history.
-    ``mass`` (kg), ``radiation_damping`` (N s/m) and ``normal_force`` (N, needed with either)
-    describe the apparatus; ``algorithm`` integrates (default :data:`DEFAULT_ALGORITHM`);
-    ``states`` is 1, or 2 for a second state variable (quasi-static only); ``wall_budget``: s
-    per solve (None: no budget; the two-state model has its step budget, ``MAX_STEPS``)."""
+    """μ(t) of ``law`` on ``record``'s history: the forward model of a laboratory fit.
+
+    Parameters
+    ----------
+    record : LabRecord
+        The laboratory record (:func:`~benchmarks.lab.step_data.lab_record_from`): its times
+        (s), friction and load-point history.
+    law : str
+        A law of :data:`problems.LAWS` (default ``"aging"``).
+    detrend : str
+        How the level and trend of μ are taken out, one of :data:`DETRENDS` (default
+        ``"piece"``).
+    mass : float
+        The slider's mass (kg; default 0, quasi-static).
+    radiation_damping : float
+        ηr (N s/m; default 0).
+    normal_force : float or None
+        Fn (N), needed with a mass or damping (μ then depends on it).
+    algorithm : Algorithm or None
+        The one-state model's integrator (default :data:`DEFAULT_ALGORITHM`).
+    states : int
+        1, or 2 for a second state variable (quasi-static only;
+        :mod:`benchmarks.lab.two_state`).
+    wall_budget : float or None
+        Seconds per solve (None: no budget; the two-state model has its step budget,
+        ``MAX_STEPS``).
+
+    Raises
+    ------
+    ValueError
+        For an unknown law or detrend, states other than 1 or 2, a negative mass or damping,
+        a mass or damping without a normal force, or two states with a mass, damping or an
+        algorithm.
+    """
 
     record: object
     law: str = "aging"
