@@ -107,6 +107,35 @@ class Algorithm:
         return dataclasses.asdict(self)
 
 
+def _options_section(cls) -> str:
+    """The numpydoc Parameters and Raises of a method whose options are
+    :class:`AdaptiveAlgorithm`'s: written once here, appended to each such class's docstring
+    (with its default ``max_steps`` and its right-hand-side tiers)."""
+    if tuple(cls.rhs_tiers) == ("numba", "python"):
+        tiers = '``"numba"`` (compiled) or ``"python"`` (plain numpy)'
+    else:
+        tiers = " or ".join(f'``"{t}"``' for t in cls.rhs_tiers) + " only"
+        tiers += " (the compiled step loop)" if cls.rhs_tiers == ("numba",) else ""
+    mantissa, exponent = f"{cls.max_steps:.0e}".split("e")
+    return f"""    Parameters
+    ----------
+    rtol, atol : float
+        The relative and absolute tolerances (required; ``atol`` applies to every component
+        of the nondimensional state, O(1–100)).
+    max_steps : int
+        The budget of accepted steps over the whole solve (retcode ``MaxSteps``; default
+        {mantissa}e{int(exponent)}).
+    rhs : str
+        The right-hand side's tier: {tiers}.
+
+    Raises
+    ------
+    ValueError
+        Without both tolerances, for an rtol outside [100 ulps, 1), a non-positive atol or an
+        rhs tier the method does not offer.
+    """
+
+
 @dataclasses.dataclass(frozen=True)
 class AdaptiveAlgorithm(Algorithm):
     """Options every adaptive method takes: ``rtol`` and ``atol`` (required: there is no default
@@ -140,6 +169,13 @@ class AdaptiveAlgorithm(Algorithm):
             raise ValueError(f"rhs must be one of {self.rhs_tiers} for {self.name}, "
                              f"got {self.rhs!r}{why}")
         check_count("max_steps", self.max_steps)
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        own = {k for k, v in cls.__dict__.get("__annotations__", {}).items()
+               if "ClassVar" not in str(v)} - {"rtol", "atol", "max_steps", "rhs"}
+        if cls.__doc__ and "Parameters\n" not in cls.__doc__ and not own:
+            cls.__doc__ = cls.__doc__.rstrip() + "\n\n" + _options_section(cls)
 
     def make_stepper(self, nd, budget):
         """The backend's adapter to the segment protocol (:mod:`integrators.core.segments`)."""

@@ -67,25 +67,7 @@ class _ScipyStepper(DenseStepper):
 @register
 @dataclass(frozen=True)
 class ScipyRK45(_Scipy):
-    """Explicit Runge–Kutta 5(4), Dormand–Prince, adaptive. Order 5.
-
-    Parameters
-    ----------
-    rtol, atol : float
-        The relative and absolute tolerances (required; ``atol`` applies to every component
-        of the nondimensional state, O(1–100)).
-    max_steps : int
-        The budget of accepted steps over the whole solve (retcode ``MaxSteps``; default
-        5e7).
-    rhs : str
-        The right-hand side's tier: ``"numba"`` (compiled) or ``"python"`` (plain numpy).
-
-    Raises
-    ------
-    ValueError
-        Without both tolerances, for an rtol outside [100 ulps, 1), a non-positive atol or an
-        rhs tier the method does not offer.
-    """
+    """Explicit Runge–Kutta 5(4), Dormand–Prince, adaptive. Order 5."""
     name: ClassVar[str] = "scipy-RK45"
     kind: ClassVar[str] = "explicit"
     family: ClassVar[str] = "explicit Runge-Kutta"
@@ -97,25 +79,7 @@ class ScipyRK45(_Scipy):
 @register
 @dataclass(frozen=True)
 class ScipyDOP853(_Scipy):
-    """Explicit Runge–Kutta 8(5,3), Dormand–Prince, adaptive. Order 8.
-
-    Parameters
-    ----------
-    rtol, atol : float
-        The relative and absolute tolerances (required; ``atol`` applies to every component
-        of the nondimensional state, O(1–100)).
-    max_steps : int
-        The budget of accepted steps over the whole solve (retcode ``MaxSteps``; default
-        5e7).
-    rhs : str
-        The right-hand side's tier: ``"numba"`` (compiled) or ``"python"`` (plain numpy).
-
-    Raises
-    ------
-    ValueError
-        Without both tolerances, for an rtol outside [100 ulps, 1), a non-positive atol or an
-        rhs tier the method does not offer.
-    """
+    """Explicit Runge–Kutta 8(5,3), Dormand–Prince, adaptive. Order 8."""
     name: ClassVar[str] = "scipy-DOP853"
     kind: ClassVar[str] = "explicit"
     family: ClassVar[str] = "explicit Runge-Kutta"
@@ -127,25 +91,7 @@ class ScipyDOP853(_Scipy):
 @register
 @dataclass(frozen=True)
 class ScipyRadau(_Scipy):
-    """Implicit Runge–Kutta Radau IIA, 3 stages, adaptive, analytic Jacobian. Order 5.
-
-    Parameters
-    ----------
-    rtol, atol : float
-        The relative and absolute tolerances (required; ``atol`` applies to every component
-        of the nondimensional state, O(1–100)).
-    max_steps : int
-        The budget of accepted steps over the whole solve (retcode ``MaxSteps``; default
-        5e7).
-    rhs : str
-        The right-hand side's tier: ``"numba"`` (compiled) or ``"python"`` (plain numpy).
-
-    Raises
-    ------
-    ValueError
-        Without both tolerances, for an rtol outside [100 ulps, 1), a non-positive atol or an
-        rhs tier the method does not offer.
-    """
+    """Implicit Runge–Kutta Radau IIA, 3 stages, adaptive, analytic Jacobian. Order 5."""
     name: ClassVar[str] = "scipy-Radau"
     kind: ClassVar[str] = "implicit"
     family: ClassVar[str] = "implicit Runge-Kutta"
@@ -157,25 +103,7 @@ class ScipyRadau(_Scipy):
 @register
 @dataclass(frozen=True)
 class ScipyBDF(_Scipy):
-    """Variable-order BDF (NDF), orders 1–5, adaptive, analytic Jacobian.
-
-    Parameters
-    ----------
-    rtol, atol : float
-        The relative and absolute tolerances (required; ``atol`` applies to every component
-        of the nondimensional state, O(1–100)).
-    max_steps : int
-        The budget of accepted steps over the whole solve (retcode ``MaxSteps``; default
-        5e7).
-    rhs : str
-        The right-hand side's tier: ``"numba"`` (compiled) or ``"python"`` (plain numpy).
-
-    Raises
-    ------
-    ValueError
-        Without both tolerances, for an rtol outside [100 ulps, 1), a non-positive atol or an
-        rhs tier the method does not offer.
-    """
+    """Variable-order BDF (NDF), orders 1–5, adaptive, analytic Jacobian."""
     name: ClassVar[str] = "scipy-BDF"
     kind: ClassVar[str] = "multistep"
     family: ClassVar[str] = "BDF"
@@ -187,25 +115,7 @@ class ScipyBDF(_Scipy):
 @register
 @dataclass(frozen=True)
 class ScipyLSODA(_Scipy):
-    """ODEPACK LSODA: Adams/BDF switching on stiffness, adaptive, analytic Jacobian.
-
-    Parameters
-    ----------
-    rtol, atol : float
-        The relative and absolute tolerances (required; ``atol`` applies to every component
-        of the nondimensional state, O(1–100)).
-    max_steps : int
-        The budget of accepted steps over the whole solve (retcode ``MaxSteps``; default
-        5e7).
-    rhs : str
-        The right-hand side's tier: ``"numba"`` (compiled) or ``"python"`` (plain numpy).
-
-    Raises
-    ------
-    ValueError
-        Without both tolerances, for an rtol outside [100 ulps, 1), a non-positive atol or an
-        rhs tier the method does not offer.
-    """
+    """ODEPACK LSODA: Adams/BDF switching on stiffness, adaptive, analytic Jacobian."""
     name: ClassVar[str] = "scipy-LSODA"
     kind: ClassVar[str] = "multistep"
     code: ClassVar[str] = "lsoda"

@@ -125,25 +125,7 @@ class CashKarp45(CompiledAlgorithm):
     only). ``max_steps`` (accepted steps, whole solve) defaults to ETD's 2e8, not 5e7: in the
     stick phase stability, not accuracy, sets the step: the 20 s paper example takes 6.3e7
     steps, and the count barely moves between rtol 1e−3 and 1e−10.
-    Cash & Karp (1990), ACM TOMS 16, 201–222; Press et al. (1992).
-
-    Parameters
-    ----------
-    rtol, atol : float
-        The relative and absolute tolerances (required; ``atol`` applies to every component
-        of the nondimensional state, O(1–100)).
-    max_steps : int
-        The budget of accepted steps over the whole solve (retcode ``MaxSteps``; default
-        2e8).
-    rhs : str
-        The right-hand side's tier: ``"numba"`` only (the compiled step loop).
-
-    Raises
-    ------
-    ValueError
-        Without both tolerances, for an rtol outside [100 ulps, 1), a non-positive atol or an
-        rhs tier the method does not offer.
-    """
+    Cash & Karp (1990), ACM TOMS 16, 201–222; Press et al. (1992)."""
 
     max_steps: int = 200_000_000
 

@@ -94,25 +94,7 @@ def solve_batch_serial(P, Z0, C, dirs, R, CURVE):
 @dataclass(frozen=True)
 class Exprb43(CompiledAlgorithm):
     """Exponential Rosenbrock exprb43 (Hochbruck, Ostermann & Schweitzer 2009): order 4,
-    embedded order 3, exact 3×3 Jacobian and its φ-functions, adaptive. ``rhs="numba"`` only.
-
-    Parameters
-    ----------
-    rtol, atol : float
-        The relative and absolute tolerances (required; ``atol`` applies to every component
-        of the nondimensional state, O(1–100)).
-    max_steps : int
-        The budget of accepted steps over the whole solve (retcode ``MaxSteps``; default
-        5e7).
-    rhs : str
-        The right-hand side's tier: ``"numba"`` only (the compiled step loop).
-
-    Raises
-    ------
-    ValueError
-        Without both tolerances, for an rtol outside [100 ulps, 1), a non-positive atol or an
-        rhs tier the method does not offer.
-    """
+    embedded order 3, exact 3×3 Jacobian and its φ-functions, adaptive. ``rhs="numba"`` only."""
 
     name: ClassVar[str] = "Exprb43"
     kind: ClassVar[str] = "exponential"

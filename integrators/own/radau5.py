@@ -249,25 +249,7 @@ class RadauIIA5(CompiledAlgorithm):
     """Radau IIA of order 5 (three-stage collocation, RADAU5's simplified Newton iteration in the
     real/complex form and its error estimate), adaptive (RODAS control, q = 4), events and saves
     on its collocation polynomial, analytic Jacobian. Needs ``rtol``, ``atol`` and
-    ``rhs="numba"``. Hairer & Wanner, Solving ODEs II, §IV.8.
-
-    Parameters
-    ----------
-    rtol, atol : float
-        The relative and absolute tolerances (required; ``atol`` applies to every component
-        of the nondimensional state, O(1–100)).
-    max_steps : int
-        The budget of accepted steps over the whole solve (retcode ``MaxSteps``; default
-        5e7).
-    rhs : str
-        The right-hand side's tier: ``"numba"`` only (the compiled step loop).
-
-    Raises
-    ------
-    ValueError
-        Without both tolerances, for an rtol outside [100 ulps, 1), a non-positive atol or an
-        rhs tier the method does not offer.
-    """
+    ``rhs="numba"``. Hairer & Wanner, Solving ODEs II, §IV.8."""
 
     name: ClassVar[str] = "RadauIIA5"
     kind: ClassVar[str] = "implicit"

@@ -145,25 +145,7 @@ def solve_batch_serial(P, Z0, C, dirs, R, CURVE):
 class Rodas5P(CompiledAlgorithm):
     """Steinebach's Rodas5P, a stiffly accurate Rosenbrock 5(4) with the analytic Jacobian,
     adaptive (Hairer's RODAS control), events on its 4th-order dense output. Order 5.
-    Steinebach (2023), BIT 63, 27; tableau from OrdinaryDiffEq.jl.
-
-    Parameters
-    ----------
-    rtol, atol : float
-        The relative and absolute tolerances (required; ``atol`` applies to every component
-        of the nondimensional state, O(1–100)).
-    max_steps : int
-        The budget of accepted steps over the whole solve (retcode ``MaxSteps``; default
-        5e7).
-    rhs : str
-        The right-hand side's tier: ``"numba"`` only (the compiled step loop).
-
-    Raises
-    ------
-    ValueError
-        Without both tolerances, for an rtol outside [100 ulps, 1), a non-positive atol or an
-        rhs tier the method does not offer.
-    """
+    Steinebach (2023), BIT 63, 27; tableau from OrdinaryDiffEq.jl."""
 
     name: ClassVar[str] = "Rodas5P"
     kind: ClassVar[str] = "rosenbrock"

@@ -110,25 +110,7 @@ class Rosenbrock23(CompiledAlgorithm):
     """Shampine–Reichelt Rosenbrock 2(3) (MATLAB ode23s, Julia Rosenbrock23), L-stable, with the
     analytic Jacobian, adaptive (Hairer's RODAS control), events on the cubic Hermite dense
     output. Order 2; its global error is ~30–300× rtol (1e−6 on the limit cycle takes rtol ≈
-    1e−9). Needs ``rtol``, ``atol`` and ``rhs="numba"``.
-
-    Parameters
-    ----------
-    rtol, atol : float
-        The relative and absolute tolerances (required; ``atol`` applies to every component
-        of the nondimensional state, O(1–100)).
-    max_steps : int
-        The budget of accepted steps over the whole solve (retcode ``MaxSteps``; default
-        5e7).
-    rhs : str
-        The right-hand side's tier: ``"numba"`` only (the compiled step loop).
-
-    Raises
-    ------
-    ValueError
-        Without both tolerances, for an rtol outside [100 ulps, 1), a non-positive atol or an
-        rhs tier the method does not offer.
-    """
+    1e−9). Needs ``rtol``, ``atol`` and ``rhs="numba"``."""
 
     name: ClassVar[str] = "Rosenbrock23"
     kind: ClassVar[str] = "rosenbrock"
