@@ -71,6 +71,42 @@ def test_the_grid_posterior_of_a_linear_model_is_the_gaussian():
     assert post.mass.sum() == pytest.approx(1.0)
 
 
+class LinearMisfit:
+    """The analytic model as a misfit, for the refined grid to evaluate."""
+
+    def __init__(self, obs: Observations):
+        self.obs = obs
+
+    def evaluate(self, b, lc, progress=False):
+        from benchmarks.inversion.objectives import scores, total
+        x, y = (np.asarray(b) - B0) / DB, (np.log10(lc) - L0) / DL
+        t = total(scores(T0 + JAC[0, 0] * x + JAC[0, 1] * y, M0 + JAC[1, 0] * x + JAC[1, 1] * y,
+                         np.ones(x.shape, bool), self.obs))
+        return pd.DataFrame({"misfit": t.misfit, "log_likelihood": t.log_likelihood})
+
+
+def test_a_fixed_grid_is_the_refined_grid_with_no_refinement(monkeypatch):
+    """One grid posterior: a map's (its nodes) and the refined grid's before any refinement, on
+    the same cells, agree number for number (to rounding: the nodes are computed apart)."""
+    from benchmarks.inversion import adaptive
+    from benchmarks.inversion.grid import cell_box
+    monkeypatch.setattr(adaptive, "MAX_LEVELS", 0)
+    m = linear_map(41)
+    obs = Observations(3.05, 0.15, 0.0445, 0.00225)
+    fixed = m.posterior(obs)
+    refined = adaptive.grid_posterior(LinearMisfit(obs), *cell_box(m.b, m.log10_lc), n=41)
+    assert refined.levels == 0 and refined.shape is None and fixed.shape == (41, 41)
+    np.testing.assert_allclose(refined.mass.reshape(41, 41), fixed.mass, rtol=1e-9, atol=1e-15)
+    assert (refined.hpd.reshape(41, 41) == fixed.hpd).all()
+    for name in ("b", "log10_lc"):
+        for got, want in ((refined.mean, fixed.mean), (refined.std, fixed.std)):
+            assert got[name] == pytest.approx(want[name], rel=1e-9)
+        assert refined.interval[name] == pytest.approx(fixed.interval[name], rel=1e-9)
+    assert refined.side_mass == pytest.approx(fixed.side_mass, abs=1e-12)
+    assert refined.best == pytest.approx(fixed.best, rel=1e-9)
+    assert refined.prior == fixed.prior
+
+
 def test_nodes_without_a_cycle_carry_no_mass_and_the_no_cycle_j1():
     m = linear_map(41)
     m.cycle[:20] = False

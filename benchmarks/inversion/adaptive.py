@@ -1,20 +1,25 @@
-"""The posterior of (b, log10 Lc) on a grid refined where its mass is.
+"""The posterior of (b, log10 Lc) on a grid of cells: one, refined where its mass is or not.
 
 The prior is uniform on the box in (b, log10 Lc); the likelihood is exp(−misfit/2)
 (:class:`benchmarks.inversion.Misfit`: J1, plus the curves' χ² when they enter). The box is
-tiled by ``n`` × ``n`` equal cells, each evaluated at its centre (one ensemble batch), its
-posterior mass the likelihood there times its area (the midpoint rule). Then, level by level,
-the cells that hold the most mass — together 1 − :data:`TAIL` of it, at most
-:data:`MAX_SPLIT` cells — are each split into 3 × 3 (the centre is kept, eight new centres
-evaluated in one batch), until the 95 % marginal intervals move by less than :data:`SETTLED` of
-their widths from one level to the next and the 95 % highest-density region holds at least
-:data:`MIN_CELLS` cells; or :data:`MAX_LEVELS` levels were made, and the result says it did not
-settle.
+tiled by cells, each evaluated at its centre, its posterior mass the likelihood there times its
+area (the midpoint rule, :func:`cell_mass`). From the cells (:func:`posterior_of_cells`,
+:class:`GridPosterior`): the mean and standard deviation of each parameter (the midpoint rule's
+moments: each cell's mass at its centre), the 95 % equal-tailed marginal intervals (each cell's
+mass spread evenly over its extent, :func:`cell_quantiles`), the 95 % highest-density set of
+cells (:func:`hpd`), the mass in the cells on the box's edge and on each of its sides, and the
+best cell; samples drawn from it (a cell by its mass, a point uniform in it) serve the corner
+plot and ``posterior.csv``.
 
-Reported (:class:`CellPosterior`): the mean and standard deviation of each parameter, the 95 %
-equal-tailed marginal intervals (each cell's mass spread evenly over its extent), the mass in the
-cells on the box's edge, the number of cells, levels and solves; samples drawn from it (a cell by
-its mass, a point uniform in it) serve the corner plot and ``posterior.csv``.
+A fixed grid is this posterior with no refinement:
+:meth:`benchmarks.inversion.grid.MetricMap.posterior` takes the cells of a map's nodes.
+:func:`grid_posterior` starts from ``n`` × ``n`` equal cells
+(one ensemble batch) and refines: level by level, the cells that hold the most mass — together
+1 − :data:`TAIL` of it, at most :data:`MAX_SPLIT` cells — are each split into 3 × 3 (the centre
+is kept, eight new centres evaluated in one batch), until the 95 % marginal intervals move by
+less than :data:`SETTLED` of their widths from one level to the next and the 95 %
+highest-density region holds at least :data:`MIN_CELLS` cells; or :data:`MAX_LEVELS` levels
+were made, and the result says it did not settle.
 
 A posterior narrower than the first grid's spacing is found if its cell's centre beats the
 others' (the misfit is smooth in the metrics); a narrow region of limit cycles between centres
@@ -29,11 +34,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from benchmarks.inversion.grid import cell_mass, cell_quantiles, hpd
 from benchmarks.inversion.misfit import Misfit
 
-__all__ = ["CellPosterior", "grid_posterior", "TAIL", "MAX_SPLIT", "SETTLED", "MIN_CELLS",
-           "MAX_LEVELS"]
+__all__ = ["GridPosterior", "grid_posterior", "posterior_of_cells", "centres", "cell_mass",
+           "cell_quantiles", "hpd", "TAIL", "MAX_SPLIT", "SETTLED", "MIN_CELLS", "MAX_LEVELS"]
 
 #: the mass left unrefined at each level
 TAIL = 1e-3
@@ -46,32 +50,102 @@ MIN_CELLS = 40
 #: refinement levels at most (each divides the finest spacing by 3)
 MAX_LEVELS = 16
 _NAMES = ("b", "log10_lc")
+_SIDES = ("b_low", "b_high", "lc_low", "lc_high")
+
+
+def centres(lo: float, hi: float, n: int) -> np.ndarray:
+    """The centres of ``n`` equal cells tiling [``lo``, ``hi``]."""
+    h = (hi - lo) / n
+    return lo + h * (np.arange(n) + 0.5)
+
+
+def cell_mass(log_l: np.ndarray, area=1.0) -> np.ndarray:
+    """The posterior mass of cells with log-likelihood ``log_l`` at their centres and ``area``
+    (the midpoint rule under a uniform prior), summing to one; all zero when no cell has a
+    finite log-likelihood."""
+    finite = np.isfinite(log_l)
+    if not finite.any():
+        return np.zeros(np.shape(log_l))
+    w = np.where(finite, np.exp(log_l - np.max(log_l[finite])), 0.0) * area
+    return w / w.sum()
+
+
+def cell_quantiles(lo: np.ndarray, hi: np.ndarray, mass: np.ndarray, qs) -> tuple[float, ...]:
+    """Quantiles of a density uniform over each cell [``lo``, ``hi``] with ``mass``: the
+    cumulative mass is piecewise linear between the cells' ends (swept once, in order: the
+    density steps up by mass/width where a cell begins and down where it ends)."""
+    x, at = np.unique(np.concatenate([lo, hi]), return_inverse=True)
+    rate = mass / (hi - lo)
+    steps = np.zeros(len(x))
+    np.add.at(steps, at, np.concatenate([rate, -rate]))
+    cdf = np.concatenate([[0.0], np.cumsum(np.cumsum(steps)[:-1] * np.diff(x))])
+    return tuple(float(np.interp(q, cdf, x)) for q in qs)
+
+
+def hpd(mass: np.ndarray, level: float, area=1.0) -> np.ndarray:
+    """The highest-posterior-density set of cells (a mask of ``mass``' shape): the fewest
+    cells by decreasing density ``mass``/``area`` that hold ``level`` of the mass, the cell
+    that crosses the level included."""
+    order = np.argsort(mass / area, axis=None)[::-1]
+    n_in = int(np.searchsorted(np.cumsum(mass.ravel()[order]), level) + 1)
+    inside = np.zeros(mass.size, bool)
+    inside[order[:n_in]] = True
+    return inside.reshape(mass.shape)
 
 
 @dataclass
-class CellPosterior:
-    """The refined grid's cells (``cells``: centre, widths, log-likelihood, misfit, mass) and
-    the summaries of the module docstring; ``settled``: the refinement met its rule."""
+class GridPosterior:
+    """The posterior on a grid of cells (module docstring).
+
+    ``cells``: each cell's centre (``b``, ``log10_lc``), widths, log-likelihood, misfit,
+    ``failed`` (its solve did not succeed) and ``mass`` (summing to one; all zero, and ``ok``
+    False, when no cell has a cycle); ``hpd``: the highest-density cells; ``interval``: the
+    equal-tailed marginal intervals (both at the posterior's level, 95 % unless asked);
+    ``edge_mass``: the mass in the cells on the box's edge, ``side_mass`` on each side
+    (``b_low``, ``b_high``, ``lc_low``, ``lc_high``); ``best``: (b, Lc in m, misfit) of the
+    best cell. A grid not refined has its ``shape`` (n_b, n_lc), and ``mass`` and ``hpd`` come
+    in that shape, node by node; a refined one's, cell by cell. ``levels``, ``settled`` and
+    ``history`` are the refinement's (0, False and empty without one); ``n_solves``,
+    ``n_failed`` and ``wall_s``, what the grid cost.
+    """
 
     cells: pd.DataFrame = field(repr=False)
+    hpd: np.ndarray = field(repr=False)
     mean: dict
     std: dict
     interval: dict
     edge_mass: float
-    levels: int
-    settled: bool
-    n_solves: int
-    wall_s: float
+    side_mass: dict
+    best: tuple
     prior: str
-    best: tuple                      # (b, Lc in m, misfit) of the best centre
-    history: list = field(default_factory=list)
-    #: solves that failed or ran out of their budget: cells without mass, never a cycle
+    shape: tuple | None = None
+    levels: int = 0
+    settled: bool = False
+    n_solves: int = 0
     n_failed: int = 0
+    wall_s: float = 0.0
+    history: list = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        """Whether some cell has a limit cycle: else there is no posterior."""
+        return bool(self.cells.mass.sum() > 0)
+
+    @property
+    def mass(self) -> np.ndarray:
+        """The cells' mass, in the grid's ``shape`` when it was not refined."""
+        m = self.cells.mass.to_numpy()
+        return m if self.shape is None else m.reshape(self.shape)
 
     def sample(self, n: int, seed: int = 0) -> pd.DataFrame:
-        """``n`` draws: a cell by its mass, then a point uniform inside it (``ValueError``
-        when no cell has a limit cycle: there is no posterior to draw from)."""
-        if not self.cells.mass.sum() > 0:
+        """``n`` draws: a cell by its mass, then a point uniform inside it.
+
+        Raises
+        ------
+        ValueError
+            When no cell has a limit cycle: there is no posterior to draw from.
+        """
+        if not self.ok:
             raise ValueError("no cell of the grid has a limit cycle: there is no posterior to "
                              "draw from")
         rng = np.random.default_rng(seed)
@@ -83,91 +157,141 @@ class CellPosterior:
                              + u[:, 1] * c.width_log10_lc.to_numpy()[k]})
 
 
-def _summary(cells: pd.DataFrame) -> tuple[dict, dict, dict]:
-    mean, std, interval = {}, {}, {}
+def posterior_of_cells(cells: pd.DataFrame, box, level: float = 0.95, shape=None,
+                       **cost) -> GridPosterior:
+    """The posterior of the cells that tile ``box`` (module docstring).
+
+    Parameters
+    ----------
+    cells : pandas.DataFrame
+        One row a cell: ``b``, ``log10_lc`` (its centre), ``width_b``, ``width_log10_lc``,
+        ``log_likelihood``, ``misfit`` and ``failed``; its ``mass`` is (re)computed.
+    box : tuple
+        ``((b_lo, b_hi), (log10_lc_lo, log10_lc_hi))``, the prior box the cells tile.
+    level : float
+        Of the highest-density set and of the marginal intervals.
+    shape : tuple or None
+        (n_b, n_lc) of a grid not refined, its cells in ``meshgrid(..., indexing="ij")`` order.
+    **cost
+        ``levels``, ``settled``, ``history``, ``n_solves``, ``n_failed``, ``wall_s``, as
+        :class:`GridPosterior` holds them.
+
+    Returns
+    -------
+    GridPosterior
+        NaN summaries, no ``hpd`` cell and ``ok`` False when no cell has a limit cycle.
+    """
+    area = (cells.width_b * cells.width_log10_lc).to_numpy()
+    cells = cells.assign(mass=cell_mass(cells.log_likelihood.to_numpy(), area))
+    (b_lo, b_hi), (l_lo, l_hi) = box
+    prior = (f"uniform in b on [{b_lo:g}, {b_hi:g}] and in log10 Lc on [{l_lo:g}, {l_hi:g}] "
+             "(Lc in m)")
     m = cells.mass.to_numpy()
+    nan = float("nan")
     if not m.sum() > 0:                  # no cell with a limit cycle: no posterior, no numbers
-        nan = dict.fromkeys(_NAMES, float("nan"))
-        return nan, dict(nan), dict.fromkeys(_NAMES, (float("nan"), float("nan")))
-    for name in _NAMES:
+        return GridPosterior(cells, np.zeros(shape or len(cells), bool),
+                             dict.fromkeys(_NAMES, nan), dict.fromkeys(_NAMES, nan),
+                             dict.fromkeys(_NAMES, (nan, nan)), nan, dict.fromkeys(_SIDES, nan),
+                             (nan, nan, nan), prior, shape, **cost)
+    mean, std, interval, sides = {}, {}, {}, {}
+    for name, (lo, hi), side in zip(_NAMES, box, ("b", "lc")):
         x, w = cells[name].to_numpy(), cells[f"width_{name}"].to_numpy()
-        mean[name] = float(m @ x)
-        # each cell uniform over its width: its own variance w²/12 adds to the spread
-        std[name] = float(np.sqrt(max(m @ ((x - mean[name]) ** 2 + w ** 2 / 12.0), 0.0)))
-        interval[name] = cell_quantiles(x - w / 2, x + w / 2, m, (0.025, 0.975))
-    return mean, std, interval
+        # sums, not BLAS's dot: its threads cost milliseconds a call on a busy machine
+        mean[name] = float(np.sum(m * x))
+        std[name] = float(np.sqrt(max(np.sum(m * (x - mean[name]) ** 2), 0.0)))
+        interval[name] = cell_quantiles(x - w / 2, x + w / 2, m, ((1 - level) / 2,
+                                                                  (1 + level) / 2))
+        tol = 1e-12 * (hi - lo)
+        sides[f"{side}_low"] = x - w / 2 <= lo + tol
+        sides[f"{side}_high"] = x + w / 2 >= hi - tol
+    edge = np.logical_or.reduce(list(sides.values()))
+    top = cells.loc[cells.log_likelihood.idxmax()]
+    inside = hpd(m, level, area)
+    return GridPosterior(cells, inside if shape is None else inside.reshape(shape), mean, std,
+                         interval, float(m[edge].sum()),
+                         {k: float(m[s].sum()) for k, s in sides.items()},
+                         (float(top.b), float(10.0 ** top.log10_lc), float(top.misfit)), prior,
+                         shape, **cost)
 
 
 def grid_posterior(misfit: Misfit, b_range, lc_range, n: int = 33, progress: bool = False,
-                   say=None) -> CellPosterior:
-    """The refined grid posterior of ``misfit`` on the box ``b_range`` × ``lc_range`` (Lc in m)
-    from an ``n`` × ``n`` first grid (module docstring)."""
+                   say=None) -> GridPosterior:
+    """The refined grid posterior of ``misfit`` (module docstring).
+
+    Parameters
+    ----------
+    misfit : Misfit
+        Or any object with ``evaluate(b, lc, progress=...)`` giving ``misfit`` and
+        ``log_likelihood`` (and ``retcode``, optional) columns.
+    b_range, lc_range : tuple
+        The prior box, b × Lc (m).
+    n : int
+        The first grid's cells along each side, 3 to 1001.
+    progress : bool
+        Show the ensembles' progress.
+    say : callable or None
+        Given a line of text as each level starts.
+
+    Returns
+    -------
+    GridPosterior
+
+    Raises
+    ------
+    ValueError
+        For a first grid's size out of range.
+    """
     say = say or (lambda text: None)
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 3 <= n <= 1001:
         raise ValueError(f"the first grid's size must be an integer from 3 to 1001, got {n!r}")
-    (b_lo, b_hi), (lc_lo, lc_hi) = b_range, lc_range
-    l_lo, l_hi = float(np.log10(lc_lo)), float(np.log10(lc_hi))
+    box = (tuple(b_range), (float(np.log10(lc_range[0])), float(np.log10(lc_range[1]))))
     started = time.perf_counter()
-    wb, wl = (b_hi - b_lo) / n, (l_hi - l_lo) / n
-    bb, ll = np.meshgrid(b_lo + wb * (np.arange(n) + 0.5), l_lo + wl * (np.arange(n) + 0.5),
-                         indexing="ij")
+    (b_lo, b_hi), (l_lo, l_hi) = box
+    bb, ll = np.meshgrid(centres(b_lo, b_hi, n), centres(l_lo, l_hi, n), indexing="ij")
     failed_before = _failed(misfit)
-    cells = _evaluate(misfit, bb.ravel(), ll.ravel(), np.full(bb.size, wb), np.full(bb.size, wl),
-                      progress)
-    n_solves = len(cells)
-    history, settled, level = [], False, 0
-    mean, std, interval = _summary(cells)
+    cells = _evaluate(misfit, bb.ravel(), ll.ravel(), np.full(bb.size, (b_hi - b_lo) / n),
+                      np.full(bb.size, (l_hi - l_lo) / n), progress)
+    post = posterior_of_cells(cells, box)
+    history, settled, n_solves = [], False, len(cells)
     for level in range(1, MAX_LEVELS + 1):
-        if not cells.mass.any():
+        if not post.ok:
             break
-        order = np.argsort(-cells.mass.to_numpy())
-        cum = np.cumsum(cells.mass.to_numpy()[order])
-        split = order[:min(int(np.searchsorted(cum, 1.0 - TAIL) + 1), MAX_SPLIT)]
-        say(f"grid posterior: level {level}, {len(split)} cells split 3 × 3")
-        parent = cells.iloc[split]
-        kids = []
-        for di in (-1, 0, 1):
-            for dj in (-1, 0, 1):
-                if di == 0 and dj == 0:
-                    continue
-                kids.append((parent.b.to_numpy() + di * parent.width_b.to_numpy() / 3,
-                             parent.log10_lc.to_numpy() + dj * parent.width_log10_lc.to_numpy() / 3,
-                             parent.width_b.to_numpy() / 3, parent.width_log10_lc.to_numpy() / 3))
-        new = _evaluate(misfit, *(np.concatenate(k) for k in zip(*kids)), progress)
-        n_solves += len(new)
-        centres = parent.copy()
-        centres["width_b"] /= 3
-        centres["width_log10_lc"] /= 3
-        cells = pd.concat([cells.drop(cells.index[split]), centres, new], ignore_index=True)
-        cells["mass"] = cell_mass(cells.log_likelihood.to_numpy(),
-                                  (cells.width_b * cells.width_log10_lc).to_numpy())
-        before = interval
-        mean, std, interval = _summary(cells)
-        moved = max(max(abs(interval[k][0] - before[k][0]), abs(interval[k][1] - before[k][1]))
-                    / max(interval[k][1] - interval[k][0], 1e-300) for k in _NAMES)
-        n_hpd = int(hpd(cells.mass.to_numpy(), 0.95,
-                        (cells.width_b * cells.width_log10_lc).to_numpy()).sum())
-        history.append({"level": level, "cells": len(cells), "split": len(split),
-                        "solves": n_solves, "moved": moved, "hpd_cells": n_hpd})
-        if moved < SETTLED and n_hpd >= MIN_CELLS:
+        before = post.interval
+        cells, split, new = _refine(misfit, post.cells, progress, lambda k: say(
+            f"grid posterior: level {level}, {k} cells split 3 × 3"))
+        n_solves += new
+        post = posterior_of_cells(cells, box)
+        moved = max(max(abs(post.interval[k][0] - before[k][0]),
+                        abs(post.interval[k][1] - before[k][1]))
+                    / max(post.interval[k][1] - post.interval[k][0], 1e-300) for k in _NAMES)
+        history.append({"level": level, "cells": len(cells), "split": split,
+                        "solves": n_solves, "moved": moved, "hpd_cells": int(post.hpd.sum())})
+        if moved < SETTLED and history[-1]["hpd_cells"] >= MIN_CELLS:
             settled = True
             break
-    edge = ((cells.b - cells.width_b / 2 <= b_lo + 1e-12 * (b_hi - b_lo))
-            | (cells.b + cells.width_b / 2 >= b_hi - 1e-12 * (b_hi - b_lo))
-            | (cells.log10_lc - cells.width_log10_lc / 2 <= l_lo + 1e-12 * (l_hi - l_lo))
-            | (cells.log10_lc + cells.width_log10_lc / 2 >= l_hi - 1e-12 * (l_hi - l_lo)))
-    top = cells.loc[cells.log_likelihood.idxmax()] if np.isfinite(cells.log_likelihood).any() \
-        else None
-    best = ((float(top.b), float(10.0 ** top.log10_lc), float(top.misfit)) if top is not None
-            else (np.nan, np.nan, np.nan))
-    return CellPosterior(
-        cells=cells, mean=mean, std=std, interval=interval,
-        edge_mass=float(cells.mass[edge].sum()) if cells.mass.sum() > 0 else float("nan"),
-        levels=len(history), settled=settled,
-        n_solves=n_solves, wall_s=time.perf_counter() - started,
-        n_failed=_failed(misfit) - failed_before,
-        prior=f"uniform in b on [{b_lo:g}, {b_hi:g}] and in log10 Lc on [{l_lo:g}, {l_hi:g}] "
-              "(Lc in m)", best=best, history=history)
+    return posterior_of_cells(post.cells, box, levels=len(history), settled=settled,
+                              history=history, n_solves=n_solves,
+                              n_failed=_failed(misfit) - failed_before,
+                              wall_s=time.perf_counter() - started)
+
+
+def _refine(misfit: Misfit, cells: pd.DataFrame, progress,
+            say) -> tuple[pd.DataFrame, int, int]:
+    """One level: the cells holding 1 − TAIL of the mass (MAX_SPLIT at most) split 3 × 3, the
+    centre kept (``say`` is given their number first); ``(cells, cells split, new solves)``."""
+    order = np.argsort(-cells.mass.to_numpy())
+    cum = np.cumsum(cells.mass.to_numpy()[order])
+    split = order[:min(int(np.searchsorted(cum, 1.0 - TAIL) + 1), MAX_SPLIT)]
+    say(len(split))
+    parent = cells.iloc[split]
+    b, l = parent.b.to_numpy(), parent.log10_lc.to_numpy()
+    wb, wl = parent.width_b.to_numpy() / 3, parent.width_log10_lc.to_numpy() / 3
+    kids = [(b + di * wb, l + dj * wl, wb, wl)
+            for di in (-1, 0, 1) for dj in (-1, 0, 1) if di or dj]
+    new = _evaluate(misfit, *(np.concatenate(k) for k in zip(*kids)), progress)
+    kept = parent.assign(width_b=wb, width_log10_lc=wl)
+    return (pd.concat([cells.drop(cells.index[split]), kept, new], ignore_index=True),
+            len(split), len(new))
 
 
 def _failed(misfit) -> int:
@@ -178,11 +302,9 @@ def _failed(misfit) -> int:
 
 def _evaluate(misfit: Misfit, b, log10_lc, width_b, width_l, progress) -> pd.DataFrame:
     table = misfit.evaluate(b, 10.0 ** np.asarray(log10_lc), progress=progress)
-    cells = pd.DataFrame({"b": b, "log10_lc": log10_lc, "width_b": width_b,
-                          "width_log10_lc": width_l,
-                          "log_likelihood": table.log_likelihood.to_numpy(),
-                          "misfit": table.misfit.to_numpy(),
-                          "failed": ((table.retcode != "Success").to_numpy() if "retcode" in table
+    return pd.DataFrame({"b": b, "log10_lc": log10_lc, "width_b": width_b,
+                         "width_log10_lc": width_l,
+                         "log_likelihood": table.log_likelihood.to_numpy(),
+                         "misfit": table.misfit.to_numpy(),
+                         "failed": ((table.retcode != "Success").to_numpy() if "retcode" in table
                                     else np.zeros(len(table), bool))})
-    cells["mass"] = cell_mass(cells.log_likelihood.to_numpy(), width_b * width_l)
-    return cells

@@ -38,6 +38,7 @@ from benchmarks.inversion.objectives import CHI2_95_2DOF
 from benchmarks.inversion.grid import MetricMap, box_grid, cell_box, metric_map
 from benchmarks.inversion.misfit import Misfit, synthetic
 from benchmarks.inversion.profile import CHI2_95_1DOF
+from benchmarks.inversion.profile_ends import hull
 from integrators import Algorithm
 from problems import SpringSlider
 
@@ -163,10 +164,12 @@ def _checks(problem, algorithm, grid_map: MetricMap, table, n, T0, M0, sigma_rel
             row[f"mean_{name}_shift_sd"] = (mc.mean[name] - post.mean[name]) / post.std[name]
             row[f"std_{name}_ratio"] = mc.std[name] / post.std[name]
         grid_x, grid_J = grid_map.profile(obs, "b")
-        inside = grid_x[grid_J - grid_J.min() <= CHI2_95_1DOF]
+        level = grid_J.min() + CHI2_95_1DOF
+        i, j = hull(grid_J, level)                 # the nodes' hull: no interpolation
         refined = profile(misfit, "b", grid_x[::4], lc_box, scan=len(log10_lc) // 4 + 1)
-        row.update({"profile_b_grid_low": inside.min(), "profile_b_grid_high": inside.max(),
-                    "profile_b_grid_nodes": len(inside), "profile_b_refined_resolved":
+        row.update({"profile_b_grid_low": grid_x[i], "profile_b_grid_high": grid_x[j],
+                    "profile_b_grid_nodes": int((grid_J <= level).sum()),
+                    "profile_b_refined_resolved":
                     refined.resolved,
                     "profile_b_refined_low": refined.low, "profile_b_refined_high": refined.high})
         rows.append(row)

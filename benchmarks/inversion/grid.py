@@ -9,11 +9,12 @@ effect). From a :class:`MetricMap` and an :class:`~benchmarks.inversion.observat
   :meth:`MetricMap.j1`, J1 with ``NO_CYCLE_J1`` where there is no limit cycle;
 * :meth:`MetricMap.posterior`: the posterior under the uniform prior in (b, log10 Lc) on the
   box the grid's cells tile (:func:`box_grid` puts the nodes at the cells' centres;
-  :func:`cell_box`), by the midpoint rule — every node carries the same prior mass and the
-  posterior mass of a node is exp(−J1/2) normalised (zero without a cycle).
-  Reported: the marginal means and standard deviations, the 95 % highest-posterior-density set of
-  nodes (the fewest nodes holding 95 % of the mass), 95 % equal-tailed marginal intervals and
-  the mass on the box's edge nodes (a posterior cut by the box says so);
+  :func:`cell_box`): the one grid posterior of :mod:`benchmarks.inversion.adaptive`, with no
+  refinement — every node carries the same prior mass and the posterior mass of a node is
+  exp(−J1/2) normalised (zero without a cycle). Reported: the marginal means and standard
+  deviations, the 95 % highest-posterior-density set of nodes (the fewest nodes holding 95 % of
+  the mass), 95 % equal-tailed marginal intervals and the mass on the box's edge nodes (a
+  posterior cut by the box says so);
 * :meth:`MetricMap.profile`: the profile of b or of log10 Lc, J1 minimised over the other
   parameter on the grid (no refinement between nodes: the grid's spacing bounds its error).
 
@@ -28,18 +29,17 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+import pandas as pd
 
 from benchmarks.ensemble import ensemble
+from benchmarks.inversion.adaptive import GridPosterior, centres, posterior_of_cells
 from benchmarks.inversion.objectives import Total, scores, total
 from benchmarks.inversion.observations import Observations
 from benchmarks.physics.metrics import CYCLES
 from integrators import Algorithm
 from problems import SpringSlider
 
-__all__ = ["MetricMap", "GridPosterior", "metric_map", "box_grid", "cell_box", "cell_mass",
-           "cell_quantiles", "hpd"]
-
-_SIDES = ("b_low", "b_high", "lc_low", "lc_high")
+__all__ = ["MetricMap", "metric_map", "box_grid", "cell_box"]
 #: s between saved points of a peer's trajectory when curves are made point by point (the own
 #: methods sample theirs from the dense output: :func:`benchmarks.ensemble.ensemble`)
 CURVE_DT = 5e-5
@@ -57,18 +57,13 @@ def box_grid(b_range, lc_range, n_b: int = 41, n_lc: int = 41, through=None):
                          f"b_range = {b_range!r}, lc_range = {lc_range!r}")
     if n_b < 2 or n_lc < 2:
         raise ValueError(f"n_b and n_lc must be ≥ 2, got {n_b}, {n_lc}")
-    b = _centres(b_lo, b_hi, n_b)
-    log10_lc = _centres(np.log10(lc_lo), np.log10(lc_hi), n_lc)
+    b = centres(b_lo, b_hi, n_b)
+    log10_lc = centres(np.log10(lc_lo), np.log10(lc_hi), n_lc)
     if through is not None:
         b = _through(b, through[0])
         log10_lc = _through(log10_lc, np.log10(through[1]))
         b = b[b > 0] if b[0] <= 0 else b
     return b, log10_lc
-
-
-def _centres(lo: float, hi: float, n: int) -> np.ndarray:
-    h = (hi - lo) / n
-    return lo + h * (np.arange(n) + 0.5)
 
 
 def cell_box(b: np.ndarray, log10_lc: np.ndarray) -> tuple[tuple, tuple]:
@@ -83,57 +78,6 @@ def _through(x: np.ndarray, x0: float) -> np.ndarray:
     step = x[1] - x[0]
     k = int(np.argmin(np.abs(x - x0)))
     return x + (x0 - x[k]) if abs(x0 - x[k]) <= step else x
-
-
-def cell_mass(log_l: np.ndarray, area=1.0) -> np.ndarray:
-    """The posterior mass of cells with log-likelihood ``log_l`` at their centres and ``area``
-    (the midpoint rule under a uniform prior), summing to one; all zero when no cell has a
-    finite log-likelihood."""
-    finite = np.isfinite(log_l)
-    if not finite.any():
-        return np.zeros(np.shape(log_l))
-    w = np.where(finite, np.exp(log_l - np.max(log_l[finite])), 0.0) * area
-    return w / w.sum()
-
-
-def cell_quantiles(lo: np.ndarray, hi: np.ndarray, mass: np.ndarray, qs) -> tuple[float, ...]:
-    """Quantiles of a density uniform over each cell [``lo``, ``hi``] with ``mass``: the
-    cumulative mass is piecewise linear between the cells' ends."""
-    x = np.unique(np.concatenate([lo, hi]))
-    cdf = np.empty(len(x))
-    for i in range(0, len(x), 512):                    # in blocks: a refined grid's many cells
-        xi = x[i:i + 512, None]
-        cdf[i:i + 512] = (mass * np.clip((xi - lo) / (hi - lo), 0.0, 1.0)).sum(axis=1)
-    return tuple(float(np.interp(q, cdf, x)) for q in qs)
-
-
-def hpd(mass: np.ndarray, level: float, area=1.0) -> np.ndarray:
-    """The highest-posterior-density set of cells (a mask of ``mass``' shape): the fewest
-    cells by decreasing density ``mass``/``area`` that hold ``level`` of the mass, the cell
-    that crosses the level included."""
-    order = np.argsort(mass / area, axis=None)[::-1]
-    n_in = int(np.searchsorted(np.cumsum(mass.ravel()[order]), level) + 1)
-    inside = np.zeros(mass.size, bool)
-    inside[order[:n_in]] = True
-    return inside.reshape(mass.shape)
-
-
-@dataclass
-class GridPosterior:
-    """The posterior of one data set on a :class:`MetricMap`'s grid (module docstring).
-    ``mass``: (n_b, n_lc), summing to one (all zero, and ``ok`` False, when no node has a cycle);
-    ``hpd``: the 95 % highest-density nodes; ``interval``: 95 % equal-tailed marginal intervals;
-    ``edge_mass``: the mass on the box's boundary nodes, and ``side_mass`` on each side
-    (``b_low``, ``b_high``, ``lc_low``, ``lc_high``)."""
-
-    mass: np.ndarray = field(repr=False)
-    hpd: np.ndarray = field(repr=False)
-    mean: dict
-    std: dict
-    interval: dict
-    edge_mass: float
-    side_mass: dict
-    ok: bool
 
 
 @dataclass
@@ -192,31 +136,32 @@ class MetricMap:
         return scores(self.recurrence_s, self.friction_drop, self.cycle, obs)
 
     def posterior(self, obs: Observations, level: float = 0.95) -> GridPosterior:
-        """The grid posterior of ``obs`` (module docstring); ``level``: of the HPD set and of the
-        marginal intervals."""
-        log_w = self.log_likelihood(obs)
-        if not np.isfinite(log_w).any():
-            nan = {"b": np.nan, "log10_lc": np.nan}
-            return GridPosterior(np.zeros(log_w.shape), np.zeros(log_w.shape, bool), nan, nan,
-                                 {"b": (np.nan, np.nan), "log10_lc": (np.nan, np.nan)},
-                                 np.nan, dict.fromkeys(_SIDES, np.nan), ok=False)
-        mass = cell_mass(log_w)
-        mean, std, interval = {}, {}, {}
-        for name, axis, x in (("b", 1, self.b), ("log10_lc", 0, self.log10_lc)):
-            marginal = mass.sum(axis=axis)
-            mean[name] = float(marginal @ x)
-            std[name] = float(np.sqrt(max(marginal @ (x - mean[name]) ** 2, 0.0)))
-            edges = np.concatenate([[x[0] - (x[1] - x[0]) / 2], (x[1:] + x[:-1]) / 2,
-                                    [x[-1] + (x[-1] - x[-2]) / 2]])
-            interval[name] = cell_quantiles(edges[:-1], edges[1:], marginal,
-                                            ((1 - level) / 2, (1 + level) / 2))
-        edge = np.zeros(log_w.shape, bool)
-        edge[[0, -1], :] = edge[:, [0, -1]] = True
-        sides = dict(zip(_SIDES, (mass[0].sum(), mass[-1].sum(), mass[:, 0].sum(),
-                                  mass[:, -1].sum())))
-        return GridPosterior(mass, hpd(mass, level), mean, std, interval,
-                             float(mass[edge].sum()), {k: float(v) for k, v in sides.items()},
-                             ok=True)
+        """The grid posterior of ``obs``: the posterior of the cells the nodes are the centres
+        of (:func:`benchmarks.inversion.adaptive.posterior_of_cells`), with no refinement;
+        ``mass`` and ``hpd`` come in the grid's shape, and its cost is the map's.
+
+        Parameters
+        ----------
+        obs : Observations
+            The data set.
+        level : float
+            Of the highest-density set and of the marginal intervals.
+
+        Returns
+        -------
+        GridPosterior
+        """
+        t = self.total(obs)
+        bb, ll = np.meshgrid(self.b, self.log10_lc, indexing="ij")
+        cells = pd.DataFrame({
+            "b": bb.ravel(), "log10_lc": ll.ravel(), "width_b": self.b[1] - self.b[0],
+            "width_log10_lc": self.log10_lc[1] - self.log10_lc[0],
+            "log_likelihood": np.ravel(t.log_likelihood), "misfit": np.ravel(t.misfit),
+            "failed": np.ravel(self.classification == "failed")})
+        b_box, lc_box = cell_box(self.b, self.log10_lc)
+        return posterior_of_cells(cells, (b_box, tuple(np.log10(lc_box))), level,
+                                  shape=bb.shape, n_solves=self.n_solves,
+                                  n_failed=self.n_failed, wall_s=self.run_wall_s)
 
     def profile(self, obs: Observations, parameter: str) -> tuple[np.ndarray, np.ndarray]:
         """``(values, misfit)``: the grid's values of ``parameter`` (``"b"`` or ``"log10_lc"``)

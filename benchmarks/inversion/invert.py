@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.inversion.adaptive import CellPosterior
+from benchmarks.inversion.adaptive import GridPosterior
 from benchmarks.inversion.least_squares import FitResult, fit
 from benchmarks.inversion.misfit import Misfit
 from benchmarks.inversion.posterior import Posterior, check_sampler, sample
@@ -57,7 +57,7 @@ class Inversion:
     lc_range: tuple
     fit: FitResult
     profiles: dict
-    posterior: Posterior | CellPosterior | None
+    posterior: Posterior | GridPosterior | None
     wall_s: dict
     no_posterior: str = ""
     method: str = "grid"
@@ -145,7 +145,7 @@ def invert(misfit: Misfit, b_range, lc_range, walkers: int = 32, steps: int = 20
                                  if np.isfinite(best.misfit) else None)
         wall[f"profile_{name}"] = time.perf_counter() - t
         _check_fit_inside(profiles[name], best)
-    missed = posterior_missed(post.best[2], profiles) if isinstance(post, CellPosterior) else ""
+    missed = posterior_missed(post.best[2], profiles) if isinstance(post, GridPosterior) else ""
     if missed:
         post, why = None, missed
     if method == "emcee" and steps and not np.isfinite(best.misfit):
@@ -236,7 +236,7 @@ def _summary(inv: Inversion) -> dict:
         out["posterior"] = None
         out["no_posterior"] = inv.no_posterior
         out["posterior_missed"] = bool(inv.posterior_missed)
-    elif isinstance(inv.posterior, CellPosterior):
+    elif isinstance(inv.posterior, GridPosterior):
         p = inv.posterior
         out["posterior"] = {
             "method": "grid", "prior": p.prior, "mean": p.mean, "std": p.std,
@@ -273,7 +273,7 @@ def write_inversion(inv: Inversion, out: Path, provenance: dict | None = None) -
         files[f"profile_{name}"] = out / f"profile_{name}.csv"
         write_table(p.table, files[f"profile_{name}"])
     _plot_profiles(inv, files["profiles_plot"])
-    if isinstance(inv.posterior, CellPosterior):
+    if isinstance(inv.posterior, GridPosterior):
         files["posterior_cells"] = out / "posterior_cells.csv"
         write_table(inv.posterior.cells, files["posterior_cells"])
         files["posterior"] = out / "posterior.csv"
@@ -338,7 +338,7 @@ def _plot_corner(inv: Inversion, path: Path) -> None:
     require("corner", "inversion", "the corner plot of a posterior")
     import corner
     from matplotlib.figure import Figure
-    s = (inv.posterior.sample(20_000, inv.seed) if isinstance(inv.posterior, CellPosterior)
+    s = (inv.posterior.sample(20_000, inv.seed) if isinstance(inv.posterior, GridPosterior)
          else inv.posterior.samples)
     truths = ([inv.fit.b, np.log10(inv.fit.lc)] if np.isfinite(inv.fit.misfit) and inv.fit.lc > 0
               else None)

@@ -30,7 +30,7 @@ import pandas as pd
 
 __all__ = ["CHI2_95_2DOF", "NO_CYCLE_RESIDUAL", "NO_CYCLE_J1", "Scores", "scores",
            "EventSamples", "event_samples", "offset_residuals", "j2_per_event", "JointFit",
-           "joint_fit", "Total", "total", "CHI2_95_1DOF", "level_crossing"]
+           "joint_fit", "Total", "total", "CHI2_95_1DOF"]
 
 #: the 95 % quantile of χ² with two degrees of freedom: the paper's J1 threshold
 CHI2_95_2DOF = 5.99146
@@ -154,19 +154,6 @@ def j2_per_event(curve_slip: np.ndarray, curve_friction: np.ndarray,
         return np.full(len(samples.sizes), np.nan)
     r = offset_residuals(curve_slip, np.asarray(curve_friction, dtype=float), samples)
     return np.bincount(samples.event, r * r) / samples.sizes
-
-
-def level_crossing(x0: float, d0: float, x1: float, d1: float, level: float,
-                   root: bool = False) -> float:
-    """Where a profile's rise ``d`` reaches ``level`` between (``x0``, ``d0``) and (``x1``,
-    ``d1``): linearly in d, or with ``root`` in the signed root √d (linear in x for a
-    quadratic profile; the rises then are ≥ 0 above the minimum). ``x1`` when the two are
-    level."""
-    if root:
-        d0, d1, level = np.sqrt(d0), np.sqrt(d1), np.sqrt(level)
-    if d1 == d0:
-        return x1
-    return x0 + (x1 - x0) * (level - d0) / (d1 - d0)
 
 
 class JointFit(dict):

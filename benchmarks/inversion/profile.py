@@ -26,9 +26,11 @@ undershot). Three things make the interval trustworthy, for any σ and any numbe
   is then the hull of every point within the level, never just the piece about the minimum;
 * the interval is **resolved**: the cells in which the level is crossed are bisected (a round of
   new lines at a time, at most ``refine`` rounds) until each is at most 1/:data:`CELLS` of the
-  interval's width. An interval that stays narrower than that is not reported as if resolved:
-  ``resolved`` is False, a warning says so, and its ends are the profile points outside the
-  level about it (what the profile can vouch for), not an interpolation inside one cell.
+  interval's width (the one search of every profile, :mod:`benchmarks.inversion.profile_ends`,
+  whose walk the grid makes unneeded: it reaches both ends of the range). An interval that
+  stays narrower than that is not reported as if resolved: ``resolved`` is False, a warning
+  says so, and its ends are the profile points outside the level about it (what the profile
+  can vouch for), not an interpolation inside one cell.
 """
 
 from __future__ import annotations
@@ -39,7 +41,8 @@ import numpy as np
 import pandas as pd
 
 from benchmarks.inversion.misfit import Misfit
-from benchmarks.inversion.objectives import CHI2_95_1DOF, level_crossing
+from benchmarks.inversion.objectives import CHI2_95_1DOF
+from benchmarks.inversion.profile_ends import ends, hull, next_point, too_coarse
 
 __all__ = ["profile", "Profile", "CHI2_95_1DOF", "NOISE_J1", "CELLS"]
 
@@ -219,50 +222,32 @@ def _jagged(J: np.ndarray) -> list[int]:
     return sorted(set(out))
 
 
-def _crossings(x, J):
-    """The indices of the hull of the points within the level, and the level."""
-    level = np.min(J) + CHI2_95_1DOF
-    inside = np.flatnonzero(J <= level)
-    return inside[0], inside[-1], level
+def _level(J: np.ndarray) -> float:
+    """The profile's 95 % level: its minimum + CHI2_95_1DOF (NaN without a finite point)."""
+    return float(np.min(J)) + CHI2_95_1DOF if np.isfinite(J).any() else np.nan
 
 
 def _cells_to_bisect(x, J) -> list[float]:
     """Midpoints of the cells where the level is crossed (or a cycle's band ends) that are wider
-    than 1/CELLS of the interval, and of the cells either side of the minimum that are."""
-    if not np.isfinite(J).any():
+    than 1/CELLS of the interval (:func:`benchmarks.inversion.profile_ends.next_point`), and of
+    the cells either side of the minimum that are."""
+    level = _level(J)
+    if np.isnan(level):
         return []
-    i, j, _ = _crossings(x, J)
-    width = max(x[j] - x[i], 0.0)
+    out = [step.x for side, limit in ((-1, x[0]), (1, x[-1]))
+           if (step := next_point(x, J, level, side, limit, cells=CELLS)) is not None]
+    i, j = hull(J, level)
     k = int(np.argmin(J))
-    cells = {(a, a + 1) for a in (i - 1, j, k - 1, k) if 0 <= a < len(x) - 1}
-    out = []
-    for a, c in sorted(cells):
-        if x[c] - x[a] > (width / CELLS if width > 0 else 0) + 1e-12 * max(abs(x[a]), 1.0):
-            out.append(float(0.5 * (x[a] + x[c])))
-    return out
+    return out + [float(0.5 * (x[a] + x[a + 1])) for a in (k - 1, k)
+                  if 0 <= a < len(x) - 1 and too_coarse(x, a, a + 1, x[j] - x[i], CELLS)]
 
 
 def _interval(x: np.ndarray, J: np.ndarray):
     """``(low, high, open_low, open_high, resolved)`` of a profile on its points (module
-    docstring): the hull of the points within the level, its ends interpolated linearly towards
-    the next point out (to that point's side's end of the cycle band when it has no cycle)."""
-    if not np.isfinite(J).any():
-        return np.nan, np.nan, True, True, False
-    i, j, level = _crossings(x, J)
-
-    def cross(a, c):                     # where the line from point a (in) to c (out) meets it
-        return level_crossing(x[a], J[a], x[c], J[c], level) if np.isfinite(J[c]) else x[a]
-    open_low, open_high = i == 0, j == len(x) - 1
-    low = x[0] if open_low else cross(i, i - 1)
-    high = x[-1] if open_high else cross(j, j + 1)
-    width = x[j] - x[i]
-    resolved = all(x[c] - x[a] <= width / CELLS * (1 + 1e-9)
-                   for a, c, is_open in ((i - 1, i, open_low), (j, j + 1, open_high))
-                   if not is_open)
-    if not resolved:                     # what the points vouch for, not one cell's guess
-        low = x[0] if open_low else x[i - 1]
-        high = x[-1] if open_high else x[j + 1]
-    return float(low), float(high), bool(open_low), bool(open_high), bool(resolved)
+    docstring; :func:`benchmarks.inversion.profile_ends.ends`): the hull of the points within
+    the level, its ends interpolated linearly towards the next point out (to that point's side's
+    end of the cycle band when it has no cycle)."""
+    return ends(x, J, _level(J), (x[0], x[-1]), cells=CELLS)
 
 
 def _triple(J, i) -> str:

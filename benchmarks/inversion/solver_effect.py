@@ -53,7 +53,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from benchmarks.inversion.grid import GridPosterior, MetricMap, box_grid, metric_map
+from benchmarks.inversion.adaptive import GridPosterior
+from benchmarks.inversion.grid import MetricMap, box_grid, metric_map
 from benchmarks.inversion.least_squares import fit
 from benchmarks.inversion.misfit import Misfit, synthetic
 from benchmarks.inversion.observations import Observations, observations

@@ -2,10 +2,11 @@
 fit, refit the others, and find where the squares have risen by χ²₁(95 %) = 3.84 noise
 variances (the fit's f σ², :mod:`benchmarks.lab.fit`).
 
-Each side walks out from the best fit in the fitted coordinate (a, b, c as they are; ln Dc,
-ln k′), starting at one Wald standard error (at most a twentieth of the parameter's range),
-each refit started from the previous one; a step grows ×2 while the rise per step is under a
-quarter of what is left. A bracket whose rise is over twice the level is halved
+Each side is the one search of every profile (:mod:`benchmarks.inversion.profile_ends`), in
+the fitted coordinate (a, b, c as they are; ln Dc, ln k′): it walks out from the best fit,
+starting at one Wald standard error (at most a twentieth of the parameter's range), each refit
+started from the one before it; a step grows ×2 while the rise per step is under a quarter of
+what is left. A bracket whose rise is over :data:`OVERSHOOT` times the level is halved
 (:data:`BISECTIONS` at most) until it is not, and the crossing is interpolated in the signed
 root √Δ (linear in the parameter for a quadratic profile). A side that reaches its bound of
 :data:`~benchmarks.lab.fit.BOUNDS`, or :data:`MAX_POINTS` points, without the rise is
@@ -26,15 +27,19 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from benchmarks.inversion.objectives import CHI2_95_1DOF, level_crossing
+from benchmarks.inversion.objectives import CHI2_95_1DOF
+from benchmarks.inversion.profile_ends import ends, next_point
 from benchmarks.lab.fit import _LOG, LabFit, _Problem, _shown, coordinate_bounds
 
-__all__ = ["LabProfile", "profile_lab", "MAX_POINTS", "BISECTIONS", "BOX_EDGES"]
+__all__ = ["LabProfile", "profile_lab", "MAX_POINTS", "BISECTIONS", "OVERSHOOT", "BOX_EDGES"]
 
 #: points a side of a profile takes at most
 MAX_POINTS = 24
-#: halvings of a bracket whose rise is over twice the level, before interpolating in it
+#: halvings of a bracket whose rise is over OVERSHOOT times the level, before interpolating in it
 BISECTIONS = 12
+#: a bracket whose far end rises more than this many times the level is halved
+OVERSHOOT = 2.0
+_BUDGET = {"walk": MAX_POINTS, "bisect": BISECTIONS}
 
 
 @dataclass
@@ -81,8 +86,7 @@ def profile_lab(fit: LabFit, parameter: str, level: float = CHI2_95_1DOF) -> Lab
     bounds = (lo_bound[j], hi_bound[j])
     step0 = fit.se(parameter) if math.isfinite(fit.se(parameter)) and fit.se(parameter) > 0 \
         else 0.05 * max(abs(u_best), 1e-3)
-    rows = [(u_best, 0.0)]
-    ends, closed = [], []
+    rises, starts = {u_best: 0.0}, {u_best: {n: best[n] for n in others}}
     counter = {"solves": 0}
 
     def rise(u, start):
@@ -101,44 +105,30 @@ def profile_lab(fit: LabFit, parameter: str, level: float = CHI2_95_1DOF) -> Lab
         d = math.nan if failed else max((float(r @ r) - fit.rss) / scale, 0.0)
         if others and d >= level and _boxed(prob, x):
             d = math.nan              # a rise made by another parameter's bound, not the data
-        rows.append((u, d))
         return d, start
 
-    for side in (-1, 1):
-        limit = bounds[0] if side < 0 else bounds[1]
-        u, step, delta = u_best, min(step0, 0.05 * (bounds[1] - bounds[0])), 0.0
-        start = {n: best[n] for n in others}
-        found = None
-        for _ in range(MAX_POINTS):
-            u_next = u + side * step
-            at_limit = (u_next - limit) * side >= 0
-            if at_limit:
-                u_next = limit
-            d, start_next = rise(u_next, start)
-            if math.isnan(d):            # the model failed there: the side is open from here
-                limit = u
+    first = min(step0, 0.05 * (bounds[1] - bounds[0]))
+    for side, limit in ((-1, bounds[0]), (1, bounds[1])):
+        taken = {"walk": 0, "bisect": 0}
+        while True:
+            u = np.array(sorted(rises))
+            step = next_point(u, [rises[v] for v in u], level, side, limit,
+                              walk=(u_best, first), overshoot=OVERSHOOT)
+            if step is None or taken[step.kind] == _BUDGET[step.kind]:
                 break
-            if d >= level:
-                found, limit = _bracketed(rise, u, delta, start, u_next, d, level, limit)
-                break
-            if at_limit:
-                break
-            if d - delta < 0.25 * (level - d):
-                step *= 2.0
-            u, delta, start = u_next, d, start_next
-        # a crossing on the bound itself is the bound's (a refit there can fail), not the data's
-        if found is not None and abs(found - limit) <= 1e-4 * (bounds[1] - bounds[0]):
-            found = None
-        ends.append(found if found is not None else limit)
-        closed.append(found is not None)
-    solves = counter["solves"]
+            taken[step.kind] += 1
+            rises[step.x], starts[step.x] = rise(step.x, starts[step.origin])
+    u = np.array(sorted(rises))
+    delta = [rises[v] for v in u]
+    # a crossing on the bound itself is the bound's (a refit there can fail), not the data's
+    low, high, open_low, open_high, _ = ends(u, delta, level, bounds, root=True,
+                                             bound_tol=1e-4 * (bounds[1] - bounds[0]))
     to_unit = (lambda v: math.exp(v)) if parameter in _LOG else (lambda v: v)
-    points = pd.DataFrame(sorted(rows), columns=["u", "delta"])
-    points.insert(0, parameter, [to_unit(v) for v in points.u])
-    points = points.drop(columns="u")
+    points = pd.DataFrame({parameter: [to_unit(v) for v in u], "delta": delta})
     return LabProfile(parameter=parameter, value=fit.values[parameter],
-                      interval=(to_unit(ends[0]), to_unit(ends[1])), closed=tuple(closed),
-                      points=points, solves=solves, wall_s=time.perf_counter() - t0)
+                      interval=(to_unit(low), to_unit(high)),
+                      closed=(not open_low, not open_high), points=points,
+                      solves=counter["solves"], wall_s=time.perf_counter() - t0)
 
 
 #: the bounds that are the box's, not a limit of the physics: the upper ones of a, b, b2 and c,
@@ -156,23 +146,3 @@ def _boxed(prob, x) -> bool:
         if (low_edge and u - l <= near) or (high_edge and h - u <= near):
             return True
     return False
-
-
-def _bracketed(rise, lo_u, lo_d, lo_start, hi_u, hi_d, level, limit):
-    """(the crossing, the side's limit) in a bracket whose far end has risen past ``level``: a
-    long jump over a profile that is not quadratic is halved until its rise is moderate, then
-    interpolated; where the model fails inside, the side is open from the last point that ran
-    (crossing None, limit there)."""
-    for _ in range(BISECTIONS):
-        if hi_d <= 2.0 * level:
-            break
-        mid = 0.5 * (lo_u + hi_u)
-        d_mid, s_mid = rise(mid, lo_start)
-        if math.isnan(d_mid):
-            return None, lo_u
-        if d_mid >= level:
-            hi_u, hi_d = mid, d_mid
-        else:
-            lo_u, lo_d, lo_start = mid, d_mid, s_mid
-    return float(level_crossing(lo_u, lo_d, hi_u, hi_d, level, root=True)), limit
-
