@@ -26,7 +26,6 @@ LEFT = {
     "benchmarks.inversion.metric_map", "benchmarks.inversion.MetricMap",     # inversion/grid.py
     "benchmarks.inversion.GridPosterior", "benchmarks.inversion.box_grid",
     "benchmarks.inversion.grid_posterior",                  # inversion/adaptive.py
-    "benchmarks.inversion.CellPosterior",
     "benchmarks.inversion.profile", "benchmarks.inversion.Profile",  # inversion/profile.py
     "benchmarks.inversion.sample", "benchmarks.inversion.Posterior",  # inversion/posterior.py
     "benchmarks.inversion.scores", "benchmarks.inversion.Scores",  # inversion/objectives.py
