@@ -1,6 +1,8 @@
-"""The work-precision study on the problem family beyond the paper's (docs/problem-family.md).
+"""The problem family beyond the paper's (docs/problem-family.md): the work-precision study
+``family``, and ``problem-family``, its laboratory tests against Marone's published numbers
+(:func:`write_lab_checks`).
 
-Five problems, quick settings:
+The work-precision study has five problems, at quick settings:
 
 * ``velocity-step/aging`` and ``velocity-step/nagata``: a tenfold velocity step on the laboratory
   apparatus of Marone's code (quasi-static), 30 s after the step;
@@ -50,7 +52,7 @@ from integrators import REGISTRY, solve
 from problems import slide_hold_slide_test, velocity_step_test, window
 from problems.presets import fault_radiation_damping
 
-__all__ = ["STUDY", "FAMILY", "family_problems", "LAB_PROBLEMS", "LabReference", "lab_reference",
+__all__ = ["STUDIES", "FAMILY", "family_problems", "LAB_PROBLEMS", "LabReference", "lab_reference",
            "lab_errors", "family_study", "FAMILY_LADDER", "LEVELS", "summary", "runaway",
            "write_family", "write_lab_checks", "advice"]
 
@@ -401,16 +403,32 @@ def write_lab_checks(out: Path) -> dict:
     return {"marone": marone, "steps": steps, "healing": heal, "rates": rates}
 
 
-def run(out: Path) -> None:
+def run_lab_checks(out: Path) -> None:
+    checks = write_lab_checks(out)
+    print(checks["marone"].to_string(index=False))
+
+
+def report_lab_checks(out: Path) -> str:
+    return ((out / "problem_family.md").read_text().split("\n", 2)[2]
+            + "![healing](problem_family_healing.png)\n")
+
+
+def run_family(out: Path) -> None:
     print(summary(write_family(out, progress=False)).to_string(index=False))
 
 
-def report(out: Path) -> str:
+def report_family(out: Path) -> str:
     return ((out / "family_advice.md").read_text() + "Every error level and the runner-up: "
             "`family_wp.md`.\n\n![family work-precision](family_wp.png)\n")
 
 
-STUDY = Study("family", "Which integrator for a lab test, without mass, with damping "
-              "(`family_wp.*`)", 240, run, report=report, plan="full", timed=True,
-              writes=("family_advice.md", "family_wp.csv", "family_wp.md", "family_wp.png"),
-              minutes=17.5)
+STUDIES = (
+    Study("problem-family", "The problem family: Marone's numbers, laboratory tests "
+          "(`problem_family.*`)", 230, run_lab_checks, report=report_lab_checks,
+          writes=("problem_family.md", "problem_family_healing.csv",
+                  "problem_family_healing.png"), minutes=0.1),
+    Study("family", "Which integrator for a lab test, without mass, with damping "
+          "(`family_wp.*`)", 240, run_family, report=report_family, plan="full", timed=True,
+          writes=("family_advice.md", "family_wp.csv", "family_wp.md", "family_wp.png"),
+          minutes=17.5),
+)

@@ -1,15 +1,14 @@
 """The inversion studies ``make reproduce`` runs, and their files in ``results/``.
 
-* :func:`posterior_target`: one full inversion of W2/slip's published means (fit, profiles,
-  posterior) with the study's recommended integrator, timed against its target (a
-  posterior of ≥ 64,000 forward solves in ≤ 2 minutes on 2 cores) →
-  ``inversion_W2_slip/`` and ``inversion.md``;
-* :func:`calibration_study`: coverage of the 95 % regions on seeded synthetic data
-  (:mod:`benchmarks.inversion.calibration`) → ``calibration.{csv,md,json,png}``;
+* ``inversion``, :func:`posterior_target`: one full inversion of W2/slip's published means
+  (fit, profiles, posterior) with the study's recommended integrator, timed against its target
+  (a posterior of ≥ 64,000 forward solves in ≤ 2 minutes on 2 cores) → ``inversion_W2_slip/``
+  and ``inversion.md``;
+* ``calibration``, :func:`calibration_study`: coverage of the 95 % regions on seeded synthetic
+  data (:mod:`benchmarks.inversion.calibration`) → ``calibration.{csv,md,json,png}``.
 
-The solver-effect study writes its own files
-(:func:`benchmarks.studies.solver_effect.solver_effect_study`): its step does not depend on
-these.
+The solver-effect study writes its own files (:mod:`benchmarks.studies.solver_effect`): its
+step does not depend on these.
 """
 
 from __future__ import annotations
@@ -26,7 +25,7 @@ from benchmarks.records.files import write_figure, write_output, write_table
 from benchmarks.records.report import fmt, jsonable, markdown_table
 from benchmarks.studies.study import Study
 
-__all__ = ["STUDY", "posterior_target", "calibration_study", "TARGET_SOLVES",
+__all__ = ["STUDIES", "posterior_target", "calibration_study", "TARGET_SOLVES",
            "TARGET_WALL_S", "CALIBRATION_TRUTH"]
 
 #: the posterior target: at least this many forward solves …
@@ -241,16 +240,42 @@ def _plot_calibration(cal, path: Path) -> None:
     write_figure(fig, path, dpi=110)
 
 
-def run(out: Path) -> None:
+def run_inversion(out: Path) -> None:
     posterior_target(out)
     print((out / "inversion.md").read_text())
 
 
-def report(out: Path) -> str:
+def report_inversion(out: Path) -> str:
     return (out / "inversion.md").read_text() + "![posterior](inversion_W2_slip/corner.png)\n"
 
 
-STUDY = Study("inversion", "An inversion: fit, profiles, posterior (`inversion.md`, "
-              "`inversion_W2_slip/`)", 200, run, report=report, timed=True,
-              writes=("inversion.md", "inversion_W2_slip/*.png", "inversion_W2_slip/*.csv",
-                      "inversion_W2_slip/inversion.json"), minutes=0.9)
+def run_calibration(out: Path, seeds: int, n: int, sigma: float, check_seeds: int) -> None:
+    calibration_study(out, seeds=seeds, n=n, sigma_rel=sigma, check_seeds=check_seeds)
+    print((out / "calibration.md").read_text().split("\n## ")[0])
+
+
+def check_calibration(settings: dict) -> None:
+    if settings["check_seeds"] > settings["seeds"]:
+        raise ValueError(f"study calibration: setting check_seeds = {settings['check_seeds']} "
+                         f"is more than seeds = {settings['seeds']}: the checked seeds are "
+                         "among the study's")
+
+
+def report_calibration(out: Path) -> str:
+    text = (out / "calibration.md").read_text()
+    return text.split("\n", 1)[1] + "![coverage](calibration.png)\n"
+
+
+STUDIES = (
+    Study("inversion", "An inversion: fit, profiles, posterior (`inversion.md`, "
+          "`inversion_W2_slip/`)", 200, run_inversion, report=report_inversion, timed=True,
+          writes=("inversion.md", "inversion_W2_slip/*.png", "inversion_W2_slip/*.csv",
+                  "inversion_W2_slip/inversion.json"), minutes=0.9),
+    Study("calibration", "Coverage of the 95 % regions (`calibration.*`)", 210, run_calibration,
+          report=report_calibration,
+          settings={"seeds": 1000, "n": 121, "sigma": 0.05, "check_seeds": 2},
+          limits={"seeds": (1, 100_000), "n": (5, 1001), "sigma": (1e-6, 0.5),
+                  "check_seeds": (0, 100)}, check=check_calibration,
+          writes=("calibration.csv", "calibration.json", "calibration.md", "calibration.png"),
+          minutes=2),
+)
