@@ -4,7 +4,7 @@ Observations are simulated at a known ``truth`` = (b, Lc): the limit cycle's ΔT
 plus Gaussian noise of standard deviation σ = ``sigma_rel`` × the true value, with the seeds
 0, 1, …, ``seeds`` − 1 (numpy's ``default_rng(seed)``, one draw of two normals each). The same
 algorithm simulates and inverts, so the check is of the statistics, not of the solver (the
-solver's effect is :mod:`benchmarks.studies.solver_effect`'s question).
+solver's effect is :mod:`benchmarks.inversion.solver_effect`'s question).
 
 For every seed, on one :class:`~benchmarks.inversion.grid.MetricMap` through the truth (the
 forward model does not depend on the seed, so one ensemble serves all of them), the truth is
