@@ -19,6 +19,7 @@ nothing about the tighter ones.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 from dataclasses import dataclass
@@ -30,6 +31,7 @@ from tqdm.auto import tqdm
 
 from benchmarks.devtools.errors import ERROR_COLUMNS, errors
 from benchmarks.devtools.reference import reference
+from benchmarks.records.files import read_table
 from benchmarks.records.provenance import provenance
 from integrators import REGISTRY, solve
 from integrators.core.registry import ProblemNotSupported
@@ -279,7 +281,6 @@ def algorithm_at(integrator: str, rhs_tier: str, setting: float):
 def read_study(path) -> pd.DataFrame:
     """A work-precision study written by :func:`benchmarks.devtools.wp_files.write_work_precision`, its
     columns checked (:class:`benchmarks.records.files.BadResultsFile` otherwise)."""
-    from benchmarks.records.files import read_table
     return read_table(path, WP_COLUMNS, what="work-precision study",
                       hint="`rsfbench work-precision` writes one")
 
@@ -308,7 +309,6 @@ _BEGIN, _END = "# --- written by the quick work-precision study", "# --- end of 
 def front_source(csv) -> str:
     """The written part of :mod:`benchmarks.devtools.recommendation` for the study ``csv``: its front as
     Python literals and the study's provenance (commit, SHA-256)."""
-    import hashlib
     df = read_study(csv)
     front = pareto_front(df)
     commit = str(df["git_commit"].iloc[0]) if "git_commit" in df else ""

@@ -57,14 +57,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from benchmarks.devtools.work_precision import read_study
+from benchmarks.devtools.work_precision import algorithm_at, read_study, recommend
 from benchmarks.inversion.grid import GridPosterior, MetricMap, box_grid, metric_map
 from benchmarks.inversion.least_squares import fit
 from benchmarks.inversion.misfit import Misfit, synthetic
 from benchmarks.inversion.observations import Observations, observations
 from benchmarks.records.files import write_figure, write_output, write_table
 from benchmarks.records.report import fmt, markdown_table
-from integrators import Algorithm, Exprb43, Rodas5P
+from integrators import REGISTRY, Algorithm, Exprb43, Rodas5P
 from problems import preset
 
 __all__ = ["solver_effect", "candidates", "Candidate", "recommendation", "compare",
@@ -98,8 +98,6 @@ def candidates(study: pd.DataFrame | None = None, own_ladders=None, etd_factors=
     work-precision ``study`` the fastest LSODA and the fastest SUNDIALS setting whose worst
     recurrence error is within each of ``peer_levels`` (:func:`benchmarks.devtools.work_precision.
     recommend` within each family)."""
-    from benchmarks.devtools.work_precision import algorithm_at, recommend
-    from integrators import REGISTRY
     own_ladders = own_ladders or {"Rodas5P": (1e-3, 1e-4, 1e-5, 1e-6, 1e-7),
                                   "Rosenbrock23": (1e-3, 1e-4, 1e-5, 1e-6),
                                   "Exprb43": (1e-3, 1e-4, 1e-5),

@@ -29,6 +29,7 @@ import pandas as pd
 
 from benchmarks.inversion.posterior import run_sampler
 from benchmarks.lab.fit import _LOG, BOUNDS, PARAMETER_UNITS, LabFit, _Problem
+from benchmarks.records.optional import require
 
 __all__ = ["LabPosterior", "sample_lab"]
 
@@ -53,7 +54,6 @@ class LabPosterior:
 def sample_lab(fit: LabFit, walkers: int = 32, steps: int = 600, seed: int = 0,
                progress: bool = False) -> LabPosterior:
     """emcee over ``fit``'s free parameters (module docstring); ``walkers`` × ``steps`` solves."""
-    from benchmarks.records.optional import require
     require("emcee", "inversion", "a posterior sample")
     import emcee
     n = len(fit.free)

@@ -34,6 +34,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
+from scipy import signal
+
+from benchmarks.physics.metrics import event_metrics
+from integrators import Rodas5P, solve
 
 __all__ = ["synthetic_recording", "Truth", "load_point_position", "SHAKE_HZ"]
 
@@ -83,10 +87,6 @@ def synthetic_recording(problem, rate: float = 10_000.0, t_skip: float = 0.0,
     (N), ``acceleration`` (m/s²), ``slip`` (m), ``table`` (m), and ``acceleration_lower``
     (m/s²) when ``shake`` > 0. ``algorithm``: the forward solver (default Rodas5P at
     rtol = atol = 1e−10)."""
-    from scipy import signal
-
-    from benchmarks.physics.metrics import event_metrics
-    from integrators import Rodas5P, solve
     if not problem.mass > 0:
         raise ValueError("a recording with accelerometers needs a slider with mass (mass > 0)")
     if not 0 <= t_skip < problem.t_end:

@@ -23,6 +23,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from benchmarks.records.files import read_table, write_table
+
 __all__ = ["CURVE_COLUMNS", "read_curves", "check_curves", "write_curves", "event_curve",
            "event_window", "sample_curves"]
 
@@ -32,7 +34,6 @@ CURVE_COLUMNS = ("event_id", "slip_m", "friction")
 def read_curves(path) -> pd.DataFrame:
     """Observed slip-weakening curves from a CSV with :data:`CURVE_COLUMNS` (see the module doc),
     or ``ValueError`` naming the file and what is wrong (:func:`check_curves`)."""
-    from benchmarks.records.files import read_table
     df = read_table(path, CURVE_COLUMNS, what="slip-weakening file",
                     hint="it needs the columns event_id, slip_m (m), friction (Ft/Fn)")
     return check_curves(df, f"slip-weakening file {path}")
@@ -69,7 +70,6 @@ def check_curves(df, source: str = "slip-weakening curves") -> pd.DataFrame:
 def write_curves(df: pd.DataFrame, path) -> None:
     """Write the curves to ``path`` (CSV), never over a file of the user's
     (:func:`benchmarks.records.files.writing`)."""
-    from benchmarks.records.files import write_table
     write_table(df[list(CURVE_COLUMNS)], path)
 
 

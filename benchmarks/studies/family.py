@@ -36,6 +36,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from matplotlib.figure import Figure
 
 from benchmarks.devtools.errors import ERROR_COLUMNS
 from benchmarks.devtools.reference import (
@@ -45,10 +46,18 @@ from benchmarks.devtools.reference import (
     reference,
 )
 from benchmarks.devtools.work_precision import Ladder, best_at_levels, work_precision
-from benchmarks.lab.measures import PeakNotReached, healing, step_response
-from benchmarks.records.files import write_figure, write_table
+from benchmarks.lab.measures import (
+    PeakNotReached,
+    healing,
+    healing_rate,
+    marone_check,
+    step_response,
+)
+from benchmarks.records.files import atomic_write, write_figure, write_table
+from benchmarks.records.provenance import provenance
+from benchmarks.records.report import markdown_table
 from benchmarks.studies.study import Study
-from integrators import REGISTRY, solve
+from integrators import REGISTRY, Rodas5P, solve
 from problems import slide_hold_slide_test, velocity_step_test, window
 from problems.presets import fault_radiation_damping
 
@@ -216,9 +225,6 @@ def runaway(names=("Rodas5P", "sundials-CVODE-BDF", "sundials-IDA", "scipy-Radau
 def write_family(out: Path, progress: bool = True, names=None) -> pd.DataFrame:
     """The study into ``out``: family_wp.csv (every row), family_wp.md (the summary and the
     quasi-static runaway), family_wp.png (error against time per problem)."""
-    from benchmarks.records.files import atomic_write
-    from benchmarks.records.provenance import provenance
-    from benchmarks.records.report import markdown_table
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     df = family_study(names=names, progress=progress)
@@ -316,7 +322,6 @@ def _refused(df: pd.DataFrame) -> str:
 
 
 def _plot(df: pd.DataFrame, path: Path) -> None:
-    from matplotlib.figure import Figure
     problems = list(dict.fromkeys(df.problem))
     fig = Figure(figsize=(4.2 * len(problems), 4.2))
     axes = fig.subplots(1, len(problems), squeeze=False)
@@ -341,16 +346,6 @@ def write_lab_checks(out: Path) -> dict:
     law's velocity step (direct effect, steady-state change against (a − b) ln 10) and
     slide-hold-slide healing (holds 1 to 300 s; after 1000 s the slip law runs away on
     reloading), quasi-static, the steps also with 1 kg of mass."""
-    from benchmarks.lab.measures import (
-        healing,
-        healing_rate,
-        marone_check,
-        step_response,
-    )
-    from benchmarks.records.files import atomic_write
-    from benchmarks.records.provenance import provenance
-    from benchmarks.records.report import markdown_table
-    from integrators import Rodas5P
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     marone = marone_check()
@@ -389,7 +384,6 @@ def write_lab_checks(out: Path) -> dict:
              markdown_table(heal, ".6g"), "",
              f"Provenance: {provenance()}", ""]
     atomic_write(out / "problem_family.md", "\n".join(lines))
-    from matplotlib.figure import Figure
     fig = Figure(figsize=(5, 3.8))
     ax = fig.subplots()
     for law, h in heals.items():

@@ -20,10 +20,18 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from matplotlib.figure import Figure
 
+from benchmarks.devtools.recommendation import recommended
+from benchmarks.inversion.grid import cell_box
+from benchmarks.inversion.misfit import Misfit
+from benchmarks.inversion.observations import observations
+from benchmarks.inversion.published import T_END, prior_box
 from benchmarks.records.files import write_figure, write_output, write_table
 from benchmarks.records.report import fmt, jsonable, markdown_table
 from benchmarks.studies.study import Study
+from integrators import Rodas5P
+from problems import preset
 
 __all__ = ["STUDIES", "posterior_target", "calibration_study", "TARGET_SOLVES",
            "TARGET_WALL_S", "CALIBRATION_TRUTH"]
@@ -41,12 +49,7 @@ def posterior_target(out, walkers: int = 32, steps: int = 2500, seed: int = 0,
     """Invert W2/slip's published means (σ 10 %, assumed) in the paper sweep's box with the
     integrator the work-precision study recommends for 1e−3 in ΔT; check the posterior's size
     and time against the target; write ``out/inversion_W2_slip/`` and ``out/inversion.md``."""
-    from benchmarks.devtools.recommendation import recommended
     from benchmarks.inversion.invert import invert, write_inversion
-    from benchmarks.inversion.misfit import Misfit
-    from benchmarks.inversion.published import T_END, prior_box
-    from benchmarks.inversion.observations import observations
-    from problems import preset
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     algorithm, why = recommended(1e-3)
@@ -121,10 +124,6 @@ def calibration_study(out, seeds: int = 1000, n: int = 121, sigma_rel: float = 0
     true values, uniform prior on b ± 0.0012 and Lc within a factor 100), with Rodas5P at
     rtol = atol = 1e−6 simulating and inverting; write ``out/calibration.*``."""
     from benchmarks.inversion.calibration import coverage
-    from benchmarks.inversion.grid import cell_box
-    from benchmarks.inversion.published import T_END
-    from integrators import Rodas5P
-    from problems import preset
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     b_t, lc_t = CALIBRATION_TRUTH
@@ -220,7 +219,6 @@ def _checks_markdown(c: pd.DataFrame) -> str:
 
 
 def _plot_calibration(cal, path: Path) -> None:
-    from matplotlib.figure import Figure
     s = cal.summary
     fig = Figure(figsize=(7.5, 4.2))
     ax = fig.subplots()
