@@ -8,12 +8,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from benchmarks.devtools.convergence import (
-    convergence_study,
-    fixed_step_orders,
-    write_convergence,
-    write_fixed_step_orders,
-)
+from benchmarks.devtools.convergence import (convergence_study, fixed_step_orders,
+                                             write_convergence, write_fixed_step_orders)
 from benchmarks.studies.study import Study
 from problems import paper_example
 
