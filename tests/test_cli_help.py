@@ -2,6 +2,10 @@
 happens without it) and the unit of every physical quantity."""
 
 import argparse
+import json
+import subprocess
+import sys
+from pathlib import Path
 
 import pytest
 
@@ -39,3 +43,19 @@ def test_help_states_defaults_and_units(name, command):
         if flag in UNITS:
             assert UNITS[flag] in text, f"{name} {flag}: no unit ({UNITS[flag].strip()}): {text!r}"
     command.format_help()          # renders (a % in a help string would raise here)
+
+
+def test_help_imports_neither_the_studies_nor_the_heavy_libraries():
+    """`rsfbench --help` and every command's --help build the whole parser; what only a run
+    needs waits for it (docs/api.md, "Start-up"): matplotlib (0.4 s of a 1.3 s start), the
+    studies and the pipeline, the process pool's multiprocessing, scipy.optimize, the optional
+    extras."""
+    code = ("import sys, json\nfrom benchmarks.cli.main import build_parser\nbuild_parser()\n"
+            "print(json.dumps(sorted(sys.modules)))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          check=True, cwd=Path(__file__).resolve().parents[1])
+    loaded = set(json.loads(done.stdout.splitlines()[-1]))
+    waiting = ("matplotlib", "benchmarks.studies", "benchmarks.pipeline", "multiprocessing",
+               "scipy.optimize", "emcee", "corner", "distributed", "numbalsoda")
+    assert sorted(m for m in loaded if m.split(".")[0] in waiting or m in waiting
+                  or any(m.startswith(w + ".") for w in waiting)) == []

@@ -510,3 +510,20 @@ def test_solver_effect_takes_an_observations_file(tmp_path):
         SOLVER_EFFECT.checked({**settings, "observations": str(tmp_path / "none.json")})
     with pytest.raises(ValueError, match="setting windows = 'W1,W9'"):
         SOLVER_EFFECT.checked({**settings, "windows": "W1,W9"})
+
+
+def test_the_solver_effect_command_imports_no_study():
+    """``rsfbench solver-effect`` writes a user's files, report and figure with the library
+    (:func:`benchmarks.inversion.solver_effect.write_solver_effect`); nothing it imports, at
+    module level or inside a function, is a study (``benchmarks.studies.solver_effect`` is the
+    run of results/)."""
+    from benchmarks.pipeline import manifest as M
+    graph = M.import_graph(M.ROOT, ("benchmarks",))
+    seen, todo = set(), ["benchmarks.cli.solver_effect"]
+    while todo:
+        module = todo.pop()
+        if module not in seen:
+            seen.add(module)
+            todo.extend(graph.get(module, ()))
+    assert "benchmarks.inversion.solver_effect" in seen
+    assert sorted(m for m in seen if m.startswith("benchmarks.studies")) == []

@@ -325,6 +325,30 @@ def test_a_plan_that_reads_what_no_earlier_study_writes_is_refused(fake):
                                                  writes=("*.txt",))])
 
 
+def test_a_module_declares_one_study_or_several(tmp_path, monkeypatch):
+    """``STUDY`` or a ``STUDIES`` tuple (a module owning the work of several studies): the plan
+    has them all, in their declared order whatever their module; a module with both is
+    refused."""
+    two = _study("second", "pass", "two.txt").replace("STUDY = Study(", "TWO = Study(")
+    _write(tmp_path, {"fakemany/__init__.py": "", "fakemany/studies/__init__.py": "",
+                      "fakemany/studies/one.py": _study("one", "pass", "one.txt"),
+                      "fakemany/studies/pair.py": _study("three", "pass", "three.txt") + two
+                      + "\nSTUDIES = (STUDY, TWO)\ndel STUDY\n"})
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setattr(sys, "dont_write_bytecode", True)
+    try:
+        assert [s.name for s in RP.studies.__wrapped__("fakemany.studies")] == [
+            "one", "three", "second"]           # orders 3, 5, 6
+        both = tmp_path / "fakemany/studies/pair.py"
+        both.write_text(both.read_text().replace("del STUDY\n", ""))
+        del sys.modules["fakemany.studies.pair"]
+        with pytest.raises(ValueError, match="pair declares both STUDY and STUDIES"):
+            RP.studies.__wrapped__("fakemany.studies")
+    finally:
+        for name in [m for m in sys.modules if m.split(".")[0] == "fakemany"]:
+            del sys.modules[name]
+
+
 def test_a_study_that_writes_what_it_does_not_declare_fails(fake):
     import dataclasses
     make = fake.steps[0]

@@ -12,10 +12,15 @@ import argparse
 import math
 import os
 import sys
+import warnings
 from pathlib import Path
 
 from benchmarks.ensemble.executors import RunStopped
-from problems import LAWS
+from benchmarks.inversion.observations import observations, read_observations
+from benchmarks.records.files import note_input
+from benchmarks.records.provenance import version_line
+from integrators import algorithm_class, make_algorithm
+from problems import LAWS, load_problem, preset, variant
 
 __all__ = ["say", "show_progress", "RunStopped", "Parser", "HelpFormatter", "positive",
            "non_negative", "finite", "pair",
@@ -266,7 +271,6 @@ def in_file(text: str) -> Path:
         raise argparse.ArgumentTypeError(f"{text!r} is not a file")
     if not os.access(path, os.R_OK):
         raise argparse.ArgumentTypeError(f"{text!r} is not readable")
-    from benchmarks.records.files import note_input
     note_input(path)                      # never written over by this run (records.files)
     return path
 
@@ -328,7 +332,6 @@ def problem_from_args(args, fields=("b", "lc", "t_end")):
     """The problem of --preset (with --law) or --problem FILE, with the given options among
     ``fields`` (--b, --lc, --t-end) replaced (ValueError for --law with a file: the file names
     its law)."""
-    from problems import load_problem, preset, variant
     given = {k: getattr(args, k, None) for k in fields}
     changes = {k: v for k, v in given.items() if v is not None}
     if getattr(args, "problem", None) is not None:
@@ -377,14 +380,12 @@ def observations_from_args(args, published: bool, curves=None):
     """The observations of the options (a window's published means fill what is not given),
     or of the observations file (``--observations``)."""
     if getattr(args, "observations", None) is not None:
-        from benchmarks.inversion.observations import read_observations
         try:
             return read_observations(args.observations,
                                      curve_noise=getattr(args, "curve_noise", "none"),
                                      curve_sigma=getattr(args, "curve_sigma", None))
         except ValueError as exc:
             raise ValueError(f"--observations: {exc}") from None
-    from benchmarks.inversion.observations import observations
     try:
         return observations(args.preset if published else "", args.obs_recurrence,
                             args.sigma_recurrence, args.obs_drop, args.sigma_drop, curves,
@@ -415,7 +416,6 @@ class ShowVersion(argparse.Action):
                          help="print the version (package, commit of a checkout, Python) and exit")
 
     def __call__(self, parser, namespace, values, option_string=None):
-        from benchmarks.records.provenance import version_line
         say(version_line())             # the command's output: stdout, also under main()
         parser.exit(0)
 
@@ -449,7 +449,6 @@ def flagged(flag: str, function, *args):
 def integrator_from_args(args):
     """``(algorithm, why)``: the named integrator with its options, or the recommendation."""
     from benchmarks.devtools.recommendation import recommended
-    from integrators import algorithm_class, make_algorithm
     if args.integrator:
         cls = flagged("--integrator", algorithm_class, args.integrator)
         return (make_algorithm(cls.name, rtol=args.rtol, atol=args.atol, rhs=args.rhs),
@@ -480,7 +479,6 @@ def checked_integrator(args, problem, obs, b_range, lc_range, algorithm, why: st
                          workers=getattr(args, "workers", None), say=talk,
                          wall_budget=getattr(args, "wall_budget", None) or WALL_BUDGET)
     if check.nothing_to_check:
-        import warnings
         warnings.warn(f"the integrator is not checked on this problem: {check.message}",
                       stacklevel=1)
         return algorithm, f"{why} (not checked on this problem: {check.message})", check

@@ -37,7 +37,21 @@ from benchmarks.cli.args import (
     steps_or_none,
     workers,
 )
+from benchmarks.inversion import Misfit
+from benchmarks.inversion.curve_likelihood import CURVE_NOISES
+from benchmarks.inversion.invert import (
+    MAX_SAMPLES_SAVED,
+    METHODS,
+    check_box,
+    inversion_files,
+    invert,
+    write_inversion,
+)
+from benchmarks.inversion.posterior import MAX_POSTERIOR_SOLVES, check_sampler
+from benchmarks.records.files import claim_outputs
+from benchmarks.records.optional import require
 from benchmarks.records.report import jsonable
+from problems import PRESET_NAMES, WINDOWS
 
 __all__ = ["add_parsers"]
 
@@ -82,9 +96,6 @@ def _box(args, problem, published: bool):
 
 
 def cmd_invert(args) -> int:
-    from benchmarks.inversion import Misfit
-    from benchmarks.inversion.invert import inversion_files
-    from benchmarks.records.files import claim_outputs
     problem, published, box_b, box_lc, walkers, steps = _checked(args)
     obs = observations_from_args(args, published)
     cycles = problem.t_end / obs.recurrence_s
@@ -130,9 +141,6 @@ def cmd_invert(args) -> int:
 def _checked(args):
     """``(problem, published, box_b, box_lc, walkers, steps)`` of the options, every
     combination checked before any work."""
-    from benchmarks.inversion.invert import check_box
-    from benchmarks.inversion.posterior import check_sampler
-    from problems import WINDOWS
     problem = problem_from_args(args, fields=("t_end",))
     published = args.problem is None and args.preset.upper() in WINDOWS
     check_observation_options(args, problem, published)
@@ -149,7 +157,6 @@ def _checked(args):
     walkers = 32 if args.walkers is None else args.walkers
     steps = 2000 if args.steps is None else args.steps
     if steps:                            # the corner plot is written after all the work
-        from benchmarks.records.optional import require
         require("corner", "inversion", "the corner plot of a posterior")
         if args.method == "emcee":
             require("emcee", "inversion", "a posterior sample")
@@ -177,8 +184,6 @@ def _say_setting(why: str, obs) -> None:
 def _run(args, misfit, box, walkers, steps, out: Path, why: str, check, stage: list):
     """``(inversion, summary)`` with its files written to ``out``; ``stage[0]``: what runs
     now (a Ctrl-C says it)."""
-    from benchmarks.inversion.invert import invert, write_inversion
-
     def progress(text: str) -> None:
         stage[0] = text
         if not args.json:
@@ -264,8 +269,6 @@ def _report_sample(p: dict) -> None:
 
 
 def add_parsers(sub) -> None:
-    from benchmarks.inversion.invert import MAX_SAMPLES_SAVED
-    from problems import PRESET_NAMES
     i = sub.add_parser("invert", help="invert observed means (and slip-weakening curves) for "
                        "(b, Lc): posterior (refined grid or emcee), least-squares fit with "
                        "covariance, profiles of b and log10 Lc, corner and profile plots")
@@ -302,9 +305,6 @@ def add_parsers(sub) -> None:
 
 def _add_posterior_options(i) -> None:
     """The posterior's method and size, the curves' noise, the profiles and the seed."""
-    from benchmarks.inversion.curve_likelihood import CURVE_NOISES
-    from benchmarks.inversion.invert import METHODS
-    from benchmarks.inversion.posterior import MAX_POSTERIOR_SOLVES
     i.add_argument("--method", choices=METHODS, default="grid",
                    help="the posterior: on a grid refined where its mass is, or sampled with "
                         "emcee (default: grid)")

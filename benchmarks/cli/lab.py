@@ -22,6 +22,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 
 from benchmarks.cli.args import (
     SPEED,
@@ -35,8 +36,11 @@ from benchmarks.cli.args import (
     say,
     show_progress,
 )
+from benchmarks.cli.lab_fit import add_parser as add_fit_parser
 from benchmarks.records.files import claim_outputs, write_figure, write_table
-from problems import LAWS, law_parameters
+from benchmarks.records.report import jsonable
+from integrators import make_algorithm, solve
+from problems import LAWS, law_parameters, load_problem, slide_hold_slide_test, velocity_step_test
 
 __all__ = ["add_parsers"]
 
@@ -57,7 +61,6 @@ def _flag(name: str) -> str:
 
 
 def _problem(args):
-    from problems import load_problem, slide_hold_slide_test, velocity_step_test
     own, other = ((STEP_OPTIONS, SHS_OPTIONS) if args.test == "step"
                   else (SHS_OPTIONS, STEP_OPTIONS))
     wrong = [k for k in other if getattr(args, k) is not None]
@@ -130,8 +133,6 @@ def _measures(sol, args):
 
 def cmd_lab(args) -> int:
     from benchmarks.lab.measures import healing_rate
-    from benchmarks.records.report import jsonable
-    from integrators import make_algorithm, solve
     problem = _problem(args)
     name = args.integrator or DEFAULT_INTEGRATOR
     tol = args.rtol if args.rtol is not None else (None if args.integrator else DEFAULT_TOL)
@@ -163,7 +164,6 @@ def cmd_lab(args) -> int:
     if out is not None:
         write_table(steps, out / "lab_steps.csv")
         write_table(heal, out / "lab_healing.csv")
-        import pandas as pd
         write_table(pd.DataFrame({"t_s": sol.t, "v_m_s": sol.v,
                                   "mu": sol.fs / problem.normal_force, "theta": sol.theta}),
                     out / "lab_trajectory.csv")
@@ -269,5 +269,4 @@ def add_parsers(sub) -> None:
     for name, what in (("step", "a velocity step"), ("shs", "a slide-hold-slide sequence")):
         tests.add_parser(name, parents=[lab], help=f"simulate {what} and what it measures",
                          description=__doc__.split("\n\n")[0]).set_defaults(func=cmd_lab)
-    from benchmarks.cli.lab_fit import add_parser
-    add_parser(tests)
+    add_fit_parser(tests)

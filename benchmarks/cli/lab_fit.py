@@ -18,9 +18,15 @@ import sys
 import warnings
 from pathlib import Path
 
+import pandas as pd
+
 from benchmarks.cli.args import in_file, non_negative, out_dir, positive, say, show_progress
+from benchmarks.lab.model import DEFAULT_ALGORITHM, DETRENDS, WALL_BUDGET, LabModel
 from benchmarks.records.files import claim_outputs, write_figure, write_output, write_table
+from benchmarks.records.optional import require
+from benchmarks.records.provenance import provenance, version_line
 from benchmarks.records.report import jsonable
+from integrators import REGISTRY, make_algorithm
 from problems import LAWS, law_parameters
 
 #: the files ``lab fit --out DIR`` may write
@@ -51,8 +57,6 @@ def _record(args):
 
 
 def _model(args, record):
-    from benchmarks.lab.model import DEFAULT_ALGORITHM, LabModel
-    from integrators import REGISTRY, make_algorithm
     algorithm = None
     if args.integrator is not None or args.rtol is not None:
         name = args.integrator or DEFAULT_ALGORITHM[0]
@@ -96,7 +100,6 @@ def _check_flags(args) -> None:
         raise ValueError("--normal-force is for a shear_force column without a normal_force "
                          "one, or for the inertial slider (--mass): here it would be unused")
     if args.posterior:
-        from benchmarks.records.optional import require
         require("emcee", "inversion", "--posterior")
 
 
@@ -225,7 +228,6 @@ def _table(fit, profiles: dict, posterior):
 
 def _doc(args, record, fit, table, fixed, notes, profiles, check, inertia, posterior) -> dict:
     """lab_fit.json: the record, the history, the fit, its noise, intervals and checks."""
-    from benchmarks.records.provenance import provenance, version_line
     return {"tool": version_line(), **provenance(), "command": args.command_line,
             "recording": str(Path(args.recording).resolve()), "sha256": record.sha256,
             "columns": record.columns, "window_s": list(args.window) if args.window else None,
@@ -309,7 +311,6 @@ def _report(fit, table, profiles, check, inertia, notes, record, args) -> None:
             + (" — the inertia changes the fit beyond its error bars" if inertia["matters"]
                else " — within the error bars: the quasi-static fit stands"))
         if inertia["matters"]:
-            import pandas as pd
             inertial = pd.DataFrame(inertia["parameters"])
             for col in ("value", "se", "wald_low95", "wald_high95"):
                 inertial[col] = [_num(v, u) for v, u in zip(inertial[col], inertial.unit)]
@@ -332,7 +333,6 @@ def _num(v, unit) -> str:
 
 
 def _write(out: Path, fit, table, profiles, doc) -> None:
-    import pandas as pd
     rec = fit.model.record
     write_table(table.assign(command=doc["command"], tool=doc["tool"]),
                 out / "lab_fit_parameters.csv")
@@ -391,7 +391,6 @@ def _plot(fit, profiles, path: Path) -> None:
 
 
 def add_parser(tests) -> None:
-    from benchmarks.lab.model import DETRENDS
     p = tests.add_parser("fit", help="fit (a, b, Dc) and the stiffness to a velocity-step or "
                          "slide-hold-slide record", description=__doc__.split("\n\n")[0])
     p.add_argument("recording", type=in_file, metavar="RECORDING",
@@ -439,7 +438,6 @@ def add_parser(tests) -> None:
 
 def _add_run_options(p) -> None:
     """The integrator, the posterior, what to skip and the wall budget of each solve."""
-    from benchmarks.lab.model import DEFAULT_ALGORITHM, WALL_BUDGET
     p.add_argument("--integrator", metavar="NAME",
                    help=f"registry name of a method with dense output (default: "
                         f"{DEFAULT_ALGORITHM[0]})")

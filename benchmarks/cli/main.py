@@ -27,6 +27,7 @@ import sys
 import warnings
 
 from benchmarks.cli import (
+    args as cli_args,
     invert,
     lab,
     observe,
@@ -125,7 +126,6 @@ def _library_output_to_stderr(keep: bool):
     (``sys.stdout``) and for C and Fortran (file descriptor 1) — and :func:`say` writes to the
     standard output as it was. ``keep``: leave descriptor 1 on the standard error at the end (a
     program exits next, and Fortran flushes unit 6 at exit)."""
-    from benchmarks.cli import args as cli_args
     sys.stdout.flush()
     saved = os.dup(1)
     os.dup2(2, 1)

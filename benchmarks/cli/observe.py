@@ -13,10 +13,12 @@ See :mod:`benchmarks.lab.observe_recording` for the files written and the column
 
 from __future__ import annotations
 
+import argparse
 import json
 from pathlib import Path
 
 from benchmarks.cli.args import in_file, out_dir, positive, say
+from benchmarks.records.provenance import provenance
 from benchmarks.records.report import jsonable
 
 __all__ = ["add_parsers"]
@@ -40,7 +42,6 @@ and the curves; the table's position gives vLs, vLf, df and the stiffness."""
 
 def cmd_observe(args) -> int:
     from benchmarks.lab.observe_recording import observe, read_column_file
-    from benchmarks.records.provenance import provenance
     from benchmarks.lab.channels import column_spec
     columns, constants = read_column_file(args.columns) if args.columns else ({}, {})
     given = set()
@@ -96,7 +97,6 @@ def _scaled(value, scale: float) -> str:
 
 
 def add_parsers(sub) -> None:
-    import argparse
     o = sub.add_parser("observe", help="measure a laboratory recording: its events, ΔT, Δμ, "
                        "slip, peak slip rate, curves and apparatus, for an inversion",
                        description=HELP, formatter_class=argparse.RawDescriptionHelpFormatter)

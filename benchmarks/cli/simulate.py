@@ -24,12 +24,10 @@ from benchmarks.cli.args import (
 )
 from benchmarks.devtools.timing import warm_up
 from benchmarks.physics import metrics
-from benchmarks.physics.summary import (
-    integrator_rows,
-    integrators_markdown,
-    simulate_summary,
-)
+from benchmarks.physics.summary import integrator_rows, integrators_markdown, simulate_summary
 from benchmarks.records.files import claim_outputs, write_output, write_table, writing
+from benchmarks.records.optional import require
+from benchmarks.records.provenance import provenance, version_line
 from benchmarks.records.report import jsonable as _jsonable
 from integrators import REGISTRY, solve
 from problems import LAWS, PRESET_NAMES, WINDOWS
@@ -64,7 +62,6 @@ def _print_summary(s: dict) -> None:
 
 def cmd_simulate(args) -> int:
     if args.save and args.save.suffix.lower() == ".parquet":
-        from benchmarks.records.optional import require
         require("pyarrow", "ensemble", "--save FILE.parquet")
     problem = problem_from_args(args)
     algorithm, why = integrator_from_args(args)
@@ -95,7 +92,6 @@ def cmd_simulate(args) -> int:
 def _save_trajectory(sol, path: Path, summary: dict, command: str) -> dict:
     """Write ``sol``'s trajectory to ``path`` (.csv or .parquet: t, v, fs, ft, mu, theta) and
     what it is to ``path`` + ".json" (units, command, versions, the run's summary)."""
-    from benchmarks.records.provenance import provenance, version_line
     df = sol.to_dataframe()
     path.parent.mkdir(parents=True, exist_ok=True)      # a creatable place (--save's check)
     about = {"tool": version_line(), "command": command, **provenance(),

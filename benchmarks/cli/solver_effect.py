@@ -7,8 +7,9 @@
 
 Every candidate setting inverts the observations' means (ΔT and Δμ with their σ: J1; the
 file's slip-weakening curves are left out here) on the problem's own box and is compared with
-the inversion by a tight reference (:mod:`benchmarks.inversion.solver_effect`); the settings whose
-posterior is indistinguishable from the reference's are ranked by their cost.
+the inversion by a tight reference (:mod:`benchmarks.inversion.solver_effect`, which writes the
+files); the settings whose posterior is indistinguishable from the reference's are ranked by
+their cost.
 """
 
 from __future__ import annotations
@@ -17,8 +18,13 @@ import json
 from pathlib import Path
 
 from benchmarks.cli.args import b_range, bounded, flagged, in_file, lc_range, out_dir, say
+from benchmarks.inversion.invert import check_box
+from benchmarks.inversion.observations import read_observations
+from benchmarks.inversion.solver_effect import QUICK_N, recommendation, write_solver_effect
 from benchmarks.records.files import adopt, claim_outputs, write_output
+from benchmarks.records.provenance import provenance, version_line
 from benchmarks.records.report import jsonable
+from problems import load_problem
 
 #: the files ``solver-effect --out DIR`` writes (the study's, then its provenance)
 SOLVER_EFFECT_FILES = ("solver_effect.csv", "solver_effect_recommendation.csv",
@@ -28,12 +34,6 @@ __all__ = ["add_parsers"]
 
 
 def cmd_solver_effect(args) -> int:
-    from benchmarks.inversion.invert import check_box
-    from benchmarks.inversion.observations import read_observations
-    from benchmarks.inversion.solver_effect import QUICK_N, recommendation
-    from benchmarks.records.provenance import provenance, version_line
-    from benchmarks.studies.solver_effect import solver_effect_study   # its files and figure
-    from problems import load_problem
     problem = load_problem(args.problem)
     flagged("--b-range/--lc-range", check_box, problem, args.b_range, args.lc_range)
     try:
@@ -49,7 +49,7 @@ def cmd_solver_effect(args) -> int:
     out.mkdir(parents=True, exist_ok=True)
     n = args.n or (31 if args.full else QUICK_N)
     own = (Path(args.problem).stem, problem, (args.b_range, args.lc_range))
-    table = solver_effect_study(out, n=n, windows=(), laws=(), yours=yours, own=own,
+    table = write_solver_effect(out, n=n, windows=(), laws=(), yours=yours, own=own,
                                 quick=not args.full, study_csv=args.study,
                                 progress=not args.json and not args.no_progress,
                                 command=args.command_line)
@@ -73,7 +73,6 @@ def cmd_solver_effect(args) -> int:
 
 
 def add_parsers(sub) -> None:
-    from benchmarks.inversion.solver_effect import QUICK_N
     p = sub.add_parser("solver-effect", help="does the integrator change what your observations "
                        "infer on your problem? every candidate's posterior (J1: the means; "
                        "curves left out) against a tight reference's, the indistinguishable "

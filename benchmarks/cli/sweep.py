@@ -34,23 +34,27 @@ from benchmarks.cli.args import (
     show_progress,
 )
 from benchmarks.cli.invert import WALL_BUDGET
+from benchmarks.ensemble.executors import CONNECT_TIMEOUT_S, WORKER_TIMEOUT_S
 from benchmarks.inversion.observations import observations
+from benchmarks.inversion.sweep import MAX_GRID_POINTS, parse_b, parse_lc, sweep
+from benchmarks.physics.curves import read_curves, sample_curves, write_curves
+from benchmarks.physics.metrics import CYCLES, summarize
+from benchmarks.records.files import claim_outputs
 from benchmarks.records.report import jsonable
+from integrators import solve
+from problems import PRESET_NAMES, WINDOWS
 
 __all__ = ["add_parsers", "observations", "synthetic_curves"]
 
 def sweep_problem(args):
     """The problem a sweep varies (``--preset`` with ``--law`` and ``--t-end``, or ``--problem
     FILE``) and whether a window's published fit and observations apply."""
-    from problems import WINDOWS
     problem = problem_from_args(args, fields=("t_end",))     # --b and --lc are the grid
     return problem, args.problem is None and args.preset.upper() in WINDOWS
 
 
 def cmd_sweep(args) -> int:
     from benchmarks.inversion.maps import plot_sweep
-    from benchmarks.inversion.sweep import parse_b, parse_lc, sweep
-    from benchmarks.physics.curves import read_curves
     problem, published = sweep_problem(args)
     check_observation_options(args, problem, published)
     b_values = parse_b(args.b, args.max_points)
@@ -62,7 +66,6 @@ def cmd_sweep(args) -> int:
     algorithm, why = integrator_from_args(args)
     name = args.preset if args.problem is None else Path(args.problem).stem
     out = Path(args.out or f"sweep_{name}_{problem.law.name}")
-    from benchmarks.records.files import claim_outputs
     claim_outputs([out / "sweep.csv", out / "summary.json",      # a user's file there:
                    *([] if args.no_plot else [out / "maps.png"])])  # refused before the work
     algorithm, why, check = checked_integrator(
@@ -122,9 +125,6 @@ def synthetic_curves(problem, algorithm, n_events: int = 3, n_points: int = 25,
     simulation, sampled as :func:`benchmarks.physics.curves.sample_curves` does. A run that fails, or
     does not reach a limit cycle, makes no curves (``ValueError`` with its retcode or
     classification)."""
-    from benchmarks.physics.curves import sample_curves
-    from benchmarks.physics.metrics import CYCLES, summarize
-    from integrators import solve
     sol = solve(problem, algorithm, save_every=curve_dt, wall_budget=wall_budget)
     cycle = summarize(sol)
     if cycle.classification not in CYCLES:
@@ -146,8 +146,6 @@ CURVE_POINTS = 20
 
 
 def cmd_slip_weakening(args) -> int:
-    from benchmarks.physics.curves import write_curves
-    from benchmarks.records.files import claim_outputs
     claim_outputs([args.out])                # a user's file there: refused before the work
     problem = problem_from_args(args)
     algorithm, why = integrator_from_args(args)
@@ -167,14 +165,11 @@ def cmd_slip_weakening(args) -> int:
 
 
 def add_parsers(sub) -> None:
-    from problems import PRESET_NAMES
     _add_sweep(sub, PRESET_NAMES)
     _add_slip_weakening(sub, PRESET_NAMES)
 
 
 def _add_sweep(sub, preset_names) -> None:
-    from benchmarks.ensemble.executors import CONNECT_TIMEOUT_S, WORKER_TIMEOUT_S
-    from benchmarks.inversion.sweep import MAX_GRID_POINTS
     s = sub.add_parser("sweep", help="J1/J2/J over a (b, Lc) grid: parallel, resumable")
     add_problem_choice(s, preset_names, "the problem whose (b, Lc) the grid replaces")
     s.add_argument("--b", required=True, metavar="START:STOP:STEP",

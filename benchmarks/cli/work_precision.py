@@ -11,7 +11,10 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import re
 from pathlib import Path
+
+import numpy as np
 
 from benchmarks.cli.args import (
     RunStopped,
@@ -24,10 +27,22 @@ from benchmarks.cli.args import (
     say,
     show_progress,
 )
+from benchmarks.devtools.reference import ReferenceDisagreement, no_stick_slip, reference
+from benchmarks.devtools.work_precision import (
+    FULL,
+    QUICK,
+    best_at_levels,
+    fastest_within,
+    recommend,
+    study_problems,
+    work_precision,
+)
+from benchmarks.inversion.observations import read_observations
 from benchmarks.records.files import claim_outputs, write_table
-from benchmarks.records.report import jsonable as _jsonable
+from benchmarks.records.provenance import version_line
+from benchmarks.records.report import jsonable as _jsonable, markdown_table
 from integrators import REGISTRY, algorithm_class
-from problems import LAWS, PRESET_NAMES, preset
+from problems import LAWS, PRESET_NAMES, load_problem, preset, variant
 
 __all__ = ["add_parsers"]
 
@@ -39,11 +54,9 @@ def algorithm_name(name: str, flag: str = "--integrators") -> str:
 
 def cmd_compare(args) -> int:
     from benchmarks.devtools.compare import compare_integrators
-    from benchmarks.records.report import markdown_table
     if args.problem is not None:
         if args.preset is not None or args.law is not None:
             raise ValueError("--problem FILE names its own law: drop --preset and --law")
-        from problems import load_problem, variant
         problem = load_problem(args.problem)
         problem = variant(problem, t_end=args.t_end) if args.t_end else problem
     else:
@@ -57,7 +70,6 @@ def cmd_compare(args) -> int:
     table.insert(0, "problem", problem.name)
     if args.observations is not None:
         table = _errors_in_sigma(table, problem, args.observations, args.wall_budget)
-    from benchmarks.records.provenance import version_line
     table["rsfbench"], table["command"] = version_line(), args.command_line
     if args.out:
         write_table(table, args.out)
@@ -81,10 +93,7 @@ def _errors_in_sigma(table, problem, path, wall_budget):
     """``table`` with each integrator's ΔT and Δμ (of the last event) off the tight reference
     in units of the observations' σ, and whether both are within σ/10: the references are
     those of invert's check, which must agree to σ/100."""
-    import numpy as np
-
     from benchmarks.devtools.compare import compare_integrators
-    from benchmarks.inversion.observations import read_observations
     from benchmarks.inversion.solver_check import FRACTION, REFERENCES
     try:
         obs = read_observations(path, curve_noise="none")   # ΔT and Δμ only
@@ -118,7 +127,6 @@ def _study_problem(spec: str, flag: str = "--problems"):
 
 
 def cmd_work_precision(args) -> int:
-    from benchmarks.devtools.work_precision import FULL, QUICK, best_at_levels, work_precision
     from benchmarks.devtools.wp_files import ERROR_LEVELS, write_work_precision
     ladder = FULL if args.study == "full" else QUICK
     if args.wall_budget is not None:
@@ -141,7 +149,6 @@ def cmd_work_precision(args) -> int:
     pareto = best_at_levels(df, ERROR_LEVELS, args.error)
     yours = None if limits is None else _for_your_sigma(args, df, limits, paths)
     if args.json:
-        from benchmarks.devtools.work_precision import recommend
         say(json.dumps(_jsonable({
             "csv": str(paths["csv"]), "error": args.error,
             "recommendation": recommend(df, ERROR_LEVELS, args.error).to_dict(orient="records"),
@@ -157,10 +164,8 @@ def cmd_work_precision(args) -> int:
 
 def _wp_problems(args) -> list:
     """The problems of --problems and --problem (the study's without either), at --t-end."""
-    from benchmarks.devtools.work_precision import study_problems
     problems = [_study_problem(x) for x in args.problems] if args.problems else []
     if args.problem:
-        from problems import load_problem
         problems += [load_problem(f) for f in args.problem]
     problems = problems or study_problems(args.study)
     if args.t_end is not None:
@@ -170,7 +175,6 @@ def _wp_problems(args) -> list:
 
 def _claim_wp_files(args, problems) -> None:
     """The study's files, claimed before the work: a user's file of their names is refused."""
-    import re
     stem = Path(args.out) / f"wp_{args.name or args.study}"
     claim_outputs([*(Path(f"{stem}{tail}") for tail in (".csv", "_pareto.csv", "_pareto.md",
                                                         "_for_sigma.csv")),
@@ -181,7 +185,6 @@ def _claim_wp_files(args, problems) -> None:
 def _check_references(problems) -> None:
     """Refuse a problem without stick–slip (exit 2) or without a reference the two tight
     solvers agree on (exit 1), before any run; the study reads the references cached."""
-    from benchmarks.devtools.reference import ReferenceDisagreement, no_stick_slip, reference
     for problem in problems:
         why = no_stick_slip(problem)
         if why:                                # nothing to measure: refused, one line
@@ -195,7 +198,6 @@ def _check_references(problems) -> None:
 def _for_your_sigma(args, df, limits, paths) -> dict:
     """The settings within ``limits`` on every problem, written to ``paths["for_your_sigma"]``
     (added to ``paths``), and the fastest of them."""
-    from benchmarks.devtools.work_precision import fastest_within
     within = fastest_within(df, limits)
     paths["for_your_sigma"] = Path(args.out) / f"wp_{args.name or args.study}_for_sigma.csv"
     write_table(within, paths["for_your_sigma"])
@@ -217,7 +219,6 @@ def _your_sigma_line(yours: dict, limits: dict) -> str:
 def _limits_of(path) -> dict:
     """The relative errors an inversion of the observations file ``path`` tolerates: σ/10 of
     each mean, as the solver check of invert requires."""
-    from benchmarks.inversion.observations import read_observations
     from benchmarks.inversion.solver_check import FRACTION
     try:
         o = read_observations(path, curve_noise="none")     # ΔT and Δμ only

@@ -21,6 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
+from problems.formulations import N_Q, SLIP_LAW, form_vector, to_ode_state
+from problems.loading import ln_load_rate
+
 __all__ = ["SOURCE", "FLAGS", "compiler", "build", "write_input", "run_twin"]
 
 SOURCE = Path(__file__).resolve().parents[1] / "native" / "rodas5p.c"
@@ -49,8 +52,6 @@ def build(directory) -> Path:
 def write_input(path, problem, tol: float) -> Path:
     """The twin's input for ``problem`` (slip law with mass, constant loading) at rtol = atol =
     ``tol``: q[8], z0[3], τ_end, rtol, atol, ln(10 E_slow), ln E_slow, ln E, h(0)."""
-    from problems.formulations import N_Q, SLIP_LAW, form_vector, to_ode_state
-    from problems.loading import ln_load_rate
     nd = problem.nondimensional()
     if nd.law_code != SLIP_LAW or problem.quasi_static or nd.two_speed \
             or len(problem.loading.history.switch_times):

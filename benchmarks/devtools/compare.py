@@ -13,6 +13,7 @@ from tqdm.auto import tqdm
 
 from benchmarks.devtools.timing import warm_up
 from benchmarks.physics.metrics import event_metrics
+from benchmarks.records.report import fmt, markdown_table
 from integrators import REGISTRY, solve
 
 __all__ = ["compare_integrators", "compare_markdown"]
@@ -70,7 +71,6 @@ def compare_integrators(problem, rtol: float, atol: float, names=None,
 
 def compare_markdown(table: pd.DataFrame) -> str:
     """The table of :func:`compare_integrators` in Markdown (``compare_<problem>.md``)."""
-    from benchmarks.records.report import fmt, markdown_table
     shown = table.assign(
         rtol=[fmt(x, "g") for x in table.rtol],
         wall_s=[fmt(x, ".3g") for x in table.wall_s],

@@ -16,15 +16,23 @@ coefficients), so it is where a declared order has to be shown.
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import numpy as np
 import pandas as pd
+from matplotlib.figure import Figure
 from tqdm.auto import tqdm
 
 from benchmarks.devtools.errors import errors
 from benchmarks.devtools.reference import reference
 from benchmarks.devtools.timing import warm_up
+from benchmarks.physics.plots import plot_convergence
 from benchmarks.records.files import write_figure, write_output, write_table
+from benchmarks.records.report import jsonable as _jsonable, markdown_table
 from integrators import REGISTRY, solve
+from problems import paper_example
+from problems.formulations import OdeForm, to_ode_state
 
 __all__ = ["observed_order", "convergence_study", "convergence_summary", "write_convergence",
            "fixed_step_orders", "write_fixed_step_orders",
@@ -136,11 +144,6 @@ def convergence_summary(problem, table: pd.DataFrame, orders: dict) -> dict:
 
 def write_convergence(problem, table: pd.DataFrame, orders: dict, out) -> dict:
     """Write ``convergence_<problem>.csv/.json/.png`` to ``out``; return the summary."""
-    import json
-    from pathlib import Path
-
-    from benchmarks.physics.plots import plot_convergence
-    from benchmarks.records.report import jsonable as _jsonable
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     summary = convergence_summary(problem, table, orders)
@@ -171,8 +174,6 @@ def fixed_step_orders(names=None, laws=("slip", "aging"), steps=SEGMENT_STEPS,
     Returns ``(table, orders)`` with orders keyed ``"<name>/<law>"``."""
     from scipy.integrate import solve_ivp
 
-    from problems import paper_example
-    from problems.formulations import OdeForm, to_ode_state
     if names is None:
         names = [n for n, c in REGISTRY.items() if hasattr(c, "fixed_steps") and c.adaptive]
     rows, orders = [], {}
@@ -209,7 +210,6 @@ def fixed_step_orders(names=None, laws=("slip", "aging"), steps=SEGMENT_STEPS,
 
 
 def _fixed_step_markdown(table: pd.DataFrame, orders: dict) -> str:
-    from benchmarks.records.report import markdown_table
     rows = []
     for name, g in table.groupby("integrator", sort=False):
         row = {"method": name, "declared order": int(g.declared_order.iloc[0])}
@@ -224,12 +224,6 @@ def _fixed_step_markdown(table: pd.DataFrame, orders: dict) -> str:
 
 def write_fixed_step_orders(table: pd.DataFrame, orders: dict, out) -> dict:
     """``convergence_fixed_steps.csv/.json/.md/.png`` in ``out``; returns the JSON summary."""
-    import json
-    from pathlib import Path
-
-    from matplotlib.figure import Figure
-
-    from benchmarks.records.report import jsonable as _jsonable
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     declared = table.groupby("integrator", sort=False).declared_order.first().to_dict()

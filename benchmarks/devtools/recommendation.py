@@ -11,6 +11,9 @@ takes the fastest setting within a level.
 
 from __future__ import annotations
 
+from benchmarks.devtools.work_precision import algorithm_at
+from integrators import ETD2, REGISTRY
+
 __all__ = ["FRONT", "STUDY", "recommended"]
 
 # --- written by the quick work-precision study (`rsfbench study work-precision`); do not edit ---
@@ -53,8 +56,6 @@ def recommended(level: float):
     reason : str
         Why, naming the study it was read from.
     """
-    from benchmarks.devtools.work_precision import algorithm_at
-    from integrators import ETD2, REGISTRY
     for worst, _wall, name, tier, setting in FRONT:
         if worst <= level and name in REGISTRY:
             return algorithm_at(name, tier, setting), (

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from benchmarks.physics.metrics import METRICS, event_metrics
+from benchmarks.physics.metrics import METRICS, event_metrics, summarize
 from benchmarks.records.files import (
     BadResultsFile,
     atomic_write,
@@ -184,7 +184,6 @@ def no_stick_slip(problem) -> str:
     :data:`SCREEN` —, or "" (two events or more, or the quick run did not finish: then the
     references decide). Seconds, where the references of such a problem can crawl for
     minutes (a steady slider at 1e-12)."""
-    from benchmarks.physics.metrics import summarize
     name, tol, budget = SCREEN
     run = solve(problem, REGISTRY[name](rtol=tol, atol=tol), max_points=2, wall_budget=budget)
     if not run.success or len(run.events) >= 2:

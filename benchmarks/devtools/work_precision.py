@@ -19,6 +19,7 @@ nothing about the tighter ones.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 from dataclasses import dataclass
@@ -30,6 +31,7 @@ from tqdm.auto import tqdm
 
 from benchmarks.devtools.errors import ERROR_COLUMNS, errors
 from benchmarks.devtools.reference import reference
+from benchmarks.records.files import read_table
 from benchmarks.records.provenance import provenance
 from integrators import REGISTRY, solve
 from integrators.core.registry import ProblemNotSupported
@@ -325,7 +327,6 @@ def read_study(path) -> pd.DataFrame:
     BadResultsFile
         For a missing or unreadable file, or one without the study's columns.
     """
-    from benchmarks.records.files import read_table
     return read_table(path, WP_COLUMNS, what="work-precision study",
                       hint="`rsfbench work-precision` writes one")
 
@@ -367,7 +368,6 @@ _BEGIN, _END = "# --- written by the quick work-precision study", "# --- end of 
 def front_source(csv) -> str:
     """The written part of :mod:`benchmarks.devtools.recommendation` for the study ``csv``: its front as
     Python literals and the study's provenance (commit, SHA-256)."""
-    import hashlib
     df = read_study(csv)
     front = pareto_front(df)
     commit = str(df["git_commit"].iloc[0]) if "git_commit" in df else ""

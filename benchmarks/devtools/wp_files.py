@@ -8,6 +8,8 @@ from pathlib import Path
 
 import pandas as pd
 
+from benchmarks.devtools.work_precision import best_at_levels, recommend
+from benchmarks.physics.plots import plot_work_precision
 from benchmarks.records.files import write_output, write_table
 from benchmarks.records.report import fmt, markdown_table
 
@@ -40,9 +42,6 @@ def write_work_precision(df: pd.DataFrame, out: Path, name: str,
         Each file written, by kind (``csv``, ``pareto_csv``, ``pareto_md``,
         ``png_<problem>``).
     """
-    from benchmarks.devtools.work_precision import best_at_levels, recommend
-    from benchmarks.physics.plots import plot_work_precision
-
     out.mkdir(parents=True, exist_ok=True)
     paths = {"csv": out / f"wp_{name}.csv"}
     write_table(df, paths["csv"])

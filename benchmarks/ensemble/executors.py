@@ -30,6 +30,9 @@ import os
 import signal
 import threading
 import time
+from concurrent.futures import CancelledError, as_completed
+
+from benchmarks.records.optional import require
 
 __all__ = ["execute", "connect", "quiet_distributed", "RunStopped", "ClusterGone",
            "SchedulerLost", "PARENT_POLL_S", "CONNECT_TIMEOUT_S",
@@ -95,7 +98,8 @@ def execute(run, warm, failed, tasks: list, workers: int, backend: str, client=N
         for t in tasks:
             yield t, run(t)
         return
-    from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor, as_completed
+    # deferred: the process pool imports multiprocessing (45 ms) that `rsfbench --help` skips
+    from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
     pool = (ProcessPoolExecutor(max_workers=workers, initializer=_init_worker,
                                 initargs=(warm, tasks[0]))
             if backend == "processes" else ThreadPoolExecutor(max_workers=workers))
@@ -112,7 +116,6 @@ def execute(run, warm, failed, tasks: list, workers: int, backend: str, client=N
 def connect(scheduler: str, timeout: float = CONNECT_TIMEOUT_S):
     """A Dask client of ``scheduler``, or ``ValueError`` saying it did not answer in time (or is
     no address)."""
-    from benchmarks.records.optional import require
     require("distributed", "ensemble", "a Dask scheduler (--scheduler)")
     from distributed import Client
     with quiet_distributed():
@@ -149,8 +152,6 @@ def quiet_distributed():
 
 
 def _on_dask(run, warm, failed, tasks, client, worker_timeout):
-    from concurrent.futures import CancelledError
-
     from distributed import wait
     address = client.scheduler.address
     futures = client.map(run, tasks, pure=False)

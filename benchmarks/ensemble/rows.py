@@ -20,18 +20,14 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from benchmarks.physics.metrics import (
-    CLASSIFICATIONS,
-    CYCLES,
-    EndState,
-    cycle_from,
-    summarize,
-)
+from benchmarks.physics.curves import event_curve
+from benchmarks.physics.metrics import CLASSIFICATIONS, CYCLES, EndState, cycle_from, summarize
 from integrators import ReturnCode, solve
 from integrators.core import cycles
 from integrators.own import batch as B
 from integrators.own import engine as E
 from integrators.own.compiled import CompiledAlgorithm, failure
+from problems.formulations import from_ode_state
 from problems.slider import TAU_END_MAX
 
 __all__ = ["RESULT_COLUMNS", "METRIC_COLUMNS", "COUNTER_COLUMNS", "CURVE_COLUMNS", "CURVE_POINTS",
@@ -163,7 +159,6 @@ def batch_rows(problems, algorithm, names, values, wall_budget=None,
 def _curve(problem, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The slip-weakening curve from the rows (τ, h, u, s) of :mod:`integrators.own.batch`'s
     ``CURVE``: as :func:`benchmarks.physics.curves.event_curve` makes it from a trajectory."""
-    from problems.formulations import from_ode_state
     if not np.isfinite(z).all():              # the second solve did not repeat the first
         return np.empty(0), np.empty(0)
     nd = problem.nondimensional()
@@ -201,7 +196,6 @@ def point_rows(problems, algorithm, names, values, wall_budget=None,
         As :func:`batch_rows`; a point whose solve raised is a failed row, and the table's
         ``attrs["transient"]`` is then set (it is not stored).
     """
-    from benchmarks.physics.curves import event_curve
     save = dict(save_every=curve_dt) if curve_dt else dict(max_points=2)
     rows, crashed = [], False
     for problem in problems:

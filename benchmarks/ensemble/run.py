@@ -27,6 +27,7 @@ import os
 import time
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 import pandas as pd
 from tqdm.auto import tqdm
@@ -141,7 +142,6 @@ def run_chunk(chunk: Chunk) -> pd.DataFrame:
 
 @contextlib.contextmanager
 def _numba_threads(n: int | None):
-    import numba
     if n is None:
         yield
         return

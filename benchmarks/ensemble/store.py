@@ -41,10 +41,14 @@ import signal
 import warnings
 from pathlib import Path
 
+import numba
 import numpy as np
 import pandas as pd
 from filelock import FileLock, Timeout
 
+import benchmarks
+import integrators
+import problems
 from benchmarks.ensemble.executors import RunStopped
 from benchmarks.ensemble.rows import METRIC_COLUMNS, columns_of
 from benchmarks.physics.metrics import CLASSIFICATIONS, CYCLES
@@ -107,11 +111,6 @@ def code_version() -> str:
     ``benchmarks/`` the metrics, the curves and the rows) and of numba's and numpy's versions: a
     store written by other code is another ensemble, so a fixed bug cannot hide in old rows.
     Read once a process: the code a process runs does not change under it."""
-    import numba
-
-    import benchmarks
-    import integrators
-    import problems
     here = Path(benchmarks.__file__).parent
     files = [*sorted(Path(integrators.__file__).parent.rglob("*.py")),
              *sorted(Path(problems.__file__).parent.rglob("*.py")),

@@ -13,17 +13,18 @@ import sys
 import time
 import warnings
 
+from tqdm.auto import tqdm
+
+from benchmarks.ensemble.run import batched, ensemble
+from integrators import REGISTRY
+from integrators.warm import problems_to_warm
+
 __all__ = ["warm"]
 
 
 def warm(progress: bool = True) -> dict[str, float]:
     """Two-point ensembles of every batched own method, under each law, serially and on two
     threads; return the seconds each method took (its compiling, mostly)."""
-    from tqdm.auto import tqdm
-
-    from benchmarks.ensemble.run import batched, ensemble
-    from integrators import REGISTRY
-    from integrators.warm import problems_to_warm
     names = [n for n in sorted(REGISTRY, key=str.lower)
              if REGISTRY[n].adaptive and batched(REGISTRY[n](rtol=1e-6, atol=1e-6))]
     problems = [p for p in problems_to_warm() if p.t_end <= 2.0]

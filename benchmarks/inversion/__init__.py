@@ -12,7 +12,7 @@ measured on a recording by :mod:`benchmarks.lab.observe_recording`); the misfit 
 profiles of any data set on it (:mod:`~benchmarks.inversion.grid`).
 Built on them: one inversion end to end (:mod:`~benchmarks.inversion.invert`), the coverage of
 the 95 % regions (:mod:`~benchmarks.inversion.calibration`), the solver's effect on the
-inference (:mod:`~benchmarks.studies.solver_effect`) and the reproduce steps' studies
+inference (:mod:`~benchmarks.inversion.solver_effect`) and the reproduce steps' studies
 (:mod:`~benchmarks.studies.inversion`). Laboratory velocity steps are fitted in
 :mod:`benchmarks.lab`."""
 

@@ -4,7 +4,7 @@ Observations are simulated at a known ``truth`` = (b, Lc): the limit cycle's ΔT
 plus Gaussian noise of standard deviation σ = ``sigma_rel`` × the true value, with the seeds
 0, 1, …, ``seeds`` − 1 (numpy's ``default_rng(seed)``, one draw of two normals each). The same
 algorithm simulates and inverts, so the check is of the statistics, not of the solver (the
-solver's effect is :mod:`benchmarks.studies.solver_effect`'s question).
+solver's effect is :mod:`benchmarks.inversion.solver_effect`'s question).
 
 For every seed, on one :class:`~benchmarks.inversion.grid.MetricMap` through the truth (the
 forward model does not depend on the seed, so one ensemble serves all of them), the truth is
@@ -33,11 +33,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
+from scipy.stats import beta, binom
 
-from benchmarks.inversion.objectives import CHI2_95_2DOF
 from benchmarks.inversion.grid import MetricMap, box_grid, cell_box, metric_map
 from benchmarks.inversion.misfit import Misfit, synthetic
-from benchmarks.inversion.profile import CHI2_95_1DOF
+from benchmarks.inversion.objectives import CHI2_95_2DOF
+from benchmarks.inversion.posterior import sample
+from benchmarks.inversion.profile import CHI2_95_1DOF, profile
 from benchmarks.inversion.profile_ends import hull
 from integrators import Algorithm
 from problems import SpringSlider
@@ -62,7 +64,6 @@ def binomial_check(k: int, n: int, level: float = 0.95) -> dict:
     """What ``k`` covering seeds out of ``n`` say: the coverage, its Clopper–Pearson 95 %
     interval, the central 95 % interval of Binomial(n, level) for the count, and whether the
     count is inside it (``consistent``) and 80 % outside the Clopper–Pearson interval."""
-    from scipy.stats import beta, binom
     lo = beta.ppf(0.025, k, n - k + 1) if k > 0 else 0.0
     hi = beta.ppf(0.975, k + 1, n - k) if k < n else 1.0
     a, b = binom.interval(0.95, n, level)
@@ -146,8 +147,6 @@ def coverage(problem: SpringSlider, truth, algorithm: Algorithm, b_range, lc_ran
 def _checks(problem, algorithm, grid_map: MetricMap, table, n, T0, M0, sigma_rel, walkers,
             steps, workers) -> pd.DataFrame:
     """The grid posterior against emcee's, and the grid profiles against the refined ones."""
-    from benchmarks.inversion.posterior import sample
-    from benchmarks.inversion.profile import profile
     b, log10_lc = grid_map.b, grid_map.log10_lc
     b_box, lc_box = cell_box(b, log10_lc)                    # the nodes' cells: the prior box
     rows = []

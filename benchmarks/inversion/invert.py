@@ -32,14 +32,22 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.inversion.adaptive import GridPosterior
+from benchmarks.inversion.adaptive import GridPosterior, grid_posterior
 from benchmarks.inversion.least_squares import FitResult, fit
 from benchmarks.inversion.misfit import Misfit
 from benchmarks.inversion.posterior import Posterior, check_sampler, sample
 from benchmarks.inversion.profile import CHI2_95_1DOF, profile
-from benchmarks.records.files import (claim_outputs, remove_own, write_figure, write_output,
-                                      write_table)
+from benchmarks.records.files import (
+    claim_outputs,
+    remove_own,
+    write_figure,
+    write_output,
+    write_table,
+)
+from benchmarks.records.optional import require
+from benchmarks.records.provenance import provenance as machine, version_line
 from benchmarks.records.report import jsonable
+from problems import variant
 
 __all__ = ["invert", "Inversion", "write_inversion", "check_box", "MAX_SAMPLES_SAVED", "METHODS"]
 
@@ -70,7 +78,6 @@ def check_box(problem, b_range, lc_range) -> None:
     """Refuse a prior box that is not 0 ≤ b_lo < b_hi, 0 < Lc_lo < Lc_hi (finite), or whose
     corners are problems the problem's own checks refuse (b ≥ 1, a t_end too long in units of
     Lc/v0, …): ``ValueError`` naming the corner, before any solve."""
-    from problems import variant
     try:
         (b_lo, b_hi), (lc_lo, lc_hi) = (tuple(map(float, b_range)), tuple(map(float, lc_range)))
     except (TypeError, ValueError):
@@ -120,7 +127,6 @@ def invert(misfit: Misfit, b_range, lc_range, walkers: int = 32, steps: int = 20
     post, why = None, "not asked for (steps = 0)"
     start = None
     if method == "grid" and steps:
-        from benchmarks.inversion.adaptive import grid_posterior
         t = time.perf_counter()
         say(f"grid posterior ({grid} × {grid}, refined where its mass is)")
         post = grid_posterior(misfit, b_range, lc_range, n=grid, progress=progress, say=say)
@@ -261,7 +267,6 @@ def write_inversion(inv: Inversion, out: Path, provenance: dict | None = None) -
     ``inversion.json``) with the paths written. ``provenance``: what else to record of the run
     (the command line, the integrator's choice, the observations' file), beside the machine's
     and the packages' (:func:`benchmarks.records.provenance.provenance`)."""
-    from benchmarks.records.provenance import provenance as machine, version_line
     out = Path(out)
     claim_outputs(inversion_files(out, inv.profiles))
     summary = _summary(inv)
@@ -334,7 +339,6 @@ def _plot_profiles(inv: Inversion, path: Path) -> None:
 
 
 def _plot_corner(inv: Inversion, path: Path) -> None:
-    from benchmarks.records.optional import require
     require("corner", "inversion", "the corner plot of a posterior")
     import corner
     from matplotlib.figure import Figure

@@ -17,6 +17,7 @@ The class and the reason are in the table, so a fit can say why a region is excl
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -28,6 +29,7 @@ from benchmarks.inversion.observations import MIN_SIGMA_REL, Observations
 from benchmarks.physics.metrics import CYCLES
 from integrators import Algorithm
 from problems import SpringSlider
+from problems._validate import UnitWarning
 
 __all__ = ["Misfit", "NO_CYCLE_RESIDUAL", "synthetic", "MIN_SIGMA_REL", "BUDGET_STOPS"]
 
@@ -170,9 +172,6 @@ def synthetic(recurrence_s: float, friction_drop: float, sigma_rel: float,
     """
     if not 0 < sigma_rel < 1:
         raise ValueError(f"sigma_rel must be in (0, 1), got {sigma_rel!r}")
-    import warnings
-
-    from problems._validate import UnitWarning
     z = np.random.default_rng(seed).standard_normal(2)
     s_t, s_m = sigma_rel * recurrence_s, sigma_rel * friction_drop
     with warnings.catch_warnings():      # σ is a stated fraction of the truth, not a unit slip:

@@ -29,7 +29,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from benchmarks.inversion.curve_likelihood import CURVE_NOISES, CurveLikelihood
 from benchmarks.physics.curves import check_curves
+from benchmarks.records.files import BadResultsFile, read_json_record, write_output
+from benchmarks.records.report import jsonable
+from problems import WINDOWS
 from problems._validate import check_positive, check_possible, implausible_message, warn_unit
 
 __all__ = ["Observations", "observations", "ASSUMED_SIGMA", "MIN_SIGMA_REL", "SIGMAS",
@@ -89,7 +93,6 @@ class Observations:
                           f"both are in one unit ({unit})", stacklevel=1)
         if not isinstance(self.assumed_sigma, (bool, np.bool_)):
             raise ValueError(f"assumed_sigma must be True or False, got {self.assumed_sigma!r}")
-        from benchmarks.inversion.curve_likelihood import CURVE_NOISES, CurveLikelihood
         if self.curve_noise not in (*CURVE_NOISES, "none"):
             raise ValueError(f"curve_noise must be one of {(*CURVE_NOISES, 'none')}, got "
                              f"{self.curve_noise!r}")
@@ -110,7 +113,6 @@ def observations(preset_name: str, obs_recurrence=None, sigma_recurrence=None, o
     """Observations of a preset: a window's published means fill what is not given, and a
     missing σ is 10 % of its mean (``assumed_sigma`` says so); ``curves`` in the likelihood
     under ``curve_noise`` ("none": for the paper's J2 only)."""
-    from problems import WINDOWS
     if not isinstance(preset_name, str):
         raise ValueError(f"preset_name must be a preset's name (a string), got {preset_name!r}")
     w = WINDOWS.get(preset_name.upper())
@@ -171,8 +173,6 @@ def write_observations(path, events: pd.DataFrame, curves: pd.DataFrame | None =
     ValueError
         For an unknown ``sigma``.
     """
-    from benchmarks.records.files import write_output
-    from benchmarks.records.report import jsonable
     if sigma not in SIGMAS:
         raise ValueError(f"sigma must be one of {SIGMAS}, got {sigma!r}")
     metrics = {}
@@ -227,7 +227,6 @@ def read_observations(path, sigma: str | None = None, curve_noise: str = "scatte
     ValueError
         Naming the file and what is wrong with it, or an unknown ``sigma``.
     """
-    from benchmarks.records.files import BadResultsFile, read_json_record
     if sigma is not None and sigma not in SIGMAS:
         raise ValueError(f"sigma must be one of {SIGMAS}, got {sigma!r}")
     try:

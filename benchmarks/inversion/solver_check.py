@@ -34,6 +34,8 @@ import pandas as pd
 
 from benchmarks.ensemble import ensemble
 from benchmarks.physics.metrics import CYCLES
+from integrators import make_algorithm
+from integrators.core.registry import RTOL_MIN
 
 __all__ = ["check_solver", "SolverCheck", "REFERENCES", "FRACTION", "TIGHTENINGS", "tighter",
            "WALL_BUDGET"]
@@ -79,7 +81,6 @@ class SolverCheck:
 def tighter(algorithm):
     """The next tighter setting of ``algorithm``: rtol and atol ÷ 10, or the ETD family's
     Δτcnst and Δτmax ÷ 4; None when there is none (rtol at its floor)."""
-    from integrators.core.registry import RTOL_MIN
     if hasattr(algorithm, "rtol"):
         if algorithm.rtol / 10 < RTOL_MIN:
             return None
@@ -137,7 +138,6 @@ def check_solver(problem, algorithm, obs, b_range, lc_range, next_setting=None,
     :func:`tighter`). ``say``: a callable given a line of text per setting tried.
     ``wall_budget``: s per solve (None: none); a point where a reference failed or ran out of
     it is not used (its references do not agree), one where the integrator did is a failure."""
-    from integrators import make_algorithm
     say = say or (lambda text: None)
     next_setting = next_setting or tighter
     started = time.perf_counter()

@@ -36,19 +36,20 @@ import pandas as pd
 
 from benchmarks.ensemble import ensemble, grid
 from benchmarks.ensemble.executors import CONNECT_TIMEOUT_S, WORKER_TIMEOUT_S
-from benchmarks.inversion.objectives import (CHI2_95_2DOF, event_samples, j2_per_event,
-                                             joint_fit, scores)
+from benchmarks.inversion.objectives import (
+    CHI2_95_2DOF,
+    event_samples,
+    j2_per_event,
+    joint_fit,
+    scores,
+)
 from benchmarks.inversion.observations import Observations
 from benchmarks.physics.metrics import CYCLES
 from benchmarks.records.files import remove_stale_temporaries, write_output
+from benchmarks.records.provenance import provenance as machine, version_line
 from benchmarks.records.report import jsonable
 from problems import SpringSlider
-from problems._validate import (
-    check_count,
-    check_positive,
-    units_checked_already,
-    warn_implausible,
-)
+from problems._validate import check_count, check_positive, units_checked_already, warn_implausible
 
 __all__ = ["parse_b", "parse_lc", "check_grid", "sweep", "SweepResult", "score",
            "summarize_sweep", "MAX_GRID_POINTS"]
@@ -198,7 +199,6 @@ def sweep(problem, b_values, lc_values, algorithm, obs: Observations, out,
                               scheduler=scheduler, backend=run["backend"],
                               batched=run["batched"], chunks=run["chunks"],
                               store=None if store is None else str(store))
-    from benchmarks.records.provenance import provenance as machine, version_line
     summary["provenance"] = {"tool": version_line(), **machine(), **(provenance or {})}
     out.mkdir(parents=True, exist_ok=True)
     remove_stale_temporaries(out)

@@ -39,6 +39,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from problems._validate import check_positive
+
 __all__ = ["CHANNELS", "UNITS", "Recording", "read_recording", "column_spec", "explicit_unit",
            "recording_from", "column_map", "read_table", "column_values"]
 
@@ -221,7 +223,6 @@ def recording_from(table: pd.DataFrame, columns, normal_force: float | None = No
     names = {channel: column for channel, (column, _) in mapping.items()}
     _check_time(t, names["time"], source)
     if normal_force is not None:
-        from problems._validate import check_positive
         channels["normal_force"] = np.full(len(t), check_positive("normal_force", normal_force))
     for channel in _CLIPPED:
         if channel in names and channel in channels:

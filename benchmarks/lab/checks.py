@@ -5,12 +5,16 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 import pandas as pd
 
 from benchmarks.lab.fit import _LOG, LabFit, fit_lab
+from benchmarks.lab.independent_model import reference_friction
+from benchmarks.lab.model import LAB_MU0
+from integrators import make_algorithm
 
 __all__ = ["check_lab_solver", "inertia_check", "CHECK_REFERENCES"]
 
@@ -26,8 +30,6 @@ def _references(fit: LabFit, p: dict):
     step budget)."""
     model, rec = fit.model, fit.model.record
     if model.states == 2:
-        from benchmarks.lab.independent_model import reference_friction
-        from benchmarks.lab.model import LAB_MU0
         own_tol, ref_tol = TWO_STATE_REFERENCES
         names = [f"the two-state model at {own_tol:g}", "scipy-Radau (an independent model "
                  f"of the published equations) at {ref_tol:g}"]
@@ -41,7 +43,6 @@ def _references(fit: LabFit, p: dict):
         except RuntimeError as exc:
             ref, why = np.full(len(rec.t), np.nan), why or f"{names[1]}: {exc}"
         return [own, ref], names, why
-    from integrators import make_algorithm
     refs, why = [], ""
     for name, tol in CHECK_REFERENCES:
         mu, sol = model.response(**p, algorithm=make_algorithm(name, rtol=tol, atol=tol))
@@ -132,7 +133,6 @@ def inertia_check(fit: LabFit, mass: float, normal_force: float,
     moved : pandas.DataFrame
         Per parameter, how far it moved, in the quasi-static fit's standard errors.
     """
-    import dataclasses
     model = dataclasses.replace(fit.model, mass=mass, normal_force=normal_force,
                                 radiation_damping=radiation_damping)
     start = {n: fit.values[n] for n in fit.free}

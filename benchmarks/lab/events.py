@@ -49,8 +49,12 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 from numba import njit
+from scipy import signal
+from scipy.integrate import cumulative_trapezoid
+from scipy.ndimage import uniform_filter1d
 
 from benchmarks.physics.metrics import METRICS
+from problems._validate import PLAUSIBLE, check_positive, warn_implausible, warn_unit
 
 __all__ = ["Analysis", "analyse", "DETECT_HZ", "FORCE_HZ", "ACCELERATION_HZ", "EXTREMUM_BAND"]
 
@@ -132,7 +136,6 @@ def analyse(rec, mass: float | None = None, vls: float | None = None,
     ------
     ValueError
         Naming the record and the check it fails (no event, channels that disagree, …)."""
-    from problems._validate import check_positive, warn_implausible
     mass = None if mass is None else check_positive("mass", mass)
     vls = None if vls is None else check_positive("vls", vls)
     stiffness = None if stiffness is None else check_positive("stiffness", stiffness)
@@ -197,7 +200,6 @@ def _smooth(x: np.ndarray, cutoff: float, rate: float) -> np.ndarray:
     """A near-Gaussian smoothing of standard deviation 1/(2π·``cutoff``) s: three passes of a
     moving average. Its kernel is positive, so it never overshoots a sharp drop (a Butterworth
     filter rings there, and its extremes would be the filter's, not the signal's); O(n)."""
-    from scipy.ndimage import uniform_filter1d
     sigma = rate / (2.0 * math.pi * cutoff)
     width = max(int(round(math.sqrt(4.0 * sigma * sigma + 1.0))), 1)
     y = np.asarray(x, dtype=float)
@@ -210,7 +212,6 @@ def _smooth(x: np.ndarray, cutoff: float, rate: float) -> np.ndarray:
 
 def _lowpass(x: np.ndarray, cutoff: float, rate: float) -> np.ndarray:
     """Zero-phase 4th-order Butterworth low-pass (unchanged when ``cutoff`` ≥ 0.45 × rate)."""
-    from scipy import signal
     if cutoff >= 0.45 * rate:
         return np.asarray(x, dtype=float)
     sos = signal.butter(4, cutoff, fs=rate, output="sos")
@@ -301,7 +302,6 @@ def _check_inertia(rec, mass: float, events) -> None:
     drop = float(np.median(drops))
     inertia = mass * float(np.max(np.abs(a1)))
     if drop > 0 and inertia < INERTIA_RATIO_MIN * drop:
-        from problems._validate import warn_unit
         warn_unit(f"{rec.source}: m·a reaches {inertia:.3g} N with the mass {mass:.6g} kg, "
                   f"{inertia / drop:.2g} of the force's drop in an event ({drop:.3g} N; about "
                   "half of it in the paper's windows): the friction Ft = Fs − m·a and the "
@@ -500,7 +500,6 @@ def _integrated(t, acc_f, a: int, b: int, quiet_before: int, quiet_after: int):
     """Slip rate and slip over samples [a, b) from the acceleration, the drift removed: a line
     through the integrated rate's values in [a, quiet_before) and [quiet_after, b) is
     subtracted. Returns (v, u, σ of v in the quiet stretches)."""
-    from scipy.integrate import cumulative_trapezoid
     tt = t[a:b]
     v = cumulative_trapezoid(acc_f[a:b], tt, initial=0.0)
     quiet = np.zeros(b - a, bool)
@@ -780,7 +779,6 @@ def _sticks_between(events, n: int) -> list[tuple[int, int]]:
 
 def _stiffness(rec, fs, drops, given, vls, vls_how) -> tuple[float | None, str]:
     """k (N/m) and how it was had (module docstring); ``vls_how``: how vLs was had."""
-    from problems._validate import PLAUSIBLE
     if given is not None:
         return given, "given"
     t, rate = rec.t, rec.rate

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from matplotlib.figure import Figure
+
 from benchmarks.records.files import write_figure
 
 __all__ = ["plot_recording"]
@@ -16,8 +18,6 @@ MAX_DRAWN = 50_000
 def plot_recording(rec, analysis, path) -> Path:
     """Write the figure of ``analysis`` (:class:`~benchmarks.lab.events.Analysis`)
     of the recording ``rec`` to ``path`` (PNG)."""
-    from matplotlib.figure import Figure
-
     ev = analysis.events
     has_curves = analysis.curves is not None and len(analysis.curves)
     fig = Figure(figsize=(9, 9 if has_curves else 6.5), constrained_layout=True)

@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
+from scipy.optimize import least_squares
 
 __all__ = ["LabFit", "fit_lab", "LabFitWarning", "starting_values", "BOUNDS", "FD_STEP",
            "DC_STARTS", "Z95", "SETTLE_DC", "PARAMETER_UNITS", "covariance",
@@ -268,7 +269,6 @@ class _Problem:
         return coef
 
     def solve(self, x0, max_nfev=200):
-        from scipy.optimize import least_squares
         lo, hi = self.bounds()
         x0 = np.clip(x0, lo + 1e-12, hi - 1e-12)
         return least_squares(self.residual, x0, jac=self.jacobian, bounds=(lo, hi),

@@ -21,6 +21,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from problems._validate import warn_unit
+
 __all__ = ["find_history", "MIN_SAMPLES", "MIN_CHANGE", "HOLD", "SIGNIFICANCE", "LAB_FASTEST",
            "PIECE_COLUMNS", "LAB_TYPICAL"]
 
@@ -206,7 +208,6 @@ def find_history(t: np.ndarray, x: np.ndarray, what: str = "the load point"):
                          f"{MIN_CHANGE:.0%} over {MIN_SAMPLES} samples or more)")
     moving = [v for v in velocities if v > 0]
     if max(moving) > LAB_TYPICAL[1] or min(moving) < LAB_TYPICAL[0]:
-        from problems._validate import warn_unit
         warn_unit(f"{what} moves at {min(moving):.3g} to {max(moving):.3g} m/s, outside the "
                   f"{LAB_TYPICAL[0]:g} to {LAB_TYPICAL[1]:g} m/s of most velocity-step tests: "
                   "is its unit right? (a displacement in µm is load_point=COLUMN:um, in mm :mm)")

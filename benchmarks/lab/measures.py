@@ -43,6 +43,19 @@ import warnings
 import numpy as np
 import pandas as pd
 
+from integrators import make_algorithm, solve
+from integrators.core.solution import Solution
+from problems import (
+    ConstantLoading,
+    InitialState,
+    LoadHistory,
+    balanced_initial_state,
+    slide_hold_slide_test,
+    steady_initial_state,
+    velocity_step_test,
+)
+from problems._validate import units_checked_already
+
 __all__ = ["healing", "healing_rate", "step_response", "HEALING_COLUMNS", "STEP_COLUMNS",
            "PeakNotReached", "ResolveFailed", "UnsettledWarning", "SAMPLES", "REFINE", "SETTLED",
            "STEP_REFERENCE", "step_reference",
@@ -65,7 +78,6 @@ MARONE_SLIDE_HOLD_SLIDE = {  # steady at 1 µm/s, a hold from t = 0 to 100 s, th
 def marone_problem(test: str):
     """(problem, {time after the switch: μ}) of Marone's ``velocity step`` or
     ``slide-hold-slide``; our runs switch at t = 10 s."""
-    from problems import slide_hold_slide_test, velocity_step_test
     if test == "velocity step":
         return velocity_step_test(t_step=10.0, t_end=20.0), MARONE_VELOCITY_STEP
     if test == "slide-hold-slide":
@@ -79,7 +91,6 @@ def marone_check(names=("Rodas5P", "sundials-CVODE-BDF", "sundials-IDA"),
     """Ours against Marone's rows: per (test, solver), the largest |μ − μ_Marone| and the
     largest difference from the first solver at the same times (NaN for a failed run). Saved
     every 1 ms: his times lie within 1e−7 s of a save point."""
-    from integrators import make_algorithm, solve
     rows = []
     for test in ("velocity step", "slide-hold-slide"):
         problem, ref = marone_problem(test)
@@ -157,8 +168,6 @@ def step_reference(law: str, mass: float, ratio: float, t_guess: float, solver: 
     PeakNotReached
         When the solve fails or the extreme is at an edge of the run.
     """
-    from integrators import make_algorithm, solve
-    from problems import ConstantLoading, steady_initial_state, velocity_step_test
     base = velocity_step_test(law, v2=1e-6 * ratio, mass=mass)
     start = steady_initial_state(base.law, base.normal_force, base.mu0, 1e-6)
     p = dataclasses.replace(base, loading=ConstantLoading(1e-6 * ratio), initial=start,
@@ -235,7 +244,6 @@ class _State:
 
 
 def _checked(solution):
-    from integrators.core.solution import Solution
     if not isinstance(solution, Solution):
         raise ValueError(f"solution must be a Solution (integrators.solve), got "
                          f"{type(solution).__name__}")
@@ -258,8 +266,6 @@ def _edges(solution) -> tuple[float, ...]:
 # --- re-solves from the run's own states ------------------------------------------------------
 def _sub_problem(problem, start: _State, t1: float):
     """The problem from ``start`` to ``t1``: the history's pieces in between, shifted to t = 0."""
-    from problems import InitialState, LoadHistory, balanced_initial_state
-    from problems._validate import units_checked_already
     hist = problem.loading.history
     sw = np.asarray(hist.switch_times, dtype=float)
     i0 = int(np.searchsorted(sw, start.t, side="right"))
@@ -282,7 +288,6 @@ def _sub_problem(problem, start: _State, t1: float):
 
 def _resolve(solution, start: _State, t1: float, points: int, what: str) -> list[_State]:
     """The run's algorithm from ``start`` to ``t1``, ``points`` samples (times of the run)."""
-    from integrators import solve
     try:
         sub = _sub_problem(solution.problem, start, t1)
     except ValueError as exc:          # the run's own state is not a valid start (a loose run)

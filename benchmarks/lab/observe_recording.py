@@ -46,6 +46,9 @@ import tomllib
 from pathlib import Path
 
 from benchmarks.inversion.observations import SIGMAS, write_observations
+from benchmarks.lab.channels import CHANNELS, column_map, explicit_unit, read_recording
+from benchmarks.lab.events import analyse
+from benchmarks.lab.figures import plot_recording
 from benchmarks.records.files import claim_outputs, remove_own, write_output, write_table
 
 __all__ = ["observe", "observe_files", "read_column_file", "apparatus_toml", "APPARATUS_KEYS"]
@@ -57,7 +60,6 @@ APPARATUS_KEYS = {"normal_force": "N", "mass": "kg", "vls": "m/s", "stiffness": 
 def read_column_file(path) -> tuple[dict, dict]:
     """``(columns, apparatus)`` of a column file (module docstring): channel → (column, unit),
     and the constants by name; or ``ValueError`` naming the file and the key."""
-    from benchmarks.lab.channels import CHANNELS, explicit_unit
     path = Path(path)
     try:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
@@ -147,8 +149,6 @@ def observe(path, columns, out, normal_force: float | None = None, mass: float |
     ValueError
         As :func:`read_recording` and :func:`analyse`.
     """
-    from benchmarks.lab.events import analyse
-    from benchmarks.lab.channels import column_map, read_recording
     if sigma not in SIGMAS:
         raise ValueError(f"sigma must be one of {SIGMAS}, got {sigma!r}")
     out = Path(out)
@@ -177,7 +177,6 @@ def observe(path, columns, out, normal_force: float | None = None, mass: float |
     if text is not None:
         write_output(files["apparatus"], text)
     if plot:
-        from benchmarks.lab.figures import plot_recording
         plot_recording(rec, found, files["figure"])
     for key, name in OPTIONAL_FILES.items():      # an earlier run's, of other observations
         if key not in files:

@@ -29,6 +29,7 @@ import pandas as pd
 
 from benchmarks.inversion.posterior import run_sampler
 from benchmarks.lab.fit import _LOG, BOUNDS, PARAMETER_UNITS, LabFit, _Problem
+from benchmarks.records.optional import require
 
 __all__ = ["LabPosterior", "sample_lab"]
 
@@ -92,7 +93,6 @@ def sample_lab(fit: LabFit, walkers: int = 32, steps: int = 600, seed: int = 0,
     -------
     LabPosterior
     """
-    from benchmarks.records.optional import require
     require("emcee", "inversion", "a posterior sample")
     import emcee
     n = len(fit.free)

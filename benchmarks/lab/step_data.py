@@ -36,14 +36,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from benchmarks.lab.channels import MU_RANGE, UNITS, column_map, column_values, read_table
 from benchmarks.lab.history import MIN_SAMPLES, find_history
-from benchmarks.lab.channels import (
-    MU_RANGE,
-    UNITS,
-    column_map,
-    column_values,
-    read_table,
-)
+from problems._validate import units_checked_already
+from problems.loading import LoadHistory
 
 __all__ = ["LabRecord", "read_lab_record", "lab_record_from", "LAB_CHANNELS"]
 
@@ -98,8 +94,6 @@ class LabRecord:
     @property
     def history(self):
         """The load point's history as a :class:`problems.loading.LoadHistory`."""
-        from problems._validate import units_checked_already
-        from problems.loading import LoadHistory
         with units_checked_already():       # a record's speeds are what they are
             return LoadHistory(velocities=tuple(self.velocities),
                                switch_times=tuple(self.switch_times))

@@ -34,6 +34,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
+from scipy import signal
+
+from benchmarks.physics.metrics import event_metrics
+from integrators import Rodas5P, solve
 
 __all__ = ["synthetic_recording", "Truth", "load_point_position", "SHAKE_HZ"]
 
@@ -105,10 +109,6 @@ def synthetic_recording(problem, rate: float = 10_000.0, t_skip: float = 0.0,
     ------
     ValueError
         Without mass, or ``t_skip`` or ``shake`` out of range; RuntimeError: a failed run."""
-    from scipy import signal
-
-    from benchmarks.physics.metrics import event_metrics
-    from integrators import Rodas5P, solve
     if not problem.mass > 0:
         raise ValueError("a recording with accelerometers needs a slider with mass (mass > 0)")
     if not 0 <= t_skip < problem.t_end:

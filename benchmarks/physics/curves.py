@@ -23,6 +23,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from benchmarks.records.files import read_table, write_table
+
 __all__ = ["CURVE_COLUMNS", "read_curves", "check_curves", "write_curves", "event_curve",
            "event_window", "sample_curves"]
 
@@ -48,7 +50,6 @@ def read_curves(path) -> pd.DataFrame:
     ValueError
         Naming the file and what is wrong.
     """
-    from benchmarks.records.files import read_table
     df = read_table(path, CURVE_COLUMNS, what="slip-weakening file",
                     hint="it needs the columns event_id, slip_m (m), friction (Ft/Fn)")
     return check_curves(df, f"slip-weakening file {path}")
@@ -111,7 +112,6 @@ def write_curves(df: pd.DataFrame, path) -> None:
     path : str or pathlib.Path
         The CSV file.
     """
-    from benchmarks.records.files import write_table
     write_table(df[list(CURVE_COLUMNS)], path)
 
 

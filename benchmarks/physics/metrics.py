@@ -47,6 +47,8 @@ import numpy as np
 import pandas as pd
 
 from integrators.core import cycles
+from problems import stability
+from problems.slider import TAU_END_MAX
 
 __all__ = ["event_metrics", "LimitCycle", "limit_cycle", "cycle_from", "summarize", "EndState", "end_state",
            "METRICS", "CLASSIFICATIONS", "CYCLES", "LOCKED_SLIP_RATE", "STEADY_LOG_TOLERANCE"]
@@ -224,7 +226,6 @@ def end_state(solution) -> EndState:
     -------
     EndState
     """
-    from problems.slider import TAU_END_MAX
     p = solution.problem
     law, fn = p.law, p.normal_force
     log_v, state, force = cycles.end_offsets(
@@ -239,10 +240,9 @@ def _growth_rate(problem) -> float:
     """σ of ``problem``, NaN when the characteristic roots cannot be computed (coefficients
     beyond the float range: a mass or stiffness near the float limits), so that classifying
     such a run names the fact instead of raising."""
-    from problems.stability import growth_rate
     try:
         with np.errstate(all="ignore"):
-            g = growth_rate(problem)
+            g = stability.growth_rate(problem)   # looked up at the call: tests replace it
     except (ValueError, ArithmeticError):        # numpy's LinAlgError is a ValueError
         return float("nan")
     return g if np.isfinite(g) else float("nan")

@@ -9,6 +9,7 @@ import pandas as pd
 
 from benchmarks.physics import metrics
 from benchmarks.records.report import jsonable, markdown_table
+from integrators import REGISTRY
 
 __all__ = ["simulate_summary", "integrator_rows", "integrators_markdown"]
 
@@ -44,7 +45,6 @@ def simulate_summary(sol) -> dict:
 
 def integrator_rows() -> list[dict]:
     """One row per registry entry, by name (case-insensitive): family, orders, library."""
-    from integrators import REGISTRY
     return [{"name": name, "family": cls.family, "order": cls.order,
              "stiff_order": cls.order if cls.stiff_order is None else cls.stiff_order,
              "adaptive": cls.adaptive, "stiff": cls.stiff, "library": cls.library,

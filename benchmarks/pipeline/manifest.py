@@ -39,6 +39,7 @@ import tomllib
 from pathlib import Path
 
 from benchmarks.records.files import RESULTS_MANIFEST, BadResultsFile, atomic_write
+from benchmarks.records.provenance import cpu_model, git_commit
 
 __all__ = ["ROOT", "PACKAGES", "WHOLE_PACKAGES", "MANIFEST", "import_graph", "find_cycles",
            "step_inputs", "inputs_hash", "what_changed", "versions", "machine", "file_hash",
@@ -299,7 +300,6 @@ def _import_names(distribution: str) -> frozenset[str]:
 
 def machine() -> dict:
     """What a timing depends on besides the code: platform, CPU model, number of CPUs."""
-    from benchmarks.records.provenance import cpu_model
     return {"system": platform.system(), "machine": platform.machine(), "cpu": cpu_model(),
             "n_cpus": os.cpu_count()}
 
@@ -389,7 +389,6 @@ def write_manifest(out: Path, records: dict[str, dict], order=()) -> None:
 
 def make_record(step: str, plan: str, inputs: dict, outputs: dict[str, str],
                 wall_s: float) -> dict:
-    from benchmarks.records.provenance import git_commit
     return {"step": step, "plan": plan, "inputs_hash": inputs_hash(inputs),
             "outputs": dict(sorted(outputs.items())), "inputs": inputs, "wall_s": round(wall_s, 1),
             "finished": datetime.datetime.now().isoformat(timespec="seconds"),

@@ -11,13 +11,13 @@ from pathlib import Path
 from benchmarks.pipeline import manifest as M
 from benchmarks.studies.study import matches
 
-__all__ = ["studies", "check_plan", "study_named", "list_markdown", "study_inputs"]
+__all__ = ["studies", "declared", "check_plan", "study_named", "list_markdown", "study_inputs"]
 
 
 @functools.cache
 def studies(package: str = "benchmarks.studies") -> tuple:
-    """Every study declared in ``package`` (a module-level ``STUDY``), in their declared order;
-    checked by :func:`check_plan`.
+    """Every study declared in ``package`` (a module's ``STUDY``, or its ``STUDIES``), in their
+    declared order; checked by :func:`check_plan`.
 
     Parameters
     ----------
@@ -37,12 +37,20 @@ def studies(package: str = "benchmarks.studies") -> tuple:
     pkg = importlib.import_module(package)
     found = []
     for info in pkgutil.iter_modules(pkg.__path__):
-        study = getattr(importlib.import_module(f"{package}.{info.name}"), "STUDY", None)
-        if study is not None:
-            found.append(study)
+        found.extend(declared(importlib.import_module(f"{package}.{info.name}")))
     found.sort(key=lambda s: s.order)
     check_plan(found)
     return tuple(found)
+
+
+def declared(module) -> tuple:
+    """The studies ``module`` declares: its ``STUDIES`` (a tuple: a module that owns the work of
+    several) or its ``STUDY``; ``ValueError`` if it has both."""
+    one, several = getattr(module, "STUDY", None), getattr(module, "STUDIES", None)
+    if one is not None and several is not None:
+        raise ValueError(f"{module.__name__} declares both STUDY and STUDIES: put every study "
+                         "of the module in STUDIES")
+    return tuple(several) if several is not None else () if one is None else (one,)
 
 
 def check_plan(plan) -> None:

@@ -27,6 +27,11 @@ from pathlib import Path
 
 import pandas as pd
 
+from benchmarks.devtools.work_precision import recommend
+from benchmarks.pipeline import manifest as M
+from benchmarks.pipeline.plan import studies, study_inputs
+from integrators import REGISTRY
+
 __all__ = ["fill", "render", "refresh", "refresh_pages", "pages", "RECOMMENDATION_LEVELS"]
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -48,8 +53,6 @@ def _ms(seconds: float) -> str:
 
 def recommendation(root: Path = ROOT) -> str:
     """The README's advice, one bullet per level of ``RECOMMENDATION_LEVELS``."""
-    from benchmarks.devtools.work_precision import recommend
-    from integrators import REGISTRY
     advice = recommend(pd.read_csv(root / "results" / "wp_quick.csv"), RECOMMENDATION_LEVELS)
     lines = []
     for _, a in advice.iterrows():
@@ -142,8 +145,6 @@ RECORDED_VERSIONS = False
 def origin(source: str, root: Path = ROOT) -> str:
     """The line that says where a block comes from (see the module docstring), or "" where the
     results have no manifest or no study writes the file."""
-    from benchmarks.pipeline import manifest as M
-    from benchmarks.pipeline.plan import studies, study_inputs
     out = Path(root) / "results"
     name = {"recommendation": "wp_quick.csv",
             "convergence": "convergence_paper-example_slip.json"}.get(source)

@@ -24,9 +24,14 @@ import dataclasses
 import time
 from pathlib import Path
 
+import pandas as pd
+
 from benchmarks.pipeline import manifest as M
 from benchmarks.pipeline.plan import check_plan, list_markdown, studies, study_inputs, study_named
-from benchmarks.records.files import BadResultsFile
+from benchmarks.pipeline.readme import ROOT, refresh_pages
+from benchmarks.records.files import BadResultsFile, adopt, claim_outputs, permit, write_output
+from benchmarks.records.provenance import provenance
+from benchmarks.records.report import markdown_table
 from benchmarks.studies.study import matches
 
 __all__ = ["reproduce", "run_steps", "describe", "summary", "studies", "study_named",
@@ -73,19 +78,16 @@ def reproduce(out: Path, full: bool = False, force: bool = False, start: str | N
                  for s in steps[first:]}
     out = Path(out)
     if not dry_run:
-        from benchmarks.records.files import claim_outputs
         if not M.read_manifest_or_none(out):   # not a results store: a user's REPORT.md
             claim_outputs([out / "REPORT.md"])  # is refused before the work
         out.mkdir(parents=True, exist_ok=True)
     rows = run_steps(steps, out, modes, dry_run=dry_run)
     if dry_run:
         return rows
-    from benchmarks.records.files import permit, write_output
     if M.read_manifest_or_none(out):          # a results store's report is the pipeline's
         permit([out / "REPORT.md"])
     write_output(out / "REPORT.md", report_markdown(plan, out))
     print(f"\nwritten: {out / 'REPORT.md'}")
-    from benchmarks.pipeline.readme import ROOT, refresh_pages
     if out.resolve() == (ROOT / "results").resolve():    # the README and docs quote these files
         stale = refresh_pages()
         print(f"generated blocks refilled: {', '.join(stale) or 'none changed'}")
@@ -146,7 +148,6 @@ def run_steps(steps, out: Path, modes: dict[str, str], dry_run: bool = False,
             raise FileNotFoundError(f"step {step.name} reads {out / missing[0]}, which is not "
                                     "there: run the step that writes it first (`rsfbench "
                                     f"reproduce --full --out {out}`)")
-        from benchmarks.records.files import adopt
         _refuse_foreign_files(step, out)
         _section(step.title)
         print(f"({why})", flush=True)
@@ -175,7 +176,6 @@ def _refuse_foreign_files(study, out: Path) -> None:
     rsfbench's ledger does not know it, unchanged. A listed file is the pipeline's record: the
     step writes it again, even if it was edited since (a record changed by hand is stale, and
     the rerun restores it)."""
-    from benchmarks.records.files import claim_outputs, permit
     out = Path(out)
     if not out.is_dir():
         return
@@ -262,10 +262,6 @@ def report_markdown(plan, out: Path, **code) -> str:
     """``REPORT.md``: each study's section (its ``report`` of its files), headed by its title and
     the commit of its last run, marked stale when its inputs changed since; then the table of
     the studies. ``code``: as for :func:`run_steps`."""
-    import pandas as pd
-
-    from benchmarks.records.provenance import provenance
-    from benchmarks.records.report import markdown_table
     meta = provenance()
     states = {r["step"]: r for r in _step_states(plan, out, **code)}
     parts = [f"""# rsfbench report

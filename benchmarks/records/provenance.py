@@ -9,6 +9,7 @@ from __future__ import annotations
 import datetime
 import functools
 import importlib.metadata
+import os
 import platform
 import subprocess
 from pathlib import Path
@@ -81,7 +82,6 @@ def version_line() -> str:
 
 def provenance() -> dict[str, str]:
     """Columns describing the machine and software of a measurement."""
-    import os
     return {"cpu": cpu_model(), "n_cpus": os.cpu_count(), "python": platform.python_version(),
             **{f"v_{p}": _version(p) for p in _PACKAGES},
             "git_commit": git_commit(),

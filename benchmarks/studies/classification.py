@@ -22,6 +22,7 @@ import numpy as np
 import pandas as pd
 from tqdm.auto import tqdm
 
+from benchmarks.inversion.published import GRID, T_END, best_fit, grid_around
 from benchmarks.physics.metrics import LOCKED_SLIP_RATE, interevent_slip_rate, summarize
 from benchmarks.records.files import write_output, write_table
 from benchmarks.records.report import fmt, markdown_table
@@ -48,7 +49,6 @@ _SAVED_POINTS = 200_001
 
 
 def _runs():
-    from benchmarks.inversion.published import GRID, T_END, best_fit, grid_around
     runs = [("paper example", "paper-example", law, None, None, 20.0) for law in ("slip", "aging")]
     for law in ("slip", "aging"):
         for name in ("W1", "W2", "W3", "W4"):

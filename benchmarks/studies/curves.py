@@ -29,16 +29,28 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import tempfile
 import time
 import warnings
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from matplotlib.figure import Figure
 
+from benchmarks.devtools.recommendation import recommended
+from benchmarks.inversion import Misfit, synthetic
+from benchmarks.inversion.adaptive import grid_posterior
+from benchmarks.inversion.grid import box_grid, metric_map
+from benchmarks.inversion.observations import read_observations
+from benchmarks.inversion.posterior import sample
+from benchmarks.physics.curves import sample_curves
+from benchmarks.physics.metrics import summarize
 from benchmarks.records.files import write_figure, write_output, write_table
 from benchmarks.records.report import jsonable, markdown_table
 from benchmarks.studies.study import Study
+from integrators import Rodas5P, solve
+from problems import window
 
 __all__ = ["STUDY", "curves_study", "TRUTH", "BOX", "MODELS"]
 
@@ -61,8 +73,6 @@ ZOOMS = {"zoom": (1.5e-4, 0.2), "fine zoom": (1.2e-5, 0.015)}
 
 def _data(sol, c, seed: int, sigma_rel: float, events: int, points: int, noise: float):
     """The means and the curves of seed ``seed`` (module docstring)."""
-    from benchmarks.inversion import synthetic
-    from benchmarks.physics.curves import sample_curves
     with warnings.catch_warnings():          # σ a stated fraction of the truth: no unit slip
         warnings.simplefilter("ignore")
         means = synthetic(c.recurrence_s, c.friction_drop, sigma_rel, seed)
@@ -81,7 +91,6 @@ def _with(means, curves, model, noise):
 
 def _maps(problem, algorithm, boxes, n, means, curves, curve_noise, say):
     """Each box's grid and metric map, and the solver check that chose its integrator."""
-    from benchmarks.inversion.grid import box_grid, metric_map
     from benchmarks.inversion.solver_check import check_solver
     grids, maps, checks = {}, {}, {}
     for name, box in boxes.items():
@@ -150,10 +159,6 @@ def curves_study(out, seeds: int = 200, n: int = 61, sigma_rel: float = 0.01,
                  curve_noise: float = 2e-3, events: int = 10, points: int = 50,
                  recordings: int = 3, progress: bool = False) -> dict:
     """Run the study of the module docstring; write ``out/curves.{csv,json,md,png}``."""
-    from benchmarks.devtools.recommendation import recommended
-    from benchmarks.physics.metrics import summarize
-    from integrators import Rodas5P, solve
-    from problems import window
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     say = (lambda text: print(f"  {text}", flush=True)) if progress else (lambda text: None)
@@ -211,9 +216,7 @@ def _hpd_covers(m, post, truth) -> bool:
 def _targets(problem, algorithm, obs) -> dict:
     """The refined grid's and emcee's posteriors with the curves, timed; the solver check's
     cost beside the inversion's."""
-    from benchmarks.inversion import Misfit
     from benchmarks.inversion.invert import invert
-    from benchmarks.inversion.posterior import sample
     from benchmarks.inversion.solver_check import check_solver
     started = time.perf_counter()
     check = check_solver(problem, algorithm, obs, *BOX)
@@ -250,11 +253,6 @@ def _targets(problem, algorithm, obs) -> dict:
 def _through_a_recording(problem, algorithm, seed: int, out: Path) -> dict:
     """One synthetic recording of the truth measured by observe and inverted with and without
     its curves on the refined grid."""
-    import tempfile
-
-    from benchmarks.inversion import Misfit
-    from benchmarks.inversion.adaptive import grid_posterior
-    from benchmarks.inversion.observations import read_observations
     from benchmarks.lab.observe_recording import observe
     from benchmarks.lab.synthetic import synthetic_recording
     rec, _ = synthetic_recording(dataclasses.replace(problem, t_end=RECORDING_S),
@@ -375,7 +373,6 @@ def _markdown(info: dict) -> str:
 
 
 def _plot(table: pd.DataFrame, path: Path) -> None:
-    from matplotlib.figure import Figure
     fig = Figure(figsize=(9, 3.6))
     axes = fig.subplots(1, 2)
     for ax, name, label in ((axes[0], "b", "b"), (axes[1], "log10_lc", "log10 Lc (m)")):

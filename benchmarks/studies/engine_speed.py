@@ -28,11 +28,19 @@ start-up times).
 
 from __future__ import annotations
 
+import json
 import math
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from numba import carray, cfunc
 
 from benchmarks.devtools.errors import errors
 from benchmarks.devtools.reference import reference
@@ -40,6 +48,7 @@ from benchmarks.records.files import atomic_write
 from benchmarks.studies.study import Study, markdown_file
 from integrators import REGISTRY, solve
 from problems import paper_example, window
+from problems.formulations import N_Q, form_vector, ode_rhs, to_ode_state
 
 __all__ = ["STUDY", "engine_speed", "targets", "startup", "engine_speed_markdown", "write_engine_speed",
            "METHODS", "TOLERANCES", "python_side", "python_side_fresh", "c_twin_comparison"]
@@ -58,12 +67,7 @@ def _problems():
 
 def _lsoda_wall(problem, repeats: int) -> float:
     """numbalsoda's ``lsoda`` once over 20,001 points at 1e−6, slow loading throughout (s)."""
-    import time
-
-    from numba import carray, cfunc
     from numbalsoda import lsoda, lsoda_sig
-
-    from problems.formulations import N_Q, form_vector, ode_rhs, to_ode_state
 
     @cfunc(lsoda_sig)
     def rhs(t, u, du, data):
@@ -146,7 +150,6 @@ def python_side(repeats: int = 200, method: str = "Rodas5P", tol: float = 1e-3) 
     """The Python side of ``solve`` on the paper example (``max_points=2``): the wall time of
     the whole call less ``Solution.meta["kernel_s"]``, µs, minimum and median over ``repeats``
     warm calls, with the kernel's own time beside it."""
-    import time
     problem, algorithm = paper_example(), REGISTRY[method](rtol=tol, atol=tol)
     solve(problem, algorithm, max_points=2)
     whole, kernel = [], []
@@ -165,10 +168,6 @@ def python_side_fresh(repeats: int = 200) -> dict:
     """:func:`python_side` in a fresh process: measured after the study's other parts, in
     their process, the minimum varied from 40 to 62 µs between runs (why was not pinned
     down), against 40 µs every time in a process of its own."""
-    import json
-    import os
-    import subprocess
-    import sys
     root = Path(__file__).resolve().parents[2]
     code = ("import json; from benchmarks.studies.engine_speed import python_side; "
             f"print(json.dumps(python_side({int(repeats)})))")
@@ -188,8 +187,6 @@ def c_twin_comparison(rounds: int = 8, solves: int = 10) -> pd.DataFrame | None:
     ``Solution.meta["kernel_s"]`` (the minimum over ``solves`` solves), the twin's (the minimum
     over as many runs), each the minimum over ``rounds``; the ratio and whether the two took
     the same steps. None without gcc."""
-    import tempfile
-
     from benchmarks.devtools import c_twin
     if c_twin.compiler() is None:
         return None
@@ -224,12 +221,6 @@ _STARTUP = ("import time; t0 = time.perf_counter(); import integrators as I, pro
 
 def startup(warm_repeats: int = 3) -> dict:
     """Seconds: import, first solve (warm and cold) and the simulate command (warm)."""
-    import shutil
-    import subprocess
-    import sys
-    import tempfile
-    import time
-
     root = Path(__file__).resolve().parents[2]          # the checkout
 
     def once(cwd, env_path):

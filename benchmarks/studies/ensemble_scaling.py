@@ -42,13 +42,14 @@ import numpy as np
 import pandas as pd
 
 from benchmarks.devtools.recommendation import recommended
-from benchmarks.devtools.work_precision import STUDY_CSV
-from benchmarks.ensemble import ensemble, grid, point_problems, point_rows, read_store
+from benchmarks.devtools.work_precision import STUDY_CSV, algorithm_at, read_study, recommend
+from benchmarks.ensemble import CHUNK_SIZE, ensemble, grid, point_problems, point_rows, read_store
 from benchmarks.inversion.published import B_STEP, best_fit
 from benchmarks.records.files import atomic_write
 from benchmarks.records.provenance import provenance
 from benchmarks.records.report import fmt, jsonable, markdown_table
 from benchmarks.studies.study import Study, markdown_file
+from integrators import REGISTRY, RadauIIA5, Rodas5P, solve
 from problems import window
 
 __all__ = ["STUDY", "ensemble_scaling", "same_table", "TARGETS", "fastest_peer"]
@@ -67,8 +68,6 @@ def fastest_peer(level: float, csv=STUDY_CSV):
     """``(algorithm, reason)``: the quick study's fastest setting of a compiled peer (any
     library but the project's, compiled right-hand side) reaching ``level`` on every problem,
     or ``(None, why not)``."""
-    from benchmarks.devtools.work_precision import algorithm_at, read_study, recommend
-    from integrators import REGISTRY
     path = Path(csv)
     if not path.exists():
         return None, f"no work-precision study at {path}"
@@ -85,7 +84,6 @@ def fastest_peer(level: float, csv=STUDY_CSV):
 
 def _time_peer_loop(peer, n, repeats):
     """A plain loop of ``peer`` over the grid's points: min wall over ``repeats`` (s)."""
-    from integrators import solve
     base = window("W2", "slip", t_end=40.0)
     points = _grid21(n)
     names, values = tuple(points), np.column_stack(list(points.values()))
@@ -134,7 +132,6 @@ def _references(base, points):
     """``(reference table, the points that count, the references' worst disagreement there)``:
     two independent methods at :data:`REFERENCE_TOL`; a point counts where both classify it the
     same, both have a ΔT and they agree on it to :data:`REFERENCES_AGREE`."""
-    from integrators import RadauIIA5, Rodas5P
     tol = dict(rtol=REFERENCE_TOL, atol=REFERENCE_TOL)
     a = ensemble(base, Rodas5P(**tol), points, workers=2, progress=False)
     b = ensemble(base, RadauIIA5(**tol), points, workers=2, progress=False)
@@ -160,8 +157,6 @@ def _settings_on_grid(base, points, ref, counts, repeats):
     """Every own stiff method with a batch kernel at :data:`CANDIDATE_TOLS` on the grid (the
     explicit CashKarp45 crawls through the stiff points): its wall on
     2 threads and its ΔT errors; and the fastest within :data:`LEVEL` (None if none is)."""
-    from benchmarks.devtools.work_precision import algorithm_at
-    from integrators import REGISTRY
     names = [n for n, c in REGISTRY.items()
              if getattr(c, "batch_kernel", None) is not None and c.stiff]
     rows = []
@@ -284,7 +279,6 @@ def ensemble_scaling(out, n: int = 21, big: int = 100_000, kills: int = 3, dask:
                      repeats: int = 3, seed: int = 0, progress: bool = True,
                      study_csv=STUDY_CSV) -> dict:
     """Measure the three targets (module docstring); write ``out/ensemble_scaling.json``, ``.md``."""
-    from benchmarks.ensemble import CHUNK_SIZE
     n_chunks = -(-len(_big_grid(big)["b"]) // CHUNK_SIZE) if big else 0
     if big and not kills <= n_chunks - 2:
         raise ValueError(f"kills = {kills} need at least {kills + 2} chunks of {CHUNK_SIZE} "

@@ -21,6 +21,7 @@ from tqdm.auto import tqdm
 
 from benchmarks.records.files import write_output, write_table
 from benchmarks.records.report import fmt, markdown_table
+from benchmarks.studies.classification import _runs
 from benchmarks.studies.study import Study, markdown_file
 from integrators import ETD2, ETDIterated, Rodas5P, solve
 from problems import paper_example, preset
@@ -29,7 +30,6 @@ __all__ = ["STUDY", "etd_validity", "write_etd_validity"]
 
 
 def _problems():
-    from benchmarks.studies.classification import _runs
     out = [(group, preset(name, law=law, b=b, lc=lc, t_end=t_end))
            for group, name, law, b, lc, t_end in _runs() if group != "oscillation"]
     p0 = paper_example()

@@ -1,6 +1,8 @@
-"""The work-precision study on the problem family beyond the paper's (docs/problem-family.md).
+"""The problem family beyond the paper's (docs/problem-family.md): the work-precision study
+``family``, and ``problem-family``, its laboratory tests against Marone's published numbers
+(:func:`write_lab_checks`).
 
-Five problems, quick settings:
+The work-precision study has five problems, at quick settings:
 
 * ``velocity-step/aging`` and ``velocity-step/nagata``: a tenfold velocity step on the laboratory
   apparatus of Marone's code (quasi-static), 30 s after the step;
@@ -34,6 +36,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from matplotlib.figure import Figure
 
 from benchmarks.devtools.errors import ERROR_COLUMNS
 from benchmarks.devtools.reference import (
@@ -43,14 +46,22 @@ from benchmarks.devtools.reference import (
     reference,
 )
 from benchmarks.devtools.work_precision import Ladder, best_at_levels, work_precision
-from benchmarks.lab.measures import PeakNotReached, healing, step_response
-from benchmarks.records.files import write_figure, write_table
+from benchmarks.lab.measures import (
+    PeakNotReached,
+    healing,
+    healing_rate,
+    marone_check,
+    step_response,
+)
+from benchmarks.records.files import atomic_write, write_figure, write_table
+from benchmarks.records.provenance import provenance
+from benchmarks.records.report import markdown_table
 from benchmarks.studies.study import Study
-from integrators import REGISTRY, solve
+from integrators import REGISTRY, Rodas5P, solve
 from problems import slide_hold_slide_test, velocity_step_test, window
 from problems.presets import fault_radiation_damping
 
-__all__ = ["STUDY", "FAMILY", "family_problems", "LAB_PROBLEMS", "LabReference", "lab_reference",
+__all__ = ["STUDIES", "FAMILY", "family_problems", "LAB_PROBLEMS", "LabReference", "lab_reference",
            "lab_errors", "family_study", "FAMILY_LADDER", "LEVELS", "summary", "runaway",
            "write_family", "write_lab_checks", "advice"]
 
@@ -214,9 +225,6 @@ def runaway(names=("Rodas5P", "sundials-CVODE-BDF", "sundials-IDA", "scipy-Radau
 def write_family(out: Path, progress: bool = True, names=None) -> pd.DataFrame:
     """The study into ``out``: family_wp.csv (every row), family_wp.md (the summary and the
     quasi-static runaway), family_wp.png (error against time per problem)."""
-    from benchmarks.records.files import atomic_write
-    from benchmarks.records.provenance import provenance
-    from benchmarks.records.report import markdown_table
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     df = family_study(names=names, progress=progress)
@@ -314,7 +322,6 @@ def _refused(df: pd.DataFrame) -> str:
 
 
 def _plot(df: pd.DataFrame, path: Path) -> None:
-    from matplotlib.figure import Figure
     problems = list(dict.fromkeys(df.problem))
     fig = Figure(figsize=(4.2 * len(problems), 4.2))
     axes = fig.subplots(1, len(problems), squeeze=False)
@@ -339,16 +346,6 @@ def write_lab_checks(out: Path) -> dict:
     law's velocity step (direct effect, steady-state change against (a − b) ln 10) and
     slide-hold-slide healing (holds 1 to 300 s; after 1000 s the slip law runs away on
     reloading), quasi-static, the steps also with 1 kg of mass."""
-    from benchmarks.lab.measures import (
-        healing,
-        healing_rate,
-        marone_check,
-        step_response,
-    )
-    from benchmarks.records.files import atomic_write
-    from benchmarks.records.provenance import provenance
-    from benchmarks.records.report import markdown_table
-    from integrators import Rodas5P
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     marone = marone_check()
@@ -387,7 +384,6 @@ def write_lab_checks(out: Path) -> dict:
              markdown_table(heal, ".6g"), "",
              f"Provenance: {provenance()}", ""]
     atomic_write(out / "problem_family.md", "\n".join(lines))
-    from matplotlib.figure import Figure
     fig = Figure(figsize=(5, 3.8))
     ax = fig.subplots()
     for law, h in heals.items():
@@ -401,16 +397,32 @@ def write_lab_checks(out: Path) -> dict:
     return {"marone": marone, "steps": steps, "healing": heal, "rates": rates}
 
 
-def run(out: Path) -> None:
+def run_lab_checks(out: Path) -> None:
+    checks = write_lab_checks(out)
+    print(checks["marone"].to_string(index=False))
+
+
+def report_lab_checks(out: Path) -> str:
+    return ((out / "problem_family.md").read_text().split("\n", 2)[2]
+            + "![healing](problem_family_healing.png)\n")
+
+
+def run_family(out: Path) -> None:
     print(summary(write_family(out, progress=False)).to_string(index=False))
 
 
-def report(out: Path) -> str:
+def report_family(out: Path) -> str:
     return ((out / "family_advice.md").read_text() + "Every error level and the runner-up: "
             "`family_wp.md`.\n\n![family work-precision](family_wp.png)\n")
 
 
-STUDY = Study("family", "Which integrator for a lab test, without mass, with damping "
-              "(`family_wp.*`)", 240, run, report=report, plan="full", timed=True,
-              writes=("family_advice.md", "family_wp.csv", "family_wp.md", "family_wp.png"),
-              minutes=17.5)
+STUDIES = (
+    Study("problem-family", "The problem family: Marone's numbers, laboratory tests "
+          "(`problem_family.*`)", 230, run_lab_checks, report=report_lab_checks,
+          writes=("problem_family.md", "problem_family_healing.csv",
+                  "problem_family_healing.png"), minutes=0.1),
+    Study("family", "Which integrator for a lab test, without mass, with damping "
+          "(`family_wp.*`)", 240, run_family, report=report_family, plan="full", timed=True,
+          writes=("family_advice.md", "family_wp.csv", "family_wp.md", "family_wp.png"),
+          minutes=17.5),
+)

@@ -1,15 +1,14 @@
 """The inversion studies ``make reproduce`` runs, and their files in ``results/``.
 
-* :func:`posterior_target`: one full inversion of W2/slip's published means (fit, profiles,
-  posterior) with the study's recommended integrator, timed against its target (a
-  posterior of ≥ 64,000 forward solves in ≤ 2 minutes on 2 cores) →
-  ``inversion_W2_slip/`` and ``inversion.md``;
-* :func:`calibration_study`: coverage of the 95 % regions on seeded synthetic data
-  (:mod:`benchmarks.inversion.calibration`) → ``calibration.{csv,md,json,png}``;
+* ``inversion``, :func:`posterior_target`: one full inversion of W2/slip's published means
+  (fit, profiles, posterior) with the study's recommended integrator, timed against its target
+  (a posterior of ≥ 64,000 forward solves in ≤ 2 minutes on 2 cores) → ``inversion_W2_slip/``
+  and ``inversion.md``;
+* ``calibration``, :func:`calibration_study`: coverage of the 95 % regions on seeded synthetic
+  data (:mod:`benchmarks.inversion.calibration`) → ``calibration.{csv,md,json,png}``.
 
-The solver-effect study writes its own files
-(:func:`benchmarks.studies.solver_effect.solver_effect_study`): its step does not depend on
-these.
+The solver-effect study writes its own files (:mod:`benchmarks.studies.solver_effect`): its
+step does not depend on these.
 """
 
 from __future__ import annotations
@@ -21,12 +20,20 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from matplotlib.figure import Figure
 
+from benchmarks.devtools.recommendation import recommended
+from benchmarks.inversion.grid import cell_box
+from benchmarks.inversion.misfit import Misfit
+from benchmarks.inversion.observations import observations
+from benchmarks.inversion.published import T_END, prior_box
 from benchmarks.records.files import write_figure, write_output, write_table
 from benchmarks.records.report import fmt, jsonable, markdown_table
 from benchmarks.studies.study import Study
+from integrators import Rodas5P
+from problems import preset
 
-__all__ = ["STUDY", "posterior_target", "calibration_study", "TARGET_SOLVES",
+__all__ = ["STUDIES", "posterior_target", "calibration_study", "TARGET_SOLVES",
            "TARGET_WALL_S", "CALIBRATION_TRUTH"]
 
 #: the posterior target: at least this many forward solves …
@@ -42,12 +49,7 @@ def posterior_target(out, walkers: int = 32, steps: int = 2500, seed: int = 0,
     """Invert W2/slip's published means (σ 10 %, assumed) in the paper sweep's box with the
     integrator the work-precision study recommends for 1e−3 in ΔT; check the posterior's size
     and time against the target; write ``out/inversion_W2_slip/`` and ``out/inversion.md``."""
-    from benchmarks.devtools.recommendation import recommended
     from benchmarks.inversion.invert import invert, write_inversion
-    from benchmarks.inversion.misfit import Misfit
-    from benchmarks.inversion.published import T_END, prior_box
-    from benchmarks.inversion.observations import observations
-    from problems import preset
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     algorithm, why = recommended(1e-3)
@@ -122,10 +124,6 @@ def calibration_study(out, seeds: int = 1000, n: int = 121, sigma_rel: float = 0
     true values, uniform prior on b ± 0.0012 and Lc within a factor 100), with Rodas5P at
     rtol = atol = 1e−6 simulating and inverting; write ``out/calibration.*``."""
     from benchmarks.inversion.calibration import coverage
-    from benchmarks.inversion.grid import cell_box
-    from benchmarks.inversion.published import T_END
-    from integrators import Rodas5P
-    from problems import preset
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     b_t, lc_t = CALIBRATION_TRUTH
@@ -221,7 +219,6 @@ def _checks_markdown(c: pd.DataFrame) -> str:
 
 
 def _plot_calibration(cal, path: Path) -> None:
-    from matplotlib.figure import Figure
     s = cal.summary
     fig = Figure(figsize=(7.5, 4.2))
     ax = fig.subplots()
@@ -241,16 +238,42 @@ def _plot_calibration(cal, path: Path) -> None:
     write_figure(fig, path, dpi=110)
 
 
-def run(out: Path) -> None:
+def run_inversion(out: Path) -> None:
     posterior_target(out)
     print((out / "inversion.md").read_text())
 
 
-def report(out: Path) -> str:
+def report_inversion(out: Path) -> str:
     return (out / "inversion.md").read_text() + "![posterior](inversion_W2_slip/corner.png)\n"
 
 
-STUDY = Study("inversion", "An inversion: fit, profiles, posterior (`inversion.md`, "
-              "`inversion_W2_slip/`)", 200, run, report=report, timed=True,
-              writes=("inversion.md", "inversion_W2_slip/*.png", "inversion_W2_slip/*.csv",
-                      "inversion_W2_slip/inversion.json"), minutes=0.9)
+def run_calibration(out: Path, seeds: int, n: int, sigma: float, check_seeds: int) -> None:
+    calibration_study(out, seeds=seeds, n=n, sigma_rel=sigma, check_seeds=check_seeds)
+    print((out / "calibration.md").read_text().split("\n## ")[0])
+
+
+def check_calibration(settings: dict) -> None:
+    if settings["check_seeds"] > settings["seeds"]:
+        raise ValueError(f"study calibration: setting check_seeds = {settings['check_seeds']} "
+                         f"is more than seeds = {settings['seeds']}: the checked seeds are "
+                         "among the study's")
+
+
+def report_calibration(out: Path) -> str:
+    text = (out / "calibration.md").read_text()
+    return text.split("\n", 1)[1] + "![coverage](calibration.png)\n"
+
+
+STUDIES = (
+    Study("inversion", "An inversion: fit, profiles, posterior (`inversion.md`, "
+          "`inversion_W2_slip/`)", 200, run_inversion, report=report_inversion, timed=True,
+          writes=("inversion.md", "inversion_W2_slip/*.png", "inversion_W2_slip/*.csv",
+                  "inversion_W2_slip/inversion.json"), minutes=0.9),
+    Study("calibration", "Coverage of the 95 % regions (`calibration.*`)", 210, run_calibration,
+          report=report_calibration,
+          settings={"seeds": 1000, "n": 121, "sigma": 0.05, "check_seeds": 2},
+          limits={"seeds": (1, 100_000), "n": (5, 1001), "sigma": (1e-6, 0.5),
+                  "check_seeds": (0, 100)}, check=check_calibration,
+          writes=("calibration.csv", "calibration.json", "calibration.md", "calibration.png"),
+          minutes=2),
+)

@@ -31,8 +31,10 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from matplotlib.figure import Figure
 
 from benchmarks.records.files import write_figure, write_output, write_table
+from benchmarks.records.provenance import checkout
 from benchmarks.records.report import jsonable, markdown_table
 from benchmarks.studies.study import Study
 
@@ -184,7 +186,6 @@ def _real(root: Path, out: Path) -> list[dict]:
 
 
 def _plot(figures, path: Path) -> None:
-    from matplotlib.figure import Figure
     fig = Figure(figsize=(4.2 * len(figures), 5.2))
     axes = fig.subplots(2, len(figures), gridspec_kw={"height_ratios": [3, 1]}, squeeze=False)
     for col, (label, fit) in enumerate(figures):
@@ -207,7 +208,6 @@ def lab_fit_study(out: Path, seeds: int = 200, profile_seeds: int = 100,
                   progress: bool = False) -> dict:
     """Run the study of the module docstring; write ``out/lab_fit.{csv,json,md,png}``."""
     from benchmarks.inversion.calibration import binomial_check
-    from benchmarks.records.provenance import checkout
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     say = (lambda text: print(f"  {text}", flush=True)) if progress else (lambda text: None)

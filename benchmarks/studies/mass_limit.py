@@ -23,10 +23,14 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from matplotlib.figure import Figure
+from tqdm.auto import tqdm
 
 from benchmarks.devtools.errors import errors
 from benchmarks.devtools.reference import reference
-from benchmarks.records.files import write_figure, write_table
+from benchmarks.records.files import atomic_write, write_figure, write_table
+from benchmarks.records.provenance import provenance
+from benchmarks.records.report import markdown_table
 from benchmarks.studies.study import Study
 from integrators import REGISTRY, solve
 from integrators.core.registry import ProblemNotSupported
@@ -79,7 +83,6 @@ def _point(problem, algorithm, ref) -> dict:
 
 def mass_limit(progress: bool = True) -> pd.DataFrame:
     """One row per (ladder, mass, method): cost and recurrence error."""
-    from tqdm.auto import tqdm
     jobs = [(damped, f, p) for damped in (False, True) for f, p in mass_problems(damped)]
     rows = []
     with tqdm(total=len(jobs) * len(METHODS), desc="mass limit", disable=not progress) as bar:
@@ -101,9 +104,6 @@ def mass_limit(progress: bool = True) -> pd.DataFrame:
 def write_mass_limit(out: Path, progress: bool = True) -> pd.DataFrame:
     """mass_limit.csv, mass_limit.md (the table and what it shows), mass_limit_summary.md (what
     it shows alone, for the README), mass_limit.png."""
-    from benchmarks.records.files import atomic_write
-    from benchmarks.records.provenance import provenance
-    from benchmarks.records.report import markdown_table
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     df = mass_limit(progress)
@@ -211,7 +211,6 @@ def _ratios(df: pd.DataFrame) -> pd.DataFrame:
 
 
 def _plot(df: pd.DataFrame, path: Path) -> None:
-    from matplotlib.figure import Figure
     fig = Figure(figsize=(10, 4.2))
     axes = fig.subplots(1, 2, sharey=True)
     floor = df[df.mass_kg > 0].mass_kg.min() / 10.0      # where m = 0 is drawn

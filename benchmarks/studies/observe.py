@@ -23,7 +23,9 @@ import pandas as pd
 
 from benchmarks.physics.metrics import METRICS
 from benchmarks.records.files import write_output, write_table
+from benchmarks.records.report import markdown_table
 from benchmarks.studies.study import Study, markdown_file
+from problems import preset
 
 __all__ = ["STUDY", "observe_accuracy", "observe_speed"]
 
@@ -48,7 +50,6 @@ def observe_accuracy(progress: bool = False) -> pd.DataFrame:
     from benchmarks.lab.events import analyse
     from benchmarks.lab.channels import recording_from
     from benchmarks.lab.synthetic import synthetic_recording
-    from problems import preset
     rows = []
     for name, law, t_end in CASES:
         problem = preset(name, law=law, t_end=t_end)
@@ -84,7 +85,6 @@ def observe_speed(repeats: int = 3) -> pd.DataFrame:
     Parquet, with and without the figure: the fastest of ``repeats`` runs after a warm-up."""
     from benchmarks.lab.observe_recording import observe
     from benchmarks.lab.synthetic import synthetic_recording
-    from problems import preset
     problem = preset("W2", law="slip", t_end=400.0)
     table, _ = synthetic_recording(problem, noise=0.01, drift=0.01, seed=1)
     columns = {c: c for c in table.columns}
@@ -110,7 +110,6 @@ def observe_speed(repeats: int = 3) -> pd.DataFrame:
 
 
 def observe_markdown(accuracy: pd.DataFrame, speed: pd.DataFrame) -> str:
-    from benchmarks.records.report import markdown_table
     at1 = accuracy[accuracy.noise == 0.01]
     lines = ["At 1 % noise (and drift), the largest relative error over W1–W4, both laws, by "
              "channel set, against the targets:", ""]

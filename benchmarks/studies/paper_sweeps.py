@@ -1,4 +1,5 @@
-"""Urata et al. (2017) Section 4 as far as its published numbers allow, and the sweep's speed.
+"""Urata et al. (2017) Section 4 as far as its published numbers allow, and the sweep's speed:
+the studies ``sweeps`` and ``sweep-scaling``.
 
 :func:`paper_sweeps`: for W1–W4 and both laws, a (b, Lc) sweep centred on the published best fit
 (slip law: Sect. 4.1; aging law: solved from Table 3 and the nucleation lengths, see
@@ -32,15 +33,14 @@ from benchmarks.inversion.sweep import sweep
 from benchmarks.records.files import write_output, write_table
 from benchmarks.records.provenance import provenance
 from benchmarks.records.report import fmt, jsonable, markdown_table
-from benchmarks.studies.study import Study
+from benchmarks.studies.study import Study, markdown_file
 from integrators import solve
 from problems import preset, window
 
-__all__ = ["STUDY", "paper_sweeps", "sweep_scaling"]
+__all__ = ["STUDIES", "paper_sweeps", "sweep_scaling"]
 
 #: s per point: a point that takes longer is recorded as failed (WallTime) and the sweep goes on
 POINT_BUDGET = 5.0
-
 
 
 def paper_sweeps(out, cache=None, windows=("W1", "W2", "W3", "W4"), laws=("slip", "aging"),
@@ -159,15 +159,25 @@ def sweep_scaling(out, n: int = 21, t_end: float = 40.0, progress: bool = True,
     return summary
 
 
-def run(out: Path) -> None:
+def run_sweeps(out: Path) -> None:
     paper_sweeps(out)
 
 
-def report(out: Path) -> str:
+def report_sweeps(out: Path) -> str:
     return (out / "sweeps.md").read_text() + "Maps: `sweeps/<window>_<law>/maps.png`.\n"
 
 
-STUDY = Study("sweeps", "Section 4: (b, Lc) sweeps around the published best fits (`sweeps.*`, "
-              "`sweeps/`)", 120, run, report=report,
-              writes=("sweeps.csv", "sweeps.md", "sweeps/*/maps.png", "sweeps/*/summary.json",
-                      "sweeps/*/sweep.csv"), minutes=0.2)
+def run_scaling(out: Path, n: int, t_end: float) -> None:
+    sweep_scaling(out, n=n, t_end=t_end)
+
+
+STUDIES = (
+    Study("sweeps", "Section 4: (b, Lc) sweeps around the published best fits (`sweeps.*`, "
+          "`sweeps/`)", 120, run_sweeps, report=report_sweeps,
+          writes=("sweeps.csv", "sweeps.md", "sweeps/*/maps.png", "sweeps/*/summary.json",
+                  "sweeps/*/sweep.csv"), minutes=0.2),
+    Study("sweep-scaling", "Sweep speed (`sweep_scaling.*`)", 130, run_scaling,
+          report=markdown_file("sweep_scaling.md"), timed=True,
+          settings={"n": 21, "t_end": 40.0}, limits={"n": (2, 101), "t_end": (1.0, 1e4)},
+          writes=("sweep_scaling.json", "sweep_scaling.md"), minutes=0.1),
+)

@@ -25,6 +25,7 @@ every event both runs completed differs by less than ``CYCLE_AGREEMENT`` (relati
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 from pathlib import Path
 
@@ -36,6 +37,7 @@ from benchmarks.devtools.timing import warm_up
 from benchmarks.devtools.work_precision import Ladder, measure
 from benchmarks.physics.metrics import METRICS, event_metrics
 from benchmarks.records.files import write_output, write_table
+from benchmarks.records.report import fmt, jsonable as _jsonable, markdown_table
 from benchmarks.studies.study import Study, markdown_file
 from integrators import ETD2, REGISTRY, solve
 from problems import paper_example
@@ -187,7 +189,6 @@ def speedup(problem=None, rk_tol: float = 1e-6, scipy_budget: float | None = DEF
 def _ratio(r: float | None) -> str:
     """A speed-up as it reads: thousands separated above 10, two digits below, and below 1 how
     much faster the other method is (a speed-up of 0.04 is not "0.0")."""
-    from benchmarks.records.report import fmt
     if r is None or not math.isfinite(r) or r >= 10:
         return fmt(r, ",.0f")
     if r >= 1:
@@ -197,7 +198,6 @@ def _ratio(r: float | None) -> str:
 
 def speedup_markdown(summary: dict, table: pd.DataFrame) -> str:
     """The speed-up table for the README and REPORT.md: which ratio is which, plainly."""
-    from benchmarks.records.report import fmt, markdown_table
     s = summary
 
     def verdict(key):
@@ -255,10 +255,6 @@ def speedup_markdown(summary: dict, table: pd.DataFrame) -> str:
 def write_speedup(summary: dict, table: pd.DataFrame, out) -> str:
     """Write ``speedup.json``, ``speedup.csv`` and ``speedup.md`` to ``out``; return the
     Markdown."""
-    import json
-    from pathlib import Path
-
-    from benchmarks.records.report import jsonable as _jsonable
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     text = speedup_markdown(summary, table)
@@ -271,7 +267,6 @@ def write_speedup(summary: dict, table: pd.DataFrame, out) -> str:
 def run(out: Path, scipy_budget: float) -> None:
     """The claim on the paper example, scipy's RK45 stopped at ``scipy_budget`` s (its whole
     run takes ~40 min: ``--set scipy_budget=3600`` lets it finish)."""
-    from problems import paper_example
     print(write_speedup(*speedup(paper_example(), scipy_budget=scipy_budget), out))
 
 

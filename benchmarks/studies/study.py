@@ -1,5 +1,6 @@
 """How a study declares itself: one module of :mod:`benchmarks.studies` with a module-level
-``STUDY = Study(...)``.
+``STUDY = Study(...)``; a module that owns the work of several studies declares them together,
+``STUDIES = (Study(...), ...)``.
 
 A declaration says what the pipeline needs to plan and reuse the study without running it: its
 name (``rsfbench study NAME``), the files it reads (another study's, in ``results/``) and those
@@ -12,7 +13,8 @@ one; ``check(settings)`` refuses a combination of them (``ValueError``) before a
 ``run(out, **settings)`` writes the files; ``report(out)`` returns the study's section of
 ``REPORT.md`` (Markdown, no heading), read back from its files so that a reused study reports too.
 
-Adding a study is one new file here; :func:`benchmarks.pipeline.reproduce.studies` finds it.
+Adding a study is one new file here, or one more declaration in the module that owns its work;
+:func:`benchmarks.pipeline.reproduce.studies` finds it.
 """
 
 from __future__ import annotations

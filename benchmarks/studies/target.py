@@ -8,22 +8,33 @@ uses the reliable error of :func:`benchmarks.devtools.work_precision.reliable_er
 a level only if it and every tighter setting of its method reach it. All right-hand-side tiers
 count (the fastest is usually the compiled one). A competitor that reaches the level nowhere on
 the ladder makes the comparison one-sided; the table says so rather than calling it a win.
+
+Two studies: ``target`` reads the quick work-precision study; ``target-full`` runs its own,
+of the stiff adaptive integrators on every study problem (:func:`full_target`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from benchmarks.devtools.work_precision import read_study, reliable_error
+from benchmarks.devtools.work_precision import (
+    FULL,
+    read_study,
+    reliable_error,
+    study_problems,
+    work_precision,
+)
+from benchmarks.devtools.wp_files import write_work_precision
 from benchmarks.records.files import write_output, write_table
 from benchmarks.records.report import fmt, markdown_table
 from benchmarks.studies.study import Study
 from integrators import REGISTRY
 
-__all__ = ["STUDY", "TARGET_LEVELS", "TARGET_FACTOR", "TARGET_WALL_BUDGET", "groups", "target_integrators",
+__all__ = ["STUDIES", "TARGET_LEVELS", "TARGET_FACTOR", "TARGET_WALL_BUDGET", "groups", "target_integrators",
            "target_table", "write_target", "full_target"]
 
 TARGET_LEVELS = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7)
@@ -127,10 +138,6 @@ def full_target(out, progress: bool = True) -> pd.DataFrame:
     laws), from a work-precision study of :func:`target_integrators` on the full ladder with a
     10 s budget per run (compiled right-hand sides): ``wp_full*`` and ``target_full.*`` in
     ``out``. About half an hour on a 2-core machine."""
-    import dataclasses
-
-    from benchmarks.devtools.work_precision import FULL, study_problems, work_precision
-    from benchmarks.devtools.wp_files import write_work_precision
     ladder = dataclasses.replace(FULL, wall_budget=TARGET_WALL_BUDGET)
     df = work_precision(study_problems("full"), ladder, names=target_integrators(),
                         tiers=("numba",), progress=progress)
@@ -138,15 +145,31 @@ def full_target(out, progress: bool = True) -> pd.DataFrame:
     return write_target(paths["csv"], out)
 
 
-def run(out: Path) -> None:
+def run_quick(out: Path) -> None:
     write_target(out / "wp_quick.csv", out)
 
 
-def report(out: Path) -> str:
+def report_quick(out: Path) -> str:
     return ("On the quick study's two problems (`target_quick.*`, from `wp_quick.csv`):\n\n"
             + (out / "target_quick.md").read_text())
 
 
-STUDY = Study("target", "The 2× target on the quick study: own integrators against compiled "
-              "LSODA and SUNDIALS", 90, run, report=report, reads=("wp_quick.csv",),
-              writes=("target_quick.csv", "target_quick.md"), minutes=0.05)
+def run_full(out: Path) -> None:
+    print(target_markdown(full_target(out)))
+
+
+def report_full(out: Path) -> str:
+    return ("On every study problem (`target_full.*`, from `wp_full.csv`: the stiff adaptive "
+            "integrators of\nthe three sides on the full ladder, 10 s per run):\n\n"
+            + (out / "target_full.md").read_text())
+
+
+STUDIES = (
+    Study("target", "The 2× target on the quick study: own integrators against compiled "
+          "LSODA and SUNDIALS", 90, run_quick, report=report_quick, reads=("wp_quick.csv",),
+          writes=("target_quick.csv", "target_quick.md"), minutes=0.05),
+    Study("target-full", "The 2× target on every study problem", 100, run_full,
+          report=report_full, plan="full", timed=True,
+          writes=("target_full.csv", "target_full.md", "wp_full.csv", "wp_full_*.png",
+                  "wp_full_pareto.*"), minutes=26),
+)

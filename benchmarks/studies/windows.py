@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pandas as pd
@@ -9,10 +10,11 @@ from tqdm.auto import tqdm
 
 from benchmarks.devtools.timing import warm_up
 from benchmarks.physics.metrics import summarize
-from benchmarks.records.files import write_output
+from benchmarks.physics.summary import simulate_summary
+from benchmarks.records.files import write_output, write_table
 from benchmarks.records.report import markdown_table
 from benchmarks.studies.study import Study, markdown_file
-from integrators import solve
+from integrators import ETD2, solve
 from problems import WINDOWS, window
 
 __all__ = ["STUDY", "windows_table", "write_windows"]
@@ -23,7 +25,6 @@ def windows_table(laws=("slip", "aging"), integrator=None, t_end: float | None =
                   wall_budget: float | None = None) -> pd.DataFrame:
     """One row per (window, law): parameters, simulated limit-cycle metrics, observed means.
     ``integrator`` defaults to ETD2 at the paper's settings (the paper's own method)."""
-    from integrators import ETD2
     integrator = integrator or ETD2()
     jobs = [(name, law) for law in laws for name in names]
     rows = []
@@ -50,7 +51,6 @@ def windows_table(laws=("slip", "aging"), integrator=None, t_end: float | None =
 
 def write_windows(table: pd.DataFrame, out: Path) -> None:
     """``windows.csv`` (all columns) and ``windows.md`` (the comparison, rounded) in ``out``."""
-    from benchmarks.records.files import write_output, write_table
     write_table(table, out / "windows.csv")
     md = table.assign(
         b=table.b.map("{:.5f}".format), lc_um=table.lc_um.map("{:.3f}".format),
@@ -69,12 +69,6 @@ def write_windows(table: pd.DataFrame, out: Path) -> None:
 def run(out: Path) -> None:
     """``simulate_<window>_<law>.json`` for W1–W4 and both laws (ETD2 at the paper's settings),
     and the table of :func:`windows_table` beside the observed means."""
-    import json
-
-    from benchmarks.devtools.timing import warm_up
-    from benchmarks.physics.summary import simulate_summary
-    from integrators import ETD2, solve
-    from problems import WINDOWS, window
     algorithm = ETD2()
     for name in WINDOWS:
         for law in ("slip", "aging"):
