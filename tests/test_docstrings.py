@@ -22,13 +22,6 @@ DOCS = Path(__file__).resolve().parents[1] / "docs"
 #: empty this list as those modules land
 LEFT = {
     "benchmarks.cli.main", "benchmarks.cli.build_parser",   # benchmarks/cli/
-    "benchmarks.lab.LabProfile", "benchmarks.lab.profile_lab",  # lab/profile_intervals.py
-    "benchmarks.inversion.metric_map", "benchmarks.inversion.MetricMap",     # inversion/grid.py
-    "benchmarks.inversion.GridPosterior", "benchmarks.inversion.box_grid",
-    "benchmarks.inversion.grid_posterior",                  # inversion/adaptive.py
-    "benchmarks.inversion.profile", "benchmarks.inversion.Profile",  # inversion/profile.py
-    "benchmarks.inversion.sample", "benchmarks.inversion.Posterior",  # inversion/posterior.py
-    "benchmarks.inversion.scores", "benchmarks.inversion.Scores",  # inversion/objectives.py
     # its sixteen parameters' sections would take it past the 80-line limit of
     # tests/test_function_length.py: its body is split into helpers first
     "benchmarks.ensemble.ensemble",

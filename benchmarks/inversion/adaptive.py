@@ -107,6 +107,43 @@ class GridPosterior:
     in that shape, node by node; a refined one's, cell by cell. ``levels``, ``settled`` and
     ``history`` are the refinement's (0, False and empty without one); ``n_solves``,
     ``n_failed`` and ``wall_s``, what the grid cost.
+
+    Parameters
+    ----------
+    cells : pandas.DataFrame
+        One row a cell: ``b`` (dimensionless) and ``log10_lc`` (log10 of m) of its centre,
+        ``width_b``, ``width_log10_lc``, ``log_likelihood``, ``misfit``, ``failed`` and
+        ``mass`` (dimensionless).
+    hpd : numpy.ndarray
+        Whether each cell is in the highest-density set (bool), in ``shape`` when not refined.
+    mean, std : dict of str to float
+        Each parameter's posterior mean and standard deviation, keyed ``"b"``
+        (dimensionless) and ``"log10_lc"`` (log10 of m); NaN without a posterior.
+    interval : dict of str to tuple of float
+        Each parameter's equal-tailed marginal interval (low, high), keyed as ``mean``.
+    edge_mass : float
+        The mass in the cells on the box's edge (dimensionless).
+    side_mass : dict of str to float
+        The mass in the cells on each side: ``b_low``, ``b_high``, ``lc_low``, ``lc_high``.
+    best : tuple of float
+        (b, Lc in m, misfit) at the centre of the cell of highest likelihood.
+    prior : str
+        The prior in words: the box, uniform in b and log10 Lc.
+    shape : tuple of int or None
+        (n_b, n_lc) of a grid not refined; None for a refined one.
+    levels : int
+        Refinement levels made (0 without refinement).
+    settled : bool
+        Whether the refinement settled before :data:`MAX_LEVELS`.
+    n_solves : int
+        Forward solves the grid cost.
+    n_failed : int
+        Of those, the solves that did not succeed.
+    wall_s : float
+        The grid's wall time (s).
+    history : list of dict
+        One a level: ``level``, ``cells``, ``split``, ``solves``, ``moved`` (the intervals'
+        largest move, as a fraction of the width) and ``hpd_cells``.
     """
 
     cells: pd.DataFrame = field(repr=False)

@@ -50,7 +50,31 @@ def box_grid(b_range, lc_range, n_b: int = 41, n_lc: int = 41, through=None):
     ``b_range`` × ``lc_range`` (Lc in m) in (b, log10 Lc), so that the cells are the box and a
     uniform prior on the box gives every node the same mass. With ``through`` = (b, Lc), the
     nodes are shifted by at most half a spacing so that the point is a node (the box moves by as
-    much)."""
+    much).
+
+    Parameters
+    ----------
+    b_range : tuple of float
+        (low, high) of b (dimensionless).
+    lc_range : tuple of float
+        (low, high) of Lc (m); the cells are equal in log10 Lc.
+    n_b, n_lc : int
+        Cells along b and along log10 Lc, each at least 2.
+    through : tuple of float, optional
+        A point (b, Lc in m) to make a node; a node shifted to b ≤ 0 is dropped.
+
+    Returns
+    -------
+    b : numpy.ndarray
+        The nodes of b (dimensionless), increasing.
+    log10_lc : numpy.ndarray
+        The nodes of log10 Lc (log10 of m), increasing.
+
+    Raises
+    ------
+    ValueError
+        For a box without 0 ≤ b_lo < b_hi and 0 < lc_lo < lc_hi, or ``n_b`` or ``n_lc`` under 2.
+    """
     (b_lo, b_hi), (lc_lo, lc_hi) = b_range, lc_range
     if not (0 <= b_lo < b_hi and 0 < lc_lo < lc_hi):
         raise ValueError(f"the box must have 0 ≤ b_lo < b_hi and 0 < lc_lo < lc_hi, got "
@@ -86,7 +110,39 @@ class MetricMap:
     ``b`` × ``log10_lc`` (arrays of shape (n_b, n_lc); the metrics NaN where ``cycle`` is
     False), with the counters of the ensemble that made it: ``n_failed`` solves that did not
     succeed (their nodes have no cycle), ``wall_s`` the sum of the solves' own wall times,
-    ``run_wall_s`` the ensemble's wall time."""
+    ``run_wall_s`` the ensemble's wall time.
+
+    Parameters
+    ----------
+    b : numpy.ndarray
+        The n_b nodes of b (dimensionless).
+    log10_lc : numpy.ndarray
+        The n_lc nodes of log10 Lc (log10 of m).
+    recurrence_s : numpy.ndarray
+        The limit cycle's recurrence interval ΔT at each node (s), shape (n_b, n_lc).
+    friction_drop : numpy.ndarray
+        The limit cycle's friction drop Δμ at each node (dimensionless), shape (n_b, n_lc).
+    cycle : numpy.ndarray
+        Whether each node's solve ended on a limit cycle (bool), shape (n_b, n_lc).
+    classification : numpy.ndarray
+        Each node's class (str: ``"stick-slip"``, ``"stable sliding"``, ``"failed"``, …).
+    algorithm : str
+        The name of the algorithm that made the map.
+    n_solves : int
+        Forward solves, one a node.
+    n_failed : int
+        Solves whose retcode is not Success.
+    nfev : int
+        Right-hand-side evaluations, summed over the solves.
+    wall_s : float
+        The sum of the solves' own wall times (s).
+    run_wall_s : float
+        The ensemble's wall time (s).
+    curve_slip, curve_friction : numpy.ndarray or None
+        Object arrays of shape (n_b, n_lc): each node's slip-weakening curve, slip (m) and
+        friction Ft/Fn (dimensionless), empty without a cycle; None for a map made without
+        curves.
+    """
 
     b: np.ndarray
     log10_lc: np.ndarray
@@ -176,7 +232,38 @@ def metric_map(problem: SpringSlider, algorithm: Algorithm, b, log10_lc,
                wall_budget: float | None = None, workers: int | None = None,
                progress: bool = False, curves: bool = False) -> MetricMap:
     """One ensemble over the grid ``b`` × ``log10_lc`` (1-D arrays, Lc in log10 m); with
-    ``curves``, each node's slip-weakening curve too (for observations with curves)."""
+    ``curves``, each node's slip-weakening curve too (for observations with curves).
+
+    Parameters
+    ----------
+    problem : SpringSlider
+        The forward problem; each node is its variant with b and lc replaced.
+    algorithm : Algorithm
+        The forward solver and its options.
+    b : array_like
+        The nodes of b (dimensionless): at least two, finite, increasing.
+    log10_lc : array_like
+        The nodes of log10 Lc (log10 of m): at least two, finite, increasing.
+    wall_budget : float, optional
+        Each forward solve's wall-time budget (s).
+    workers : int, optional
+        Threads (or processes) of the ensemble.
+    progress : bool
+        Show the ensemble's progress.
+    curves : bool
+        Also save each node's slip-weakening curve (sampled every :data:`CURVE_DT` s for the
+        peers' solvers).
+
+    Returns
+    -------
+    MetricMap
+        The metrics in shape (len(b), len(log10_lc)).
+
+    Raises
+    ------
+    ValueError
+        For ``b`` or ``log10_lc`` not at least two finite increasing values.
+    """
     import time
     b = np.asarray(b, dtype=float)
     log10_lc = np.asarray(log10_lc, dtype=float)

@@ -45,7 +45,17 @@ NO_CYCLE_J1 = 2.0 * NO_CYCLE_RESIDUAL ** 2
 
 class Scores(NamedTuple):
     """Eq. 10 at a set of points (module docstring): the residuals (ΔT − ΔT̄)/σT and
-    (Δμ − Δμ̄)/σμ, NaN where ``cycle`` is False."""
+    (Δμ − Δμ̄)/σμ, NaN where ``cycle`` is False.
+
+    Parameters
+    ----------
+    r_recurrence : numpy.ndarray
+        (ΔT − ΔT̄)/σT at each point (dimensionless, in σ); NaN without a limit cycle.
+    r_drop : numpy.ndarray
+        (Δμ − Δμ̄)/σμ at each point (dimensionless, in σ); NaN without a limit cycle.
+    cycle : numpy.ndarray
+        Whether each point has a limit cycle (bool), of the residuals' shape.
+    """
 
     r_recurrence: np.ndarray
     r_drop: np.ndarray
@@ -76,7 +86,24 @@ class Scores(NamedTuple):
 def scores(recurrence_s, friction_drop, cycle, obs) -> Scores:
     """Eq. 10 of points with limit-cycle metrics ``recurrence_s``, ``friction_drop`` (arrays
     of one shape; a point scores only where ``cycle``) against ``obs`` (an
-    :class:`~benchmarks.inversion.observations.Observations`: means and positive σ)."""
+    :class:`~benchmarks.inversion.observations.Observations`: means and positive σ).
+
+    Parameters
+    ----------
+    recurrence_s : array_like
+        Each point's recurrence interval ΔT (s); read only where ``cycle``.
+    friction_drop : array_like
+        Each point's friction drop Δμ (dimensionless), of ``recurrence_s``' shape.
+    cycle : array_like of bool
+        Whether each point has a limit cycle.
+    obs : Observations
+        The observed means ΔT̄ (s) and Δμ̄ (dimensionless) and their σ.
+
+    Returns
+    -------
+    Scores
+        The residuals in σ, NaN where ``cycle`` is False, and ``cycle``.
+    """
     cycle = np.asarray(cycle, dtype=bool)
     residual = [np.where(cycle, (np.asarray(x, dtype=float) - mean) / sigma, np.nan)
                 for x, mean, sigma in ((recurrence_s, obs.recurrence_s, obs.sigma_recurrence_s),

@@ -39,7 +39,29 @@ MAX_POSTERIOR_SOLVES = 10_000_000
 @dataclass
 class Posterior:
     """Samples of (b, log10 Lc) after burn-in (flattened over walkers), their mean and standard
-    deviation, and the chain's diagnostics."""
+    deviation, and the chain's diagnostics.
+
+    Parameters
+    ----------
+    samples : pandas.DataFrame
+        Columns ``b`` (dimensionless) and ``log10_lc`` (log10 of m), one row a kept sample.
+    mean, std : dict of str to float
+        The samples' mean and standard deviation, keyed ``"b"`` and ``"log10_lc"``.
+    acceptance : float
+        The mean acceptance fraction over the walkers (dimensionless).
+    tau : dict of str to float
+        Each parameter's integrated autocorrelation time (steps); NaN where it has none.
+    tau_reliable : bool
+        Whether the kept chain is at least 50 τ long.
+    effective_samples : float
+        Walkers × kept steps / the larger τ; NaN without a τ.
+    n_solves : int
+        Forward solves (the walkers' moves inside the prior box).
+    wall_s : float
+        The sampler's wall time (s).
+    prior : str
+        The prior in words: the box, uniform in b and log10 Lc.
+    """
 
     samples: pd.DataFrame = field(repr=False)
     mean: dict
@@ -93,8 +115,34 @@ def run_sampler(sampler, p0, steps: int, progress: bool, stopped: list) -> None:
 def sample(misfit: Misfit, b_range, lc_range, start, walkers: int = 32, steps: int = 2000,
            burn: int | None = None, seed: int = 0, progress: bool = False) -> Posterior:
     """Sample the posterior (module docstring) with ``walkers`` walkers for ``steps`` steps,
-    started in a small ball (1e−4 relative in b, 1e−3 in log10 Lc) around ``start`` = (b, Lc in
-    m), e.g. a least-squares fit; the first ``burn`` steps (default: a quarter) are dropped."""
+    started in a small ball (1e−4 relative in b, 1e−3 in log10 Lc) around ``start``.
+
+    Parameters
+    ----------
+    misfit : Misfit
+        The log-likelihood's source (:meth:`~benchmarks.inversion.Misfit.evaluate`).
+    b_range, lc_range : tuple of float
+        The prior box: (low, high) of b (dimensionless) and of Lc (m).
+    start : tuple of float
+        (b, Lc in m) inside the box, e.g. a least-squares fit.
+    walkers, steps : int
+        At least 4 walkers and 2 steps; walkers × steps ≤ :data:`MAX_POSTERIOR_SOLVES`.
+    burn : int, optional
+        Steps dropped, in [0, ``steps``); default a quarter of them.
+    seed : int
+        Of the start ball and of emcee's generator.
+    progress : bool
+        Show emcee's progress bar.
+
+    Returns
+    -------
+    Posterior
+
+    Raises
+    ------
+    ValueError
+        For a bad box, chain shape or burn-in, or ``start`` outside the box.
+    """
     from benchmarks.records.optional import require
     require("emcee", "inversion", "a posterior sample")
     import emcee

@@ -58,7 +58,30 @@ class Profile:
     """The profile of ``parameter`` (``"b"`` or ``"log10_lc"``): its points (``table``: the value,
     the minimum of the misfit over the other parameter there and where, and ``point``: ``grid``, ``best``
     or ``refined``), the 95 % interval, whether it is resolved and the profile monotone about its
-    minimum, and the warnings that say what is not."""
+    minimum, and the warnings that say what is not.
+
+    Parameters
+    ----------
+    parameter : str
+        ``"b"`` or ``"log10_lc"``.
+    table : pandas.DataFrame
+        One row a profile point, by increasing value: the ``parameter`` (b dimensionless,
+        log10 Lc in log10 of m), ``misfit`` (dimensionless; inf without a limit cycle on its
+        line), the other parameter where it is least, and ``point``.
+    low, high : float
+        The 95 % profile interval's ends, in the parameter's unit.
+    open_low, open_high : bool
+        Whether the interval reaches that end of the profile's points: the data do not bound
+        the parameter there.
+    n_solves : int
+        Forward solves of the profile.
+    resolved : bool
+        Whether each end of the interval is resolved to :data:`CELLS` cells.
+    monotone : bool
+        Whether the profile falls and rises without a jag beyond :data:`NOISE_J1`.
+    warnings : list of str
+        What is not resolved or not monotone, in words.
+    """
 
     parameter: str
     table: pd.DataFrame
@@ -76,8 +99,38 @@ def profile(misfit: Misfit, parameter: str, values, other_range, scan: int = 41,
             xrtol: float = 1e-6, best=None, refine: int = 12) -> Profile:
     """The profile of ``parameter`` (``"b"``, or ``"log10_lc"`` with ``values`` in log10 m) over
     ``values``, minimising over the other parameter within ``other_range`` (b, or Lc in m), to
-    ``xrtol`` of its range. ``best``: ``(b, Lc, misfit)`` of a known point (a fit), or None.
-    ``refine``: rounds of bisection and repair at most (0: the grid only)."""
+    ``xrtol`` of its range.
+
+    Parameters
+    ----------
+    misfit : Misfit
+        The objective.
+    parameter : str
+        ``"b"`` or ``"log10_lc"``.
+    values : array_like
+        At least two finite values of it: b (dimensionless) or log10 Lc (log10 of m).
+    other_range : tuple of float
+        (low, high) of the other parameter: 0 < Lc_lo < Lc_hi (m) when profiling b, else
+        0 ≤ b_lo < b_hi (dimensionless).
+    scan : int
+        Points (at least 2) of each line's first scan, evenly spaced in b or in log10 Lc.
+    xrtol : float
+        The 1-D search's tolerance, a fraction of the other parameter's range, in (0, 0.1).
+    best : tuple of float, optional
+        (b, Lc in m, misfit) of a known point (a fit), a profile point if its misfit is finite.
+    refine : int
+        Rounds of repair and bisection at most, 0 or more (0: the grid only).
+
+    Returns
+    -------
+    Profile
+
+    Raises
+    ------
+    ValueError
+        For another ``parameter``, ``values`` not two finite numbers, or ``scan``, ``refine``,
+        ``xrtol`` or ``other_range`` out of range.
+    """
     if parameter not in ("b", "log10_lc"):
         raise ValueError(f"parameter must be 'b' or 'log10_lc', got {parameter!r}")
     values = np.asarray(values, dtype=float)
@@ -101,30 +154,7 @@ def profile(misfit: Misfit, parameter: str, values, other_range, scan: int = 41,
         v, w = (best[0], np.log10(best[1])) if parameter == "b" else (np.log10(best[1]), best[0])
         (J, w_line), = lines.minimise([v], [[w]])
         points[float(v)] = (J, w_line, "best") if J <= best[2] else (float(best[2]), w, "best")
-    tried = set()
-    for _ in range(refine):
-        x, J, w = _arrays(points)
-        jagged = _jagged(J)
-        suspects = [i for i in jagged if (x[i], _hints(x, w, i)) not in tried]
-        stuck = [i for i in jagged if i not in suspects]
-        # a point its neighbours' optima could not repair: come closer to it from either side
-        new = {float(0.5 * (x[a] + x[a + 1])) for i in stuck for a in (i - 1, i)
-               if 0 <= a < len(x) - 1}
-        new = sorted(v for v in new.union(_cells_to_bisect(x, J)) if v not in points)
-        if not suspects and not new:
-            break
-        if suspects:                     # re-minimise a high point from its neighbours' optima
-            hints = [_hints(x, w, i) for i in suspects]
-            tried.update((x[i], h) for i, h in zip(suspects, hints))
-            again = lines.minimise(x[suspects], [list(h) for h in hints], scan=False)
-            for i, (Ji, wi) in zip(suspects, again):
-                if Ji < J[i]:
-                    points[x[i]] = (Ji, wi, points[x[i]][2])
-        if new:                          # a new line starts from its neighbours' optima too
-            near = [w[max(k - 1, 0):k + 1] for k in np.searchsorted(x, new)]
-            hints = [[wk for wk in pair if np.isfinite(wk)] for pair in near]
-            for v, (Jv, wv) in zip(new, lines.minimise(new, hints)):
-                points[v] = (Jv, wv, "refined")
+    _repair_and_bisect(lines, points, refine)
     x, J, w = _arrays(points)
     kinds = [points[v][2] for v in x]
     other = "b" if parameter == "log10_lc" else "log10_lc"
@@ -196,6 +226,36 @@ class _Lines:
                 found += [(J, w) for w, J in seen.items() if np.isfinite(J)]
             out.append(min(found) if found else (np.inf, np.nan))
         return out
+
+
+def _repair_and_bisect(lines: _Lines, points: dict, refine: int) -> None:
+    """At most ``refine`` rounds on ``points`` (value → (misfit, other, kind)), in place: each
+    jagged point re-minimised from its neighbours' optima, and new lines where the level is
+    crossed too coarsely or a point could not be repaired (module docstring)."""
+    tried = set()
+    for _ in range(refine):
+        x, J, w = _arrays(points)
+        jagged = _jagged(J)
+        suspects = [i for i in jagged if (x[i], _hints(x, w, i)) not in tried]
+        stuck = [i for i in jagged if i not in suspects]
+        # a point its neighbours' optima could not repair: come closer to it from either side
+        new = {float(0.5 * (x[a] + x[a + 1])) for i in stuck for a in (i - 1, i)
+               if 0 <= a < len(x) - 1}
+        new = sorted(v for v in new.union(_cells_to_bisect(x, J)) if v not in points)
+        if not suspects and not new:
+            break
+        if suspects:                     # re-minimise a high point from its neighbours' optima
+            hints = [_hints(x, w, i) for i in suspects]
+            tried.update((x[i], h) for i, h in zip(suspects, hints))
+            again = lines.minimise(x[suspects], [list(h) for h in hints], scan=False)
+            for i, (Ji, wi) in zip(suspects, again):
+                if Ji < J[i]:
+                    points[x[i]] = (Ji, wi, points[x[i]][2])
+        if new:                          # a new line starts from its neighbours' optima too
+            near = [w[max(k - 1, 0):k + 1] for k in np.searchsorted(x, new)]
+            hints = [[wk for wk in pair if np.isfinite(wk)] for pair in near]
+            for v, (Jv, wv) in zip(new, lines.minimise(new, hints)):
+                points[v] = (Jv, wv, "refined")
 
 
 def _arrays(points: dict):

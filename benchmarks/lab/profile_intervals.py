@@ -45,7 +45,27 @@ _BUDGET = {"walk": MAX_POINTS, "bisect": BISECTIONS}
 @dataclass
 class LabProfile:
     """The profile of one parameter: ``points`` (value in its own unit, Δ = rise of the squares
-    in noise variances), the 95 % ``interval`` and whether each side ``closed``."""
+    in noise variances), the 95 % ``interval`` and whether each side ``closed``.
+
+    Parameters
+    ----------
+    parameter : str
+        The profiled parameter, one of the fit's ``free``.
+    value : float
+        Its best-fit value, in its own unit (Dc in m, k in 1/m, the rest dimensionless).
+    interval : tuple of float
+        (low, high) of the profile interval, in that unit (an open side's end: module
+        docstring).
+    closed : tuple of bool
+        Whether the rise was found below and above the best fit.
+    points : pandas.DataFrame
+        The profile's points: the parameter's value (its unit) and ``delta``, the rise of the
+        squares in noise variances (dimensionless; NaN where no rise is known).
+    solves : int
+        Forward solves of the refits.
+    wall_s : float
+        The profile's wall time (s).
+    """
 
     parameter: str
     value: float
@@ -72,7 +92,26 @@ class LabProfile:
 
 
 def profile_lab(fit: LabFit, parameter: str, level: float = CHI2_95_1DOF) -> LabProfile:
-    """The profile interval of ``parameter`` (one of ``fit.free``) at the Δ of ``level``."""
+    """The profile interval of ``parameter`` (one of ``fit.free``) at the Δ of ``level``.
+
+    Parameters
+    ----------
+    fit : LabFit
+        The best fit; the others of its ``free`` are refitted at each point.
+    parameter : str
+        The profiled parameter.
+    level : float
+        The rise of the squares that ends the interval, in noise variances (dimensionless).
+
+    Returns
+    -------
+    LabProfile
+
+    Raises
+    ------
+    ValueError
+        For a ``parameter`` not in ``fit.free``.
+    """
     if parameter not in fit.free:
         raise ValueError(f"{parameter!r} was not fitted; the fitted parameters: "
                          f"{', '.join(fit.free)}")
