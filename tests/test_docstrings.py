@@ -18,15 +18,6 @@ import pytest
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 
-#: names whose modules other work is rewriting now (their docstrings follow with that work);
-#: empty this list as those modules land
-LEFT = {
-    "benchmarks.cli.main", "benchmarks.cli.build_parser",   # benchmarks/cli/
-    # its sixteen parameters' sections would take it past the 80-line limit of
-    # tests/test_function_length.py: its body is split into helpers first
-    "benchmarks.ensemble.ensemble",
-}
-
 
 def _public_callables():
     api = runpy.run_path(str(DOCS / "conf.py"))["public_api"]()
@@ -107,16 +98,8 @@ def _missing(name: str, obj) -> list[str]:
 
 @pytest.mark.needs("sphinx")
 def test_every_public_callable_has_its_numpydoc_sections():
-    problems = [p for name, obj in _public_callables()
-                if name not in LEFT
-                for p in _missing(name, obj)]
+    problems = [p for name, obj in _public_callables() for p in _missing(name, obj)]
     assert problems == [], "\n".join(problems)
-
-
-@pytest.mark.needs("sphinx")
-def test_the_left_list_names_only_public_names():
-    # an entry for a name gone from every __all__ would hide nothing and stay for ever
-    assert LEFT <= {name for name, _ in _public_callables()}
 
 
 @pytest.mark.needs("sphinx")

@@ -56,6 +56,14 @@ COMMANDS = (simulate, work_precision, reproduce, sweep, invert, lab, observe, so
 
 
 def build_parser() -> Parser:
+    """The ``rsfbench`` parser: one subcommand per parser that the modules of
+    :data:`COMMANDS` add.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        The parser (its errors are one line and exit status 2).
+    """
     parser = Parser(prog="rsfbench", description=__doc__.split("\n\n")[0])
     parser.add_argument("--version", action=ShowVersion)
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -74,6 +82,16 @@ def main(argv: list[str] | None = None) -> int:
     also from pool workers) goes to the standard error instead, so that the standard output holds
     the command's own output only: with ``--json``, exactly one JSON document. Run as a program
     (``argv`` None) the redirection is kept until exit, when Fortran flushes its buffers.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        The arguments after ``rsfbench`` (default: the program's, ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        The exit status (above); a command's errors never leave as a traceback.
     """
     json_mode = wants_json(argv)
     with _library_output_to_stderr(keep=argv is None), warnings.catch_warnings():

@@ -181,24 +181,108 @@ def ensemble(problem, algorithm, params, *, store=None, chunk_size: int | None =
              max_points: int = MAX_POINTS, connect_timeout: float = CONNECT_TIMEOUT_S,
              worker_timeout: float = WORKER_TIMEOUT_S, label: str = "",
              reclaim_store: bool = False) -> pd.DataFrame:
-    """Solve ``problem`` with ``algorithm`` at every point of ``params`` (field name → values,
-    one value per point: :func:`benchmarks.ensemble.grid` makes a grid's) and summarise each.
+    """Solve ``problem`` with ``algorithm`` at every point of ``params`` and summarise each.
 
-    Returns a DataFrame, one row per point in the order given: the parameters, then
-    :data:`benchmarks.ensemble.rows.RESULT_COLUMNS` (class, retcode, message, limit-cycle
-    metrics, κ, counters, the solve's wall time). A failed point is a row with its retcode.
-    ``df.attrs`` says how many points ran and were resumed, the wall time, the bad chunk files.
-    ``wall_budget``: s per point. ``workers``: threads or processes on this machine (default:
-    all cores). ``backend``: ``"threads"`` or ``"processes"`` (default: threads for compiled
-    batches, processes for the others, whose Python holds the GIL). ``chunk_size``: points per
-    chunk (default :func:`auto_chunk_size`). ``curve_dt`` (s): also each point's slip-weakening
-    curve — the own compiled methods: from their dense output at
-    :data:`~benchmarks.ensemble.rows.CURVE_POINTS` times over the last event (a second solve of
-    the point); the others: from a trajectory saved every ``curve_dt`` (point by point). ``reclaim_store``: a store of
-    another ensemble is cleared, not refused (for the harness's own caches). With ``scheduler``
-    the cluster decides the parallelism (``workers`` and ``backend`` do not apply). Misuse raises
-    ``ValueError`` before any work (module docstring for the rest).
+    Parameters
+    ----------
+    problem : SpringSlider
+        The problem every point varies.
+    algorithm : Algorithm
+        Any registered method; the own compiled ones run in compiled batches.
+    params : dict of str to sequence of float
+        Field name → values, one value per point (SI units; :func:`benchmarks.ensemble.grid`
+        makes a grid's).
+    store : str or pathlib.Path, optional
+        A directory of Parquet chunks: a run resumes from the verified chunks it holds.
+    chunk_size : int, optional
+        Points per chunk (default :func:`auto_chunk_size`).
+    workers : int, optional
+        Threads or processes on this machine (default: all cores).
+    backend : str, optional
+        ``"threads"`` or ``"processes"`` (default: threads for compiled batches, processes for
+        the others, whose Python holds the GIL).
+    scheduler : str, optional
+        A Dask scheduler's address: the cluster decides the parallelism (``workers`` and
+        ``backend`` do not apply).
+    wall_budget : float, optional
+        Seconds per point.
+    curve_dt : float, optional
+        Also each point's slip-weakening curve (s): the own compiled methods from their dense
+        output at :data:`~benchmarks.ensemble.rows.CURVE_POINTS` times over the last event (a
+        second solve of the point); the others from a trajectory saved every ``curve_dt``.
+    progress : bool
+        Show a progress bar.
+    max_points : int
+        The most points accepted (default :data:`MAX_POINTS`).
+    connect_timeout, worker_timeout : float
+        Seconds to reach the scheduler, and to wait for a lost worker's result.
+    label : str
+        The progress bar's label.
+    reclaim_store : bool
+        A store of another ensemble is cleared, not refused (for the harness's own caches).
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per point in the order given: the parameters, then
+        :data:`benchmarks.ensemble.rows.RESULT_COLUMNS` (class, retcode, message, limit-cycle
+        metrics, κ, counters, the solve's wall time); a failed point is a row with its retcode.
+        ``attrs`` says how many points ran and were resumed, the wall time, the bad chunks.
+
+    Raises
+    ------
+    ValueError
+        For misuse, before any work (the module docstring for the rest).
     """
+    plan = _plan(problem, algorithm, params, store, chunk_size, workers, backend, scheduler,
+                 wall_budget, curve_dt, max_points, reclaim_store)
+    values, chunks, chunk_store = plan["values"], plan["chunks"], plan["store"]
+    start = time.perf_counter()
+    bar = dict(unit="point", disable=not progress,
+               desc=label or f"ensemble {problem.name or 'problem'}")
+    tables, n_resumed = _solve_chunks(plan, store, scheduler, connect_timeout, worker_timeout,
+                                      bar)
+    table = pd.concat([tables[c.first] for c in chunks], ignore_index=True)
+    table.attrs = {"n_points": len(values), "n_run": len(values) - n_resumed,
+                   "n_resumed": n_resumed, "wall_s": time.perf_counter() - start,
+                   "chunks": len(chunks), "chunk_size": plan["chunk_size"],
+                   "workers": 1 if scheduler else plan["workers"], "backend": plan["backend"],
+                   "scheduler": scheduler, "batched": plan["batch"],
+                   "bad_chunks": list(chunk_store.bad) if chunk_store else [],
+                   "stray_files": list(chunk_store.strays) if chunk_store else []}
+    return table
+
+
+def _solve_chunks(plan, store, scheduler, connect_timeout, worker_timeout, bar) -> tuple:
+    """The table of every chunk of ``plan`` (:func:`_plan`), those in its store read back and
+    the others solved, with ``bar`` (tqdm's options); and how many points were resumed."""
+    names, values, chunks, chunk_store = (plan["names"], plan["values"], plan["chunks"],
+                                          plan["store"])
+    with contextlib.ExitStack() as stack:
+        client = None
+        if scheduler:                          # before any work; its logs quiet until closed
+            stack.enter_context(quiet_distributed())
+            client = connect(scheduler, connect_timeout)
+            stack.callback(_close, client)
+        if chunk_store is not None:
+            stack.enter_context(chunk_store)
+        tables = {c.first: chunk_store.load(c.first, names, c.values) if chunk_store else None
+                  for c in chunks}
+        if chunk_store is not None:
+            chunk_store.report_strays()
+        todo = [c for c in chunks if tables[c.first] is None]
+        n_resumed = n_kept = len(values) - sum(len(c.values) for c in todo)
+        _run_chunks(todo, tables, chunk_store, tqdm(total=len(values), initial=n_resumed, **bar),
+                    n_kept, len(values), store,
+                    (plan["own_threads"], plan["workers"], plan["backend"], client,
+                     worker_timeout))
+    return tables, n_resumed
+
+
+def _plan(problem, algorithm, params, store, chunk_size, workers, backend, scheduler,
+          wall_budget, curve_dt, max_points, reclaim_store) -> dict:
+    """:func:`ensemble`'s arguments checked (ValueError before any work) and its points cut
+    into chunks, with the store they are kept in."""
     if not isinstance(algorithm, Algorithm):
         raise ValueError(f"algorithm must be an Algorithm instance, got {algorithm!r}")
     for name, value in (("wall_budget", wall_budget), ("curve_dt", curve_dt)):
@@ -221,34 +305,9 @@ def ensemble(problem, algorithm, params, *, store=None, chunk_size: int | None =
     chunk_store = (ChunkStore(store, identity_of(problem, algorithm, names, values, chunk_size,
                                                  wall_budget, curve_dt), reclaim_store)
                    if store is not None else None)
-    start = time.perf_counter()
-    with contextlib.ExitStack() as stack:
-        client = None
-        if scheduler:                          # before any work; its logs quiet until closed
-            stack.enter_context(quiet_distributed())
-            client = connect(scheduler, connect_timeout)
-            stack.callback(_close, client)
-        if chunk_store is not None:
-            stack.enter_context(chunk_store)
-        tables = {c.first: chunk_store.load(c.first, names, c.values) if chunk_store else None
-                  for c in chunks}
-        if chunk_store is not None:
-            chunk_store.report_strays()
-        todo = [c for c in chunks if tables[c.first] is None]
-        n_resumed = n_kept = len(values) - sum(len(c.values) for c in todo)
-        bar = tqdm(total=len(values), initial=n_resumed, unit="point", disable=not progress,
-                   desc=label or f"ensemble {problem.name or 'problem'}")
-        _run_chunks(todo, tables, chunk_store, bar, n_kept, len(values), store,
-                    (own_threads, workers, backend, client, worker_timeout))
-    table = pd.concat([tables[c.first] for c in chunks], ignore_index=True)
-    table.attrs = {"n_points": len(values), "n_run": len(values) - n_resumed,
-                   "n_resumed": n_resumed, "wall_s": time.perf_counter() - start,
-                   "chunks": len(chunks), "chunk_size": chunk_size,
-                   "workers": 1 if scheduler else workers, "backend": backend,
-                   "scheduler": scheduler, "batched": batch,
-                   "bad_chunks": list(chunk_store.bad) if chunk_store else [],
-                   "stray_files": list(chunk_store.strays) if chunk_store else []}
-    return table
+    return dict(names=names, values=values, chunks=chunks, store=chunk_store, batch=batch,
+                backend=backend, workers=workers, chunk_size=chunk_size,
+                own_threads=own_threads)
 
 
 def _chunks(problem, algorithm, names, values, problems, chunk_size, wall_budget, curve_dt,
