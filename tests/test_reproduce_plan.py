@@ -433,3 +433,10 @@ def test_two_runs_at_once_keep_each_others_records(fake):
     steps = [dataclasses.replace(make, run=make_while_clock_runs), *fake.steps[1:]]
     assert fake.run({"make": "run"}, steps=steps) == {"make": "ran"}
     assert set(M.read_manifest(fake.out)) == {"make", "clocks"}
+
+
+def test_a_package_the_step_no_longer_imports_is_named_as_such():
+    """A version that is on one side only is a package the step's code did not import then or
+    does not now: said so, not as a version "none"."""
+    line = M.what_changed({"versions": {"dask": "2024.8.0"}}, {"versions": {}})
+    assert line == "versions (dask 2024.8.0 → not imported)"

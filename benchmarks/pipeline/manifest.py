@@ -343,7 +343,9 @@ def what_changed(old: dict, new: dict) -> str:
     for kind in ("code", "versions", "settings", "reads"):
         a, b = old.get(kind) or {}, new.get(kind) or {}
         if kind == "versions":
-            keys = [f"{k} {a.get(k, 'none')} → {b.get(k, 'none')}" for k in _keys(a, b)]
+            # a package absent on one side: not imported by the step's code then, or now
+            keys = [f"{k} {a.get(k, 'not imported')} → {b.get(k, 'not imported')}"
+                    for k in _keys(a, b)]
         else:
             keys = _keys(a, b)
         if keys:
