@@ -53,7 +53,7 @@ from pathlib import Path
 from benchmarks.inversion.observations import SIGMAS, write_observations
 from benchmarks.lab.channels import CHANNELS, column_map, explicit_unit, read_recording
 from benchmarks.lab.events import analyse
-from benchmarks.lab.settled import JUDGED, Z_DIFFERS, judge
+from benchmarks.lab.settled import JUDGED, MIN_SETTLED, STANDS_OUT, Z_DIFFERS, judge
 from benchmarks.lab.figures import plot_recording
 from benchmarks.records.files import claim_outputs, remove_own, write_output, write_table
 from problems._validate import check_positive
@@ -277,8 +277,9 @@ def settled_summary(settling) -> dict:
     as the rows of events.csv)."""
     return {"rule": (f"robust z = (x − median)/(1.4826 MAD) over the settled events, on "
                      f"{', '.join(JUDGED)}; an event differs beyond {Z_DIFFERS:g}; the start-up "
-                     "is the leading run of such events when the first stands out beyond any "
-                     "later one"),
+                     f"is the leading run of such events when the first is {STANDS_OUT:g}× "
+                     f"as far as any later one and {MIN_SETTLED} or more are left; outliers "
+                     "(later ones) are kept"),
             "z_threshold": Z_DIFFERS,
             "startup_events": [i + 1 for i in settling.startup],
             "outlier_events": [i + 1 for i in settling.outliers],
