@@ -31,13 +31,20 @@ import numpy as np
 
 __all__ = ["check_finite", "check_positive", "check_non_negative", "check_count", "UnitWarning",
            "warn_implausible", "units_checked_already", "PLAUSIBLE", "Plausible",
-           "check_possible", "implausible_message", "warn_unit"]
+           "check_possible", "implausible_message", "warn_unit", "RegularCycleWarning"]
 
 _UNITS_CHECKED = contextvars.ContextVar("rsfbench_units_checked", default=False)
 
 
 class UnitWarning(UserWarning):
     """A parameter outside the range its documented unit makes plausible (probably a unit slip)."""
+
+
+class RegularCycleWarning(UnitWarning):
+    """A standard deviation of observed events far below its plausible mean: a very regular
+    cycle, not a unit slip; what it implies for an inversion (a posterior as narrow). A kind of
+    :class:`UnitWarning` so that it is silenced and collected where they are (a sweep's
+    points warn once)."""
 
 
 def _real(name: str, value) -> float:
@@ -198,7 +205,11 @@ PLAUSIBLE: dict[str, Plausible] = {
         why="no friction coefficient drops by 10 or more: Δμ is a fraction (0.046), not a "
             "percentage"),
 }
-PLAUSIBLE["sigma_recurrence_s"] = PLAUSIBLE["recurrence_s"]
+# σ of ΔT: the recurrence's range (a σ far below its mean is judged against the mean instead:
+# a regular cycle, benchmarks.inversion.observations)
+PLAUSIBLE["sigma_recurrence_s"] = Plausible(
+    1e-4, 1e10, "s", "σ of ΔT is in seconds (s), as ΔT is",
+    "σ of ΔT is in seconds (s), as ΔT is, not ms")
 PLAUSIBLE["sigma_friction_drop"] = Plausible(
     1e-6, 1.0, "", "σ of Δμ is dimensionless, as Δμ is",
     "σ of Δμ is dimensionless (0.0046), not a percentage", zero_ok=False)
@@ -240,11 +251,12 @@ def warn_implausible(name: str, value: float, stacklevel: int | None = None,
         warn_unit(text, stacklevel=stacklevel + 1 if stacklevel else 2)
 
 
-def warn_unit(text: str, stacklevel: int = 2) -> None:
-    """Warn ``text`` as a :class:`UnitWarning`, unless inside :func:`units_checked_already`
-    (for checks that are not one parameter against its range: a ratio, a derived speed)."""
+def warn_unit(text: str, stacklevel: int = 2, category: type = UnitWarning) -> None:
+    """Warn ``text`` as a :class:`UnitWarning` (or ``category``, a kind of it), unless inside
+    :func:`units_checked_already` (for checks that are not one parameter against its range: a
+    ratio, a derived speed)."""
     if not _UNITS_CHECKED.get():
-        warnings.warn(text, UnitWarning, stacklevel=stacklevel)
+        warnings.warn(text, category, stacklevel=stacklevel)
 
 
 def check_possible(name: str, value: float, kind: str | None = None) -> float:

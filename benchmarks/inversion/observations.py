@@ -6,7 +6,9 @@ observations file.
 **The observations file** (``observations.json``, written by :func:`write_observations`) holds
 the number of events, the mean, standard deviation (``std``, over the events) and standard error
 of the mean (``sem`` = std/√n) of ΔT, Δμ, the slip per event and the peak slip rate, their
-per-event table, the correlation of ΔT and Δμ, the curves, the apparatus read from the record,
+per-event table (with a ``kept`` column, the means are of the kept events and
+``metrics_all_events`` of all: the start-up of a record left out), the correlation of ΔT and
+Δμ, the curves, the apparatus read from the record,
 the notes on what was assumed, and where it all came from (the recording's file and hash, the
 column mapping, the program's version and command).
 
@@ -34,7 +36,8 @@ from benchmarks.physics.curves import check_curves
 from benchmarks.records.files import BadResultsFile, read_json_record, write_output
 from benchmarks.records.report import jsonable
 from problems import WINDOWS
-from problems._validate import check_positive, check_possible, implausible_message, warn_unit
+from problems._validate import (PLAUSIBLE, RegularCycleWarning, check_positive, check_possible,
+                                implausible_message, warn_unit)
 
 __all__ = ["Observations", "observations", "ASSUMED_SIGMA", "MIN_SIGMA_REL", "SIGMAS",
            "write_observations", "read_observations", "OBSERVATIONS_FORMAT"]
@@ -81,15 +84,18 @@ class Observations:
                                  f"mean {mean} = {m:g}: no forward solver resolves a limit "
                                  "cycle's metrics that finely (J1 would be the solver's noise, "
                                  "or overflow)")
-            m, s = check_possible(mean, m), check_possible(sigma, s)
-            # σ beyond 3 means (every point would fit) or below 0.1 % of it (none would) is
-            # a σ in another unit than its mean's: ms, percent (said once: not again when σ or
-            # the mean was warned for already)
+            m = check_possible(mean, m)
+            if implausible_message(mean, m) is None and s / m < REGULAR_SIGMA_REL:
+                _warn_regular(mean, m, sigma, s)        # a regular cycle, not a unit slip
+                continue
+            s = check_possible(sigma, s)
+            # σ beyond 3 means (every point would fit) is a σ in another unit than its mean's:
+            # ms, percent (said once: not again when σ or the mean was warned for already)
             plausible = all(implausible_message(k, v) is None for k, v in ((mean, m), (sigma, s)))
-            if plausible and not 1e-3 <= s / m < 3.0:
+            if plausible and not s / m < 3.0:
                 unit = "seconds" if mean == "recurrence_s" else "a fraction, not a percentage"
                 warn_unit(f"{sigma} = {s:g} is {s / m:.3g} × {mean} = {m:g}: implausible for "
-                          "a standard deviation (plausible: 0.001 to below 3 times the mean); "
+                          "a standard deviation (plausible: below 3 times the mean); "
                           f"both are in one unit ({unit})", stacklevel=1)
         if not isinstance(self.assumed_sigma, (bool, np.bool_)):
             raise ValueError(f"assumed_sigma must be True or False, got {self.assumed_sigma!r}")
@@ -101,6 +107,29 @@ class Observations:
             if self.curve_noise != "none":
                 object.__setattr__(self, "curve_likelihood", CurveLikelihood.from_curves(
                     self.curves, self.curve_noise, self.curve_sigma, self.curve_reading))
+
+
+#: σ below this fraction of a plausible mean is a very regular cycle (said, with what it
+#: implies), not a unit slip: a σ in another unit than its mean's is larger, not smaller (ms
+#: for s, percent for a fraction)
+REGULAR_SIGMA_REL = 1e-3
+
+
+def _warn_regular(mean: str, m: float, sigma: str, s: float) -> None:
+    """Say that σ is far below its mean: a regular cycle, and the narrow posterior it makes."""
+    what = "ΔT" if mean == "recurrence_s" else "Δμ"
+    # a drop below what a load cell resolves is said (an event's timing is resolved far
+    # below a sampling interval, its σ is not)
+    low = what == "Δμ" and implausible_message(sigma, s) is not None
+    measured = (f"; it is also implausibly small for a measured σ of {what} (below "
+                f"{PLAUSIBLE[sigma].low:g}: a record made by a model?)" if low else "")
+    warn_unit(f"{sigma} = {s:g} is {s / m:.2g} × {mean} = {m:g}: the events repeat that "
+              f"closely, a very regular cycle (not a unit slip: a σ in another unit than its "
+              f"mean's is larger, not smaller). An inversion against it is as sharp: its 95 % "
+              f"region holds {what} within about ±{245 * s / m:.2g} % of its mean, narrower "
+              "than the model's own error (the solver's tolerance, a model that is not the "
+              "apparatus) may be; widen σ where that matters" + measured,
+              stacklevel=3, category=RegularCycleWarning)
 
 
 #: σ assumed when none is given: 10 % of the observed mean (flagged in the output)
@@ -143,9 +172,11 @@ _METRIC_UNITS = {"recurrence_s": "s", "friction_drop": "", "slip_m": "m",
 def write_observations(path, events: pd.DataFrame, curves: pd.DataFrame | None = None,
                        apparatus: dict | None = None, how: dict | None = None, notes=(),
                        recording: dict | None = None, sigma: str = "std",
-                       provenance: dict | None = None) -> dict:
+                       provenance: dict | None = None, settled: dict | None = None) -> dict:
     """Write the observations file ``path`` (module docstring) from a per-event table
-    (``t_start``, ``t_end`` and the metrics) and return the document.
+    (``t_start``, ``t_end`` and the metrics) and return the document. Where the table has a
+    ``kept`` column, the means, σ and correlation are over the kept events only, and
+    ``metrics_all_events`` gives them over every event (σ with and without the dropped ones).
 
     Parameters
     ----------
@@ -158,6 +189,9 @@ def write_observations(path, events: pd.DataFrame, curves: pd.DataFrame | None =
         The slip-weakening curves (:func:`benchmarks.physics.check_curves`' columns).
     apparatus, how, recording, provenance : dict, optional
         What the record came from and how it was read, kept as given.
+    settled : dict, optional
+        Which events are the start-up and the outliers and what was done with them, kept as
+        given (:mod:`benchmarks.lab.settled`).
     notes : sequence of str
         Remarks, kept as given.
     sigma : str
@@ -175,6 +209,29 @@ def write_observations(path, events: pd.DataFrame, curves: pd.DataFrame | None =
     """
     if sigma not in SIGMAS:
         raise ValueError(f"sigma must be one of {SIGMAS}, got {sigma!r}")
+    used = events[events["kept"].astype(bool)] if "kept" in events else events
+    metrics = _metrics(used)
+    both = used[["recurrence_s", "friction_drop"]].dropna()
+    corr = float(np.corrcoef(both.recurrence_s, both.friction_drop)[0, 1]) if len(both) > 2 \
+        else math.nan
+    doc = {"format": OBSERVATIONS_FORMAT[0], "version": OBSERVATIONS_FORMAT[1],
+           "n_events": int(len(events)), "n_events_used": int(len(used)), "sigma": sigma,
+           "sigma_means": ("std: the events' standard deviation (the paper's σ; the default) — "
+                           "sem: the standard error of the mean, std/√n"),
+           "metrics": metrics, "correlation_recurrence_drop": corr,
+           "metrics_all_events": _metrics(events) if len(used) < len(events) else metrics,
+           "settled": settled or {},
+           "events": events.to_dict(orient="list"),
+           "curves": None if curves is None else curves.to_dict(orient="list"),
+           "apparatus": apparatus or {}, "how": how or {}, "notes": list(notes),
+           "recording": recording or {}, "provenance": provenance or {}}
+    doc = jsonable(doc)
+    write_output(Path(path), json.dumps(doc, indent=1))
+    return doc
+
+
+def _metrics(events: pd.DataFrame) -> dict:
+    """n, mean, std and sem of each metric of :data:`_METRIC_UNITS` over ``events``."""
     metrics = {}
     for name, unit in _METRIC_UNITS.items():
         x = events[name].to_numpy(dtype=float) if name in events else np.array([])
@@ -183,21 +240,7 @@ def write_observations(path, events: pd.DataFrame, curves: pd.DataFrame | None =
         std = float(np.std(x, ddof=1)) if n > 1 else math.nan
         metrics[name] = {"n": n, "mean": float(np.mean(x)) if n else math.nan, "std": std,
                          "sem": std / math.sqrt(n) if n > 1 else math.nan, "unit": unit}
-    both = events[["recurrence_s", "friction_drop"]].dropna()
-    corr = float(np.corrcoef(both.recurrence_s, both.friction_drop)[0, 1]) if len(both) > 2 \
-        else math.nan
-    doc = {"format": OBSERVATIONS_FORMAT[0], "version": OBSERVATIONS_FORMAT[1],
-           "n_events": int(len(events)), "sigma": sigma,
-           "sigma_means": ("std: the events' standard deviation (the paper's σ; the default) — "
-                           "sem: the standard error of the mean, std/√n"),
-           "metrics": metrics, "correlation_recurrence_drop": corr,
-           "events": events.to_dict(orient="list"),
-           "curves": None if curves is None else curves.to_dict(orient="list"),
-           "apparatus": apparatus or {}, "how": how or {}, "notes": list(notes),
-           "recording": recording or {}, "provenance": provenance or {}}
-    doc = jsonable(doc)
-    write_output(Path(path), json.dumps(doc, indent=1))
-    return doc
+    return metrics
 
 
 def read_observations(path, sigma: str | None = None, curve_noise: str = "scatter",

@@ -3,8 +3,10 @@
 A stick–slip recording: read and checked (:mod:`~benchmarks.lab.channels`), its events and the
 fault's friction measured (:mod:`~benchmarks.lab.events`), turned into the observations of an
 inversion (:mod:`~benchmarks.lab.observe_recording`) with its figure
-(:mod:`~benchmarks.lab.figures`), or made by the forward model to be read back
-(:mod:`~benchmarks.lab.synthetic`).
+(:mod:`~benchmarks.lab.figures`), its start-up and outliers found
+(:mod:`~benchmarks.lab.settled`), or made by the forward model to be read back
+(:mod:`~benchmarks.lab.synthetic`). An event catalogue read into the same observations
+(:mod:`~benchmarks.lab.catalogue`).
 
 A velocity-step or slide-hold-slide test: what it measures on a run
 (:mod:`~benchmarks.lab.measures`); a record read for a fit (:mod:`~benchmarks.lab.step_data`)
@@ -24,6 +26,8 @@ __getattr__, __dir__, __all__ = lazy_api(__name__, {
     "channels": ("read_recording", "recording_from", "Recording", "CHANNELS", "UNITS"),
     "events": ("analyse", "Analysis"),
     "observe_recording": ("observe",),
+    "settled": ("judge", "Settling"),
+    "catalogue": ("read_catalogue", "observe_catalogue"),
     "synthetic": ("synthetic_recording",),
     "measures": ("step_response", "healing", "healing_rate", "step_reference",
                  "UnsettledWarning", "PeakNotReached"),

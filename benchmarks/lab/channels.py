@@ -7,8 +7,12 @@ mapped to **channels**, each in a stated unit and converted to SI on reading:
 channel                SI unit   what it is
 =====================  ========  ==================================================================
 ``time``               s         required: strictly increasing, evenly sampled
-``shear_force``        N         required: the load cell's force, the spring force Fs
+``shear_force``        N         required (or one of the next two): the load cell's force, the
+                                 spring force Fs
+``shear_stress``       Pa        instead of ``shear_force``: Fs = τ × ``area``
+``friction``           1         instead of ``shear_force``: Fs/Fn, dimensionless; Fs = μ × Fn
 ``normal_force``       N         a column, or the constant ``normal_force`` of the apparatus
+``normal_stress``      Pa        instead of ``normal_force``: Fn = σn × ``area``
 ``acceleration``       m/s²      the slider's (the upper specimen's, a1)
 ``acceleration_lower`` m/s²      the lower specimen's (a2): the slip accelerates at a1 − a2
 ``slip``               m         the fault's slip, from a displacement transducer across it
@@ -17,7 +21,10 @@ channel                SI unit   what it is
 
 A column is named with its unit as ``CHANNEL=COLUMN:UNIT`` (the unit defaults to the SI one):
 ``shear_force=Load:kN``, ``slip=LDT:mm``, ``acceleration=a1:g``. Units: s, ms, µs (us); N, kN,
-MN; m, mm, µm (um), nm; m/s2, mm/s2, g.
+MN; Pa, kPa, MPa; m, mm, µm (um), nm; m/s2, mm/s2, g; 1 (dimensionless). The unit is what
+follows the column's last colon when it is one of these (a column's own name may hold colons
+and brackets: ``onset=event_starttime[s]:s``). A stress is a force only with the fault's area
+(``area``, m²): a stress channel without it is refused.
 
 What is refused before any measure, in one line naming the column and the row: a column that is
 missing or not a number, missing values (a run of NaN), times that do not increase, repeat, jump
@@ -41,15 +48,20 @@ import pandas as pd
 
 from problems._validate import check_positive
 
-__all__ = ["CHANNELS", "UNITS", "Recording", "read_recording", "column_spec", "explicit_unit",
+__all__ = ["CHANNELS", "SHEAR_CHANNELS", "NORMAL_CHANNELS", "UNITS", "Recording", "read_recording", "column_spec", "explicit_unit",
            "recording_from", "column_map", "read_table", "column_values"]
 
 #: each channel and its SI unit
-CHANNELS = {"time": "s", "shear_force": "N", "normal_force": "N", "acceleration": "m/s2",
+CHANNELS = {"time": "s", "shear_force": "N", "shear_stress": "Pa", "friction": "1",
+            "normal_force": "N", "normal_stress": "Pa", "acceleration": "m/s2",
             "acceleration_lower": "m/s2", "slip": "m", "table": "m"}
+#: the channels that can stand for the shear force, and for the normal force (one of each)
+SHEAR_CHANNELS = ("shear_force", "shear_stress", "friction")
+NORMAL_CHANNELS = ("normal_force", "normal_stress")
 #: a unit: the SI unit it converts to and its factor
 UNITS = {"s": ("s", 1.0), "ms": ("s", 1e-3), "us": ("s", 1e-6), "µs": ("s", 1e-6),
          "N": ("N", 1.0), "kN": ("N", 1e3), "MN": ("N", 1e6),
+         "Pa": ("Pa", 1.0), "kPa": ("Pa", 1e3), "MPa": ("Pa", 1e6),
          "m": ("m", 1.0), "mm": ("m", 1e-3), "um": ("m", 1e-6), "µm": ("m", 1e-6),
          "nm": ("m", 1e-9), "m/s2": ("m/s2", 1.0), "m/s^2": ("m/s2", 1.0),
          "mm/s2": ("m/s2", 1e-3), "g": ("m/s2", 9.80665),
@@ -123,13 +135,14 @@ def column_spec(text: str, channels: dict | None = None) -> tuple[str, str, str]
     if channel not in known:
         raise ValueError(f"column mapping {text!r}: unknown channel {channel!r}; expected one "
                          f"of {', '.join(known)}")
+    si = known[channel] if isinstance(known[channel], tuple) else (known[channel],)
     column, sep, unit = rest.rpartition(":")
     if not sep or unit not in UNITS:
-        column, unit = rest, known[channel]
-    if UNITS[unit][0] != known[channel]:
-        units = ", ".join(u for u, (si, _) in UNITS.items() if si == known[channel])
+        column, unit = rest, si[0]
+    if UNITS[unit][0] not in si:
+        units = ", ".join(u for u, (base, _) in UNITS.items() if base in si)
         raise ValueError(f"column mapping {text!r}: {unit} is not a unit of {channel} (in "
-                         f"{known[channel]}: {units})")
+                         f"{' or '.join(si)}: {units})")
     return channel, column, unit
 
 
@@ -143,10 +156,12 @@ def explicit_unit(channel: str, column: str, unit: str,
     return column_spec(f"{channel}={column}:{unit}", channels)
 
 
-def read_recording(path, columns, normal_force: float | None = None) -> Recording:
+def read_recording(path, columns, normal_force: float | None = None,
+                   area: float | None = None) -> Recording:
     """The recording in ``path`` (``.csv``, ``.txt``, ``.tsv`` or ``.parquet``) with
     ``columns`` (channel → ``(column, unit)``, or specs ``CHANNEL=COLUMN:UNIT``), checked (see
-    the module docstring); ``normal_force`` (N) stands for a normal-force column.
+    the module docstring); ``normal_force`` (N) stands for a normal-force column; ``area`` (m²)
+    turns stress channels into forces.
 
     Parameters
     ----------
@@ -156,6 +171,8 @@ def read_recording(path, columns, normal_force: float | None = None) -> Recordin
         Channel → ``(column, unit)``, or specs ``CHANNEL=COLUMN:UNIT``.
     normal_force : float, optional
         The normal force (N), standing for a normal-force column.
+    area : float, optional
+        The fault's area (m²): a stress channel times it is a force.
 
     Returns
     -------
@@ -173,6 +190,7 @@ def read_recording(path, columns, normal_force: float | None = None) -> Recordin
         raise ValueError(f"columns must map channels to columns: a dict, or a list of "
                         f"'CHANNEL=COLUMN:UNIT' specs, got {columns!r}")
     mapping = column_map(columns)
+    _check_force_channels(mapping, normal_force, area)       # before the file is read
     path = Path(path)
     if not path.is_file():
         raise ValueError(f"recording {path} does not exist" if not path.exists()
@@ -180,11 +198,12 @@ def read_recording(path, columns, normal_force: float | None = None) -> Recordin
     wanted = sorted({column for column, _ in mapping.values()})
     table = read_table(path, wanted)
     digest = hashlib.sha256(path.read_bytes()).hexdigest()
-    return recording_from(table, mapping, normal_force, source=str(path), sha256=digest)
+    return recording_from(table, mapping, normal_force, source=str(path), sha256=digest,
+                          area=area)
 
 
 def recording_from(table: pd.DataFrame, columns, normal_force: float | None = None,
-                   source: str = "table", sha256: str = "") -> Recording:
+                   source: str = "table", sha256: str = "", area: float | None = None) -> Recording:
     """A :class:`Recording` of a DataFrame already in memory (the checks of
     :func:`read_recording`).
 
@@ -192,7 +211,7 @@ def recording_from(table: pd.DataFrame, columns, normal_force: float | None = No
     ----------
     table : pandas.DataFrame
         The recording's columns.
-    columns, normal_force
+    columns, normal_force, area
         As :func:`read_recording`.
     source, sha256 : str
         Where the table came from, for messages and provenance.
@@ -207,11 +226,7 @@ def recording_from(table: pd.DataFrame, columns, normal_force: float | None = No
         As :func:`read_recording`.
     """
     mapping = column_map(columns)
-    if "normal_force" in mapping and normal_force is not None:
-        raise ValueError("the normal force is a column or a constant, not both")
-    if "normal_force" not in mapping and normal_force is None:
-        raise ValueError("the normal force is needed: map a column to normal_force, or give "
-                         "the apparatus's constant normal_force (N)")
+    _check_force_channels(mapping, normal_force, area)
     missing = [c for c, _ in mapping.values() if c not in table.columns]
     if missing:
         raise ValueError(f"{source} has no column {missing[0]!r}; its columns: "
@@ -224,6 +239,7 @@ def recording_from(table: pd.DataFrame, columns, normal_force: float | None = No
     _check_time(t, names["time"], source)
     if normal_force is not None:
         channels["normal_force"] = np.full(len(t), check_positive("normal_force", normal_force))
+    _forces(channels, names, area)
     for channel in _CLIPPED:
         if channel in names and channel in channels:
             _check_saturation(channels[channel], names[channel], channel, source)
@@ -232,16 +248,17 @@ def recording_from(table: pd.DataFrame, columns, normal_force: float | None = No
 
 
 def column_map(columns, channels: dict | None = None,
-               required=("time", "shear_force")) -> dict[str, tuple[str, str]]:
+               required=("time", SHEAR_CHANNELS)) -> dict[str, tuple[str, str]]:
     """channel → (column, unit) from a dict (channel → column or (column, unit)) or specs
     ``CHANNEL=COLUMN[:UNIT]``, checked against ``channels`` (default :data:`CHANNELS`); the
-    ``required`` channels must be mapped."""
+    ``required`` channels must be mapped (an item that is a tuple: one of them)."""
     known = CHANNELS if channels is None else channels
     if isinstance(columns, dict):
-        items = [(k, v if isinstance(v, tuple) else (v, known.get(k, ""))) for k, v in
-                 columns.items()]
         mapping = {}
-        for channel, (column, unit) in items:
+        for channel, spec in columns.items():
+            si = known.get(channel, "")
+            column, unit = spec if isinstance(spec, tuple) else (
+                spec, si[0] if isinstance(si, tuple) else si)
             channel, column, unit = explicit_unit(channel, column, unit, known)
             mapping[channel] = (column, unit)
     else:
@@ -252,9 +269,11 @@ def column_map(columns, channels: dict | None = None,
                 raise ValueError(f"channel {channel} is mapped twice ({mapping[channel][0]!r} "
                                  f"and {column!r})")
             mapping[channel] = (column, unit)
-    for channel in required:
-        if channel not in mapping:
-            raise ValueError(f"map a column to the {channel} channel ({channel}=COLUMN:UNIT)")
+    for need in required:
+        options = need if isinstance(need, tuple) else (need,)
+        if not any(c in mapping for c in options):
+            raise ValueError(f"map a column to the {' or the '.join(options)} channel "
+                             f"({options[0]}=COLUMN:UNIT)")
     return mapping
 
 
@@ -285,6 +304,45 @@ def read_table(path: Path, wanted: list[str]) -> pd.DataFrame:
                          f"({type(exc).__name__})") from None
     except OSError as exc:
         raise ValueError(f"recording {path} cannot be read: {exc.strerror or exc}") from None
+
+
+def _check_force_channels(mapping: dict, normal_force, area) -> None:
+    """One channel for each force, a normal force from somewhere, and an area for a stress:
+    refused by name before the file is read."""
+    for group in (SHEAR_CHANNELS, NORMAL_CHANNELS):
+        both = [c for c in group if c in mapping]
+        if len(both) > 1:
+            raise ValueError(f"{both[0]} and {both[1]} are one force: map one column to one of "
+                             f"{', '.join(group)}")
+    given = [c for c in NORMAL_CHANNELS if c in mapping]
+    if given and normal_force is not None:
+        raise ValueError(f"the normal force is a column ({given[0]}) or a constant "
+                         "(normal_force), not both")
+    if not given and normal_force is None:
+        raise ValueError("the normal force is needed: map a column to normal_force (N) or "
+                         "normal_stress (Pa, with the area), or give the apparatus's constant "
+                         "normal force (N) or normal stress (Pa, with the area)")
+    if area is not None:
+        check_positive("area", area)
+    for channel in ("shear_stress", "normal_stress"):
+        if channel in mapping and area is None:
+            raise ValueError(f"column {mapping[channel][0]!r} ({channel}) is a stress: give "
+                             "the fault's area in m² (--area M2) to make it a force (stress × "
+                             "area)")
+
+
+def _forces(channels: dict, names: dict, area) -> None:
+    """The stress and friction channels made forces: Fs = τ·A or μ·Fn, Fn = σn·A (in place;
+    ``names`` keeps each force's column, for messages)."""
+    if "normal_stress" in channels:
+        channels["normal_force"] = channels.pop("normal_stress") * area
+        names["normal_force"] = names.pop("normal_stress")
+    if "shear_stress" in channels:
+        channels["shear_force"] = channels.pop("shear_stress") * area
+        names["shear_force"] = names.pop("shear_stress")
+    elif "friction" in channels:
+        channels["shear_force"] = channels.pop("friction") * channels["normal_force"]
+        names["shear_force"] = names.pop("friction")
 
 
 def _has(wanted, names, path) -> None:

@@ -8,7 +8,10 @@ one directory:
   what ``rsfbench invert --observations`` and ``rsfbench sweep --observations`` read, and
   :func:`~benchmarks.inversion.observations.read_observations` in Python;
 * ``events.csv`` — one row per event: ``t_start``, ``t_end`` (s), ``recurrence_s``,
-  ``friction_drop``, ``slip_m``, ``peak_velocity_m_s``;
+  ``friction_drop``, ``slip_m``, ``peak_velocity_m_s``, and whether it is in the means
+  (``kept``), why not (``reason``: ``start-up`` or ``outlier``) and its distance from the
+  settled cycle (``z_max``, robust σ): :mod:`benchmarks.lab.settled`; the start-up is left out
+  of the means (and of the curves) unless ``keep_startup``;
 * ``curves.csv`` — the slip-weakening curves (``event_id``, ``slip_m``, ``friction``: Ft/Fn),
   when the record has accelerations and the mass is known;
 * ``apparatus.toml`` — a problem file of the apparatus as the record shows it (k, the loading,
@@ -32,7 +35,8 @@ A column file (TOML) maps the columns and gives the apparatus's constants::
     table = {column = "Table", unit = "mm"}
 
     [apparatus]
-    normal_force = 997500.0                  # N, when no column holds it
+    normal_force = 997500.0                  # N, when no column holds it (or normal_stress, Pa)
+    area = 0.75                              # m², for stress channels and normal_stress
     mass = 1100.0                            # kg: Ft = Fs − m·a
     vls = 7.5e-5                             # m/s, optional (else from the table's position)
     stiffness = 1.48e8                       # N/m, optional (else measured)
@@ -43,18 +47,22 @@ from __future__ import annotations
 import json
 import math
 import tomllib
+from dataclasses import replace
 from pathlib import Path
 
 from benchmarks.inversion.observations import SIGMAS, write_observations
 from benchmarks.lab.channels import CHANNELS, column_map, explicit_unit, read_recording
 from benchmarks.lab.events import analyse
+from benchmarks.lab.settled import JUDGED, MIN_SETTLED, STANDS_OUT, Z_DIFFERS, judge
 from benchmarks.lab.figures import plot_recording
 from benchmarks.records.files import claim_outputs, remove_own, write_output, write_table
+from problems._validate import check_positive
 
 __all__ = ["observe", "observe_files", "read_column_file", "apparatus_toml", "APPARATUS_KEYS"]
 
 #: the constants a column file's [apparatus] table may give, and their units
-APPARATUS_KEYS = {"normal_force": "N", "mass": "kg", "vls": "m/s", "stiffness": "N/m"}
+APPARATUS_KEYS = {"normal_force": "N", "mass": "kg", "vls": "m/s", "stiffness": "N/m",
+                  "area": "m2", "normal_stress": "Pa"}
 
 
 def read_column_file(path) -> tuple[dict, dict]:
@@ -114,7 +122,9 @@ OPTIONAL_FILES = {"curves": "curves.csv", "apparatus": "apparatus.toml", "figure
 
 def observe(path, columns, out, normal_force: float | None = None, mass: float | None = None,
             vls: float | None = None, stiffness: float | None = None, sigma: str = "std",
-            plot: bool = True, provenance: dict | None = None) -> dict:
+            plot: bool = True, provenance: dict | None = None, area: float | None = None,
+            normal_stress: float | None = None, window=None,
+            keep_startup: bool = False) -> dict:
     """Measure the recording ``path`` and write the files of the module docstring to ``out``;
     returns the observations document with the files written (``files``).
 
@@ -138,6 +148,15 @@ def observe(path, columns, out, normal_force: float | None = None, mass: float |
         Also draw the figures.
     provenance : dict, optional
         Kept in the document as given.
+    area : float, optional
+        The fault's area (m²): stress channels times it are forces.
+    normal_stress : float, optional
+        The normal stress (Pa), standing for a normal-force column: Fn = σn × ``area``.
+    window : tuple of float, optional
+        (start, end) in the file's time (s): only that part of the record is measured.
+    keep_startup : bool
+        Keep the start-up events in the means (:mod:`benchmarks.lab.settled`; they are found
+        and named either way).
 
     Returns
     -------
@@ -147,33 +166,54 @@ def observe(path, columns, out, normal_force: float | None = None, mass: float |
     Raises
     ------
     ValueError
-        As :func:`read_recording` and :func:`analyse`.
+        As :func:`read_recording` and :func:`analyse`; a window outside the record.
     """
     if sigma not in SIGMAS:
         raise ValueError(f"sigma must be one of {SIGMAS}, got {sigma!r}")
+    window = check_window(window)
+    normal_force = normal_from_stress(normal_force, normal_stress, area)
     out = Path(out)
     claim_outputs(observe_files(out))          # before the work: a user's file there is refused
-    rec = read_recording(path, columns, normal_force=normal_force)
+    rec = read_recording(path, columns, normal_force=normal_force, area=area)
+    rec = crop(rec, window)
     found = analyse(rec, mass=mass, vls=vls, stiffness=stiffness)
-    files = {"observations": out / "observations.json", "events": out / "events.csv"}
-    write_table(found.events, files["events"])
-    if found.curves is not None:
-        files["curves"] = out / "curves.csv"
-        write_table(found.curves, files["curves"])
+    settling = judge(found.events, keep_startup, when=found.events.t_start)
+    events, curves = settling.mark(found.events), found.curves
+    if curves is not None and settling.dropped:       # event_id: the row in events, from 1
+        curves = curves[events.kept.to_numpy()[curves.event_id.to_numpy() - 1]]
     recording = {"file": str(path), "sha256": rec.sha256, "rows": len(rec.t),
                  "rate_hz": rec.rate, "duration_s": float(rec.t[-1] - rec.t[0]),
+                 "window_s": None if window is None else list(window),
                  "columns": {c: {"column": col, "unit": unit}
                              for c, (col, unit) in column_map(columns).items()},
                  "slip_from": found.slip_source, "noise": found.noise}
-    text = apparatus_toml(found.apparatus, found.events, Path(path).stem, found.how)
+    files = _write(out, path, rec, found, events, curves, recording, settling, sigma, plot,
+                   provenance, area)
+    doc = files.pop("doc")
+    doc["files"] = {k: str(v) for k, v in files.items()}
+    return doc
+
+
+def _write(out, path, rec, found, events, curves, recording, settling, sigma, plot, provenance,
+           area) -> dict:
+    """Write observe's files (module docstring); their paths by key, and the document
+    (``doc``)."""
+    files = {"observations": out / "observations.json", "events": out / "events.csv"}
+    write_table(events, files["events"])
+    if curves is not None:
+        files["curves"] = out / "curves.csv"
+        write_table(curves, files["curves"])
+    text = apparatus_toml(found.apparatus, events[events.kept], Path(path).stem, found.how)
     if text is not None:
         files["apparatus"] = out / "apparatus.toml"
     if plot:
         files["figure"] = out / "observe.png"
-    doc = write_observations(files["observations"], found.events, found.curves,
-                             found.apparatus, found.how, found.notes, recording, sigma,
+    doc = write_observations(files["observations"], events, curves,
+                             {**found.apparatus, "area": area}, found.how,
+                             [*found.notes, *settling.notes], recording, sigma,
                              {**(provenance or {}),
-                              "files_written": [str(v) for v in files.values()]})
+                              "files_written": [str(v) for v in files.values()]},
+                             settled_summary(settling))
     if text is not None:
         write_output(files["apparatus"], text)
     if plot:
@@ -181,8 +221,70 @@ def observe(path, columns, out, normal_force: float | None = None, mass: float |
     for key, name in OPTIONAL_FILES.items():      # an earlier run's, of other observations
         if key not in files:
             remove_own(out / name)
-    doc["files"] = {k: str(v) for k, v in files.items()}
-    return doc
+    return {**files, "doc": doc}
+
+
+def check_window(window) -> tuple[float, float] | None:
+    """``(start, end)`` in s as floats, or ``ValueError`` unless both are finite and
+    start < end (None: the whole record)."""
+    if window is None:
+        return None
+    try:
+        start, end = (float(x) for x in window)
+    except (TypeError, ValueError):
+        raise ValueError(f"window must be two times START END in s, got {window!r}") from None
+    if not (math.isfinite(start) and math.isfinite(end)):
+        raise ValueError(f"window must be two finite times in s, got {start:g} {end:g}")
+    if start >= end:
+        raise ValueError(f"window START = {start:g} s must be before END = {end:g} s")
+    return start, end
+
+
+def crop(rec, window):
+    """The part of the recording ``rec`` inside ``window`` (s, the file's time; None: all), or
+    ``ValueError`` if the window reaches outside the record (half a sampling interval is
+    allowed)."""
+    if window is None:
+        return rec
+    start, end = window
+    t0, t1, half = float(rec.t[0]), float(rec.t[-1]), 0.5 * rec.dt
+    if start < t0 - half or end > t1 + half:
+        raise ValueError(f"window {start:g} to {end:g} s reaches outside the record "
+                         f"{rec.source}, which runs from t = {t0:.9g} to {t1:.9g} s")
+    inside = (rec.t >= start) & (rec.t <= end)
+    if inside.sum() < 3:
+        raise ValueError(f"window {start:g} to {end:g} s holds {int(inside.sum())} samples of "
+                         f"{rec.source}: too few to measure")
+    return replace(rec, t=rec.t[inside], channels={k: v[inside] for k, v in
+                                                    rec.channels.items()})
+
+
+def normal_from_stress(normal_force, normal_stress, area) -> float | None:
+    """The normal force (N) from a constant normal stress (Pa) times the area (m²); a normal
+    force as given. Both, or a stress without an area: ``ValueError``."""
+    if normal_stress is None:
+        return normal_force
+    if normal_force is not None:
+        raise ValueError("give the normal force (N) or the normal stress (Pa), not both")
+    if area is None:
+        raise ValueError(f"normal_stress = {normal_stress:g} Pa is a stress: give the fault's "
+                         "area in m² (--area M2) to make it a force (stress × area)")
+    return check_positive("normal_stress", normal_stress) * check_positive("area", area)
+
+
+def settled_summary(settling) -> dict:
+    """What observations.json says of the start-up and the outliers (1-based event numbers,
+    as the rows of events.csv)."""
+    return {"rule": (f"robust z = (x − median)/(1.4826 MAD) over the settled events, on "
+                     f"{', '.join(JUDGED)}; an event differs beyond {Z_DIFFERS:g}; the start-up "
+                     f"is the leading run of such events when the first is {STANDS_OUT:g}× "
+                     f"as far as any later one and {MIN_SETTLED} or more are left; outliers "
+                     "(later ones) are kept"),
+            "z_threshold": Z_DIFFERS,
+            "startup_events": [i + 1 for i in settling.startup],
+            "outlier_events": [i + 1 for i in settling.outliers],
+            "dropped_events": [i + 1 for i in settling.dropped],
+            "startup_kept": settling.keep_startup, "outliers_kept": True}
 
 
 def observe_files(out) -> list[Path]:

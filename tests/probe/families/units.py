@@ -27,11 +27,13 @@ _EPS = 1e-9          # "just outside": a relative step no unit slip is as small 
 
 
 def _unit_warnings(make):
-    """Run ``make()``; its UnitWarnings' messages (every one: the filter is "always")."""
+    """Run ``make()``; its UnitWarnings' messages (every one: the filter is "always"), a
+    RegularCycleWarning's too (a σ far below its mean, said as a regular cycle)."""
     with warnings.catch_warnings(record=True) as seen:
         warnings.simplefilter("always")
         make()
-    return [str(w.message) for w in seen if type(w.message).__name__ == "UnitWarning"]
+    return [str(w.message) for w in seen
+            if type(w.message).__name__ in ("UnitWarning", "RegularCycleWarning")]
 
 
 def _expect(make, name: str, unit: str, expect: str):
@@ -180,9 +182,9 @@ def _derived_cases() -> list[Case]:
                                                 "sigma_recurrence_s", "", "warned"),
         "sigma_friction_drop = 0.46 (percent of 0.046)": (obs(sigma_friction_drop=0.46),
                                                           "sigma_friction_drop", "", "warned"),
-        "sigma_friction_drop = 1e-5 (below 0.1 % of its mean)": (
+        "sigma_friction_drop = 1e-5 (below 0.1 % of its mean: a regular cycle, said so)": (
             obs(sigma_friction_drop=1e-5), "sigma_friction_drop", "", "warned"),
-        "sigma_friction_drop = 1e-7 (implausible, and below 0.1 % of its mean: said once)": (
+        "sigma_friction_drop = 1e-7 (below 0.1 % of its mean and implausible: said once)": (
             obs(sigma_friction_drop=1e-7), "sigma_friction_drop", "", "warned"),
     }
     out = [Case(KIND, name, _expect_derived(make, who, unit, expect), expect)
