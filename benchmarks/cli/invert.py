@@ -39,6 +39,7 @@ from benchmarks.cli.args import (
 )
 from benchmarks.inversion import Misfit
 from benchmarks.inversion.curve_likelihood import CURVE_NOISES
+from benchmarks.inversion.fit_figure import observed_events
 from benchmarks.inversion.invert import (
     MAX_SAMPLES_SAVED,
     METHODS,
@@ -98,6 +99,8 @@ def _box(args, problem, published: bool):
 def cmd_invert(args) -> int:
     problem, published, box_b, box_lc, walkers, steps = _checked(args)
     obs = observations_from_args(args, published)
+    # the per-event table fit.png draws, read now: the file may change during the work
+    events = None if args.observations is None else observed_events(args.observations)
     cycles = problem.t_end / obs.recurrence_s
     if cycles > MAX_CYCLES:                  # each of thousands of solves would run for hours
         raise ValueError(f"--t-end {problem.t_end:g} s simulates {cycles:,.0f} cycles of the "
@@ -120,7 +123,7 @@ def cmd_invert(args) -> int:
     stage = ["the start"]
     try:
         inv, summary = _run(args, misfit, (box_b, box_lc), walkers, steps, out, why, check,
-                            stage)
+                            stage, events)
     except KeyboardInterrupt:
         written = (f"{out} is incomplete" if stage[0].startswith("writing") else
                    f"nothing written to {out}")
@@ -181,9 +184,10 @@ def _say_setting(why: str, obs) -> None:
         say("curves: in no likelihood (--curve-noise none)")
 
 
-def _run(args, misfit, box, walkers, steps, out: Path, why: str, check, stage: list):
+def _run(args, misfit, box, walkers, steps, out: Path, why: str, check, stage: list,
+         events=None):
     """``(inversion, summary)`` with its files written to ``out``; ``stage[0]``: what runs
-    now (a Ctrl-C says it)."""
+    now (a Ctrl-C says it); ``events``: the observed events fit.png draws."""
     def progress(text: str) -> None:
         stage[0] = text
         if not args.json:
@@ -198,7 +202,8 @@ def _run(args, misfit, box, walkers, steps, out: Path, why: str, check, stage: l
                                     else str(Path(args.observations).resolve())),
               "problem_file": (None if args.problem is None
                                else str(Path(args.problem).resolve()))}
-    return inv, {**write_inversion(inv, out, record), "integrator_choice": why, "out": str(out)}
+    return inv, {**write_inversion(inv, out, record, events), "integrator_choice": why,
+                 "out": str(out)}
 
 
 def _warn(args, inv, summary) -> None:
@@ -223,6 +228,12 @@ def _report(args, summary) -> None:
     say(f"least squares: b = {f['b']:.5g} ± {f['sigma_b']:.2g}, Lc = {f['lc_m'] * 1e6:.4g} µm "
         f"(log10 Lc ± {f['sigma_log10_lc']:.2g}), misfit = {f['misfit']:.3g}"
         + ("" if f["success"] else f" — not converged: {f['message']}"))
+    m, o = f.get("model"), summary["observations"]
+    if m and np.isfinite(m["recurrence_s"]):       # the one solve of fit.png, with a cycle
+        say(f"the model at the fit: ΔT = {m['recurrence_s']:.6g} s (observed "
+            f"{o['recurrence_s']:.6g} ± {o['sigma_recurrence_s']:.2g}), Δμ = "
+            f"{m['friction_drop']:.5g} (observed {o['friction_drop']:.5g} ± "
+            f"{o['sigma_friction_drop']:.2g})")
     for k, p in summary["profiles"].items():
         opens = [e for e, o in (("low", p["open_low"]), ("high", p["open_high"])) if o]
         say(f"profile of {k}: 95 % interval [{p['low']:.5g}, {p['high']:.5g}]"
@@ -271,7 +282,8 @@ def _report_sample(p: dict) -> None:
 def add_parsers(sub) -> None:
     i = sub.add_parser("invert", help="invert observed means (and slip-weakening curves) for "
                        "(b, Lc): posterior (refined grid or emcee), least-squares fit with "
-                       "covariance, profiles of b and log10 Lc, corner and profile plots")
+                       "covariance, profiles of b and log10 Lc, corner and profile plots, and "
+                       "the fit drawn over the observations (fit.png)")
     add_problem_choice(i, PRESET_NAMES, "the problem whose (b, Lc) is inferred")
     add_observation_options(i)
     i.add_argument("--b-range", type=b_range, metavar="LO,HI",
@@ -296,8 +308,9 @@ def add_parsers(sub) -> None:
                         f"{WALL_BUDGET:g} s per solve)")
     i.add_argument("--out", type=out_dir, metavar="DIR",
                    help="where to write inversion.json, the CSVs (posterior.csv: at most "
-                        f"{MAX_SAMPLES_SAVED} samples) and PNGs (default: "
-                        "./invert_<preset or file name>_<law>)")
+                        f"{MAX_SAMPLES_SAVED} samples) and PNGs (corner.png, profiles.png, "
+                        "fit.png: the model at the fit over the observed events and curves) "
+                        "(default: ./invert_<preset or file name>_<law>)")
     i.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     i.add_argument("--no-progress", action="store_true", help="no progress bar")
     i.set_defaults(func=cmd_invert)

@@ -2,6 +2,7 @@
 the windows' limit cycles against their observed means.
 
     rsfbench simulate --preset W2 --law aging --json
+    rsfbench simulate --preset W2 --save-rate 10000 --save run.csv --plot run.png
     rsfbench integrators                    # the registry
     rsfbench windows --out results          # W1–W4 limit cycles, both laws, CSV + Markdown
 """
@@ -9,6 +10,7 @@ the windows' limit cycles against their observed means.
 from __future__ import annotations
 
 import json
+import warnings
 from pathlib import Path
 
 from benchmarks.cli.args import (
@@ -30,6 +32,7 @@ from benchmarks.records.optional import require
 from benchmarks.records.provenance import provenance, version_line
 from benchmarks.records.report import jsonable as _jsonable
 from integrators import REGISTRY, solve
+from integrators.core.solution import DEFAULT_POINTS, SAVE_LIMIT, Output, RunNotRepeated
 from problems import LAWS, PRESET_NAMES, WINDOWS
 
 __all__ = ["add_parsers"]
@@ -64,20 +67,28 @@ def cmd_simulate(args) -> int:
     if args.save and args.save.suffix.lower() == ".parquet":
         require("pyarrow", "ensemble", "--save FILE.parquet")
     problem = problem_from_args(args)
+    check_save_rate(args.save_rate, problem.t_end, args.save or args.plot)
     algorithm, why = integrator_from_args(args)
     claim_outputs([p for p in (args.save, args.save and args.save.with_name(
         args.save.name + ".json"), args.plot) if p])   # a user's file there: refused now
     warm_up(problem, algorithm, wall_budget=args.wall_budget)   # wall_s excludes compiling
-    # 20,000 points over the run; a figure draws each event from the dense output besides
-    sol = solve(problem, algorithm, max_points=20_000, progress=args.progress,
+    # the run summarised: saved as it always was, unless a method without dense output saves
+    # at the rate (its steps are its rule's: it saves the step end at or after each time)
+    saving = {"max_points": DEFAULT_POINTS}
+    if args.save_rate and not algorithm.saves_at_times:
+        saving = {"save_every": 1.0 / args.save_rate}
+    sol = solve(problem, algorithm, **saving, progress=args.progress,
                 wall_budget=args.wall_budget)
     summary = {**simulate_summary(sol), "integrator_choice": why}
+    samples = sampled(sol, args.save_rate)
     if args.save:
-        summary["trajectory"] = _save_trajectory(sol, args.save, summary, args.command_line)
+        summary["trajectory"] = _save_trajectory(samples, args.save, summary,
+                                                 args.command_line)
     if args.plot:
         from benchmarks.physics.plots import plot_solution
         args.plot.parent.mkdir(parents=True, exist_ok=True)   # a creatable place (its check)
-        plot_solution(sol.resolved(), args.plot)     # a failed run comes back as it is
+        # a failed run comes back as it is; the zoom on an event marks the saved samples
+        plot_solution(sol.resolved(), args.plot, saved=samples)
     if args.json:
         say(json.dumps(summary, indent=2))
     else:
@@ -89,13 +100,56 @@ def cmd_simulate(args) -> int:
     return 0 if sol.success else 1
 
 
-def _save_trajectory(sol, path: Path, summary: dict, command: str) -> dict:
-    """Write ``sol``'s trajectory to ``path`` (.csv or .parquet: t, v, fs, ft, mu, theta) and
-    what it is to ``path`` + ".json" (units, command, versions, the run's summary)."""
-    df = sol.to_dataframe()
+def check_save_rate(rate, t_end: float, used) -> None:
+    """Refuse (``ValueError``, one line) a --save-rate that would save more than
+    :data:`SAVE_LIMIT` samples over ``t_end`` (s), or one that nothing ``used`` (--save,
+    --plot) reads; None (no rate) passes."""
+    if rate is None:
+        return
+    if not used:
+        raise ValueError(f"--save-rate {rate:g} Hz sets the samples of --save and --plot, and "
+                         "neither is given: add one (the summary reads the exact events, not "
+                         "the samples)")
+    samples = t_end * rate + 1
+    if samples > SAVE_LIMIT:
+        raise ValueError(f"--save-rate {rate:g} Hz would save {samples:.3g} samples over "
+                         f"t_end = {t_end:g} s, more than {SAVE_LIMIT:,}: at most "
+                         f"{(SAVE_LIMIT - 1) / t_end:.4g} Hz for this run, or a shorter --t-end")
+
+
+def sampled(sol, rate):
+    """``sol``'s trajectory every 1/``rate`` s (``rate`` in Hz; None: as it was saved), as a
+    :meth:`~integrators.core.solution.Solution.to_dataframe` table.
+
+    The samples come from the method's dense output, ``sol(times)``: the solve repeated saving
+    at those times, accepted when it is the same run (its events agree within its accuracy,
+    :meth:`~integrators.core.solution.Solution.repeats`), so that the run summarised is the
+    one saved whatever the rate (the own methods take the very same steps; CVODE and LSODA
+    step to their output times). A method without dense output saved at the rate already
+    (:func:`cmd_simulate`); a failed run keeps what it saved (a warning says so). A repeat
+    that is not the same run is refused (``ValueError``)."""
+    if rate is None or not sol.algorithm.saves_at_times:
+        return sol.to_dataframe()
+    if not sol.success:
+        warnings.warn(f"--save-rate {rate:g} Hz: the run ended {sol.retcode.value}, so its "
+                      f"trajectory is what it saved ({DEFAULT_POINTS:,} samples over the run), "
+                      "not a repeat at the rate", stacklevel=1)
+        return sol.to_dataframe()
+    try:
+        return sol(Output(save_every=1.0 / rate).times(sol.problem.t_end))
+    except RunNotRepeated as exc:
+        raise ValueError(f"--save-rate {rate:g} Hz: {exc}") from None
+
+
+def _save_trajectory(df, path: Path, summary: dict, command: str) -> dict:
+    """Write the trajectory ``df`` (:func:`sampled`) to ``path`` (.csv or .parquet: t, v, fs,
+    ft, mu, theta) and what it is to ``path`` + ".json" (units, command, versions, the samples'
+    mean rate, the run's summary)."""
     path.parent.mkdir(parents=True, exist_ok=True)      # a creatable place (--save's check)
+    span = float(df.t.iloc[-1] - df.t.iloc[0]) if len(df) > 1 else 0.0
+    rate = (len(df) - 1) / span if span > 0 else None
     about = {"tool": version_line(), "command": command, **provenance(),
-             "columns": df.attrs["units"], "rows": len(df), "run": summary}
+             "columns": df.attrs["units"], "rows": len(df), "rate_hz": rate, "run": summary}
     if path.suffix.lower() == ".parquet":
         df.attrs["about"] = json.dumps(_jsonable(about))
         with writing(path) as tmp:
@@ -104,7 +158,7 @@ def _save_trajectory(sol, path: Path, summary: dict, command: str) -> dict:
         write_table(df, path)
     side = path.with_name(path.name + ".json")
     write_output(side, json.dumps(_jsonable(about), indent=2))
-    return {"file": str(path), "about": str(side), "rows": len(df)}
+    return {"file": str(path), "about": str(side), "rows": len(df), "rate_hz": rate}
 
 
 def cmd_integrators(args) -> int:
@@ -155,11 +209,22 @@ def add_parsers(sub) -> None:
                    help="stop after S seconds of wall time (default: no budget)")
     s.add_argument("--json", action="store_true", help="print one JSON object")
     s.add_argument("--plot", metavar="FILE.png", type=out_file(".png", ".pdf", ".svg"),
-                   help="draw v(t), μ(t) and the phase portrait (default: no figure)")
+                   help="draw v(t), μ(t), a zoom on the last complete event (from the dense "
+                        "output, the saved samples marked) and the phase portrait (default: no "
+                        "figure)")
     s.add_argument("--save", metavar="FILE", type=out_file(".csv", ".parquet"),
                    help="write the trajectory (t s, v m/s, fs N, ft N, mu, theta) to FILE.csv "
                         "or FILE.parquet, and what it is to FILE.csv.json or FILE.parquet.json "
                         "beside it (default: not written)")
+    s.add_argument("--save-rate", type=positive, metavar="HZ",
+                   help="samples per second (Hz) of --save's trajectory and of --plot's "
+                        "samples, from the integrator's dense output on a repeat of the run "
+                        "that is checked to be the same run (the run summarised is the same "
+                        "whatever the rate; the ETD family, without dense output, saves the "
+                        "first step end at or after each sample time); at most "
+                        f"{SAVE_LIMIT:,} samples over the run (default: {DEFAULT_POINTS:,} "
+                        f"samples over the run, t_end/{DEFAULT_POINTS - 1:,} apart: "
+                        "about 500 Hz over 40 s)")
     s.add_argument("--progress", action="store_true", help="show a progress bar")
     s.set_defaults(func=cmd_simulate)
 

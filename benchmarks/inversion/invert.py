@@ -20,7 +20,10 @@ that is jagged, comes with a warning in ``inversion.json`` and on the standard e
 * ``posterior.csv``: ``MAX_SAMPLES_SAVED`` draws from the grid's cells (seeded), or emcee's
   samples after burn-in thinned to at most that many rows (every k-th of the flattened chain;
   the summaries use all of them);
-* ``corner.png`` (the ``corner`` package) and ``profiles.png``.
+* ``corner.png`` (the ``corner`` package), ``profiles.png`` and, when the fit found a limit
+  cycle, ``fit.png``: the model at the fit over the observations, per event and with the curves
+  (:mod:`benchmarks.inversion.fit_figure`; one more forward solve, its values in the summary's
+  ``fit.model``).
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.inversion.adaptive import GridPosterior, grid_posterior
+from benchmarks.inversion.fit_figure import plot_fit
 from benchmarks.inversion.least_squares import FitResult, fit
 from benchmarks.inversion.misfit import Misfit
 from benchmarks.inversion.posterior import Posterior, check_sampler, sample
@@ -262,11 +266,14 @@ def _summary(inv: Inversion) -> dict:
     return out
 
 
-def write_inversion(inv: Inversion, out: Path, provenance: dict | None = None) -> dict:
+def write_inversion(inv: Inversion, out: Path, provenance: dict | None = None,
+                    events=None) -> dict:
     """Write the files of the module docstring to ``out``; return the summary (as written to
     ``inversion.json``) with the paths written. ``provenance``: what else to record of the run
     (the command line, the integrator's choice, the observations' file), beside the machine's
-    and the packages' (:func:`benchmarks.records.provenance.provenance`)."""
+    and the packages' (:func:`benchmarks.records.provenance.provenance`); ``events``: the
+    observed events drawn in ``fit.png``
+    (:func:`benchmarks.inversion.fit_figure.observed_events`; None: the means only)."""
     out = Path(out)
     claim_outputs(inversion_files(out, inv.profiles))
     summary = _summary(inv)
@@ -278,6 +285,9 @@ def write_inversion(inv: Inversion, out: Path, provenance: dict | None = None) -
         files[f"profile_{name}"] = out / f"profile_{name}.csv"
         write_table(p.table, files[f"profile_{name}"])
     _plot_profiles(inv, files["profiles_plot"])
+    if np.isfinite(inv.fit.misfit):
+        files["fit_plot"] = out / "fit.png"
+        summary["fit"]["model"] = plot_fit(inv, files["fit_plot"], events)
     if isinstance(inv.posterior, GridPosterior):
         files["posterior_cells"] = out / "posterior_cells.csv"
         write_table(inv.posterior.cells, files["posterior_cells"])
@@ -304,7 +314,7 @@ def inversion_files(out: Path, parameters=("b", "log10_lc")) -> list[Path]:
     """Every file :func:`write_inversion` may write to ``out`` (checked before the work: a
     user's file of one of these names is refused, :func:`benchmarks.records.files.writing`)."""
     out = Path(out)
-    return [out / n for n in ("inversion.json", "fit_starts.csv", "profiles.png",
+    return [out / n for n in ("inversion.json", "fit_starts.csv", "profiles.png", "fit.png",
                               "posterior_cells.csv", "posterior.csv", "corner.png")] + [
         out / f"profile_{name}.csv" for name in parameters]
 
