@@ -104,6 +104,19 @@ def test_events_and_curves_are_drawn_with_the_model_over_them(recorded):
         fig.axes[2].get_title()
 
 
+def test_events_left_out_of_the_means_are_drawn_apart(recorded):
+    """observe's start-up (``kept`` False) is shown, hollow, beside the events of the means."""
+    events, _ = recorded
+    events = events.assign(kept=np.arange(len(events)) >= 2)      # the first two: a start-up
+    obs = Observations(float(events.recurrence_s.mean()), float(events.recurrence_s.std()),
+                       float(events.friction_drop.mean()), float(events.friction_drop.std()))
+    fig = fit_figure(_inversion(obs), events, model_at(_inversion(obs).misfit, B, LC))
+    used, left = [ln for ln in fig.axes[0].get_lines() if ln.get_marker() == "o"]
+    np.testing.assert_array_equal(used.get_xdata(), events.t_start[2:])
+    np.testing.assert_array_equal(left.get_xdata(), events.t_start[:2])
+    assert left.get_markerfacecolor() == "none" and "left out" in left.get_label()
+
+
 def test_plot_fit_writes_a_png_of_the_figure_s_size(tmp_path):
     inv = _inversion(observations("W4"))
     drawn = plot_fit(inv, tmp_path / "fit.png")

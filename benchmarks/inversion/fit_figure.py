@@ -101,6 +101,8 @@ def observed_events(path) -> pd.DataFrame | None:
     for name in ("t_start", "recurrence_s", "friction_drop"):
         if name in events:
             events[name] = pd.to_numeric(events[name], errors="coerce")
+    if "kept" in events:
+        events["kept"] = events["kept"].astype(bool)
     return events if len(events) else None
 
 
@@ -154,9 +156,14 @@ def _draw_metric(ax, events, name: str, observed: tuple, model: float, label: st
         y = events[name].to_numpy(dtype=float)
         x = (events.t_start.to_numpy(dtype=float) if "t_start" in events
              else np.arange(1.0, len(events) + 1))
-        keep = np.isfinite(x) & np.isfinite(y)
-        ax.plot(x[keep], y[keep], "o", ms=3.5, color="C0",
-                label=f"observed events ({int(keep.sum())})")
+        finite = np.isfinite(x) & np.isfinite(y)
+        used = (events.kept.to_numpy(dtype=bool) if "kept" in events
+                else np.ones(len(events), bool))
+        ax.plot(x[finite & used], y[finite & used], "o", ms=3.5, color="C0",
+                label=f"observed events in the means ({int((finite & used).sum())})")
+        if (finite & ~used).any():          # observe's start-up, left out of the means
+            ax.plot(x[finite & ~used], y[finite & ~used], "o", ms=4, mfc="none", color="0.5",
+                    label=f"left out of the means ({int((finite & ~used).sum())})")
         ax.set_xlabel("event onset t (s)" if "t_start" in events else "event")
     else:
         ax.set_xticks([])
