@@ -49,7 +49,7 @@ def posterior_target(out, walkers: int = 32, steps: int = 2500, seed: int = 0,
     """Invert W2/slip's published means (σ 10 %, assumed) in the paper sweep's box with the
     integrator the work-precision study recommends for 1e−3 in ΔT; check the posterior's size
     and time against the target; write ``out/inversion_W2_slip/`` and ``out/inversion.md``."""
-    from benchmarks.inversion.invert import invert, write_inversion
+    from benchmarks.inversion.invert import inversion_files, invert, write_inversion
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     algorithm, why = recommended(1e-3)
@@ -61,7 +61,8 @@ def posterior_target(out, walkers: int = 32, steps: int = 2500, seed: int = 0,
     target = {"solves": p["n_solves"], "wall_s": p["wall_s"], "cores": os.cpu_count(),
               "min_solves": TARGET_SOLVES, "max_wall_s": TARGET_WALL_S,
               "met": bool(p["n_solves"] >= TARGET_SOLVES and p["wall_s"] <= TARGET_WALL_S)}
-    summary.update(target=target, integrator_choice=why)
+    written = [f.name for f in inversion_files(out / "inversion_W2_slip") if f.is_file()]
+    summary.update(target=target, integrator_choice=why, files=written)
     write_output(out / "inversion_W2_slip" / "inversion.json",
         json.dumps(jsonable(summary), indent=2) + "\n")
     write_output(out / "inversion.md", _inversion_markdown(summary))
@@ -105,8 +106,7 @@ def _inversion_markdown(s: dict) -> str:
         f"**Target** (≥ {t['min_solves']:,} forward solves in ≤ {t['max_wall_s']:g} s on 2 "
         f"cores): {t['solves']:,} solves in {t['wall_s']:.1f} s on {t['cores']} cores — "
         f"{'met' if t['met'] else 'missed'}.\n\n"
-        "Files: `inversion_W2_slip/` (inversion.json, fit_starts.csv, profile_b.csv, "
-        "profile_log10_lc.csv, posterior.csv, corner.png, profiles.png). Command: `rsfbench "
+        f"Files: `inversion_W2_slip/` ({', '.join(s['files'])}). Command: `rsfbench "
         "study inversion`.\n")
 
 
