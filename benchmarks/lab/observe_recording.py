@@ -6,7 +6,9 @@ one directory:
 
 * ``observations.json`` — the observations file (:mod:`benchmarks.inversion.observations`):
   what ``rsfbench invert --observations`` and ``rsfbench sweep --observations`` read, and
-  :func:`~benchmarks.inversion.observations.read_observations` in Python;
+  :func:`~benchmarks.inversion.observations.read_observations` in Python; with curves, its
+  ``measurement`` is the chain they were read through (:mod:`benchmarks.physics.chain`), which
+  the inversion applies to the model's curves too;
 * ``events.csv`` — one row per event: ``t_start``, ``t_end`` (s), ``recurrence_s``,
   ``friction_drop``, ``slip_m``, ``peak_velocity_m_s``;
 * ``curves.csv`` — the slip-weakening curves (``event_id``, ``slip_m``, ``friction``: Ft/Fn),
@@ -49,6 +51,7 @@ from benchmarks.inversion.observations import SIGMAS, write_observations
 from benchmarks.lab.channels import CHANNELS, column_map, explicit_unit, read_recording
 from benchmarks.lab.events import analyse
 from benchmarks.lab.figures import plot_recording
+from benchmarks.physics.chain import Chain
 from benchmarks.records.files import claim_outputs, remove_own, write_output, write_table
 
 __all__ = ["observe", "observe_files", "read_column_file", "apparatus_toml", "APPARATUS_KEYS"]
@@ -173,7 +176,10 @@ def observe(path, columns, out, normal_force: float | None = None, mass: float |
     doc = write_observations(files["observations"], found.events, found.curves,
                              found.apparatus, found.how, found.notes, recording, sigma,
                              {**(provenance or {}),
-                              "files_written": [str(v) for v in files.values()]})
+                              "files_written": [str(v) for v in files.values()]},
+                             measurement=None if found.curves is None else Chain.observed(
+                                 rec.rate, found.slip_source, found.noise,
+                                 found.apparatus["vls"]).record())
     if text is not None:
         write_output(files["apparatus"], text)
     if plot:
