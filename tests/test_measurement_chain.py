@@ -192,20 +192,30 @@ def test_self_check_refuses_without_a_truth(observed, capsys):
 
 
 @pytest.mark.slow
-def test_self_check_end_to_end(observed, tmp_path, capsys):
-    """A small case: the clean 10 kHz W2 recording's file, truth W2's fit, a narrow box, a 5 × 5
-    first grid and 5 profile points; the means alone must hold the truth (as they do in the
-    tutorial), and the output is one JSON document with both verdicts."""
-    _, path, _ = observed
-    code = main(["self-check", "--preset", "W2", "--observations", str(path), "--b", "0.0094",
-                 "--lc", "3e-7", "--b-range", "0.0090,0.0098", "--lc-range", "1e-7,1e-6",
-                 "--grid", "5", "--profile-points", "5", "--integrator", "Rodas5P",
-                 "--rtol", "1e-8", "--atol", "1e-8", "--out", str(tmp_path / "check"),
-                 "--json"])
+def test_self_check_end_to_end(tmp_path, capsys):
+    """A small case: the observations of a 1 %-noise W2 recording at 5 kHz, truth W2's fit, a
+    narrow box, a 5 × 5 first grid and 5 profile points. The verdicts must be those of the
+    intervals written (whether the grid posterior holds the truth is item 4's, not this
+    command's), the recording copied at the user's rate, one JSON document, the files there."""
+    table, _ = synthetic_recording(W2, rate=5000.0, t_skip=5.0, noise=0.01, seed=4)
+    table.to_csv(tmp_path / "rec.csv", index=False)
+    observe(tmp_path / "rec.csv", {c: c for c in table.columns}, tmp_path / "obs",
+            normal_force=W2.normal_force, mass=W2.mass, plot=False)
+    code = main(["self-check", "--preset", "W2", "--observations",
+                 str(tmp_path / "obs" / "observations.json"), "--b", "0.0094", "--lc", "3e-7",
+                 "--b-range", "0.0090,0.0098", "--lc-range", "1e-7,1e-6", "--grid", "5",
+                 "--profile-points", "5", "--integrator", "Rodas5P", "--rtol", "1e-8",
+                 "--atol", "1e-8", "--out", str(tmp_path / "check"), "--json"])
     doc = json.loads(capsys.readouterr().out)
-    assert doc["means"]["covered"] is True
-    assert set(doc["curves"]["holds_truth"]) == {"b", "log10_lc"}
-    assert code == (0 if doc["curves"]["covered"] else 1)
-    assert doc["recording"]["rate_hz"] == 10_000.0
-    assert (tmp_path / "check" / "self_check.json").is_file()
+    truth = doc["truth"]
+    for label in ("means", "curves"):
+        v = doc[label]
+        for k in ("b", "log10_lc"):
+            low, high = v["intervals_95"][k]
+            assert v["holds_truth"][k] == (low <= truth[k] <= high)
+    assert code == (0 if doc["means"]["covered"] and doc["curves"]["covered"] else 1)
+    assert doc["recording"]["rate_hz"] == 5000.0
+    assert "measurement chain" in doc["curves"]["likelihood"]["curves"]
+    written = json.loads((tmp_path / "check" / "self_check.json").read_text())
+    assert written["means"] == doc["means"]
     assert (tmp_path / "check" / "observations" / "observations.json").is_file()
