@@ -359,6 +359,41 @@ def add_observation_options(p) -> None:
                         "its curves, instead of the four options above (default: none)")
 
 
+def model_error_spec(text: str) -> dict:
+    """``--model-error``: ``OBSERVABLE=FRACTION,…`` (recurrence, drop, curves; fractions of
+    ΔT̄, Δμ̄ and Δμ̄ in [0, 1)), as a dict; an argparse error naming what is wrong."""
+    from benchmarks.inversion.observations import check_model_error
+    out = {}
+    for part in filter(None, (p.strip() for p in text.split(","))):
+        name, sep, value = part.partition("=")
+        try:
+            out[name.strip()] = float(value) if sep else None
+            if not sep:
+                raise ValueError(f"{part!r} is not OBSERVABLE=FRACTION")
+            check_model_error(out)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+    if not out:
+        raise argparse.ArgumentTypeError("give OBSERVABLE=FRACTION, e.g. recurrence=0.01")
+    return out
+
+
+def add_model_error_options(p) -> None:
+    """--model-error and --curve-chain: what the model itself may miss, and whether its curves
+    go through the recording's measurement chain."""
+    p.add_argument("--model-error", type=model_error_spec, metavar="OBS=FRAC,…",
+                   help="the model's own error per observable, added in quadrature to the "
+                        "data's σ (σ² = σ_obs² + σ_model²): recurrence=F (σ_model = F × ΔT̄), "
+                        "drop=F (F × Δμ̄), curves=F (F × Δμ̄ in μ at each common slip of the "
+                        "curves); fractions in [0, 1), e.g. recurrence=0.001,curves=0.01 "
+                        "(default: 0 for each: the data's σ alone)")
+    p.add_argument("--curve-chain", choices=("recorded", "none"), default="recorded",
+                   help="pass the model's curves through the measurement chain that observe "
+                        "recorded in the observations file (its rate, filters and event "
+                        "timing; a file without one has none) or compare them as the model "
+                        "makes them (default: recorded)")
+
+
 def check_observation_options(args, problem, published: bool) -> None:
     """Refuse a problem without published means when --obs-recurrence or --obs-drop is
     missing, and an observations file with any of them."""
@@ -383,14 +418,17 @@ def observations_from_args(args, published: bool, curves=None):
         try:
             return read_observations(args.observations,
                                      curve_noise=getattr(args, "curve_noise", "none"),
-                                     curve_sigma=getattr(args, "curve_sigma", None))
+                                     curve_sigma=getattr(args, "curve_sigma", None),
+                                     model_error=getattr(args, "model_error", None),
+                                     chain=getattr(args, "curve_chain", "recorded") != "none")
         except ValueError as exc:
             raise ValueError(f"--observations: {exc}") from None
     try:
         return observations(args.preset if published else "", args.obs_recurrence,
                             args.sigma_recurrence, args.obs_drop, args.sigma_drop, curves,
                             getattr(args, "curve_noise", "none"),
-                            getattr(args, "curve_sigma", None))
+                            getattr(args, "curve_sigma", None),
+                            getattr(args, "model_error", None))
     except ValueError as exc:       # name the flag of the value refused
         text = str(exc)
         for field, flag in _OBSERVATION_FLAGS:

@@ -17,6 +17,7 @@ import numpy as np
 
 from benchmarks.cli.args import (
     add_integrator_options,
+    add_model_error_options,
     add_observation_options,
     add_problem_choice,
     add_solver_check_option,
@@ -178,6 +179,11 @@ def _say_setting(why: str, obs) -> None:
     say(f"integrator: {why}")
     if obs.assumed_sigma:
         say("σ not given: assumed 10 % of the observed mean (an assumption, not data)")
+    if any(obs.model_error[k] for k in ("recurrence", "drop")):
+        sigma_t, sigma_mu = obs.sigmas
+        say(f"model error: σ of ΔT {sigma_t:.3g} s, of Δμ {sigma_mu:.3g} (the data's "
+            f"{obs.sigma_recurrence_s:.3g} s and {obs.sigma_friction_drop:.3g}, with the "
+            "model's added in quadrature)")
     if obs.curve_likelihood is not None:
         say(obs.curve_likelihood.describe())
     elif obs.curves is not None:
@@ -340,6 +346,7 @@ def _add_posterior_options(i) -> None:
     i.add_argument("--curve-sigma", type=positive, metavar="X",
                    help="σ per sample of the curves' friction (Ft/Fn, dimensionless) for "
                         "--curve-noise sample (default: none)")
+    add_model_error_options(i)
     i.add_argument("--profile-points", type=bounded(3, MAX_PROFILE_POINTS, "each is a line "
                                                     "of at least 41 solves"),
                    default=21, metavar="N",

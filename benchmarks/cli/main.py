@@ -32,6 +32,7 @@ from benchmarks.cli import (
     lab,
     observe,
     reproduce,
+    self_check,
     simulate,
     solver_effect,
     sweep,
@@ -52,7 +53,8 @@ __all__ = ["main", "build_parser", "COMMANDS"]
 
 #: the command modules, each adding its commands' parsers (``add_parsers``) in this order: the
 #: order of ``rsfbench --help``'s list
-COMMANDS = (simulate, work_precision, reproduce, sweep, invert, lab, observe, solver_effect)
+COMMANDS = (simulate, work_precision, reproduce, sweep, invert, lab, observe, solver_effect,
+            self_check)
 
 
 def build_parser() -> Parser:

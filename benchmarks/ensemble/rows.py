@@ -31,6 +31,7 @@ from problems.formulations import from_ode_state
 from problems.slider import TAU_END_MAX
 
 __all__ = ["RESULT_COLUMNS", "METRIC_COLUMNS", "COUNTER_COLUMNS", "CURVE_COLUMNS", "CURVE_POINTS",
+           "CHAIN_POINTS", "chained_curve",
            "batch_rows",
            "point_rows", "failed_rows", "compiled", "columns_of"]
 
@@ -48,6 +49,9 @@ CURVE_COLUMNS = ("curve_slip", "curve_friction")
 #: samples of a curve made in a compiled batch: evenly spaced in time over the event, start and
 #: end included (a W2 event of 9 ms: one every 36 µs)
 CURVE_POINTS = 257
+#: samples of a curve made for a measurement chain: CURVE_POINTS over the event and a sixth of
+#: the rows (integrators.own.batch.MARGIN_SHARE) either side over the chain's margin
+CHAIN_POINTS = 3 * (CURVE_POINTS - 1) // 2 + 1
 
 
 def columns_of(names, curves: bool) -> list[str]:
@@ -77,7 +81,7 @@ def _frame(names, values, columns: dict) -> pd.DataFrame:
 
 
 def batch_rows(problems, algorithm, names, values, wall_budget=None,
-               parallel: bool = True, curves: bool = False) -> pd.DataFrame:
+               parallel: bool = True, curves: bool = False, chain=None) -> pd.DataFrame:
     """The rows of ``problems`` (the points ``values`` of ``names``) solved in one compiled
     batch of the own ``algorithm``, on numba's threads or (``parallel`` False) on this one;
     with ``curves``, each row with a limit cycle has its slip-weakening curve
@@ -100,6 +104,9 @@ def batch_rows(problems, algorithm, names, values, wall_budget=None,
         Spread the points over numba's threads.
     curves : bool
         Add each limit cycle's slip-weakening curve.
+    chain : benchmarks.physics.chain.Chain, optional
+        The measurement chain each curve is passed through (:func:`chained_curve`): the
+        second solve then also covers the chain's margin either side of the event.
 
     Returns
     -------
@@ -107,10 +114,7 @@ def batch_rows(problems, algorithm, names, values, wall_budget=None,
         One row per point: its parameters, then :data:`RESULT_COLUMNS` (and
         :data:`CURVE_COLUMNS` with ``curves``).
     """
-    if curves:
-        R, states = algorithm.solve_batch(problems, wall_budget, parallel, CURVE_POINTS)
-    else:
-        R, states = algorithm.solve_batch(problems, wall_budget, parallel), None
+    R, states = _solve_batch(problems, algorithm, wall_budget, parallel, curves, chain)
     n = len(problems)
     col = {c: [None] * n for c in ("classification", "retcode", "message")}
     metrics = np.full((n, len(METRIC_COLUMNS)), np.nan)
@@ -147,7 +151,7 @@ def batch_rows(problems, algorithm, names, values, wall_budget=None,
                integrator=[algorithm.name] * n)
     if curves:
         col["curve_slip"], col["curve_friction"] = zip(*(
-            _curve(problem, z) if what in CYCLES else (np.empty(0), np.empty(0))
+            _curve(problem, z, chain) if what in CYCLES else (np.empty(0), np.empty(0))
             for problem, z, what in zip(problems, states, col["classification"])))
         for i, (what, slip) in enumerate(zip(col["classification"], col["curve_slip"])):
             if what in CYCLES and not len(slip):
@@ -156,21 +160,51 @@ def batch_rows(problems, algorithm, names, values, wall_budget=None,
     return _frame(names, values, col)
 
 
-def _curve(problem, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _solve_batch(problems, algorithm, wall_budget, parallel: bool, curves: bool, chain):
+    """``(R, CURVE)`` of the batch: the curves' rows over the event (and the chain's margin),
+    None without curves."""
+    if curves and chain is not None:
+        return algorithm.solve_batch(problems, wall_budget, parallel, CHAIN_POINTS,
+                                     chain.margin_s)
+    if curves:
+        return algorithm.solve_batch(problems, wall_budget, parallel, CURVE_POINTS)
+    return algorithm.solve_batch(problems, wall_budget, parallel), None
+
+
+def _curve(problem, z: np.ndarray, chain=None) -> tuple[np.ndarray, np.ndarray]:
     """The slip-weakening curve from the rows (τ, h, u, s) of :mod:`integrators.own.batch`'s
-    ``CURVE``: as :func:`benchmarks.physics.curves.event_curve` makes it from a trajectory."""
+    ``CURVE``: as :func:`benchmarks.physics.curves.event_curve` makes it from a trajectory, or
+    through ``chain`` (the rows then span its margin: :func:`chained_curve`)."""
     if not np.isfinite(z).all():              # the second solve did not repeat the first
         return np.empty(0), np.empty(0)
     nd = problem.nondimensional()
     h, eta, psi = from_ode_state(nd.law_code, nd.beta, z[:, 1:])
     v, fs, theta = problem.dimensional_state(h, eta, psi)
     t = z[:, 0] * nd.time_scale
+    ft = problem.friction(v, theta)
+    if chain is not None:
+        m = len(t) // B.MARGIN_SHARE
+        return chained_curve(problem, chain, t, fs, ft, t[m], t[len(t) - 1 - m])
     slip = problem.loading.v_slow * (t - t[0]) - (fs - fs[0]) / problem.stiffness
-    return slip, problem.friction(v, theta) / problem.normal_force
+    return slip, ft / problem.normal_force
+
+
+def chained_curve(problem, chain, t, fs, ft, t_start: float, t_end: float):
+    """The curve of the event from ``t_start`` to ``t_end`` (s) passed through the measurement
+    ``chain`` (:meth:`benchmarks.physics.chain.Chain.model_curve`), from the run's times ``t``
+    over the event and the chain's margin, its spring force ``fs`` and friction ``ft`` (N).
+    The slip is exact: the load point's travel (vLs, and vLf for its push after the event)
+    less the spring's shortening, ΔFs/k."""
+    loading = problem.loading
+    travel = loading.v_slow * (t - t_start) + (loading.v_fast - loading.v_slow) * np.clip(
+        t - t_end, 0.0, loading.fast_duration)
+    slip = travel - (fs - fs[0]) / problem.stiffness
+    fn = problem.normal_force
+    return chain.model_curve(t, slip, fs / fn, ft / fn)
 
 
 def point_rows(problems, algorithm, names, values, wall_budget=None,
-               curve_dt: float | None = None) -> pd.DataFrame:
+               curve_dt: float | None = None, chain=None) -> pd.DataFrame:
     """The rows of ``problems`` solved one by one with :func:`integrators.solve` (any backend),
     as :func:`batch_rows` writes them; with ``curve_dt`` (s) the trajectory is saved that finely
     and each row has its slip-weakening curve (:data:`CURVE_COLUMNS`).
@@ -189,6 +223,9 @@ def point_rows(problems, algorithm, names, values, wall_budget=None,
         Each point's wall-time budget (s).
     curve_dt : float, optional
         The save interval for the curves (s).
+    chain : benchmarks.physics.chain.Chain, optional
+        The measurement chain each curve is passed through (:func:`chained_curve`, from the
+        saved trajectory over the event and the chain's margin).
 
     Returns
     -------
@@ -216,12 +253,21 @@ def point_rows(problems, algorithm, names, values, wall_budget=None,
         if cycle.classification in CYCLES:
             row.update({c: getattr(cycle, c) for c in METRIC_COLUMNS})
             if curve_dt:
-                row["curve_slip"], row["curve_friction"] = event_curve(sol)
+                row["curve_slip"], row["curve_friction"] = (
+                    event_curve(sol) if chain is None else _saved_chained(sol, chain))
         rows.append(row)
     table = _frame(names, values, _columns(rows, curve_dt))
     if crashed:
         table.attrs["transient"] = True
     return table
+
+
+def _saved_chained(sol, chain):
+    """The last complete event's curve through ``chain`` from the saved trajectory."""
+    ev = sol.events.iloc[-1]
+    inside = (sol.t >= ev.t_start - chain.margin_s) & (sol.t <= ev.t_end + chain.margin_s)
+    return chained_curve(sol.problem, chain, sol.t[inside], sol.fs[inside], sol.ft[inside],
+                         ev.t_start, ev.t_end)
 
 
 def _failed(message: str, problem, algorithm, curve_dt=None) -> dict:

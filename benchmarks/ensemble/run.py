@@ -79,6 +79,8 @@ class Chunk:
         numba threads for an own method's batch.
     curve_dt : float, optional
         With it, each point's slip-weakening curve too (s; :func:`ensemble`).
+    curve_chain : benchmarks.physics.chain.Chain, optional
+        The measurement chain the curves are passed through (:func:`ensemble`).
     problems : tuple of SpringSlider, optional
         The points' problems, built and checked already in this process.
     """
@@ -91,6 +93,7 @@ class Chunk:
     wall_budget: float | None = None
     threads: int | None = None
     curve_dt: float | None = None
+    curve_chain: object = None
     #: the points' problems, when they were built and checked already in this process (a
     #: chunk sent to another process carries its values only)
     problems: tuple | None = field(default=None, repr=False)
@@ -130,14 +133,15 @@ def run_chunk(chunk: Chunk) -> pd.DataFrame:
                 else point_problems(chunk.problem, chunk.names, chunk.values, chunk.first))
     if not batched(chunk.algorithm):
         return point_rows(problems, chunk.algorithm, chunk.names, chunk.values,
-                          chunk.wall_budget, chunk.curve_dt)
+                          chunk.wall_budget, chunk.curve_dt, chunk.curve_chain)
     curves = bool(chunk.curve_dt)
     if chunk.threads == 1:               # a pool's process, a Dask worker: no OpenMP at all
         return batch_rows(problems, chunk.algorithm, chunk.names, chunk.values,
-                          chunk.wall_budget, parallel=False, curves=curves)
+                          chunk.wall_budget, parallel=False, curves=curves,
+                          chain=chunk.curve_chain)
     with _numba_threads(chunk.threads):
         return batch_rows(problems, chunk.algorithm, chunk.names, chunk.values,
-                          chunk.wall_budget, curves=curves)
+                          chunk.wall_budget, curves=curves, chain=chunk.curve_chain)
 
 
 @contextlib.contextmanager
@@ -159,7 +163,7 @@ def warm_chunk(chunk: Chunk) -> None:
         with units_checked_already():
             first = short_piece(point_problems(chunk.problem, chunk.names, chunk.values[:1])[0])
         run_chunk(Chunk(first, chunk.algorithm, (), np.empty((1, 0)), 0, threads=chunk.threads,
-                        curve_dt=chunk.curve_dt))
+                        curve_dt=chunk.curve_dt, curve_chain=chunk.curve_chain))
     except Exception:            # a failing point is reported by run_chunk, not here
         pass
 
@@ -177,7 +181,7 @@ def failed_chunk(chunk: Chunk, message: str) -> pd.DataFrame:
 def ensemble(problem, algorithm, params, *, store=None, chunk_size: int | None = None,
              workers: int | None = None, backend: str | None = None,
              scheduler: str | None = None, wall_budget: float | None = None,
-             curve_dt: float | None = None, progress: bool = True,
+             curve_dt: float | None = None, curve_chain=None, progress: bool = True,
              max_points: int = MAX_POINTS, connect_timeout: float = CONNECT_TIMEOUT_S,
              worker_timeout: float = WORKER_TIMEOUT_S, label: str = "",
              reclaim_store: bool = False) -> pd.DataFrame:
@@ -210,6 +214,9 @@ def ensemble(problem, algorithm, params, *, store=None, chunk_size: int | None =
         Also each point's slip-weakening curve (s): the own compiled methods from their dense
         output at :data:`~benchmarks.ensemble.rows.CURVE_POINTS` times over the last event (a
         second solve of the point); the others from a trajectory saved every ``curve_dt``.
+    curve_chain : benchmarks.physics.chain.Chain, optional
+        With ``curve_dt``: each curve through this measurement chain (observe's filters,
+        sampling and timing: :func:`benchmarks.ensemble.rows.chained_curve`).
     progress : bool
         Show a progress bar.
     max_points : int
@@ -235,7 +242,7 @@ def ensemble(problem, algorithm, params, *, store=None, chunk_size: int | None =
         For misuse, before any work (the module docstring for the rest).
     """
     plan = _plan(problem, algorithm, params, store, chunk_size, workers, backend, scheduler,
-                 wall_budget, curve_dt, max_points, reclaim_store)
+                 wall_budget, curve_dt, max_points, reclaim_store, curve_chain)
     values, chunks, chunk_store = plan["values"], plan["chunks"], plan["store"]
     start = time.perf_counter()
     bar = dict(unit="point", disable=not progress,
@@ -280,7 +287,7 @@ def _solve_chunks(plan, store, scheduler, connect_timeout, worker_timeout, bar) 
 
 
 def _plan(problem, algorithm, params, store, chunk_size, workers, backend, scheduler,
-          wall_budget, curve_dt, max_points, reclaim_store) -> dict:
+          wall_budget, curve_dt, max_points, reclaim_store, curve_chain=None) -> dict:
     """:func:`ensemble`'s arguments checked (ValueError before any work) and its points cut
     into chunks, with the store they are kept in."""
     if not isinstance(algorithm, Algorithm):
@@ -301,9 +308,10 @@ def _plan(problem, algorithm, params, store, chunk_size, workers, backend, sched
         Output(save_every=curve_dt).interval(max(p.t_end for p in problems))
     own_threads = batch and backend == "threads" and scheduler is None
     chunks = _chunks(problem, algorithm, names, values, problems, chunk_size, wall_budget,
-                     curve_dt, workers if own_threads else None)
+                     curve_dt, workers if own_threads else None, curve_chain)
     chunk_store = (ChunkStore(store, identity_of(problem, algorithm, names, values, chunk_size,
-                                                 wall_budget, curve_dt), reclaim_store)
+                                                 wall_budget, curve_dt, curve_chain),
+                               reclaim_store)
                    if store is not None else None)
     return dict(names=names, values=values, chunks=chunks, store=chunk_store, batch=batch,
                 backend=backend, workers=workers, chunk_size=chunk_size,
@@ -311,11 +319,11 @@ def _plan(problem, algorithm, params, store, chunk_size, workers, backend, sched
 
 
 def _chunks(problem, algorithm, names, values, problems, chunk_size, wall_budget, curve_dt,
-            threads: int | None) -> list[Chunk]:
+            threads: int | None, curve_chain=None) -> list[Chunk]:
     """The points cut into chunks of ``chunk_size``; with ``threads`` (a compiled batch on
     this machine) each chunk carries its points' problems and runs on that many threads."""
     return [Chunk(problem, algorithm, names, values[i:i + chunk_size], i, wall_budget,
-                  threads=threads or 1, curve_dt=curve_dt,
+                  threads=threads or 1, curve_dt=curve_dt, curve_chain=curve_chain,
                   problems=tuple(problems[i:i + chunk_size]) if threads else None)
             for i in range(0, len(values), chunk_size)]
 

@@ -123,16 +123,17 @@ def code_version() -> str:
 
 
 def identity_of(problem, algorithm, names, values, chunk_size: int, wall_budget,
-                curve_dt=None) -> dict:
+                curve_dt=None, curve_chain=None) -> dict:
     """What makes an ensemble the same ensemble: the code (:func:`code_version`), the base
     problem, the algorithm and its options, the wall budget per point, the curves' resolution,
-    the parameter names, the points (a hash) and the chunking."""
+    the parameter names, the points (a hash) and the chunking (and a curves' measurement chain)."""
     return {"schema": SCHEMA, "code": code_version(), "problem": repr(problem),
             "algorithm": repr(algorithm),
             "wall_budget": wall_budget, "curve_dt": curve_dt, "parameters": list(names),
             "n_points": len(values),
             "points_sha256": hashlib.sha256(np.ascontiguousarray(values).tobytes()).hexdigest(),
-            "chunk_size": chunk_size}
+            "chunk_size": chunk_size,
+            **({"curve_chain": repr(curve_chain)} if curve_chain is not None else {})}
 
 
 class ChunkStore:

@@ -25,6 +25,18 @@ Two noise models, each stated in the output (:meth:`CurveLikelihood.describe`):
   assumes that the model makes every event's curve: no event-to-event variability.
 
 The total misfit of an inversion is −2 log L = J1 + χ²_curves (up to a constant).
+
+**The model's curve goes through the measurement chain** of the observed ones (``chain``, a
+:class:`~benchmarks.physics.chain.Chain` from the observations file's ``measurement``): the
+model's run is sampled at the record's rate, filtered, timed and read as ``observe`` reads a
+recording (:func:`benchmarks.ensemble.rows.chained_curve` makes it, the likelihood names it to
+the :class:`~benchmarks.inversion.misfit.Misfit`). Without a chain (a file written before it was
+recorded, or curves made by hand) the model's curve is compared as the model makes it.
+
+**The model's error** (``model_error``, σ_model in μ, default 0): added to the covariance of the
+contrasts as σ_model²·I (an independent error of the model's friction at each common slip,
+its offset removed), or in quadrature to the σ per sample: what the data's spread alone does not
+allow for, the model's own distance from a laboratory's events.
 """
 
 from __future__ import annotations
@@ -106,6 +118,10 @@ class CurveLikelihood:
         Ledoit and Wolf's shrinkage intensity (``"scatter"``, in [0, 1]).
     observed : EventSamples, optional
         Every observed sample (``"sample"``).
+    chain : benchmarks.physics.chain.Chain, optional
+        The measurement chain the model's curves go through (None: compared as they are).
+    model_error : float
+        σ_model, in units of μ (module docstring; 0: none).
     """
 
     noise: str
@@ -119,13 +135,22 @@ class CurveLikelihood:
     shrinkage: float | None = None
     #: every observed sample (the residuals of ``"sample"``, the paper's J̄2)
     observed: EventSamples | None = field(default=None, repr=False)
+    #: the measurement chain the model's curves are passed through (None: as they are)
+    chain: object = None
+    #: σ_model (units of μ) added to the curves' covariance (module docstring)
+    model_error: float = 0.0
 
     @classmethod
     def from_curves(cls, curves: pd.DataFrame, noise: str = "scatter", sigma: float | None = None,
-                    reading: str = "std", points: int = COMMON_SLIPS) -> "CurveLikelihood":
+                    reading: str = "std", points: int = COMMON_SLIPS, chain=None,
+                    model_error: float = 0.0) -> "CurveLikelihood":
         """The likelihood of ``curves`` (:func:`benchmarks.physics.curves.check_curves`'
         columns) under ``noise``; ``sigma``: the σ per sample of ``"sample"`` (units of μ);
-        ``reading``: ``"std"`` or ``"sem"`` (``"scatter"``); ``points``: K."""
+        ``reading``: ``"std"`` or ``"sem"`` (``"scatter"``); ``points``: K; ``chain``: the
+        measurement chain of the model's curves; ``model_error``: σ_model (units of μ)."""
+        if not (isinstance(model_error, (int, float)) and np.isfinite(model_error)
+                and model_error >= 0):
+            raise ValueError(f"model_error must be a σ ≥ 0 in units of μ, got {model_error!r}")
         if noise not in CURVE_NOISES:
             raise ValueError(f"curve noise must be one of {CURVE_NOISES}, got {noise!r}")
         if reading not in ("std", "sem"):
@@ -137,8 +162,9 @@ class CurveLikelihood:
             if sigma is None or not np.isfinite(sigma) or sigma <= 0:
                 raise ValueError(f"curve noise 'sample' needs σ per sample > 0 (friction, a "
                                  f"fraction like μ), got {sigma!r}")
-            return cls("sample", reading, n, len(observed.slip) - n, sigma=float(sigma),
-                       observed=observed)
+            return cls("sample", reading, n, len(observed.slip) - n,
+                       sigma=float(np.hypot(sigma, model_error)), observed=observed,
+                       chain=chain, model_error=float(model_error))
         if sigma is not None:
             raise ValueError("a σ per sample is for curve noise 'sample'; the 'scatter' model "
                              "estimates its covariance from the events")
@@ -162,7 +188,7 @@ class CurveLikelihood:
         q = _contrasts(points)
         cov, shrinkage = ledoit_wolf(y @ q)
         spread = float(np.sqrt(np.trace(cov) / (points - 1)))
-        if not spread > MIN_SPREAD:
+        if not spread > MIN_SPREAD and model_error == 0:
             raise ValueError(f"the events' curves do not scatter in shape (their spread is "
                              f"{spread:.2g} in μ, below {MIN_SPREAD:g}: noise-free or copies): "
                              "the scatter model has no covariance to use; give a σ per sample "
@@ -171,10 +197,12 @@ class CurveLikelihood:
         cov *= n / (n - 1.0)                       # the events' spread, as their std is (ddof 1)
         if reading == "sem":
             cov /= n
+        cov.flat[::points] += model_error ** 2       # the model's own error: not ÷ n
         # χ² = |L⁻¹ Qᵀ (ȳ − m)|² with S = L Lᵀ: the whitened residuals least squares reads
         whiten = np.linalg.inv(np.linalg.cholesky(cov)) @ q.T
         return cls("scatter", reading, n, points - 1, slips=slips, mean=y.mean(axis=0),
-                   whiten=whiten, shrinkage=shrinkage, observed=observed)
+                   whiten=whiten, shrinkage=shrinkage, observed=observed, chain=chain,
+                   model_error=float(model_error))
 
     def residuals(self, slip: np.ndarray, friction: np.ndarray) -> np.ndarray:
         """The whitened residuals of one model curve, whose squares sum to its χ² (the
@@ -199,6 +227,23 @@ class CurveLikelihood:
 
     def describe(self) -> str:
         """What the likelihood assumed, in a sentence for the output."""
+        return self._noise_text() + self._chain_text()
+
+    def _chain_text(self) -> str:
+        c = self.chain
+        text = ("; the model's curves as the model makes them (no measurement chain)"
+                if c is None else
+                f"; the model's curves through the recording's measurement chain "
+                f"({c.rate_hz:g} Hz; force {c.force_hz:g} Hz, acceleration "
+                f"{c.acceleration_hz:g} Hz, slip {c.slip_hz:g} Hz low-passes; timed on the slip "
+                f"smoothed at {c.timing_hz:g} Hz"
+                + ("" if c.slip_from == "slip column" else
+                   "; slip integrated from accelerations: the model's slip is its own") + ")")
+        if self.model_error > 0:
+            text += f"; model error σ_model = {self.model_error:.3g} in μ added"
+        return text
+
+    def _noise_text(self) -> str:
         if self.noise == "sample":
             return (f"curves: {self.n_events} events, σ = {self.sigma:g} per sample (given), "
                     "independent Gaussian about the model's curve with a free offset per event "

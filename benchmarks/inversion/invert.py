@@ -219,6 +219,8 @@ def _summary(inv: Inversion) -> dict:
                          "friction_drop": o.friction_drop,
                          "sigma_friction_drop": o.sigma_friction_drop,
                          "sigma_assumed": o.assumed_sigma,
+                         "model_error": o.model_error,
+                         "sigma_in_j1": list(o.sigmas),
                          "curve_events": (None if o.curves is None
                                           else int(o.curves.event_id.nunique()))},
         "likelihood": {

@@ -102,7 +102,9 @@ class Misfit:
                          wall_budget=self.wall_budget,
                          workers=1 if b.size == 1 else self.workers,   # no pool for one point
                          curve_dt=(self.curve_dt if self.obs.curve_likelihood is not None
-                                   else None), progress=progress)
+                                   else None),
+                         curve_chain=getattr(self.obs.curve_likelihood, "chain", None),
+                         progress=progress)
         o = self.obs
         failed = (table.retcode != "Success").to_numpy()
         self._counts["solves"] += len(table)

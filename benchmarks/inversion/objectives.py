@@ -97,7 +97,8 @@ def scores(recurrence_s, friction_drop, cycle, obs) -> Scores:
     cycle : array_like of bool
         Whether each point has a limit cycle.
     obs : Observations
-        The observed means ΔT̄ (s) and Δμ̄ (dimensionless) and their σ.
+        The observed means ΔT̄ (s) and Δμ̄ (dimensionless) and their σ (with the model's
+        error, when it has one: σ² = σ_obs² + σ_model², ``Observations.sigmas``).
 
     Returns
     -------
@@ -105,10 +106,10 @@ def scores(recurrence_s, friction_drop, cycle, obs) -> Scores:
         The residuals in σ, NaN where ``cycle`` is False, and ``cycle``.
     """
     cycle = np.asarray(cycle, dtype=bool)
+    sigma_t, sigma_mu = getattr(obs, "sigmas", (obs.sigma_recurrence_s, obs.sigma_friction_drop))
     residual = [np.where(cycle, (np.asarray(x, dtype=float) - mean) / sigma, np.nan)
-                for x, mean, sigma in ((recurrence_s, obs.recurrence_s, obs.sigma_recurrence_s),
-                                       (friction_drop, obs.friction_drop,
-                                        obs.sigma_friction_drop))]
+                for x, mean, sigma in ((recurrence_s, obs.recurrence_s, sigma_t),
+                                       (friction_drop, obs.friction_drop, sigma_mu))]
     return Scores(*residual, cycle)
 
 

@@ -19,6 +19,19 @@ variability the model does not have, which does not shrink as more events are re
 standard error says how well the mean itself is known; with it, a long record would make the
 95 % region arbitrarily small around a model that cannot produce the scatter. The file records
 both; ``sigma="sem"`` (``--sigma sem``) reads the other.
+
+**The measurement chain** (``measurement``, from ``observe``): how the curves were read from the
+recording — its rate, the filters (kind, order, cutoffs), the timing's smoothing and levels
+(:mod:`benchmarks.physics.chain`). The inversion passes the model's curves through the same chain
+before comparing them. A file written before the record existed has no ``measurement``: it reads
+as "no chain", and the model's curves are compared as the model makes them (as before).
+
+**The model's error** (``model_error``, ``rsfbench invert --model-error``): a σ_model per
+observable, given as a fraction — of ΔT̄ for ``recurrence``, of Δμ̄ for ``drop`` and for
+``curves`` (the friction an event loses: the curves' scale) — added in quadrature to what the
+data say: σ² = σ_obs² + σ_model² in J1, and σ_model² on every contrast of the curves' covariance
+(or per sample, noise model ``sample``). Default 0: the data's σ alone. It says how far the
+model itself (one deterministic cycle, one friction law) may be from a laboratory's events.
 """
 
 from __future__ import annotations
@@ -32,6 +45,7 @@ import numpy as np
 import pandas as pd
 
 from benchmarks.inversion.curve_likelihood import CURVE_NOISES, CurveLikelihood
+from benchmarks.physics.chain import Chain
 from benchmarks.physics.curves import check_curves
 from benchmarks.records.files import BadResultsFile, read_json_record, write_output
 from benchmarks.records.report import jsonable
@@ -40,7 +54,8 @@ from problems._validate import (PLAUSIBLE, RegularCycleWarning, check_positive, 
                                 implausible_message, warn_unit)
 
 __all__ = ["Observations", "observations", "ASSUMED_SIGMA", "MIN_SIGMA_REL", "SIGMAS",
-           "write_observations", "read_observations", "OBSERVATIONS_FORMAT"]
+           "write_observations", "read_observations", "OBSERVATIONS_FORMAT", "MODEL_ERRORS",
+           "check_model_error"]
 
 #: σ below this fraction of its observed mean is refused: no forward solver resolves a limit
 #: cycle's metrics that finely, and J1 = (Δ/σ)² would be the solver's noise (or overflow)
@@ -71,6 +86,11 @@ class Observations:
     curve_noise: str = "scatter"
     curve_sigma: float | None = None
     curve_reading: str = "std"
+    #: the measurement chain the curves were read through (a
+    #: :class:`~benchmarks.physics.chain.Chain`, applied to the model's curves too; None: none)
+    curve_chain: object = None
+    #: the model's error per observable, as fractions (:data:`MODEL_ERRORS`; module docstring)
+    model_error: dict | None = None
     #: the curves' likelihood (None without curves), made from the above
     curve_likelihood: object = field(default=None, init=False, repr=False, compare=False)
 
@@ -102,11 +122,49 @@ class Observations:
         if self.curve_noise not in (*CURVE_NOISES, "none"):
             raise ValueError(f"curve_noise must be one of {(*CURVE_NOISES, 'none')}, got "
                              f"{self.curve_noise!r}")
+        object.__setattr__(self, "model_error", check_model_error(self.model_error))
         if self.curves is not None:
             object.__setattr__(self, "curves", check_curves(self.curves, "obs.curves"))
             if self.curve_noise != "none":
                 object.__setattr__(self, "curve_likelihood", CurveLikelihood.from_curves(
-                    self.curves, self.curve_noise, self.curve_sigma, self.curve_reading))
+                    self.curves, self.curve_noise, self.curve_sigma, self.curve_reading,
+                    chain=self.curve_chain,
+                    model_error=self.model_error["curves"] * self.friction_drop))
+
+    @property
+    def sigmas(self) -> tuple[float, float]:
+        """σ of ΔT (s) and of Δμ in J1: σ² = σ_obs² + σ_model², σ_model the model error's
+        fraction of the observed mean (0 by default: σ_obs alone)."""
+        e = self.model_error
+        return (math.hypot(self.sigma_recurrence_s, e["recurrence"] * self.recurrence_s),
+                math.hypot(self.sigma_friction_drop, e["drop"] * self.friction_drop))
+
+
+#: the observables a model error is given for: its σ_model is the fraction times ΔT̄, Δμ̄, and
+#: Δμ̄ again for the curves (their scale: the friction an event loses), in μ per common slip
+MODEL_ERRORS = ("recurrence", "drop", "curves")
+
+
+def check_model_error(model_error) -> dict:
+    """``model_error`` (observable → fraction ≥ 0, :data:`MODEL_ERRORS`; None: all 0) with
+    every observable, or ``ValueError`` naming the one that is wrong."""
+    model_error = {} if model_error is None else model_error
+    if not isinstance(model_error, dict):
+        raise ValueError(f"model_error must be a dict of {MODEL_ERRORS} to fractions, got "
+                         f"{model_error!r}")
+    unknown = sorted(set(model_error) - set(MODEL_ERRORS))
+    if unknown:
+        raise ValueError(f"model_error: unknown observable {unknown[0]!r} (expected "
+                         f"{', '.join(MODEL_ERRORS)})")
+    out = {}
+    for key in MODEL_ERRORS:
+        value = model_error.get(key, 0.0)
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not (
+                math.isfinite(value) and 0 <= value < 1):
+            raise ValueError(f"model_error {key} must be a fraction of its observed mean in "
+                             f"[0, 1), got {value!r}")
+        out[key] = float(value)
+    return out
 
 
 #: σ below this fraction of a plausible mean is a very regular cycle (said, with what it
@@ -138,10 +196,12 @@ ASSUMED_SIGMA = 0.10
 
 def observations(preset_name: str, obs_recurrence=None, sigma_recurrence=None, obs_drop=None,
                  sigma_drop=None, curves=None, curve_noise: str = "scatter",
-                 curve_sigma: float | None = None) -> Observations:
+                 curve_sigma: float | None = None,
+                 model_error: dict | None = None) -> Observations:
     """Observations of a preset: a window's published means fill what is not given, and a
     missing σ is 10 % of its mean (``assumed_sigma`` says so); ``curves`` in the likelihood
-    under ``curve_noise`` ("none": for the paper's J2 only)."""
+    under ``curve_noise`` ("none": for the paper's J2 only); ``model_error``: the model's error
+    per observable (:data:`MODEL_ERRORS`, default 0)."""
     if not isinstance(preset_name, str):
         raise ValueError(f"preset_name must be a preset's name (a string), got {preset_name!r}")
     w = WINDOWS.get(preset_name.upper())
@@ -158,7 +218,8 @@ def observations(preset_name: str, obs_recurrence=None, sigma_recurrence=None, o
                             else ASSUMED_SIGMA * obs_recurrence),
         friction_drop=obs_drop,
         sigma_friction_drop=sigma_drop if sigma_drop is not None else ASSUMED_SIGMA * obs_drop,
-        curves=curves, assumed_sigma=assumed, curve_noise=curve_noise, curve_sigma=curve_sigma)
+        curves=curves, assumed_sigma=assumed, curve_noise=curve_noise, curve_sigma=curve_sigma,
+        model_error=model_error)
 
 
 #: the σ an observations file offers: the events' standard deviation, the mean's standard error
@@ -172,7 +233,8 @@ _METRIC_UNITS = {"recurrence_s": "s", "friction_drop": "", "slip_m": "m",
 def write_observations(path, events: pd.DataFrame, curves: pd.DataFrame | None = None,
                        apparatus: dict | None = None, how: dict | None = None, notes=(),
                        recording: dict | None = None, sigma: str = "std",
-                       provenance: dict | None = None, settled: dict | None = None) -> dict:
+                       provenance: dict | None = None, settled: dict | None = None,
+                       measurement: dict | None = None) -> dict:
     """Write the observations file ``path`` (module docstring) from a per-event table
     (``t_start``, ``t_end`` and the metrics) and return the document. Where the table has a
     ``kept`` column, the means, σ and correlation are over the kept events only, and
@@ -196,6 +258,9 @@ def write_observations(path, events: pd.DataFrame, curves: pd.DataFrame | None =
         Remarks, kept as given.
     sigma : str
         Which spread the file names as σ: ``"std"`` or ``"sem"``.
+    measurement : dict, optional
+        The chain the curves were read through (:meth:`benchmarks.physics.chain.Chain.record`);
+        None: no chain recorded (the model's curves are then compared as they are).
 
     Returns
     -------
@@ -223,6 +288,7 @@ def write_observations(path, events: pd.DataFrame, curves: pd.DataFrame | None =
            "settled": settled or {},
            "events": events.to_dict(orient="list"),
            "curves": None if curves is None else curves.to_dict(orient="list"),
+           "measurement": measurement,
            "apparatus": apparatus or {}, "how": how or {}, "notes": list(notes),
            "recording": recording or {}, "provenance": provenance or {}}
     doc = jsonable(doc)
@@ -244,7 +310,8 @@ def _metrics(events: pd.DataFrame) -> dict:
 
 
 def read_observations(path, sigma: str | None = None, curve_noise: str = "scatter",
-                      curve_sigma: float | None = None) -> Observations:
+                      curve_sigma: float | None = None, model_error: dict | None = None,
+                      chain: bool = True) -> Observations:
     """The :class:`Observations` of an observations file: the means of ΔT and Δμ, with the σ
     the file names (``std`` unless it says otherwise) or ``sigma``, and the curves if any, in
     the likelihood under ``curve_noise`` (:mod:`benchmarks.inversion.curve_likelihood`; the
@@ -260,6 +327,11 @@ def read_observations(path, sigma: str | None = None, curve_noise: str = "scatte
         The curves' noise model: ``"scatter"``, ``"sample"`` or ``"none"``.
     curve_sigma : float, optional
         The σ per sample of ``"sample"`` (units of μ, dimensionless).
+    model_error : dict, optional
+        The model's error per observable (:data:`MODEL_ERRORS`, fractions; default 0).
+    chain : bool
+        Pass the model's curves through the file's measurement chain (``measurement``); a file
+        written before it was recorded has none, and its curves are compared as they are.
 
     Returns
     -------
@@ -298,7 +370,9 @@ def read_observations(path, sigma: str | None = None, curve_noise: str = "scatte
     curves = doc.get("curves")
     try:
         curves = pd.DataFrame(curves) if curves else None
+        measured = Chain.from_record(doc.get("measurement")) if chain else None
         return Observations(*values, curves=curves, curve_noise=curve_noise,
-                            curve_sigma=curve_sigma, curve_reading=which)
+                            curve_sigma=curve_sigma, curve_reading=which,
+                            curve_chain=measured, model_error=model_error)
     except (ValueError, TypeError) as exc:
         raise ValueError(f"observations file {path}: {exc}") from None

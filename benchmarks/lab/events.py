@@ -49,10 +49,11 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 from numba import njit
-from scipy import signal
 from scipy.integrate import cumulative_trapezoid
-from scipy.ndimage import uniform_filter1d
 
+from benchmarks.physics.chain import ACCELERATION_HZ, FORCE_HZ, event_levels
+from benchmarks.physics.chain import lowpass as _lowpass
+from benchmarks.physics.chain import smooth as _smooth
 from benchmarks.physics.metrics import METRICS
 from problems._validate import PLAUSIBLE, check_positive, warn_implausible, warn_unit
 
@@ -60,10 +61,8 @@ __all__ = ["Analysis", "analyse", "DETECT_HZ", "FORCE_HZ", "ACCELERATION_HZ", "E
 
 #: low-pass (Hz) of the force for finding events and of the slip for timing them
 DETECT_HZ = 50.0
-#: low-pass (Hz) of the force in the fault's friction (the paper's 400 Hz)
-FORCE_HZ = 400.0
-#: low-pass (Hz) of the accelerations (the paper's 750 Hz)
-ACCELERATION_HZ = 750.0
+# FORCE_HZ, ACCELERATION_HZ: the measurement chain's (benchmarks.physics.chain), one for both
+# a recording's curves and the model's
 #: an extremum is found again on the force smoothed at this (Hz), and a polynomial of degree
 #: ``EXTREMUM_DEGREE`` fitted to the samples within ``EXTREMUM_BAND`` of the drop from it
 FINE_HZ = 500.0
@@ -196,26 +195,7 @@ def analyse(rec, mass: float | None = None, vls: float | None = None,
 
 # --- signals --------------------------------------------------------------------------------
 
-def _smooth(x: np.ndarray, cutoff: float, rate: float) -> np.ndarray:
-    """A near-Gaussian smoothing of standard deviation 1/(2π·``cutoff``) s: three passes of a
-    moving average. Its kernel is positive, so it never overshoots a sharp drop (a Butterworth
-    filter rings there, and its extremes would be the filter's, not the signal's); O(n)."""
-    sigma = rate / (2.0 * math.pi * cutoff)
-    width = max(int(round(math.sqrt(4.0 * sigma * sigma + 1.0))), 1)
-    y = np.asarray(x, dtype=float)
-    if width < 2:
-        return y.copy()
-    for _ in range(3):
-        y = uniform_filter1d(y, width, mode="nearest")
-    return y
-
-
-def _lowpass(x: np.ndarray, cutoff: float, rate: float) -> np.ndarray:
-    """Zero-phase 4th-order Butterworth low-pass (unchanged when ``cutoff`` ≥ 0.45 × rate)."""
-    if cutoff >= 0.45 * rate:
-        return np.asarray(x, dtype=float)
-    sos = signal.butter(4, cutoff, fs=rate, output="sos")
-    return signal.sosfiltfilt(sos, x - x[0]) + x[0]
+# _smooth and _lowpass: benchmarks.physics.chain's smooth and lowpass (the measurement chain)
 
 
 def _noise(x: np.ndarray) -> float:
@@ -538,7 +518,7 @@ def _time_by_rate(rec, imax, v, u, sv, lo, hi, off, vls, peak_of) -> dict:
     ends below max(vLs, 3·sv); one reaching the window's edge is open (``_i1`` −1).
     ``peak_of`` is the (t, slip, rate) its peak slip rate is read from."""
     t = rec.t
-    start_level, end_level = 10.0 * vls if vls else 10.0 * sv, max(vls or 0.0, 3.0 * sv)
+    start_level, end_level = event_levels(vls, sv)
     peak = lo + int(np.argmax(v[lo:hi]))
     if v[peak] < start_level:           # no event could start: vLs is wrong
         raise ValueError(

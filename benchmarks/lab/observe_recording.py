@@ -6,7 +6,9 @@ one directory:
 
 * ``observations.json`` — the observations file (:mod:`benchmarks.inversion.observations`):
   what ``rsfbench invert --observations`` and ``rsfbench sweep --observations`` read, and
-  :func:`~benchmarks.inversion.observations.read_observations` in Python;
+  :func:`~benchmarks.inversion.observations.read_observations` in Python; with curves, its
+  ``measurement`` is the chain they were read through (:mod:`benchmarks.physics.chain`), which
+  the inversion applies to the model's curves too;
 * ``events.csv`` — one row per event: ``t_start``, ``t_end`` (s), ``recurrence_s``,
   ``friction_drop``, ``slip_m``, ``peak_velocity_m_s``, and whether it is in the means
   (``kept``), why not (``reason``: ``start-up`` or ``outlier``) and its distance from the
@@ -55,6 +57,7 @@ from benchmarks.lab.channels import CHANNELS, column_map, explicit_unit, read_re
 from benchmarks.lab.events import analyse
 from benchmarks.lab.settled import JUDGED, MIN_SETTLED, STANDS_OUT, Z_DIFFERS, judge
 from benchmarks.lab.figures import plot_recording
+from benchmarks.physics.chain import Chain
 from benchmarks.records.files import claim_outputs, remove_own, write_output, write_table
 from problems._validate import check_positive
 
@@ -213,7 +216,10 @@ def _write(out, path, rec, found, events, curves, recording, settling, sigma, pl
                              [*found.notes, *settling.notes], recording, sigma,
                              {**(provenance or {}),
                               "files_written": [str(v) for v in files.values()]},
-                             settled_summary(settling))
+                             settled_summary(settling),
+                             measurement=None if curves is None else Chain.observed(
+                                 rec.rate, found.slip_source, found.noise,
+                                 found.apparatus["vls"]).record())
     if text is not None:
         write_output(files["apparatus"], text)
     if plot:

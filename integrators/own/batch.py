@@ -12,7 +12,9 @@ wall deadline is set when the point starts), ``Z0`` the ODE state at τ = 0, ``C
 summary needs (:data:`C`). Output: ``R`` (:data:`R`): the engine's status and counters, the solve's
 wall time, where it stopped, the events and the summary (with :func:`find_cycle`'s entries at
 ``R[:, R["FOUND"]:]``); ``CURVE`` (points × n × 4), with n > 1 for slip-weakening curves: τ and
-the ODE state (h, u, s) at n times spread evenly over the last event of each point with a limit cycle, from a
+the ODE state (h, u, s) at n times spread evenly over the last event of each point with a limit cycle (with a
+margin ``C[MARGIN]`` > 0: n // MARGIN_SHARE of them before the event, as many after, spaced
+quadratically out to the margin, the rest over the event), from a
 second solve of that point that takes the same steps (its dense output at those times; the
 counters in ``R`` are both solves'), NaN for the others. n = 0: one solve per point.
 """
@@ -39,12 +41,15 @@ BATCH = dict(cache=True, nogil=True, parallel=True, error_model="numpy")
 SERIAL = dict(cache=True, nogil=True, error_model="numpy")
 #: C, per point: seconds per unit of τ, F0 (N), newtons per unit of h (k Lc), v0 (m/s), Lc (m),
 #: Fn (N), a, b, vLs (m/s), t_end (s), the growth rate of steady sliding at the end's load speed
-#: (1/s), the wall budget (s), the load point's speed at the end (m/s), radiation damping (N s/m)
+#: (1/s), the wall budget (s), the load point's speed at the end (m/s), radiation damping (N s/m),
+#: the curve's margin before and after the event (units of τ; 0: the event alone)
 C = dict(TS=0, F0=1, FORCE_H=2, V0=3, LC=4, FN=5, A=6, B=7, V_SLOW=8, T_END=9, GROWTH=10,
-         BUDGET=11, V_END=12, DAMPING=13)
+         BUDGET=11, V_END=12, DAMPING=13, MARGIN=14)
 (_TS, _F0, _FORCE_H, _V0, _LC, _FN, _A, _B, _V_SLOW, _T_END, _GROWTH, _BUDGET, _V_END,
- _DAMPING) = range(14)
-N_C = 14
+ _DAMPING, _MARGIN) = range(15)
+N_C = 15
+#: with a margin, this fraction of a curve's rows lies before the event and as many after it
+MARGIN_SHARE = 6
 #: R, per point: the engine's status, nfev, njev, accepted and rejected steps, (re)starts, the
 #: solve's wall time (s), the time reached (s), events, class (index in CLASSIFICATIONS), the end
 #: state's three offsets and the growth rate of steady sliding (C's), and find_cycle's output
@@ -130,13 +135,34 @@ def _run(kernel, workspace, p, z0, dirs, grid, saved):
     return status, st, ev
 
 
+@njit(cache=True, nogil=True, error_model="numpy")
+def _curve_grid(tau_s: float, tau_e: float, tau_end: float, margin: float, n: int):
+    """The second solve's save grid: 0, the n curve times, τ_end. Without a margin, n times
+    evenly over [τ_s, τ_e]; with one, m = n // MARGIN_SHARE before τ_s and m after τ_e at
+    quadratically growing distances up to the margin (held inside the run), and the other
+    n − 2m evenly over the event."""
+    fine = np.empty(n + 2)
+    fine[0], fine[n + 1] = 0.0, tau_end
+    m = n // MARGIN_SHARE if margin > 0.0 else 0
+    before = min(margin, 0.5 * tau_s)
+    after = min(margin, 0.5 * (tau_end - tau_e))
+    inside = n - 2 * m
+    for j in range(m):
+        fine[j + 1] = tau_s - before * ((m - j) / m) ** 2
+        fine[n - j] = tau_e + after * ((m - j) / m) ** 2
+    for j in range(inside):
+        fine[m + j + 1] = tau_s + (tau_e - tau_s) * j / (inside - 1)
+    return fine
+
+
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _one(kernel, workspace, p0, z0, c, dirs, r, curve):
     """One point: the solve as :meth:`integrators.own.compiled.CompiledAlgorithm.run` does it
     with the save grid (0, t_end), then its summary, into ``r``. With ``curve`` of n > 0 rows,
     a point with a limit cycle is solved a second time, the same steps (the save grid never
     changes them), saving its ODE state at n times spread evenly over its last event, start
-    and end included: the rows of ``curve`` are (τ, h, u, s) there (NaN otherwise)."""
+    and end included (and, with a margin, before and after it: :func:`_curve_grid`): the rows
+    of ``curve`` are (τ, h, u, s) there (NaN otherwise)."""
     start = monotonic()
     p = p0.copy()
     p[_DEADLINE] = start + c[_BUDGET]
@@ -164,10 +190,7 @@ def _one(kernel, workspace, p0, z0, c, dirs, r, curve):
     if n > 1 and n_ev > 0 and r[_CLASS] <= _LAST_CYCLE:
         tau_s, tau_e = ev[n_ev - 1, 0], ev[n_ev - 1, 1]
         if 0.0 < tau_s < tau_e < p[_TAU_END]:
-            fine = np.empty(n + 2)
-            fine[0], fine[n + 1] = 0.0, p[_TAU_END]
-            for j in range(n):
-                fine[j + 1] = tau_s + (tau_e - tau_s) * j / (n - 1)
+            fine = _curve_grid(tau_s, tau_e, p[_TAU_END], c[_MARGIN], n)
             kept = np.empty((n + 2, 3))
             p[_DEADLINE] = monotonic() + c[_BUDGET]      # the second solve's own budget
             again, st2, _ = _run(kernel, workspace, p, z0, dirs, fine, kept)

@@ -167,8 +167,10 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
                       events=events_table(ev[:int(st[E.REC + N_EVENTS])], problem, nd),
                       stats=stats, retcode=retcode, message=message, meta=meta)
 
-    def batch_inputs(self, problems, wall_budget: float | None = None):
-        """The per-point inputs (P, Z0, C) of :mod:`integrators.own.batch` for ``problems``."""
+    def batch_inputs(self, problems, wall_budget: float | None = None,
+                     curve_margin: float = 0.0):
+        """The per-point inputs (P, Z0, C) of :mod:`integrators.own.batch` for ``problems``
+        (``curve_margin``: s before and after the event a curve reaches)."""
         from problems.stability import growth_rate
         n = len(problems)
         width = E.N_P + max((len(p.nondimensional().history) for p in problems), default=0)
@@ -184,21 +186,22 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
             law = problem.law
             C[i] = (nd.time_scale, problem.f0, nd.force_h, law.v0, law.lc, problem.normal_force,
                     law.a, law.b, problem.loading.v_slow, problem.t_end, growth_rate(problem),
-                    budget, problem.steady_velocity, problem.radiation_damping)
+                    budget, problem.steady_velocity, problem.radiation_damping,
+                    curve_margin / nd.time_scale)
         return P, Z0, C
 
     def solve_batch(self, problems, wall_budget: float | None = None,
-                    parallel: bool = True, curve_points: int = 0):
+                    parallel: bool = True, curve_points: int = 0, curve_margin: float = 0.0):
         """Solve and summarise every problem of ``problems`` in one compiled call, on numba's
         threads or (``parallel`` False) on this thread only (:mod:`integrators.own.batch`): one
         row of ``batch.R`` per problem. Each solve is the one :func:`integrators.solve` makes
         with ``max_points=2`` and ``wall_budget``. With ``curve_points`` = n > 1, returns
         ``(R, CURVE)``: also τ and the ODE state z = (h, u, s) at n times spread over the last
         event of each point with a limit cycle (:mod:`integrators.own.batch`; NaN for the
-        others)."""
+        others), and with ``curve_margin`` (s) > 0 over that much before and after it too."""
         if curve_points == 1 or curve_points < 0:
             raise ValueError(f"curve_points must be 0 or at least 2, got {curve_points!r}")
-        P, Z0, C = self.batch_inputs(problems, wall_budget)
+        P, Z0, C = self.batch_inputs(problems, wall_budget, curve_margin)
         out = np.empty((len(problems), B.N_R))
         curve = np.empty((len(problems), curve_points, 4))
         if parallel:

@@ -1,0 +1,294 @@
+"""The measurement chain of a slip-weakening curve: what ``rsfbench observe`` does to a
+recording's channels before a curve is read, as one record and one function, so that the model's
+curves can be passed through the very same chain before they are compared.
+
+``observe`` (:mod:`benchmarks.lab.events`) reads a curve from a recording sampled at ``rate_hz``,
+in this order:
+
+1. the load cell's force Fs low-passed at ``force_hz`` and the upper specimen's acceleration a1
+   at ``acceleration_hz`` (zero-phase 4th-order Butterworth, :func:`lowpass`; the paper's 400 Hz
+   and 750 Hz), the fault's friction μ = (Fs − m·a1)/Fn (Eq. 3);
+2. the slip column low-passed at ``slip_hz`` (the same Butterworth);
+3. the event timed on the slip rate of the slip column smoothed at ``timing_hz`` (near-Gaussian,
+   :func:`smooth`; the least smoothing that the slip's noise allows): it starts at the first
+   sample at or above ``start_level`` (10·vLs) and ends at the first below ``end_level``
+   (max(vLs, 3 σ of the smoothed rate's noise));
+4. the curve: μ against the filtered slip since the start (the start's slip interpolated at the
+   crossing of the start level), over the samples from the start to the end.
+
+:class:`Chain` holds those numbers; :meth:`Chain.record` is what ``observe`` writes into
+observations.json (``measurement``), :meth:`Chain.from_record` reads it back (None from a file
+written before it: no chain, the model's curves are compared as they are).
+:meth:`Chain.model_curve` applies the chain to a model's run around one event (its dense
+output over the event and a margin either side, :attr:`Chain.margin_s`): sampled at the record's
+rate at :data:`PHASES` offsets of the sampling grid (a recorder's samples fall anywhere in an
+event) and averaged. The model has no sensor noise: the chain is the filters, the sampling and
+the timing, not the noise (the curves' likelihood takes the noise as the events' spread).
+
+An observed curve whose slip was integrated from accelerations (a record without a slip column)
+has its own drift removal per event; the model's side of that chain is not made: its record says
+``slip_from = "accelerations"`` and the model's curve gets the friction filters and the sampling,
+its slip the model's own (:meth:`Chain.model_curve`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+__all__ = ["Chain", "smooth", "lowpass", "event_levels", "friction", "FORCE_HZ",
+           "ACCELERATION_HZ", "SLIP_HZ", "PHASES", "START_FACTOR"]
+
+#: low-pass (Hz) of the force in the fault's friction (the paper's 400 Hz)
+FORCE_HZ = 400.0
+#: low-pass (Hz) of the accelerations (the paper's 750 Hz)
+ACCELERATION_HZ = 750.0
+#: low-pass (Hz) of the slip column a curve is read against
+SLIP_HZ = ACCELERATION_HZ
+#: an event starts when the slip rate exceeds this multiple of vLs (the model's own rule)
+START_FACTOR = 10.0
+#: the sampling grid's offsets (fractions of a sample) the model's chained curve is averaged over
+PHASES = 4
+#: the Butterworth filters' order (zero phase: applied forward and back)
+ORDER = 4
+
+
+def smooth(x: np.ndarray, cutoff: float, rate: float) -> np.ndarray:
+    """A near-Gaussian smoothing of standard deviation 1/(2π·``cutoff``) s: three passes of a
+    moving average. Its kernel is positive, so it never overshoots a sharp drop (a Butterworth
+    filter rings there, and its extremes would be the filter's, not the signal's); O(n).
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        The signal, sampled at ``rate``.
+    cutoff : float
+        The smoothing's frequency (Hz).
+    rate : float
+        The sampling rate (Hz).
+
+    Returns
+    -------
+    numpy.ndarray
+        The smoothed signal (a copy).
+    """
+    from scipy.ndimage import uniform_filter1d      # scipy's filters load when first used
+    sigma = rate / (2.0 * math.pi * cutoff)
+    width = max(int(round(math.sqrt(4.0 * sigma * sigma + 1.0))), 1)
+    y = np.asarray(x, dtype=float)
+    if width < 2:
+        return y.copy()
+    for _ in range(3):
+        y = uniform_filter1d(y, width, mode="nearest")
+    return y
+
+
+def lowpass(x: np.ndarray, cutoff: float, rate: float) -> np.ndarray:
+    """Zero-phase 4th-order Butterworth low-pass (unchanged when ``cutoff`` ≥ 0.45 × rate).
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        The signal, sampled at ``rate``.
+    cutoff : float
+        The cutoff (Hz).
+    rate : float
+        The sampling rate (Hz).
+
+    Returns
+    -------
+    numpy.ndarray
+        The filtered signal.
+    """
+    from scipy import signal
+    if cutoff >= 0.45 * rate:
+        return np.asarray(x, dtype=float)
+    sos = signal.butter(ORDER, cutoff, fs=rate, output="sos")
+    return signal.sosfiltfilt(sos, x - x[0]) + x[0]
+
+
+def event_levels(vls: float | None, sigma_rate: float) -> tuple[float, float]:
+    """The slip rates (m/s) at which an event starts and ends: 10·vLs (10 σ without vLs) and
+    max(vLs, 3 σ), σ the noise of the slip rate the event is timed on."""
+    start = START_FACTOR * vls if vls else START_FACTOR * sigma_rate
+    return start, max(vls or 0.0, 3.0 * sigma_rate)
+
+
+def friction(fs: np.ndarray, a1: np.ndarray, mass: float, fn, rate: float,
+             force_hz: float = FORCE_HZ, acceleration_hz: float = ACCELERATION_HZ) -> np.ndarray:
+    """The fault's friction as the chain reads it: (Fs low-passed − m · a1 low-passed)/Fn.
+
+    Parameters
+    ----------
+    fs, a1 : numpy.ndarray
+        The load cell's force (N) and the upper specimen's acceleration (m/s²).
+    mass : float
+        The slider's mass (kg).
+    fn : float or numpy.ndarray
+        The normal force (N).
+    rate : float
+        The sampling rate (Hz).
+    force_hz, acceleration_hz : float
+        The two low-passes' cutoffs (Hz).
+
+    Returns
+    -------
+    numpy.ndarray
+        Ft/Fn (dimensionless).
+    """
+    return (lowpass(fs, force_hz, rate) - mass * lowpass(a1, acceleration_hz, rate)) / fn
+
+
+def _crossing(t: np.ndarray, x: np.ndarray, level: float, i: int) -> float:
+    """The time where ``x`` crosses ``level`` between samples ``i − 1`` and ``i`` (linear)."""
+    if i <= 0:
+        return float(t[0])
+    x0, x1 = x[i - 1], x[i]
+    f = 0.0 if x1 == x0 else (level - x0) / (x1 - x0)
+    return float(t[i - 1] + min(max(f, 0.0), 1.0) * (t[i] - t[i - 1]))
+
+
+@dataclass(frozen=True)
+class Chain:
+    """What ``observe`` did to a recording to read its curves (module docstring).
+
+    Parameters
+    ----------
+    rate_hz : float
+        The recording's sampling rate (Hz).
+    timing_hz : float
+        The smoothing of the slip the events are timed on (Hz).
+    start_level, end_level : float
+        The slip rates (m/s) that start and end an event.
+    force_hz, acceleration_hz, slip_hz : float
+        The low-passes of the force, the acceleration and the slip (Hz).
+    slip_from : str
+        ``"slip column"`` or ``"accelerations"`` (the model's side then keeps its own slip).
+    """
+
+    rate_hz: float
+    timing_hz: float
+    start_level: float
+    end_level: float
+    force_hz: float = FORCE_HZ
+    acceleration_hz: float = ACCELERATION_HZ
+    slip_hz: float = SLIP_HZ
+    slip_from: str = "slip column"
+
+    def __post_init__(self) -> None:
+        for name in ("rate_hz", "timing_hz", "start_level", "end_level", "force_hz",
+                     "acceleration_hz", "slip_hz"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not (
+                    math.isfinite(value) and value > 0):
+                raise ValueError(f"measurement chain: {name} must be a positive number, got "
+                                 f"{value!r}")
+        if self.slip_from not in ("slip column", "accelerations"):
+            raise ValueError("measurement chain: slip_from must be 'slip column' or "
+                             f"'accelerations', got {self.slip_from!r}")
+
+    def record(self) -> dict:
+        """The chain as observations.json keeps it (``measurement``): the numbers, the filters'
+        kinds and the order of the steps."""
+        butter = {"kind": "butterworth low-pass", "order": ORDER, "zero_phase": True}
+        return {**asdict(self), "version": 1,
+                "filters": {"force": {**butter, "cutoff_hz": self.force_hz},
+                            "acceleration": {**butter, "cutoff_hz": self.acceleration_hz},
+                            "slip": {**butter, "cutoff_hz": self.slip_hz},
+                            "timing": {"kind": "near-Gaussian (three moving averages)",
+                                       "cutoff_hz": self.timing_hz}},
+                "steps": ["sampled at rate_hz", "friction (Fs at force_hz − m·a1 at "
+                          "acceleration_hz)/Fn", "slip low-passed at slip_hz",
+                          "event timed on the slip smoothed at timing_hz: from its rate's "
+                          "first sample ≥ start_level to its first < end_level (m/s)",
+                          "curve: friction against the slip since the start's crossing"]}
+
+    @classmethod
+    def observed(cls, rate: float, slip_from: str, noise: dict, vls: float | None) -> "Chain":
+        """The chain ``observe`` applied to a recording at ``rate`` (Hz) whose slip came from
+        ``slip_from``, with the ``noise`` it measured (``slip_timing_hz``, ``slip_rate``) and
+        vLs (m/s): a slip column is timed at the smoothing its noise allowed, with the end
+        level its rate's noise set; slip integrated from accelerations on their low-pass, with
+        the levels of vLs (its per-event noise level is not kept)."""
+        if slip_from == "slip column":
+            return cls(rate, noise["slip_timing_hz"], *event_levels(vls, noise["slip_rate"]))
+        return cls(rate, ACCELERATION_HZ, *event_levels(vls, 0.0), slip_from=slip_from)
+
+    @classmethod
+    def from_record(cls, record) -> "Chain | None":
+        """The chain of an observations file's ``measurement`` record; None for a file without
+        one (written before it): no chain, the model's curves compared as they are."""
+        if record is None:
+            return None
+        if not isinstance(record, dict):
+            raise ValueError(f"measurement must be a table of the chain's numbers, got {record!r}")
+        keys = ("rate_hz", "timing_hz", "start_level", "end_level", "force_hz",
+                "acceleration_hz", "slip_hz", "slip_from")
+        missing = [k for k in keys if k not in record]
+        if missing:
+            raise ValueError(f"measurement lacks {', '.join(missing)}")
+        return cls(**{k: record[k] for k in keys})
+
+    @property
+    def margin_s(self) -> float:
+        """How far (s) before and after an event the chain reaches: ten e-foldings of the
+        slowest Butterworth pole, the timing's smoothing and its walk to the end level."""
+        butter = 10.0 / (2.0 * math.pi * min(self.force_hz, self.acceleration_hz, self.slip_hz)
+                         * math.sin(math.pi / 8.0))
+        return max(butter, 1.0 / self.timing_hz) + 20.0 / self.rate_hz
+
+    def model_curve(self, t: np.ndarray, slip: np.ndarray, fs: np.ndarray, ft: np.ndarray,
+                    phases: int = PHASES) -> tuple[np.ndarray, np.ndarray]:
+        """The curve ``observe`` would read from the model's run around one event.
+
+        Parameters
+        ----------
+        t : numpy.ndarray
+            Increasing times (s) over the event and :attr:`margin_s` either side.
+        slip : numpy.ndarray
+            The slip (m) at ``t`` (any origin).
+        fs, ft : numpy.ndarray
+            The spring's force and the fault's friction over Fn at ``t`` (dimensionless).
+        phases : int
+            The sampling grid's offsets averaged over.
+
+        Returns
+        -------
+        slip : numpy.ndarray
+            The slip since the event's start (m), increasing.
+        friction : numpy.ndarray
+            The friction (Ft/Fn) there; both empty when the event does not fit the window.
+        """
+        curves = [self._one_phase(t, slip, fs, ft, k / phases) for k in range(phases)]
+        if any(len(x) < 2 for x, _ in curves):
+            return np.empty(0), np.empty(0)
+        grid = np.unique(np.concatenate([x for x, _ in curves]))
+        return grid, np.mean([np.interp(grid, x, y) for x, y in curves], axis=0)
+
+    def _one_phase(self, t, slip, fs, ft, phase: float):
+        """:meth:`model_curve` at one offset of the sampling grid, sorted by slip as the
+        observed curves are read."""
+        from scipy.interpolate import PchipInterpolator
+        dt = 1.0 / self.rate_hz
+        ts = t[0] + (phase + np.arange(int((t[-1] - t[0]) / dt - phase) + 1)) * dt
+        u, f, r = (PchipInterpolator(t, y)(ts) for y in (slip, fs, ft))
+        mu = lowpass(f, self.force_hz, self.rate_hz) - lowpass(f - r, self.acceleration_hz,
+                                                               self.rate_hz)
+        rate = np.gradient(smooth(u, self.timing_hz, self.rate_hz), ts)
+        peak = int(np.argmax(rate))
+        if rate[peak] < self.start_level:
+            return np.empty(0), np.empty(0)
+        i0, i1 = peak, peak
+        while i0 > 0 and rate[i0 - 1] >= self.start_level:
+            i0 -= 1
+        while i1 < len(ts) and rate[i1] >= self.end_level:
+            i1 += 1
+        if i0 == 0 or i1 >= len(ts):               # the event runs off the window
+            return np.empty(0), np.empty(0)
+        if self.slip_from == "slip column":
+            u = lowpass(u, self.slip_hz, self.rate_hz)
+        x = u[i0:i1 + 1] - np.interp(_crossing(ts, rate, self.start_level, i0), ts, u)
+        order = np.argsort(x, kind="stable")
+        return x[order], mu[i0:i1 + 1][order]
