@@ -32,7 +32,10 @@ deviation and standard error of the recurrence interval, friction drop, slip
 per event and peak slip rate; the events; the slip-weakening curves), events.csv,
 curves.csv, apparatus.toml (a problem file of the apparatus as the record
 shows it) and observe.png. Or read an event catalogue (--catalogue FILE: one
-row per event) into observations.json and events.csv.
+row per event) into observations.json and events.csv, and with the slip per
+event and the normal load, apparatus.toml: the stiffness (median drop/slip) and
+the load-point speed (the loading rate between events over k) estimated from
+it with their standard errors; the mass (--mass) and the law's a not in it.
 
 Map each column to a channel with its unit, CHANNEL=COLUMN[:UNIT] (the unit
 after the column's last colon; a column's name may hold colons and brackets).
@@ -63,9 +66,9 @@ def cmd_observe(args) -> int:
     common = dict(sigma=args.sigma, provenance=record, window=window,
                   keep_startup=args.keep_startup)
     if args.catalogue:
-        doc = observe_catalogue(source, columns, out, **common,
+        doc = observe_catalogue(source, columns, out, **common, after_delay=args.after_delay,
                                 **{k: v for k, v in constants.items()
-                                   if k in ("area", "normal_force", "normal_stress")})
+                                   if k in ("area", "normal_force", "normal_stress", "mass")})
     else:
         doc = observe(source, columns, out, plot=not args.no_plot, **common, **constants)
     if args.json:
@@ -83,12 +86,16 @@ def _source(args) -> Path:
         raise ValueError("give a recording (RECORDING) or an event catalogue (--catalogue "
                          "FILE), one of them")
     if args.catalogue:
-        given = [f for f, v in (("--columns", args.columns), ("--mass", args.mass),
-                                ("--vls", args.vls), ("--stiffness", args.stiffness),
-                                ("--no-plot", args.no_plot)) if v]
+        given = [f for f, v in (("--columns", args.columns), ("--vls", args.vls),
+                                ("--stiffness", args.stiffness), ("--no-plot", args.no_plot))
+                 if v]
         if given:
             raise ValueError(f"{given[0]} is for a recording, not for a catalogue "
-                             f"({args.catalogue})")
+                             f"({args.catalogue}: its k and vL are estimated from it; edit "
+                             "apparatus.toml to take others)")
+    elif args.after_delay is not None:
+        raise ValueError(f"--after-delay is for a catalogue (--catalogue FILE), not for the "
+                         f"recording {args.recording}")
     return args.catalogue or args.recording
 
 
@@ -133,16 +140,39 @@ def _print(doc: dict, source) -> None:
                 f"{_scaled(every[name].get('std'), scale)})" if used < n else "")
         say(f"  {label:20s} {x['mean']} {unit:3s} std {x['std']}, sem {x['sem']}{also}")
     a = doc["apparatus"]
-    for key, label, unit in (("stiffness", "stiffness k", "N/m"), ("vls", "vLs", "m/s"),
-                             ("vlf", "vLf", "m/s"), ("df", "df", "s")):
-        if a.get(key) is not None:
-            say(f"  {label:20s} {a[key]:.6g} {unit:3s} ({doc['how'].get(key, '')})")
+    if rec.get("kind") == "catalogue":
+        _print_constants(doc)
+    else:
+        for key, label, unit in (("stiffness", "stiffness k", "N/m"), ("vls", "vLs", "m/s"),
+                                 ("vlf", "vLf", "m/s"), ("df", "df", "s")):
+            if a.get(key) is not None:
+                say(f"  {label:20s} {a[key]:.6g} {unit:3s} ({doc['how'].get(key, '')})")
     for note in doc["notes"]:
         say(f"  note: {note}")
     say(f"  σ of an inversion: {doc['sigma']} (the events' standard deviation, as the paper's; "
         "--sigma sem for the mean's standard error)" if doc["sigma"] == "std" else
         f"  σ of an inversion: {doc['sigma']}")
     say(f"written: {', '.join(doc['files'].values())}")
+
+
+def _print_constants(doc: dict) -> None:
+    """A catalogue's estimates of k and vL with their standard errors, and the mass."""
+    c = doc.get("constants")
+    if c is None:
+        return
+    k, ka, kf, vl = c["stiffness"], c["stiffness_per_area"], c["stiffness_per_fn"], c["vl"]
+    say(f"  {'stiffness k':20s} " + (f"{k['value']:.4g} N/m ± {k['se']:.2g}" if k else "–")
+        + (f" ({ka['value']:.4g} Pa/m ± {ka['se']:.2g} per unit area)" if ka else "")
+        + f"; k/Fn = {kf['value']:.4g} 1/m ± {kf['se']:.2g}: the median of {c['n_events']} "
+        f"events' drop/slip (regression through the origin: {c['stiffness_regression']:.4g})")
+    say(f"  {'load-point speed vL':20s} {vl['value']:.4g} m/s ± {vl['se']:.2g}: the loading "
+        f"rate between events over k/Fn (the median interval's rate gives "
+        f"{c['vl_median_interval']:.4g})")
+    a = doc["apparatus"]
+    if a.get("mass") is not None:
+        say(f"  {'moving mass':20s} {a['mass']:.6g} kg, {doc['how']['mass']} (--mass KG)")
+    else:
+        say(f"  {'moving mass':20s} {c['mass']}")
 
 
 def _scaled(value, scale: float) -> str:
@@ -180,7 +210,12 @@ def add_parsers(sub) -> None:
                         "none)")
     o.add_argument("--mass", type=positive, metavar="KG",
                    help="the slider's mass in kg, for Ft = Fs - m·a and the curves (default: "
-                        "none, and no curves)")
+                        "none, and no curves); with --catalogue, the mass of apparatus.toml "
+                        "(default: the paper's 1100 kg, assumed: a catalogue cannot tell it)")
+    o.add_argument("--after-delay", type=positive, metavar="S",
+                   help="with --catalogue: when its stress after an event is read, in s after "
+                        "the onset; the bias this causes in the estimates of k and vL is "
+                        "stated, not corrected (default: none)")
     o.add_argument("--vls", type=positive, metavar="M/S",
                    help="the slow load-point speed in m/s (default: from the table column)")
     o.add_argument("--stiffness", type=positive, metavar="N/M",

@@ -6,7 +6,8 @@ inversion (:mod:`~benchmarks.lab.observe_recording`) with its figure
 (:mod:`~benchmarks.lab.figures`), its start-up and outliers found
 (:mod:`~benchmarks.lab.settled`), or made by the forward model to be read back
 (:mod:`~benchmarks.lab.synthetic`). An event catalogue read into the same observations
-(:mod:`~benchmarks.lab.catalogue`).
+(:mod:`~benchmarks.lab.catalogue`), and the apparatus constants it does not state estimated
+from it (:mod:`~benchmarks.lab.catalogue_constants`).
 
 A velocity-step or slide-hold-slide test: what it measures on a run
 (:mod:`~benchmarks.lab.measures`); a record read for a fit (:mod:`~benchmarks.lab.step_data`)
@@ -28,6 +29,7 @@ __getattr__, __dir__, __all__ = lazy_api(__name__, {
     "observe_recording": ("observe",),
     "settled": ("judge", "Settling"),
     "catalogue": ("read_catalogue", "observe_catalogue"),
+    "catalogue_constants": ("estimate_constants", "CatalogueConstants"),
     "synthetic": ("synthetic_recording",),
     "measures": ("step_response", "healing", "healing_rate", "step_reference",
                  "UnsettledWarning", "PeakNotReached"),

@@ -33,6 +33,11 @@ that do not increase (the row named), a drop that is not positive (the row named
 without an area, a unit none of ours, a missing or non-numeric value, a friction before the
 events that no friction coefficient has (a stress in another unit). The start-up and the
 outliers are found as on a recording (:mod:`benchmarks.lab.settled`).
+
+With the slip per event, the stiffness and the load-point speed the catalogue does not state
+are estimated from it (:mod:`benchmarks.lab.catalogue_constants`), and with the normal force
+known, :func:`observe_catalogue` writes ``apparatus.toml``: a problem file with k and vL
+measured, the mass and the friction law's a given or assumed, b and Lc placeholders.
 """
 
 from __future__ import annotations
@@ -48,8 +53,10 @@ from benchmarks.inversion.observations import SIGMAS, write_observations
 from benchmarks.lab.channels import MU_RANGE, UNITS, column_map, column_values, read_table
 from benchmarks.lab.observe_recording import (OPTIONAL_FILES, check_window, observe_files,
                                               settled_summary)
+from benchmarks.lab.catalogue_constants import (PAPER_MASS, catalogue_apparatus_toml,
+                                                estimate_constants)
 from benchmarks.lab.settled import judge
-from benchmarks.records.files import claim_outputs, remove_own, write_table
+from benchmarks.records.files import claim_outputs, remove_own, write_output, write_table
 from problems._validate import check_positive
 
 __all__ = ["CATALOGUE_CHANNELS", "read_catalogue", "observe_catalogue", "MIN_EVENTS",
@@ -89,7 +96,10 @@ def read_catalogue(path, columns, area: float | None = None,
     -------
     events : pandas.DataFrame
         One row per event: ``t_start`` (s), ``t_end`` (s, NaN without a duration),
-        ``recurrence_s``, ``friction_drop``, ``slip_m``, ``peak_velocity_m_s``.
+        ``recurrence_s``, ``friction_drop``, ``slip_m``, ``peak_velocity_m_s``, and
+        ``friction_before``, ``friction_after`` (τ/σn or the friction columns; NaN when the
+        drop is given as such): the loading between events
+        (:mod:`benchmarks.lab.catalogue_constants`).
     info : dict
         ``normal_stress`` (Pa), ``normal_force`` (N, None without an area), ``area``,
         ``drop_from`` (which channels), ``columns``, ``sha256``, ``rows``.
@@ -118,13 +128,15 @@ def read_catalogue(path, columns, area: float | None = None,
               for ch, (col, unit) in mapping.items()}
     onset = values["onset"]
     _check_onsets(onset, mapping["onset"][0], path)
-    drop = _friction_drop(values, mapping, way, sigma_n, path)
+    drop, before, after = _friction_drop(values, mapping, way, sigma_n, path)
     n = len(onset)
     nan = np.full(n, math.nan)
     events = pd.DataFrame({
         "t_start": onset, "t_end": onset + values["duration"] if "duration" in values else nan,
         "recurrence_s": np.concatenate(([math.nan], np.diff(onset))), "friction_drop": drop,
-        "slip_m": values.get("slip", nan), "peak_velocity_m_s": values.get("peak_slip_rate", nan)})
+        "slip_m": values.get("slip", nan), "peak_velocity_m_s": values.get("peak_slip_rate", nan),
+        "friction_before": nan if before is None else before,
+        "friction_after": nan if after is None else after})
     info = {"normal_stress": sigma_n, "area": area,
             "normal_force": None if sigma_n is None or area is None else sigma_n * area,
             "drop_from": list(way), "rows": n,
@@ -136,10 +148,14 @@ def read_catalogue(path, columns, area: float | None = None,
 def observe_catalogue(path, columns, out, area: float | None = None,
                       normal_force: float | None = None, normal_stress: float | None = None,
                       sigma: str = "std", window=None, keep_startup: bool = False,
-                      provenance: dict | None = None) -> dict:
+                      provenance: dict | None = None, mass: float | None = None,
+                      after_delay: float | None = None) -> dict:
     """Read the catalogue ``path`` and write ``observations.json`` (means, σ, the per-event
     table; no curves) and ``events.csv`` to ``out``, as ``rsfbench observe`` does for a
-    recording; returns the document with the files written (``files``).
+    recording, and ``apparatus.toml`` when the catalogue has slips and the normal force is
+    known (:mod:`benchmarks.lab.catalogue_constants`: k and vL estimated from it, the mass and
+    the law's a given or assumed); returns the document with the files written (``files``)
+    and the estimates (``constants``, None without slips).
 
     Parameters
     ----------
@@ -159,45 +175,98 @@ def observe_catalogue(path, columns, out, area: float | None = None,
         Keep the start-up events in the means (:mod:`benchmarks.lab.settled`).
     provenance : dict, optional
         Kept in the document as given.
+    mass : float, optional
+        The slider's mass (kg) for ``apparatus.toml``; None: the paper's, assumed (a
+        catalogue cannot tell it).
+    after_delay : float, optional
+        When the catalogue's level after an event is read, s after its onset: the bias it
+        causes in k and the loading rate is stated (not corrected).
 
     Returns
     -------
     dict
-        The observations document, with ``files``.
+        The observations document, with ``files`` and ``constants``.
 
     Raises
     ------
     ValueError
-        As :func:`read_catalogue`; a window outside the catalogue or with too few events.
+        As :func:`read_catalogue`; a window outside the catalogue or with too few events; as
+        :func:`~benchmarks.lab.catalogue_constants.estimate_constants`. All before anything
+        is written.
     """
     if sigma not in SIGMAS:
         raise ValueError(f"sigma must be one of {SIGMAS}, got {sigma!r}")
     window = check_window(window)
+    if mass is not None:
+        check_positive("mass", mass)
     out = Path(out)
     claim_outputs(observe_files(out))
     events, info = read_catalogue(path, columns, area, normal_force, normal_stress)
     events = _inside(events, window, path)
     settling = judge(events, keep_startup, when=events.t_start)
     events = settling.mark(events)
+    constants = _constants(events, info, after_delay)
     files = {"observations": out / "observations.json", "events": out / "events.csv"}
+    text = None
+    if constants is not None and constants.stiffness is not None:
+        text = catalogue_apparatus_toml(constants, float(events.recurrence_s[events.kept].mean()),
+                                        Path(path).stem, info["normal_force"], mass)
+        files["apparatus"] = out / "apparatus.toml"
+    doc = _write(events, info, settling, constants, files, text, window, path, sigma,
+                 provenance, mass)
+    for name in OPTIONAL_FILES.values():          # an earlier run's, of other observations
+        if out / name not in files.values():
+            remove_own(out / name)
+    doc["files"] = {k: str(v) for k, v in files.items()}
+    doc["constants"] = None if constants is None else constants.as_dict()
+    return doc
+
+
+def _constants(events, info, after_delay):
+    """The estimates of k and vL, or None when the catalogue has no slips (its note then says
+    so); refusals of the rest (:func:`estimate_constants`)."""
+    if not np.isfinite(events.slip_m).any():
+        if after_delay is not None:
+            raise ValueError("after_delay is for the estimates of k and vL, which need the "
+                             "slip per event: map slip")
+        return None
+    return estimate_constants(events, info["normal_force"], info["area"], after_delay)
+
+
+def _write(events, info, settling, constants, files, text, window, path, sigma, provenance,
+           mass) -> dict:
+    """Write events.csv, observations.json and apparatus.toml (``text``, if any); the
+    document."""
     notes = [f"an event catalogue: ΔT from consecutive onsets (the first event has none); Δμ "
              f"from {' − '.join(info['drop_from'])}"
              + (f" over σn = {info['normal_stress']:.6g} Pa" if info["normal_stress"] else ""),
              *settling.notes]
     apparatus = {"normal_force": info["normal_force"], "normal_stress": info["normal_stress"],
                  "area": info["area"]}
+    how = {"drop": " − ".join(info["drop_from"])}
+    if constants is None:
+        notes.append("no slip per event: k and vL are not estimated and no apparatus.toml is "
+                     "written (map slip)")
+    else:
+        notes += list(constants.notes)
+        apparatus.update(stiffness=constants.stiffness and constants.stiffness.value,
+                         vls=constants.vl.value)
+        how.update(stiffness=constants.stiffness_per_fn.assumption, vls=constants.vl.assumption)
+        if text is not None:
+            apparatus["mass"] = PAPER_MASS if mass is None else mass
+            how["mass"] = ("given" if mass is not None else "assumed: the paper's slider "
+                           "(Table 4); a catalogue cannot tell the mass")
     recording = {"file": str(path), "kind": "catalogue", "sha256": info["sha256"],
                  "rows": info["rows"], "window_s": None if window is None else list(window),
                  "columns": info["columns"]}
     write_table(events, files["events"])
-    doc = write_observations(files["observations"], events, None, apparatus,
-                             {"drop": " − ".join(info["drop_from"])}, notes, recording, sigma,
+    doc = write_observations(files["observations"], events, None, apparatus, how, notes,
+                             recording, sigma,
                              {**(provenance or {}),
                               "files_written": [str(v) for v in files.values()]},
                              settled_summary(settling))
-    for name in OPTIONAL_FILES.values():          # an earlier run's, of other observations
-        remove_own(out / name)
-    doc["files"] = {k: str(v) for k, v in files.items()}
+    if text is not None:
+        write_output(files["apparatus"], text)
     return doc
 
 
@@ -265,8 +334,9 @@ def _check_onsets(onset: np.ndarray, column: str, path) -> None:
                          "s): the events must be in time order, each once")
 
 
-def _friction_drop(values, mapping, way, sigma_n, path) -> np.ndarray:
-    """Δμ per event from the mapped way, checked: positive, from a plausible friction."""
+def _friction_drop(values, mapping, way, sigma_n, path) -> tuple:
+    """``(Δμ, μ before, μ after)`` per event from the mapped way (the last two None for a
+    drop given as such), checked: Δμ positive, from a plausible friction."""
     def mu(channel):
         x = values[channel]
         return x / sigma_n if UNITS[mapping[channel][1]][0] == "Pa" else x
@@ -278,8 +348,10 @@ def _friction_drop(values, mapping, way, sigma_n, path) -> np.ndarray:
                              f"gives a friction of {level:.4g} (median) before the events: no "
                              "friction coefficient is; a stress or the normal stress is in "
                              "another unit (MPa read as Pa is 10⁶ off)")
-        drop = before - mu(way[1])
+        after = mu(way[1])
+        drop = before - after
     else:
+        before = after = None
         drop = mu("drop")
     bad = np.flatnonzero(~(drop > 0))
     if len(bad):
@@ -289,4 +361,4 @@ def _friction_drop(values, mapping, way, sigma_n, path) -> np.ndarray:
         raise ValueError(f"catalogue {path}: row {i + 2}: the drop ({column}) is "
                          f"{drop[i]:.6g} in friction, not positive: a stick–slip event drops "
                          "the stress (before and after swapped?)")
-    return drop
+    return drop, before, after
