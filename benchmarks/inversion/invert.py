@@ -321,7 +321,7 @@ def write_inversion(inv: Inversion, out: Path, provenance: dict | None = None) -
         s = inv.posterior.samples
         stride = max(1, -(-len(s) // MAX_SAMPLES_SAVED))
         files["posterior"] = out / "posterior.csv"
-        write_table(s.iloc[::stride], files["posterior"])
+        write_table(s.iloc[::stride][["b", "log10_lc"]], files["posterior"])
         files["corner"] = out / "corner.png"
         _plot_corner(inv, files["corner"])
     for path in inversion_files(out, inv.profiles):   # an earlier run's, of another inversion

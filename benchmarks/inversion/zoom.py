@@ -434,8 +434,7 @@ def _attempt(route, misfit, box, fit, profiles, grids, sampler, progress, say):
     else:
         from benchmarks.inversion.posterior import sample
         cov = None if frame is None else np.asarray(frame.scale) @ np.asarray(frame.scale).T
-        say(f"posterior: {sampler['walkers']} walkers × {sampler['steps']} steps (emcee, from "
-            "the fit)")
+        say(f"posterior: {sampler['walkers']} walkers × {sampler['steps']} steps from the fit")
         post = sample(misfit, *box, _inside((fit.b, fit.lc), box), walkers=sampler["walkers"],
                       steps=sampler["steps"], seed=sampler["seed"], progress=progress, cov=cov)
         yield post, check_posterior(post, fit, profiles), {
