@@ -259,7 +259,7 @@ def _report(args, summary) -> None:
 
 def _report_grid(p: dict) -> None:
     ib, il = p["interval_95"]["b"], p["interval_95"]["log10_lc"]
-    say(f"posterior (grid, {p['n_cells']:,} cells in {p['levels']} levels, "
+    say(f"posterior ({p['route']}, {p['n_cells']:,} cells in {p['levels']} levels, "
         f"{p['n_solves']:,} solves"
         + (f" of which {p['n_failed']:,} failed" if p["n_failed"] else "")
         + f", {p['wall_s']:.1f} s): b = {p['mean']['b']:.5g} ± "
@@ -269,11 +269,21 @@ def _report_grid(p: dict) -> None:
                            "see refinement in inversion.json"))
     if p["edge_mass"] > 0.01:
         say(f"{p['edge_mass']:.0%} of the posterior is on the box's edge: the box cuts it")
+    _report_checks(p)
     say(f"prior: {p['prior']}")
 
 
+def _report_checks(p: dict) -> None:
+    """What the posterior was checked against, in one line."""
+    c = p["checks"]
+    ratio = ", ".join(f"{k} {c['sd_ratio'][k]:.2f} × the {c['sd_reference_source'][k]} sd"
+                      for k in c["sd_ratio"])
+    say(f"checked: the 95 % region holds the least-squares fit; sd {ratio} (allowed within "
+        f"{c['sd_factor']:g} ×)")
+
+
 def _report_sample(p: dict) -> None:
-    say(f"posterior ({p['n_solves']:,} solves, {p['wall_s']:.1f} s): b = "
+    say(f"posterior ({p['route']}, emcee, {p['n_solves']:,} solves, {p['wall_s']:.1f} s): b = "
         f"{p['mean']['b']:.5g} ± {p['std']['b']:.2g}, log10 Lc = "
         f"{p['mean']['log10_lc']:.3f} ± {p['std']['log10_lc']:.2g}; acceptance "
         f"{p['acceptance']:.2f}, "
@@ -282,6 +292,7 @@ def _report_sample(p: dict) -> None:
            f"{p['effective_samples']:.0f} effective samples"
            if np.isfinite(p["effective_samples"]) else
            "τ not estimable (a walker never moved: run more --steps)"))
+    _report_checks(p)
     say(f"prior: {p['prior']}")
 
 
@@ -325,11 +336,13 @@ def add_parsers(sub) -> None:
 def _add_posterior_options(i) -> None:
     """The posterior's method and size, the curves' noise, the profiles and the seed."""
     i.add_argument("--method", choices=METHODS, default="grid",
-                   help="the posterior: on a grid refined where its mass is, or sampled with "
-                        "emcee (default: grid)")
+                   help="the posterior: 'grid', on a grid zoomed onto the least-squares fit "
+                        "(or over the box, for a broad posterior) and refined where its mass "
+                        "is, emcee from the fit if no grid passes the checks; or 'emcee' alone, "
+                        "started from the fit and its Gauss–Newton covariance (default: grid)")
     i.add_argument("--grid", type=bounded(3, 1001, "the first grid is solved in one batch"),
                    metavar="N", help="the grid posterior's first grid, N × N cells over the box "
-                                     "(default: 33)")
+                                     "and over the zoom on the fit (default: 33)")
     i.add_argument("--walkers", type=bounded(4, MAX_WALKERS, "each step solves every walker "
                                              "at once"), metavar="N",
                    help=f"emcee walkers (--method emcee), 4 to {MAX_WALKERS:,}; walkers × steps "

@@ -144,6 +144,11 @@ class GridPosterior:
     history : list of dict
         One a level: ``level``, ``cells``, ``split``, ``solves``, ``moved`` (the intervals'
         largest move, as a fraction of the width) and ``hpd_cells``.
+    frame : tuple or None
+        ``(centre, scale)`` of a grid laid in a frame (:mod:`benchmarks.inversion.zoom`): each
+        cell is the square of ``z_b``, ``z_log10_lc`` (its centre) and ``width_z`` (its side)
+        mapped by (b, log10 Lc) = centre + scale · z, and ``width_b``, ``width_log10_lc`` are
+        its extents; None for cells that are rectangles in (b, log10 Lc).
     """
 
     cells: pd.DataFrame = field(repr=False)
@@ -162,6 +167,7 @@ class GridPosterior:
     n_failed: int = 0
     wall_s: float = 0.0
     history: list = field(default_factory=list)
+    frame: tuple | None = field(default=None, repr=False)
 
     @property
     def ok(self) -> bool:
@@ -189,6 +195,12 @@ class GridPosterior:
         c = self.cells
         k = rng.choice(len(c), size=n, p=c.mass.to_numpy())
         u = rng.random((n, 2)) - 0.5
+        if self.frame is not None:       # uniform in the cell's square in the frame
+            centre, scale = self.frame
+            w = c.width_z.to_numpy()[k]
+            z = np.column_stack([c.z_b.to_numpy()[k], c.z_log10_lc.to_numpy()[k]]) + u * w[:, None]
+            x = np.asarray(centre) + z @ np.asarray(scale).T
+            return pd.DataFrame({"b": x[:, 0], "log10_lc": x[:, 1]})
         return pd.DataFrame({"b": c.b.to_numpy()[k] + u[:, 0] * c.width_b.to_numpy()[k],
                              "log10_lc": c.log10_lc.to_numpy()[k]
                              + u[:, 1] * c.width_log10_lc.to_numpy()[k]})
@@ -210,8 +222,8 @@ def posterior_of_cells(cells: pd.DataFrame, box, level: float = 0.95, shape=None
     shape : tuple or None
         (n_b, n_lc) of a grid not refined, its cells in ``meshgrid(..., indexing="ij")`` order.
     **cost
-        ``levels``, ``settled``, ``history``, ``n_solves``, ``n_failed``, ``wall_s``, as
-        :class:`GridPosterior` holds them.
+        ``levels``, ``settled``, ``history``, ``n_solves``, ``n_failed``, ``wall_s`` and
+        ``frame``, as :class:`GridPosterior` holds them.
 
     Returns
     -------
@@ -252,7 +264,8 @@ def posterior_of_cells(cells: pd.DataFrame, box, level: float = 0.95, shape=None
 
 
 def grid_posterior(misfit: Misfit, b_range, lc_range, n: int = 33, progress: bool = False,
-                   say=None) -> GridPosterior:
+                   say=None, refine: bool = True, first: GridPosterior | None = None
+                   ) -> GridPosterior:
     """The refined grid posterior of ``misfit`` (module docstring).
 
     Parameters
@@ -268,6 +281,11 @@ def grid_posterior(misfit: Misfit, b_range, lc_range, n: int = 33, progress: boo
         Show the ensembles' progress.
     say : callable or None
         Given a line of text as each level starts.
+    refine : bool
+        Refine (False: the first grid alone).
+    first : GridPosterior, optional
+        The first grid already evaluated (an unrefined grid posterior of the same box, ``n``
+        × ``n``), refined instead of solving it again; its solves and wall time are counted.
 
     Returns
     -------
@@ -283,14 +301,19 @@ def grid_posterior(misfit: Misfit, b_range, lc_range, n: int = 33, progress: boo
         raise ValueError(f"the first grid's size must be an integer from 3 to 1001, got {n!r}")
     box = (tuple(b_range), (float(np.log10(lc_range[0])), float(np.log10(lc_range[1]))))
     started = time.perf_counter()
-    (b_lo, b_hi), (l_lo, l_hi) = box
-    bb, ll = np.meshgrid(centres(b_lo, b_hi, n), centres(l_lo, l_hi, n), indexing="ij")
     failed_before = _failed(misfit)
-    cells = _evaluate(misfit, bb.ravel(), ll.ravel(), np.full(bb.size, (b_hi - b_lo) / n),
-                      np.full(bb.size, (l_hi - l_lo) / n), progress)
+    if first is None:
+        (b_lo, b_hi), (l_lo, l_hi) = box
+        bb, ll = np.meshgrid(centres(b_lo, b_hi, n), centres(l_lo, l_hi, n), indexing="ij")
+        cells = _evaluate(misfit, bb.ravel(), ll.ravel(), np.full(bb.size, (b_hi - b_lo) / n),
+                          np.full(bb.size, (l_hi - l_lo) / n), progress)
+    else:                                # its solves and time are counted below
+        cells = first.cells.drop(columns="mass")
+        failed_before -= first.n_failed
+        started -= first.wall_s
     post = posterior_of_cells(cells, box)
     history, settled, n_solves = [], False, len(cells)
-    for level in range(1, MAX_LEVELS + 1):
+    for level in range(1, (MAX_LEVELS if refine else 0) + 1):
         if not post.ok:
             break
         before = post.interval

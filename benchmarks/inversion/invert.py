@@ -39,8 +39,9 @@ from benchmarks.inversion.adaptive import GridPosterior, grid_posterior
 from benchmarks.inversion.fit_figure import plot_fit
 from benchmarks.inversion.least_squares import FitResult, fit
 from benchmarks.inversion.misfit import Misfit
-from benchmarks.inversion.posterior import Posterior, check_sampler, sample
+from benchmarks.inversion.posterior import Posterior, check_sampler
 from benchmarks.inversion.profile import CHI2_95_1DOF, profile
+from benchmarks.inversion.zoom import posterior_missed, posterior_route
 from benchmarks.records.files import (
     claim_outputs,
     remove_own,
@@ -53,7 +54,8 @@ from benchmarks.records.provenance import provenance as machine, version_line
 from benchmarks.records.report import jsonable
 from problems import variant
 
-__all__ = ["invert", "Inversion", "write_inversion", "check_box", "MAX_SAMPLES_SAVED", "METHODS"]
+__all__ = ["invert", "Inversion", "write_inversion", "check_box", "MAX_SAMPLES_SAVED",
+           "METHODS", "posterior_missed"]
 
 #: rows of posterior.csv at most
 MAX_SAMPLES_SAVED = 4000
@@ -74,8 +76,13 @@ class Inversion:
     no_posterior: str = ""
     method: str = "grid"
     seed: int = 0
-    #: why the grid posterior was dropped (:func:`posterior_missed`), or ""
+    #: why no posterior passed its checks (:mod:`benchmarks.inversion.zoom`), or ""
     posterior_missed: str = ""
+    #: the route that made the posterior ("zoomed grid", "box grid", "sampler"), its checks,
+    #: and every attempt's route and checks
+    route: str = ""
+    checks: dict = field(default_factory=dict)
+    attempts: list = field(default_factory=list)
 
 
 def check_box(problem, b_range, lc_range) -> None:
@@ -108,14 +115,42 @@ def invert(misfit: Misfit, b_range, lc_range, walkers: int = 32, steps: int = 20
            profile_points: int = 21, seed: int = 0, progress: bool = False,
            say=None, method: str = "grid", grid: int = 33) -> Inversion:
     """The posterior, the least-squares fit and the profiles within ``b_range`` × ``lc_range``
-    (Lc in m). ``method="grid"``: the posterior on a ``grid`` × ``grid`` grid refined where its
-    mass is (:func:`benchmarks.inversion.adaptive.grid_posterior`), then the fit started from
-    its best cell; ``"emcee"``: the fit from a coarse scan, then ``walkers`` × ``steps`` of
-    emcee started at it. ``steps`` = 0: no posterior (either method). The profiles take ``profile_points``
-    values of each parameter across the box, the fit one of them. A box without a limit cycle
-    has no posterior (``no_posterior`` says why). ``say``: a callable given a line of text as
-    each stage starts."""
+    (Lc in m). First a ``grid`` × ``grid`` grid of the box (``method="grid"``; the fit starts
+    from its best cell) or the fit's own scan (``"emcee"``), then the fit and the profiles
+    (``profile_points`` values of each parameter across the box, the fit one of them), then the
+    posterior by :func:`benchmarks.inversion.zoom.posterior_route`: ``"grid"``, the grid zoomed
+    onto the fit or the box's grid refined, else emcee (``walkers`` × ``steps``) from the fit;
+    ``"emcee"``, emcee alone. A posterior is reported only if it passes the checks (its 95 %
+    region holds the fit, its sd agrees with the Gauss–Newton or profile sd within a factor
+    2); else ``no_posterior`` and ``posterior_missed`` say why. ``steps`` = 0: no posterior. A
+    box without a limit cycle has none either. ``say``: a callable given a line of text as each
+    stage starts."""
     say = say or (lambda text: None)
+    _check_options(misfit, b_range, lc_range, method, profile_points, steps, walkers)
+    wall = {}
+    first, start = None, None
+    if method == "grid" and steps:
+        t = time.perf_counter()
+        say(f"first grid ({grid} × {grid} over the box)")
+        first = grid_posterior(misfit, b_range, lc_range, n=grid, progress=progress, say=say,
+                               refine=False)
+        wall["first_grid"] = time.perf_counter() - t
+        start = first.best[:2] if np.isfinite(first.best[2]) else None
+    t = time.perf_counter()
+    say("least-squares fit" + (" from the grid's best cell" if start else " (multi-start)"))
+    best = fit(misfit, b_range, lc_range, start=start)
+    wall["fit"] = time.perf_counter() - t
+    profiles = _profiles(misfit, b_range, lc_range, best, profile_points, wall, say)
+    inv = Inversion(misfit, tuple(b_range), tuple(lc_range), best, profiles, None, wall,
+                    "not asked for (steps = 0)", method=method, seed=seed)
+    if steps:
+        _posterior(inv, first, grid, {"walkers": walkers, "steps": steps, "seed": seed},
+                   progress, say)
+    return inv
+
+
+def _check_options(misfit, b_range, lc_range, method, profile_points, steps, walkers) -> None:
+    """Refuse a bad method, number of profile points, steps, box or chain, before any work."""
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     if (isinstance(profile_points, bool) or not isinstance(profile_points, int)
@@ -125,29 +160,17 @@ def invert(misfit: Misfit, b_range, lc_range, walkers: int = 32, steps: int = 20
     if isinstance(steps, bool) or not isinstance(steps, int) or steps < 0:
         raise ValueError(f"steps must be 0 (no posterior) or an integer ≥ 2, got {steps!r}")
     check_box(misfit.problem, b_range, lc_range)
-    if method == "emcee" and steps:      # a bad chain is refused before the fit, not after it
+    if steps:                            # a bad chain is refused before the fit, not after it
         check_sampler(b_range, lc_range, walkers, steps)
-    wall = {}
-    post, why = None, "not asked for (steps = 0)"
-    start = None
-    if method == "grid" and steps:
-        t = time.perf_counter()
-        say(f"grid posterior ({grid} × {grid}, refined where its mass is)")
-        post = grid_posterior(misfit, b_range, lc_range, n=grid, progress=progress, say=say)
-        wall["posterior"] = time.perf_counter() - t
-        why = ""
-        if np.isfinite(post.best[2]):
-            start = post.best[:2]
-        else:
-            post, why = None, "no cell of the grid has a limit cycle"
-    t = time.perf_counter()
-    say("least-squares fit" + (" from the grid's best cell" if start else " (multi-start)"))
-    best = fit(misfit, b_range, lc_range, start=start)
-    wall["fit"] = time.perf_counter() - t
+
+
+def _profiles(misfit, b_range, lc_range, best: FitResult, points: int, wall: dict,
+              say) -> dict:
+    """The profiles of b and of log10 Lc across the box, the fit a point of each."""
     profiles = {}
     for name, values, other in (
-            ("b", np.linspace(*b_range, profile_points), lc_range),
-            ("log10_lc", np.linspace(*np.log10(lc_range), profile_points), b_range)):
+            ("b", np.linspace(*b_range, points), lc_range),
+            ("log10_lc", np.linspace(*np.log10(lc_range), points), b_range)):
         t = time.perf_counter()
         say(f"profile of {name}")
         profiles[name] = profile(misfit, name, values, other,
@@ -155,43 +178,33 @@ def invert(misfit: Misfit, b_range, lc_range, walkers: int = 32, steps: int = 20
                                  if np.isfinite(best.misfit) else None)
         wall[f"profile_{name}"] = time.perf_counter() - t
         _check_fit_inside(profiles[name], best)
-    missed = posterior_missed(post.best[2], profiles) if isinstance(post, GridPosterior) else ""
-    if missed:
-        post, why = None, missed
-    if method == "emcee" and steps and not np.isfinite(best.misfit):
-        why = f"not sampled: {best.message} (no point of the box is known to have a cycle)"
-    elif method == "emcee" and steps:
-        t = time.perf_counter()
-        say(f"posterior: {walkers} walkers × {steps} steps")
-        lo, hi = np.array([b_range[0], np.log10(lc_range[0])]), np.array(
-            [b_range[1], np.log10(lc_range[1])])
-        x = np.clip([best.b, np.log10(best.lc)], lo + 1e-6 * (hi - lo), hi - 1e-6 * (hi - lo))
-        post = sample(misfit, b_range, lc_range, (x[0], 10.0 ** x[1]), walkers=walkers,
-                      steps=steps, seed=seed, progress=progress)
-        wall["posterior"] = time.perf_counter() - t
-        why = ""
-    return Inversion(misfit, tuple(b_range), tuple(lc_range), best, profiles, post, wall, why,
-                     method=method, seed=seed, posterior_missed=missed)
+    return profiles
 
 
-def posterior_missed(cell_misfit: float, profiles: dict) -> str:
-    """Why a grid posterior is not to be read, or "": its best cell's misfit is higher, by more
-    than the 95 % level, than a point one of the profiles found. Its mass then lies about a
-    point the data reject against that one: a posterior narrower than the first grid's cells,
-    whose cell with the best fit was never refined. Its mean and intervals are dropped."""
-    found = [(float(p.table.misfit.min()), p) for p in profiles.values()
-             if np.isfinite(p.table.misfit).any()]
-    if not found or not np.isfinite(cell_misfit):
-        return ""
-    lowest, p = min(found, key=lambda f: f[0])
-    if cell_misfit - lowest <= CHI2_95_1DOF:
-        return ""
-    at = p.table.loc[p.table.misfit.idxmin()]
-    return (f"the grid posterior missed the best fit: its best cell has misfit "
-            f"{cell_misfit:.4g}, but the profile of {p.parameter} found {lowest:.4g} at "
-            f"b = {at['b']:.6g}, log10 Lc = {at['log10_lc']:.4g}; the posterior is narrower than "
-            f"the first grid's cells and its mass lies elsewhere, so it is not reported (a finer "
-            f"first grid, --grid, may find it)")
+def _posterior(inv: Inversion, first, grid: int, sampler: dict, progress, say) -> None:
+    """The posterior of ``inv`` by its route (:func:`benchmarks.inversion.zoom.posterior_route`),
+    in place: a posterior that passed its checks, or why there is none."""
+    best = inv.fit
+    if first is not None and not first.ok:
+        inv.no_posterior = "no cell of the grid has a limit cycle"
+        return
+    if not np.isfinite(best.misfit):
+        inv.no_posterior = (f"not sampled: {best.message} (no point of the box is known to "
+                            "have a cycle)")
+        return
+    t = time.perf_counter()
+    routed = posterior_route(inv.misfit, inv.b_range, inv.lc_range, best, inv.profiles, first,
+                             n=grid, sampler=sampler, grid=inv.method == "grid",
+                             progress=progress, say=say)
+    inv.wall_s["posterior"] = time.perf_counter() - t + inv.wall_s.get("first_grid", 0.0)
+    inv.posterior, inv.route, inv.checks = routed.posterior, routed.route, routed.checks
+    inv.attempts = routed.attempts
+    if routed.posterior is None:
+        inv.no_posterior = inv.posterior_missed = (
+            "no posterior passed its checks, so none is reported (the least-squares fit and "
+            f"the profile intervals stand): {routed.reason}")
+    else:
+        inv.no_posterior = ""
 
 
 def _check_fit_inside(p, best: FitResult) -> None:
@@ -265,6 +278,25 @@ def _summary(inv: Inversion) -> dict:
             "acceptance": p.acceptance, "tau": p.tau, "tau_reliable": p.tau_reliable,
             "effective_samples": p.effective_samples, "n_solves": p.n_solves,
             "n_samples": len(p.samples), "wall_s": p.wall_s}
+    return _with_route(inv, out)
+
+
+def _with_route(inv: Inversion, out: dict) -> dict:
+    """The summary with the posterior's route and checks (in ``posterior``), every attempt's
+    (``posterior_attempts``) and a zoomed grid's frame."""
+    out["posterior_attempts"] = inv.attempts
+    if out["posterior"] is not None:
+        out["posterior"]["route"] = inv.route
+        out["posterior"]["checks"] = inv.checks
+        frame = getattr(inv.posterior, "frame", None)
+        if frame is not None:
+            out["posterior"]["frame"] = {
+                "centre_b_log10_lc": list(frame[0]), "scale": [list(r) for r in frame[1]],
+                "half": next((a["frame_half"] for a in reversed(inv.attempts)
+                              if a.get("passed") and "frame_half" in a), None),
+                "what": "(b, log10 Lc) = centre + scale · z, z in [−half, half]²: the grid "
+                        "zoomed on the fit (scale: Cholesky factor of its Gauss–Newton "
+                        "covariance widened to the profiles)"}
     return out
 
 
@@ -301,7 +333,7 @@ def write_inversion(inv: Inversion, out: Path, provenance: dict | None = None,
         s = inv.posterior.samples
         stride = max(1, -(-len(s) // MAX_SAMPLES_SAVED))
         files["posterior"] = out / "posterior.csv"
-        write_table(s.iloc[::stride], files["posterior"])
+        write_table(s.iloc[::stride][["b", "log10_lc"]], files["posterior"])
         files["corner"] = out / "corner.png"
         _plot_corner(inv, files["corner"])
     for path in inversion_files(out, inv.profiles):   # an earlier run's, of another inversion

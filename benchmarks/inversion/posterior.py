@@ -44,7 +44,8 @@ class Posterior:
     Parameters
     ----------
     samples : pandas.DataFrame
-        Columns ``b`` (dimensionless) and ``log10_lc`` (log10 of m), one row a kept sample.
+        Columns ``b`` (dimensionless), ``log10_lc`` (log10 of m) and ``log_likelihood``
+        (−misfit/2 there), one row a kept sample.
     mean, std : dict of str to float
         The samples' mean and standard deviation, keyed ``"b"`` and ``"log10_lc"``.
     acceptance : float
@@ -113,9 +114,13 @@ def run_sampler(sampler, p0, steps: int, progress: bool, stopped: list) -> None:
 
 
 def sample(misfit: Misfit, b_range, lc_range, start, walkers: int = 32, steps: int = 2000,
-           burn: int | None = None, seed: int = 0, progress: bool = False) -> Posterior:
+           burn: int | None = None, seed: int = 0, progress: bool = False,
+           cov=None) -> Posterior:
     """Sample the posterior (module docstring) with ``walkers`` walkers for ``steps`` steps,
-    started in a small ball (1e−4 relative in b, 1e−3 in log10 Lc) around ``start``.
+    started from N(``start``, ``cov``) (a least-squares fit and its Gauss–Newton covariance:
+    the ensemble's spread is the stretch move's scale), a draw outside the box drawn again and
+    then clipped into it; without ``cov``, in a small ball (1e−4 relative in b, 1e−3 in log10
+    Lc) around ``start``.
 
     Parameters
     ----------
@@ -133,10 +138,14 @@ def sample(misfit: Misfit, b_range, lc_range, start, walkers: int = 32, steps: i
         Of the start ball and of emcee's generator.
     progress : bool
         Show emcee's progress bar.
+    cov : array_like, optional
+        The 2 × 2 covariance of (b, log10 Lc) the walkers start from (finite, positive
+        definite); None: the small ball.
 
     Returns
     -------
     Posterior
+        Its samples carry each one's ``log_likelihood`` too.
 
     Raises
     ------
@@ -169,25 +178,53 @@ def sample(misfit: Misfit, b_range, lc_range, start, walkers: int = 32, steps: i
         return out
 
     rng = np.random.default_rng(seed)
-    p0 = x0 + rng.standard_normal((walkers, 2)) * np.array([1e-4 * x0[0], 1e-3])
-    p0 = np.clip(p0, lo + 1e-12, hi - 1e-12)
+    p0 = _start(rng, x0, cov, walkers, lo, hi)
     sampler = emcee.EnsembleSampler(walkers, 2, log_prob, vectorize=True)
     sampler.random_state = np.random.RandomState(int(rng.integers(2**31))).get_state()
     started = time.perf_counter()
     run_sampler(sampler, p0, steps, progress, stopped)
     wall = time.perf_counter() - started
+    prior = (f"uniform in b on [{b_lo:g}, {b_hi:g}] and in log10 Lc on "
+             f"[{np.log10(lc_lo):g}, {np.log10(lc_hi):g}] (Lc in m)")
+    return _posterior(sampler, burn, steps - burn, count["n"], wall, prior)
+
+
+def _posterior(sampler, burn: int, kept: int, n_solves: int, wall: float,
+               prior: str) -> Posterior:
+    """The :class:`Posterior` of an emcee ``sampler`` after ``burn`` steps dropped."""
+    walkers = sampler.get_chain().shape[1]
     chain = sampler.get_chain(discard=burn, flat=True)
+    log_l = sampler.get_log_prob(discard=burn, flat=True)
     with np.errstate(divide="ignore", invalid="ignore"):    # a walker that never moved
         tau = sampler.get_autocorr_time(discard=burn, tol=0)    # has no τ: NaN, said below
-    kept = steps - burn
-    samples = pd.DataFrame({"b": chain[:, 0], "log10_lc": chain[:, 1]})
+    samples = pd.DataFrame({"b": chain[:, 0], "log10_lc": chain[:, 1], "log_likelihood": log_l})
+    xs = samples[["b", "log10_lc"]]
     return Posterior(
-        samples=samples, mean=samples.mean().to_dict(), std=samples.std().to_dict(),
+        samples=samples, mean=xs.mean().to_dict(), std=xs.std().to_dict(),
         acceptance=float(np.mean(sampler.acceptance_fraction)),
         tau={"b": float(tau[0]), "log10_lc": float(tau[1])},
         tau_reliable=bool(np.isfinite(tau).all() and kept >= 50 * np.max(tau)),
         effective_samples=(float(walkers * kept / np.max(tau)) if np.isfinite(tau).all()
-                           else float("nan")), n_solves=count["n"],
-        wall_s=wall,
-        prior=f"uniform in b on [{b_lo:g}, {b_hi:g}] and in log10 Lc on "
-              f"[{np.log10(lc_lo):g}, {np.log10(lc_hi):g}] (Lc in m)")
+                           else float("nan")), n_solves=n_solves, wall_s=wall, prior=prior)
+
+
+def _start(rng, x0, cov, walkers: int, lo, hi) -> np.ndarray:
+    """The walkers' start: N(x0, cov), a draw outside the box (lo, hi) drawn again up to ten
+    times and then clipped into it; without a usable ``cov``, the small ball of :func:`sample`."""
+    inner_lo, inner_hi = lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo)
+    chol = None
+    if cov is not None:
+        try:
+            chol = np.linalg.cholesky(np.asarray(cov, dtype=float))
+        except np.linalg.LinAlgError:
+            chol = None
+    if chol is None or not np.isfinite(chol).all():
+        p0 = x0 + rng.standard_normal((walkers, 2)) * np.array([1e-4 * x0[0], 1e-3])
+        return np.clip(p0, lo + 1e-12, hi - 1e-12)
+    p0 = x0 + rng.standard_normal((walkers, 2)) @ chol.T
+    for _ in range(10):
+        out = ~((p0 > inner_lo) & (p0 < inner_hi)).all(axis=1)
+        if not out.any():
+            break
+        p0[out] = x0 + rng.standard_normal((int(out.sum()), 2)) @ chol.T
+    return np.clip(p0, inner_lo, inner_hi)

@@ -16,6 +16,17 @@ same data (J1: the means and their σ), and is compared with the inversion by a 
   node, its shift from the reference's best fit in the same units (``fit_ok``: the fit
   converged).
 
+**Precise data.** When the zoom's grid does not resolve the reference's posterior — fewer than
+:data:`MIN_NODES_PER_SD` nodes per standard deviation, or an sd off the Gauss–Newton one of the
+reference's least-squares fit by more than a factor 2 (a ridge across which the nodes are too
+far apart: with σ(ΔT)/ΔT = 5e−4 on W2 the old zoom held the posterior on one node, 0.01 nodes
+per sd, and with 1e−5 its sd was 0 and the shifts a division by zero) — and that fit's
+Gauss–Newton frame lies inside the box, every setting's posterior is compared on the nodes of
+that frame instead (:func:`benchmarks.inversion.zoom.frame_map`: ``n`` × ``n`` nodes over
+± :data:`FRAME_HALF` sd of the fit's covariance, the same nodes for every setting), its moments
+read in (b, log10 Lc) (``zoom_kind`` says which grid). A shift is never divided by a zero sd:
+it is NaN then, and the setting is not indistinguishable.
+
 A setting's inversion is **indistinguishable** from the reference's when both posterior-mean
 shifts are within :data:`SHIFT_SD` = 0.1 standard deviations and both overlaps (zoom and whole
 box) are at least :data:`MIN_OVERLAP` = 0.95: a tenth of the posterior's own width, far below
@@ -63,6 +74,7 @@ from benchmarks.inversion.grid import MetricMap, box_grid, metric_map
 from benchmarks.inversion.least_squares import fit
 from benchmarks.inversion.misfit import Misfit, synthetic
 from benchmarks.inversion.observations import Observations, observations
+from benchmarks.inversion.zoom import SD_FACTOR, Frame, frame_map, frame_moments, frame_of
 from benchmarks.records.files import write_figure, write_output, write_table
 from benchmarks.records.report import fmt, markdown_table
 from integrators import REGISTRY, Algorithm, Exprb43, Rodas5P
@@ -70,7 +82,7 @@ from problems import preset
 
 __all__ = ["solver_effect", "candidates", "Candidate", "recommendation", "compare",
            "same_inference", "posterior_cost", "SHIFT_SD", "MIN_OVERLAP", "POSTERIOR_SOLVES",
-           "QUICK_LADDERS", "QUICK_N", "write_solver_effect"]
+           "QUICK_LADDERS", "QUICK_N", "write_solver_effect", "MIN_NODES_PER_SD", "FRAME_HALF"]
 
 #: the largest shift of a posterior mean, in reference standard deviations, called no change
 SHIFT_SD = 0.1
@@ -80,6 +92,12 @@ MIN_OVERLAP = 0.95
 POSTERIOR_SOLVES = 64_000
 #: a node is in a posterior's zoom when its density is within this factor of the maximum
 ZOOM_DENSITY = 1e-6
+#: a reference posterior with fewer nodes than this per sd (in b or log10 Lc) is not resolved
+#: by the zoom's grid: it is compared on the frame of the reference's fit instead
+MIN_NODES_PER_SD = 2.0
+#: the frame's grid spans ± this many Gauss–Newton sd (15 nodes: 0.53 sd apart; the mass of a
+#: Gaussian beyond ± 4 sd in either parameter is 1.3e−4)
+FRAME_HALF = 4.0
 
 
 @dataclass(frozen=True)
@@ -167,19 +185,32 @@ def _zoom(coarse: MetricMap, data: dict) -> tuple[tuple, tuple]:
             (10.0 ** (coarse.log10_lc[j0] - hl), 10.0 ** (coarse.log10_lc[j1] + hl)))
 
 
-def compare(ref: GridPosterior, post: GridPosterior) -> dict:
+def compare(ref: GridPosterior, post: GridPosterior, frame=None) -> dict:
     """The comparison of a setting's grid posterior ``post`` with the reference's ``ref`` on the
     same grid: mean shifts in reference standard deviations, overlap Σ min(p, q), Jaccard index
-    of the 95 % HPD sets (NaN where either posterior is not ``ok``)."""
+    of the 95 % HPD sets (NaN where either posterior is not ``ok``, and a shift NaN where the
+    reference's sd is 0: a posterior on one node, which the grid does not resolve). ``frame``:
+    the grid is a frame's (:func:`benchmarks.inversion.zoom.frame_map`), its moments read back
+    in (b, log10 Lc)."""
     if not (ref.ok and post.ok):
         return {"mean_shift_b_sd": np.nan, "mean_shift_log10_lc_sd": np.nan,
                 "overlap": 0.0 if ref.ok else np.nan, "hpd_jaccard": np.nan}
+    (rm, rs), (pm, _) = _moments(ref, frame), _moments(post, frame)
     union = (post.hpd | ref.hpd).sum()
-    return {"mean_shift_b_sd": (post.mean["b"] - ref.mean["b"]) / ref.std["b"],
-            "mean_shift_log10_lc_sd": (post.mean["log10_lc"] - ref.mean["log10_lc"])
-            / ref.std["log10_lc"],
+    return {"mean_shift_b_sd": _in_sd(pm["b"] - rm["b"], rs["b"]),
+            "mean_shift_log10_lc_sd": _in_sd(pm["log10_lc"] - rm["log10_lc"], rs["log10_lc"]),
             "overlap": float(np.minimum(post.mass, ref.mass).sum()),
             "hpd_jaccard": float((post.hpd & ref.hpd).sum() / union)}
+
+
+def _moments(post: GridPosterior, frame=None) -> tuple[dict, dict]:
+    """The mean and sd of b and log10 Lc of a grid posterior (of a frame's grid: read back)."""
+    return (post.mean, post.std) if frame is None else frame_moments(post, frame)
+
+
+def _in_sd(shift: float, sd: float) -> float:
+    """``shift`` in units of ``sd``; NaN for a zero or undefined sd (no division by it)."""
+    return float(shift / sd) if np.isfinite(sd) and sd > 0 else float("nan")
 
 
 def posterior_cost(small: MetricMap, big: MetricMap, solves: int = POSTERIOR_SOLVES) -> float:
@@ -202,15 +233,50 @@ def same_inference(c: dict) -> bool:
                 and c["overlap"] >= MIN_OVERLAP and (np.isnan(box) or box >= MIN_OVERLAP))
 
 
-def _best_fit(problem, obs, algorithm, m: MetricMap, box, workers, wall_budget):
-    """(b, log10 Lc, converged) of the least-squares fit started at the map's best node."""
+def _best_fit(problem, obs, algorithm, m: MetricMap, box, workers, wall_budget, frame=None):
+    """(b, log10 Lc, converged, the fit) of the least-squares fit started at the map's best node
+    (a frame's map: that node read back in (b, log10 Lc))."""
     if not m.cycle.any():
-        return np.nan, np.nan, False
+        return np.nan, np.nan, False, None
     J = m.j1(obs)
     i, j = np.unravel_index(np.argmin(J), J.shape)
+    x = (m.b[i], m.log10_lc[j]) if frame is None else frame.to_x([m.b[i], m.log10_lc[j]])[0]
     res = fit(Misfit(problem, obs, algorithm, wall_budget=wall_budget, workers=workers), *box,
-              start=(m.b[i], 10.0 ** m.log10_lc[j]))
-    return res.b, np.log10(res.lc), bool(res.success)
+              start=(x[0], 10.0 ** x[1]))
+    return res.b, np.log10(res.lc), bool(res.success), res
+
+
+def _framed(everyone, maps, obs, where, n, workers, wall_budget, say):
+    """The reference's least-squares fit on ``obs`` and, when the zoom's grid does not resolve
+    the reference's posterior (fewer than :data:`MIN_NODES_PER_SD` nodes per sd, or an sd off
+    the Gauss–Newton one by more than :data:`~benchmarks.inversion.zoom.SD_FACTOR`) while the
+    fit's Gauss–Newton frame (± :data:`FRAME_HALF` σ) lies inside the box: that frame and every
+    setting's map on it (:func:`benchmarks.inversion.zoom.frame_map`); else no frame."""
+    problem, box, _, grid = where
+    reference = everyone[0]
+    m = maps[reference.label]
+    ref_fit = _best_fit(problem, obs, reference.algorithm, m, box, workers, None)
+    frame = None if ref_fit[3] is None else frame_of(ref_fit[3])
+    if frame is None:
+        return ref_fit, None, maps
+    frame = Frame(frame.centre, frame.scale, FRAME_HALF)
+    post = m.posterior(obs)
+    per = [post.std[k] / (g[1] - g[0]) for k, g in zip(("b", "log10_lc"), grid)]
+    ratio = [post.std["b"] / ref_fit[3].sigma_b,
+             post.std["log10_lc"] / ref_fit[3].sigma_log10_lc]
+    resolved = post.ok and min(per) >= MIN_NODES_PER_SD and all(
+        1 / SD_FACTOR <= r <= SD_FACTOR for r in ratio)
+    narrow = (2 * frame.extent() < np.diff(
+        [box[0], np.log10(box[1])], axis=1)[:, 0]).all()
+    if resolved or not narrow:
+        return ref_fit, None, maps
+    framed = {}
+    for c in everyone:
+        say(f"{problem.name or 'problem'}: {c.label} on the frame of the reference's fit")
+        budget = None if c.family in ("reference", "floor") else wall_budget
+        framed[c.label] = frame_map(problem, c.algorithm, frame, *box, n, wall_budget=budget,
+                                    workers=workers)
+    return ref_fit, frame, framed
 
 
 def solver_effect(settings: list[Candidate], reference: Algorithm, floor: Algorithm,
@@ -261,8 +327,9 @@ def solver_effect(settings: list[Candidate], reference: Algorithm, floor: Algori
                 "zoom_lc_um": f"{zoom[1][0] * 1e6:.3g}..{zoom[1][1] * 1e6:.3g}",
                 "grid": f"{n}x{n}", "check_grid": f"{check_n}x{check_n}"}
         for key, obs in data.items():
-            rows += _rows(everyone, (maps, checks, smalls), obs, (problem, box, inside, grid),
-                          workers, wall_budget, ({"window": name, "law": law, "data": key}, tail))
+            rows += _dataset_rows(everyone, (maps, checks, smalls), obs,
+                                  (problem, box, inside, grid), n, workers, wall_budget,
+                                  ({"window": name, "law": law, "data": key}, tail), say)
     table = pd.DataFrame(rows)
     if len(table):                       # the floor's verdict applies to its whole data set
         table["resolved"] = table.groupby(["window", "law", "data"], sort=False)[
@@ -291,47 +358,72 @@ def _cases(windows, laws, yours, own) -> list:
     return cases
 
 
+def _dataset_rows(everyone, maps, obs, where, n, workers, wall_budget, labels, say):
+    """The rows of one data set (:func:`_rows`), on the zoom's maps, or on the frame of the
+    reference's fit when the zoom does not resolve its posterior (:func:`_framed`)."""
+    problem, box, inside, grid = where
+    maps, checks, smalls = maps
+    ref_fit, frame, compared = _framed(everyone, maps, obs, where, n, workers, wall_budget, say)
+    head, tail = labels
+    tail = {**tail, "zoom_kind": "nodes of the zoom"}
+    if frame is not None:
+        check = (checks[everyone[0].label].b, checks[everyone[0].label].log10_lc)
+        zc = frame.to_z(np.stack(np.meshgrid(*check, indexing="ij"), -1).reshape(-1, 2))
+        inside = (np.abs(zc) <= frame.half).all(axis=1).reshape(len(check[0]), len(check[1]))
+        z = compared[everyone[0].label].b
+        grid = (z, z)
+        ext = frame.extent()
+        tail = {**tail, "zoom_kind": f"frame of the reference's fit (± {frame.half:g} sd)",
+                "zoom_b": f"{frame.centre[0] - ext[0]:.7f}:{frame.centre[0] + ext[0]:.7f}",
+                "zoom_lc_um": f"{10 ** (frame.centre[1] - ext[1]) * 1e6:.4g}.."
+                              f"{10 ** (frame.centre[1] + ext[1]) * 1e6:.4g}"}
+    return _rows(everyone, (compared, checks, smalls, maps), obs,
+                 (problem, box, inside, grid, frame, ref_fit), workers, wall_budget,
+                 (head, tail))
+
+
 def _rows(everyone, maps, obs, where, workers, wall_budget, labels) -> list[dict]:
     """A row per setting of ``everyone`` (the reference first, then the floor) on the data
-    ``obs``: its comparison with the reference's inversion on the zoom's maps, the whole box's
-    and the small maps of the cost (``maps``); ``where``: the problem, its box, the whole-box
-    nodes inside the zoom and the zoom's grid; ``labels``: the columns before and after."""
-    maps, checks, smalls = maps
-    problem, box, inside, grid = where
+    ``obs``: its comparison with the reference's inversion on the compared maps, the whole
+    box's, the small maps of the cost and the zoom's (``maps``); ``where``: the problem, its
+    box, the whole-box nodes inside the compared grid, that grid's axes, its frame (or None)
+    and the reference's fit; ``labels``: the columns before and after."""
+    maps, checks, smalls, costs = maps
+    problem, box, inside, grid, frame, ref_fit = where
     head, tail = labels
     reference = everyone[0]
     ref, ref_box = maps[reference.label].posterior(obs), checks[reference.label].posterior(obs)
-    ref_fit = _best_fit(problem, obs, reference.algorithm, maps[reference.label], box, workers,
-                        None)
+    ref_sd = _moments(ref, frame)[1]
     floor_same, rows = None, []
     for c in everyone:
         m = maps[c.label]
         post, post_box = m.posterior(obs), checks[c.label].posterior(obs)
         budget = None if c.family in ("reference", "floor") else wall_budget
-        fb, fl, fit_ok = (ref_fit if c.family == "reference" else
-                          _best_fit(problem, obs, c.algorithm, m, box, workers, budget))
-        cmp = compare(ref, post)
+        fb, fl, fit_ok, _ = (ref_fit if c.family == "reference" else
+                             _best_fit(problem, obs, c.algorithm, m, box, workers, budget, frame))
+        cmp = compare(ref, post, frame)
         cmp["overlap_box"] = (float(np.minimum(post_box.mass, ref_box.mass).sum())
                               if ref_box.ok else np.nan)
         row = {**head, "family": c.family, "setting": c.label, "integrator": c.algorithm.name,
                "posterior_ok": post.ok, **cmp,
                "outside_mass": (float(post_box.mass[~inside].sum()) if post_box.ok
                                 else np.nan)}
+        mean, sd = _moments(post, frame)
         for p, f, rf in (("b", fb, ref_fit[0]), ("log10_lc", fl, ref_fit[1])):
-            row[f"mean_{p}"] = post.mean[p]
-            row[f"std_{p}"] = post.std[p]
-            row[f"fit_{p}"] = f
-            row[f"fit_shift_{p}_sd"] = (f - rf) / ref.std[p] if ref.ok else np.nan
+            row[f"mean_{p}"], row[f"std_{p}"], row[f"fit_{p}"] = mean[p], sd[p], f
+            row[f"fit_shift_{p}_sd"] = _in_sd(f - rf, ref_sd[p]) if ref.ok else np.nan
         row["fit_ok"] = fit_ok
         row["n_cycle_nodes"] = int(m.cycle.sum())
         row["n_failed"] = m.n_failed + checks[c.label].n_failed
-        row["wall_per_solve_ms"] = 1e3 * m.wall_s / m.n_solves
-        row["posterior_cost_s"] = posterior_cost(smalls[c.label], m)
-        row["nfev_per_solve"] = m.nfev / m.n_solves
+        cost = costs[c.label]            # the zoom's map, the same nodes for every data set
+        row["wall_per_solve_ms"] = 1e3 * cost.wall_s / cost.n_solves
+        row["posterior_cost_s"] = posterior_cost(smalls[c.label], cost)
+        row["nfev_per_solve"] = cost.nfev / cost.n_solves
         row["indistinguishable"] = bool(post.ok and ref.ok and same_inference(cmp))
         if c.family == "floor":
             floor_same = row["indistinguishable"]
         row["resolved"] = floor_same
+        # nodes per sd along the grid's axes (a frame's: its z)
         row["ref_nodes_per_sd_b"] = ref.std["b"] / (grid[0][1] - grid[0][0])
         row["ref_nodes_per_sd_log10_lc"] = ref.std["log10_lc"] / (grid[1][1] - grid[1][0])
         rows.append({**row, **tail})
@@ -466,9 +558,10 @@ def _solver_effect_markdown(table, advice, study_name, wall, shift_sd, min_overl
             "same inference": ["yes" if x else "**no**" for x in g.indistinguishable]})
         ref = g.iloc[0]
         parts += [f"\n## {w}/{law}, {data} data\n\nReference posterior: b = "
-                  f"{ref.mean_b:.5f} ± {ref.std_b:.2g}, log10 Lc = {ref.mean_log10_lc:.3f} ± "
+                  f"{ref.mean_b:.7g} ± {ref.std_b:.2g}, log10 Lc = {ref.mean_log10_lc:.5g} ± "
                   f"{ref.std_log10_lc:.2g} ({ref.ref_nodes_per_sd_b:.1f} and "
-                  f"{ref.ref_nodes_per_sd_log10_lc:.1f} nodes per sd); zoom b {ref.zoom_b}, Lc "
+                  f"{ref.ref_nodes_per_sd_log10_lc:.1f} nodes per sd); compared on the "
+                  f"{ref.zoom_kind}: b {ref.zoom_b}, Lc "
                   f"{ref.zoom_lc_um} µm; the reference's failed solves: {ref.n_failed}; "
                   f"resolved: {'yes' if ref.resolved else '**no**'}.\n\n",
                   markdown_table(t)]
