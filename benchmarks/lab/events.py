@@ -52,6 +52,7 @@ from numba import njit
 from scipy.integrate import cumulative_trapezoid
 
 from benchmarks.physics.chain import ACCELERATION_HZ, FORCE_HZ, event_levels
+from benchmarks.physics.chain import crossing as _crossing
 from benchmarks.physics.chain import lowpass as _lowpass
 from benchmarks.physics.chain import smooth as _smooth
 from benchmarks.physics.metrics import METRICS
@@ -355,15 +356,6 @@ def _zigzag(x: np.ndarray, h: float) -> np.ndarray:
                 n += 1
                 up, i_ext = 1, i
     return out[:n]
-
-
-def _crossing(t: np.ndarray, x: np.ndarray, level: float, i: int) -> float:
-    """The time where ``x`` crosses ``level`` between samples ``i − 1`` and ``i`` (linear)."""
-    if i <= 0:
-        return float(t[0])
-    x0, x1 = x[i - 1], x[i]
-    f = 0.0 if x1 == x0 else (level - x0) / (x1 - x0)
-    return float(t[i - 1] + min(max(f, 0.0), 1.0) * (t[i] - t[i - 1]))
 
 
 def _extremum(t: np.ndarray, x: np.ndarray, i: int, drop: float, sign: float, lo: int,

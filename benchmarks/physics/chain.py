@@ -38,7 +38,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-__all__ = ["Chain", "smooth", "lowpass", "event_levels", "friction", "FORCE_HZ",
+__all__ = ["Chain", "smooth", "lowpass", "event_levels", "friction", "crossing", "FORCE_HZ",
            "ACCELERATION_HZ", "SLIP_HZ", "PHASES", "START_FACTOR"]
 
 #: low-pass (Hz) of the force in the fault's friction (the paper's 400 Hz)
@@ -141,8 +141,22 @@ def friction(fs: np.ndarray, a1: np.ndarray, mass: float, fn, rate: float,
     return (lowpass(fs, force_hz, rate) - mass * lowpass(a1, acceleration_hz, rate)) / fn
 
 
-def _crossing(t: np.ndarray, x: np.ndarray, level: float, i: int) -> float:
-    """The time where ``x`` crosses ``level`` between samples ``i − 1`` and ``i`` (linear)."""
+def crossing(t: np.ndarray, x: np.ndarray, level: float, i: int) -> float:
+    """The time where ``x`` crosses ``level`` between samples ``i − 1`` and ``i`` (linear).
+
+    Parameters
+    ----------
+    t, x : numpy.ndarray
+        The samples' times and values.
+    level : float
+        The level crossed.
+    i : int
+        The sample after the crossing (0: the first sample's time).
+
+    Returns
+    -------
+    float
+    """
     if i <= 0:
         return float(t[0])
     x0, x1 = x[i - 1], x[i]
@@ -289,6 +303,6 @@ class Chain:
             return np.empty(0), np.empty(0)
         if self.slip_from == "slip column":
             u = lowpass(u, self.slip_hz, self.rate_hz)
-        x = u[i0:i1 + 1] - np.interp(_crossing(ts, rate, self.start_level, i0), ts, u)
+        x = u[i0:i1 + 1] - np.interp(crossing(ts, rate, self.start_level, i0), ts, u)
         order = np.argsort(x, kind="stable")
         return x[order], mu[i0:i1 + 1][order]
