@@ -48,24 +48,31 @@ def blocks(page: Path) -> list[tuple[str, str]]:
             for m in _FENCE.finditer(text)]
 
 
-def commands(text: str) -> list[list[str]]:
-    """The commands of an `sh` block: continuation lines joined, comments dropped."""
+#: a command's comment that lets it exit 1 as well as 0 (a verdict, such as the self-check's)
+MAY_EXIT_1 = "# may exit 1"
+
+
+def commands_and_exits(text: str) -> list[tuple[list[str], bool]]:
+    """Each command of an `sh` block (continuation lines joined, comments dropped) and whether
+    it may exit 1 (its comment says :data:`MAY_EXIT_1`)."""
     joined = text.replace("\\\n", " ")
-    return [shlex.split(line, comments=True) for line in joined.splitlines()
+    return [(shlex.split(line, comments=True), MAY_EXIT_1 in line)
+            for line in joined.splitlines()
             if line.strip() and not line.lstrip().startswith("#")]
 
 
 def steps(page: Path) -> list[tuple[str, object]]:
-    """What the page asks a reader to run, in order: ("python", code) or ("rsfbench", argv)."""
+    """What the page asks a reader to run, in order: ("python", code) or ("rsfbench", argv)
+    (``"rsfbench, exit 0 or 1"`` for a command whose comment says :data:`MAY_EXIT_1`)."""
     out = []
     for kind, text in blocks(page):
         if kind == "python":
             out.append(("python", text))
         elif kind == "sh":
-            for argv in commands(text):
+            for argv, may_fail in commands_and_exits(text):
                 if argv[0] != "make":
                     assert argv[0] == "rsfbench", f"{page.name}: a command not of rsfbench: {argv}"
-                    out.append(("rsfbench", argv[1:]))
+                    out.append(("rsfbench, exit 0 or 1" if may_fail else "rsfbench", argv[1:]))
     return out
 
 
@@ -128,7 +135,7 @@ def _workdir(tmp_path: Path) -> Path:
 
 
 #: runs a page's steps in one process: Python blocks share one namespace; a command runs as
-#: ``python -m benchmarks.cli`` and must exit 0
+#: ``python -m benchmarks.cli`` and must exit 0 (or 1, where its comment says ``# may exit 1``)
 _DRIVER = """
 import json, subprocess, sys, time
 ns = {"__name__": "__main__"}
@@ -139,7 +146,7 @@ for i, (kind, step) in enumerate(json.load(open(sys.argv[1]))):
         exec(compile(step, f"{sys.argv[2]} python block", "exec"), ns)
     else:
         run = subprocess.run([sys.executable, "-m", "benchmarks.cli", *step])
-        if run.returncode:
+        if run.returncode and not (run.returncode == 1 and kind.endswith("or 1")):
             sys.exit(f"step {i} (rsfbench {' '.join(step)}) exited {run.returncode}")
     print(f"--- step {i} took {time.perf_counter() - start:.1f} s", flush=True)
 """

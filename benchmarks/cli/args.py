@@ -192,6 +192,16 @@ def steps_or_none(maximum: int):
     return check
 
 
+#: emcee's steps per walker at most
+MAX_STEPS = 1_000_000
+#: emcee's walkers at most
+MAX_WALKERS = 10_000
+#: the type of ``--steps``: emcee's steps per walker, 0 for no posterior
+chain_steps = steps_or_none(MAX_STEPS)
+#: the type of ``--walkers``
+chain_walkers = bounded(4, MAX_WALKERS, "each step solves every walker at once")
+
+
 def workers(text: str) -> int:
     """An integer from 1 to 4 × the cores: more only adds start-up time and memory."""
     most = 4 * (os.cpu_count() or 1)

@@ -15,7 +15,8 @@ from pathlib import Path
 
 from benchmarks.cli.args import (add_integrator_options, add_problem_choice, b_range, bounded,
                                  in_file, integrator_from_args, lc_range, out_dir, positive,
-                                 problem_from_args, say, seed, workers)
+                                 problem_from_args, say, seed, chain_steps, chain_walkers,
+                                 workers)
 from benchmarks.records.report import jsonable
 from problems import PRESET_NAMES
 
@@ -32,7 +33,10 @@ if it does not, the same inversion of your recording is not to be read.
 
 Runtime: two inversions (each the grid posterior, the fit and two profiles)
 and one forward run of the recording; minutes on two cores with the defaults,
-about a quarter of that with --grid 9 --profile-points 5."""
+about a quarter of that with --grid 9 --profile-points 5. When no grid
+posterior passes its checks, emcee runs walkers × steps more forward solves
+(64,000 by default: an hour or more at a tight tolerance); --steps 0 judges
+the profiles' intervals instead."""
 
 
 def _truth_and_box(args):
@@ -67,7 +71,7 @@ def cmd_self_check(args) -> int:
     talk = (lambda text: None) if args.json else (lambda text: say(f"… {text}"))
     result = self_check(args.observations, problem, b, lc, out, box_b, box_lc, algorithm,
                         grid=args.grid, profile_points=args.profile_points, seed=args.seed,
-                        workers=args.workers, say=talk)
+                        walkers=args.walkers, steps=args.steps, workers=args.workers, say=talk)
     result["integrator"] = why
     if args.json:
         say(json.dumps(jsonable(result), indent=2))
@@ -107,6 +111,13 @@ def add_parsers(sub) -> None:
     p.add_argument("--profile-points", type=bounded(3, 1001, "each is a line of solves"),
                    default=21, metavar="N", help="values of each profiled parameter "
                    "(default: 21)")
+    p.add_argument("--walkers", type=chain_walkers, default=32, metavar="N",
+                   help="emcee walkers of the posterior's last resort, when no grid passes "
+                        "its checks (default: 32)")
+    p.add_argument("--steps", type=chain_steps, default=2000, metavar="N",
+                   help="emcee steps per walker of that last resort (walkers × steps forward "
+                        "solves); 0: no posterior, the profiles' 95 %% intervals are judged "
+                        "(default: 2000)")
     p.add_argument("--seed", type=seed, default=0, help="the recording's noise seed "
                    "(default: 0)")
     p.add_argument("--workers", type=workers, metavar="N",

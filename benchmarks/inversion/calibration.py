@@ -159,9 +159,10 @@ def _checks(problem, algorithm, grid_map: MetricMap, table, n, T0, M0, sigma_rel
                     steps=steps, seed=seed)
         row = {"seed": seed, "emcee_solves": mc.n_solves, "emcee_tau_max": max(mc.tau.values()),
                "emcee_effective_samples": mc.effective_samples}
-        for name in ("b", "log10_lc"):
-            row[f"mean_{name}_shift_sd"] = (mc.mean[name] - post.mean[name]) / post.std[name]
-            row[f"std_{name}_ratio"] = mc.std[name] / post.std[name]
+        for name in ("b", "log10_lc"):         # a grid on one node has sd 0: no ratio (NaN)
+            sd = post.std[name] if post.std[name] > 0 else np.nan
+            row[f"mean_{name}_shift_sd"] = (mc.mean[name] - post.mean[name]) / sd
+            row[f"std_{name}_ratio"] = mc.std[name] / sd
         grid_x, grid_J = grid_map.profile(obs, "b")
         level = grid_J.min() + CHI2_95_1DOF
         i, j = hull(grid_J, level)                 # the nodes' hull: no interpolation

@@ -122,7 +122,9 @@ def invert(misfit: Misfit, b_range, lc_range, walkers: int = 32, steps: int = 20
     onto the fit or the box's grid refined, else emcee (``walkers`` × ``steps``) from the fit;
     ``"emcee"``, emcee alone. A posterior is reported only if it passes the checks (its 95 %
     region holds the fit, its sd agrees with the Gauss–Newton or profile sd within a factor
-    2); else ``no_posterior`` and ``posterior_missed`` say why. ``steps`` = 0: no posterior. A
+    2); else ``no_posterior`` and ``posterior_missed`` say why. A fit that the profiles beat by
+    more than the 95 % level (a local minimum) is fitted again from their best point, and the
+    profiles made again about it. ``steps`` = 0: no posterior. A
     box without a limit cycle has none either. ``say``: a callable given a line of text as each
     stage starts."""
     say = say or (lambda text: None)
@@ -141,6 +143,16 @@ def invert(misfit: Misfit, b_range, lc_range, walkers: int = 32, steps: int = 20
     best = fit(misfit, b_range, lc_range, start=start)
     wall["fit"] = time.perf_counter() - t
     profiles = _profiles(misfit, b_range, lc_range, best, profile_points, wall, say)
+    better = _better_start(best, profiles)
+    if better is not None:               # the fit was a local minimum: again from the profiles'
+        t = time.perf_counter()
+        say(f"least-squares fit again, from the profiles' best point (misfit "
+            f"{better[2]:.4g} < the fit's {best.misfit:.4g}: the fit was a local minimum)")
+        again = fit(misfit, b_range, lc_range, start=better[:2])
+        wall["fit"] += time.perf_counter() - t
+        if again.misfit < best.misfit:
+            best = again
+            profiles = _profiles(misfit, b_range, lc_range, best, profile_points, wall, say)
     inv = Inversion(misfit, tuple(b_range), tuple(lc_range), best, profiles, None, wall,
                     "not asked for (steps = 0)", method=method, seed=seed)
     if steps:
@@ -205,6 +217,19 @@ def _posterior(inv: Inversion, first, grid: int, sampler: dict, progress, say) -
             f"the profile intervals stand): {routed.reason}")
     else:
         inv.no_posterior = ""
+
+
+def _better_start(best: FitResult, profiles: dict) -> tuple | None:
+    """(b, Lc in m, misfit) of the profiles' best point when it beats the fit by more than the
+    95 % level (the fit is a local minimum, outside its own profiles' intervals), else None."""
+    found = [(float(p.table.misfit.min()), p.table.loc[p.table.misfit.idxmin()])
+             for p in profiles.values() if np.isfinite(p.table.misfit).any()]
+    if not found or not np.isfinite(best.misfit):
+        return None
+    lowest, at = min(found, key=lambda f: f[0])
+    if best.misfit - lowest <= CHI2_95_1DOF:
+        return None
+    return float(at["b"]), float(10.0 ** at["log10_lc"]), lowest
 
 
 def _check_fit_inside(p, best: FitResult) -> None:

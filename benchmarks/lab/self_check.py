@@ -97,7 +97,7 @@ def recording_plan(path, problem) -> dict:
 
 def self_check(observations, problem, b: float, lc: float, out, b_range, lc_range, algorithm,
                grid: int = 33, profile_points: int = 21, seed: int = 0,
-               workers: int | None = None, wall_budget: float | None = None,
+               walkers: int = 32, steps: int = 2000, workers: int | None = None, wall_budget: float | None = None,
                say=None) -> dict:
     """Make, measure and invert a recording of ``problem`` at (``b``, ``lc``) like the user's
     (module docstring); returns the document written to ``out/self_check.json``.
@@ -116,8 +116,9 @@ def self_check(observations, problem, b: float, lc: float, out, b_range, lc_rang
         The prior box (Lc in m), the user's inversion's.
     algorithm : Algorithm
         The forward solver of the inversions.
-    grid, profile_points, seed : int
-        As :func:`benchmarks.inversion.invert.invert`; ``seed`` also the recording's noise.
+    grid, profile_points, seed, walkers, steps : int
+        As :func:`benchmarks.inversion.invert.invert` (``steps`` = 0: no posterior, the
+        profiles' intervals are judged); ``seed`` also the recording's noise.
     workers : int, optional
         Threads of a batch of solves.
     wall_budget : float, optional
@@ -166,7 +167,7 @@ def self_check(observations, problem, b: float, lc: float, out, b_range, lc_rang
         misfit = Misfit(problem, read_observations(found, curve_noise=noise), algorithm,
                         wall_budget=wall_budget, workers=workers)
         inv = invert(misfit, b_range, lc_range, profile_points=profile_points, seed=seed,
-                     grid=grid)
+                     grid=grid, walkers=walkers, steps=steps)
         result[label] = _verdict(write_inversion(inv, out / label, {"self_check": True}),
                                  result["truth"])
     result["wall_s"] = time.perf_counter() - start

@@ -33,6 +33,7 @@ its slip the model's own (:meth:`Chain.model_curve`).
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import asdict, dataclass
 
@@ -105,8 +106,15 @@ def lowpass(x: np.ndarray, cutoff: float, rate: float) -> np.ndarray:
     from scipy import signal
     if cutoff >= 0.45 * rate:
         return np.asarray(x, dtype=float)
-    sos = signal.butter(ORDER, cutoff, fs=rate, output="sos")
-    return signal.sosfiltfilt(sos, x - x[0]) + x[0]
+    return signal.sosfiltfilt(_butter(float(cutoff), float(rate)), x - x[0]) + x[0]
+
+
+@functools.lru_cache(maxsize=64)
+def _butter(cutoff: float, rate: float) -> np.ndarray:
+    """The Butterworth sections of :func:`lowpass` (designed once per cutoff and rate: a batch
+    of model curves filters thousands of pieces alike; sosfiltfilt does not write to it)."""
+    from scipy import signal
+    return signal.butter(ORDER, cutoff, fs=rate, output="sos")
 
 
 def event_levels(vls: float | None, sigma_rate: float) -> tuple[float, float]:
