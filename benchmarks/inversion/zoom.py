@@ -42,18 +42,6 @@ cut by the box: the frame would be mostly outside it), then the other; a zoomed 
 holds mass is tried once more twice as wide; then emcee, started at the fit with its walkers
 drawn from the frame's covariance. The first that passes every check is the posterior; if none
 does, there is none, and the reason names each attempt's failed checks.
-
-**Two methods that agree.** The sd check is a heuristic: the marginal integrates the ridge's
-width across it, the profile does not, and where that width changes along a long ridge (two
-observed means and two parameters, a profile flat over most of its interval) the marginal is
-legitimately narrower than the profile says — on the 1 % W2 recording of the self-check's test,
-the zoomed grid's sd was 0.24 × the profile's and emcee's 0.27 ×. So a grid that fails *only*
-that check (the fit in its region, its best cell not beaten, no mass on its edge) is kept as a
-candidate, and a short chain (:data:`CONFIRM_STEPS` steps, the full chain's walkers and start)
-is run first: when its sd of each parameter agrees with the grid's within
-:data:`CONFIRM_FACTOR` and its mean within half a grid sd, the grid is the posterior: two independent computations agree,
-and the checks record the waived failure (``waived``) and the ratios (``confirmed_by_sampler``).
-If it does not agree, the full chain runs as the last resort.
 """
 
 from __future__ import annotations
@@ -69,7 +57,7 @@ from benchmarks.inversion.objectives import CHI2_95_1DOF
 
 __all__ = ["Frame", "frame_of", "frame_posterior", "check_posterior", "reference_sd",
            "posterior_route", "Routed", "frame_map", "frame_moments", "posterior_missed",
-           "HALF", "SD_FACTOR", "GAUSSIAN_TOL", "EDGE_MASS", "CONFIRM_FACTOR", "CONFIRM_STEPS", "Z95"]
+           "HALF", "SD_FACTOR", "GAUSSIAN_TOL", "EDGE_MASS", "Z95"]
 
 #: the frame's grid spans ± this many (widened) standard deviations
 HALF = 6.0
@@ -79,10 +67,6 @@ SD_FACTOR = 2.0
 GAUSSIAN_TOL = 0.25
 #: the largest mass on a zoomed grid's edge (inside the prior box) of a posterior it holds
 EDGE_MASS = 1e-3
-#: a grid failing only its sd check is reported when emcee's sd agrees with it within this factor
-CONFIRM_FACTOR = 1.3
-#: steps per walker of the chain that confirms such a grid (the full chain runs if it does not)
-CONFIRM_STEPS = 400
 #: the 97.5 % quantile of the standard normal
 Z95 = 1.959963984540054
 _NAMES = ("b", "log10_lc")
@@ -290,9 +274,7 @@ def check_posterior(post, fit, profiles, edge_mass: float = float("nan")) -> dic
     if edge_mass > EDGE_MASS:
         failed.append(f"{edge_mass:.2g} of the mass on the zoomed grid's edge (at most "
                       f"{EDGE_MASS:g})")
-    sd_only = bool(failed) and inside and not missed and not edge_mass > EDGE_MASS
-    return {"passed": not failed, "failed": failed, "sd_only": sd_only,
-            "fit_in_region": bool(inside),
+    return {"passed": not failed, "failed": failed, "fit_in_region": bool(inside),
             "fit_in_intervals": {k: bool(intervals[k][0] <= x[k] <= intervals[k][1])
                                  for k in _NAMES},
             "sd_ratio": ratio, "sd_reference": ref, "sd_reference_source": source,
@@ -418,64 +400,15 @@ def posterior_route(misfit, b_range, lc_range, fit, profiles, first: GridPosteri
         routes += ["zoomed grid"] if frame is not None and not narrow else []
     if sampler and np.isfinite(fit.misfit):
         routes.append("sampler")
-    attempts, candidate = [], None
-
-    def run(route, chain=sampler):
-        return _attempt(route, misfit, (b_range, lc_range), fit, profiles, (first, frame, n),
-                        chain, progress, say)
+    attempts = []
     for route in routes:
-        if route == "sampler" and candidate is not None:
-            routed, last = _confirm(candidate, run, sampler, attempts)
-            if routed is not None or last:
-                return routed or Routed(None, "", {}, attempts, _reason(attempts))
-        for post, checks, record in run(route):
+        for post, checks, record in _attempt(route, misfit, (b_range, lc_range), fit, profiles,
+                                             (first, frame, n), sampler, progress, say):
             attempts.append({**record, **checks})
             if checks["passed"]:
                 return Routed(post, route, checks, attempts)
-            if route != "sampler" and checks.get("sd_only") and candidate is None:
-                candidate = (post, route, checks)
-    return Routed(None, "", {}, attempts, _reason(attempts))
-
-
-def _reason(attempts: list) -> str:
-    """Why there is no posterior: each attempt's failed checks."""
     reason = "; ".join(f"{a['route']}: {', '.join(a['failed'])}" for a in attempts)
-    return reason or "no route to try (no fit, no first grid)"
-
-
-def _confirm(candidate, run, sampler: dict, attempts: list):
-    """A short chain (at most :data:`CONFIRM_STEPS` steps) run to confirm a grid ``candidate``
-    that failed only its sd check; ``(routed, last)``: the candidate confirmed (or, when the
-    short chain is the whole chain asked for, the chain if it passed), and whether the short
-    chain was the whole chain (then no other is run)."""
-    short = {**sampler, "steps": min(sampler["steps"], CONFIRM_STEPS)}
-    last = short["steps"] == sampler["steps"]
-    for post, checks, record in run("sampler", short):
-        attempts.append({**record, **checks, "route": "sampler (confirmation)"})
-        confirmed = (_confirmed(candidate, post)
-                     if checks["passed"] or checks.get("sd_only") else None)
-        if confirmed is not None:
-            return Routed(candidate[0], candidate[1], confirmed, attempts), last
-        if last and checks["passed"]:
-            return Routed(post, "sampler", checks, attempts), last
-    return None, last
-
-
-def _confirmed(candidate, sampled) -> dict | None:
-    """The checks of a grid ``candidate`` (posterior, route, checks) that failed only on its sd
-    against the reference, passed because the independent ``sampled`` posterior agrees with it:
-    each parameter's sd within :data:`CONFIRM_FACTOR` of the grid's and its mean within half a
-    grid sd (module docstring); None if it does not."""
-    post, _, checks = candidate
-    ratio = {k: float(sampled.std[k] / post.std[k]) if post.std[k] > 0 else np.nan
-             for k in _NAMES}
-    shift = {k: float((sampled.mean[k] - post.mean[k]) / post.std[k]) if post.std[k] > 0
-             else np.nan for k in _NAMES}
-    if not all(1 / CONFIRM_FACTOR <= ratio[k] <= CONFIRM_FACTOR and abs(shift[k]) <= 0.5
-               for k in _NAMES):
-        return None
-    return {**checks, "passed": True, "failed": [], "waived": checks["failed"],
-            "confirmed_by_sampler": ratio, "sampler_mean_shift_sd": shift}
+    return Routed(None, "", {}, attempts, reason or "no route to try (no fit, no first grid)")
 
 
 def _attempt(route, misfit, box, fit, profiles, grids, sampler, progress, say):
