@@ -40,7 +40,7 @@ from benchmarks.inversion.fit_figure import plot_fit
 from benchmarks.inversion.least_squares import FitResult, fit
 from benchmarks.inversion.misfit import Misfit
 from benchmarks.inversion.posterior import Posterior, check_sampler
-from benchmarks.inversion.profile import CHI2_95_1DOF, profile
+from benchmarks.inversion.profile import CHI2_95_1DOF, NOISE_J1, profile
 from benchmarks.inversion.zoom import posterior_missed, posterior_route
 from benchmarks.records.files import (
     claim_outputs,
@@ -107,6 +107,8 @@ def check_box(problem, b_range, lc_range) -> None:
                                  f"{exc}") from None
 
 
+#: how the warning of a fit outside its profile's interval (a local minimum) begins
+FIT_OUTSIDE = "the least-squares fit"
 #: the posterior's methods: the refined grid (the default) and emcee's sampler
 METHODS = ("grid", "emcee")
 
@@ -123,10 +125,10 @@ def invert(misfit: Misfit, b_range, lc_range, walkers: int = 32, steps: int = 20
     ``"emcee"``, emcee alone. A posterior is reported only if it passes the checks (its 95 %
     region holds the fit, its sd agrees with the Gauss–Newton or profile sd within a factor
     2); else ``no_posterior`` and ``posterior_missed`` say why. A fit that the profiles beat by
-    more than the 95 % level (a local minimum) is fitted again from their best point, and the
-    profiles made again about it. ``steps`` = 0: no posterior. A
-    box without a limit cycle has none either. ``say``: a callable given a line of text as each
-    stage starts."""
+    more than the 95 % level (a local minimum) is fitted again from their best point; the
+    profiles are made again only if that fit beats their minimum by more than NOISE_J1.
+    ``steps`` = 0: no posterior. A box without a limit cycle has none either. ``say``: a
+    callable given a line of text as each stage starts."""
     say = say or (lambda text: None)
     _check_options(misfit, b_range, lc_range, method, profile_points, steps, walkers)
     wall = {}
@@ -152,7 +154,8 @@ def invert(misfit: Misfit, b_range, lc_range, walkers: int = 32, steps: int = 20
         wall["fit"] += time.perf_counter() - t
         if again.misfit < best.misfit:
             best = again
-            profiles = _profiles(misfit, b_range, lc_range, best, profile_points, wall, say)
+            profiles = _after_refit(profiles, best, better[2], (misfit, b_range, lc_range,
+                                                                profile_points, wall, say))
     inv = Inversion(misfit, tuple(b_range), tuple(lc_range), best, profiles, None, wall,
                     "not asked for (steps = 0)", method=method, seed=seed)
     if steps:
@@ -219,6 +222,20 @@ def _posterior(inv: Inversion, first, grid: int, sampler: dict, progress, say) -
         inv.no_posterior = ""
 
 
+def _after_refit(profiles: dict, best: FitResult, lowest: float, remake) -> dict:
+    """The profiles about the fit made again from their best point: kept, the old fit's
+    warnings replaced by the new one's, when the new fit is within NOISE_J1 of the profiles'
+    minimum ``lowest`` (the level they were read at stands); else made again (``remake``: the
+    arguments of :func:`_profiles` but the fit)."""
+    if lowest - best.misfit > NOISE_J1:
+        misfit, b_range, lc_range, points, wall, say = remake
+        return _profiles(misfit, b_range, lc_range, best, points, wall, say)
+    for p in profiles.values():
+        p.warnings = [w for w in p.warnings if not w.startswith(FIT_OUTSIDE)]
+        _check_fit_inside(p, best)
+    return profiles
+
+
 def _better_start(best: FitResult, profiles: dict) -> tuple | None:
     """(b, Lc in m, misfit) of the profiles' best point when it beats the fit by more than the
     95 % level (the fit is a local minimum, outside its own profiles' intervals), else None."""
@@ -242,7 +259,7 @@ def _check_fit_inside(p, best: FitResult) -> None:
     if not p.low <= x <= p.high:
         label = "b" if p.parameter == "b" else "log10 Lc"
         p.warnings.append(
-            f"the least-squares fit ({label} = {x:.6g}, misfit = {best.misfit:.4g}) is outside "
+            f"{FIT_OUTSIDE} ({label} = {x:.6g}, misfit = {best.misfit:.4g}) is outside "
             f"the profile's 95 % interval [{p.low:.6g}, {p.high:.6g}]: the profile found "
             f"misfit = {p.table.misfit.min():.4g} elsewhere, so the fit is a local minimum")
 
