@@ -14,8 +14,8 @@ import json
 from pathlib import Path
 
 from benchmarks.cli.args import (add_integrator_options, add_problem_choice, b_range, bounded,
-                                 in_file, integrator_from_args, lc_range, out_dir, positive,
-                                 problem_from_args, say, seed, chain_steps, chain_walkers,
+                                 chain_steps, chain_walkers, in_file, integrator_from_args,
+                                 lc_range, out_dir, positive, problem_from_args, say, seed,
                                  workers)
 from benchmarks.records.report import jsonable
 from problems import PRESET_NAMES

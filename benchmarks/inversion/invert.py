@@ -40,7 +40,7 @@ from benchmarks.inversion.fit_figure import plot_fit
 from benchmarks.inversion.least_squares import FitResult, fit
 from benchmarks.inversion.misfit import Misfit
 from benchmarks.inversion.posterior import Posterior, check_sampler
-from benchmarks.inversion.profile import CHI2_95_1DOF, NOISE_J1, profile
+from benchmarks.inversion.profile import CHI2_95_1DOF, NOISE_J1, lowest_point, profile
 from benchmarks.inversion.zoom import posterior_missed, posterior_route
 from benchmarks.records.files import (
     claim_outputs,
@@ -239,11 +239,10 @@ def _after_refit(profiles: dict, best: FitResult, lowest: float, remake) -> dict
 def _better_start(best: FitResult, profiles: dict) -> tuple | None:
     """(b, Lc in m, misfit) of the profiles' best point when it beats the fit by more than the
     95 % level (the fit is a local minimum, outside its own profiles' intervals), else None."""
-    found = [(float(p.table.misfit.min()), p.table.loc[p.table.misfit.idxmin()])
-             for p in profiles.values() if np.isfinite(p.table.misfit).any()]
-    if not found or not np.isfinite(best.misfit):
+    found = lowest_point(profiles)
+    if found is None or not np.isfinite(best.misfit):
         return None
-    lowest, at = min(found, key=lambda f: f[0])
+    lowest, at, _ = found
     if best.misfit - lowest <= CHI2_95_1DOF:
         return None
     return float(at["b"]), float(10.0 ** at["log10_lc"]), lowest

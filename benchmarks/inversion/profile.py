@@ -44,7 +44,7 @@ from benchmarks.inversion.misfit import Misfit
 from benchmarks.inversion.objectives import CHI2_95_1DOF
 from benchmarks.inversion.profile_ends import ends, hull, next_point, too_coarse
 
-__all__ = ["profile", "Profile", "CHI2_95_1DOF", "NOISE_J1", "CELLS"]
+__all__ = ["profile", "Profile", "lowest_point", "CHI2_95_1DOF", "NOISE_J1", "CELLS"]
 
 #: a profile falling by less than this (in misfit, plus 1e−3 of the value) where it should rise is
 #: noise: it moves an interval's end by a few hundredths of the level at most
@@ -312,3 +312,14 @@ def _interval(x: np.ndarray, J: np.ndarray):
 
 def _triple(J, i) -> str:
     return " → ".join(f"{J[k]:.3g}" for k in range(max(i - 1, 0), min(i + 2, len(J))))
+
+
+def lowest_point(profiles: dict):
+    """``(misfit, row, profile)`` of the lowest finite point of any of ``profiles`` (name →
+    :class:`Profile`), its row of the profile's table; None without a finite point."""
+    found = [(float(p.table.misfit.min()), p) for p in profiles.values()
+             if np.isfinite(p.table.misfit).any()]
+    if not found:
+        return None
+    lowest, p = min(found, key=lambda f: f[0])
+    return lowest, p.table.loc[p.table.misfit.idxmin()], p

@@ -54,6 +54,7 @@ import pandas as pd
 
 from benchmarks.inversion.adaptive import GridPosterior, grid_posterior, posterior_of_cells
 from benchmarks.inversion.objectives import CHI2_95_1DOF
+from benchmarks.inversion.profile import lowest_point
 
 __all__ = ["Frame", "frame_of", "frame_posterior", "check_posterior", "reference_sd",
            "posterior_route", "Routed", "frame_map", "frame_moments", "posterior_missed",
@@ -288,14 +289,12 @@ def posterior_missed(cell_misfit: float, profiles: dict) -> str:
     point the data reject against that one: a posterior narrower than the grid's cells, whose
     cell with the best fit was never refined (one of the checks of
     :func:`benchmarks.inversion.zoom.check_posterior`)."""
-    found = [(float(p.table.misfit.min()), p) for p in profiles.values()
-             if np.isfinite(p.table.misfit).any()]
-    if not found or not np.isfinite(cell_misfit):
+    found = lowest_point(profiles)
+    if found is None or not np.isfinite(cell_misfit):
         return ""
-    lowest, p = min(found, key=lambda f: f[0])
+    lowest, at, p = found
     if cell_misfit - lowest <= CHI2_95_1DOF:
         return ""
-    at = p.table.loc[p.table.misfit.idxmin()]
     return (f"the grid posterior missed the best fit: its best cell has misfit "
             f"{cell_misfit:.4g}, but the profile of {p.parameter} found {lowest:.4g} at "
             f"b = {at['b']:.6g}, log10 Lc = {at['log10_lc']:.4g}: the posterior is narrower than "
