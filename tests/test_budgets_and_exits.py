@@ -15,6 +15,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from interruptible import as_typed
+
 from benchmarks.lab.independent_model import reference_friction, synthetic_record
 from benchmarks.lab.fit import LabFitWarning
 from benchmarks.lab.model import LabModel
@@ -249,7 +251,7 @@ def test_a_ctrl_c_in_lab_fit_posterior_is_one_line_and_exit_130():
          "--column=time=Time(s):s", "--column=friction=Friction",
          "--column=load_point=Displ(microns):um", "--posterior", "--steps", "100000",
          "--no-profiles", "--no-solver-check"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, preexec_fn=as_typed)
     err, started = b"", time.monotonic()
     try:
         while b"it/s" not in err:                   # emcee's progress bar: it is sampling

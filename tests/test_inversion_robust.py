@@ -16,6 +16,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from interruptible import as_typed
+
 from benchmarks.cli.main import main
 from benchmarks.inversion import Misfit
 from benchmarks.inversion.profile import CELLS, CHI2_95_1DOF, profile
@@ -236,7 +238,8 @@ def test_ctrl_c_during_the_posterior_is_one_line_and_exit_130(tmp_path):
         [sys.executable, "-m", "benchmarks.cli", "invert", "--preset", "W4", "--t-end", "15",
          "--integrator", "Rodas5P", "--rtol", "1e-4", "--atol", "1e-4", "--method", "emcee", "--steps", "100000",
          "--walkers", "8", "--profile-points", "3", "--out", str(tmp_path / "i"),
-         "--no-progress"], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+         "--no-progress"], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        preexec_fn=as_typed)
     deadline = time.time() + 600
     seen = ""
     while time.time() < deadline and "posterior:" not in seen:

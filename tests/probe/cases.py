@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from interruptible import as_typed
 from probe import families as probe_families
 from probe.harness import Case, Observed, Wrong, cli, cli_outcome, one_json
 
@@ -681,7 +682,7 @@ def _alive(pid: int) -> bool:
 
 def _start_and_wait_for_points(tmp, n=2):
     proc = subprocess.Popen(_sweep_cli(tmp / "s"), cwd=ROOT, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.DEVNULL)
+                            stderr=subprocess.DEVNULL, preexec_fn=as_typed)
     deadline = time.time() + 240
     chunks = tmp / "s" / "chunks"              # one point a chunk on this grid
     while time.time() < deadline and _listed_chunks(chunks) < n:

@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from interruptible import as_typed
 from probe.harness import Case, Observed, Wrong, cli, cli_outcome
 
 __all__ = ["cases"]
@@ -366,7 +367,8 @@ def _interrupt(args, ready, settle=2.0):
         import threading
         argv = [str(a).replace("{tmp}", str(tmp)) for a in args]
         proc = subprocess.Popen([sys.executable, "-m", "benchmarks.cli", *argv], cwd=ROOT,
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                preexec_fn=as_typed)
         lines: list[str] = []
         reader = threading.Thread(target=lambda: lines.extend(proc.stdout), daemon=True)
         reader.start()
