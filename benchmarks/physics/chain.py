@@ -22,8 +22,19 @@ written before it: no chain, the model's curves are compared as they are).
 :meth:`Chain.model_curve` applies the chain to a model's run around one event (its dense
 output over the event and a margin either side, :attr:`Chain.margin_s`): sampled at the record's
 rate at :data:`PHASES` offsets of the sampling grid (a recorder's samples fall anywhere in an
-event) and averaged. The model has no sensor noise: the chain is the filters, the sampling and
-the timing, not the noise (the curves' likelihood takes the noise as the events' spread).
+event) and averaged.
+
+**The slip column's noise is part of the chain** (``slip_noise``, the white noise's σ that
+``observe`` measured on the raw column). A curve is friction against *measured* slip, and where
+an event starts the slip moves less per sample than its noise: a recorded curve is the true one
+smeared along the slip axis, and its start is placed by a noisy crossing. On a record with slip
+noise of a few Lc that smear is most of what the curve's first Lc shows, and a noise-free model
+curve misplaces Lc (measured on the tutorial's recording, 1 % noise: ``docs/inversion.md``).
+So each sampling phase gets its own draw of that noise before the slip is filtered and the
+event timed, and the curve is the mean over the phases: the expected curve that ``observe``
+reads. The draws are fixed (seeded by the phase), so the model's curve is a smooth function of
+its parameters. The friction's own noise is left out: it has zero mean along the curve and the
+likelihood takes it from the events' spread.
 
 An observed curve whose slip was integrated from accelerations (a record without a slip column)
 has its own drift removal per event; the model's side of that chain is not made: its record says
@@ -40,7 +51,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 __all__ = ["Chain", "smooth", "lowpass", "event_levels", "friction", "crossing", "FORCE_HZ",
-           "ACCELERATION_HZ", "SLIP_HZ", "PHASES", "START_FACTOR"]
+           "ACCELERATION_HZ", "SLIP_HZ", "PHASES", "NOISY_PHASES", "START_FACTOR"]
 
 #: low-pass (Hz) of the force in the fault's friction (the paper's 400 Hz)
 FORCE_HZ = 400.0
@@ -51,7 +62,10 @@ SLIP_HZ = ACCELERATION_HZ
 #: an event starts when the slip rate exceeds this multiple of vLs (the model's own rule)
 START_FACTOR = 10.0
 #: the sampling grid's offsets (fractions of a sample) the model's chained curve is averaged over
+#: without slip noise
 PHASES = 4
+#: the phases averaged over with slip noise (each its own draw of the noise)
+NOISY_PHASES = 32
 #: the Butterworth filters' order (zero phase: applied forward and back)
 ORDER = 4
 
@@ -64,7 +78,7 @@ def smooth(x: np.ndarray, cutoff: float, rate: float) -> np.ndarray:
     Parameters
     ----------
     x : numpy.ndarray
-        The signal, sampled at ``rate``.
+        The signal, sampled at ``rate`` along its last axis.
     cutoff : float
         The smoothing's frequency (Hz).
     rate : float
@@ -82,7 +96,7 @@ def smooth(x: np.ndarray, cutoff: float, rate: float) -> np.ndarray:
     if width < 2:
         return y.copy()
     for _ in range(3):
-        y = uniform_filter1d(y, width, mode="nearest")
+        y = uniform_filter1d(y, width, axis=-1, mode="nearest")
     return y
 
 
@@ -92,7 +106,7 @@ def lowpass(x: np.ndarray, cutoff: float, rate: float) -> np.ndarray:
     Parameters
     ----------
     x : numpy.ndarray
-        The signal, sampled at ``rate``.
+        The signal, sampled at ``rate`` along its last axis.
     cutoff : float
         The cutoff (Hz).
     rate : float
@@ -106,7 +120,8 @@ def lowpass(x: np.ndarray, cutoff: float, rate: float) -> np.ndarray:
     from scipy import signal
     if cutoff >= 0.45 * rate:
         return np.asarray(x, dtype=float)
-    return signal.sosfiltfilt(_butter(float(cutoff), float(rate)), x - x[0]) + x[0]
+    x0 = np.asarray(x, dtype=float)[..., :1]
+    return signal.sosfiltfilt(_butter(float(cutoff), float(rate)), x - x0, axis=-1) + x0
 
 
 @functools.lru_cache(maxsize=64)
@@ -188,6 +203,9 @@ class Chain:
         The low-passes of the force, the acceleration and the slip (Hz).
     slip_from : str
         ``"slip column"`` or ``"accelerations"`` (the model's side then keeps its own slip).
+    slip_noise : float
+        σ (m) of the white noise on the raw slip column (0: none; the model's curve gets it
+        in :data:`NOISY_PHASES` fixed draws).
     """
 
     rate_hz: float
@@ -198,6 +216,7 @@ class Chain:
     acceleration_hz: float = ACCELERATION_HZ
     slip_hz: float = SLIP_HZ
     slip_from: str = "slip column"
+    slip_noise: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("rate_hz", "timing_hz", "start_level", "end_level", "force_hz",
@@ -207,6 +226,10 @@ class Chain:
                     math.isfinite(value) and value > 0):
                 raise ValueError(f"measurement chain: {name} must be a positive number, got "
                                  f"{value!r}")
+        if isinstance(self.slip_noise, bool) or not isinstance(self.slip_noise, (int, float)) \
+                or not (math.isfinite(self.slip_noise) and self.slip_noise >= 0):
+            raise ValueError("measurement chain: slip_noise must be a number ≥ 0 (m), got "
+                             f"{self.slip_noise!r}")
         if self.slip_from not in ("slip column", "accelerations"):
             raise ValueError("measurement chain: slip_from must be 'slip column' or "
                              f"'accelerations', got {self.slip_from!r}")
@@ -215,13 +238,14 @@ class Chain:
         """The chain as observations.json keeps it (``measurement``): the numbers, the filters'
         kinds and the order of the steps."""
         butter = {"kind": "butterworth low-pass", "order": ORDER, "zero_phase": True}
-        return {**asdict(self), "version": 1,
+        return {**asdict(self), "version": 2,
                 "filters": {"force": {**butter, "cutoff_hz": self.force_hz},
                             "acceleration": {**butter, "cutoff_hz": self.acceleration_hz},
                             "slip": {**butter, "cutoff_hz": self.slip_hz},
                             "timing": {"kind": "near-Gaussian (three moving averages)",
                                        "cutoff_hz": self.timing_hz}},
-                "steps": ["sampled at rate_hz", "friction (Fs at force_hz − m·a1 at "
+                "steps": ["sampled at rate_hz", "slip_noise (m, white) on the raw slip column",
+                          "friction (Fs at force_hz − m·a1 at "
                           "acceleration_hz)/Fn", "slip low-passed at slip_hz",
                           "event timed on the slip smoothed at timing_hz: from its rate's "
                           "first sample ≥ start_level to its first < end_level (m/s)",
@@ -235,13 +259,15 @@ class Chain:
         level its rate's noise set; slip integrated from accelerations on their low-pass, with
         the levels of vLs (its per-event noise level is not kept)."""
         if slip_from == "slip column":
-            return cls(rate, noise["slip_timing_hz"], *event_levels(vls, noise["slip_rate"]))
+            return cls(rate, noise["slip_timing_hz"], *event_levels(vls, noise["slip_rate"]),
+                       slip_noise=float(noise["slip"]))
         return cls(rate, ACCELERATION_HZ, *event_levels(vls, 0.0), slip_from=slip_from)
 
     @classmethod
     def from_record(cls, record) -> "Chain | None":
         """The chain of an observations file's ``measurement`` record; None for a file without
-        one (written before it): no chain, the model's curves compared as they are."""
+        one (written before it): no chain, the model's curves compared as they are. A record
+        of version 1 (before the slip's noise was kept) has ``slip_noise`` 0."""
         if record is None:
             return None
         if not isinstance(record, dict):
@@ -251,7 +277,7 @@ class Chain:
         missing = [k for k in keys if k not in record]
         if missing:
             raise ValueError(f"measurement lacks {', '.join(missing)}")
-        return cls(**{k: record[k] for k in keys})
+        return cls(**{k: record[k] for k in keys}, slip_noise=record.get("slip_noise", 0.0))
 
     @property
     def margin_s(self) -> float:
@@ -262,7 +288,7 @@ class Chain:
         return max(butter, 1.0 / self.timing_hz) + 20.0 / self.rate_hz
 
     def model_curve(self, t: np.ndarray, slip: np.ndarray, fs: np.ndarray, ft: np.ndarray,
-                    phases: int = PHASES) -> tuple[np.ndarray, np.ndarray]:
+                    phases: int | None = None) -> tuple[np.ndarray, np.ndarray]:
         """The curve ``observe`` would read from the model's run around one event.
 
         Parameters
@@ -273,8 +299,9 @@ class Chain:
             The slip (m) at ``t`` (any origin).
         fs, ft : numpy.ndarray
             The spring's force and the fault's friction over Fn at ``t`` (dimensionless).
-        phases : int
-            The sampling grid's offsets averaged over.
+        phases : int, optional
+            The sampling grid's offsets averaged over (default :data:`PHASES`, or
+            :data:`NOISY_PHASES` with slip noise).
 
         Returns
         -------
@@ -283,22 +310,31 @@ class Chain:
         friction : numpy.ndarray
             The friction (Ft/Fn) there; both empty when the event does not fit the window.
         """
-        curves = [self._one_phase(t, slip, fs, ft, k / phases) for k in range(phases)]
+        from scipy.interpolate import PchipInterpolator
+        phases = phases or (NOISY_PHASES if self.slip_noise > 0 else PHASES)
+        dt = 1.0 / self.rate_hz
+        n = int((t[-1] - t[0]) / dt - (phases - 1) / phases) + 1       # every phase's length
+        if n < 8:
+            return np.empty(0), np.empty(0)
+        ts = t[0] + (np.arange(phases)[:, None] / phases + np.arange(n)) * dt   # phase × sample
+        u, f, r = np.moveaxis(PchipInterpolator(t, np.column_stack([slip, fs, ft]))(ts), -1, 0)
+        if self.slip_noise > 0 and self.slip_from == "slip column":
+            u = u + self.slip_noise * np.random.default_rng(47).standard_normal(u.shape)
+        mu = lowpass(f, self.force_hz, self.rate_hz) - lowpass(f - r, self.acceleration_hz,
+                                                               self.rate_hz)
+        rate = np.gradient(smooth(u, self.timing_hz, self.rate_hz), dt, axis=-1)
+        if self.slip_from == "slip column":
+            u = lowpass(u, self.slip_hz, self.rate_hz)
+        curves = [self._timed(ts[k], rate[k], u[k], mu[k]) for k in range(phases)]
         if any(len(x) < 2 for x, _ in curves):
             return np.empty(0), np.empty(0)
         grid = np.unique(np.concatenate([x for x, _ in curves]))
         return grid, np.mean([np.interp(grid, x, y) for x, y in curves], axis=0)
 
-    def _one_phase(self, t, slip, fs, ft, phase: float):
-        """:meth:`model_curve` at one offset of the sampling grid, sorted by slip as the
-        observed curves are read."""
-        from scipy.interpolate import PchipInterpolator
-        dt = 1.0 / self.rate_hz
-        ts = t[0] + (phase + np.arange(int((t[-1] - t[0]) / dt - phase) + 1)) * dt
-        u, f, r = (PchipInterpolator(t, y)(ts) for y in (slip, fs, ft))
-        mu = lowpass(f, self.force_hz, self.rate_hz) - lowpass(f - r, self.acceleration_hz,
-                                                               self.rate_hz)
-        rate = np.gradient(smooth(u, self.timing_hz, self.rate_hz), ts)
+    def _timed(self, ts, rate, u, mu):
+        """One sampling phase's curve: the event timed on its ``rate`` as observe times one,
+        its friction ``mu`` against the slip ``u`` since the start's crossing, sorted by slip as
+        the observed curves are read (empty when the event runs off the window)."""
         peak = int(np.argmax(rate))
         if rate[peak] < self.start_level:
             return np.empty(0), np.empty(0)
@@ -309,8 +345,6 @@ class Chain:
             i1 += 1
         if i0 == 0 or i1 >= len(ts):               # the event runs off the window
             return np.empty(0), np.empty(0)
-        if self.slip_from == "slip column":
-            u = lowpass(u, self.slip_hz, self.rate_hz)
         x = u[i0:i1 + 1] - np.interp(crossing(ts, rate, self.start_level, i0), ts, u)
         order = np.argsort(x, kind="stable")
         return x[order], mu[i0:i1 + 1][order]
