@@ -95,7 +95,7 @@ def test_the_chained_model_curve_is_the_observed_one(observed):
 @pytest.fixture(scope="module")
 def noisy(tmp_path_factory):
     """observe's observations of W2 at 5 kHz with 1 % sensor noise (the tutorial's level: the
-    slip's noise, ~3 µm, is ten times Lc) over 10 settled events."""
+    slip's noise, 3 µm, is ten times Lc): 35 s after 5 s unrecorded, 8 complete events."""
     out = tmp_path_factory.mktemp("noisy")
     table, _ = synthetic_recording(preset("W2", law="slip", t_end=40.0), rate=5000.0,
                                    t_skip=5.0, noise=0.01, seed=3)
@@ -120,7 +120,7 @@ def test_the_chain_carries_the_slip_s_noise(noisy):
     """With the slip's noise in the chain the truth's curve fits the events as their spread
     allows; without it, it does not: the noise smears the recorded curves along the slip,
     over the first Lc. χ² at the truth (8 events, 11 contrasts; the events' covariance as σ:
-    the model against a typical event, so about 11/8 is expected): measured 2.0 with the
+    the model against a typical event, so about 11/8 is expected): measured 0.64 with the
     noise and 39 without, at commit time."""
     import dataclasses
     chain = noisy.curve_likelihood.chain
@@ -131,11 +131,34 @@ def test_the_chain_carries_the_slip_s_noise(noisy):
     assert without > 5 * with_noise
 
 
+def test_the_noise_s_draw_stays_with_its_sample():
+    """A sample of the window keeps its noise when the window grows by a sample (b and Lc
+    moved the event): the chained curve of a run and of the same run with its window one
+    sample longer at the end differ only where the filters' edge reaches, not by a new draw.
+    Measured: 0 here; 1.6e-4 in μ with the noise drawn phase by phase (each phase's draw then
+    shifts with the window's length), the layout this test replaced."""
+    chain = Chain(5000.0, 50.0, 7.5e-4, 3.5e-4, slip_noise=4e-6)
+    t = np.linspace(0.0, 0.08, 4001)
+    slip = 4e-4 / (1.0 + np.exp(-(t - 0.04) / 0.002))           # an event of ~10 ms at 40 ms
+    fs = 0.6 - 0.05 / (1.0 + np.exp(-(t - 0.04) / 0.002))
+    ft = fs - 0.001 * np.exp(-((t - 0.04) / 0.003) ** 2)
+    a = chain.model_curve(t, slip, fs, ft)
+    longer = np.r_[t, t[-1] + 1.0 / 5000.0]
+    b = chain.model_curve(longer, np.r_[slip, slip[-1]], np.r_[fs, fs[-1]], np.r_[ft, ft[-1]])
+    at = np.linspace(0.0, 3.5e-4, 30)
+    gap = np.abs(np.interp(at, *a) - np.interp(at, *b)).max()
+    assert gap < 1e-6, gap
+
+
 def test_a_version_1_chain_has_no_slip_noise():
     record = Chain(5000.0, 50.0, 1e-3, 1e-4, slip_noise=2e-6).record()
     assert record["version"] == 2 and Chain.from_record(record).slip_noise == 2e-6
-    old = {k: v for k, v in record.items() if k != "slip_noise"}
+    old = {**{k: v for k, v in record.items() if k != "slip_noise"}, "version": 1}
     assert Chain.from_record(old).slip_noise == 0.0
+    with pytest.raises(ValueError, match="lacks slip_noise"):
+        Chain.from_record({**old, "version": 2})
+    with pytest.raises(ValueError, match="measurement version 3"):
+        Chain.from_record({**record, "version": 3})
     with pytest.raises(ValueError, match="slip_noise must be a number ≥ 0"):
         Chain(5000.0, 50.0, 1e-3, 1e-4, slip_noise=-1e-6)
 

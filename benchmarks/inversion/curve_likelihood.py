@@ -237,6 +237,8 @@ class CurveLikelihood:
                 f"({c.rate_hz:g} Hz; force {c.force_hz:g} Hz, acceleration "
                 f"{c.acceleration_hz:g} Hz, slip {c.slip_hz:g} Hz low-passes; timed on the slip "
                 f"smoothed at {c.timing_hz:g} Hz"
+                + (f"; the slip's white noise σ = {c.slip_noise:.3g} m drawn on the model's "
+                   "samples" if c.slip_noise > 0 and c.slip_from == "slip column" else "")
                 + ("" if c.slip_from == "slip column" else
                    "; slip integrated from accelerations: the model's slip is its own") + ")")
         if self.model_error > 0:

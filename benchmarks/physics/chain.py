@@ -22,19 +22,25 @@ written before it: no chain, the model's curves are compared as they are).
 :meth:`Chain.model_curve` applies the chain to a model's run around one event (its dense
 output over the event and a margin either side, :attr:`Chain.margin_s`): sampled at the record's
 rate at :data:`PHASES` offsets of the sampling grid (a recorder's samples fall anywhere in an
-event) and averaged.
+event; :data:`NOISY_PHASES` with the slip's noise) and averaged.
 
 **The slip column's noise is part of the chain** (``slip_noise``, the white noise's σ that
 ``observe`` measured on the raw column). A curve is friction against *measured* slip, and where
 an event starts the slip moves less per sample than its noise: a recorded curve is the true one
 smeared along the slip axis, and its start is placed by a noisy crossing. On a record with slip
 noise of a few Lc that smear is most of what the curve's first Lc shows, and a noise-free model
-curve misplaces Lc (measured on the tutorial's recording, 1 % noise: ``docs/inversion.md``).
-So each sampling phase gets its own draw of that noise before the slip is filtered and the
-event timed, and the curve is the mean over the phases: the expected curve that ``observe``
-reads. The draws are fixed (seeded by the phase), so the model's curve is a smooth function of
-its parameters. The friction's own noise is left out: it has zero mean along the curve and the
-likelihood takes it from the events' spread.
+curve misplaces Lc (measured on a W2 recording with 1 % noise: ``docs/inversion.md``).
+So each sampling phase gets its own draw of that noise before the slip is filtered, and the
+curve is the mean over the phases: the expected curve that ``observe`` reads. The event is
+timed on the noise-free slip: ``observe`` times it on a slip smoothed so much (50 Hz at 1 %
+noise) that its noise moves the start's crossing by a slip far below the noise itself, and a
+noisy timing would walk past the end of a window the run cuts short (the last event of a run
+that ends within the margin), losing the point's curve. The draws are fixed: one seeded
+stream, laid out sample by sample (sample i of phase k is its (i·phases + k)-th number), so a
+sample of the window keeps its noise when b and Lc move the event and the window grows or
+shrinks; the model's curve changes with its parameters, not with the draw. The
+friction's own noise is left out: it has zero mean along the curve and the likelihood takes it
+from the events' spread.
 
 An observed curve whose slip was integrated from accelerations (a record without a slip column)
 has its own drift removal per event; the model's side of that chain is not made: its record says
@@ -68,6 +74,9 @@ PHASES = 4
 NOISY_PHASES = 32
 #: the Butterworth filters' order (zero phase: applied forward and back)
 ORDER = 4
+#: the samples scipy's sosfiltfilt pads each end with for that filter (3 × (2 sections + 1)):
+#: a shorter signal cannot be filtered
+PADLEN = 3 * (2 * (ORDER // 2) + 1)
 
 
 def smooth(x: np.ndarray, cutoff: float, rate: float) -> np.ndarray:
@@ -267,17 +276,23 @@ class Chain:
     def from_record(cls, record) -> "Chain | None":
         """The chain of an observations file's ``measurement`` record; None for a file without
         one (written before it): no chain, the model's curves compared as they are. A record
-        of version 1 (before the slip's noise was kept) has ``slip_noise`` 0."""
+        of version 1 (before the slip's noise was kept) has ``slip_noise`` 0; version 2 must
+        have it; a later version is refused (this code does not know its steps)."""
         if record is None:
             return None
         if not isinstance(record, dict):
             raise ValueError(f"measurement must be a table of the chain's numbers, got {record!r}")
+        version = record.get("version", 1)
+        if version not in (1, 2):
+            raise ValueError(f"measurement version {version!r}: this rsfbench reads versions 1 "
+                             "and 2; a newer rsfbench wrote it")
         keys = ("rate_hz", "timing_hz", "start_level", "end_level", "force_hz",
-                "acceleration_hz", "slip_hz", "slip_from")
+                "acceleration_hz", "slip_hz", "slip_from", *(("slip_noise",) if version == 2
+                                                             else ()))
         missing = [k for k in keys if k not in record]
         if missing:
             raise ValueError(f"measurement lacks {', '.join(missing)}")
-        return cls(**{k: record[k] for k in keys}, slip_noise=record.get("slip_noise", 0.0))
+        return cls(**{k: record[k] for k in keys})
 
     @property
     def margin_s(self) -> float:
@@ -311,18 +326,19 @@ class Chain:
             The friction (Ft/Fn) there; both empty when the event does not fit the window.
         """
         from scipy.interpolate import PchipInterpolator
-        phases = phases or (NOISY_PHASES if self.slip_noise > 0 else PHASES)
+        noisy = self.slip_noise > 0 and self.slip_from == "slip column"
+        phases = phases or (NOISY_PHASES if noisy else PHASES)
         dt = 1.0 / self.rate_hz
         n = int((t[-1] - t[0]) / dt - (phases - 1) / phases) + 1       # every phase's length
-        if n < 8:
+        if n <= PADLEN:
             return np.empty(0), np.empty(0)
         ts = t[0] + (np.arange(phases)[:, None] / phases + np.arange(n)) * dt   # phase × sample
         u, f, r = np.moveaxis(PchipInterpolator(t, np.column_stack([slip, fs, ft]))(ts), -1, 0)
-        if self.slip_noise > 0 and self.slip_from == "slip column":
-            u = u + self.slip_noise * np.random.default_rng(47).standard_normal(u.shape)
         mu = lowpass(f, self.force_hz, self.rate_hz) - lowpass(f - r, self.acceleration_hz,
                                                                self.rate_hz)
         rate = np.gradient(smooth(u, self.timing_hz, self.rate_hz), dt, axis=-1)
+        if noisy:                  # after the timing (module docstring: the draw's layout)
+            u = u + self.slip_noise * np.random.default_rng(47).standard_normal((n, phases)).T
         if self.slip_from == "slip column":
             u = lowpass(u, self.slip_hz, self.rate_hz)
         curves = [self._timed(ts[k], rate[k], u[k], mu[k]) for k in range(phases)]
