@@ -9,6 +9,7 @@ and the row."""
 
 import json
 import math
+from unittest import mock
 
 import numpy as np
 import pandas as pd
@@ -533,6 +534,27 @@ def test_an_acceleration_in_g_read_as_m_s2_is_refused(records):
     rec = recording_from(in_g, {c: c for c in ALL}, normal_force=W2.normal_force)
     with pytest.raises(ValueError, match=r"integrated from .* is 0.10\d times the change of"):
         analyse(rec, mass=W2.mass)
+
+
+def test_the_noise_lift_of_a_fitted_peak_is_taken_off():
+    """A smooth lopsided peak (a slower rise than fall) under white noise of σ = 1, where the
+    quartic fits the shape exactly: the fitted extreme is lifted by the noise alone, and taking
+    the lift off leaves it unbiased. Over 400 draws (seeds 0–399), measured: +0.066 ± 0.015 σ
+    with the lift left on, −0.023 ± 0.016 σ taken off."""
+    from benchmarks.lab import events
+    rate, true = 5000.0, 100.0
+    t = np.arange(-0.02, 0.006, 1.0 / rate)
+    clean = true - 2e5 * t ** 2 - 1e7 * t ** 3                    # the peak at t = 0
+    i = int(np.argmin(np.abs(t)))
+    found = {True: [], False: []}
+    for seed in range(400):
+        x = clean + np.random.default_rng(seed).standard_normal(len(t))
+        for lifted in found:
+            with mock.patch.object(events, "_noise_lift",
+                                   events._noise_lift if lifted else lambda *a: 0.0):
+                found[lifted].append(events._extremum(t, x, i, 30.0, 1.0, 0, len(t), rate,
+                                                      1.0)[0] - true)
+    assert abs(np.mean(found[True])) < 0.05 < np.mean(found[False])
 
 
 def test_noise_at_a_coarse_rate_is_said_with_the_bias_it_gives(apparatus_run):

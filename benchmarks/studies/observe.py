@@ -4,7 +4,8 @@ anti-alias filter at 4 kHz, white noise and a linear drift, both as fractions of
 changes) of W1–W4 under both laws, at three noise levels and with four sets of channels, each
 measured by :func:`benchmarks.lab.events.analyse` and compared with the model's own
 event table; and the time :func:`benchmarks.lab.observe_recording.observe` takes on a 400 s record
-at 10 kHz (4 million rows) in CSV and in Parquet, after one run that warms the caches.
+at 10 kHz (4 million rows) in CSV and in Parquet, after one run that warms the caches; and the
+mean Δμ's bias from noise by sampling rate (:func:`observe_noise_bias`).
 
 The targets, met or missed row by row: at 1 % noise ΔT and Δμ within 0.5 % of the
 model's, the slip per event within 2 %, the stiffness within 1 %; a 4-million-row record in at
@@ -109,7 +110,53 @@ def observe_speed(repeats: int = 3) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def observe_markdown(accuracy: pd.DataFrame, speed: pd.DataFrame) -> str:
+#: the rates (Hz) and noise draws of :func:`observe_noise_bias`
+BIAS_RATES, BIAS_DRAWS = (10_000.0, 1_000.0, 500.0), 8
+
+
+def observe_noise_bias() -> pd.DataFrame:
+    """The mean Δμ's bias from white noise of 1 % of the drop, in σ of the noise, on
+    ``docs/examples/apparatus.toml`` sampled from its run's dense output at each of
+    :data:`BIAS_RATES`: the mean over :data:`BIAS_DRAWS` draws (seeds 0, 1, …) with its
+    standard error, as observe measures it and with the fit's noise lift left on."""
+    from unittest import mock
+
+    import integrators as I
+    from benchmarks.lab import events
+    from benchmarks.lab.channels import recording_from
+    from problems import load_problem
+    problem = load_problem(Path(__file__).resolve().parents[2] / "docs/examples/apparatus.toml")
+    sol = I.solve(problem, I.Rodas5P(rtol=1e-8, atol=1e-8))
+    starts = sol.events.t_start.to_numpy()
+    truth = ((sol.events.fs_max_before - sol.events.fs_min) / problem.normal_force).to_numpy()
+    sigma = 0.01 * float(np.median(truth))                       # in μ
+    rows = []
+    for rate in BIAS_RATES:
+        t = np.arange(0.0, problem.t_end, 1.0 / rate)
+        clean = sol(t).fs.to_numpy()
+        for lifted in (True, False):
+            errors = []
+            for seed in range(BIAS_DRAWS):
+                noisy = clean + sigma * problem.normal_force * \
+                    np.random.default_rng(seed).standard_normal(len(t))
+                rec = recording_from(pd.DataFrame({"t": t, "Fs": noisy}),
+                                     {"time": "t", "shear_force": "Fs"},
+                                     normal_force=problem.normal_force)
+                with mock.patch.object(events, "_noise_lift",
+                                       events._noise_lift if lifted else lambda *a: 0.0):
+                    found = events.analyse(rec)
+                near = [int(np.argmin(np.abs(starts - s))) for s in found.events.t_start]
+                errors.append(found.events.friction_drop.mean() - truth[near].mean())
+            e = np.array(errors) / sigma
+            rows.append({"rate_hz": rate, "lift_taken_off": lifted,
+                         "bias_sigma": e.mean(), "se_sigma": e.std(ddof=1) / np.sqrt(len(e)),
+                         "bias_percent": 100 * e.mean() * sigma / float(np.median(truth)),
+                         "draws": len(e)})
+    return pd.DataFrame(rows)
+
+
+def observe_markdown(accuracy: pd.DataFrame, speed: pd.DataFrame,
+                     bias: pd.DataFrame | None = None) -> str:
     at1 = accuracy[accuracy.noise == 0.01]
     lines = ["At 1 % noise (and drift), the largest relative error over W1–W4, both laws, by "
              "channel set, against the targets:", ""]
@@ -139,19 +186,32 @@ def observe_markdown(accuracy: pd.DataFrame, speed: pd.DataFrame) -> str:
     lines += [f"Speed: `observe` on a 400 s record at 10 kHz ({speed.rows.iloc[0]:,} rows), "
               f"fastest of 3 runs after a warm-up (target ≤ {SPEED_TARGET_S:g} s):", "",
               markdown_table(speed.assign(wall_s=speed.wall_s.map(lambda x: f"{x:.2f}"))), ""]
+    if bias is not None:
+        shown = bias.assign(**{c: bias[c].map(lambda x: f"{x:+.2f}")
+                               for c in ("bias_sigma", "bias_percent")},
+                            se_sigma=bias.se_sigma.map(lambda x: f"{x:.2f}"))
+        lines += ["The mean Δμ's bias from white noise of 1 % of the drop (σ the noise in μ), "
+                  "on `docs/examples/apparatus.toml` sampled from its run, the mean of "
+                  f"{BIAS_DRAWS} noise draws; `lift_taken_off`: as observe measures, the lift "
+                  "of the fit's extreme by its noise taken off "
+                  "(`benchmarks/lab/events.py::_noise_lift`), or not:", "",
+                  markdown_table(shown), ""]
     return "\n".join(lines)
 
 
 def run(out: Path) -> None:
     accuracy = observe_accuracy(progress=True)
     speed = observe_speed()
+    bias = observe_noise_bias()
     write_table(accuracy, out / "observe_accuracy.csv")
     write_table(speed, out / "observe_speed.csv")
-    text = observe_markdown(accuracy, speed)
+    write_table(bias, out / "observe_noise_bias.csv")
+    text = observe_markdown(accuracy, speed, bias)
     write_output(out / "observe.md", text)
     print(text)
 
 
 STUDY = Study("observe", "A recording in: what `rsfbench observe` recovers (`observe.md`, "
               "`observe_*.csv`)", 205, run, report=markdown_file("observe.md"), timed=True,
-              writes=("observe.md", "observe_accuracy.csv", "observe_speed.csv"), minutes=3)
+              writes=("observe.md", "observe_accuracy.csv", "observe_speed.csv",
+                      "observe_noise_bias.csv"), minutes=5)
