@@ -527,3 +527,36 @@ def test_the_solver_effect_command_imports_no_study():
             todo.extend(graph.get(module, ()))
     assert "benchmarks.inversion.solver_effect" in seen
     assert sorted(m for m in seen if m.startswith("benchmarks.studies")) == []
+
+
+def test_the_settled_coverage_apparatus_is_the_independent_recording_s():
+    """The problem file the settled-coverage study inverts with is the apparatus its recordings
+    are made of (benchmarks/lab/independent_stick_slip.py), read back as a problem."""
+    import tomllib
+    from benchmarks.lab import independent_stick_slip as radau
+    from benchmarks.studies.settled_coverage import problem_file
+    from problems import load_problem
+    doc = tomllib.loads(problem_file())
+    assert (doc["mass"], doc["stiffness"], doc["normal_force"]) == (radau.M, radau.K, radau.FN)
+    assert (doc["law"]["a"], doc["law"]["b"], doc["law"]["lc"]) == (radau.A_LAW, radau.B_LAW,
+                                                                    radau.LC)
+    assert (doc["loading"]["vls"], doc["loading"]["vlf"]) == (radau.VLS, radau.VLF)
+
+
+def test_the_settled_coverage_report_counts_against_the_binomial_range():
+    """18 of 20 covering is inside Binomial(20, 0.95)'s 95 % range (17–20); 15 is not."""
+    from benchmarks.studies.settled_coverage import settled_markdown
+    n = 20
+    rows = pd.DataFrame({"seed": range(n), "startup": 4, "err_dT": 1e-5, "err_dmu": 2e-3,
+                         "err_slip": -1e-4, "sd_rel_dT": 1e-5,
+                         "means_covered": [True] * 18 + [False] * 2, "means_s": 60.0,
+                         "means_from": "posterior (grid)", "curves_covered": [True] * 15 +
+                         [False] * 5, "curves_s": 200.0, "curves_from": "profiles (no)",
+                         "effect_exit": 0, "effect_s": 30.0, "effect_answered": True})
+    text = settled_markdown(rows, {"duration_s": 60.0, "rate_hz": 1e4, "noise": 0.01})
+    means = next(line for line in text.splitlines() if line.startswith("| means"))
+    curves = next(line for line in text.splitlines() if line.startswith("| curves"))
+    assert "18 / 20" in means and "| yes |" in means and "17–20" in means
+    assert "15 / 20" in curves and "**no**" in curves and "| 0 / 20 |" in curves
+    assert "within 0.1 % in all three: 0 / 20" in text      # Δμ 0.2 % off in every one
+    assert "answered on 20 / 20" in text

@@ -4,8 +4,8 @@ the means unless kept; ``--window`` measures part of a record; a small σ of a r
 said to be that, not a unit slip.
 
 The end-to-end check is on a recording made outside the project's model code
-(``tests/independent_radau.py``: scipy's Radau on the paper's W2 equations from near steady
-sliding, 1 % sensor noise)."""
+(``benchmarks/lab/independent_stick_slip.py``: scipy's Radau on the paper's W2 equations from
+near steady sliding, 1 % sensor noise)."""
 
 import json
 import warnings
@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-import independent_radau
+from benchmarks.lab import independent_stick_slip as independent_radau
 from benchmarks.cli.main import main
 from benchmarks.inversion.observations import Observations, read_observations
 from benchmarks.lab.observe_recording import observe

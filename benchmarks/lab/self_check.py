@@ -45,8 +45,8 @@ from benchmarks.records.files import (BadResultsFile, claim_outputs, read_json_r
 from benchmarks.records.report import jsonable
 from problems import variant
 
-__all__ = ["self_check", "self_check_files", "recording_plan", "covered_text", "SKIP_CYCLES",
-           "CHANNELS_MADE"]
+__all__ = ["self_check", "self_check_files", "recording_plan", "covered_text", "verdict",
+           "SKIP_CYCLES", "CHANNELS_MADE"]
 
 #: mean recurrence intervals of start-up simulated before the recording starts
 SKIP_CYCLES = 5.0
@@ -168,7 +168,7 @@ def self_check(observations, problem, b: float, lc: float, out, b_range, lc_rang
                         wall_budget=wall_budget, workers=workers)
         inv = invert(misfit, b_range, lc_range, profile_points=profile_points, seed=seed,
                      grid=grid, walkers=walkers, steps=steps)
-        result[label] = _verdict(write_inversion(inv, out / label, {"self_check": True}),
+        result[label] = verdict(write_inversion(inv, out / label, {"self_check": True}),
                                  result["truth"])
     result["wall_s"] = time.perf_counter() - start
     write_output(out / "self_check.json", json.dumps(jsonable(result), indent=2) + "\n")
@@ -188,7 +188,7 @@ def _record(truth, plan: dict, seed: int, out: Path) -> Path:
     return path
 
 
-def _verdict(summary: dict, truth: dict) -> dict:
+def verdict(summary: dict, truth: dict) -> dict:
     """The fit, the 95 % intervals and whether they hold the truth, of one inversion."""
     post = summary["posterior"]
     if post is not None:
@@ -206,13 +206,13 @@ def _verdict(summary: dict, truth: dict) -> dict:
                                                             .parent)}
 
 
-def covered_text(label: str, verdict: dict | None, truth: dict) -> str:
-    """One line saying whether ``verdict``'s region holds the truth."""
-    if verdict is None:
+def covered_text(label: str, found: dict | None, truth: dict) -> str:
+    """One line saying whether the region of ``found`` (a :func:`verdict`) holds the truth."""
+    if found is None:
         return f"{label}: no curves in the observations file"
-    i = verdict["intervals_95"]
-    parts = [f"{k} {'inside' if verdict['holds_truth'][k] else 'OUTSIDE'} [{i[k][0]:.5g}, "
+    i = found["intervals_95"]
+    parts = [f"{k} {'inside' if found['holds_truth'][k] else 'OUTSIDE'} [{i[k][0]:.5g}, "
              f"{i[k][1]:.5g}] (truth {truth[k]:.5g})" for k in ("b", "log10_lc")]
-    return (f"{label}: the 95 % region {'holds' if verdict['covered'] else 'MISSES'} the truth "
-            f"— {'; '.join(parts)}; from the {verdict['from']}")
+    return (f"{label}: the 95 % region {'holds' if found['covered'] else 'MISSES'} the truth "
+            f"— {'; '.join(parts)}; from the {found['from']}")
 
