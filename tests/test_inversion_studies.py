@@ -560,3 +560,8 @@ def test_the_settled_coverage_report_counts_against_the_binomial_range():
     assert "15 / 20" in curves and "**no**" in curves and "| 0 / 20 |" in curves
     assert "within 0.1 % in all three: 0 / 20" in text      # Δμ 0.2 % off in every one
     assert "answered on 20 / 20" in text
+    # a curves' inversion stopped at the study's budget: no verdict, so not covered
+    stopped = rows.drop(columns=["curves_covered", "curves_from"]).assign(curves_exit=-1)
+    text = settled_markdown(stopped, {"duration_s": 60.0, "rate_hz": 1e4, "noise": 0.01})
+    curves = next(line for line in text.splitlines() if line.startswith("| curves"))
+    assert "0 / 20" in curves and curves.rstrip(" |").endswith("20")
