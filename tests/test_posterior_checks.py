@@ -293,3 +293,80 @@ def test_a_fit_that_is_a_local_minimum_is_fitted_again_from_the_profiles_best(mo
     assert inv.fit.b == pytest.approx(CENTRE[0], abs=2e-6)
     assert inv.profiles["b"].low <= inv.fit.b <= inv.profiles["b"].high
     assert not any("local minimum" in w for p in inv.profiles.values() for w in p.warnings)
+
+
+class _Post:
+    """A posterior reduced to what the sd check reads: its sds (the rest passes)."""
+
+    def __init__(self, std, fit):
+        self.std = std
+        self.best = (fit.b, fit.lc, fit.misfit)
+
+
+def _checked(std, profiles, monkeypatch):
+    """The checks of a posterior with sds ``std`` on the narrow ridge's fit: only the sd
+    checks can fail (the region and the best cell are made to pass)."""
+    m = Ridge(**NARROW)
+    best = fit(m, *BOX, start=(CENTRE[0], 10 ** CENTRE[1]))
+    monkeypatch.setattr(zoom, "_fit_more_likely", lambda post, fit: True)
+    monkeypatch.setattr(zoom, "_intervals", lambda post: {k: (-np.inf, np.inf) for k in std})
+    monkeypatch.setattr(zoom, "_short_chain", lambda post: "")
+    monkeypatch.setattr(zoom, "posterior_missed", lambda misfit, profiles: "")
+    return best, zoom.check_posterior(_Post(std, best), best, profiles)
+
+
+def _profile(name, centre, half):
+    from benchmarks.inversion.profile import Profile
+    table = pd.DataFrame({name: [centre - half, centre, centre + half], "misfit": [4.0, 0.0, 4.0],
+                          "point": "grid"})
+    return Profile(name, table, centre - half, centre + half, False, False, 3)
+
+
+@pytest.mark.parametrize("times_gn, passes", [(1.35, True), (0.6, True), (5.5, True),
+                                             (0.4, False), (0.1, False), (6.5, False)])
+def test_a_non_quadratic_profile_widens_the_allowed_sd_to_the_range_it_spans(
+        times_gn, passes, monkeypatch):
+    """Profile intervals 3 × as wide as Gauss–Newton's (the misfit not quadratic, as on a
+    settled recording with its curves, where the zoomed grid's sd was 1.3–1.4 × GN and
+    0.41–0.44 × the profile's): an sd from half GN's to twice the profile's passes; the spikes
+    below and a sd beyond twice the profile's fail, each said with its range."""
+    m = Ridge(**NARROW)
+    best0 = fit(m, *BOX, start=(CENTRE[0], 10 ** CENTRE[1]))
+    gn = {"b": best0.sigma_b, "log10_lc": best0.sigma_log10_lc}
+    x = {"b": best0.b, "log10_lc": np.log10(best0.lc)}
+    profiles = {k: _profile(k, x[k], 3 * zoom.Z95 * gn[k]) for k in gn}
+    _, c = _checked({k: times_gn * gn[k] for k in gn}, profiles, monkeypatch)
+    assert c["passed"] is passes, c["failed"]
+    assert c["sd_reference_source"] == {"b": "Gauss-Newton–profile",
+                                        "log10_lc": "Gauss-Newton–profile"}
+    assert c["sd_ratio"]["b"] == pytest.approx(times_gn)
+    if not passes:
+        assert "between the Gauss-Newton sd and the profile's" in c["failed"][0]
+
+
+def test_a_quadratic_profile_keeps_the_gauss_newton_sd_alone(monkeypatch):
+    """A profile that agrees with Gauss–Newton: the sd must be within 2 × GN's alone (3 ×
+    fails, though a wider profile would allow it)."""
+    m = Ridge(**NARROW)
+    best0 = fit(m, *BOX, start=(CENTRE[0], 10 ** CENTRE[1]))
+    gn = {"b": best0.sigma_b, "log10_lc": best0.sigma_log10_lc}
+    x = {"b": best0.b, "log10_lc": np.log10(best0.lc)}
+    profiles = {k: _profile(k, x[k], zoom.Z95 * gn[k]) for k in gn}
+    _, c = _checked({k: 3 * gn[k] for k in gn}, profiles, monkeypatch)
+    assert not c["passed"] and "the Gauss-Newton sd" in c["failed"][0]
+    assert c["sd_reference_source"]["b"] == "Gauss-Newton"
+
+
+def test_a_sampler_that_did_not_move_fails_its_checks_and_more_steps_help():
+    """4 walkers × 2 steps (measured: passed every check before, its samples being the start
+    drawn from the Gauss–Newton covariance the sd is checked against), and 16 × 4: no
+    posterior, the short chain said with its advice, more --steps; 16 × 300 follow it and
+    pass."""
+    for walkers, steps in ((4, 2), (16, 4)):
+        inv = invert(Ridge(**NARROW), *BOX, profile_points=5, method="emcee", walkers=walkers,
+                     steps=steps)
+        assert inv.posterior is None
+        assert "autocorrelation time" in inv.posterior_missed
+        assert "more --steps" in inv.posterior_missed
+    inv = invert(Ridge(**NARROW), *BOX, profile_points=5, method="emcee", walkers=16, steps=300)
+    assert inv.checks["passed"] and not inv.checks["chain_too_short"]

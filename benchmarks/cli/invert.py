@@ -271,10 +271,12 @@ def _report_grid(p: dict) -> None:
 def _report_checks(p: dict) -> None:
     """What the posterior was checked against, in one line."""
     c = p["checks"]
-    ratio = ", ".join(f"{k} {c['sd_ratio'][k]:.2f} × the {c['sd_reference_source'][k]} sd"
-                      for k in c["sd_ratio"])
-    say(f"checked: the 95 % region holds the least-squares fit; sd {ratio} (allowed within "
-        f"{c['sd_factor']:g} ×)")
+    ratio = ", ".join(f"{k} {c['sd_ratio'][k]:.2f} ×" for k in c["sd_ratio"])
+    allowed = ("" if all(s == "Gauss-Newton" for s in c["sd_reference_source"].values())
+               else ", or of the range from it to the profile's where the profile is not "
+                    "quadratic")
+    say(f"checked: the 95 % region holds the least-squares fit; sd {ratio} the Gauss–Newton sd "
+        f"(allowed: within {c['sd_factor']:g} × of it{allowed})")
 
 
 def _report_sample(p: dict) -> None:
