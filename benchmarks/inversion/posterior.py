@@ -16,12 +16,15 @@ not reliable: it is not given a number it does not have.
 
 A Ctrl-C during a step is held until the step ends and then raised as ``KeyboardInterrupt``
 from :func:`sample`: emcee wraps the log-probability in a handler that prints a traceback for
-any exception, an interruption included.
+any exception, an interruption included, so none may leave it (:class:`CtrlC`).
 """
 
 from __future__ import annotations
 
+import signal
+import threading
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -29,7 +32,8 @@ import pandas as pd
 
 from benchmarks.inversion.misfit import Misfit
 
-__all__ = ["sample", "Posterior", "check_sampler", "run_sampler", "MAX_POSTERIOR_SOLVES"]
+__all__ = ["sample", "Posterior", "check_sampler", "run_sampler", "CtrlC",
+           "MAX_POSTERIOR_SOLVES"]
 
 #: walkers × steps at most: each is a forward solve (hours at a few ms each on 2 cores), and
 #: emcee keeps every sample in memory
@@ -54,6 +58,8 @@ class Posterior:
         Each parameter's integrated autocorrelation time (steps); NaN where it has none.
     tau_reliable : bool
         Whether the kept chain is at least 50 τ long.
+    kept : int
+        The chain's steps after burn-in (per walker).
     effective_samples : float
         Walkers × kept steps / the larger τ; NaN without a τ.
     n_solves : int
@@ -70,6 +76,7 @@ class Posterior:
     acceptance: float
     tau: dict
     tau_reliable: bool
+    kept: int
     effective_samples: float
     n_solves: int
     wall_s: float
@@ -96,19 +103,66 @@ def check_sampler(b_range, lc_range, walkers: int, steps: int, burn: int | None 
     return burn
 
 
-def run_sampler(sampler, p0, steps: int, progress: bool, stopped: list) -> None:
-    """Run an emcee ``sampler`` from ``p0`` for ``steps`` steps. A Ctrl-C caught inside the
-    log-probability (which then appends to ``stopped`` and returns −∞ until the step ends) or
-    in emcee's own code between two calls is raised here as one ``KeyboardInterrupt`` naming
-    the step it came in."""
+class CtrlC:
+    """A Ctrl-C while emcee samples, kept out of emcee's code. While :meth:`installed`, SIGINT
+    only marks the run stopped, except inside :meth:`call` (the solves), where it interrupts at
+    once and is caught there: an exception raised anywhere else in the log-probability, or in
+    emcee between two calls, would reach emcee's handler, which prints its traceback (the test
+    of it saw one when the Ctrl-C was caught around the solves alone). Truthy once stopped."""
+
+    def __init__(self):
+        self.stopped = False
+        self._inside = False
+
+    def __bool__(self) -> bool:
+        return self.stopped
+
+    def _handler(self, signum, frame):
+        self.stopped = True
+        if self._inside:
+            raise KeyboardInterrupt
+
+    @contextmanager
+    def installed(self):
+        """SIGINT goes to this object for the block (from the main thread; elsewhere Python's
+        own handler stays, and :meth:`call` still catches what it raises)."""
+        if threading.current_thread() is not threading.main_thread():
+            yield self
+            return
+        previous = signal.signal(signal.SIGINT, self._handler)
+        try:
+            yield self
+        finally:
+            signal.signal(signal.SIGINT, previous)
+
+    def call(self, fn, *args):
+        """``fn(*args)``, or None once stopped (before or during it)."""
+        if self.stopped:
+            return None
+        try:
+            self._inside = True
+            return fn(*args)
+        except KeyboardInterrupt:
+            self.stopped = True
+            return None
+        finally:
+            self._inside = False
+
+
+def run_sampler(sampler, p0, steps: int, progress: bool, stopped: CtrlC) -> None:
+    """Run an emcee ``sampler`` from ``p0`` for ``steps`` steps with ``stopped`` installed (its
+    log-probability solves through ``stopped.call``). A Ctrl-C is raised here, after the step
+    it came in, as one ``KeyboardInterrupt`` naming that step."""
     done = 0
-    try:
-        for done, _ in enumerate(sampler.sample(p0, iterations=steps, progress=progress), 1):
-            if stopped:
-                done -= 1                     # the step the Ctrl-C came in
-                break
-    except KeyboardInterrupt:
-        stopped.append(True)
+    with stopped.installed():
+        try:
+            for done, _ in enumerate(sampler.sample(p0, iterations=steps, progress=progress),
+                                     1):
+                if stopped:
+                    done -= 1                     # the step the Ctrl-C came in
+                    break
+        except KeyboardInterrupt:                 # Python's own handler, off the main thread
+            stopped.stopped = True
     if stopped:
         raise KeyboardInterrupt(f"the posterior was interrupted at step {done + 1} of {steps}")
 
@@ -162,16 +216,14 @@ def sample(misfit: Misfit, b_range, lc_range, start, walkers: int = 32, steps: i
     if not ((lo < x0) & (x0 < hi)).all():
         raise ValueError(f"start = {start!r} is outside the prior box")
     count = {"n": 0}
-    stopped = []
+    stopped = CtrlC()
 
     def log_prob(x):                     # x: (walkers, 2); one ensemble batch a step
         inside = ((x > lo) & (x < hi)).all(axis=1)
         out = np.full(len(x), -np.inf)
-        if inside.any() and not stopped:
-            try:
-                table = misfit.evaluate(x[inside, 0], 10.0 ** x[inside, 1])
-            except KeyboardInterrupt:    # emcee would print its traceback: raised after the step
-                stopped.append(True)
+        if inside.any():
+            table = stopped.call(misfit.evaluate, x[inside, 0], 10.0 ** x[inside, 1])
+            if table is None:            # a Ctrl-C: raised after the step (CtrlC)
                 return out
             count["n"] += int(inside.sum())
             out[inside] = table.log_likelihood.to_numpy()
@@ -203,7 +255,7 @@ def _posterior(sampler, burn: int, kept: int, n_solves: int, wall: float,
         samples=samples, mean=xs.mean().to_dict(), std=xs.std().to_dict(),
         acceptance=float(np.mean(sampler.acceptance_fraction)),
         tau={"b": float(tau[0]), "log10_lc": float(tau[1])},
-        tau_reliable=bool(np.isfinite(tau).all() and kept >= 50 * np.max(tau)),
+        tau_reliable=bool(np.isfinite(tau).all() and kept >= 50 * np.max(tau)), kept=kept,
         effective_samples=(float(walkers * kept / np.max(tau)) if np.isfinite(tau).all()
                            else float("nan")), n_solves=n_solves, wall_s=wall, prior=prior)
 

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from benchmarks.inversion.posterior import run_sampler
+from benchmarks.inversion.posterior import CtrlC, run_sampler
 from benchmarks.lab.fit import _LOG, BOUNDS, PARAMETER_UNITS, LabFit, _Problem
 from benchmarks.records.optional import require
 
@@ -104,15 +104,13 @@ def sample_lab(fit: LabFit, walkers: int = 32, steps: int = 600, seed: int = 0,
     prob = _Problem(fit.model, fit.free, fit.fixed, fit.piece_weights)
     lo, hi = prob.bounds()
     scale = fit.noise_variance
-    stopped = []
+    stopped = CtrlC()
 
     def log_prob(x):
-        if stopped or not ((x > lo) & (x < hi)).all():
+        if not ((x > lo) & (x < hi)).all():
             return -np.inf
-        try:
-            r = prob.residual(x)
-        except KeyboardInterrupt:     # emcee would print its traceback: raised after the step
-            stopped.append(True)
+        r = stopped.call(prob.residual, x)
+        if r is None:                 # a Ctrl-C: raised after the step (CtrlC)
             return -np.inf
         if not np.isfinite(prob.g(x)).all():
             return -np.inf
