@@ -8,6 +8,9 @@ PY       := $(VENV)/bin/python
 APT_PKGS := gfortran libsundials-dev pkg-config cmake
 STAMP    := $(VENV)/.installed
 WARM     := $(VENV)/.compiled
+# the tests run in this many processes (pytest-xdist): the cores, at most 4 (each process
+# imports the whole stack); `make test JOBS=1` runs them in one
+JOBS     ?= $(shell n=$$(nproc 2>/dev/null || echo 1); [ $$n -gt 4 ] && n=4; echo $$n)
 
 .PHONY: all setup system-packages numba-cache warm test test-slow docs reproduce reproduce-full bench clean
 
@@ -60,12 +63,12 @@ docs: setup
 	$(PY) -m sphinx -W --keep-going -q -b html docs docs/_build/html
 
 test: setup numba-cache warm
-	$(PY) -m pytest --require-all --durations=15
+	$(PY) -m pytest --require-all --durations=15 -n $(JOBS)
 
 # the slow tests: kills, Ctrl-C, subprocesses, a Dask cluster losing its workers, the README's
 # and the docs' pages run as written (~30 min on 2 cores)
 test-slow: setup numba-cache warm
-	$(PY) -m pytest --require-all --durations=25 -m "slow and not study"
+	$(PY) -m pytest --require-all --durations=25 -n $(JOBS) -m "slow and not study"
 
 # the quick plan: reruns the quick steps whose inputs (code, package versions, settings, files
 # read, the machine for timings) changed, reuses the others and keeps the files of the full
