@@ -17,10 +17,10 @@ runs them, at their defaults, in W2's prior box (b 0.0086–0.0102, Lc 0.03–3 
 * ``solver-effect``: whether it answers (exit 0 or 1 with its table written).
 
 Each posterior attempt that failed its checks is in ``settled_coverage.csv`` (the route and the
-checks, ``*_failed_attempts``). Measured on the first recording: the means' inversion 57 s, the
-curves' 28 min (every grid failed its checks, and emcee ran its 64,000 solves), solver-effect
-145 s: the 20 recordings take about 10 h on 2 cores, hence ``--set recordings=N``. A command
-is stopped after :data:`COMMAND_BUDGET_S`.
+checks, ``*_failed_attempts``). Measured on the first recording: the means' inversion 58 s, the
+curves' 160 s (the zoomed grid; 28 min when every grid failed its sd check and emcee ran),
+solver-effect 145 s: about 6 min a recording, 2 h for the 20 on 2 cores, hence
+``--set recordings=N``. A command is stopped after :data:`COMMAND_BUDGET_S`.
 
 The coverage target: 17–20 of 20 recordings (the central 95 % of Binomial(20, 0.95)).
 """
@@ -227,7 +227,7 @@ SETTINGS = {"recordings": 20, "rate_hz": 10_000.0, "noise": 0.01, "duration_s": 
 
 STUDY = Study("settled-coverage", "Coverage on settled, precise recordings made outside the "
               "model code (`settled_coverage.*`)", 218, run,
-              report=markdown_file("settled_coverage.md"), plan="full", minutes=640, timed=True,
+              report=markdown_file("settled_coverage.md"), plan="full", minutes=125, timed=True,
               settings=SETTINGS, limits={"recordings": (1, 200), "rate_hz": (500.0, 1e5),
                                          "noise": (0.0, 0.1), "duration_s": (20.0, 600.0),
                                          "solver_effect": (0, 1)},
