@@ -66,7 +66,7 @@ test: setup numba-cache warm
 	$(PY) -m pytest --require-all --durations=15 -n $(JOBS)
 
 # the slow tests: kills, Ctrl-C, subprocesses, a Dask cluster losing its workers, the README's
-# and the docs' pages run as written (~30 min on 2 cores)
+# and the docs' pages run as written (26 min on 2 cores in 2 processes)
 test-slow: setup numba-cache warm
 	$(PY) -m pytest --require-all --durations=25 -n $(JOBS) -m "slow and not study"
 
