@@ -202,13 +202,12 @@ def frame_posterior(misfit, frame: Frame, b_range, lc_range, n: int = 33,
     """
     box = (tuple(b_range), (float(np.log10(lc_range[0])), float(np.log10(lc_range[1]))))
     k = frame.half
-    inside = _InFrame(misfit, frame, box)
-    first = grid_posterior(inside, (-k, k), (10.0 ** -k, 10.0 ** k), n=n, progress=progress,
-                           say=say, refine=False)
+    square = (_InFrame(misfit, frame, box), (-k, k), (10.0 ** -k, 10.0 ** k))
+    first = grid_posterior(*square, n=n, progress=progress, say=say, refine=False)
     # a first grid whose edge already holds mass: the frame is too small, and refining it would
     # only be thrown away (on a settled recording with its curves, 4,000 of 13,700 solves)
     inner = first if not first.ok or first.edge_mass > EDGE_MASS else grid_posterior(
-        inside, (-k, k), (10.0 ** -k, 10.0 ** k), n=n, progress=progress, say=say, first=first)
+        *square, n=n, progress=progress, say=say, first=first)
     c = inner.cells
     z = c[["b", "log10_lc"]].to_numpy()
     x = frame.to_x(z)
