@@ -95,6 +95,70 @@ def test_invert_zooms_on_the_fit_and_finds_the_ridge(ridge):
     assert draws.b.std() == pytest.approx(sd[0], rel=0.05)
 
 
+class Arc(Ridge):
+    """A curved valley: b = f(log10 Lc) + N(0, ``across``²) about a parabola f, log10 Lc ~
+    N(centre, ``along``²); residuals ((b − f) / across, (log10 Lc − centre) / along). Its
+    marginals are known: b's mean f(centre) + κ along², its variance across² + slope² along²
+    + 2 κ² along⁴."""
+
+    def __init__(self, across, along, slope, kappa):
+        super().__init__(sd=(1.0, 1.0), rho=0.0)
+        self.across, self.along, self.slope, self.kappa = across, along, slope, kappa
+
+    def f(self, log10_lc):
+        d = np.asarray(log10_lc) - CENTRE[1]
+        return CENTRE[0] + self.slope * d + self.kappa * d ** 2
+
+    def _r(self, b, log10_lc):
+        b, log10_lc = np.ravel(b), np.ravel(log10_lc)
+        return np.column_stack([(b - self.f(log10_lc)) / self.across,
+                                (log10_lc - CENTRE[1]) / self.along])
+
+
+#: the valley of a settled recording's means (W2, slip law, σ(ΔT)/ΔT = 2.3e−5, seed 1 of the
+#: settled-coverage study; `rsfbench invert` on its observations): Gauss–Newton sds 3.2e−7 across
+#: and 0.17 in log10 Lc, slope 3.0e−4, the profile's floor 6e−5 off that line 1 decade away
+ARC = dict(across=3.2e-7, along=0.17, slope=3.0e-4, kappa=6e-5)
+
+
+def test_a_curved_valley_is_followed_by_the_bent_frame():
+    """The bent frame follows the valley's floor from the profile of log10 Lc: the zoomed grid
+    passes at its first try, with the marginals' known mean and sd (within 3 % of an sd, and
+    5 %), the fit and the truth inside. The linear frame on the same valley holds a thin arc:
+    its checks fail, or it takes more than twice the solves."""
+    m = Arc(**ARC)
+    inv = invert(m, *BOX, profile_points=5)
+    post, c = inv.posterior, inv.checks
+    assert inv.route == "zoomed grid" and c["passed"], inv.reason
+    assert post.frame.bend is not None
+    assert [a["route"] for a in inv.attempts].count("zoomed grid") == 1
+    a, s, k = ARC["along"], ARC["slope"], ARC["kappa"]
+    mean = {"b": CENTRE[0] + k * a ** 2, "log10_lc": CENTRE[1]}
+    sd = {"b": np.sqrt(ARC["across"] ** 2 + s ** 2 * a ** 2 + 2 * k ** 2 * a ** 4), "log10_lc": a}
+    for name in ("b", "log10_lc"):
+        assert abs(post.mean[name] - mean[name]) < 0.03 * sd[name]
+        assert post.std[name] == pytest.approx(sd[name], rel=0.05)
+        lo, hi = post.interval[name]
+        assert lo < CENTRE[("b", "log10_lc").index(name)] < hi
+    linear, edge = zoom.frame_posterior(m, zoom.frame_of(inv.fit, inv.profiles, bend=False),
+                                        *BOX)
+    failed = not zoom.check_posterior(linear, inv.fit, inv.profiles, edge)["passed"]
+    assert failed or linear.n_solves > 2 * post.n_solves
+
+
+def test_a_bent_frame_maps_back_and_forth():
+    """The bend is a shear: to_z undoes to_x, a square's extent in b grows with the floor's
+    slope, and beyond its knots the floor goes on as a line."""
+    f = zoom.Frame((0.0094, -6.5), ((1e-5, 0.0), (0.03, 0.002)),
+                   bend=((-7.0, -6.75, -6.5, -6.25, -6.0), (2.5e-5, 6.25e-6, 0.0, 6.25e-6, 2.5e-5)))
+    z = np.array([[1.0, -2.0], [0.0, 0.0], [150.0, 3.0]])
+    assert f.to_z(f.to_x(z)) == pytest.approx(z)
+    assert f.to_x([[0.0, 0.0]])[0] == pytest.approx([0.0094, -6.5])
+    assert f.reach([[0.0, 0.0]])[0] == pytest.approx([1e-5, 0.032], rel=1e-9)
+    far = f.offset([-5.0, -4.0])
+    assert far[1] - far[0] == pytest.approx(far[0] - f.offset(-6.0), rel=1e-9)
+
+
 def test_a_shifted_ridge_holds_the_fit_and_the_truth_in_its_region():
     """Means one σ off the truth (the residuals shifted by (1, −1)): the fit moves off the
     truth, the region holds both."""

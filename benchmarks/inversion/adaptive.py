@@ -144,11 +144,12 @@ class GridPosterior:
     history : list of dict
         One a level: ``level``, ``cells``, ``split``, ``solves``, ``moved`` (the intervals'
         largest move, as a fraction of the width) and ``hpd_cells``.
-    frame : tuple or None
-        ``(centre, scale)`` of a grid laid in a frame (:mod:`benchmarks.inversion.zoom`): each
-        cell is the square of ``z_b``, ``z_log10_lc`` (its centre) and ``width_z`` (its side)
-        mapped by (b, log10 Lc) = centre + scale · z, and ``width_b``, ``width_log10_lc`` are
-        its extents; None for cells that are rectangles in (b, log10 Lc).
+    frame : Frame or None
+        The frame of a grid laid in one (:class:`benchmarks.inversion.zoom.Frame`): each cell is
+        the square of ``z_b``, ``z_log10_lc`` (its centre) and ``width_z`` (its side) mapped by
+        ``frame.to_x`` (a map of constant Jacobian, so that a cell's mass is its likelihood
+        times ``width_z`` squared), and ``width_b``, ``width_log10_lc`` are its extents; None
+        for cells that are rectangles in (b, log10 Lc).
     """
 
     cells: pd.DataFrame = field(repr=False)
@@ -167,7 +168,7 @@ class GridPosterior:
     n_failed: int = 0
     wall_s: float = 0.0
     history: list = field(default_factory=list)
-    frame: tuple | None = field(default=None, repr=False)
+    frame: object = field(default=None, repr=False)
 
     @property
     def ok(self) -> bool:
@@ -196,10 +197,9 @@ class GridPosterior:
         k = rng.choice(len(c), size=n, p=c.mass.to_numpy())
         u = rng.random((n, 2)) - 0.5
         if self.frame is not None:       # uniform in the cell's square in the frame
-            centre, scale = self.frame
             w = c.width_z.to_numpy()[k]
             z = np.column_stack([c.z_b.to_numpy()[k], c.z_log10_lc.to_numpy()[k]]) + u * w[:, None]
-            x = np.asarray(centre) + z @ np.asarray(scale).T
+            x = self.frame.to_x(z)
             return pd.DataFrame({"b": x[:, 0], "log10_lc": x[:, 1]})
         return pd.DataFrame({"b": c.b.to_numpy()[k] + u[:, 0] * c.width_b.to_numpy()[k],
                              "log10_lc": c.log10_lc.to_numpy()[k]
@@ -230,7 +230,9 @@ def posterior_of_cells(cells: pd.DataFrame, box, level: float = 0.95, shape=None
     GridPosterior
         NaN summaries, no ``hpd`` cell and ``ok`` False when no cell has a limit cycle.
     """
-    area = (cells.width_b * cells.width_log10_lc).to_numpy()
+    # a frame's cells: its map's Jacobian is a constant, the squares' areas in z are as good
+    area = (cells.width_z ** 2 if "width_z" in cells
+            else cells.width_b * cells.width_log10_lc).to_numpy()
     cells = cells.assign(mass=cell_mass(cells.log_likelihood.to_numpy(), area))
     (b_lo, b_hi), (l_lo, l_hi) = box
     prior = (f"uniform in b on [{b_lo:g}, {b_hi:g}] and in log10 Lc on [{l_lo:g}, {l_hi:g}] "

@@ -332,12 +332,15 @@ def _with_route(inv: Inversion, out: dict) -> dict:
         frame = getattr(inv.posterior, "frame", None)
         if frame is not None:
             out["posterior"]["frame"] = {
-                "centre_b_log10_lc": list(frame[0]), "scale": [list(r) for r in frame[1]],
+                "centre_b_log10_lc": list(frame.centre), "scale": [list(r) for r in frame.scale],
+                "bend_log10_lc_b": None if frame.bend is None else [list(v) for v in frame.bend],
                 "half": next((a["frame_half"] for a in reversed(inv.attempts)
                               if a.get("passed") and "frame_half" in a), None),
-                "what": "(b, log10 Lc) = centre + scale · z, z in [−half, half]²: the grid "
-                        "zoomed on the fit (scale: Cholesky factor of its Gauss–Newton "
-                        "covariance widened to the profiles)"}
+                "what": "(b, log10 Lc) = centre + scale · z, z in [−half, half]², then b "
+                        "moved by the bend (a natural cubic spline through (log10 Lc knots, b "
+                        "offsets): the profile of log10 Lc's valley floor less the map's line): "
+                        "the grid zoomed on the fit (scale: Cholesky factor of its Gauss–Newton "
+                        "covariance, log10 Lc widened to its profile)"}
     return out
 
 

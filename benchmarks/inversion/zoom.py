@@ -9,15 +9,27 @@ that hold mass, never finds the rest: the region came out 7–40× narrower than
 one, about wherever those centres were (in a case of the issue, excluding the fit and the truth).
 
 **The frame.** The grid is laid in the fit's own coordinates: (b, log10 Lc) = centre + scale · z,
-the centre the least-squares fit, the scale the Cholesky factor of its Gauss–Newton covariance,
-each parameter's standard deviation first widened to its profile interval's (width / 3.92) where
-that is wider (a valley the quadratic model misses). The grid tiles z ∈ [−:data:`HALF`,
-:data:`HALF`]² with n × n squares (33 × 33: 0.36 σ a cell) and is refined as any grid
-(:func:`benchmarks.inversion.adaptive.grid_posterior`): the ridge is a round blob there, resolved
-by the first grid whatever its width in (b, log10 Lc). A point outside the prior box has prior
-zero and is not solved. The map is linear, so a cell's mass is its likelihood times its area
-in z (the Jacobian is a constant), and the summaries are read in (b, log10 Lc)
-(:func:`frame_posterior`).
+the centre the least-squares fit, the scale the Cholesky factor of its Gauss–Newton covariance.
+The grid tiles z ∈ [−:data:`HALF`, :data:`HALF`]² with n × n squares (33 × 33: 0.36 σ a cell)
+and is refined as any grid (:func:`benchmarks.inversion.adaptive.grid_posterior`): the ridge is a
+round blob there, resolved by the first grid whatever its width in (b, log10 Lc). A point
+outside the prior box has prior zero and is not solved.
+
+**The bend.** On the means alone the valley is also *curved*: on a settled recording its floor
+(the profile of log10 Lc's b at each log10 Lc) bends away from the Gauss–Newton line by 6e−5 in
+b over the box, 200 times the valley's width across (3e−7; correlation 0.99998). A linear frame
+then holds a thin arc, not a blob: its refinement split 400 cells a level for six levels and
+still failed, and emcee's autocorrelation time was 167 steps. So the frame follows the floor:
+after the linear map, each point's b is moved by the floor's offset from the map's line at its
+log10 Lc (a natural cubic spline through the profile's points with a cycle, at least
+:data:`MIN_BEND_KNOTS`; a line beyond them). The linear map is the Gauss–Newton regression of b
+on log10 Lc: its slope and its variance of b across (the valley's width), and log10 Lc's
+variance widened to its profile interval's (width / 3.92) where that is wider (a valley longer
+than the quadratic model says). Without enough profile points the frame is linear, each
+parameter's standard deviation widened to its profile's. Moving b by a function of log10 Lc is
+a shear: the map's Jacobian is still a constant, so a cell's mass is its likelihood times its
+area in z, and the summaries are read in (b, log10 Lc) (:func:`frame_posterior`). On that
+recording the bent grid passed every check at its first level (3,657 solves, 12 s).
 
 **The checks** (:func:`check_posterior`), each recorded with its value:
 
@@ -44,9 +56,10 @@ in z (the Jacobian is a constant), and the summaries are read in (b, log10 Lc)
   (:func:`posterior_missed`);
 * a zoomed grid holds the posterior: less than :data:`EDGE_MASS` of it on the frame's edge.
 
-**The route** (:func:`posterior_route`): the zoomed grid first when the frame lies inside the
-prior box (a narrow posterior), else the box's grid refined from the first grid (a broad one,
-cut by the box: the frame would be mostly outside it), then the other; a zoomed grid whose edge
+**The route** (:func:`posterior_route`): the zoomed grid first when the frame's area is smaller
+than the prior box's (a narrow posterior, or a thin valley however long: its cells are then the
+finer), else the box's grid refined from the first grid (a broad one, cut by the box: the frame
+would be mostly outside it), then the other; a zoomed grid whose edge
 holds mass is tried once more twice as wide; then emcee, started at the fit with its walkers
 drawn from the frame's covariance. The first that passes every check is the posterior; if none
 does, there is none, and the reason names each attempt's failed checks.
@@ -66,7 +79,8 @@ from benchmarks.inversion.profile import lowest_point
 
 __all__ = ["Frame", "frame_of", "frame_posterior", "check_posterior", "reference_sd",
            "posterior_route", "Routed", "frame_map", "frame_moments", "posterior_missed",
-           "HALF", "SD_FACTOR", "GAUSSIAN_TOL", "EDGE_MASS", "MIN_TAU_LENGTH", "Z95"]
+           "HALF", "SD_FACTOR", "GAUSSIAN_TOL", "EDGE_MASS", "MIN_TAU_LENGTH", "MIN_BEND_KNOTS",
+           "Z95"]
 
 #: the frame's grid spans ± this many (widened) standard deviations
 HALF = 6.0
@@ -76,6 +90,8 @@ SD_FACTOR = 2.0
 GAUSSIAN_TOL = 0.25
 #: a sampled posterior's chain after burn-in, in autocorrelation times, at least (docstring)
 MIN_TAU_LENGTH = 10
+#: the fewest points of the profile of log10 Lc (with a cycle) that bend a frame
+MIN_BEND_KNOTS = 4
 #: the largest mass on a zoomed grid's edge (inside the prior box) of a posterior it holds
 EDGE_MASS = 1e-3
 #: the 97.5 % quantile of the standard normal
@@ -85,8 +101,8 @@ _NAMES = ("b", "log10_lc")
 
 @dataclass(frozen=True)
 class Frame:
-    """(b, log10 Lc) = ``centre`` + ``scale`` · z over z ∈ [−``half``, ``half``]² (module
-    docstring).
+    """(b, log10 Lc) = bend(``centre`` + ``scale`` · z) over z ∈ [−``half``, ``half``]² (module
+    docstring): the linear map, then each point's b moved by the valley's offset at its log10 Lc.
 
     Parameters
     ----------
@@ -96,34 +112,80 @@ class Frame:
         The 2 × 2 lower-triangular map, a Cholesky factor of the (widened) covariance.
     half : float
         The grid's half-width in z (standard deviations).
+    bend : tuple or None
+        ``(log10 Lc knots, b offsets)``: where the profile of log10 Lc found the valley's floor,
+        less the linear map's line there (a natural cubic spline through them, continued as a
+        line beyond the ends); None: a linear frame.
     """
 
     centre: tuple
     scale: tuple
     half: float = HALF
+    bend: tuple | None = None
+
+    def offset(self, log10_lc, derivative: int = 0) -> np.ndarray:
+        """The bend's offset in b (or its ``derivative``-th derivative) at ``log10_lc``."""
+        log10_lc = np.asarray(log10_lc, dtype=float)
+        if self.bend is None:
+            return np.zeros_like(log10_lc)
+        from scipy.interpolate import CubicSpline
+        knots, values = (np.asarray(v, dtype=float) for v in self.bend)
+        spline = CubicSpline(knots, values, bc_type="natural")
+        lo, hi = knots[0], knots[-1]
+        inner = spline(np.clip(log10_lc, lo, hi), derivative)
+        if derivative == 0:          # a line beyond the knots (the natural end has no curvature)
+            return (inner + np.minimum(log10_lc - lo, 0.0) * spline(lo, 1)
+                    + np.maximum(log10_lc - hi, 0.0) * spline(hi, 1))
+        if derivative == 1:
+            return np.where(log10_lc < lo, spline(lo, 1),
+                            np.where(log10_lc > hi, spline(hi, 1), inner))
+        return np.where((log10_lc < lo) | (log10_lc > hi), 0.0, inner)
 
     def to_x(self, z) -> np.ndarray:
         """(b, log10 Lc) of points ``z`` (shape (n, 2))."""
-        return np.asarray(self.centre) + np.atleast_2d(z) @ np.asarray(self.scale).T
+        x = np.asarray(self.centre) + np.atleast_2d(z) @ np.asarray(self.scale).T
+        if self.bend is not None:
+            x[:, 0] += self.offset(x[:, 1])
+        return x
 
     def to_z(self, x) -> np.ndarray:
         """The frame's coordinates of points ``x`` = (b, log10 Lc) (shape (n, 2))."""
-        d = np.atleast_2d(x) - np.asarray(self.centre)
-        return np.linalg.solve(np.asarray(self.scale), d.T).T
+        x = np.array(np.atleast_2d(x), dtype=float)
+        if self.bend is not None:
+            x[:, 0] -= self.offset(x[:, 1])
+        return np.linalg.solve(np.asarray(self.scale), (x - np.asarray(self.centre)).T).T
+
+    def reach(self, z) -> np.ndarray:
+        """The extents in b and in log10 Lc of a unit square of the frame about each point ``z``
+        (shape (n, 2)): the map's Jacobian there, its rows' absolute sums."""
+        scale = np.asarray(self.scale)
+        slope = self.offset(self.to_x(z)[:, 1], 1)
+        return np.column_stack([np.abs(scale[0] + slope[:, None] * scale[1]).sum(axis=1),
+                                np.full(len(slope), np.abs(scale[1]).sum())])
 
     def extent(self) -> np.ndarray:
-        """The half-widths in b and in log10 Lc of the frame's grid."""
-        return self.half * np.abs(np.asarray(self.scale)).sum(axis=1)
+        """The half-widths in b and in log10 Lc of the frame's grid (its edge mapped)."""
+        t = np.linspace(-self.half, self.half, 201)
+        h = np.full_like(t, self.half)
+        edge = np.concatenate([np.column_stack(p) for p in ((t, h), (t, -h), (h, t), (-h, t))])
+        return np.abs(self.to_x(edge) - np.asarray(self.centre)).max(axis=0)
+
+    def area(self) -> float:
+        """The area of the frame's grid in (b, log10 Lc) (the map's Jacobian is a constant)."""
+        return float((2 * self.half) ** 2 * abs(np.linalg.det(np.asarray(self.scale))))
 
     def widened(self, factor: float) -> "Frame":
         """The frame with its grid ``factor`` times as wide."""
-        return Frame(self.centre, self.scale, self.half * factor)
+        return Frame(self.centre, self.scale, self.half * factor, self.bend)
 
 
-def frame_of(fit, profiles=None) -> Frame | None:
-    """The frame of a least-squares ``fit`` (module docstring), its standard deviations widened
-    to its ``profiles``' intervals; None when the fit failed or its covariance is not a finite
-    positive-definite matrix (a flat direction)."""
+def frame_of(fit, profiles=None, bend: bool = True) -> Frame | None:
+    """The frame of a least-squares ``fit`` (module docstring): bent along the valley that the
+    profile of log10 Lc found (``bend`` and at least :data:`MIN_BEND_KNOTS` of its points with a
+    cycle), its log10 Lc widened to that profile's interval and b across the valley as
+    Gauss–Newton's; else linear, each standard deviation widened to its profile's interval.
+    None when the fit failed or its covariance is not a finite positive-definite matrix (a flat
+    direction)."""
     cov = np.asarray(fit.covariance, dtype=float)
     if not (np.isfinite(fit.misfit) and np.isfinite(cov).all()):
         return None
@@ -133,13 +195,37 @@ def frame_of(fit, profiles=None) -> Frame | None:
         p = (profiles or {}).get(name)
         if p is not None and np.isfinite([p.low, p.high]).all() and sd[k] > 0:
             widen[k] = max(1.0, (p.high - p.low) / (2 * Z95) / sd[k])
+    centre = (float(fit.b), float(np.log10(fit.lc)))
+    valley = _valley(centre, cov, (widen[1] * sd[1]) ** 2,
+                     (profiles or {}).get("log10_lc")) if bend else None
+    target, knots = valley if valley is not None else (
+        widen[:, None] * cov * widen[None, :], None)
     try:
-        scale = np.linalg.cholesky(widen[:, None] * cov * widen[None, :])
+        scale = np.linalg.cholesky(target)
     except np.linalg.LinAlgError:
         return None
     if not (np.isfinite(scale).all() and (np.diag(scale) > 0).all()):
         return None
-    return Frame((float(fit.b), float(np.log10(fit.lc))), tuple(map(tuple, scale.tolist())))
+    return Frame(centre, tuple(map(tuple, scale.tolist())), bend=knots)
+
+
+def _valley(centre, cov: np.ndarray, var_lc: float, profile) -> tuple | None:
+    """The bent frame's covariance and bend (module docstring), or None: the Gauss–Newton
+    regression of b on log10 Lc (its slope, and its variance of b across it: det / var), log10
+    Lc's variance ``var_lc``, and the offsets of the profile's valley floor from that line."""
+    if profile is None or not cov[1, 1] > 0:
+        return None
+    t = profile.table
+    t = t[np.isfinite(t.misfit) & np.isfinite(t.b)].drop_duplicates("log10_lc")
+    if len(t) < MIN_BEND_KNOTS:
+        return None
+    slope, across = cov[0, 1] / cov[1, 1], np.linalg.det(cov) / cov[1, 1]
+    if not across > 0:
+        return None
+    knots = t.log10_lc.to_numpy(dtype=float)
+    offsets = t.b.to_numpy(dtype=float) - (centre[0] + slope * (knots - centre[1]))
+    target = np.array([[across + slope ** 2 * var_lc, slope * var_lc], [slope * var_lc, var_lc]])
+    return target, (tuple(knots.tolist()), tuple(offsets.tolist()))
 
 
 class _InFrame:
@@ -211,15 +297,15 @@ def frame_posterior(misfit, frame: Frame, b_range, lc_range, n: int = 33,
     c = inner.cells
     z = c[["b", "log10_lc"]].to_numpy()
     x = frame.to_x(z)
-    reach = np.abs(np.asarray(frame.scale)).sum(axis=1)    # a square's extent per unit side
+    reach = frame.reach(z)                                 # a square's extent per unit side
     w = c.width_b.to_numpy()                               # the squares' side in z
     cells = c.drop(columns="mass").assign(
         z_b=z[:, 0], z_log10_lc=z[:, 1], width_z=w, b=x[:, 0], log10_lc=x[:, 1],
-        width_b=w * reach[0], width_log10_lc=w * reach[1])
+        width_b=w * reach[:, 0], width_log10_lc=w * reach[:, 1])
     post = posterior_of_cells(cells, box, levels=inner.levels, settled=inner.settled,
                               history=inner.history, n_solves=inner.n_solves,
                               n_failed=inner.n_failed, wall_s=inner.wall_s,
-                              frame=(frame.centre, frame.scale))
+                              frame=frame)
     return post, float(inner.edge_mass)
 
 
@@ -360,7 +446,7 @@ def _fit_in_hpd(post: GridPosterior, x: dict) -> bool:
     """Whether the point ``x`` lies in a cell of the 95 % highest-density set."""
     c = post.cells[np.ravel(post.hpd)]
     if post.frame is not None:
-        z = Frame(*post.frame).to_z([x["b"], x["log10_lc"]])[0]
+        z = post.frame.to_z([x["b"], x["log10_lc"]])[0]
         d = np.abs(c[["z_b", "z_log10_lc"]].to_numpy() - z)
         half = np.repeat(c.width_z.to_numpy()[:, None] / 2, 2, axis=1)
     else:
@@ -440,7 +526,7 @@ def posterior_route(misfit, b_range, lc_range, fit, profiles, first: GridPosteri
     box = (b_range, (np.log10(lc_range[0]), np.log10(lc_range[1])))
     routes = []
     if grid and first is not None and first.ok:
-        narrow = frame is not None and (2 * frame.extent() < np.diff(box, axis=1)[:, 0]).all()
+        narrow = frame is not None and frame.area() < np.prod(np.diff(box, axis=1))
         routes = ["zoomed grid", "box grid"] if narrow else ["box grid"]
         routes += ["zoomed grid"] if frame is not None and not narrow else []
     if sampler and np.isfinite(fit.misfit):
