@@ -17,10 +17,10 @@ runs them, at their defaults, in W2's prior box (b 0.0086–0.0102, Lc 0.03–3 
 * ``solver-effect``: whether it answers (exit 0 or 1 with its table written).
 
 Each posterior attempt that failed its checks is in ``settled_coverage.csv`` (the route and the
-checks, ``*_failed_attempts``). Measured on the first recording: the means' inversion 58 s, the
-curves' 160 s (the zoomed grid; 28 min when every grid failed its sd check and emcee ran),
-solver-effect 145 s: about 6 min a recording, 2 h for the 20 on 2 cores, hence
-``--set recordings=N``. A command is stopped after :data:`COMMAND_BUDGET_S`.
+checks, ``*_failed_attempts``). Measured over 10 recordings (medians): the means' inversion
+44 s, the curves' 187 s (a zoomed grid each time; 28 min once, when every grid failed its sd
+check and emcee ran), solver-effect 83 s: about 6.5 min a recording, 2 h 10 min for the 20 on
+2 cores, hence ``--set recordings=N``. A command is stopped after :data:`COMMAND_BUDGET_S`.
 
 The coverage target: 17–20 of 20 recordings (the central 95 % of Binomial(20, 0.95)).
 """
