@@ -36,9 +36,10 @@ _FENCE = re.compile(r"^(?P<fence>`{3,})(?P<info>[^\n`]*)\n(?P<body>.*?)^(?P=fenc
 RUN = ("sh", "python")
 SHOWN = {"text": None, "toml": tomllib.loads, "json": json.loads}
 #: the longest a page's blocks may take, in s, with the kernels compiled (the tutorial's budget
-#: is 10 minutes of machine time; the README's `invert` on the means alone samples a ridge with
-#: emcee: 160 s of the page's 230 s on a quiet 2-core machine, 325 s beside another page); the
-#: test stops a page at 3 × its budget
+#: is 10 minutes of machine time; the README's `invert` on the means alone takes 29 s on a quiet
+#: 2-core machine, its zoomed grid bent along the valley, and took 160 s of the page's 230 s
+#: when it fell back to emcee: the budget keeps room for a page run beside another); the test
+#: stops a page at 3 × its budget
 BUDGET_S = {"tutorial.md": 600.0, "README.md": 300.0}
 DEFAULT_BUDGET_S = 120.0
 
