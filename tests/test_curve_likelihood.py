@@ -50,17 +50,82 @@ def test_the_scatter_model_is_its_closed_form_and_blind_to_offsets():
     assert like.noise == "scatter" and like.n_events == 6 and like.dof == 11
     s = np.linspace(0, 4e-4, 400)
     m = shape(s)
-    # the closed form: contrasts of (mean − model) with the shrunk covariance of the events'
+    # the closed form: contrasts of (mean − model) with the shrunk covariance of the events',
+    # each curve read by a Gaussian kernel twice the median spacing of the events' samples wide
+    events = [g.sort_values("slip_m") for _, g in curves.groupby("event_id")]
+    gaps = [[g.slip_m.to_numpy()[np.clip(np.searchsorted(g.slip_m, x), 1, len(g) - 1)]
+             - g.slip_m.to_numpy()[np.clip(np.searchsorted(g.slip_m, x), 1, len(g) - 1) - 1]
+             for x in like.slips] for g in events]
+    h = 2 * np.median(gaps, axis=0)
+
+    def read(x, y):
+        return np.array([np.sum(np.exp(-0.5 * ((x - c) / w) ** 2) * y)
+                         / np.sum(np.exp(-0.5 * ((x - c) / w) ** 2)) for c, w in zip(like.slips, h)])
+
+    np.testing.assert_allclose(like.bandwidth, h, rtol=1e-12)
     q = np.linalg.qr(np.column_stack([np.ones(12), np.eye(12)[:, :11]]))[0][:, 1:]
-    y = np.array([np.interp(like.slips, g.slip_m, g.friction)
-                  for _, g in curves.groupby("event_id")])
+    y = np.array([read(g.slip_m.to_numpy(), g.friction.to_numpy()) for g in events])
     cov = ledoit_wolf(y @ q)[0] * 6 / 5
-    d = q.T @ (y.mean(axis=0) - np.interp(like.slips, s, m))
+    d = q.T @ (y.mean(axis=0) - read(s, m))
     assert like.chi2(s, m) == pytest.approx(d @ np.linalg.solve(cov, d), rel=1e-10)
     assert like.chi2(s, m + 0.3) == pytest.approx(like.chi2(s, m), rel=1e-10)   # an offset
     sem = CurveLikelihood.from_curves(curves, reading="sem")
     assert sem.chi2(s, m) == pytest.approx(6 * like.chi2(s, m), rel=1e-10)
     assert like.chi2(s, 0.6 - 0.04 * (1 - np.exp(-s / 6e-5))) > 3 * like.chi2(s, m)
+
+
+def test_the_kernel_is_no_narrower_than_the_slip_s_filtered_noise():
+    """With a chain whose slip column is noisy, the bandwidth is at least that noise's σ after
+    the chain's low-pass; the reference is scipy's own Butterworth (4th order, zero phase) on a
+    long white draw, independent of the module's filter code."""
+    from scipy.signal import butter, sosfiltfilt
+
+    from benchmarks.physics.chain import Chain
+    chain = Chain(rate_hz=10_000.0, timing_hz=50.0, start_level=1e-4, end_level=1e-5,
+                  force_hz=400.0, acceleration_hz=750.0, slip_hz=750.0,
+                  slip_from="slip column", slip_noise=3e-6)
+    white = np.random.default_rng(5).standard_normal(1 << 17)
+    sd = 3e-6 * sosfiltfilt(butter(4, 750.0, fs=10_000.0, output="sos"), white)[4096:-4096].std()
+    curves, _ = _curves(n_events=6, n_points=3000)
+    like = CurveLikelihood.from_curves(curves, chain=chain)
+    assert like.bandwidth.min() == pytest.approx(sd, rel=0.02)
+    plain = CurveLikelihood.from_curves(curves)
+    assert (plain.bandwidth < 0.5 * sd).any()          # the spacing alone is finer than that
+
+
+def test_the_curves_chi2_is_smooth_where_the_slip_has_stopped():
+    """Events that end in a pile of samples whose noisy slip (σ 1.2 µm after the chain's
+    low-pass, 40 × the pile's own extent) no longer orders them; a model curve of the same kind
+    (its own draw) slid along the slip by steps of 0.02 σ: the kernel's χ² moves by small steps,
+    where reading the same samples by linear interpolation jumps (the roughness the kernel is
+    there to remove)."""
+    from benchmarks.inversion.curve_likelihood import kernel_read
+    from benchmarks.physics.chain import Chain
+    rng = np.random.default_rng(11)
+    sigma = 1.2e-6
+    chain = Chain(rate_hz=10_000.0, timing_hz=50.0, start_level=1e-4, end_level=1e-5,
+                  force_hz=400.0, acceleration_hz=750.0, slip_hz=750.0,
+                  slip_from="slip column", slip_noise=3e-6)
+
+    def event(n_slide=60, n_pile=120):
+        u = np.concatenate([np.linspace(0, 3e-4, n_slide), 3e-4 + 3e-8 * rng.random(n_pile)])
+        mu = np.concatenate([0.6 - 0.04 * np.linspace(0, 1, n_slide) ** 0.5,
+                             0.56 + 0.01 * np.linspace(0, 1, n_pile)])
+        x = u + sigma * rng.standard_normal(len(u))
+        order = np.argsort(x)
+        return x[order], mu[order] + 1e-3 * rng.standard_normal(len(u))
+
+    curves = pd.concat([pd.DataFrame({"event_id": i, "slip_m": x, "friction": y})
+                        for i, (x, y) in enumerate(event() for _ in range(8))])
+    like = CurveLikelihood.from_curves(curves, chain=chain)
+    x, y = event(600, 1200)
+    shifts = np.arange(200) * 0.02 * sigma
+    kernel = np.array([like.chi2(x + d, y) for d in shifts])
+    linear = np.array([np.sum((like.whiten @ (like.mean - np.interp(like.slips, x + d, y))) ** 2)
+                       for d in shifts])
+    assert np.abs(np.diff(kernel)).max() < 0.05 * np.ptp(kernel)
+    assert np.abs(np.diff(linear)).max() > 0.2 * np.ptp(linear)
+    assert np.isfinite(kernel_read(like.slips, like.bandwidth, x, y)).all()
 
 
 def test_the_sample_model_is_the_papers_j2_over_sigma_squared():

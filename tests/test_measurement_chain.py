@@ -15,7 +15,7 @@ import pytest
 
 from benchmarks.cli.main import main
 from benchmarks.ensemble.rows import chained_curve
-from benchmarks.inversion.curve_likelihood import CurveLikelihood, _contrasts
+from benchmarks.inversion.curve_likelihood import CurveLikelihood, _contrasts, kernel_read
 from benchmarks.inversion.objectives import scores
 from benchmarks.inversion.observations import Observations, read_observations
 from benchmarks.lab.observe_recording import observe
@@ -224,7 +224,7 @@ def test_the_model_error_widens_the_curves(observed):
     q = _contrasts(len(plain.slips))
     inv_l = plain.whiten @ q
     cov = np.linalg.inv(inv_l.T @ inv_l) + 1e-3 ** 2 * np.eye(len(q.T))
-    z = q.T @ (plain.mean - np.interp(plain.slips, slip, friction))
+    z = q.T @ (plain.mean - kernel_read(plain.slips, plain.bandwidth, slip, friction))
     assert wide.chi2(slip, friction) == pytest.approx(z @ np.linalg.solve(cov, z), rel=1e-9)
     # σ per sample: σ² = σ_obs² + σ_model²
     sample = CurveLikelihood.from_curves(curves, "sample", sigma=3e-4, model_error=4e-4)

@@ -263,8 +263,12 @@ def point_rows(problems, algorithm, names, values, wall_budget=None,
 
 
 def _saved_chained(sol, chain):
-    """The last complete event's curve through ``chain`` from the saved trajectory."""
-    ev = sol.events.iloc[-1]
+    """The last complete event's curve through ``chain`` from the saved trajectory: the last
+    that ends two of the chain's margins before the run does, as the compiled batch picks it
+    (the run's end would cut its margin short)."""
+    events = sol.events
+    whole = events[events.t_end + 2.0 * chain.margin_s <= sol.t[-1]]
+    ev = (whole if len(whole) else events).iloc[-1]
     inside = (sol.t >= ev.t_start - chain.margin_s) & (sol.t <= ev.t_end + chain.margin_s)
     return chained_curve(sol.problem, chain, sol.t[inside], sol.fs[inside], sol.ft[inside],
                          ev.t_start, ev.t_end)

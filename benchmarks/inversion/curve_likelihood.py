@@ -7,11 +7,17 @@ laboratory event drifts with wear and normal-force control; its shape is what Lc
 Two noise models, each stated in the output (:meth:`CurveLikelihood.describe`):
 
 * ``"scatter"`` (the default; at least :data:`MIN_EVENTS` events): the events scatter about the
-  model's curve. Each event is read (linearly interpolated) at K common slips, the (k + ½)/K
-  quantiles of all the observed slips up to the shortest event's end — where the samples are: a
-  recorder sampling in time puts many at the slow start of an event, where the weakening over a
-  few Lc happens — and projected on the K − 1 contrasts orthogonal to a constant (which removes the
-  offsets exactly). The events give a mean ȳ and a covariance of the contrasts; its estimate from
+  model's curve. Each event is read at K common slips, the (k + ½)/K quantiles of all the
+  observed slips up to the shortest event's end — where the samples are: a recorder sampling in
+  time puts many at the slow start of an event, where the weakening over a few Lc happens, and
+  at its arrest — and projected on the K − 1 contrasts orthogonal to a constant (which removes
+  the offsets exactly). The reading at a common slip s is a Gaussian-kernel average of the
+  samples' friction, weighted by their slip's distance from s (Nadaraya–Watson; the model's
+  curve is read alike, :func:`kernel_read`). Its bandwidth at s is the larger of the slip
+  column's noise after the chain's low-pass (where the slip moves less than its noise, as at
+  the arrest, samples sorted by slip are in a random order, and a curve interpolated between
+  them jumps as the model's parameters move: a χ² that is rough on the scale of the noise) and
+  :data:`SPACING_FACTOR` × the observed samples' spacing there (median over the events). The events give a mean ȳ and a covariance of the contrasts; its estimate from
   few events is singular or noisy, so it is shrunk towards a multiple of the identity with Ledoit
   and Wolf's (2004) intensity (:func:`ledoit_wolf`). The curves' χ² of a model curve m is
   (ȳ − m)ᵀ Q S⁻¹ Qᵀ (ȳ − m) with S that covariance (``reading="std"``: the model compared with a
@@ -50,7 +56,7 @@ from benchmarks.inversion.objectives import (EventSamples, event_samples, j2_per
                                              offset_residuals)
 
 __all__ = ["CurveLikelihood", "CURVE_NOISES", "COMMON_SLIPS", "MIN_EVENTS", "MIN_SPREAD",
-           "ledoit_wolf"]
+           "SPACING_FACTOR", "ledoit_wolf", "kernel_read", "bandwidths"]
 
 #: the noise models of the curves (module docstring)
 CURVE_NOISES = ("scatter", "sample")
@@ -61,6 +67,43 @@ MIN_EVENTS = 3
 #: the least spread of the events' shapes (rms, in μ) the scatter model takes as a covariance:
 #: below it the curves are noise-free or copies, and their whitening would be round-off
 MIN_SPREAD = 1e-7
+#: the kernel's least bandwidth in units of the observed samples' spacing at a common slip
+SPACING_FACTOR = 2.0
+
+
+def kernel_read(slips: np.ndarray, bandwidth: np.ndarray, slip: np.ndarray,
+                friction: np.ndarray) -> np.ndarray:
+    """A curve's friction at ``slips`` (m): at each, the mean of the samples (``slip``,
+    ``friction``) weighted by a Gaussian of their slip's distance in units of its ``bandwidth``
+    (m, one per slip); the nearest end's friction where no sample is within 38 bandwidths (a
+    curve that ends short, read as linear interpolation reads it)."""
+    w = np.exp(-0.5 * ((slip[None, :] - slips[:, None]) / bandwidth[:, None]) ** 2)
+    total = w.sum(axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(total > 0, (w @ friction) / total, np.interp(slips, slip, friction))
+
+
+def bandwidths(slips: np.ndarray, events: list, chain=None) -> np.ndarray:
+    """The kernel's bandwidth (m) at each common slip (module docstring): the larger of the
+    slip's noise after ``chain``'s low-pass (0 without a chain or a noisy slip column) and
+    :data:`SPACING_FACTOR` × the median over ``events`` (each sorted by slip) of their samples'
+    spacing about it."""
+    gaps = []
+    for g in events:
+        x = g.slip_m.to_numpy()
+        k = np.clip(np.searchsorted(x, slips), 1, len(x) - 1)
+        gaps.append(x[k] - x[k - 1])
+    return np.maximum(SPACING_FACTOR * np.median(gaps, axis=0), _filtered_noise(chain))
+
+
+def _filtered_noise(chain) -> float:
+    """The σ (m) of the chain's slip noise after its low-pass (0 if it has none): its white
+    noise filtered as observe filters the slip column, measured on a seeded draw."""
+    if chain is None or not chain.slip_noise > 0 or chain.slip_from != "slip column":
+        return 0.0
+    from benchmarks.physics.chain import lowpass
+    white = np.random.default_rng(0).standard_normal(1 << 15)
+    return float(chain.slip_noise * lowpass(white, chain.slip_hz, chain.rate_hz)[1024:-1024].std())
 
 
 def ledoit_wolf(x: np.ndarray) -> tuple[np.ndarray, float]:
@@ -116,6 +159,8 @@ class CurveLikelihood:
         The matrix that whitens the contrasts' residuals (``"scatter"``).
     shrinkage : float, optional
         Ledoit and Wolf's shrinkage intensity (``"scatter"``, in [0, 1]).
+    bandwidth : numpy.ndarray, optional
+        The kernel's bandwidth at each common slip (``"scatter"``, m).
     observed : EventSamples, optional
         Every observed sample (``"sample"``).
     chain : benchmarks.physics.chain.Chain, optional
@@ -133,6 +178,7 @@ class CurveLikelihood:
     mean: np.ndarray | None = field(default=None, repr=False)
     whiten: np.ndarray | None = field(default=None, repr=False)
     shrinkage: float | None = None
+    bandwidth: np.ndarray | None = field(default=None, repr=False)
     #: every observed sample (the residuals of ``"sample"``, the paper's J̄2)
     observed: EventSamples | None = field(default=None, repr=False)
     #: the measurement chain the model's curves are passed through (None: as they are)
@@ -183,7 +229,8 @@ class CurveLikelihood:
         if not (np.diff(slips) > 0).all():
             raise ValueError(f"the observed curves have fewer than {points} distinct slips "
                              f"up to the shortest event's end ({shortest:g} m)")
-        y = np.array([np.interp(slips, g.slip_m.to_numpy(), g.friction.to_numpy())
+        bandwidth = bandwidths(slips, events, chain)
+        y = np.array([kernel_read(slips, bandwidth, g.slip_m.to_numpy(), g.friction.to_numpy())
                       for g in events])
         q = _contrasts(points)
         cov, shrinkage = ledoit_wolf(y @ q)
@@ -201,7 +248,8 @@ class CurveLikelihood:
         # χ² = |L⁻¹ Qᵀ (ȳ − m)|² with S = L Lᵀ: the whitened residuals least squares reads
         whiten = np.linalg.inv(np.linalg.cholesky(cov)) @ q.T
         return cls("scatter", reading, n, points - 1, slips=slips, mean=y.mean(axis=0),
-                   whiten=whiten, shrinkage=shrinkage, observed=observed, chain=chain,
+                   whiten=whiten, shrinkage=shrinkage, bandwidth=bandwidth,
+                   observed=observed, chain=chain,
                    model_error=float(model_error))
 
     def residuals(self, slip: np.ndarray, friction: np.ndarray) -> np.ndarray:
@@ -213,7 +261,8 @@ class CurveLikelihood:
             return np.full(self.dof if self.noise == "scatter" else len(self.observed.slip),
                            np.nan)
         if self.noise == "scatter":
-            return self.whiten @ (self.mean - np.interp(self.slips, slip, friction))
+            return self.whiten @ (self.mean - kernel_read(self.slips, self.bandwidth, slip,
+                                                          friction))
         return offset_residuals(slip, friction, self.observed) / self.sigma
 
     def j2(self, slip, friction) -> float:
@@ -251,7 +300,8 @@ class CurveLikelihood:
                     "independent Gaussian about the model's curve with a free offset per event "
                     f"({self.dof} degrees of freedom); no event-to-event variability")
         return (f"curves: {self.n_events} events read at {len(self.slips)} common slips from "
-                f"{self.slips[0]:.3g} to {self.slips[-1]:.3g} m, offsets "
+                f"{self.slips[0]:.3g} to {self.slips[-1]:.3g} m by a Gaussian kernel "
+                f"({self.bandwidth.min():.2g}–{self.bandwidth.max():.2g} m wide), offsets "
                 f"removed ({self.dof} contrasts); their covariance over the events "
                 f"(Ledoit–Wolf shrinkage {self.shrinkage:.2f}) "
                 + ("as the model's error (the events' spread, as σ = std)"

@@ -22,7 +22,8 @@ written before it: no chain, the model's curves are compared as they are).
 :meth:`Chain.model_curve` applies the chain to a model's run around one event (its dense
 output over the event and a margin either side, :attr:`Chain.margin_s`): sampled at the record's
 rate at :data:`PHASES` offsets of the sampling grid (a recorder's samples fall anywhere in an
-event; :data:`NOISY_PHASES` with the slip's noise) and averaged.
+event) and averaged; with the slip's noise (below), :data:`NOISY_PHASES` phases whose samples
+are pooled, not averaged.
 
 **The slip column's noise is part of the chain** (``slip_noise``, the white noise's σ that
 ``observe`` measured on the raw column). A curve is friction against *measured* slip, and where
@@ -31,7 +32,12 @@ smeared along the slip axis, and its start is placed by a noisy crossing. On a r
 noise of a few Lc that smear is most of what the curve's first Lc shows, and a noise-free model
 curve misplaces Lc (measured on a W2 recording with 1 % noise: ``docs/inversion.md``).
 So each sampling phase gets its own draw of that noise before the slip is filtered, and the
-curve is the mean over the phases: the expected curve that ``observe`` reads. The event is
+curve is every phase's samples pooled, sorted by their noisy slip: a recording of many events
+as ``observe`` would read it. They are not averaged by interpolation: where the slip has
+stopped (the arrest's pile of samples) the noise is larger than the slip's change, and a
+curve interpolated between samples sorted by noisy slip jumps as the parameters move; the
+likelihood reads the pooled samples with the kernel it reads the events with
+(:mod:`benchmarks.inversion.curve_likelihood`). The event is
 timed on the noise-free slip: ``observe`` times it on a slip smoothed so much (50 Hz at 1 %
 noise) that its noise moves the start's crossing by a slip far below the noise itself, and a
 noisy timing would walk past the end of a window the run cuts short (the last event of a run
@@ -341,25 +347,38 @@ class Chain:
             u = u + self.slip_noise * np.random.default_rng(47).standard_normal((n, phases)).T
         if self.slip_from == "slip column":
             u = lowpass(u, self.slip_hz, self.rate_hz)
-        curves = [self._timed(ts[k], rate[k], u[k], mu[k]) for k in range(phases)]
+        curves = [self._timed(ts[k], rate[k], u[k], mu[k], i0, i1)
+                  for k, (i0, i1) in enumerate(zip(*self._bounds(rate)))]
         if any(len(x) < 2 for x, _ in curves):
             return np.empty(0), np.empty(0)
+        if noisy:                  # every phase's samples, as a recorder's: read as events are
+            x, y = np.concatenate([x for x, _ in curves]), np.concatenate([y for _, y in curves])
+            order = np.argsort(x, kind="stable")
+            return x[order], y[order]
         grid = np.unique(np.concatenate([x for x, _ in curves]))
         return grid, np.mean([np.interp(grid, x, y) for x, y in curves], axis=0)
 
-    def _timed(self, ts, rate, u, mu):
-        """One sampling phase's curve: the event timed on its ``rate`` as observe times one,
-        its friction ``mu`` against the slip ``u`` since the start's crossing, sorted by slip as
-        the observed curves are read (empty when the event runs off the window)."""
-        peak = int(np.argmax(rate))
-        if rate[peak] < self.start_level:
-            return np.empty(0), np.empty(0)
-        i0, i1 = peak, peak
-        while i0 > 0 and rate[i0 - 1] >= self.start_level:
-            i0 -= 1
-        while i1 < len(ts) and rate[i1] >= self.end_level:
-            i1 += 1
-        if i0 == 0 or i1 >= len(ts):               # the event runs off the window
+    def _bounds(self, rate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Each phase's (row's) event as observe times one: the first sample ``i0`` of the run
+        at or above the start level that holds the peak rate, and the first sample ``i1`` after
+        the peak below the end level (0 and the row's length: no event, or one that runs off
+        the window)."""
+        n = rate.shape[-1]
+        idx = np.arange(n)
+        peak = rate.argmax(axis=-1)[:, None]
+        before = (rate < self.start_level) & (idx < peak)
+        i0 = np.where(before.any(axis=-1), n - 1 - np.argmax(before[:, ::-1], axis=-1) + 1, 0)
+        after = (rate < self.end_level) & (idx >= peak)
+        i1 = np.where(after.any(axis=-1), np.argmax(after, axis=-1), n)
+        started = rate.max(axis=-1) >= self.start_level
+        return np.where(started, i0, 0), np.where(started, i1, n)
+
+    def _timed(self, ts, rate, u, mu, i0, i1):
+        """One sampling phase's curve over the event from sample ``i0`` to ``i1``
+        (:meth:`_bounds`): its friction ``mu`` against the slip ``u`` since the start's crossing
+        of the start level on ``rate``, sorted by slip as the observed curves are read (empty
+        when the event runs off the window)."""
+        if i0 == 0 or i1 >= len(ts):               # no event, or it runs off the window
             return np.empty(0), np.empty(0)
         x = u[i0:i1 + 1] - np.interp(crossing(ts, rate, self.start_level, i0), ts, u)
         order = np.argsort(x, kind="stable")

@@ -14,7 +14,8 @@ wall time, where it stopped, the events and the summary (with :func:`find_cycle`
 ``R[:, R["FOUND"]:]``); ``CURVE`` (points × n × 4), with n > 1 for slip-weakening curves: τ and
 the ODE state (h, u, s) at n times spread evenly over the last event of each point with a limit cycle (with a
 margin ``C[MARGIN]`` > 0: n // MARGIN_SHARE of them before the event, as many after, spaced
-quadratically out to the margin, the rest over the event), from a
+quadratically out to the margin, the rest over the event; then the last event that ends two
+margins before the run does, so that the run's end does not cut its margin short), from a
 second solve of that point that takes the same steps (its dense output at those times; the
 counters in ``R`` are both solves'), NaN for the others. n = 0: one solve per point.
 """
@@ -188,7 +189,10 @@ def _one(kernel, workspace, p0, z0, c, dirs, r, curve):
         for i in range(4):
             curve[j, i] = np.nan
     if n > 1 and n_ev > 0 and r[_CLASS] <= _LAST_CYCLE:
-        tau_s, tau_e = ev[n_ev - 1, 0], ev[n_ev - 1, 1]
+        k = n_ev - 1             # the last event whose margin the run's end does not cut
+        while c[_MARGIN] > 0.0 and k > 0 and ev[k, 1] + 2.0 * c[_MARGIN] > p[_TAU_END]:
+            k -= 1
+        tau_s, tau_e = ev[k, 0], ev[k, 1]
         if 0.0 < tau_s < tau_e < p[_TAU_END]:
             fine = _curve_grid(tau_s, tau_e, p[_TAU_END], c[_MARGIN], n)
             kept = np.empty((n + 2, 3))
