@@ -342,6 +342,25 @@ def test_the_solver_check_and_the_inertia_check():
     assert (shifts.shift_se.abs() < 0.05).all()
 
 
+def test_a_noise_free_record_is_checked_at_what_the_references_resolve():
+    """A record made without noise is fitted to the integrators' own error (σ 3.4e−13 in μ
+    when written, below the references' 8e−13 disagreement): judged in that σ the check
+    failed (its fit 10 σ off), so it is judged at 100 × the references' disagreement,
+    where the fit's Rodas5P at 1e−10 passes and a coarse integrator still fails."""
+    import dataclasses
+
+    from integrators import make_algorithm
+    fit = fit_lab(LabModel(_record(noise=0.0, displacement_noise=0.0, drift=0.0), "aging"))
+    check = check_lab_solver(fit)
+    assert check["residual_sigma"] < check["sigma"] and "noise-free" in check["scale"]
+    assert check["passed"] and check["references_agree"]
+    rough = dataclasses.replace(fit, model=dataclasses.replace(
+        fit.model, algorithm=make_algorithm("Rodas5P", rtol=1e-5, atol=1e-5)))
+    assert not check_lab_solver(rough)["passed"]
+    noisy = check_lab_solver(fit_lab(LabModel(_record(seed=6), "aging")))
+    assert noisy["scale"] == "the residuals' σ"
+
+
 def test_the_posterior_agrees_with_the_covariance_where_it_is_gaussian():
     """emcee over (a, b, ln Dc, ln k′), the level and slopes integrated out: its 95 % intervals
     within a fifth of the Wald ones' width of them (a short chain: 24 × 200, on one step of

@@ -299,7 +299,9 @@ def _report(fit, table, profiles, check, inertia, notes, record, args) -> None:
         else:
             say(f"solver check: {check['integrator']} is {check['error_sigma']:.2g} σ from "
                 f"{check['references'][0]}, whose gap to {check['references'][1]} is "
-                f"{check['references_disagree_sigma']:.2g} σ: "
+                f"{check['references_disagree_sigma']:.2g} σ"
+                + ("" if check.get("scale", "the residuals' σ") == "the residuals' σ" else
+                   f" (σ here: {check['scale']})") + ": "
                 + ("passed (≤ 0.1 σ)" if check["passed"] else
                    "FAILED: tighten --rtol or choose another --integrator"))
     if inertia is not None:
