@@ -7,7 +7,8 @@ record.
 The load point's history (its speeds and switch times) is found in the record; the fit is
 least squares on μ(t) (benchmarks.lab.fit: the noise model, the intervals), with
 profile intervals of the friction parameters, a check of the integrator at the best fit, and
-with --mass the inertial slider fitted too and compared.
+with --mass the inertial slider fitted too and compared. With several laws (--law aging,slip)
+each is fitted and compared (benchmarks.lab.laws), and the lowest BIC is reported in full.
 """
 
 from __future__ import annotations
@@ -31,7 +32,8 @@ from problems import LAWS, law_parameters
 
 #: the files ``lab fit --out DIR`` may write
 LAB_FIT_FILES = ("lab_fit.json", "lab_fit_parameters.csv", "lab_fit_residuals.csv",
-                 "lab_fit_profiles.csv", "lab_fit_posterior.csv", "lab_fit.png")
+                 "lab_fit_profiles.csv", "lab_fit_posterior.csv", "lab_fit_laws.csv",
+                 "lab_fit.png")
 
 __all__ = ["add_parser"]
 
@@ -56,7 +58,7 @@ def _record(args):
                            window=args.window)
 
 
-def _model(args, record):
+def _model(args, record, law: str):
     algorithm = None
     if args.integrator is not None or args.rtol is not None:
         name = args.integrator or DEFAULT_ALGORITHM[0]
@@ -67,14 +69,14 @@ def _model(args, record):
                              "Exprb43, scipy-Radau, …)")
         tol = args.rtol if args.rtol is not None else DEFAULT_ALGORITHM[1]
         algorithm = make_algorithm(name, rtol=tol, atol=tol)
-    return LabModel(record, args.law, detrend=args.detrend, algorithm=algorithm,
+    return LabModel(record, law, detrend=args.detrend, algorithm=algorithm,
                     states=args.states, wall_budget=args.wall_budget)
 
 
-def _check_flags(args) -> None:
-    if args.c is not None and "c" not in law_parameters(args.law):
-        raise ValueError(f"--c is a stress coefficient (the Nagata law's): the {args.law} law "
-                         "has none")
+def _check_flags(args, laws) -> None:
+    if args.c is not None and not any("c" in law_parameters(law) for law in laws):
+        raise ValueError(f"--c is a stress coefficient (the Nagata law's): the "
+                         f"{' and '.join(laws)} law{'s have' if len(laws) > 1 else ' has'} none")
     if (args.mass is not None or args.radiation_damping is not None) and args.normal_force is None:
         raise ValueError("--mass and --radiation-damping need --normal-force (N): the inertial "
                          "slider's friction depends on it")
@@ -104,23 +106,25 @@ def _check_flags(args) -> None:
 
 
 def cmd_lab_fit(args) -> int:
-    _check_flags(args)
+    from benchmarks.lab.laws import parse_laws
+    laws = parse_laws(args.law, tuple(LAWS))
+    _check_flags(args, laws)
     record = _record(args)
-    model = _model(args, record)
+    models = {law: _model(args, record, law) for law in laws}
     if args.weights is not None and len(args.weights) != len(record.velocities):
         raise ValueError(f"--weights: {len(args.weights)} given, but the record's history has "
                          f"{len(record.velocities)} pieces (one weight each): "
                          f"{_pieces_line(record)}")
-    fixed = {k: v for k, v in (("k", args.stiffness), ("c", args.c)) if v is not None}
-    free = [n for n in model.parameters if n not in fixed]
+    given = {k: v for k, v in (("k", args.stiffness), ("c", args.c)) if v is not None}
+    free = max(([n for n in m.parameters if n not in given] for m in models.values()), key=len)
     if args.posterior and args.walkers < 2 * len(free):
         raise ValueError(f"--walkers {args.walkers}: at least {2 * len(free)}, twice the "
                          f"{len(free)} fitted parameters ({', '.join(free)})")
     if args.out is not None:              # a user's file of one of these names: refused now
         claim_outputs(args.out / n for n in LAB_FIT_FILES)
         args.out.mkdir(parents=True, exist_ok=True)
-    _stage(args, f"fitting {', '.join(free)} to {len(record.t):,} samples")
-    fit, notes = _fit(model, fixed, args.weights)
+    fit, notes, laws_table = _fit_laws(args, models, given)
+    fixed = {k: v for k, v in given.items() if k in fit.model.parameters}
     profiles = {} if args.no_profiles else _profiles(args, fit, notes)
     check = None
     if not args.no_solver_check:
@@ -132,8 +136,15 @@ def cmd_lab_fit(args) -> int:
                if args.mass is not None or args.radiation_damping is not None else None)
     table = _table(fit, profiles, posterior)
     doc = _doc(args, record, fit, table, fixed, notes, profiles, check, inertia, posterior)
+    doc["laws"] = None if laws_table is None else {
+        "compared": list(laws), "chosen_by": "the lowest BIC (benchmarks/lab/laws.py: Gaussian "
+        "residuals with sigma^2 = RSS/n; delta_bic_ar1 divides by the AR(1) inflation)",
+        "table": laws_table.to_dict(orient="records")}
     if args.out is not None:
         _write(args.out, fit, table, profiles, doc)
+        if laws_table is not None:
+            write_table(laws_table.assign(command=doc["command"], tool=doc["tool"]),
+                        args.out / "lab_fit_laws.csv")
         if posterior is not None:
             write_table(posterior.samples, args.out / "lab_fit_posterior.csv")
         doc["out"] = str(args.out)
@@ -142,6 +153,8 @@ def cmd_lab_fit(args) -> int:
     if args.json:
         say(json.dumps(jsonable(doc), indent=2))
         return status
+    if laws_table is not None:
+        _report_laws(laws_table, args.law)
     _report(fit, table, profiles, check, inertia, notes, record, args)
     if posterior is not None:
         say(f"posterior: {args.walkers} walkers × {args.steps} steps, {posterior.solves} solves "
@@ -150,6 +163,26 @@ def cmd_lab_fit(args) -> int:
                "the chain is shorter than 50 τ: lengthen --steps before trusting its tails")
             + f"; prior {posterior.prior}")
     return status
+
+
+def _fit_laws(args, models: dict, given: dict):
+    """``(fit, notes, laws)``: each law's model fitted (``given``: the held parameters, each
+    where its law has it); with several, their table (:func:`benchmarks.lab.laws.compare_laws`)
+    and ``args.law`` set to the chosen one, whose fit and notes are returned."""
+    fits = {}
+    for law, model in models.items():
+        fixed = {k: v for k, v in given.items() if k in model.parameters}
+        _stage(args, f"fitting {', '.join(n for n in model.parameters if n not in fixed)} "
+                     f"({law} law) to {len(model.record.t):,} samples")
+        fits[law] = _fit(model, fixed, args.weights)
+    laws = list(models)
+    table = None
+    if len(laws) > 1:
+        from benchmarks.lab.laws import compare_laws
+        table = compare_laws({law: f for law, (f, _) in fits.items()})
+        chosen = table.law[table.chosen]
+        args.law = str(chosen.iloc[0]) if len(chosen) else laws[0]
+    return (*fits[args.law], table)
 
 
 def _stage(args, text: str) -> None:
@@ -242,7 +275,10 @@ def _doc(args, record, fit, table, fixed, notes, profiles, check, inertia, poste
             "samples": fit.n, "parameters": table.to_dict(orient="records"),
             "noise": {"model": "AR(1): sigma from the residuals, rho their lag-1 "
                                "autocorrelation, covariance inflated by (1+rho)/(1-rho)",
-                      "sigma": fit.sigma, "rho": fit.rho, "inflation": fit.inflation},
+                      "sigma": fit.sigma, "rho": fit.rho, "inflation": fit.inflation,
+                      "record_noise": fit.noise,
+                      "record_noise_is": "the robust spread of mu's second differences / "
+                                         "sqrt(6), no model (benchmarks.lab.fit.sample_noise)"},
             "success": fit.success, "message": fit.message, "at_bound": list(fit.at_bound),
             "notes": notes, "solves": fit.solves, "failed_solves": fit.failed_solves,
             "wall_budget_s": args.wall_budget, "wall_s": fit.wall_s,
@@ -257,6 +293,21 @@ def _doc(args, record, fit, table, fixed, notes, profiles, check, inertia, poste
                 "tau_reliable": posterior.tau_reliable,
                 "effective_samples": posterior.effective_samples, "solves": posterior.solves,
                 "wall_s": posterior.wall_s}}
+
+
+def _report_laws(laws_table, chosen: str) -> None:
+    """The laws side by side, and which is reported in full."""
+    shown = laws_table[["law", "rss", "sigma", "rho", "sigma_over_noise", "fits", "aic", "bic",
+                        "delta_bic", "delta_bic_ar1", "a", "b", "dc", "k"]].copy()
+    shown["dc"], shown["k"] = shown.dc * 1e6, shown.k * 1e-6
+    shown = shown.rename(columns={"dc": "dc_um", "k": "k_per_um"})
+    from benchmarks.lab.fit import NOT_FIT, NOT_FIT_RHO
+    say("the laws on this record (lowest BIC chosen; ΔBIC ÷ the AR(1) inflation is the "
+        f"difference to read; 'fits' False: residuals over {NOT_FIT:g} × the record's "
+        f"sample-to-sample noise with ρ over {NOT_FIT_RHO:g}):")
+    say(shown.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+    say(f"chosen: the {chosen} law, reported below" if laws_table.chosen.any() else
+        f"no law's fit succeeded: the {chosen} law's is reported below")
 
 
 def _pieces_line(record) -> str:
@@ -292,18 +343,7 @@ def _report(fit, table, profiles, check, inertia, notes, record, args) -> None:
     for note in notes:
         say(f"note: {note}")
     if check is not None:
-        if not check["checked"]:
-            say(f"solver check: not run: {check['reason']}")
-        elif check.get("reason"):
-            say(f"solver check: FAILED: {check['reason']}")
-        else:
-            say(f"solver check: {check['integrator']} is {check['error_sigma']:.2g} σ from "
-                f"{check['references'][0]}, whose gap to {check['references'][1]} is "
-                f"{check['references_disagree_sigma']:.2g} σ"
-                + ("" if check.get("scale", "the residuals' σ") == "the residuals' σ" else
-                   f" (σ here: {check['scale']})") + ": "
-                + ("passed (≤ 0.1 σ)" if check["passed"] else
-                   "FAILED: tighten --rtol or choose another --integrator"))
+        _report_check(check)
     if inertia is not None:
         say(f"with the mass ({inertia['mass_kg']:g} kg on {inertia['normal_force_N']:g} N: a "
             f"period 2π√(m/k) of {inertia['period_s']:.3g} s against {inertia['dc_time_s']:.3g} "
@@ -325,6 +365,22 @@ def _report(fit, table, profiles, check, inertia, notes, record, args) -> None:
         say(f"wrote lab_fit.json, lab_fit_parameters.csv, lab_fit_residuals.csv"
             f"{', lab_fit_profiles.csv' if profiles else ''}"
             f"{', lab_fit_posterior.csv' if args.posterior else ''} and lab_fit.png to {args.out}")
+
+
+def _report_check(check: dict) -> None:
+    """The solver check's line."""
+    if not check["checked"]:
+        say(f"solver check: not run: {check['reason']}")
+    elif check.get("reason"):
+        say(f"solver check: FAILED: {check['reason']}")
+    else:
+        say(f"solver check: {check['integrator']} is {check['error_sigma']:.2g} σ from "
+            f"{check['references'][0]}, whose gap to {check['references'][1]} is "
+            f"{check['references_disagree_sigma']:.2g} σ"
+            + ("" if check.get("scale", "the residuals' σ") == "the residuals' σ" else
+               f" (σ here: {check['scale']})") + ": "
+            + ("passed (≤ 0.1 σ)" if check["passed"] else
+               "FAILED: tighten --rtol or choose another --integrator"))
 
 
 def _num(v, unit) -> str:
@@ -408,8 +464,11 @@ def add_parser(tests) -> None:
     p.add_argument("--window", type=float, nargs=2, metavar=("START", "END"),
                    help="fit the part of the record from START to END, in the file's time, s "
                         "(default: all of it; it must start in steady sliding)")
-    p.add_argument("--law", choices=tuple(LAWS), default="aging",
-                   help="the friction law (default: aging)")
+    p.add_argument("--law", default="aging", metavar="LAW[,LAW…]",
+                   help=f"the friction law ({', '.join(LAWS)}), or several separated by commas "
+                        "to compare them (aging,slip): each is fitted, the laws are tabled "
+                        "(RSS, AIC, BIC, the residuals against the record's own noise) and the "
+                        "lowest BIC is reported in full (default: aging)")
     p.add_argument("--states", type=int, choices=(1, 2), default=1,
                    help="state variables: 1, or 2 for a second evolution (b2, Dc2; b2 may be "
                         "negative; quasi-static only) (default: 1)")

@@ -40,10 +40,13 @@ import pandas as pd
 from scipy.optimize import least_squares
 
 __all__ = ["LabFit", "fit_lab", "LabFitWarning", "starting_values", "BOUNDS", "FD_STEP",
+           "sample_noise", "NOT_FIT", "NOT_FIT_RHO",
            "DC_STARTS", "Z95", "SETTLE_DC", "PARAMETER_UNITS", "covariance",
            "RANK_TOL", "DC_LONGEST", "coordinate_bounds"]
 
-#: each nonlinear parameter's bounds in its own unit (a, b, c dimensionless; dc m; k 1/m)
+#: each nonlinear parameter's bounds in its own unit (a, b, c dimensionless; dc m; k 1/m); b2
+#: may be negative (a second evolution that strengthens); b may not: the slider's law
+#: (problems.friction) refuses b < 0
 BOUNDS = {"a": (1e-5, 0.5), "b": (0.0, 0.5), "dc": (1e-9, 0.1), "k": (1.0, 1e10),
           "c": (0.0, 100.0), "b2": (-0.5, 0.5), "dc2": (1e-9, 0.1)}
 PARAMETER_UNITS = {"a": "1", "b": "1", "dc": "m", "k": "1/m", "c": "1", "b2": "1", "dc2": "m",
@@ -107,6 +110,8 @@ class LabFit:
         Each sample's weight.
     failed_solves : int
         Solves that failed or ran out of their budget.
+    noise : float
+        The record's own noise, from its second differences (:func:`sample_noise`).
     fixed : dict of str to float
         The parameters held at given values.
     piece_weights : numpy.ndarray, optional
@@ -136,6 +141,8 @@ class LabFit:
     weights: np.ndarray | None = field(default=None, repr=False)
     #: solves that failed or ran out of their budget: residuals far from any fit, never μ
     failed_solves: int = 0
+    #: the record's own sample-to-sample noise (:func:`sample_noise`), beside σ
+    noise: float = math.nan
     fixed: dict = field(default_factory=dict)
     piece_weights: np.ndarray | None = None
     success: bool = True
@@ -306,6 +313,23 @@ def covariance(jac: np.ndarray, scale: float) -> np.ndarray:
     return cov
 
 
+#: a law "does not fit" where its residuals' σ is over this multiple of the record's own
+#: sample-to-sample noise and their lag-1 correlation over :data:`NOT_FIT_RHO`
+NOT_FIT, NOT_FIT_RHO = 10.0, 0.9
+
+
+def sample_noise(mu: np.ndarray) -> float:
+    """The record's own noise σ, with no model: the robust spread (1.4826 × the median
+    absolute deviation) of μ's second differences, ÷ √6 (a second difference of white noise
+    has variance 6σ²; a smooth signal's is far smaller, and the few samples of a step's jump
+    do not move a median). Correlated noise reads lower than its σ."""
+    mu = np.asarray(mu, dtype=float)
+    if len(mu) < 5:
+        return math.nan
+    d2 = mu[2:] - 2.0 * mu[1:-1] + mu[:-2]
+    return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6.0))
+
+
 def _lag1(r: np.ndarray) -> float:
     r = r - r.mean()
     d = float(r @ r)
@@ -453,7 +477,7 @@ def _result(prob, res, wall_s) -> LabFit:
     fit = LabFit(model=model, free=prob.free, values=values, covariance=cov, linear=linear,
                  linear_se=linear_se, residuals=r, mu_model=mu_model, rss=rss, sigma=sigma,
                  rho=rho, n=n, at_bound=at_bound, solves=prob.solves, wall_s=wall_s,
-                 failed_solves=prob.failed,
+                 failed_solves=prob.failed, noise=sample_noise(model.record.mu[prob.w > 0]),
                  weights=prob.w, fixed=dict(prob.fixed), piece_weights=prob.piece_weights,
                  success=ok and res.status > 0,
                  message=res.message if ok else "the forward model failed at the fit's end")
@@ -496,6 +520,12 @@ def _notes(fit: LabFit, lo, hi) -> None:
     elif not fit.success:
         fit.notes.append(f"the fit did not converge ({fit.message}): its values are where it "
                          "stopped, not a minimum")
+    if fit.sigma > NOT_FIT * fit.noise and fit.rho > NOT_FIT_RHO:
+        fit.notes.append(f"the {fit.model.law} law does not fit this record: its residuals' σ "
+                         f"({fit.sigma:.2g}) is {fit.sigma / fit.noise:.3g} × the record's own "
+                         f"sample-to-sample noise ({fit.noise:.2g}) and they follow each other "
+                         f"(ρ = {fit.rho:.3f}): compare laws (--law aging,slip) or a second "
+                         "state (--states 2)")
     for name in ("dc", "dc2"):
         if fit.values.get(name, 0.0) > DC_LONGEST:
             fit.notes.append(f"{name} = {fit.values[name] * 1e6:.4g} µm is longer than any "
