@@ -126,6 +126,11 @@ def test_the_curves_chi2_is_smooth_where_the_slip_has_stopped():
     assert np.abs(np.diff(kernel)).max() < 0.05 * np.ptp(kernel)
     assert np.abs(np.diff(linear)).max() > 0.2 * np.ptp(linear)
     assert np.isfinite(kernel_read(like.slips, like.bandwidth, x, y)).all()
+    # J̄2 (and the sample model, the figures) read the pooled samples as a smoothed curve
+    grid, smooth = like.curve(x, y)
+    assert len(grid) == 400 and (np.diff(grid) > 0).all() and np.isfinite(smooth).all()
+    j2 = np.array([like.j2(x + d, y) for d in shifts])
+    assert np.abs(np.diff(j2)).max() < 0.05 * np.ptp(j2)
 
 
 def test_the_sample_model_is_the_papers_j2_over_sigma_squared():

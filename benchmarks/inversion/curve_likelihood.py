@@ -30,6 +30,10 @@ Two noise models, each stated in the output (:meth:`CurveLikelihood.describe`):
   profiled out exactly; this is Σ_i N_i J2(i) / σ², the paper's J2 made a likelihood). It
   assumes that the model makes every event's curve: no event-to-event variability.
 
+Where the chain draws the slip's noise, the model's curve is its phases' samples pooled
+(:meth:`benchmarks.physics.chain.Chain.model_curve`); the sample model, J̄2 and the figures read
+it as a curve smoothed by a kernel as wide as that noise (:meth:`CurveLikelihood.curve`).
+
 The total misfit of an inversion is −2 log L = J1 + χ²_curves (up to a constant).
 
 **The model's curve goes through the measurement chain** of the observed ones (``chain``, a
@@ -47,6 +51,7 @@ allow for, the model's own distance from a laboratory's events.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -69,6 +74,8 @@ MIN_EVENTS = 3
 MIN_SPREAD = 1e-7
 #: the kernel's least bandwidth in units of the observed samples' spacing at a common slip
 SPACING_FACTOR = 2.0
+#: the points of a model's curve made from pooled noisy samples (:meth:`CurveLikelihood.curve`)
+CURVE_GRID = 400
 
 
 def kernel_read(slips: np.ndarray, bandwidth: np.ndarray, slip: np.ndarray,
@@ -101,9 +108,15 @@ def _filtered_noise(chain) -> float:
     noise filtered as observe filters the slip column, measured on a seeded draw."""
     if chain is None or not chain.slip_noise > 0 or chain.slip_from != "slip column":
         return 0.0
+    return chain.slip_noise * _unit_filtered_noise(float(chain.slip_hz), float(chain.rate_hz))
+
+
+@functools.lru_cache(maxsize=16)
+def _unit_filtered_noise(cutoff: float, rate: float) -> float:
+    """The σ of unit white noise after :func:`benchmarks.physics.chain.lowpass`."""
     from benchmarks.physics.chain import lowpass
     white = np.random.default_rng(0).standard_normal(1 << 15)
-    return float(chain.slip_noise * lowpass(white, chain.slip_hz, chain.rate_hz)[1024:-1024].std())
+    return float(lowpass(white, cutoff, rate)[1024:-1024].std())
 
 
 def ledoit_wolf(x: np.ndarray) -> tuple[np.ndarray, float]:
@@ -252,6 +265,18 @@ class CurveLikelihood:
                    observed=observed, chain=chain,
                    model_error=float(model_error))
 
+    def curve(self, slip, friction) -> tuple[np.ndarray, np.ndarray]:
+        """A model's curve as a curve: the samples of a chain with slip noise (pooled from its
+        phases, in a random order where the slip has stopped) read by a Gaussian kernel as
+        wide as that noise after the low-pass, at :data:`CURVE_GRID` slips over their range;
+        any other curve as it is. What the sample model, J̄2 and the figures read."""
+        slip, friction = np.asarray(slip, dtype=float), np.asarray(friction, dtype=float)
+        width = _filtered_noise(self.chain)
+        if width == 0 or len(slip) < 2:
+            return slip, friction
+        grid = np.linspace(slip[0], slip[-1], CURVE_GRID)
+        return grid, kernel_read(grid, np.full(CURVE_GRID, width), slip, friction)
+
     def residuals(self, slip: np.ndarray, friction: np.ndarray) -> np.ndarray:
         """The whitened residuals of one model curve, whose squares sum to its χ² (the
         contrasts' for ``"scatter"``, every sample's less its event's mean for ``"sample"``);
@@ -263,12 +288,12 @@ class CurveLikelihood:
         if self.noise == "scatter":
             return self.whiten @ (self.mean - kernel_read(self.slips, self.bandwidth, slip,
                                                           friction))
-        return offset_residuals(slip, friction, self.observed) / self.sigma
+        return offset_residuals(*self.curve(slip, friction), self.observed) / self.sigma
 
     def j2(self, slip, friction) -> float:
         """The paper's J̄2 (Eq. 11) of one model curve: the mean over the events of each one's
         residual variance after its best offset (NaN when the curve is empty)."""
-        return float(np.mean(j2_per_event(slip, friction, self.observed)))
+        return float(np.mean(j2_per_event(*self.curve(slip, friction), self.observed)))
 
     def chi2(self, slip, friction) -> float:
         """The curves' χ² of one model curve (NaN when it is empty)."""

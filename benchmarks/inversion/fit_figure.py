@@ -182,13 +182,15 @@ def _draw_metric(ax, events, name: str, observed: tuple, model: float, label: st
 def _draw_curves(ax, obs, model) -> None:
     """The observed curves at their best offsets, and the model's curve (module docstring)."""
     curves = obs.curves
+    like = obs.curve_likelihood
     slip, friction = ((np.asarray(model.curve_slip, dtype=float),
                        np.asarray(model.curve_friction, dtype=float))
                       if model is not None and "curve_slip" in model else (np.empty(0),) * 2)
+    drawn = like.curve(slip, friction) if like is not None else (slip, friction)
     events = [g.sort_values("slip_m") for _, g in curves.groupby("event_id", sort=False)]
     if len(slip) >= 2:
         s = event_samples(curves)
-        r = np.interp(s.slip, slip, friction) - s.friction
+        r = np.interp(s.slip, *drawn) - s.friction
         offsets = np.bincount(s.event, r) / s.sizes        # each event's best μ0 (Eq. 11)
         level = offsets.mean()
     else:
@@ -197,13 +199,13 @@ def _draw_curves(ax, obs, model) -> None:
         ax.plot(g.slip_m * 1e6, g.friction + offsets[i] - level, ".-", ms=2, lw=0.5,
                 color="0.55", alpha=0.7, label="observed events, each at its best offset"
                 if i == 0 else None)
-    like = obs.curve_likelihood
     if like is not None and like.noise == "scatter":
         ax.plot(like.slips * 1e6, like.mean, "s", ms=4, color="C0",
                 label="their mean at the likelihood's common slips")
     if len(slip) >= 2:
-        ax.plot(slip * 1e6, friction - level, color="C3", lw=1.6, gid=MODEL_GID,
-                label="model's curve at the fit (its last event)")
+        ax.plot(drawn[0] * 1e6, drawn[1] - level, color="C3", lw=1.6, gid=MODEL_GID,
+                label="model's curve at the fit (its last event)"
+                + ("" if drawn[0] is slip else ", its noisy phases read by a kernel"))
     else:
         ax.text(0.5, 0.5, "no model curve: no limit cycle at the fit", ha="center",
                 transform=ax.transAxes)
