@@ -424,17 +424,27 @@ def _cli(*args, timeout=300):
 def test_the_command_fits_a_real_basalt_step(tmp_path):
     """BRAVA experiment b819 (Giacomel et al. 2021; the record as published with Giacomel et
     al. 2024's steadystate): a 3 → 10 µm/s step. The values checked are this fit's own at the
-    commit that wrote the test (aging law, a slope per piece): a = 0.00832, b = 0.00869,
-    Dc = 7.56 µm, k′ = 0.00314 per µm; no published values for this step were found."""
+    commit that wrote the test (aging law, a slope per piece, the switch refined on the
+    friction): a = 0.00879, b = 0.00928, Dc = 6.99 µm, k′ = 0.00700 per µm; no published
+    values for this step were found. The friction starts to rise 68.66–68.68 s after the
+    first sample (11676.36–11676.38 s; read off the record by eye and by a fit of the switch
+    made outside this code, 0.0071–0.0076 ± 0.0007 per µm for k′ there); the displacement's
+    line alone put the switch at 11676.14 s and k′ at 0.00314 per µm."""
     out = _cli(BASALT, *[f"--column={c}" for c in REAL_COLUMNS], "--out", tmp_path, "--json")
     assert out.returncode == 0, out.stderr
     doc = json.loads(out.stdout)
     values = {r["parameter"]: r for r in doc["parameters"]}
-    assert values["a"]["value"] == pytest.approx(0.00832, rel=0.01)
-    assert values["b"]["value"] == pytest.approx(0.00869, rel=0.01)
-    assert values["dc"]["value"] == pytest.approx(7.56e-6, rel=0.02)
-    assert doc["solver_check"]["passed"] and doc["history"]["switch_times_s"][0] == \
-        pytest.approx(11676.1, abs=0.2)
+    assert values["a"]["value"] == pytest.approx(0.00879, rel=0.01)
+    assert values["b"]["value"] == pytest.approx(0.00928, rel=0.01)
+    assert values["dc"]["value"] == pytest.approx(6.99e-6, rel=0.02)
+    k = values["k"]
+    assert k["wald_low95"] < 0.0071e6 and 0.0076e6 < k["wald_high95"]
+    switch = doc["history"]["switch_times_s"][0]
+    assert abs(switch - 11676.37) < 0.1 and doc["solver_check"]["passed"]
+    (row,) = doc["switches"]["table"]
+    assert row["disagree"] and row["displacement_s"] == pytest.approx(11676.14, abs=0.02)
+    assert row["low95_s"] < switch < row["high95_s"] and row["rise_at_displacement"] > 20
+    assert pd.read_csv(tmp_path / "lab_fit_switches.csv").friction_s[0] == pytest.approx(switch)
     assert doc["git_commit"] and doc["command"].startswith("rsfbench lab fit")
     assert doc["sha256"] and doc["tool"].startswith("rsfbench")
     table = pd.read_csv(tmp_path / "lab_fit_parameters.csv")
@@ -444,10 +454,43 @@ def test_the_command_fits_a_real_basalt_step(tmp_path):
     assert len(residuals) == 5849 and (tmp_path / "lab_fit.png").stat().st_size > 10_000
 
 
+def test_a_switch_placed_off_is_moved_to_where_the_friction_says():
+    """A record whose history is told its switch 0.3 s late (20.3 s against the true 20 s, 20
+    samples at 15 ms): the profile of the switch on the friction finds 20 s within its 95 %
+    interval, and the fit there recovers k′ that the late switch biases."""
+    from benchmarks.lab.switches import refine_switches, with_switches
+    df = synthetic_record(T[:4000], (1e-6, 1e-5), (20.0,), **TRUTH, noise=2e-4, seed=3)
+    rec = lab_record_from(df, COLUMNS)
+    late = with_switches(rec, [20.3])
+    off = fit_lab(LabModel(late, "aging", detrend="none"))
+    fit, table = refine_switches(off)
+    (row,) = table.itertuples()
+    assert row.low95_s <= 20.0 <= row.high95_s and row.high95_s - row.low95_s < 0.2
+    assert abs(row.friction_s - 20.0) < 0.05 and row.disagree
+    assert fit.model.record.switch_times == (pytest.approx(row.friction_s),)
+    assert abs(fit.values["k"] / TRUTH["k"] - 1) < abs(off.values["k"] / TRUTH["k"] - 1)
+    assert fit.interval("k")[0] <= TRUTH["k"] <= fit.interval("k")[1]
+
+
+def test_switches_given_by_hand_are_used_and_bad_ones_refused(tmp_path):
+    out = _cli(BASALT, *[f"--column={c}" for c in REAL_COLUMNS], "--switches", "11676.37",
+               "--no-profiles", "--no-solver-check", "--json")
+    assert out.returncode == 0, out.stderr
+    doc = json.loads(out.stdout)
+    assert doc["history"]["switch_times_s"] == [pytest.approx(11676.37)]
+    assert doc["switches"]["from"] == "given (--switches)" and doc["switches"]["table"] is None
+    for bad, match in (("11600", "inside the record"), ("11700,11690", "increasing"),
+                       ("x", "separated by commas")):
+        out = _cli(BASALT, *[f"--column={c}" for c in REAL_COLUMNS], "--switches", bad)
+        assert out.returncode == 2 and match in out.stderr, out.stderr
+        assert len(out.stderr.strip().splitlines()) == 1
+
+
 def test_the_command_compares_laws_and_reports_the_chosen_one(tmp_path):
     """--law aging,slip on the basalt step: both fitted, tabled (lab_fit_laws.csv, the JSON's
-    laws) and the lowest BIC reported in full; the slip law's RSS was 0.00412 against the
-    aging law's 0.00416 when written (ΔBIC 56, 9 after the AR(1) inflation)."""
+    laws) and the lowest BIC reported in full; the slip law's RSS was 0.003872 against the
+    aging law's 0.003896 when written (the switch refined on the friction; ΔBIC 36, 6.3 after
+    the AR(1) inflation)."""
     out = _cli(BASALT, *[f"--column={c}" for c in REAL_COLUMNS], "--law", "aging,slip",
                "--no-profiles", "--no-solver-check", "--out", tmp_path, "--json")
     assert out.returncode == 0, out.stderr
@@ -475,8 +518,10 @@ def test_a_profile_is_open_where_the_model_fails_or_another_parameter_is_boxed()
 
 
 def test_a_failed_solver_check_is_a_failed_command():
+    # at the displacement's switch Rodas5P at 0.3 is 1.3 σ off; at the friction's it passed
+    # (0.096 σ when written): the step's response is where its error lies
     out = _cli(BASALT, *[f"--column={c}" for c in REAL_COLUMNS], "--rtol", "0.3",
-               "--no-profiles", "--json")
+               "--no-profiles", "--switches-from", "displacement", "--json")
     doc = json.loads(out.stdout)
     assert out.returncode == 1 and not doc["solver_check"]["passed"]
 

@@ -13,6 +13,8 @@ each is fitted and compared (benchmarks.lab.laws), and the lowest BIC is reporte
 
 from __future__ import annotations
 
+import argparse
+import dataclasses
 import json
 import math
 import sys
@@ -33,7 +35,7 @@ from problems import LAWS, law_parameters
 #: the files ``lab fit --out DIR`` may write
 LAB_FIT_FILES = ("lab_fit.json", "lab_fit_parameters.csv", "lab_fit_residuals.csv",
                  "lab_fit_profiles.csv", "lab_fit_posterior.csv", "lab_fit_laws.csv",
-                 "lab_fit.png")
+                 "lab_fit_switches.csv", "lab_fit.png")
 
 __all__ = ["add_parser"]
 
@@ -109,12 +111,7 @@ def cmd_lab_fit(args) -> int:
     from benchmarks.lab.laws import parse_laws
     laws = parse_laws(args.law, tuple(LAWS))
     _check_flags(args, laws)
-    record = _record(args)
-    models = {law: _model(args, record, law) for law in laws}
-    if args.weights is not None and len(args.weights) != len(record.velocities):
-        raise ValueError(f"--weights: {len(args.weights)} given, but the record's history has "
-                         f"{len(record.velocities)} pieces (one weight each): "
-                         f"{_pieces_line(record)}")
+    models = _models(args, laws)
     given = {k: v for k, v in (("k", args.stiffness), ("c", args.c)) if v is not None}
     free = max(([n for n in m.parameters if n not in given] for m in models.values()), key=len)
     if args.posterior and args.walkers < 2 * len(free):
@@ -123,8 +120,9 @@ def cmd_lab_fit(args) -> int:
     if args.out is not None:              # a user's file of one of these names: refused now
         claim_outputs(args.out / n for n in LAB_FIT_FILES)
         args.out.mkdir(parents=True, exist_ok=True)
-    fit, notes, laws_table = _fit_laws(args, models, given)
+    fit, notes, laws_table, switches = _fit_laws(args, models, given)
     fixed = {k: v for k, v in given.items() if k in fit.model.parameters}
+    record = fit.model.record             # the switches where the friction put them
     profiles = {} if args.no_profiles else _profiles(args, fit, notes)
     check = None
     if not args.no_solver_check:
@@ -140,13 +138,17 @@ def cmd_lab_fit(args) -> int:
         "compared": list(laws), "chosen_by": "the lowest BIC (benchmarks/lab/laws.py: Gaussian "
         "residuals with sigma^2 = RSS/n; delta_bic_ar1 divides by the AR(1) inflation)",
         "table": laws_table.to_dict(orient="records")}
+    doc["switches"] = _switches_doc(args, switches)
     if args.out is not None:
-        _write(args.out, fit, table, profiles, doc)
-        if laws_table is not None:
-            write_table(laws_table.assign(command=doc["command"], tool=doc["tool"]),
-                        args.out / "lab_fit_laws.csv")
+        args.written = _write(args.out, fit, table, profiles, doc)
+        for name, extra in (("laws", laws_table), ("switches", switches)):
+            if extra is not None:
+                write_table(extra.assign(command=doc["command"], tool=doc["tool"]),
+                            args.out / f"lab_fit_{name}.csv")
+                args.written.append(f"lab_fit_{name}.csv")
         if posterior is not None:
             write_table(posterior.samples, args.out / "lab_fit_posterior.csv")
+            args.written.append("lab_fit_posterior.csv")
         doc["out"] = str(args.out)
     # a fit whose integrator failed its check, or that did not converge, is no answer: exit 1
     status = 0 if fit.success and (check is None or check["passed"]) else 1
@@ -155,6 +157,7 @@ def cmd_lab_fit(args) -> int:
         return status
     if laws_table is not None:
         _report_laws(laws_table, args.law)
+    _report_switches(args, switches)
     _report(fit, table, profiles, check, inertia, notes, record, args)
     if posterior is not None:
         say(f"posterior: {args.walkers} walkers × {args.steps} steps, {posterior.solves} solves "
@@ -165,16 +168,44 @@ def cmd_lab_fit(args) -> int:
     return status
 
 
+def _models(args, laws) -> dict:
+    """Each law's model of the record (its switches ``--switches`` if given), every check of
+    the record and the options made before any fit."""
+    record = _record(args)
+    if args.switches is not None:
+        from benchmarks.lab.switches import with_switches
+        record = with_switches(record, [s - record.t_offset for s in args.switches])
+    if args.weights is not None and len(args.weights) != len(record.velocities):
+        raise ValueError(f"--weights: {len(args.weights)} given, but the record's history has "
+                         f"{len(record.velocities)} pieces (one weight each): "
+                         f"{_pieces_line(record)}")
+    return {law: _model(args, record, law) for law in laws}
+
+
 def _fit_laws(args, models: dict, given: dict):
-    """``(fit, notes, laws)``: each law's model fitted (``given``: the held parameters, each
-    where its law has it); with several, their table (:func:`benchmarks.lab.laws.compare_laws`)
-    and ``args.law`` set to the chosen one, whose fit and notes are returned."""
-    fits = {}
+    """``(fit, notes, laws, switches)``: each law's model fitted (``given``: the held
+    parameters, each where its law has it), the first one's switch times refined on the
+    friction (``--switches-from friction``; :mod:`benchmarks.lab.switches`, their table) and the
+    others fitted there; with several laws, their table
+    (:func:`benchmarks.lab.laws.compare_laws`) and ``args.law`` set to the chosen one, whose fit
+    and notes are returned."""
+    fits, switches, record = {}, None, None
     for law, model in models.items():
+        if record is not None:
+            model = dataclasses.replace(model, record=record)
         fixed = {k: v for k, v in given.items() if k in model.parameters}
         _stage(args, f"fitting {', '.join(n for n in model.parameters if n not in fixed)} "
                      f"({law} law) to {len(model.record.t):,} samples")
         fits[law] = _fit(model, fixed, args.weights)
+        if (record is None and args.switches is None and args.switches_from == "friction"
+                and fits[law][0].success):
+            from benchmarks.lab.switches import refine_switches
+            _stage(args, "the switch times on the friction")
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                refined, switches = refine_switches(fits[law][0])
+            fits[law] = (refined, list(refined.notes))
+            record = refined.model.record
     laws = list(models)
     table = None
     if len(laws) > 1:
@@ -182,7 +213,35 @@ def _fit_laws(args, models: dict, given: dict):
         table = compare_laws({law: f for law, (f, _) in fits.items()})
         chosen = table.law[table.chosen]
         args.law = str(chosen.iloc[0]) if len(chosen) else laws[0]
-    return (*fits[args.law], table)
+    return (*fits[args.law], table, switches)
+
+
+def _switches_doc(args, switches) -> dict:
+    """lab_fit.json's ``switches``: where the history's switch times came from, and each
+    switch's profile on the friction."""
+    source = ("given (--switches)" if args.switches is not None else
+              "the displacement's piecewise line" if args.switches_from == "displacement" else
+              "the displacement's piecewise line, refined on the friction (the fit's squares "
+              "profiled over each switch time; benchmarks/lab/switches.py)")
+    return {"from": source, "table": None if switches is None else
+            switches.to_dict(orient="records")}
+
+
+def _report_switches(args, switches) -> None:
+    """Each switch: where the displacement and the friction put it."""
+    if switches is None:
+        say("switch times: " + ("as given (--switches)" if args.switches is not None else
+                                "from the displacement alone (--switches-from displacement)"))
+        return
+    for r in switches.itertuples():
+        ends = "–".join(f"{v:.3f}{'' if c else ' (open)'}" for v, c in
+                        ((r.low95_s, r.low_closed), (r.high95_s, r.high_closed)))
+        say(f"switch {r.switch}: the displacement puts it at {r.displacement_s:.3f} s, the "
+            f"friction at {r.friction_s:.3f} s (95 %: {ends} s; {r.fits} fits)"
+            + (f"; they disagree: the friction's squares rise by {r.rise_at_displacement:.3g} "
+               "f σ² at the displacement's time" if r.disagree else "")
+            + f"; over its interval k′ runs {r.k_min * 1e-6:.3g}–{r.k_max * 1e-6:.3g} per µm, "
+              f"Dc {r.dc_min * 1e6:.3g}–{r.dc_max * 1e6:.3g} µm")
 
 
 def _stage(args, text: str) -> None:
@@ -362,9 +421,7 @@ def _report(fit, table, profiles, check, inertia, notes, record, args) -> None:
                           "unit"]].to_string(
                 index=False))
     if args.out is not None:
-        say(f"wrote lab_fit.json, lab_fit_parameters.csv, lab_fit_residuals.csv"
-            f"{', lab_fit_profiles.csv' if profiles else ''}"
-            f"{', lab_fit_posterior.csv' if args.posterior else ''} and lab_fit.png to {args.out}")
+        say(f"wrote {', '.join(args.written)} to {args.out}")
 
 
 def _report_check(check: dict) -> None:
@@ -383,6 +440,15 @@ def _report_check(check: dict) -> None:
                "FAILED: tighten --rtol or choose another --integrator"))
 
 
+def _times(text: str) -> tuple[float, ...]:
+    """``--switches``: comma-separated times in s."""
+    try:
+        return tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected times in s separated by commas "
+                                         f"(11676.3,11720), got {text!r}") from None
+
+
 def _num(v, unit) -> str:
     if v is None or (isinstance(v, float) and math.isnan(v)):
         return ""
@@ -390,7 +456,7 @@ def _num(v, unit) -> str:
     return f"{v * scale:.5g}"
 
 
-def _write(out: Path, fit, table, profiles, doc) -> None:
+def _write(out: Path, fit, table, profiles, doc) -> list[str]:
     rec = fit.model.record
     write_table(table.assign(command=doc["command"], tool=doc["tool"]),
                 out / "lab_fit_parameters.csv")
@@ -404,6 +470,8 @@ def _write(out: Path, fit, table, profiles, doc) -> None:
             for p in profiles.values()]), out / "lab_fit_profiles.csv")
     write_output(out / "lab_fit.json", json.dumps(jsonable(doc), indent=2))
     _plot(fit, profiles, out / "lab_fit.png")
+    return ["lab_fit.json", "lab_fit_parameters.csv", "lab_fit_residuals.csv",
+            *(["lab_fit_profiles.csv"] if profiles else []), "lab_fit.png"]
 
 
 def _plot(fit, profiles, path: Path) -> None:
@@ -464,6 +532,13 @@ def add_parser(tests) -> None:
     p.add_argument("--window", type=float, nargs=2, metavar=("START", "END"),
                    help="fit the part of the record from START to END, in the file's time, s "
                         "(default: all of it; it must start in steady sliding)")
+    p.add_argument("--switches-from", choices=("friction", "displacement"), default="friction",
+                   help="where the history's switch times come from: the displacement's "
+                        "piecewise line refined on the friction (each switch profiled within "
+                        "±50 samples; default), or the displacement alone")
+    p.add_argument("--switches", type=_times, metavar="T1,T2,…",
+                   help="the switch times by hand, in the file's time (s), comma-separated: "
+                        "taken as they are (default: found; see --switches-from)")
     p.add_argument("--law", default="aging", metavar="LAW[,LAW…]",
                    help=f"the friction law ({', '.join(LAWS)}), or several separated by commas "
                         "to compare them (aging,slip): each is fitted, the laws are tabled "

@@ -1,0 +1,171 @@
+"""The switch times of a fit's history where the friction says, not only the displacement.
+
+:func:`benchmarks.lab.history.find_history` places each switch on the load point's displacement
+(a continuous piecewise line). A displacement sensor's glitches and resets pull that line: on the
+basalt step of ``tests/data/lab-velocity-steps`` it puts the 3 → 10 µm/s switch at 68.44 s after
+the first sample, where the friction starts to rise at 68.66–68.68 s, and the fit there has a
+stiffness k′ less than half the one at the friction's switch. A switch placed off by a fraction
+of a second moves a, Dc and k′ by more than their errors.
+
+:func:`refine_switches` profiles each switch on the friction: the whole fit (warm-started from
+the current one) at trial switch times, its squares as a function of the switch time (the
+others held), over ± :data:`WINDOW_SAMPLES` samples of the displacement's switch (at most a
+quarter of the shorter piece beside it): a scan of :data:`SCAN` points, then a bounded search
+about the best to :data:`TOLERANCE` of a sample. The switch's 95 % interval is where the squares
+are within 3.84 f σ² of their minimum (f and σ the best fit's AR(1) inflation and residual
+scatter, as the fit's profile intervals), each end bisected :data:`BISECT` times; an end that
+the window does not close is open. The switches are refined one after the other, each with
+those before it at their refined times. What the refinement assumes: the load point switches
+when the friction responds (no lag of the machine's servo), and one switch's time does not
+depend on the next's.
+
+Each switch's row says where the displacement put it, where the friction puts it, its interval,
+and how strongly the friction rejects the displacement's time (its squares' rise there, in
+units of f σ²), with the range of a, b, Dc and k′ over the switch's interval: the part of
+their uncertainty that the switch time carries (the fit's own intervals hold the switch fixed).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pandas as pd
+
+from benchmarks.lab.fit import fit_lab
+from benchmarks.lab.history import MIN_SAMPLES, PIECE_COLUMNS, _line
+from benchmarks.lab.step_data import LabRecord
+from benchmarks.inversion.objectives import CHI2_95_1DOF
+
+__all__ = ["refine_switches", "with_switches", "SWITCH_COLUMNS", "WINDOW_SAMPLES", "SCAN",
+           "TOLERANCE", "BISECT", "REJECTED"]
+
+#: samples either side of the displacement's switch that the friction's may lie
+WINDOW_SAMPLES = 50
+#: the trial switch times of the first scan
+SCAN = 9
+#: the search's tolerance on a switch time, in samples
+TOLERANCE = 0.1
+#: bisections of each end of a switch's interval
+BISECT = 6
+#: the squares' rise (in f σ²) at the displacement's switch above which the two are said to
+#: disagree (the 95 % level)
+REJECTED = CHI2_95_1DOF
+#: the parameters whose range over a switch's interval is reported
+RANGED = ("a", "b", "dc", "k")
+#: the columns of the switches' table (times in the file's time, s)
+SWITCH_COLUMNS = ("switch", "displacement_s", "friction_s", "low95_s", "high95_s",
+                  "low_closed", "high_closed", "rise_at_displacement", "disagree", "fits",
+                  *(f"{p}_{end}" for p in RANGED for end in ("min", "max")))
+
+
+def with_switches(record: LabRecord, switches) -> LabRecord:
+    """``record`` with its history's switch ``switches`` (s from its first sample, increasing,
+    inside it, each piece :data:`~benchmarks.lab.history.MIN_SAMPLES` samples at least): the
+    speeds kept when as many switches are given as it had, else each piece's displacement
+    slope (a speed within 10 standard errors of 0 is a hold)."""
+    s = np.asarray(switches, dtype=float)
+    t = record.t
+    if s.ndim != 1 or not len(s) or not np.isfinite(s).all() or (np.diff(s) <= 0).any():
+        raise ValueError(f"switch times must be increasing numbers (s), got {list(s)}")
+    if s[0] <= t[0] or s[-1] >= t[-1]:
+        raise ValueError(f"switch times must lie inside the record, from "
+                         f"{t[0] + record.t_offset:.6g} to {t[-1] + record.t_offset:.6g} s "
+                         f"(file time), got {', '.join(f'{v + record.t_offset:.6g}' for v in s)}")
+    cuts = np.searchsorted(t, s, side="left")
+    sizes = np.diff(np.concatenate(([0], cuts, [len(t)])))
+    if (sizes < MIN_SAMPLES).any():
+        raise ValueError(f"each piece between switch times needs {MIN_SAMPLES} samples at "
+                         f"least; these make pieces of {', '.join(map(str, sizes))}")
+    bounds = np.concatenate(([0], cuts, [len(t)]))
+    lines = [_line(t[lo:hi], record.load_point[lo:hi]) for lo, hi in zip(bounds, bounds[1:])]
+    if len(s) == len(record.switch_times):
+        velocities = tuple(record.velocities)
+    else:
+        velocities = tuple(float(v) if v > 10.0 * se else 0.0 for v, se, _ in lines)
+    edges = (0.0, *map(float, s), float(t[-1]))
+    pieces = pd.DataFrame({"t_start_s": edges[:-1], "t_end_s": edges[1:],
+                           "velocity_m_s": velocities,
+                           "velocity_se_m_s": [se for _, se, _ in lines],
+                           "samples": sizes}, columns=list(PIECE_COLUMNS))
+    return dataclasses.replace(record, velocities=velocities, switch_times=tuple(map(float, s)),
+                               pieces=pieces)
+
+
+def refine_switches(fit) -> tuple[object, pd.DataFrame]:
+    """``(fit, table)``: each switch of ``fit``'s history profiled on the friction (module
+    docstring), the model's record moved to the friction's switches and refitted (its fixed
+    parameters and weights kept); ``table`` has :data:`SWITCH_COLUMNS`, one row per switch."""
+    rows = []
+    for i in range(len(fit.model.record.switch_times)):
+        fit, row = _refine(fit, i)
+        rows.append(row)
+    model = fit.model
+    final = fit_lab(model, fixed=fit.fixed, weights=fit.piece_weights)
+    if not final.rss <= fit.rss:         # the multi-start refit may stop worse than the warm one
+        final = fit
+    return final, pd.DataFrame(rows, columns=list(SWITCH_COLUMNS))
+
+
+def _refine(fit, i: int):
+    """Switch ``i`` profiled and moved (module docstring): the fit there and its row."""
+    from scipy.optimize import minimize_scalar
+    rec = fit.model.record
+    dt = float(np.median(np.diff(rec.t)))
+    t0 = rec.switch_times[i]
+    edges = (float(rec.t[0]), *rec.switch_times, float(rec.t[-1]))
+    width = min(WINDOW_SAMPLES * dt, 0.25 * min(t0 - edges[i], edges[i + 2] - t0))
+    fits = {}
+
+    def at(ts: float):
+        ts = float(ts)
+        if ts not in fits:
+            times = list(rec.switch_times)
+            times[i] = ts
+            model = dataclasses.replace(fit.model, record=with_switches(rec, times))
+            start = {n: fit.values[n] for n in model.parameters}
+            fits[ts] = fit_lab(model, fixed=fit.fixed, weights=fit.piece_weights, start=start)
+        return fits[ts]
+
+    def squares(ts: float) -> float:
+        f = at(ts)
+        return f.rss if f.success and np.isfinite(f.rss) else math.inf
+
+    scan = np.linspace(t0 - width, t0 + width, SCAN)
+    values = [squares(ts) for ts in scan]
+    k = int(np.argmin(values))
+    lo, hi = scan[max(k - 1, 0)], scan[min(k + 1, SCAN - 1)]
+    minimize_scalar(squares, bounds=(lo, hi), method="bounded",
+                            options={"xatol": TOLERANCE * dt})
+    best_t = min(fits, key=lambda ts: squares(ts))
+    best = fits[best_t]
+    unit = best.inflation * best.sigma ** 2
+    level = squares(best_t) + CHI2_95_1DOF * unit
+    ends, closed = [], []
+    for side in (-1, 1):
+        outside = [ts for ts in fits if (ts - best_t) * side > 0 and squares(ts) > level]
+        if not outside:
+            ends.append(t0 + side * width)
+            closed.append(False)
+            continue
+        out = min(outside, key=lambda ts: abs(ts - best_t))
+        inside = max((ts for ts in fits if (ts - best_t) * side >= 0
+                      and abs(ts - best_t) < abs(out - best_t) and squares(ts) <= level),
+                     key=lambda ts: abs(ts - best_t))
+        for _ in range(BISECT):
+            mid = 0.5 * (inside + out)
+            inside, out = (mid, out) if squares(mid) <= level else (inside, mid)
+        ends.append(0.5 * (inside + out))
+        closed.append(True)
+    within = [fits[ts] for ts in fits if squares(ts) <= level]
+    rise = (squares(t0) - squares(best_t)) / unit
+    offset = rec.t_offset
+    row = {"switch": i + 1, "displacement_s": t0 + offset, "friction_s": best_t + offset,
+           "low95_s": ends[0] + offset, "high95_s": ends[1] + offset,
+           "low_closed": closed[0], "high_closed": closed[1], "rise_at_displacement": rise,
+           "disagree": bool(rise > REJECTED), "fits": len(fits)}
+    for p in RANGED:
+        vals = [f.values[p] for f in within]
+        row[f"{p}_min"], row[f"{p}_max"] = min(vals), max(vals)
+    return best, row
