@@ -390,6 +390,44 @@ def test_the_record_s_own_noise_is_read_without_a_model():
     assert sample_noise(0.6 + 1e-3 * t) < 1e-12
 
 
+def test_dc_trading_with_the_trend_is_said():
+    """Dc = 100 µm behind a step the load point follows for 400 µm (4 Dc): ln Dc and the
+    piece's trend slope correlate at +0.989 (when written; the full problem's covariance, the
+    unprojected Jacobian beside the basis), said; Dc = 10 µm (40 Dc after the step): +0.40,
+    not said. The level's and slopes' standard errors include what the nonlinear parameters'
+    uncertainty adds: no smaller than the basis alone gives."""
+    for dc, trades in ((100e-6, True), (10e-6, False)):
+        df = synthetic_record(T[:4000], (1e-6, 1e-5), (20.0,), **dict(TRUTH, dc=dc),
+                              noise=2e-4, seed=3)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", LabFitWarning)
+            fit = fit_lab(LabModel(lab_record_from(df, COLUMNS), "aging"))
+        said = any("trade" in str(w.message) for w in caught)
+        assert said == trades and (abs(fit.trend_rho) > 0.9) == trades
+    basis = fit.model.linear_basis()
+    alone = np.sqrt(np.diag(np.linalg.inv(basis.T @ basis)) * fit.inflation * fit.sigma ** 2)
+    assert all(fit.linear_se[n] >= a * (1 - 1e-9) for n, a in zip(fit.model.linear_names, alone))
+
+
+def test_the_trend_is_chosen_by_the_bic_of_independent_samples():
+    """Dc = 100 µm behind a step followed for 4 Dc, with no drift and with one drift through
+    the record: the trends none / one / piece compared as --detrend auto compares them choose
+    none and one (ΔBIC of n/f samples 7.8 and 8.0 to the next when written), and the slope per
+    piece, which trades with Dc, is not chosen."""
+    from benchmarks.lab.laws import compare_laws
+    for drift, want in ((0.0, "none"), (50.0, "one")):
+        df = synthetic_record(T[:4000], (1e-6, 1e-5), (20.0,), **dict(TRUTH, dc=100e-6),
+                              noise=2e-4, drift=drift, seed=3)
+        rec = lab_record_from(df, COLUMNS)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", LabFitWarning)
+            fits = {d: fit_lab(LabModel(rec, "aging", detrend=d)) for d in ("none", "one",
+                                                                             "piece")}
+        table = compare_laws(fits, label="detrend").set_index("detrend")
+        assert table.index[table.chosen].tolist() == [want]
+        assert sorted(table.delta_bic_ar1)[1] > 2
+
+
 def test_a_law_that_does_not_fit_is_said_and_the_laws_are_compared():
     """The slip law on an aging-law record (white noise 2e−5, no drift): residuals 59 × the
     record's own noise with ρ 0.999 when written, said; the aging law's are at the noise
@@ -403,12 +441,13 @@ def test_a_law_that_does_not_fit_is_said_and_the_laws_are_compared():
     table = compare_laws({"aging": aging, "slip": slip}).set_index("law")
     assert table.chosen["aging"] and not table.chosen["slip"]
     assert table.fits["aging"] and not table.fits["slip"]
-    f = (1 + aging.rho) / (1 - aging.rho)       # the chosen law's AR(1) inflation
-    assert table.delta_bic_ar1["slip"] == pytest.approx(table.delta_bic["slip"] / f)
-    assert table.delta_bic["slip"] > 0 == table.delta_bic["aging"]
+    f = (1 + aging.rho) / (1 - aging.rho)       # the AR(1) inflation of the smaller squares
+    n, p = aging.n, 9
+    assert table.bic_ar1["slip"] == pytest.approx(n * math.log(slip.rss / n) / f
+                                                  + p * math.log(n / f))
+    assert table.delta_bic["slip"] > 0 == table.delta_bic["aging"] == table.delta_bic_ar1["aging"]
     # the criteria: n ln(RSS/n) + 2p (AIC) and + p ln n (BIC), p = a, b, ln Dc, ln k′, μ_ref
     # and the four pieces' slopes
-    n, p = aging.n, 9
     assert table.parameters["aging"] == p
     assert table.aic["aging"] == pytest.approx(n * math.log(aging.rss / n) + 2 * p)
     assert table.bic["slip"] == pytest.approx(n * math.log(slip.rss / n) + p * math.log(n))
@@ -470,6 +509,17 @@ def test_a_switch_placed_off_is_moved_to_where_the_friction_says():
     assert fit.model.record.switch_times == (pytest.approx(row.friction_s),)
     assert abs(fit.values["k"] / TRUTH["k"] - 1) < abs(off.values["k"] / TRUTH["k"] - 1)
     assert fit.interval("k")[0] <= TRUTH["k"] <= fit.interval("k")[1]
+
+
+def test_the_command_chooses_the_trend_with_detrend_auto(tmp_path):
+    out = _cli(BASALT, *[f"--column={c}" for c in REAL_COLUMNS], "--detrend", "auto",
+               "--no-profiles", "--no-solver-check", "--out", tmp_path, "--json")
+    assert out.returncode == 0, out.stderr
+    doc = json.loads(out.stdout)
+    trends = pd.read_csv(tmp_path / "lab_fit_trends.csv").set_index("detrend")
+    assert set(trends.index) == {"none", "one", "piece"}
+    assert doc["detrend"] == trends.bic_ar1.idxmin() == doc["trends"]["table"][
+        [r["chosen"] for r in doc["trends"]["table"]].index(True)]["detrend"]
 
 
 def test_switches_given_by_hand_are_used_and_bad_ones_refused(tmp_path):

@@ -35,7 +35,7 @@ from problems import LAWS, law_parameters
 #: the files ``lab fit --out DIR`` may write
 LAB_FIT_FILES = ("lab_fit.json", "lab_fit_parameters.csv", "lab_fit_residuals.csv",
                  "lab_fit_profiles.csv", "lab_fit_posterior.csv", "lab_fit_laws.csv",
-                 "lab_fit_switches.csv", "lab_fit.png")
+                 "lab_fit_switches.csv", "lab_fit_trends.csv", "lab_fit.png")
 
 __all__ = ["add_parser"]
 
@@ -71,7 +71,8 @@ def _model(args, record, law: str):
                              "Exprb43, scipy-Radau, …)")
         tol = args.rtol if args.rtol is not None else DEFAULT_ALGORITHM[1]
         algorithm = make_algorithm(name, rtol=tol, atol=tol)
-    return LabModel(record, law, detrend=args.detrend, algorithm=algorithm,
+    return LabModel(record, law, detrend="piece" if args.detrend == "auto" else args.detrend,
+                    algorithm=algorithm,
                     states=args.states, wall_budget=args.wall_budget)
 
 
@@ -121,6 +122,9 @@ def cmd_lab_fit(args) -> int:
         claim_outputs(args.out / n for n in LAB_FIT_FILES)
         args.out.mkdir(parents=True, exist_ok=True)
     fit, notes, laws_table, switches = _fit_laws(args, models, given)
+    trends = None
+    if args.detrend == "auto":
+        fit, notes, trends = _choose_trend(args, fit)
     fixed = {k: v for k, v in given.items() if k in fit.model.parameters}
     record = fit.model.record             # the switches where the friction put them
     profiles = {} if args.no_profiles else _profiles(args, fit, notes)
@@ -134,29 +138,22 @@ def cmd_lab_fit(args) -> int:
                if args.mass is not None or args.radiation_damping is not None else None)
     table = _table(fit, profiles, posterior)
     doc = _doc(args, record, fit, table, fixed, notes, profiles, check, inertia, posterior)
-    doc["laws"] = None if laws_table is None else {
-        "compared": list(laws), "chosen_by": "the lowest BIC (benchmarks/lab/laws.py: Gaussian "
-        "residuals with sigma^2 = RSS/n; delta_bic_ar1 divides by the AR(1) inflation)",
-        "table": laws_table.to_dict(orient="records")}
+    for name, extra, compared in (("laws", laws_table, list(laws)),
+                                  ("trends", trends, ["none", "one", "piece"])):
+        doc[name] = None if extra is None else {
+            "compared": compared, "chosen_by": CHOSEN_BY, "table": extra.to_dict("records")}
     doc["switches"] = _switches_doc(args, switches)
     if args.out is not None:
-        args.written = _write(args.out, fit, table, profiles, doc)
-        for name, extra in (("laws", laws_table), ("switches", switches)):
-            if extra is not None:
-                write_table(extra.assign(command=doc["command"], tool=doc["tool"]),
-                            args.out / f"lab_fit_{name}.csv")
-                args.written.append(f"lab_fit_{name}.csv")
-        if posterior is not None:
-            write_table(posterior.samples, args.out / "lab_fit_posterior.csv")
-            args.written.append("lab_fit_posterior.csv")
-        doc["out"] = str(args.out)
+        _write_all(args, fit, table, profiles, doc, posterior,
+                   {"laws": laws_table, "switches": switches, "trends": trends})
     # a fit whose integrator failed its check, or that did not converge, is no answer: exit 1
     status = 0 if fit.success and (check is None or check["passed"]) else 1
     if args.json:
         say(json.dumps(jsonable(doc), indent=2))
         return status
-    if laws_table is not None:
-        _report_laws(laws_table, args.law)
+    for extra, what in ((laws_table, "laws"), (trends, "trends")):
+        if extra is not None:
+            _report_variants(extra, what)
     _report_switches(args, switches)
     _report(fit, table, profiles, check, inertia, notes, record, args)
     if posterior is not None:
@@ -354,19 +351,44 @@ def _doc(args, record, fit, table, fixed, notes, profiles, check, inertia, poste
                 "wall_s": posterior.wall_s}}
 
 
-def _report_laws(laws_table, chosen: str) -> None:
-    """The laws side by side, and which is reported in full."""
-    shown = laws_table[["law", "rss", "sigma", "rho", "sigma_over_noise", "fits", "aic", "bic",
-                        "delta_bic", "delta_bic_ar1", "a", "b", "dc", "k"]].copy()
+#: how the laws and the trends are chosen, for lab_fit.json
+CHOSEN_BY = ("the lowest bic_ar1 = n ln(RSS/n)/f + p ln(n/f), the BIC of n/f independent "
+             "samples, f the AR(1) inflation of the fit with the smallest squares "
+             "(benchmarks/lab/laws.py)")
+
+
+def _report_variants(table, what: str) -> None:
+    """The laws or the trends side by side, and which is reported in full."""
+    label = table.columns[0]
+    shown = table[[label, "rss", "sigma", "rho", "sigma_over_noise", "fits", "bic", "bic_ar1",
+                   "delta_bic_ar1", "a", "b", "dc", "k"]].copy()
     shown["dc"], shown["k"] = shown.dc * 1e6, shown.k * 1e-6
     shown = shown.rename(columns={"dc": "dc_um", "k": "k_per_um"})
     from benchmarks.lab.fit import NOT_FIT, NOT_FIT_RHO
-    say("the laws on this record (lowest BIC chosen; ΔBIC ÷ the AR(1) inflation is the "
-        f"difference to read; 'fits' False: residuals over {NOT_FIT:g} × the record's "
+    say(f"the {what} on this record (the lowest BIC of n/f independent samples chosen, f the "
+        f"AR(1) inflation; 'fits' False: residuals over {NOT_FIT:g} × the record's "
         f"sample-to-sample noise with ρ over {NOT_FIT_RHO:g}):")
     say(shown.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
-    say(f"chosen: the {chosen} law, reported below" if laws_table.chosen.any() else
-        f"no law's fit succeeded: the {chosen} law's is reported below")
+    chosen = table[label][table.chosen]
+    say(f"chosen: {label} {chosen.iloc[0]}, reported below" if len(chosen) else
+        f"no fit succeeded: the first {label}'s is reported below")
+
+
+def _choose_trend(args, fit):
+    """``--detrend auto``: the chosen law refitted with each trend at its switches, the lowest
+    ``bic_ar1`` chosen (``args.detrend`` set to it); ``(fit, notes, table)``."""
+    from benchmarks.lab.laws import compare_laws
+    fits = {}
+    for trend in DETRENDS:
+        model = dataclasses.replace(fit.model, detrend=trend)
+        _stage(args, f"the {args.law} law with the trend {trend}")
+        fits[trend] = (fit if trend == fit.model.detrend else
+                       _fit(model, fit.fixed, args.weights)[0])
+    table = compare_laws({t: f for t, f in fits.items()}, label="detrend")
+    chosen = table.detrend[table.chosen]
+    args.detrend = str(chosen.iloc[0]) if len(chosen) else fit.model.detrend
+    best = fits[args.detrend]
+    return best, list(best.notes), table
 
 
 def _pieces_line(record) -> str:
@@ -454,6 +476,21 @@ def _num(v, unit) -> str:
         return ""
     scale = {"m": 1e6, "1/m": 1e-6}.get(unit, 1.0)      # shown in µm and per µm
     return f"{v * scale:.5g}"
+
+
+def _write_all(args, fit, table, profiles, doc, posterior, extras: dict) -> None:
+    """Every file of ``--out`` (``extras``: name → a table or None, lab_fit_NAME.csv), their
+    names into ``args.written``."""
+    args.written = _write(args.out, fit, table, profiles, doc)
+    for name, extra in extras.items():
+        if extra is not None:
+            write_table(extra.assign(command=doc["command"], tool=doc["tool"]),
+                        args.out / f"lab_fit_{name}.csv")
+            args.written.append(f"lab_fit_{name}.csv")
+    if posterior is not None:
+        write_table(posterior.samples, args.out / "lab_fit_posterior.csv")
+        args.written.append("lab_fit_posterior.csv")
+    doc["out"] = str(args.out)
 
 
 def _write(out: Path, fit, table, profiles, doc) -> list[str]:
@@ -552,9 +589,11 @@ def add_parser(tests) -> None:
                         "is 1000), held fixed (default: fitted)")
     p.add_argument("--c", type=non_negative,
                    help="the Nagata law's c, dimensionless, held fixed (default: fitted)")
-    p.add_argument("--detrend", choices=DETRENDS, default="piece",
+    p.add_argument("--detrend", choices=(*DETRENDS, "auto"), default="piece",
                    help="a linear trend in the load point's displacement: a slope per piece of "
-                        "the history, one slope, or none (default: piece)")
+                        "the history, one slope, none, or auto: each fitted and the lowest BIC "
+                        "of n/f independent samples chosen (f the residuals' AR(1) inflation; "
+                        "the table is written as lab_fit_trends.csv) (default: piece)")
     p.add_argument("--weights", type=float, nargs="+", metavar="W",
                    help="a weight per piece of the history, multiplying its residuals "
                         "(default: 1 each)")

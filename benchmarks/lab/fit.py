@@ -40,7 +40,7 @@ import pandas as pd
 from scipy.optimize import least_squares
 
 __all__ = ["LabFit", "fit_lab", "LabFitWarning", "starting_values", "BOUNDS", "FD_STEP",
-           "sample_noise", "NOT_FIT", "NOT_FIT_RHO",
+           "sample_noise", "NOT_FIT", "NOT_FIT_RHO", "TRADES",
            "DC_STARTS", "Z95", "SETTLE_DC", "PARAMETER_UNITS", "covariance",
            "RANK_TOL", "DC_LONGEST", "coordinate_bounds"]
 
@@ -112,6 +112,8 @@ class LabFit:
         Solves that failed or ran out of their budget.
     noise : float
         The record's own noise, from its second differences (:func:`sample_noise`).
+    trend_rho : float
+        The correlation of ln Dc with the trend slope it follows most (:data:`TRADES`).
     fixed : dict of str to float
         The parameters held at given values.
     piece_weights : numpy.ndarray, optional
@@ -143,6 +145,8 @@ class LabFit:
     failed_solves: int = 0
     #: the record's own sample-to-sample noise (:func:`sample_noise`), beside σ
     noise: float = math.nan
+    #: Dc's correlation with the trend's slope that it follows most (by |ρ|; NaN: no trend)
+    trend_rho: float = math.nan
     fixed: dict = field(default_factory=dict)
     piece_weights: np.ndarray | None = None
     success: bool = True
@@ -255,7 +259,9 @@ class _Problem:
             return np.full(len(g), 1e3 * max(np.std(self.wmu), 1e-6))
         return self.project(self.wmu - self.w * g)
 
-    def jacobian(self, x) -> np.ndarray:
+    def jacobian(self, x, projected: bool = True) -> np.ndarray:
+        """−W ∂g/∂θ by forward differences, projected off the linear basis (the problem's
+        own, :meth:`residual`'s) unless ``projected`` is False (the full problem's)."""
         g0 = self.g(x)
         lo, hi = self.bounds()
         cols = []
@@ -267,7 +273,7 @@ class _Problem:
         jac = np.column_stack(cols)
         if not np.isfinite(jac).all():
             jac = np.nan_to_num(jac, nan=0.0, posinf=0.0, neginf=0.0)
-        return jac - self.q @ (self.q.T @ jac)
+        return jac - self.q @ (self.q.T @ jac) if projected else jac
 
     def linear(self, x):
         """The linear parameters (level, slopes) at x: the least squares of the rest."""
@@ -328,6 +334,29 @@ def sample_noise(mu: np.ndarray) -> float:
         return math.nan
     d2 = mu[2:] - 2.0 * mu[1:-1] + mu[:-2]
     return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6.0))
+
+
+#: |correlation| of ln Dc with a trend slope above which the fit says that they trade
+TRADES = 0.9
+
+
+def _trend_correlation(cov: np.ndarray, free, linear_names) -> float:
+    """The correlation of ln Dc (``free``'s ``dc``) with the trend slope (a ``trend*`` of
+    ``linear_names``, after ``free`` in ``cov``) of the largest |ρ|; NaN without both."""
+    if "dc" not in free:
+        return math.nan
+    i = list(free).index("dc")
+    best = math.nan
+    for j, name in enumerate(linear_names):
+        if not name.startswith("trend"):
+            continue
+        k = len(free) + j
+        denom = math.sqrt(max(cov[i, i] * cov[k, k], 0.0))
+        if denom > 0 and np.isfinite(denom):
+            rho = float(cov[i, k] / denom)
+            if not abs(rho) <= abs(best):
+                best = rho
+    return best
 
 
 def _lag1(r: np.ndarray) -> float:
@@ -457,8 +486,11 @@ def _result(prob, res, wall_s) -> LabFit:
     f = (1 + rho) / (1 - rho)
     jac = prob.jacobian(x)
     cov = covariance(jac, f * sigma ** 2)
-    # the linear parameters' errors: the full problem's covariance
-    full = np.column_stack([jac, -prob.w[:, None] * model.linear_basis()])
+    # the linear parameters' errors and their correlations with the others: the full
+    # problem's covariance, from the unprojected Jacobian (the projected one is orthogonal to
+    # the basis, and would leave out what the nonlinear parameters' uncertainty adds)
+    full = np.column_stack([prob.jacobian(x, projected=False),
+                            -prob.w[:, None] * model.linear_basis()])
     full_cov = covariance(full, f * sigma ** 2)
     params = prob.params(x)
     values = dict(params)
@@ -466,6 +498,7 @@ def _result(prob, res, wall_s) -> LabFit:
     linear = dict(zip(model.linear_names, map(float, coef)))
     linear_se = {k: float(np.sqrt(max(full_cov[len(x) + i, len(x) + i], 0.0)))
                  for i, k in enumerate(model.linear_names)}
+    trend_rho = _trend_correlation(full_cov, prob.free, model.linear_names)
     values.update(linear)
     lo, hi = prob.bounds()
     # at a bound: held there by the solver, or within 1e-3 of the log range (Dc, k′ at 1e-9 m
@@ -478,6 +511,7 @@ def _result(prob, res, wall_s) -> LabFit:
                  linear_se=linear_se, residuals=r, mu_model=mu_model, rss=rss, sigma=sigma,
                  rho=rho, n=n, at_bound=at_bound, solves=prob.solves, wall_s=wall_s,
                  failed_solves=prob.failed, noise=sample_noise(model.record.mu[prob.w > 0]),
+                 trend_rho=trend_rho,
                  weights=prob.w, fixed=dict(prob.fixed), piece_weights=prob.piece_weights,
                  success=ok and res.status > 0,
                  message=res.message if ok else "the forward model failed at the fit's end")
@@ -520,6 +554,11 @@ def _notes(fit: LabFit, lo, hi) -> None:
     elif not fit.success:
         fit.notes.append(f"the fit did not converge ({fit.message}): its values are where it "
                          "stopped, not a minimum")
+    if abs(fit.trend_rho) > TRADES:
+        fit.notes.append(f"Dc and the trend's slope trade (correlation {fit.trend_rho:+.3f}): "
+                         "the slope can take up part of the evolution; compare --detrend "
+                         "none or one, or --detrend auto, and a window that ends where the "
+                         "slider is steady")
     if fit.sigma > NOT_FIT * fit.noise and fit.rho > NOT_FIT_RHO:
         fit.notes.append(f"the {fit.model.law} law does not fit this record: its residuals' σ "
                          f"({fit.sigma:.2g}) is {fit.sigma / fit.noise:.3g} × the record's own "

@@ -1,16 +1,21 @@
-"""Which law fits a record: the fits of several laws to the same samples, side by side.
+"""Which law, and which trend, fits a record: fits to the same samples, side by side.
 
-Each law's fit (:func:`benchmarks.lab.fit.fit_lab`, the same record, trend, weights and fixed
-parameters) is scored by its residual sum of squares and by the information criteria of
-Gaussian residuals with σ² = RSS/n: AIC = n ln(RSS/n) + 2p and BIC = n ln(RSS/n) + p ln n, p
-the fitted parameters (the law's and the linear level and slopes), n the samples (the constants
-every law shares are dropped). The lowest BIC is the chosen law.
+Each variant's fit (:func:`benchmarks.lab.fit.fit_lab`: the laws on the same record, trend,
+weights and fixed parameters; or one law with each trend) is scored by its residual sum of
+squares and by the information criteria of Gaussian residuals with σ² = RSS/n: AIC =
+n ln(RSS/n) + 2p and BIC = n ln(RSS/n) + p ln n, p the fitted parameters (the law's and the
+linear level and slopes), n the samples (the constants every fit shares are dropped).
 
-**What the criteria assume.** Independent residuals. A record's residuals follow each other
-(AR(1) ρ of 0.7–0.96 on the five real steps): n samples then carry about n/f independent ones,
-f = (1 + ρ)/(1 − ρ), and a difference in AIC or BIC overstates the evidence by about f;
-``delta_bic_ar1`` is ΔBIC ÷ f (f of the chosen law's residuals), the difference to read. Laws
-with as many parameters (aging, slip) differ in the RSS alone; the Nagata law has one more (c).
+**What the criteria assume, and the one that chooses.** Independent residuals. A record's
+residuals follow each other (AR(1) ρ of 0.7–0.96 on the five real steps): n samples then carry
+about n/f independent ones, f = (1 + ρ)/(1 − ρ), and a difference in AIC or BIC overstates
+the evidence by about f. The choice is the lowest ``bic_ar1`` = n ln(RSS/n)/f + p ln(n/f), the
+BIC of n/f independent samples, with one f for all (that of the fit with the smallest
+squares, whose residuals are nearest the noise; a law that does not fit has ρ near 1 and no
+say in it); ``delta_bic_ar1`` is each one's difference from the chosen. Laws with as many
+parameters (aging, slip) are ranked by their RSS alone either way; a richer trend (a slope per
+piece) must lower the squares by more than its parameters' worth in n/f samples, so that a
+slope cannot take up an evolution the residuals' correlation does not support.
 
 **Whether a law fits at all** is not a comparison: ``sigma_over_noise`` is the residuals' σ
 over the record's own sample-to-sample noise (:func:`benchmarks.lab.fit.sample_noise`), and a
@@ -32,8 +37,8 @@ __all__ = ["compare_laws", "LAW_COLUMNS", "parse_laws"]
 
 #: the columns of the comparison (lab_fit_laws.csv); a, b, dc (m), k (1/m) are each law's fit
 LAW_COLUMNS = ("law", "success", "n", "parameters", "rss", "sigma", "rho", "noise",
-               "sigma_over_noise", "fits", "aic", "bic", "delta_bic", "delta_bic_ar1", "chosen",
-               "a", "b", "dc", "k", "c")
+               "sigma_over_noise", "fits", "aic", "bic", "bic_ar1", "delta_bic",
+               "delta_bic_ar1", "chosen", "a", "b", "dc", "k", "c")
 
 
 def parse_laws(text: str, known) -> tuple[str, ...]:
@@ -49,17 +54,17 @@ def parse_laws(text: str, known) -> tuple[str, ...]:
     return laws
 
 
-def compare_laws(fits: dict) -> pd.DataFrame:
-    """One row per law of ``fits`` (law → :class:`~benchmarks.lab.fit.LabFit`), with
-    :data:`LAW_COLUMNS` (module docstring); ``chosen`` marks the lowest BIC among the fits
-    that succeeded (none when none did)."""
+def compare_laws(fits: dict, label: str = "law") -> pd.DataFrame:
+    """One row per variant of ``fits`` (its name → :class:`~benchmarks.lab.fit.LabFit`), with
+    :data:`LAW_COLUMNS` (``label`` naming the first; module docstring); ``chosen`` marks the
+    lowest ``bic_ar1`` among the fits that succeeded (none when none did)."""
     rows = []
     for law, fit in fits.items():
         p = len(fit.free) + len(fit.linear)
         ok = bool(fit.success and np.isfinite(fit.rss) and fit.rss > 0 and fit.n > p)
         nll = fit.n * math.log(fit.rss / fit.n) if ok else math.nan
         ratio = fit.sigma / fit.noise if fit.noise > 0 else math.nan
-        rows.append({"law": law, "success": ok, "n": fit.n, "parameters": p, "rss": fit.rss,
+        rows.append({label: law, "success": ok, "n": fit.n, "parameters": p, "rss": fit.rss,
                      "sigma": fit.sigma, "rho": fit.rho, "noise": fit.noise,
                      "sigma_over_noise": ratio,
                      "fits": not (ratio > NOT_FIT and fit.rho > NOT_FIT_RHO),
@@ -67,13 +72,17 @@ def compare_laws(fits: dict) -> pd.DataFrame:
                      **{k: fit.values.get(k, math.nan) for k in ("a", "b", "dc", "k", "c")}})
     table = pd.DataFrame(rows)
     ok = table[table.success]
+    tightest = ok.rss.idxmin() if len(ok) else None         # nearest the noise
+    f = (1 + table.rho[tightest]) / (1 - table.rho[tightest]) if len(ok) else math.nan
+    table["bic_ar1"] = (table.n * np.log(table.rss / table.n) / f
+                        + table.parameters * np.log(table.n / f))
+    table.loc[~table.success, "bic_ar1"] = math.nan
     table["chosen"] = False
     if len(ok):
-        best = ok.bic.idxmin()
+        best = table.bic_ar1[table.success].idxmin()
         table.loc[best, "chosen"] = True
-        f = (1 + table.rho[best]) / (1 - table.rho[best])
         table["delta_bic"] = table.bic - table.bic[best]
-        table["delta_bic_ar1"] = table.delta_bic / f
+        table["delta_bic_ar1"] = table.bic_ar1 - table.bic_ar1[best]
     else:
         table["delta_bic"] = table["delta_bic_ar1"] = math.nan
-    return table[list(LAW_COLUMNS)]
+    return table[[label, *LAW_COLUMNS[1:]]]
