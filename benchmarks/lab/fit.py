@@ -145,7 +145,8 @@ class LabFit:
     failed_solves: int = 0
     #: the record's own sample-to-sample noise (:func:`sample_noise`), beside σ
     noise: float = math.nan
-    #: Dc's correlation with the trend's slope that it follows most (by |ρ|; NaN: no trend)
+    #: Dc's correlation with the trend's slope that it follows most (largest in size; NaN:
+    #: no trend)
     trend_rho: float = math.nan
     fixed: dict = field(default_factory=dict)
     piece_weights: np.ndarray | None = None
@@ -336,13 +337,13 @@ def sample_noise(mu: np.ndarray) -> float:
     return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6.0))
 
 
-#: |correlation| of ln Dc with a trend slope above which the fit says that they trade
+#: the size of ln Dc's correlation with a trend slope above which the fit says that they trade
 TRADES = 0.9
 
 
 def _trend_correlation(cov: np.ndarray, free, linear_names) -> float:
     """The correlation of ln Dc (``free``'s ``dc``) with the trend slope (a ``trend*`` of
-    ``linear_names``, after ``free`` in ``cov``) of the largest |ρ|; NaN without both."""
+    ``linear_names``, after ``free`` in ``cov``) of the largest size; NaN without both."""
     if "dc" not in free:
         return math.nan
     i = list(free).index("dc")
