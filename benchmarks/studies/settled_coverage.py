@@ -28,8 +28,8 @@ The coverage target: 17–20 of 20 recordings (the central 95 % of Binomial(20, 
 centred on the truth, and so is every odd grid of it: ``invert``'s first 33 × 33 grid had the
 truth as a node, its best cell (the valley is 3e−7 wide in b, and only that node lay in it), and
 the least-squares fit started there. On a rough misfit a fit that starts at the truth stays
-there: the curves' fits of the first 10 recordings ended within 1e−3 of log10 Lc of it, and the
-frames of their posteriors were laid about it. A user's box is not centred on the answer.
+there: the curves' fits of 7 of the first 10 recordings ended within 1e−3 of log10 Lc of it
+(9 within 1e−2), and the frames of their posteriors were laid about it. A user's box is not centred on the answer.
 """
 
 from __future__ import annotations
