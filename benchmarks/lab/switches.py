@@ -68,7 +68,8 @@ def with_switches(record: LabRecord, switches) -> LabRecord:
     s = np.asarray(switches, dtype=float)
     t = record.t
     if s.ndim != 1 or not len(s) or not np.isfinite(s).all() or (np.diff(s) <= 0).any():
-        raise ValueError(f"switch times must be increasing numbers (s), got {list(s)}")
+        raise ValueError("switch times must be increasing numbers (s, file time), got "
+                         + ", ".join(f"{float(v) + record.t_offset:.6g}" for v in s))
     if s[0] <= t[0] or s[-1] >= t[-1]:
         raise ValueError(f"switch times must lie inside the record, from "
                          f"{t[0] + record.t_offset:.6g} to {t[-1] + record.t_offset:.6g} s "
