@@ -23,6 +23,7 @@ import io
 import json
 import os
 import shlex
+import signal
 import sys
 import warnings
 
@@ -98,27 +99,38 @@ def main(argv: list[str] | None = None) -> int:
     json_mode = wants_json(argv)
     with _library_output_to_stderr(keep=argv is None), warnings.catch_warnings():
         warnings.showwarning = _show_warning
-        args = None
         try:
-            begin_run()                           # nothing written yet, no inputs known
-            args = build_parser().parse_args(argv)
-            allow_overwrite(getattr(args, "overwrite", False))
-            args.command_line = shlex.join(["rsfbench", *(sys.argv[1:] if argv is None
-                                                          else argv)])
-            return args.func(args)
-        except ValueError as exc:                 # a user's mistake: say which, no traceback
-            return _fail(_one_line(exc), 2, json_mode)
-        except (RunStopped, OSError, MissingExtra) as exc:   # the run could not go on: say why
-            return _fail(_one_line(exc), 1, json_mode)
-        except KeyboardInterrupt as exc:          # a command may say what it kept
-            kept = (" (a sweep keeps its finished points: run it again to resume)"
-                    if getattr(args, "command", None) == "sweep" else "")
-            return _fail(_one_line(exc) if str(exc) else f"interrupted{kept}", 130, json_mode)
-        except Exception as exc:                  # a bug: one line, the traceback on request
-            if os.environ.get("RSFBENCH_DEBUG"):
-                raise
-            return _fail(f"internal error: {type(exc).__name__}: {_one_line(exc)} (set "
-                         "RSFBENCH_DEBUG=1 for the traceback; please report it)", 3, json_mode)
+            return _command(argv, json_mode)
+        except KeyboardInterrupt:                 # a Ctrl-C while an error was being said:
+            return 130                            # that line stands
+        finally:
+            if argv is None:                      # a program: its status is decided, and a
+                signal.signal(signal.SIGINT, signal.SIG_IGN)    # Ctrl-C while it exits
+                                                                # cannot kill it by SIGINT
+
+
+def _command(argv: list[str] | None, json_mode: bool) -> int:
+    """Parse ``argv``, run the command, and turn what it raises into one line and a status."""
+    args = None
+    try:
+        begin_run()                               # nothing written yet, no inputs known
+        args = build_parser().parse_args(argv)
+        allow_overwrite(getattr(args, "overwrite", False))
+        args.command_line = shlex.join(["rsfbench", *(sys.argv[1:] if argv is None else argv)])
+        return args.func(args)
+    except ValueError as exc:                     # a user's mistake: say which, no traceback
+        return _fail(_one_line(exc), 2, json_mode)
+    except (RunStopped, OSError, MissingExtra) as exc:   # the run could not go on: say why
+        return _fail(_one_line(exc), 1, json_mode)
+    except KeyboardInterrupt as exc:              # a command may say what it kept
+        kept = (" (a sweep keeps its finished points: run it again to resume)"
+                if getattr(args, "command", None) == "sweep" else "")
+        return _fail(_one_line(exc) if str(exc) else f"interrupted{kept}", 130, json_mode)
+    except Exception as exc:                      # a bug: one line, the traceback on request
+        if os.environ.get("RSFBENCH_DEBUG"):
+            raise
+        return _fail(f"internal error: {type(exc).__name__}: {_one_line(exc)} (set "
+                     "RSFBENCH_DEBUG=1 for the traceback; please report it)", 3, json_mode)
 
 
 def _one_line(exc: BaseException) -> str:

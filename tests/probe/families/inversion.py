@@ -18,6 +18,7 @@ Families, complete by construction:
 from __future__ import annotations
 
 import json
+import shutil
 import signal
 import subprocess
 import sys
@@ -360,11 +361,14 @@ def _calibration_no_checks(tmp):
 
 # --- Ctrl-C in each long phase -------------------------------------------------------------------
 
-def _interrupt(args, ready, settle=2.0):
-    """Run ``rsfbench ARGS``, wait until ``ready(tmp, stdout so far)``, then Ctrl-C: one line,
-    exit 130 (or 1), no traceback, within 120 s."""
+def _interrupt(args, ready, settle=2.0, prepare=None):
+    """Run ``rsfbench ARGS`` (after ``prepare(tmp)``), wait until ``ready(tmp, stdout so far)``,
+    then Ctrl-C: one line that says it was interrupted, exit 130 (or 1), no traceback, within
+    120 s."""
     def run(tmp):
         import threading
+        if prepare is not None:
+            prepare(tmp)
         argv = [str(a).replace("{tmp}", str(tmp)) for a in args]
         proc = subprocess.Popen([sys.executable, "-m", "benchmarks.cli", *argv], cwd=ROOT,
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
@@ -389,7 +393,7 @@ def _interrupt(args, ready, settle=2.0):
         errors = [x for x in err.strip().splitlines() if x.startswith("rsfbench: error")]
         last = err.strip().splitlines()[-1] if err.strip() else ""
         if "Traceback" in err or proc.returncode not in (130, 1) or len(errors) != 1 \
-                or last != errors[0]:
+                or last != errors[0] or "interrupted" not in last:
             at = err.find("Traceback")
             shown = err[at:at + 600] + " ... " + err[-200:] if at >= 0 else err[-400:]
             raise Wrong(f"exit {proc.returncode}, stderr: {shown!r}")
@@ -405,14 +409,23 @@ def _interrupt_cases():
                 slow=True, timeout=900)
            for phase, text in (("fit", "least-squares fit"), ("profile", "profile of b"),
                                ("posterior", "posterior:"))]
-    out += [Case("inversion", f"Ctrl-C during {name}",
-                 _interrupt(args, lambda tmp, seen: (tmp / "o").exists(), settle=8.0), "retcode",
-                 slow=True, timeout=900)
-            for name, args in (("calibration", ("study", "calibration", "--out", "{tmp}/o",
-                                                "--set", "seeds=50", "--set", "n=21")),
-                               ("solver-effect", ("study", "solver-effect", "--out", "{tmp}/o",
-                                                  "--set", "n=5")))]
+    out.append(Case("inversion", "Ctrl-C during calibration",
+                    _interrupt(("study", "calibration", "--out", "{tmp}/o", "--set", "seeds=50",
+                                "--set", "n=21"), lambda tmp, seen: (tmp / "o").exists(),
+                               settle=8.0), "retcode", slow=True, timeout=900))
+    # solver-effect reads the full work-precision study's wp_full.csv (refused without it): the
+    # project's record is copied in first, and the Ctrl-C comes 20 s into the run, after the
+    # start-up and the code's hash (a few seconds), inside the inversions
+    out.append(Case("inversion", "Ctrl-C during solver-effect",
+                    _interrupt(("study", "solver-effect", "--out", "{tmp}/o", "--set", "n=5"),
+                               lambda tmp, seen: True, settle=20.0, prepare=_with_wp_full),
+                    "retcode", slow=True, timeout=900))
     return out
+
+
+def _with_wp_full(tmp):
+    (tmp / "o").mkdir()
+    shutil.copyfile(ROOT / "results" / "wp_full.csv", tmp / "o" / "wp_full.csv")
 
 
 def cases() -> list[Case]:
