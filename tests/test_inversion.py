@@ -60,7 +60,8 @@ def test_j2_agrees_with_the_sweep(tmp_path):
     algorithm = Rodas5P(rtol=1e-8, atol=1e-8)
     table = sweep(problem, [0.0092, 0.0094], [3e-7], algorithm, obs, tmp_path,
                   progress=False).table
-    got = Misfit(problem, obs, algorithm).evaluate(table.b.to_numpy(), table.lc_m.to_numpy())
+    got = Misfit(problem, obs, algorithm).evaluate(table.b.to_numpy(), table.lc_m.to_numpy(),
+                                                 j2=True)
     np.testing.assert_allclose(got.J2, table.J2, rtol=1e-12)
 
 

@@ -27,6 +27,7 @@ from problems import preset
 
 ROOT = Path(__file__).resolve().parents[1]
 Z95 = float(np.sqrt(CHI2_95_1DOF))          # the 95 % interval of a χ²₁ profile: ± 1.96 σ
+SCAN = np.linspace(-8.0, -5.0, 41)          # profile()'s default scan of log10 Lc in (1e-8, 1e-5)
 
 
 class Valley:
@@ -45,9 +46,12 @@ class Valley:
         l_valley = self.l0 + self.c * (b - self.b0)
         J = ((b - self.b0) / self.sb) ** 2 + ((np.log10(lc) - l_valley) / self.sl) ** 2
         cycle = np.ones(b.shape, bool)
-        for h in self.holes:             # scan points only: the 41-point grid's spacing
-            on_scan = np.abs(np.log10(lc) - l_valley) < self.width
-            cycle &= ~(np.isclose(b, h, rtol=0, atol=1e-12) & on_scan & (b.size > 1))
+        # scan points only: the nodes of the 41-point scan of log10 Lc over (1e-8, 1e-5) m
+        # (a search's points fall between them)
+        node = np.isclose(np.log10(lc)[:, None], SCAN, rtol=0, atol=1e-9).any(axis=1)
+        for h in self.holes:
+            on_scan = node & (np.abs(np.log10(lc) - l_valley) < self.width)
+            cycle &= ~(np.isclose(b, h, rtol=0, atol=1e-12) & on_scan)
         return pd.DataFrame({"misfit": np.where(cycle, J, 2e6),
                              "log_likelihood": np.where(cycle, -0.5 * J, -np.inf)})
 
@@ -129,6 +133,29 @@ def test_an_interval_narrower_than_the_spacing_is_not_reported_as_resolved():
     p = profile(m, "b", values, (1e-8, 1e-5), refine=0)
     assert not p.resolved and any("not resolved" in w for w in p.warnings)
     assert (p.low, p.high) == (values[0], values[2])
+
+
+def test_the_batched_search_takes_scipys_bounded_steps():
+    """A profile's lines are searched together, one batch a step, by a generator that must be
+    scipy's bounded Brent step for step: the same points in the same order (reference: scipy's
+    minimize_scalar on the same function, recording where it evaluates)."""
+    from scipy.optimize import minimize_scalar
+    from benchmarks.inversion.profile import _bounded
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        c, k = rng.uniform(-1, 2), int(rng.integers(1, 5))
+        a, b = sorted(rng.uniform(-2, 2, 2))
+        f = lambda x: (x - c) ** 2 + 0.3 * np.sin(7 * k * x)     # noqa: E731 (several minima)
+        theirs = []
+        minimize_scalar(lambda x: theirs.append(x) or f(x), bounds=(a, b), method="bounded",
+                        options={"xatol": 1e-6 * (b - a)})
+        ours, search = [], _bounded(a, b, 1e-6 * (b - a))
+        x = next(search)
+        with pytest.raises(StopIteration):
+            while True:
+                ours.append(x)
+                x = search.send(f(x))
+        assert ours == theirs
 
 
 def test_profile_misuse_is_refused():

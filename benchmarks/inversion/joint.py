@@ -32,6 +32,6 @@ def joint_misfit(misfit: Misfit, b, lc, alpha1: float, alpha2: float) -> pd.Data
         raise ValueError("J needs the model's slip-weakening curves, which a misfit makes only "
                          "when the observed curves are in its likelihood: the observations "
                          "have curve_noise 'none'")
-    table = misfit.evaluate(b, lc)
+    table = misfit.evaluate(b, lc, j2=True)
     table["J"] = table.J1 + alpha1 / alpha2 * table.J2
     return table

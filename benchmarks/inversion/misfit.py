@@ -4,8 +4,10 @@
 (:class:`benchmarks.inversion.observations.Observations`) and one algorithm. It evaluates any batch of (b, Lc) on the ensemble engine
 (:func:`benchmarks.ensemble.ensemble`: one compiled batch for the own methods) and returns, per
 point, the limit-cycle metrics, the residuals, J1 (Eq. 10), and with slip-weakening curves their
-χ² (:mod:`benchmarks.inversion.curve_likelihood`) and J2 (Eq. 11, the paper's score); the
-misfit J1 + χ²_curves, which fits and profiles minimise, and the log-likelihood, −misfit/2.
+χ² (:mod:`benchmarks.inversion.curve_likelihood`) and, when asked, J2 (Eq. 11, the paper's
+score: no fit, profile or sampler reads it, and its smooth reading of a noisy model curve is a
+tenth of a curves solve); the misfit J1 + χ²_curves, which fits and profiles minimise, and the
+log-likelihood, −misfit/2.
 
 What an optimizer or a sampler sees at a point **without a limit cycle** is defined, never NaN
 (:func:`benchmarks.inversion.objectives.scores`): each residual is ``NO_CYCLE_RESIDUAL`` σ and J1
@@ -90,13 +92,13 @@ class Misfit:
             if not isinstance(value, kind):
                 raise ValueError(f"{name} must be {kind.__name__}, got {value!r}")
 
-    def evaluate(self, b, lc, progress: bool = False) -> pd.DataFrame:
+    def evaluate(self, b, lc, progress: bool = False, j2: bool = False) -> pd.DataFrame:
         """One row per (b, Lc) pair (``b`` and ``lc`` broadcast together; Lc in m): the
         ensemble's columns, then ``r_recurrence``, ``r_drop`` (residuals in σ), ``J1``,
         ``chi2_curves`` (the curves' χ², :mod:`benchmarks.inversion.curve_likelihood`; 0
         without curves), ``misfit`` (−2 log L + const: J1 + χ²_curves), ``J2`` (Eq. 11's mean
-        over the events, the paper's score; NaN unless the curves are in the likelihood: only
-        then are the model's curves made) and ``log_likelihood``."""
+        over the events, the paper's score; NaN unless ``j2`` and the curves are in the
+        likelihood: only then are the model's curves made) and ``log_likelihood``."""
         b, lc = np.broadcast_arrays(np.asarray(b, dtype=float), np.asarray(lc, dtype=float))
         table = ensemble(self.problem, self.algorithm, {"b": b.ravel(), "lc": lc.ravel()},
                          wall_budget=self.wall_budget,
@@ -116,7 +118,7 @@ class Misfit:
         table["J1"] = s.j1_penalised
         like = o.curve_likelihood
         t = total(s, like, table.get("curve_slip", ()), table.get("curve_friction", ()))
-        table["J2"] = np.nan if like is None else [
+        table["J2"] = np.nan if like is None or not j2 else [
             like.j2(x, y) if c else np.inf
             for c, x, y in zip(cycle, table.curve_slip, table.curve_friction)]
         table["chi2_curves"], table["misfit"], table["log_likelihood"] = t

@@ -35,6 +35,7 @@ undershot). Three things make the interval trustworthy, for any σ and any numbe
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -187,45 +188,124 @@ class _Lines:
     def point(self, v, w):               # (b, Lc) of the profiled value v and the other w
         return (v, 10.0 ** w) if self.parameter == "b" else (w, 10.0 ** v)
 
-    def j1(self, v, w) -> float:
-        """The misfit at one point, inf without a limit cycle (not the finite no-cycle value: a line's
-        minimum must be a cycle's)."""
-        row = self.misfit.evaluate([self.point(v, w)[0]], [self.point(v, w)[1]]).iloc[0]
-        self.n_solves += 1
-        return float(row.misfit) if np.isfinite(row.log_likelihood) else np.inf
-
     def minimise(self, values, hints=None, scan: bool = True) -> list[tuple[float, float]]:
         """``(misfit, other)`` at the minimum of each line: the scan's best point (``scan``: the
         lines are scanned first, in one batch), refined between its neighbours, and about each of
-        the line's ``hints`` (values of the other parameter)."""
-        from scipy.optimize import minimize_scalar
+        the line's ``hints`` (values of the other parameter). Every bracket is searched by
+        Brent's bounded method at once, one batch a step (:meth:`_searches`)."""
         grid, n = self.grid, len(self.grid)
         scans = np.full((len(values), n), np.inf)
         if scan:
             pairs = [self.point(v, w) for v in values for w in grid]
-            table = self.misfit.evaluate(np.array([p[0] for p in pairs]),
-                                         np.array([p[1] for p in pairs]))
-            self.n_solves += len(table)
-            scans = np.where(np.isfinite(table.log_likelihood.to_numpy()), table.misfit.to_numpy(),
-                             np.inf).reshape(len(values), n)
+            scans = self._misfits([p[0] for p in pairs], [p[1] for p in pairs]).reshape(
+                len(values), n)
         step = grid[1] - grid[0]
-        out = []
-        for v, line, extra in zip(values, scans, hints or [[]] * len(values)):
+        found, searches = [], []
+        for i, (v, line, extra) in enumerate(zip(values, scans, hints or [[]] * len(values))):
             k = int(np.argmin(line))
-            found = [(line[k], grid[k])] if np.isfinite(line[k]) else []
-            brackets = [(grid[max(k - 1, 0)], grid[min(k + 1, n - 1)])] if found else []
+            found.append([(line[k], grid[k])] if np.isfinite(line[k]) else [])
+            brackets = [(grid[max(k - 1, 0)], grid[min(k + 1, n - 1)])] if found[i] else []
             brackets += [(max(grid[0], h - step), min(grid[-1], h + step)) for h in extra]
-            for a, c in brackets:
-                seen = {}
+            searches += [(i, v, a, c) for a, c in brackets]
+        for i, w, J in self._searches(searches):
+            if np.isfinite(J):
+                found[i].append((J, w))
+        return [min(f) if f else (np.inf, np.nan) for f in found]
 
-                def f(w):                # no cycle is kept apart: the search sees a large number
-                    seen[w] = self.j1(v, w)
-                    return seen[w] if np.isfinite(seen[w]) else 1e30
-                minimize_scalar(f, bounds=(a, c), method="bounded",
-                                options={"xatol": self.xatol})
-                found += [(J, w) for w, J in seen.items() if np.isfinite(J)]
-            out.append(min(found) if found else (np.inf, np.nan))
-        return out
+    def _misfits(self, b, lc) -> np.ndarray:
+        """The misfit at each (b, Lc), inf without a limit cycle (not the finite no-cycle
+        value: a line's minimum must be a cycle's)."""
+        table = self.misfit.evaluate(np.asarray(b, dtype=float), np.asarray(lc, dtype=float))
+        self.n_solves += len(table)
+        return np.where(np.isfinite(table.log_likelihood.to_numpy()), table.misfit.to_numpy(),
+                        np.inf)
+
+    def _searches(self, searches):
+        """``(line, other, misfit)`` of every point that the bounded searches ``searches``
+        (``(line, value, low, high)`` of the other parameter) evaluated: each is
+        :func:`_bounded`, and each step of all of them is one batch."""
+        running = {}
+        for j, (i, v, a, c) in enumerate(searches):
+            search = _bounded(a, c, self.xatol)
+            running[j] = (search, next(search))
+        while running:
+            keys = list(running)
+            pairs = [self.point(searches[j][1], running[j][1]) for j in keys]
+            values = self._misfits([p[0] for p in pairs], [p[1] for p in pairs])
+            for j, J in zip(keys, values):
+                search, w = running.pop(j)
+                yield searches[j][0], w, J
+                try:       # no cycle is kept apart: the search sees a large number
+                    running[j] = (search, search.send(J if np.isfinite(J) else 1e30))
+                except StopIteration:
+                    pass
+
+
+def _bounded(a: float, b: float, xatol: float, maxfun: int = 500):
+    """Brent's bounded minimisation of a function on [a, b] as a generator: it yields the next
+    point and is sent the function's value there, until it returns. The steps of
+    ``scipy.optimize.minimize_scalar(method="bounded", options={"xatol": xatol})`` (scipy's
+    ``_minimize_scalar_bounded``, the same points in the same order), so that many searches can
+    share each batch of solves."""
+    sqrt_eps = math.sqrt(2.2e-16)
+    golden_mean = 0.5 * (3.0 - math.sqrt(5.0))
+    fulc = a + golden_mean * (b - a)
+    nfc, xf = fulc, fulc
+    rat = e = 0.0
+    fx = yield xf
+    num = 1
+    ffulc = fnfc = fx
+    xm = 0.5 * (a + b)
+    tol1 = sqrt_eps * abs(xf) + xatol / 3.0
+    tol2 = 2.0 * tol1
+    while abs(xf - xm) > tol2 - 0.5 * (b - a):
+        golden = True
+        if abs(e) > tol1:                        # a parabola through the three best points
+            golden = False
+            r = (xf - nfc) * (fx - ffulc)
+            q = (xf - fulc) * (fx - fnfc)
+            p = (xf - fulc) * q - (xf - nfc) * r
+            q = 2.0 * (q - r)
+            if q > 0.0:
+                p = -p
+            q = abs(q)
+            r, e = e, rat
+            if abs(p) < abs(0.5 * q * r) and q * (a - xf) < p < q * (b - xf):
+                rat = (p + 0.0) / q
+                x = xf + rat
+                if (x - a) < tol2 or (b - x) < tol2:
+                    rat = tol1 * (np.sign(xm - xf) + ((xm - xf) == 0))
+            else:
+                golden = True
+        if golden:                               # a golden-section step
+            e = (a - xf) if xf >= xm else (b - xf)
+            rat = golden_mean * e
+        x = xf + (np.sign(rat) + (rat == 0)) * max(abs(rat), tol1)
+        fu = yield x
+        num += 1
+        if fu <= fx:
+            if x >= xf:
+                a = xf
+            else:
+                b = xf
+            fulc, ffulc = nfc, fnfc
+            nfc, fnfc = xf, fx
+            xf, fx = x, fu
+        else:
+            if x < xf:
+                a = x
+            else:
+                b = x
+            if fu <= fnfc or nfc == xf:
+                fulc, ffulc = nfc, fnfc
+                nfc, fnfc = x, fu
+            elif fu <= ffulc or fulc == xf or fulc == nfc:
+                fulc, ffulc = x, fu
+        xm = 0.5 * (a + b)
+        tol1 = sqrt_eps * abs(xf) + xatol / 3.0
+        tol2 = 2.0 * tol1
+        if num >= maxfun:
+            return
 
 
 def _repair_and_bisect(lines: _Lines, points: dict, refine: int) -> None:
