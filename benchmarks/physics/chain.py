@@ -61,6 +61,9 @@ import math
 from dataclasses import asdict, dataclass
 
 import numpy as np
+from numba import njit
+
+from benchmarks.physics.pchip import pchip
 
 __all__ = ["Chain", "smooth", "lowpass", "event_levels", "friction", "crossing", "FORCE_HZ",
            "ACCELERATION_HZ", "SLIP_HZ", "PHASES", "NOISY_PHASES", "START_FACTOR"]
@@ -221,6 +224,29 @@ def crossing(t: np.ndarray, x: np.ndarray, level: float, i: int) -> float:
     return float(t[i - 1] + min(max(f, 0.0), 1.0) * (t[i] - t[i - 1]))
 
 
+@njit(cache=True, nogil=True)
+def _pooled(ts, rate, u, mu, i0, i1, level):
+    """Every phase's (row's) samples from ``i0`` to ``i1`` (both > 0, ``i1`` inside the row)
+    as :meth:`Chain._timed` takes them, unsorted and in the phases' order: the slip since
+    the start's :func:`crossing` of ``level`` on ``rate``, and the friction."""
+    size = 0
+    for k in range(len(i0)):
+        size += i1[k] - i0[k] + 1
+    x, y = np.empty(size), np.empty(size)
+    at = 0
+    for k in range(len(i0)):
+        a, b = i0[k], i1[k]
+        r0, r1 = rate[k, a - 1], rate[k, a]
+        f = 0.0 if r1 == r0 else (level - r0) / (r1 - r0)
+        tc = ts[k, a - 1] + min(max(f, 0.0), 1.0) * (ts[k, a] - ts[k, a - 1])
+        start = np.interp(tc, ts[k], u[k])
+        for j in range(a, b + 1):
+            x[at] = u[k, j] - start
+            y[at] = mu[k, j]
+            at += 1
+    return x, y
+
+
 @dataclass(frozen=True)
 class Chain:
     """What ``observe`` did to a recording to read its curves (module docstring).
@@ -350,7 +376,6 @@ class Chain:
         friction : numpy.ndarray
             The friction (Ft/Fn) there; both empty when the event does not fit the window.
         """
-        from scipy.interpolate import PchipInterpolator
         noisy = self.slip_noise > 0 and self.slip_from == "slip column"
         phases = phases or (NOISY_PHASES if noisy else PHASES)
         dt = 1.0 / self.rate_hz
@@ -358,7 +383,7 @@ class Chain:
         if n <= PADLEN:
             return np.empty(0), np.empty(0)
         ts = t[0] + (np.arange(phases)[:, None] / phases + np.arange(n)) * dt   # phase × sample
-        u, f, r = np.moveaxis(PchipInterpolator(t, np.column_stack([slip, fs, ft]))(ts), -1, 0)
+        u, f, r = np.moveaxis(pchip(t, np.column_stack([slip, fs, ft]), ts), -1, 0)
         mu = lowpass(f, self.force_hz, self.rate_hz) - lowpass(f - r, self.acceleration_hz,
                                                                self.rate_hz)
         rate = np.gradient(smooth(u, self.timing_hz, self.rate_hz), dt, axis=-1)
@@ -366,14 +391,15 @@ class Chain:
             u = u + self.slip_noise * np.random.default_rng(47).standard_normal((n, phases)).T
         if self.slip_from == "slip column":
             u = lowpass(u, self.slip_hz, self.rate_hz)
-        curves = [self._timed(ts[k], rate[k], u[k], mu[k], i0, i1)
-                  for k, (i0, i1) in enumerate(zip(*self._bounds(rate)))]
-        if any(len(x) < 2 for x, _ in curves):
-            return np.empty(0), np.empty(0)
+        i0, i1 = self._bounds(rate)
+        if (i0 == 0).any() or (i1 >= n).any() or (i1 <= i0).any():   # no event, one that
+            return np.empty(0), np.empty(0)                           # runs off the window
         if noisy:                  # every phase's samples, as a recorder's: read as events are
-            x, y = np.concatenate([x for x, _ in curves]), np.concatenate([y for _, y in curves])
+            x, y = _pooled(ts, rate, u, mu, i0, i1, self.start_level)
             order = np.argsort(x, kind="stable")
             return x[order], y[order]
+        curves = [self._timed(ts[k], rate[k], u[k], mu[k], i0[k], i1[k])
+                  for k in range(phases)]
         grid = np.unique(np.concatenate([x for x, _ in curves]))
         return grid, np.mean([np.interp(grid, x, y) for x, y in curves], axis=0)
 
