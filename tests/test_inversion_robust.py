@@ -27,7 +27,7 @@ from problems import preset
 
 ROOT = Path(__file__).resolve().parents[1]
 Z95 = float(np.sqrt(CHI2_95_1DOF))          # the 95 % interval of a χ²₁ profile: ± 1.96 σ
-SCAN = np.linspace(-8.0, -5.0, 41)          # profile()'s default scan of log10 Lc in (1e-8, 1e-5)
+SCAN = np.linspace(-8.0, -5.0, 41)          # every node of a 21- or 41-point scan of log10 Lc
 
 
 class Valley:
@@ -46,7 +46,7 @@ class Valley:
         l_valley = self.l0 + self.c * (b - self.b0)
         J = ((b - self.b0) / self.sb) ** 2 + ((np.log10(lc) - l_valley) / self.sl) ** 2
         cycle = np.ones(b.shape, bool)
-        # scan points only: the nodes of the 41-point scan of log10 Lc over (1e-8, 1e-5) m
+        # scan points only: the nodes of a 21- or 41-point scan of log10 Lc over (1e-8, 1e-5) m
         # (a search's points fall between them)
         node = np.isclose(np.log10(lc)[:, None], SCAN, rtol=0, atol=1e-9).any(axis=1)
         for h in self.holes:
@@ -91,7 +91,7 @@ def test_a_profile_whose_scan_misses_the_valley_is_repaired_from_its_neighbours(
     neighbours. Re-minimised from the neighbours' optima, the profile is the closed form."""
     values = np.linspace(0.0086, 0.0102, 9)
     holes = (values[2], values[6])
-    m = Valley(4e-4, 0.05, holes=holes, width=0.2)
+    m = Valley(4e-4, 0.05, holes=holes, width=0.35)
     raw = profile(m, "b", values, (1e-8, 1e-5), refine=0)
     spiky = raw.table.set_index("b").misfit
     exact = ((values - 0.0094) / 4e-4) ** 2
