@@ -612,3 +612,38 @@ def test_the_command_refuses_in_one_line(args, match):
     out = _cli(BASALT, *args, "--no-profiles", "--no-solver-check")
     assert out.returncode == 2 and "Traceback" not in out.stderr
     assert match in out.stderr and len(out.stderr.strip().splitlines()) == 1
+
+
+def test_the_drift_term_is_the_covariance_of_a_random_walks_error():
+    """drift_covariance(J, σ²) = σ² B CᵀC B is the covariance of the least-squares error
+    B Jᵀ w of a random walk w with steps of variance σ²: checked against 20,000 walks drawn
+    (Monte Carlo, within 5 %), J random."""
+    from benchmarks.lab.fit import drift_covariance
+    rng = np.random.default_rng(4)
+    jac = rng.standard_normal((300, 2)) + np.linspace(0, 3, 300)[:, None] * [1.0, -0.5]
+    b = np.linalg.inv(jac.T @ jac)
+    walks = np.cumsum(rng.standard_normal((20_000, 300)) * 0.3, axis=1)
+    errors = walks @ jac @ b
+    np.testing.assert_allclose(drift_covariance(jac, 0.09), np.cov(errors.T), rtol=0.05)
+    assert not drift_covariance(jac, 0.0).any()
+
+
+def test_drift_is_found_in_a_walk_and_rarely_in_white_or_ar1_noise():
+    """drift_variance: a random walk under white noise is found and its step variance read
+    within a factor 2 (the truth is known: it was drawn); white noise, and AR(1) noise given
+    its ρ, pass for a drift in at most 3 of 50 records (the test's rate is 1 %)."""
+    from benchmarks.lab.fit import drift_variance
+    rng = np.random.default_rng(7)
+    n, found = 4000, {"white": 0, "ar1": 0}
+    for _ in range(50):
+        found["white"] += drift_variance(rng.standard_normal(n), 0.0) > 0
+        e = np.zeros(n)
+        z = rng.standard_normal(n)
+        for i in range(1, n):
+            e[i] = 0.8 * e[i - 1] + z[i]
+        found["ar1"] += drift_variance(e, 0.8) > 0
+    assert found["white"] <= 3 and found["ar1"] <= 3
+    step = 0.05
+    reads = [drift_variance(rng.standard_normal(n) + np.cumsum(rng.standard_normal(n)) * step,
+                            0.0) for _ in range(20)]
+    assert sum(0.5 * step ** 2 < v < 2 * step ** 2 for v in reads) >= 16

@@ -330,8 +330,12 @@ def _doc(args, record, fit, table, fixed, notes, profiles, check, inertia, poste
                             orient="records")},
             "samples": fit.n, "parameters": table.to_dict(orient="records"),
             "noise": {"model": "AR(1): sigma from the residuals, rho their lag-1 "
-                               "autocorrelation, covariance inflated by (1+rho)/(1-rho)",
+                               "autocorrelation, covariance inflated by (1+rho)/(1-rho); plus "
+                               "a random walk of drift_sigma per sample read from the "
+                               "residuals' variogram, its share of each parameter's error "
+                               "added (benchmarks.lab.fit.drift_covariance)",
                       "sigma": fit.sigma, "rho": fit.rho, "inflation": fit.inflation,
+                      "drift_sigma": fit.drift_sigma, "drift_factor": fit.drift_factor,
                       "record_noise": fit.noise,
                       "record_noise_is": "the robust spread of mu's second differences / "
                                          "sqrt(6), no model (benchmarks.lab.fit.sample_noise)"},
@@ -421,6 +425,11 @@ def _report(fit, table, profiles, check, inertia, notes, record, args) -> None:
         f"inflated ×{fit.inflation:.3g} and the standard errors ×{math.sqrt(fit.inflation):.3g}; "
         "Wald intervals are value ± 1.96 se, profile ones where the squares rise by 3.84 f σ² "
         "(trust the profile where they differ; an open end is the parameter's bound)")
+    if fit.drift_sigma > 0:
+        grown = ", ".join(f"{k} ×{math.sqrt(v):.3g}" for k, v in fit.drift_factor.items())
+        say(f"drift: the residuals wander as a random walk of {fit.drift_sigma:.3g} per sample "
+            f"beyond their AR(1) correlation (their variogram's slope); its share widens the "
+            f"standard errors ({grown}) and each profile's unit alike")
     for note in notes:
         say(f"note: {note}")
     if check is not None:

@@ -17,8 +17,21 @@ so a difference is ~10⁻⁵ above the integrator's noise.
 RSS/(n − p) and ρ the residuals' lag-1 autocorrelation (0 if negative). The covariance is
 f σ² (JᵀJ)⁻¹ with f = (1 + ρ)/(1 − ρ), the variance inflation of a mean under AR(1) noise (f = 1
 for white noise; a record's drift and unmodelled wiggles make ρ near 1, and f large, honestly).
+
+**Slow drift** (a random walk under the noise, as real records wander) is what AR(1) does not
+see: its correlation outlives any ρ < 1. It is read from the residuals' variogram
+γ(ℓ) = ½ mean (r[i + ℓ] − r[i])², which a random walk of variance σ²_rw per sample makes rise
+as σ²_rw ℓ/2 beyond the AR(1) correlation: the slope of γ against ℓ/2 by least squares over
+:data:`DRIFT_POINTS` lags spaced evenly in log from :data:`DRIFT_LAGS` AR(1) correlation lengths
+(1/(1 − ρ)) to 1/:data:`DRIFT_SPAN` of the record (0 if it falls, or if the means of
+:data:`DRIFT_SPAN` blocks of residuals vary no more than AR(1) noise lets them,
+:data:`DRIFT_TEST`). The walk's share of the
+parameters' errors is added to the covariance: σ²_rw B CᵀC B, with B = (JᵀJ)⁻¹ and C the
+reverse cumulative sums of J's rows (a walk's step at sample j moves every residual after it:
+Jᵀw = Cᵀη). σ²_rw is the walk's share beyond what σ² already holds of it: the sum errs wide.
 Intervals: Wald (value ± 1.96 s.e.; Dc and k′ on the log scale) here, profile intervals in
-:mod:`benchmarks.lab.profile_intervals` (Δ(RSS)/(f σ²) ≤ 3.84). A parameter at a bound of
+:mod:`benchmarks.lab.profile_intervals` (Δ(RSS)/(f σ²) ≤ 3.84, the unit widened by each
+parameter's share of the walk: :meth:`LabFit.profile_scale`). A parameter at a bound of
 :data:`BOUNDS` is named (``at_bound``) and its interval is not a confidence interval.
 
 Its checks (the integrator, the inertia) are :mod:`benchmarks.lab.checks`.
@@ -40,7 +53,8 @@ import pandas as pd
 from scipy.optimize import least_squares
 
 __all__ = ["LabFit", "fit_lab", "LabFitWarning", "starting_values", "BOUNDS", "FD_STEP",
-           "sample_noise", "NOT_FIT", "NOT_FIT_RHO", "TRADES",
+           "sample_noise", "NOT_FIT", "NOT_FIT_RHO", "TRADES", "drift_variance",
+           "drift_covariance", "DRIFT_TEST",
            "DC_STARTS", "Z95", "SETTLE_DC", "PARAMETER_UNITS", "covariance",
            "RANK_TOL", "DC_LONGEST", "coordinate_bounds"]
 
@@ -148,6 +162,10 @@ class LabFit:
     #: Dc's correlation with the trend's slope that it follows most (largest in size; NaN:
     #: no trend)
     trend_rho: float = math.nan
+    #: the random walk's σ per sample read from the residuals (:func:`drift_variance`; 0: none)
+    drift_sigma: float = 0.0
+    #: each free parameter's variance with the walk ÷ without it (≥ 1)
+    drift_factor: dict = field(default_factory=dict)
     fixed: dict = field(default_factory=dict)
     piece_weights: np.ndarray | None = None
     success: bool = True
@@ -157,6 +175,11 @@ class LabFit:
     def inflation(self) -> float:
         """f = (1 + ρ)/(1 − ρ), the AR(1) noise's variance inflation."""
         return (1.0 + self.rho) / (1.0 - self.rho)
+
+    def profile_scale(self, name: str) -> float:
+        """The unit of a rise of the squares in ``name``'s profile: f σ² times its variance's
+        growth by the drift (:attr:`drift_factor`)."""
+        return self.noise_variance * self.drift_factor.get(name, 1.0)
 
     @property
     def noise_variance(self) -> float:
@@ -360,6 +383,53 @@ def _trend_correlation(cov: np.ndarray, free, linear_names) -> float:
     return best
 
 
+#: the drift's variogram: lags from DRIFT_LAGS AR(1) correlation lengths to 1/DRIFT_SPAN of
+#: the record, DRIFT_POINTS of them spaced evenly in log
+DRIFT_LAGS, DRIFT_SPAN, DRIFT_POINTS = 10.0, 20, 12
+#: a drift is taken only where the variance of the residuals' means over DRIFT_SPAN blocks
+#: exceeds what AR(1) noise gives them (f σ²/block length) by more than the 99th percentile of
+#: χ²(19)/19 = 36.19/19: white or AR(1) noise alone passes for a drift once in a hundred records
+DRIFT_TEST = 36.19 / 19
+
+
+def drift_variance(r: np.ndarray, rho: float) -> float:
+    """σ²_rw, the variance per sample of a random walk in the residuals ``r`` (in time order)
+    beyond their AR(1) correlation ``rho`` (module docstring); 0 when their block means do not
+    vary beyond AR(1) noise's (:data:`DRIFT_TEST`), their variogram does not rise, or the
+    record is too short for two lags."""
+    n = len(r)
+    first = max(2, math.ceil(DRIFT_LAGS / max(1.0 - rho, 1e-3)))
+    last = n // DRIFT_SPAN
+    if last <= first:
+        return 0.0
+    means = r[:last * DRIFT_SPAN].reshape(DRIFT_SPAN, last).mean(axis=1)
+    inflation = (1.0 + rho) / (1.0 - rho)
+    if not np.var(means, ddof=1) > DRIFT_TEST * inflation * np.var(r) / last:
+        return 0.0
+    lags = np.unique(np.geomspace(first, last, DRIFT_POINTS).astype(int))
+    gamma = np.array([0.5 * np.mean((r[k:] - r[:-k]) ** 2) for k in lags])
+    design = np.column_stack([np.ones(len(lags)), lags / 2.0])
+    (_, slope), *_ = np.linalg.lstsq(design, gamma, rcond=None)
+    return max(float(slope), 0.0)
+
+
+def drift_covariance(jac: np.ndarray, variance: float) -> np.ndarray:
+    """σ²_rw B CᵀC B (module docstring) over ``jac``'s columns, B = (JᵀJ)⁻¹ on the directions
+    the data determine (:func:`covariance`); 0 where B is not finite, and without a walk."""
+    n = jac.shape[1]
+    out = np.zeros((n, n))
+    if not variance > 0:
+        return out
+    b = covariance(jac, 1.0)
+    ok = np.isfinite(np.diag(b)) & np.isfinite(b).all(axis=0)
+    if not ok.any():
+        return out
+    c = np.cumsum(jac[::-1, ok], axis=0)[::-1]
+    bk = b[np.ix_(ok, ok)]
+    out[np.ix_(ok, ok)] = variance * bk @ (c.T @ c) @ bk
+    return out
+
+
 def _lag1(r: np.ndarray) -> float:
     r = r - r.mean()
     d = float(r @ r)
@@ -486,13 +556,19 @@ def _result(prob, res, wall_s) -> LabFit:
     rho = _lag1(r[prob.w > 0])
     f = (1 + rho) / (1 - rho)
     jac = prob.jacobian(x)
-    cov = covariance(jac, f * sigma ** 2)
+    walk = drift_variance(r[prob.w > 0], rho)
+    ar1 = covariance(jac, f * sigma ** 2)
+    cov = ar1 + drift_covariance(jac, walk)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        grow = np.diag(cov) / np.diag(ar1)
+    drift_factor = {name: float(g) if np.isfinite(g) and g >= 1 else 1.0
+                    for name, g in zip(prob.free, grow)}
     # the linear parameters' errors and their correlations with the others: the full
     # problem's covariance, from the unprojected Jacobian (the projected one is orthogonal to
     # the basis, and would leave out what the nonlinear parameters' uncertainty adds)
     full = np.column_stack([prob.jacobian(x, projected=False),
                             -prob.w[:, None] * model.linear_basis()])
-    full_cov = covariance(full, f * sigma ** 2)
+    full_cov = covariance(full, f * sigma ** 2) + drift_covariance(full, walk)
     params = prob.params(x)
     values = dict(params)
     values["a_minus_b"] = values["a"] - values["b"]
@@ -512,7 +588,7 @@ def _result(prob, res, wall_s) -> LabFit:
                  linear_se=linear_se, residuals=r, mu_model=mu_model, rss=rss, sigma=sigma,
                  rho=rho, n=n, at_bound=at_bound, solves=prob.solves, wall_s=wall_s,
                  failed_solves=prob.failed, noise=sample_noise(model.record.mu[prob.w > 0]),
-                 trend_rho=trend_rho,
+                 trend_rho=trend_rho, drift_sigma=math.sqrt(walk), drift_factor=drift_factor,
                  weights=prob.w, fixed=dict(prob.fixed), piece_weights=prob.piece_weights,
                  success=ok and res.status > 0,
                  message=res.message if ok else "the forward model failed at the fit's end")

@@ -120,7 +120,7 @@ def profile_lab(fit: LabFit, parameter: str, level: float = CHI2_95_1DOF) -> Lab
     others = tuple(n for n in fit.free if n != parameter)
     best = {n: fit.values[n] for n in fit.free}
     u_best = math.log(best[parameter]) if parameter in _LOG else best[parameter]
-    scale = fit.noise_variance
+    scale = fit.profile_scale(parameter)
     lo_bound, hi_bound = coordinate_bounds(fit.free)
     bounds = (lo_bound[j], hi_bound[j])
     step0 = fit.se(parameter) if math.isfinite(fit.se(parameter)) and fit.se(parameter) > 0 \
