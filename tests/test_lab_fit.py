@@ -647,3 +647,5 @@ def test_drift_is_found_in_a_walk_and_rarely_in_white_or_ar1_noise():
     reads = [drift_variance(rng.standard_normal(n) + np.cumsum(rng.standard_normal(n)) * step,
                             0.0) for _ in range(20)]
     assert sum(0.5 * step ** 2 < v < 2 * step ** 2 for v in reads) >= 16
+    # a fit whose forward model failed has NaN residuals and ρ: no drift, no error
+    assert drift_variance(np.full(n, np.nan), math.nan) == 0.0

@@ -331,3 +331,20 @@ def test_lowpass_is_scipys_sosfiltfilt_to_the_bit():
         for z in (x, x[0]):
             want = signal.sosfiltfilt(sos, z - z[..., :1], axis=-1) + z[..., :1]
             assert np.array_equal(lowpass(z, cutoff, 10_000.0), want)
+
+
+def test_the_kernel_reading_is_the_dense_sum_and_continuous_beyond_a_curves_end():
+    """kernel_read sums only the samples near each slip; the reference is the dense Gaussian
+    sum over every sample (to 1e-14), and a reading 8.7 bandwidths before a short curve's
+    first sample moves by a hair across that distance, not a jump (the window is relative to
+    the nearest sample, not a fixed reach)."""
+    rng = np.random.default_rng(1)
+    x = np.concatenate([np.linspace(0, 3e-4, 800), 3e-4 + 3e-6 * rng.standard_normal(800)])
+    y = np.sin(x * 1e4) + 0.01 * rng.standard_normal(x.size)
+    at = np.linspace(-2e-5, x.max() + 3e-5, 2000)
+    h = np.full(at.size, 1.1e-6)
+    w = np.exp(-0.5 * ((x[None, :] - at[:, None]) / h[:, None]) ** 2)
+    np.testing.assert_allclose(kernel_read(at, h, x, y), (w @ y) / w.sum(axis=1), atol=1e-14)
+    xs, ys = np.array([0.0, 0.003, 0.006]), np.array([0.0, 1.0, 0.5])
+    a, b = kernel_read(np.array([-0.087 - 1e-9, -0.087 + 1e-9]), np.full(2, 0.01), xs, ys)
+    assert abs(a - b) < 1e-7

@@ -19,6 +19,7 @@
 from __future__ import annotations
 
 import contextlib
+import functools
 import io
 import json
 import os
@@ -99,14 +100,23 @@ def main(argv: list[str] | None = None) -> int:
     json_mode = wants_json(argv)
     with _library_output_to_stderr(keep=argv is None), warnings.catch_warnings():
         warnings.showwarning = _show_warning
+        status = 130
         try:
-            return _command(argv, json_mode)
+            status = _command(argv, json_mode)
         except KeyboardInterrupt:                 # a Ctrl-C while an error was being said:
-            return 130                            # that line stands
+            pass                                  # that line stands
         finally:
-            if argv is None:                      # a program: its status is decided, and a
-                signal.signal(signal.SIGINT, signal.SIG_IGN)    # Ctrl-C while it exits
-                                                                # cannot kill it by SIGINT
+            if argv is None:                      # a program whose status is decided: a
+                signal.signal(signal.SIGINT,      # Ctrl-C while it exits (waiting for work
+                              functools.partial(_leave, status))   # in flight) leaves with it
+        return status
+
+
+def _leave(status: int, signum, frame) -> None:
+    """Leave now with ``status``: a Ctrl-C after the command's status was decided."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(status)
 
 
 def _command(argv: list[str] | None, json_mode: bool) -> int:

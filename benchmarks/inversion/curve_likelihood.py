@@ -77,7 +77,8 @@ MIN_SPREAD = 1e-7
 SPACING_FACTOR = 2.0
 #: the points of a model's curve made from pooled noisy samples (:meth:`CurveLikelihood.curve`)
 CURVE_GRID = 400
-#: the kernel's reach in bandwidths: a sample farther out weighs exp(−z²/2) < 3e−18 of a near one
+#: the kernel's reach beyond the nearest sample, in bandwidths: a sample whose z² exceeds the
+#: nearest one's by more than this squared weighs under exp(−40.5) = 2.6e−18 of it
 KERNEL_REACH = 9.0
 
 
@@ -85,9 +86,9 @@ def kernel_read(slips: np.ndarray, bandwidth: np.ndarray, slip: np.ndarray,
                 friction: np.ndarray) -> np.ndarray:
     """A curve's friction at ``slips`` (m): at each, the mean of the samples (``slip``,
     ``friction``) weighted by a Gaussian of their slip's distance in units of its ``bandwidth``
-    (m, one per slip), over the samples within :data:`KERNEL_REACH` bandwidths; where there
-    is none, the curve interpolated linearly (the nearest end's friction beyond a curve that
-    ends short)."""
+    (m, one per slip), over the samples within :data:`KERNEL_REACH` bandwidths beyond the
+    nearest one (a curve that ends short is read as its last samples' kernel mean); where the
+    weights are not finite (a bandwidth of 0), the curve interpolated linearly."""
     slips = np.ascontiguousarray(slips, dtype=float)
     bandwidth = np.ascontiguousarray(np.broadcast_to(bandwidth, slips.shape), dtype=float)
     order = np.argsort(slip, kind="stable")
@@ -100,14 +101,22 @@ def kernel_read(slips: np.ndarray, bandwidth: np.ndarray, slip: np.ndarray,
 @njit(cache=True, error_model="numpy")
 def _kernel_sums(slips, bandwidth, xs, ys):
     """Σ w·y and Σ w at each of ``slips`` over the samples (``xs`` sorted), w the Gaussian of
-    the distance in bandwidths: only the samples within :data:`KERNEL_REACH` bandwidths, found
-    by bisection."""
+    the distance in bandwidths: only the samples whose z² is within :data:`KERNEL_REACH`² of
+    the nearest sample's, found by bisection (the sum is then continuous in the slip, and
+    never empty)."""
     weighted = np.zeros(slips.size)
     total = np.zeros(slips.size)
     for i in range(slips.size):
         h = bandwidth[i]
-        lo = np.searchsorted(xs, slips[i] - KERNEL_REACH * h)
-        hi = np.searchsorted(xs, slips[i] + KERNEL_REACH * h, side="right")
+        k = np.searchsorted(xs, slips[i])
+        near = np.inf
+        if k < xs.size:
+            near = xs[k] - slips[i]
+        if k > 0:
+            near = min(near, slips[i] - xs[k - 1])
+        reach = np.sqrt(near * near + (KERNEL_REACH * h) ** 2)
+        lo = np.searchsorted(xs, slips[i] - reach)
+        hi = np.searchsorted(xs, slips[i] + reach, side="right")
         for j in range(lo, hi):
             z = (xs[j] - slips[i]) / h
             w = np.exp(-0.5 * z * z)

@@ -209,7 +209,8 @@ class _Lines:
             k = int(np.argmin(line))
             found.append([(line[k], grid[k])] if np.isfinite(line[k]) else [])
             brackets = [(grid[max(k - 1, 0)], grid[min(k + 1, n - 1)])] if found[i] else []
-            brackets += [(max(grid[0], h - step), min(grid[-1], h + step)) for h in extra]
+            brackets += [(max(grid[0], h - step), min(grid[-1], h + step))
+                         for h in np.clip(extra, grid[0], grid[-1])]
             searches += [(i, v, a, c) for a, c in brackets]
         for i, w, J in self._searches(searches):
             if np.isfinite(J):

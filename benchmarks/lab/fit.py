@@ -396,7 +396,9 @@ def drift_variance(r: np.ndarray, rho: float) -> float:
     """σ²_rw, the variance per sample of a random walk in the residuals ``r`` (in time order)
     beyond their AR(1) correlation ``rho`` (module docstring); 0 when their block means do not
     vary beyond AR(1) noise's (:data:`DRIFT_TEST`), their variogram does not rise, or the
-    record is too short for two lags."""
+    record is too short for two lags (or ``r`` is not finite)."""
+    if not (math.isfinite(rho) and np.isfinite(r).all()):    # a fit whose model failed
+        return 0.0
     n = len(r)
     first = max(2, math.ceil(DRIFT_LAGS / max(1.0 - rho, 1e-3)))
     last = n // DRIFT_SPAN
