@@ -128,6 +128,10 @@ class LabFit:
         The record's own noise, from its second differences (:func:`sample_noise`).
     trend_rho : float
         The correlation of ln Dc with the trend slope it follows most (:data:`TRADES`).
+    drift_sigma : float
+        The random walk's σ per sample under the noise (:func:`drift_variance`; 0: none).
+    drift_factor : dict of str to float
+        Each free parameter's variance with the walk ÷ without it (≥ 1).
     fixed : dict of str to float
         The parameters held at given values.
     piece_weights : numpy.ndarray, optional

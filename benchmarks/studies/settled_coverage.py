@@ -18,9 +18,9 @@ placed at random about the truth (:func:`prior_box`):
 * ``solver-effect``: whether it answers (exit 0 or 1 with its table written).
 
 Each posterior attempt that failed its checks is in ``settled_coverage.csv`` (the route and the
-checks, ``*_failed_attempts``). Measured over 12 recordings at c703b41 (medians): the means'
-inversion 66 s, the curves' 156 s (a zoomed grid each time), solver-effect 106 s: about 6.5 min
-a recording, over 2 h for the 20 on 2 cores, hence ``--set recordings=N``. A command is stopped after :data:`COMMAND_BUDGET_S`.
+checks, ``*_failed_attempts``). Measured over 20 recordings at 782b09f (medians): the means'
+inversion 49 s, the curves' 95 s (a zoomed grid each time), solver-effect 109 s: about 4 min a
+recording, 94 min for the 20 on 2 cores, hence ``--set recordings=N``. A command is stopped after :data:`COMMAND_BUDGET_S`.
 
 The coverage target: 17–20 of 20 recordings (the central 95 % of Binomial(20, 0.95)).
 

@@ -168,8 +168,9 @@ def _law_cases():
 # --- profile intervals on analytic misfits -------------------------------------------------------
 
 class _Valley:
-    """J1 = ((b − b0)/sb)² + ((l − l0 − c (b − b0))/sl)², l = log10 Lc; the scan points (batches)
-    of the b values in ``holes`` within ``width`` of the valley have no cycle."""
+    """J1 = ((b − b0)/sb)² + ((l − l0 − c (b − b0))/sl)², l = log10 Lc; the scan points (the
+    nodes of a 21- or 41-point scan of log10 Lc over (1e-8, 1e-5) m: a search's points fall
+    between them) of the b values in ``holes`` within ``width`` of the valley have no cycle."""
 
     def __init__(self, sb, sl, c=300.0, holes=(), width=0.0):
         self.sb, self.sl, self.c, self.holes, self.width = sb, sl, c, holes, width
@@ -179,9 +180,10 @@ class _Valley:
         valley = -6.5 + self.c * (b - 0.0094)
         J = ((b - 0.0094) / self.sb) ** 2 + ((l - valley) / self.sl) ** 2
         cycle = np.ones(b.shape, bool)
+        node = np.isclose(l[:, None], np.linspace(-8.0, -5.0, 41), rtol=0, atol=1e-9).any(axis=1)
         for h in self.holes:
             cycle &= ~(np.isclose(b, h, rtol=0, atol=1e-12) & (np.abs(l - valley) < self.width)
-                       & (b.size > 1))
+                       & node)
         return pd.DataFrame({"misfit": np.where(cycle, J, 2e6),
                              "log_likelihood": np.where(cycle, -0.5 * J, -np.inf)})
 
@@ -190,7 +192,7 @@ def _closed_form(points, sb, sl, refine=12, holes=False, expect_resolved=True):
     def run(tmp):
         from benchmarks.inversion.profile import profile
         values = np.linspace(0.0086, 0.0102, points)
-        m = _Valley(sb, sl, holes=(values[2], values[-3]) if holes else (), width=0.2)
+        m = _Valley(sb, sl, holes=(values[2], values[-3]) if holes else (), width=0.35)
         p = profile(m, "b", values, (1e-8, 1e-5), refine=refine)
         half = Z95 * sb
         if not expect_resolved:
