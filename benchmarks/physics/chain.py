@@ -219,9 +219,15 @@ def crossing(t: np.ndarray, x: np.ndarray, level: float, i: int) -> float:
     """
     if i <= 0:
         return float(t[0])
-    x0, x1 = x[i - 1], x[i]
+    return float(_between(t[i - 1], t[i], x[i - 1], x[i], level))
+
+
+@njit(cache=True, nogil=True)
+def _between(t0, t1, x0, x1, level):
+    """The time in [t0, t1] where the line from (t0, x0) to (t1, x1) meets ``level`` (t0 for a
+    flat line; clipped to the interval)."""
     f = 0.0 if x1 == x0 else (level - x0) / (x1 - x0)
-    return float(t[i - 1] + min(max(f, 0.0), 1.0) * (t[i] - t[i - 1]))
+    return t0 + min(max(f, 0.0), 1.0) * (t1 - t0)
 
 
 @njit(cache=True, nogil=True)
@@ -236,9 +242,7 @@ def _pooled(ts, rate, u, mu, i0, i1, level):
     at = 0
     for k in range(len(i0)):
         a, b = i0[k], i1[k]
-        r0, r1 = rate[k, a - 1], rate[k, a]
-        f = 0.0 if r1 == r0 else (level - r0) / (r1 - r0)
-        tc = ts[k, a - 1] + min(max(f, 0.0), 1.0) * (ts[k, a] - ts[k, a - 1])
+        tc = _between(ts[k, a - 1], ts[k, a], rate[k, a - 1], rate[k, a], level)
         start = np.interp(tc, ts[k], u[k])
         for j in range(a, b + 1):
             x[at] = u[k, j] - start
