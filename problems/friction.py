@@ -25,7 +25,8 @@ from typing import ClassVar
 
 import numpy as np
 
-from problems._validate import check_non_negative, check_positive, check_possible
+from problems._validate import (check_finite, check_non_negative, check_positive,
+                                check_possible)
 from problems.formulations import LAW_CODES, check_law_code
 
 __all__ = ["FrictionLaw", "SlipLaw", "AgingLaw", "NagataLaw", "LAWS", "law_from_name", "compiled_law_code",
@@ -41,7 +42,8 @@ class FrictionLaw:
     a : float
         The direct effect (dimensionless, 0 < a < 1).
     b : float
-        The evolution effect (dimensionless, 0 ≤ b < 1).
+        The evolution effect (dimensionless, |b| < 1; negative: an evolution that strengthens
+        with slip, as some clays show — the Nagata law needs b > 0).
     lc : float
         The critical slip distance Lc (m, positive).
     v0 : float
@@ -68,7 +70,7 @@ class FrictionLaw:
 
     def __post_init__(self) -> None:
         # a ≥ 1 or b ≥ 1 is refused (a percentage), a unit slip warned (problems._validate)
-        for name, check in (("a", check_positive), ("b", check_non_negative),
+        for name, check in (("a", check_positive), ("b", check_finite),
                             ("lc", check_positive), ("v0", check_positive)):
             check_possible(name, check(name, getattr(self, name)))
 
@@ -237,9 +239,9 @@ class NagataLaw(AgingLaw):
     def __post_init__(self) -> None:
         super().__post_init__()
         check_non_negative("c", self.c)
-        if self.b == 0:
+        if self.b <= 0:
             raise ValueError("the Nagata law needs b > 0 (its stress term is (c/b) θ dμ/dt), "
-                             "got b = 0")
+                             f"got b = {self.b:g}")
 
     def state_rate(self, v, theta, fn: float, stress_rate=0.0):
         return 1.0 - v * theta / self.lc - (self.c / self.b) * theta * stress_rate / fn

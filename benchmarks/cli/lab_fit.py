@@ -329,11 +329,15 @@ def _doc(args, record, fit, table, fixed, notes, profiles, check, inertia, poste
                             t_end_s=record.pieces.t_end_s + record.t_offset).to_dict(
                             orient="records")},
             "samples": fit.n, "parameters": table.to_dict(orient="records"),
-            "noise": {"model": "AR(1): sigma from the residuals, rho their lag-1 "
-                               "autocorrelation, covariance inflated by (1+rho)/(1-rho); plus "
-                               "a random walk of drift_sigma per sample read from the "
-                               "residuals' variogram, its share of each parameter's error "
-                               "added (benchmarks.lab.fit.drift_covariance)",
+            "noise": {"model": "white + AR(1) + random walk, fitted to the residuals' "
+                               "variogram (benchmarks.lab.noise): covariance = inflation * "
+                               "sigma^2 (J'J)^-1 (inflation * sigma^2 the white + AR(1) part's "
+                               "long-run variance) plus the walk's share (drift_sigma per "
+                               "sample; benchmarks.lab.noise.drift_covariance); rho is the "
+                               "residuals' lag-1 autocorrelation",
+                      "white_variance": _noise_part(fit, "white"),
+                      "ar1_variance": _noise_part(fit, "correlated"),
+                      "ar1_phi": _noise_part(fit, "phi"),
                       "sigma": fit.sigma, "rho": fit.rho, "inflation": fit.inflation,
                       "drift_sigma": fit.drift_sigma, "drift_factor": fit.drift_factor,
                       "record_noise": fit.noise,
@@ -420,16 +424,18 @@ def _report(fit, table, profiles, check, inertia, notes, record, args) -> None:
             shown = shown.drop(columns=f"profile_{side}_closed")
     shown["unit"] = shown.unit.replace({"m": "µm", "1/m": "1/µm", "1": ""})
     say(shown.to_string(index=False))
-    say(f"noise: σ = {fit.sigma:.3g} (the residuals' scatter), their lag-1 autocorrelation "
-        f"ρ = {fit.rho:.3f} (taken as 0 if negative): AR(1) noise, so the variances are "
-        f"inflated ×{fit.inflation:.3g} and the standard errors ×{math.sqrt(fit.inflation):.3g}; "
-        "Wald intervals are value ± 1.96 se, profile ones where the squares rise by 3.84 f σ² "
-        "(trust the profile where they differ; an open end is the parameter's bound)")
+    model = fit.noise_model.describe() if fit.noise_model is not None else "AR(1)"
+    say(f"noise: σ = {fit.sigma:.3g} (the residuals' scatter; lag-1 autocorrelation "
+        f"ρ = {fit.rho:.3f}), read from their variogram as {model}: the variances are "
+        f"f σ² (JᵀJ)⁻¹ with f = {fit.inflation:.3g} (standard errors ×"
+        f"{math.sqrt(max(fit.inflation, 0.0)):.3g}); Wald intervals are value ± 1.96 se, "
+        "profile ones where the squares rise by 3.84 f σ² (trust the profile where they "
+        "differ; an open end is the parameter's bound)")
     if fit.drift_sigma > 0:
         grown = ", ".join(f"{k} ×{math.sqrt(v):.3g}" for k, v in fit.drift_factor.items())
         say(f"drift: the residuals wander as a random walk of {fit.drift_sigma:.3g} per sample "
-            f"beyond their AR(1) correlation (their variogram's slope); its share widens the "
-            f"standard errors ({grown}) and each profile's unit alike")
+            f"beyond their AR(1) correlation; its share widens the standard errors ({grown}) "
+            "and each profile's unit alike")
     for note in notes:
         say(f"note: {note}")
     if check is not None:
@@ -453,6 +459,11 @@ def _report(fit, table, profiles, check, inertia, notes, record, args) -> None:
                 index=False))
     if args.out is not None:
         say(f"wrote {', '.join(args.written)} to {args.out}")
+
+
+def _noise_part(fit, name: str) -> float:
+    """One number of the fit's noise model (NaN without one)."""
+    return getattr(fit.noise_model, name) if fit.noise_model is not None else math.nan
 
 
 def _report_check(check: dict) -> None:

@@ -13,22 +13,12 @@ so a difference is ~10⁻⁵ above the integrator's noise.
 
 **Weights**: one per piece of the history (``weights``, default 1), multiplying its residuals.
 
-**Noise model and uncertainty.** The residuals are taken as stationary AR(1) noise: σ² =
-RSS/(n − p) and ρ the residuals' lag-1 autocorrelation (0 if negative). The covariance is
-f σ² (JᵀJ)⁻¹ with f = (1 + ρ)/(1 − ρ), the variance inflation of a mean under AR(1) noise (f = 1
-for white noise; a record's drift and unmodelled wiggles make ρ near 1, and f large, honestly).
-
-**Slow drift** (a random walk under the noise, as real records wander) is what AR(1) does not
-see: its correlation outlives any ρ < 1. It is read from the residuals' variogram
-γ(ℓ) = ½ mean (r[i + ℓ] − r[i])², which a random walk of variance σ²_rw per sample makes rise
-as σ²_rw ℓ/2 beyond the AR(1) correlation: the slope of γ against ℓ/2 by least squares over
-:data:`DRIFT_POINTS` lags spaced evenly in log from :data:`DRIFT_LAGS` AR(1) correlation lengths
-(1/(1 − ρ)) to 1/:data:`DRIFT_SPAN` of the record (0 if it falls, or if the means of
-:data:`DRIFT_SPAN` blocks of residuals vary no more than AR(1) noise lets them,
-:data:`DRIFT_TEST`). The walk's share of the
-parameters' errors is added to the covariance: σ²_rw B CᵀC B, with B = (JᵀJ)⁻¹ and C the
-reverse cumulative sums of J's rows (a walk's step at sample j moves every residual after it:
-Jᵀw = Cᵀη). σ²_rw is the walk's share beyond what σ² already holds of it: the sum errs wide.
+**Noise model and uncertainty.** The residuals are read as white + AR(1) + random-walk noise,
+fitted to their variogram (:mod:`benchmarks.lab.noise`): σ² = RSS/(n − p), and the covariance is
+f σ² (JᵀJ)⁻¹ with f the white + AR(1) part's long-run variance inflation (1 for white noise,
+(1 + ρ)/(1 − ρ) for AR(1) alone; a record's unmodelled wiggles make it large, honestly), plus the
+walk's share σ²_rw B CᵀC B where the residuals' block means show one (B = (JᵀJ)⁻¹, C the reverse
+cumulative sums of J's rows). ρ, the residuals' lag-1 autocorrelation, is reported beside it.
 Intervals: Wald (value ± 1.96 s.e.; Dc and k′ on the log scale) here, profile intervals in
 :mod:`benchmarks.lab.profile_intervals` (Δ(RSS)/(f σ²) ≤ 3.84, the unit widened by each
 parameter's share of the walk: :meth:`LabFit.profile_scale`). A parameter at a bound of
@@ -52,16 +42,16 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import least_squares
 
+from benchmarks.lab.noise import NoiseModel, drift_covariance, read_noise
+
 __all__ = ["LabFit", "fit_lab", "LabFitWarning", "starting_values", "BOUNDS", "FD_STEP",
-           "sample_noise", "NOT_FIT", "NOT_FIT_RHO", "TRADES", "drift_variance",
-           "drift_covariance", "DRIFT_TEST",
+           "sample_noise", "NOT_FIT", "NOT_FIT_RHO", "TRADES", "drift_covariance",
            "DC_STARTS", "Z95", "SETTLE_DC", "PARAMETER_UNITS", "covariance",
            "RANK_TOL", "DC_LONGEST", "coordinate_bounds"]
 
-#: each nonlinear parameter's bounds in its own unit (a, b, c dimensionless; dc m; k 1/m); b2
-#: may be negative (a second evolution that strengthens); b may not: the slider's law
-#: (problems.friction) refuses b < 0
-BOUNDS = {"a": (1e-5, 0.5), "b": (0.0, 0.5), "dc": (1e-9, 0.1), "k": (1.0, 1e10),
+#: each nonlinear parameter's bounds in its own unit (a, b, c dimensionless; dc m; k 1/m); b and
+#: b2 may be negative (an evolution that strengthens with slip, as some clays show)
+BOUNDS = {"a": (1e-5, 0.5), "b": (-0.5, 0.5), "dc": (1e-9, 0.1), "k": (1.0, 1e10),
           "c": (0.0, 100.0), "b2": (-0.5, 0.5), "dc2": (1e-9, 0.1)}
 PARAMETER_UNITS = {"a": "1", "b": "1", "dc": "m", "k": "1/m", "c": "1", "b2": "1", "dc2": "m",
                    "a_minus_b": "1", "mu_ref": "1"}
@@ -129,7 +119,7 @@ class LabFit:
     trend_rho : float
         The correlation of ln Dc with the trend slope it follows most (:data:`TRADES`).
     drift_sigma : float
-        The random walk's σ per sample under the noise (:func:`drift_variance`; 0: none).
+        The random walk's σ per sample under the noise (:attr:`noise_model`; 0: none).
     drift_factor : dict of str to float
         Each free parameter's variance with the walk ÷ without it (≥ 1).
     fixed : dict of str to float
@@ -140,6 +130,8 @@ class LabFit:
         The optimiser's success.
     message : str
         The optimiser's message.
+    noise_model : NoiseModel, optional
+        The noise read from the residuals (:mod:`benchmarks.lab.noise`).
     """
 
     model: object
@@ -166,7 +158,7 @@ class LabFit:
     #: Dc's correlation with the trend's slope that it follows most (largest in size; NaN:
     #: no trend)
     trend_rho: float = math.nan
-    #: the random walk's σ per sample read from the residuals (:func:`drift_variance`; 0: none)
+    #: the random walk's σ per sample read from the residuals (0: none)
     drift_sigma: float = 0.0
     #: each free parameter's variance with the walk ÷ without it (≥ 1)
     drift_factor: dict = field(default_factory=dict)
@@ -174,11 +166,20 @@ class LabFit:
     piece_weights: np.ndarray | None = None
     success: bool = True
     message: str = ""
+    #: the noise read from the residuals (None: AR(1) of ``rho``)
+    noise_model: NoiseModel | None = None
 
     @property
     def inflation(self) -> float:
-        """f = (1 + ρ)/(1 − ρ), the AR(1) noise's variance inflation."""
-        return (1.0 + self.rho) / (1.0 - self.rho)
+        """f: f σ² is the white + AR(1) noise's long-run variance (:mod:`benchmarks.lab.noise`;
+        with a walk, σ² also holds the walk's share, which its own term counts, so f may be
+        below 1); (1 + ρ)/(1 − ρ) without a noise model."""
+        noise = self.noise_model
+        if noise is None:
+            return (1.0 + self.rho) / (1.0 - self.rho)
+        if noise.walk > 0 and self.sigma > 0:
+            return noise.long_run / self.sigma ** 2
+        return noise.inflation
 
     def profile_scale(self, name: str) -> float:
         """The unit of a rise of the squares in ``name``'s profile: f σ² times its variance's
@@ -387,55 +388,6 @@ def _trend_correlation(cov: np.ndarray, free, linear_names) -> float:
     return best
 
 
-#: the drift's variogram: lags from DRIFT_LAGS AR(1) correlation lengths to 1/DRIFT_SPAN of
-#: the record, DRIFT_POINTS of them spaced evenly in log
-DRIFT_LAGS, DRIFT_SPAN, DRIFT_POINTS = 10.0, 20, 12
-#: a drift is taken only where the variance of the residuals' means over DRIFT_SPAN blocks
-#: exceeds what AR(1) noise gives them (f σ²/block length) by more than the 99th percentile of
-#: χ²(19)/19 = 36.19/19: white or AR(1) noise alone passes for a drift once in a hundred records
-DRIFT_TEST = 36.19 / 19
-
-
-def drift_variance(r: np.ndarray, rho: float) -> float:
-    """σ²_rw, the variance per sample of a random walk in the residuals ``r`` (in time order)
-    beyond their AR(1) correlation ``rho`` (module docstring); 0 when their block means do not
-    vary beyond AR(1) noise's (:data:`DRIFT_TEST`), their variogram does not rise, or the
-    record is too short for two lags (or ``r`` is not finite)."""
-    if not (math.isfinite(rho) and np.isfinite(r).all()):    # a fit whose model failed
-        return 0.0
-    n = len(r)
-    first = max(2, math.ceil(DRIFT_LAGS / max(1.0 - rho, 1e-3)))
-    last = n // DRIFT_SPAN
-    if last <= first:
-        return 0.0
-    means = r[:last * DRIFT_SPAN].reshape(DRIFT_SPAN, last).mean(axis=1)
-    inflation = (1.0 + rho) / (1.0 - rho)
-    if not np.var(means, ddof=1) > DRIFT_TEST * inflation * np.var(r) / last:
-        return 0.0
-    lags = np.unique(np.geomspace(first, last, DRIFT_POINTS).astype(int))
-    gamma = np.array([0.5 * np.mean((r[k:] - r[:-k]) ** 2) for k in lags])
-    design = np.column_stack([np.ones(len(lags)), lags / 2.0])
-    (_, slope), *_ = np.linalg.lstsq(design, gamma, rcond=None)
-    return max(float(slope), 0.0)
-
-
-def drift_covariance(jac: np.ndarray, variance: float) -> np.ndarray:
-    """σ²_rw B CᵀC B (module docstring) over ``jac``'s columns, B = (JᵀJ)⁻¹ on the directions
-    the data determine (:func:`covariance`); 0 where B is not finite, and without a walk."""
-    n = jac.shape[1]
-    out = np.zeros((n, n))
-    if not variance > 0:
-        return out
-    b = covariance(jac, 1.0)
-    ok = np.isfinite(np.diag(b)) & np.isfinite(b).all(axis=0)
-    if not ok.any():
-        return out
-    c = np.cumsum(jac[::-1, ok], axis=0)[::-1]
-    bk = b[np.ix_(ok, ok)]
-    out[np.ix_(ok, ok)] = variance * bk @ (c.T @ c) @ bk
-    return out
-
-
 def _lag1(r: np.ndarray) -> float:
     r = r - r.mean()
     d = float(r @ r)
@@ -445,7 +397,9 @@ def _lag1(r: np.ndarray) -> float:
 def starting_values(record) -> dict:
     """a, b, Dc and k′ read off the record's first step (module docstring), each piece's drift
     taken out first: the piece before the step by a line through it, the piece after by a line
-    through its second half (where it has settled)."""
+    through its second half (where it has settled). ``monotone``: the response has no extreme
+    before it settles (an evolution that strengthens, b < 0, or a Dc longer than the record
+    shows), so that the jump is the whole steady change and a, b are not read apart."""
     t, mu, x = record.t, record.mu, record.load_point
     piece = record.piece_index()
     v1, v2 = record.velocities[0], record.velocities[1]
@@ -464,7 +418,8 @@ def starting_values(record) -> dict:
     i_ext = int(np.argmax(early) if v2 > v1 else np.argmin(early))
     jump = abs(early[i_ext] - base)
     a = float(np.clip(jump / abs(ratio), 1e-3, 0.1))
-    b = float(np.clip(a - (end - base) / ratio, 1e-3, 0.2))
+    b = a - (end - base) / ratio                  # negative: the evolution strengthens
+    b = float(np.clip(math.copysign(max(abs(b), 1e-3), b), -0.2, 0.2))
     travel = v2 * (t[after] - record.switch_times[0])
     x_ext = max(travel[i_ext], 1e-7)
     # Dc: the travel from the extreme to 63 % of the way to the new steady value
@@ -474,7 +429,7 @@ def starting_values(record) -> dict:
     dc = max(travel[j] - travel[i_ext], 1e-7)
     k = 2.0 * max(jump, 1e-4) / x_ext
     return {"a": a, "b": b, "dc": float(np.clip(dc, 2e-9, 0.05)),
-            "k": float(np.clip(k, 2.0, 5e9))}
+            "k": float(np.clip(k, 2.0, 5e9)), "monotone": i_ext >= 0.9 * (len(early) - 1)}
 
 
 def fit_lab(model, fixed: dict | None = None, weights=None, start: dict | None = None,
@@ -539,6 +494,10 @@ def fit_lab(model, fixed: dict | None = None, weights=None, start: dict | None =
             starts += [dict(p0, b2=m * p0["b"], dc2=p0["dc"] * DC2_START) for m in B2_STARTS]
         else:
             starts.append(p0)
+    if guess.get("monotone") and start is None and "b" in free:
+        # no extreme: also start from an evolution that strengthens, a − b split as 2/3 and −1/3
+        starts += [dict(p0, a=2.0 * (p0["a"] - p0["b"]) / 3.0, b=-(p0["a"] - p0["b"]) / 3.0)
+                   for p0 in list(starts)]
     best = None
     for p0 in starts:
         res = prob.solve(prob.coordinates({n: p0[n] for n in free}))
@@ -560,9 +519,13 @@ def _result(prob, res, wall_s) -> LabFit:
     rss = float(r @ r)
     sigma = math.sqrt(rss / max(n - p, 1))
     rho = _lag1(r[prob.w > 0])
-    f = (1 + rho) / (1 - rho)
     jac = prob.jacobian(x)
-    walk = drift_variance(r[prob.w > 0], rho)
+    # the walk is read off the residuals the fit leaves: projected off the linear basis and
+    # off the nonlinear parameters' directions
+    kept = prob.w > 0
+    noise = read_noise(r[kept], _orthonormal(np.column_stack([prob.q, jac])[kept]))
+    walk = noise.walk
+    f = noise.long_run / sigma ** 2 if walk > 0 and sigma > 0 else noise.inflation
     ar1 = covariance(jac, f * sigma ** 2)
     cov = ar1 + drift_covariance(jac, walk)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -596,7 +559,7 @@ def _result(prob, res, wall_s) -> LabFit:
                  failed_solves=prob.failed, noise=sample_noise(model.record.mu[prob.w > 0]),
                  trend_rho=trend_rho, drift_sigma=math.sqrt(walk), drift_factor=drift_factor,
                  weights=prob.w, fixed=dict(prob.fixed), piece_weights=prob.piece_weights,
-                 success=ok and res.status > 0,
+                 success=ok and res.status > 0, noise_model=noise,
                  message=res.message if ok else "the forward model failed at the fit's end")
     _notes(fit, lo, hi)
     return fit

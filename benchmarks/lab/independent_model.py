@@ -145,10 +145,13 @@ def reference_friction(t, velocities, switch_times, a, b, dc, k, law="aging", c=
 
 def synthetic_record(t, velocities, switch_times, a, b, dc, k, law="aging", c=0.0, b2=0.0,
                      dc2=1.0, mu0=0.6, noise=6e-4, displacement_noise=0.0, drift=0.0,
-                     seed=0) -> pd.DataFrame:
+                     seed=0, correlated=0.0, phi=0.9, walk=0.0,
+                     clean=None) -> pd.DataFrame:
     """A record as a laboratory would write it: columns ``time_s``, ``load_point_um`` and
-    ``friction``. ``noise`` is σ of μ, ``displacement_noise`` σ of the load point (m),
-    ``drift`` dμ per metre of load-point travel.
+    ``friction``. ``noise`` is σ of μ's white noise, ``correlated`` σ of an AR(1) part of
+    correlation ``phi`` from one sample to the next, ``walk`` σ of a random walk's steps per
+    sample, ``displacement_noise`` σ of the load point (m), ``drift`` dμ per metre of
+    load-point travel.
 
     Parameters
     ----------
@@ -162,6 +165,13 @@ def synthetic_record(t, velocities, switch_times, a, b, dc, k, law="aging", c=0.
         dμ per metre of load-point travel (1/m).
     seed : int
         The random generator's seed.
+    correlated, phi : float
+        σ of μ's AR(1) noise (its stationary σ; 0: none) and its correlation per sample.
+    walk : float
+        σ of a random walk's step per sample in μ (0: none).
+    clean : numpy.ndarray, optional
+        :func:`reference_friction` of these arguments at ``t``, if computed already (records
+        that differ only in their noise share it).
 
     Returns
     -------
@@ -179,7 +189,15 @@ def synthetic_record(t, velocities, switch_times, a, b, dc, k, law="aging", c=0.
     piece = np.searchsorted(np.asarray(switch_times), t, side="right")
     start = np.concatenate(([0.0], np.cumsum(np.diff(bounds) * np.asarray(velocities[:-1]))))
     x = start[piece] + (t - bounds[piece]) * np.asarray(velocities)[piece]
-    mu = reference_friction(t, velocities, switch_times, a, b, dc, k, law, c, b2, dc2, mu0)
+    mu = reference_friction(t, velocities, switch_times, a, b, dc, k, law, c, b2, dc2, mu0) \
+        if clean is None else np.asarray(clean, dtype=float)
     mu = mu + drift * x + noise * rng.standard_normal(len(t))
     x = x + displacement_noise * rng.standard_normal(len(t))
+    if correlated:                     # drawn after the white noise: a seed's white is kept
+        from scipy.signal import lfilter
+        start = correlated * rng.standard_normal()
+        steps = correlated * math.sqrt(1.0 - phi ** 2) * rng.standard_normal(len(t))
+        mu = mu + lfilter([1.0], [1.0, -phi], steps, zi=[phi * start])[0]
+    if walk:
+        mu = mu + np.cumsum(walk * rng.standard_normal(len(t)))
     return pd.DataFrame({"time_s": t, "load_point_um": x * 1e6, "friction": mu})

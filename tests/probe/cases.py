@@ -82,7 +82,7 @@ def _builders():
                   law=base.law, loading=base.loading, initial=base.initial, t_end=1.0, mu0=0.6)
     out = []
     for cls in (SlipLaw, AgingLaw, NagataLaw):
-        fields = (("a", "p"), ("b", "p" if cls is NagataLaw else "n"), ("lc", "p"), ("v0", "p"))
+        fields = (("a", "p"), ("b", "p" if cls is NagataLaw else "f"), ("lc", "p"), ("v0", "p"))
         for f, kind in fields + ((("c", "n"),) if cls is NagataLaw else ()):
             out.append((cls.__name__, f, kind, lambda v, c=cls, f=f: c(**{**law, f: v})))
     out.append(("ConstantLoading", "vl", "p", lambda v: ConstantLoading(v)))
@@ -145,7 +145,7 @@ def _api_input_cases():
         "window law='sliding'": (lambda: window("W2", law="sliding"), "sliding"),
         "window law=None": (lambda: window("W2", law=None), "law"),
         "window lc='3e-7' (string)": (lambda: window("W2", lc="3e-7"), "lc"),
-        "window b=-0.001": (lambda: window("W2", b=-0.001), "b must"),
+        "window b=1.5": (lambda: window("W2", b=1.5), "b = 1.5 is impossible"),
         "paper_example t_end=0": (lambda: paper_example(t_end=0.0), "t_end"),
         "paper_example stiffness=-1": (lambda: paper_example(stiffness=-1.0), "stiffness"),
         "solve wall_budget=0": (lambda: _solve(p01, ETD2(), wall_budget=0), "wall_budget"),
