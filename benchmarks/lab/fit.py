@@ -433,7 +433,7 @@ def starting_values(record) -> dict:
 
 
 def fit_lab(model, fixed: dict | None = None, weights=None, start: dict | None = None,
-            dc_starts=DC_STARTS) -> LabFit:
+            dc_starts=DC_STARTS, uncertainty: bool = True) -> LabFit:
     """Least squares of ``model`` (a :class:`~benchmarks.lab.model.LabModel`) to its
     record. ``fixed``: parameters held at given values (``k`` in 1/m: friction per metre of
     load-point travel; ``c`` of the Nagata law, whose default is fitted); ``weights``: one per
@@ -451,6 +451,9 @@ def fit_lab(model, fixed: dict | None = None, weights=None, start: dict | None =
         Starting values.
     dc_starts : sequence of float
         The Dc values (m) the fit also starts from.
+    uncertainty : bool
+        False: the values and squares only (a trial of a search): no covariance (NaN), noise
+        model or notes.
 
     Returns
     -------
@@ -503,10 +506,10 @@ def fit_lab(model, fixed: dict | None = None, weights=None, start: dict | None =
         res = prob.solve(prob.coordinates({n: p0[n] for n in free}))
         if best is None or res.cost < best.cost:
             best = res
-    return _result(prob, best, time.perf_counter() - t0)
+    return _result(prob, best, time.perf_counter() - t0, uncertainty)
 
 
-def _result(prob, res, wall_s) -> LabFit:
+def _result(prob, res, wall_s, uncertainty: bool = True) -> LabFit:
     model = prob.model
     x = res.x
     g = prob.g(x)
@@ -519,6 +522,8 @@ def _result(prob, res, wall_s) -> LabFit:
     rss = float(r @ r)
     sigma = math.sqrt(rss / max(n - p, 1))
     rho = _lag1(r[prob.w > 0])
+    if not uncertainty:
+        return _values_only(prob, res, wall_s, ok, coef, r, mu_model, rss, sigma, rho, n)
     jac = prob.jacobian(x)
     # the walk is read off the residuals the fit leaves: projected off the linear basis and
     # off the nonlinear parameters' directions
@@ -563,6 +568,23 @@ def _result(prob, res, wall_s) -> LabFit:
                  message=res.message if ok else "the forward model failed at the fit's end")
     _notes(fit, lo, hi)
     return fit
+
+
+def _values_only(prob, res, wall_s, ok, coef, r, mu_model, rss, sigma, rho, n) -> LabFit:
+    """A fit's values and squares without its uncertainty (``fit_lab(uncertainty=False)``)."""
+    model = prob.model
+    values = prob.params(res.x)
+    values["a_minus_b"] = values["a"] - values["b"]
+    linear = dict(zip(model.linear_names, map(float, coef)))
+    values.update(linear)
+    size = len(res.x)
+    return LabFit(model=model, free=prob.free, values=values,
+                  covariance=np.full((size, size), np.nan), linear=linear,
+                  linear_se={k: math.nan for k in linear}, residuals=r, mu_model=mu_model,
+                  rss=rss, sigma=sigma, rho=rho, n=n, solves=prob.solves, wall_s=wall_s,
+                  failed_solves=prob.failed, weights=prob.w, fixed=dict(prob.fixed),
+                  piece_weights=prob.piece_weights, success=ok and res.status > 0,
+                  message=res.message if ok else "the forward model failed at the fit's end")
 
 
 def _shown(name: str) -> tuple[float, str]:

@@ -126,7 +126,8 @@ def _refine(fit, i: int):
             times[i] = ts
             model = dataclasses.replace(fit.model, record=with_switches(rec, times))
             start = {n: fit.values[n] for n in model.parameters}
-            fits[ts] = fit_lab(model, fixed=fit.fixed, weights=fit.piece_weights, start=start)
+            fits[ts] = fit_lab(model, fixed=fit.fixed, weights=fit.piece_weights, start=start,
+                               uncertainty=False)
         return fits[ts]
 
     def squares(ts: float) -> float:
@@ -140,7 +141,11 @@ def _refine(fit, i: int):
     minimize_scalar(squares, bounds=(lo, hi), method="bounded",
                             options={"xatol": TOLERANCE * dt})
     best_t = min(fits, key=lambda ts: squares(ts))
-    best = fits[best_t]
+    # a trial has no noise model: the best's is refitted from its values (a warm start that
+    # stays there)
+    trial = fits[best_t]
+    best = fit_lab(trial.model, fixed=fit.fixed, weights=fit.piece_weights,
+                   start={n: trial.values[n] for n in trial.model.parameters})
     unit = best.inflation * best.sigma ** 2
     level = squares(best_t) + CHI2_95_1DOF * unit
     ends, closed = [], []
