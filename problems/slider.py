@@ -183,7 +183,7 @@ def _warn_implausible_start(law: FrictionLaw, fn: float, ini: InitialState) -> N
     p = PLAUSIBLE["slip_rate"]
     if isinstance(law, AgingLaw):
         ln_v, form, unit = math.log(law.lc / ini.theta), "Lc/θ", "s (Lc/v at steady sliding)"
-    elif law.b > 0:
+    elif law.b != 0:
         ln_v = math.log(law.v0) - ini.theta / (law.b * fn)
         form, unit = "v0 exp(−θ/(b Fn))", "N (−b Fn ln(v/v0) at steady sliding)"
     else:

@@ -689,3 +689,15 @@ def test_the_noise_reader_finds_walks_and_mixtures_and_invents_only_small_walks(
     assert sum(0.5 * step ** 2 < v < 2 * step ** 2 for v in reads) >= 16
     # a fit whose forward model failed has NaN residuals: no walk, no error
     assert read_noise(np.full(n, np.nan)).walk == 0.0
+    # smooth residuals (a law that misfits) under little noise: a white or AR(1) part stays
+    # (found in review: every variance went to the walk, f σ² = 0, and the profiles divided
+    # by it)
+    smooth = 1e-3 * np.sin(np.linspace(0, 12, n)) + 1e-5 * rng.standard_normal(n)
+    model = read_noise(smooth)
+    assert model.white + model.correlated > 0 and model.long_run > 0
+    # a record too short for the variogram's lags is AR(1) of its lag-1 correlation (found in
+    # review: it was read as white, f = 1, for φ = 0.95)
+    short = lfilter([1.0], [1.0, -0.95], rng.standard_normal(79))
+    c = short - short.mean()
+    rho = (c[1:] @ c[:-1]) / (c @ c)
+    assert read_noise(short).inflation == pytest.approx((1 + rho) / (1 - rho))

@@ -162,22 +162,29 @@ def fit_reference(t, mu, velocities, switch_times, law: str, detrend: str, start
     sigma = math.sqrt(rss / max(n - p, 1))
     rc = r - r.mean()
     rho = float(np.clip((rc[1:] @ rc[:-1]) / (rc @ rc), 0.0, 0.999))
-    full = np.column_stack([_unprojected(model, x, g), basis])   # the full problem's J
-    cov = np.linalg.pinv(full.T @ full) * sigma ** 2 * (1 + rho) / (1 - rho)
+    full = np.column_stack([_unprojected(model, x, g, hi), basis])   # the full problem's J
+    ok = bool(np.isfinite(full).all() and np.isfinite(g).all())
+    cov = (np.linalg.pinv(full.T @ full) * sigma ** 2 * (1 + rho) / (1 - rho) if ok else
+           np.full((full.shape[1], full.shape[1]), np.nan))   # a failed run: no errors
     values = {"a": float(x[0]), "b": float(x[1]), "dc": math.exp(x[2]), "k": math.exp(x[3])}
     values["a_minus_b"] = values["a"] - values["b"]
     se = {name: float(math.sqrt(max(cov[i, i], 0.0))) for i, name in enumerate(_NAMES)}
     se["a_minus_b"] = float(math.sqrt(max(cov[0, 0] + cov[1, 1] - 2 * cov[0, 1], 0.0)))
     return ReferenceFit(values=values, se=se, rss=rss, sigma=sigma, rho=rho, n=n,
                         runs=runs[0], wall_s=time.perf_counter() - started,
-                        success=bool(best.success), message=str(best.message), residuals=r)
+                        success=bool(best.success) and ok,
+                        message=str(best.message) if ok else "a model run at or about the fit "
+                        "failed: no standard errors", residuals=r)
 
 
-def _unprojected(model, x, g) -> np.ndarray:
-    """∂g/∂x by forward differences of :data:`DIFF_STEP` (relative, as least_squares)."""
+def _unprojected(model, x, g, upper) -> np.ndarray:
+    """∂g/∂x by one-sided differences of :data:`DIFF_STEP` × max(|x|, 1) (backward within a
+    step of the ``upper`` bounds)."""
     cols = []
     for j in range(len(x)):
         h = DIFF_STEP * max(abs(x[j]), 1.0)
+        if x[j] + h > upper[j]:
+            h = -h
         xj = np.array(x, dtype=float)
         xj[j] += h
         cols.append((model(xj) - g) / h)

@@ -17,7 +17,7 @@ so a difference is ~10⁻⁵ above the integrator's noise.
 fitted to their variogram (:mod:`benchmarks.lab.noise`): σ² = RSS/(n − p), and the covariance is
 f σ² (JᵀJ)⁻¹ with f the white + AR(1) part's long-run variance inflation (1 for white noise,
 (1 + ρ)/(1 − ρ) for AR(1) alone; a record's unmodelled wiggles make it large, honestly), plus the
-walk's share σ²_rw B CᵀC B where the residuals' block means show one (B = (JᵀJ)⁻¹, C the reverse
+walk's share σ²_rw B CᵀC B where the variogram reads one (B = (JᵀJ)⁻¹, C the reverse
 cumulative sums of J's rows). ρ, the residuals' lag-1 autocorrelation, is reported beside it.
 Intervals: Wald (value ± 1.96 s.e.; Dc and k′ on the log scale) here, profile intervals in
 :mod:`benchmarks.lab.profile_intervals` (Δ(RSS)/(f σ²) ≤ 3.84, the unit widened by each
@@ -185,6 +185,13 @@ class LabFit:
         """The unit of a rise of the squares in ``name``'s profile: f σ² times its variance's
         growth by the drift (:attr:`drift_factor`)."""
         return self.noise_variance * self.drift_factor.get(name, 1.0)
+
+    @property
+    def walk_variance(self) -> float:
+        """f σ² times the largest of the parameters' variance growths by the walk: the unit of
+        a rise of the squares for what is not one parameter (a switch time, the posterior's
+        likelihood), the walk's share counted as it counts for the parameter it moves most."""
+        return self.noise_variance * max(self.drift_factor.values(), default=1.0)
 
     @property
     def noise_variance(self) -> float:
@@ -497,7 +504,8 @@ def fit_lab(model, fixed: dict | None = None, weights=None, start: dict | None =
             starts += [dict(p0, b2=m * p0["b"], dc2=p0["dc"] * DC2_START) for m in B2_STARTS]
         else:
             starts.append(p0)
-    if guess.get("monotone") and start is None and "b" in free:
+    if (guess.get("monotone") and start is None and "b" in free and model.law != "nagata"
+            and guess["a"] > guess["b"]):
         # no extreme: also start from an evolution that strengthens, a − b split as 2/3 and −1/3
         starts += [dict(p0, a=2.0 * (p0["a"] - p0["b"]) / 3.0, b=-(p0["a"] - p0["b"]) / 3.0)
                    for p0 in list(starts)]
@@ -644,7 +652,7 @@ def _notes(fit: LabFit, lo, hi) -> None:
         fit.notes.append(f"Dc = {dc * 1e6:.3g} µm is shorter than the load point's travel in one "
                          f"sample at its fastest ({per_sample * 1e6:.3g} µm): the record cannot "
                          "resolve it, and a and b are then known only as a − b (an evolution "
-                         "the law cannot make, such as one that strengthens, ends here too)")
+                         "the law cannot make ends here too)")
     bounds = (0.0, *rec.switch_times, float(rec.t[-1]))
     for name in ("dc", "dc2"):
         if name not in fit.values:

@@ -10,7 +10,9 @@ which :func:`read_noise` fits to the residuals' own variogram at :data:`SHORT_LA
 :data:`LONG_POINTS` more spaced in log up to 1/:data:`DRIFT_SPAN` of the record: a search over
 the AR(1)'s correlation length 1/(1 − φ) (up to :data:`LONGEST_CORRELATION` of that span, so
 that a slow wander is read as the walk and a quick one as AR(1)), and non-negative least squares
-for the three variances at each (relative errors: each lag's row divided by its γ).
+for the three variances at each (relative errors: each lag's row divided by its γ), keeping a
+white or AR(1) part above 0. A record of fewer than 4 × :data:`DRIFT_SPAN` samples is read as
+AR(1) of its lag-1 correlation.
 
 What each part does to a fit's errors (:mod:`benchmarks.lab.fit`):
 
@@ -142,8 +144,10 @@ def read_noise(r: np.ndarray, basis: np.ndarray | None = None) -> NoiseModel:
     r = np.asarray(r, dtype=float)
     n = len(r)
     last = n // DRIFT_SPAN
-    if last < 4 or not np.isfinite(r).all():
-        return NoiseModel(white=float(np.var(r)) if np.isfinite(r).all() else 0.0)
+    if not np.isfinite(r).all():
+        return NoiseModel()
+    if last < 4:                       # too short for a variogram: AR(1) of the lag-1 ρ
+        return _lag1_model(r)
     short = np.arange(1, min(SHORT_LAGS, last) + 1)
     long_ = np.geomspace(min(SHORT_LAGS, last), last, LONG_POINTS).astype(int)
     lags = np.unique(np.concatenate([short, long_]))
@@ -157,11 +161,24 @@ def read_noise(r: np.ndarray, basis: np.ndarray | None = None) -> NoiseModel:
     for phi in np.concatenate([[0.0], 1.0 - 1.0 / lengths]):
         design = np.column_stack([np.ones(len(lags)), 1.0 - phi ** lags, walk_column])
         coef, res = nnls(design * scale[:, None], gamma * scale)
-        if best is None or res < best[0]:
+        # smooth residuals (a law that misfits) can put every variance in the walk: a noise
+        # of no white or AR(1) part would give the fit errors of 0
+        if coef[0] + coef[1] > 0 and (best is None or res < best[0]):
             best = (res, float(phi), coef)
+    if best is None:
+        return _lag1_model(r)
     _, phi, (white, correlated, walk) = best
     return NoiseModel(white=float(white), correlated=float(correlated), phi=phi,
                       walk=float(walk))
+
+
+def _lag1_model(r: np.ndarray) -> NoiseModel:
+    """AR(1) noise of the residuals' variance and lag-1 correlation (0 if negative; at most
+    0.999): the reading of a record too short for a variogram."""
+    c = r - r.mean()
+    d = float(c @ c)
+    rho = 0.0 if d == 0 or len(r) < 3 else float(np.clip((c[1:] @ c[:-1]) / d, 0.0, 0.999))
+    return NoiseModel(correlated=float(np.var(r)), phi=rho)
 
 
 def _covariance(jac: np.ndarray, scale: float) -> np.ndarray:

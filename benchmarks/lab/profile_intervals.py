@@ -170,9 +170,9 @@ def profile_lab(fit: LabFit, parameter: str, level: float = CHI2_95_1DOF) -> Lab
                       solves=counter["solves"], wall_s=time.perf_counter() - t0)
 
 
-#: the bounds that are the box's, not a limit of the physics: the upper ones of a, b, b2 and c,
-#: the lower one of b2 (Dc → 0 or ∞, k′ → ∞, b → 0 are limits a refit may rightly reach)
-BOX_EDGES = {"a": (False, True), "b": (False, True), "c": (False, True), "b2": (True, True)}
+#: the bounds that are the box's, not a limit of the physics: the upper ones of a and c, both
+#: of b and b2 (Dc → 0 or ∞, k′ → ∞ are limits a refit may rightly reach)
+BOX_EDGES = {"a": (False, True), "b": (True, True), "c": (False, True), "b2": (True, True)}
 
 
 def _boxed(prob, x) -> bool:

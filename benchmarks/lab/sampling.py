@@ -1,8 +1,10 @@
 """A posterior sample of a laboratory fit's parameters with emcee (``rsfbench lab fit
 --posterior``).
 
-The likelihood is the fit's: Gaussian AR(1) noise of variance f σ² (σ and f from the least-squares
-fit, held fixed: :mod:`benchmarks.lab.fit`), so log L = −RSS/(2 f σ²). The level and the
+The likelihood is the fit's: Gaussian noise of variance v = f σ² (σ and f from the least-squares
+fit, held fixed: :mod:`benchmarks.lab.fit`), grown by the random walk's share as for the
+parameter the walk moves most (:attr:`~benchmarks.lab.fit.LabFit.walk_variance`), so
+log L = −RSS/(2 v). The level and the
 trend's slopes enter linearly with flat priors, so they are integrated out exactly: the marginal
 likelihood of the others is the projected one, up to a constant. The prior is uniform in the
 fitted coordinates inside :data:`~benchmarks.lab.fit.BOUNDS` — flat in a, b and c, and
@@ -103,7 +105,7 @@ def sample_lab(fit: LabFit, walkers: int = 32, steps: int = 600, seed: int = 0,
         raise ValueError(f"steps must be at least 20, got {steps}")
     prob = _Problem(fit.model, fit.free, fit.fixed, fit.piece_weights)
     lo, hi = prob.bounds()
-    scale = fit.noise_variance
+    scale = fit.walk_variance
     stopped = CtrlC()
 
     def log_prob(x):
@@ -149,5 +151,6 @@ def sample_lab(fit: LabFit, walkers: int = 32, steps: int = 600, seed: int = 0,
         effective_samples=(float(walkers * kept / np.max(tau)) if np.isfinite(tau).all()
                            else math.nan),
         solves=prob.solves, wall_s=wall, prior=prior,
-        likelihood=f"Gaussian AR(1) noise, variance f σ² = {scale:.4g} (σ = {fit.sigma:.4g}, "
-                   f"f = {fit.inflation:.3g}); level and slopes integrated out (flat priors)")
+        likelihood=f"Gaussian noise of variance {scale:.4g} (f σ², σ = {fit.sigma:.4g}, "
+                   f"f = {fit.inflation:.3g}, grown by the walk as for the parameter it moves "
+                   "most); level and slopes integrated out (flat priors)")

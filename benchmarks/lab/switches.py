@@ -12,8 +12,8 @@ the current one) at trial switch times, its squares as a function of the switch 
 others held), over ± :data:`WINDOW_SAMPLES` samples of the displacement's switch (at most a
 quarter of the shorter piece beside it): a scan of :data:`SCAN` points, then a bounded search
 about the best to :data:`TOLERANCE` of a sample. The switch's 95 % interval is where the squares
-are within 3.84 f σ² of their minimum (f and σ the best fit's AR(1) inflation and residual
-scatter, as the fit's profile intervals), each end bisected :data:`BISECT` times; an end that
+are within 3.84 f σ² of their minimum (f σ² the best fit's noise variance, grown by the walk
+as for the parameter it moves most: :attr:`~benchmarks.lab.fit.LabFit.walk_variance`), each end bisected :data:`BISECT` times; an end that
 the window does not close is open. The switches are refined one after the other, each with
 those before it at their refined times. What the refinement assumes: the load point switches
 when the friction responds (no lag of the machine's servo), and one switch's time does not
@@ -146,7 +146,7 @@ def _refine(fit, i: int):
     trial = fits[best_t]
     best = fit_lab(trial.model, fixed=fit.fixed, weights=fit.piece_weights,
                    start={n: trial.values[n] for n in trial.model.parameters})
-    unit = best.inflation * best.sigma ** 2
+    unit = best.walk_variance
     level = squares(best_t) + CHI2_95_1DOF * unit
     ends, closed = [], []
     for side in (-1, 1):

@@ -196,10 +196,13 @@ def _cli_fit(path: Path, root: Path) -> tuple[dict, pd.DataFrame, float]:
         started = time.perf_counter()
         run = subprocess.run(cmd, capture_output=True, text=True, cwd=root, env=env)
         wall = time.perf_counter() - started
-        doc = json.loads(run.stdout)
+        try:
+            doc = json.loads(run.stdout)
+        except json.JSONDecodeError:
+            doc = {}
         if run.returncode not in (0, 1) or "parameters" not in doc:
             raise RuntimeError(f"rsfbench lab fit {path.name} exited {run.returncode}: "
-                               f"{doc.get('error', run.stderr[-500:])}")
+                               f"{doc.get('error') or run.stderr[-500:]}")
         residuals = pd.read_csv(Path(tmp) / "lab_fit_residuals.csv")
     return doc, residuals, wall
 
@@ -216,12 +219,15 @@ def _compare(doc: dict, ref) -> list[dict]:
         low, high = ((p["profile_low95"], p["profile_high95"]) if closed else
                      (p["wald_low95"], p["wald_high95"]))
         r_low, r_high = ref.interval(name)
-        value = ref.values[name]
-        rows.append({"parameter": name, "value": p["value"], "low95": low, "high95": high,
+        value, ours = ref.values[name], p["value"]
+        # a null (JSON's NaN or infinity) is no interval: no agreement can be said
+        known = all(v is not None and math.isfinite(v) for v in (low, high, r_low, r_high,
+                                                                   value, ours))
+        rows.append({"parameter": name, "value": ours, "low95": low, "high95": high,
                      "interval": "profile" if closed else "Wald", "reference": value,
                      "reference_low95": r_low, "reference_high95": r_high,
-                     "relative_difference": value / p["value"] - 1.0 if p["value"] else math.nan,
-                     "agree": bool(low <= value <= high and r_low <= p["value"] <= r_high)})
+                     "relative_difference": value / ours - 1.0 if known and ours else math.nan,
+                     "agree": bool(known and low <= value <= high and r_low <= ours <= r_high)})
     return rows
 
 
@@ -377,7 +383,8 @@ def _real_row(r: dict) -> dict:
                       ("does not bound", "a profile is open")):
         if any(key in n for n in r["notes"]):
             says.append(text)
-    delta = max(abs(c["relative_difference"]) for c in r["comparison"])
+    deltas = [abs(c["relative_difference"]) for c in r["comparison"]]
+    delta = math.nan if any(math.isnan(d) for d in deltas) else max(deltas)
     agree = sum(c["agree"] for c in r["comparison"])
     return {"record": r["record"], "law": r["law"], "trend": r["detrend"],
             "a": shown("a"), "b": shown("b"), "Dc (µm)": shown("dc"),
