@@ -42,8 +42,8 @@ class FrictionLaw:
     a : float
         The direct effect (dimensionless, 0 < a < 1).
     b : float
-        The evolution effect (dimensionless, |b| < 1; negative: an evolution that strengthens
-        with slip, as some clays show — the Nagata law needs b > 0).
+        The evolution effect (dimensionless, −1 < b < 1; negative: an evolution that
+        strengthens with slip, as some clays show — the Nagata law needs b > 0).
     lc : float
         The critical slip distance Lc (m, positive).
     v0 : float

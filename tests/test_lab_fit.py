@@ -239,7 +239,7 @@ def test_the_independent_model_imports_nothing_of_the_project():
     deps = graph["benchmarks.lab.independent_model"]
     assert not [d for d in deps if d.split(".")[0] in ("problems", "integrators", "benchmarks")]
     # the reference fit: the independent model (and its package, whose names load lazily)
-    deps = graph["benchmarks.devtools.lab_reference"]
+    deps = graph["benchmarks.lab.reference_fit"]
     assert {d for d in deps if d.split(".")[0] in ("problems", "integrators", "benchmarks")} \
         <= {"benchmarks.lab", "benchmarks.lab.independent_model"}
 
@@ -248,7 +248,7 @@ def test_the_reference_fit_recovers_a_known_step():
     """The independent reference fit (scipy least_squares on scipy's Radau) on a 4000-sample
     step of known truth, white noise of 2e-4 and a drift per piece: a, b, Dc, k′ each inside
     its 95 % interval, and within 2 % (a, b) and 5 % (Dc, k′)."""
-    from benchmarks.devtools.lab_reference import fit_reference
+    from benchmarks.lab.reference_fit import fit_reference
     truth = dict(a=0.006, b=0.009, dc=10e-6, k=3e3)
     t = T[:4000]
     df = synthetic_record(t, (1e-6, 1e-5), (20.0,), **truth, noise=2e-4, drift=30.0, seed=3)

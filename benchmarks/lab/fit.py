@@ -42,7 +42,8 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import least_squares
 
-from benchmarks.lab.noise import NoiseModel, drift_covariance, read_noise
+from benchmarks.lab.noise import (RANK_TOL, NoiseModel, covariance, drift_covariance,
+                                   read_noise)
 
 __all__ = ["LabFit", "fit_lab", "LabFitWarning", "starting_values", "BOUNDS", "FD_STEP",
            "sample_noise", "NOT_FIT", "NOT_FIT_RHO", "TRADES", "drift_covariance",
@@ -64,9 +65,6 @@ Z95 = 1.959963984540054
 #: evolution: the fit warns
 SETTLE_DC = 3.0
 _LOG = ("dc", "k", "dc2")
-#: a singular value of a Jacobian or basis below this share of the largest is a direction the
-#: data do not determine
-RANK_TOL = 1e-10
 #: the second state's starts: b2 as these multiples of b (it may strengthen: negative), Dc2 as
 #: this multiple of Dc
 B2_STARTS, DC2_START = (0.5, -0.5), 10.0
@@ -337,22 +335,6 @@ def _orthonormal(basis: np.ndarray) -> np.ndarray:
     weight 0 is a zero column)."""
     u, sv, _ = np.linalg.svd(basis, full_matrices=False)
     return u[:, sv > RANK_TOL * max(sv.max(initial=0.0), 1e-300)]
-
-
-def covariance(jac: np.ndarray, scale: float) -> np.ndarray:
-    """scale · (JᵀJ)⁻¹, with an infinite variance for each parameter in a direction the data
-    do not determine (a singular value of J below :data:`RANK_TOL` of the largest): a
-    pseudo-inverse would give such a parameter a variance of 0."""
-    n = jac.shape[1]
-    if not np.isfinite(jac).all():
-        return np.full((n, n), np.nan)
-    _, sv, vt = np.linalg.svd(jac, full_matrices=False)
-    keep = sv > RANK_TOL * max(sv.max(initial=0.0), 1e-300)
-    cov = (vt[keep].T / sv[keep] ** 2) @ vt[keep] * scale
-    lost = (np.abs(vt[~keep]) > 1e-6).any(axis=0)
-    cov[lost, :] = np.inf
-    cov[:, lost] = np.inf
-    return cov
 
 
 #: a law "does not fit" where its residuals' σ is over this multiple of the record's own

@@ -44,8 +44,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import nnls
 
-__all__ = ["NoiseModel", "read_noise", "drift_covariance", "DRIFT_SPAN", "SHORT_LAGS",
-           "LONG_POINTS", "LONGEST_CORRELATION"]
+__all__ = ["NoiseModel", "read_noise", "covariance", "drift_covariance", "DRIFT_SPAN",
+           "SHORT_LAGS", "LONG_POINTS", "LONGEST_CORRELATION", "RANK_TOL"]
 
 #: the variogram's lags: every one from 1 to SHORT_LAGS, then LONG_POINTS spaced in log up to
 #: 1/DRIFT_SPAN of the record
@@ -181,21 +181,37 @@ def _lag1_model(r: np.ndarray) -> NoiseModel:
     return NoiseModel(correlated=float(np.var(r)), phi=rho)
 
 
-def _covariance(jac: np.ndarray, scale: float) -> np.ndarray:
-    from benchmarks.lab.fit import covariance
-    return covariance(jac, scale)
+#: a singular value of a Jacobian or basis below this share of the largest is a direction the
+#: data do not determine
+RANK_TOL = 1e-10
+
+
+def covariance(jac: np.ndarray, scale: float) -> np.ndarray:
+    """scale · (JᵀJ)⁻¹, with an infinite variance for each parameter in a direction the data
+    do not determine (a singular value of J below :data:`RANK_TOL` of the largest): a
+    pseudo-inverse would give such a parameter a variance of 0."""
+    n = jac.shape[1]
+    if not np.isfinite(jac).all():
+        return np.full((n, n), np.nan)
+    _, sv, vt = np.linalg.svd(jac, full_matrices=False)
+    keep = sv > RANK_TOL * max(sv.max(initial=0.0), 1e-300)
+    cov = (vt[keep].T / sv[keep] ** 2) @ vt[keep] * scale
+    lost = (np.abs(vt[~keep]) > 1e-6).any(axis=0)
+    cov[lost, :] = np.inf
+    cov[:, lost] = np.inf
+    return cov
 
 
 def drift_covariance(jac: np.ndarray, variance: float) -> np.ndarray:
     """σ²_rw B CᵀC B over ``jac``'s columns, B = (JᵀJ)⁻¹ on the directions the data determine
-    (:func:`benchmarks.lab.fit.covariance`) and C the reverse cumulative sums of J's rows (a
+    (:func:`covariance`) and C the reverse cumulative sums of J's rows (a
     walk's step at sample j moves every residual after it: Jᵀw = Cᵀη); 0 where B is not
     finite, and without a walk."""
     n = jac.shape[1]
     out = np.zeros((n, n))
     if not variance > 0:
         return out
-    b = _covariance(jac, 1.0)
+    b = covariance(jac, 1.0)
     ok = np.isfinite(np.diag(b)) & np.isfinite(b).all(axis=0)
     if not ok.any():
         return out

@@ -23,7 +23,7 @@ real records against an independent fit (``lab_fit.*``).
 * **Real records** (``tests/data/lab-velocity-steps``, Giacomel et al. 2024's published demo
   records, five steps): each through ``rsfbench lab fit --law aging,slip`` at its defaults in a
   fresh process (timed: target ≤ 5 s a record), and the chosen law refitted by the independent
-  reference (:mod:`benchmarks.devtools.lab_reference`) on the same window, switch times and
+  reference (:mod:`benchmarks.lab.reference_fit`) on the same window, switch times and
   trend; a figure of each record with its fit and residuals.
 """
 
@@ -233,9 +233,9 @@ def _compare(doc: dict, ref) -> list[dict]:
 
 def _real(root: Path, out: Path, say) -> list[dict]:
     """Each real record through ``rsfbench lab fit`` at its defaults with both laws, and the
-    independent reference fit (:mod:`benchmarks.devtools.lab_reference`) of the chosen law on
+    independent reference fit (:mod:`benchmarks.lab.reference_fit`) of the chosen law on
     the same window, switch times and trend."""
-    from benchmarks.devtools.lab_reference import fit_reference
+    from benchmarks.lab.reference_fit import fit_reference
     from benchmarks.lab.fit import starting_values
     from benchmarks.lab.step_data import read_lab_record
     from benchmarks.lab.switches import with_switches
@@ -457,7 +457,7 @@ def _markdown(info: dict) -> str:
         "per piece, profiles, the solver check, the figure) in a fresh process, as a user runs "
         "it. Each cell: the chosen law's value and its 95 % interval (profile where both ends "
         "close, else Wald). Then the independent reference fit "
-        "(`benchmarks/devtools/lab_reference.py`: scipy's least_squares on scipy's Radau, no "
+        "(`benchmarks/lab/reference_fit.py`: scipy's least_squares on scipy's Radau, no "
         "code of the project's model) of the same law on the same window, switch times and "
         "trend: its largest relative difference from the project's a, b, a − b, Dc, k′, and in "
         "how many of those five each fit's interval holds the other's value. Wall-time target: "

@@ -162,19 +162,27 @@ def fit_reference(t, mu, velocities, switch_times, law: str, detrend: str, start
     sigma = math.sqrt(rss / max(n - p, 1))
     rc = r - r.mean()
     rho = float(np.clip((rc[1:] @ rc[:-1]) / (rc @ rc), 0.0, 0.999))
-    full = np.column_stack([_unprojected(model, x, g, hi), basis])   # the full problem's J
-    ok = bool(np.isfinite(full).all() and np.isfinite(g).all())
-    cov = (np.linalg.pinv(full.T @ full) * sigma ** 2 * (1 + rho) / (1 - rho) if ok else
-           np.full((full.shape[1], full.shape[1]), np.nan))   # a failed run: no errors
+    se, ok = _errors(model, x, g, hi, basis, sigma ** 2 * (1 + rho) / (1 - rho))
     values = {"a": float(x[0]), "b": float(x[1]), "dc": math.exp(x[2]), "k": math.exp(x[3])}
     values["a_minus_b"] = values["a"] - values["b"]
-    se = {name: float(math.sqrt(max(cov[i, i], 0.0))) for i, name in enumerate(_NAMES)}
-    se["a_minus_b"] = float(math.sqrt(max(cov[0, 0] + cov[1, 1] - 2 * cov[0, 1], 0.0)))
     return ReferenceFit(values=values, se=se, rss=rss, sigma=sigma, rho=rho, n=n,
                         runs=runs[0], wall_s=time.perf_counter() - started,
                         success=bool(best.success) and ok,
                         message=str(best.message) if ok else "a model run at or about the fit "
                         "failed: no standard errors", residuals=r)
+
+
+def _errors(model, x, g, upper, basis, variance) -> tuple[dict, bool]:
+    """The standard errors of a, b, ln Dc, ln k′ and a − b from the full problem's Jacobian
+    (the model's columns and the basis'), ``variance`` (JᵀJ)⁻¹; NaN, and False, where a run
+    at or about ``x`` failed."""
+    full = np.column_stack([_unprojected(model, x, g, upper), basis])
+    ok = bool(np.isfinite(full).all() and np.isfinite(g).all())
+    size = full.shape[1]
+    cov = np.linalg.pinv(full.T @ full) * variance if ok else np.full((size, size), np.nan)
+    se = {name: float(math.sqrt(max(cov[i, i], 0.0))) for i, name in enumerate(_NAMES)}
+    se["a_minus_b"] = float(math.sqrt(max(cov[0, 0] + cov[1, 1] - 2 * cov[0, 1], 0.0)))
+    return se, ok
 
 
 def _unprojected(model, x, g, upper) -> np.ndarray:
