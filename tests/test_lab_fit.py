@@ -701,3 +701,33 @@ def test_the_noise_reader_finds_walks_and_mixtures_and_invents_only_small_walks(
     c = short - short.mean()
     rho = (c[1:] @ c[:-1]) / (c @ c)
     assert read_noise(short).inflation == pytest.approx((1 + rho) / (1 - rho))
+
+
+def test_a_trial_fit_without_its_uncertainty_has_the_full_fits_values():
+    """fit_lab(uncertainty=False), a switch search's trial: the same values and squares as the
+    full fit (one least-squares run), no covariance (NaN) and no noise model or notes."""
+    model = LabModel(_record(seed=3), "aging")
+    full = fit_lab(model)
+    trial = fit_lab(model, uncertainty=False)
+    assert trial.rss == full.rss
+    assert all(trial.values[n] == full.values[n] for n in ("a", "b", "dc", "k", "mu_ref"))
+    assert np.isnan(trial.covariance).all() and trial.noise_model is None and not trial.notes
+    assert full.noise_model is not None and np.isfinite(full.covariance).all()
+
+
+def test_the_study_compares_with_the_reference_only_where_both_intervals_are_known():
+    """The lab-fit study's comparison (benchmarks/studies/lab_fit.py): a null interval (JSON's
+    NaN or infinity) is no agreement and no difference; a value inside both intervals agrees."""
+    from benchmarks.lab.reference_fit import ReferenceFit
+    from benchmarks.studies.lab_fit import _compare
+    row = {"parameter": "a", "value": 0.01, "wald_low95": 0.009, "wald_high95": 0.011,
+           "profile_low95": 0.0092, "profile_high95": 0.0108, "profile_low_closed": True,
+           "profile_high_closed": True}
+    ref = ReferenceFit(values={"a": 0.0101}, se={"a": 0.0005}, rss=1.0, sigma=0.1, rho=0.0,
+                       n=10, runs=1, wall_s=0.0, success=True)
+    (same,) = _compare({"parameters": [row]}, ref)
+    assert same["agree"] and same["interval"] == "profile"
+    assert same["relative_difference"] == pytest.approx(0.01)
+    (unknown,) = _compare({"parameters": [dict(row, profile_low_closed=False,
+                                               wald_low95=None)]}, ref)
+    assert not unknown["agree"] and math.isnan(unknown["relative_difference"])
