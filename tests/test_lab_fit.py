@@ -15,7 +15,7 @@ import pytest
 
 from benchmarks.lab.independent_model import reference_friction, synthetic_record
 from benchmarks.lab.checks import check_lab_solver, inertia_check
-from benchmarks.lab.fit import BOUNDS, LabFitWarning, fit_lab
+from benchmarks.lab.fit import BOUNDS, LabFitWarning, fit_lab, starting_values
 from benchmarks.lab.profile_intervals import profile_lab
 from benchmarks.lab.model import LabModel
 from benchmarks.lab.history import find_history
@@ -731,3 +731,33 @@ def test_the_study_compares_with_the_reference_only_where_both_intervals_are_kno
     (unknown,) = _compare({"parameters": [dict(row, profile_low_closed=False,
                                                wald_low95=None)]}, ref)
     assert not unknown["agree"] and math.isnan(unknown["relative_difference"])
+
+
+@pytest.mark.parametrize("seed", [0, 2])
+def test_an_evolution_that_strengthens_is_found_whatever_the_noise_on_its_plateau(seed):
+    """b = −0.003 under noise of 2e-4 on a 2000-sample step: the response has no peak, and the
+    fit also starts from b < 0 (found by a hostile probe: the argmax over the noisy plateau fell
+    before its end for seeds 0 and 2, no b < 0 start was made, and the fit ended at a = 0.038,
+    b = +0.029, Dc = 0.06 µm). Truth inside the 95 % intervals."""
+    t = np.linspace(0, 40, 2000)
+    df = synthetic_record(t, (1e-6, 1e-5), (10.0,), a=0.006, b=-0.003, dc=1e-5, k=3e3,
+                          noise=2e-4, seed=seed)
+    rec = lab_record_from(df, COLUMNS)
+    assert starting_values(rec)["monotone"]
+    fit = fit_lab(LabModel(rec, "aging"))
+    for name, truth in (("a", 0.006), ("b", -0.003), ("dc", 1e-5)):
+        low, high = fit.interval(name)
+        assert low <= truth <= high, (name, fit.values[name])
+
+
+def test_a_record_without_sample_noise_is_fitted_without_a_division_by_zero():
+    """Constant friction (no noise at all, so the record's own noise reads 0): the fit says
+    what it cannot determine and does not divide by that noise (found by a hostile probe:
+    ZeroDivisionError in the "does not fit" note)."""
+    t = np.linspace(0, 40, 2000)
+    x = np.where(t < 10, 1e-6 * t, 1e-5 + 1e-5 * (t - 10))
+    df = pd.DataFrame({"time_s": t, "load_point_um": x * 1e6, "friction": 0.6 + 0 * t})
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LabFitWarning)
+        fit = fit_lab(LabModel(lab_record_from(df, COLUMNS), "aging"))
+    assert fit.noise == 0 and not any("does not fit" in n for n in fit.notes)

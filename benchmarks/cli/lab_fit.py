@@ -23,7 +23,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from benchmarks.cli.args import in_file, non_negative, out_dir, positive, say, show_progress
+from benchmarks.cli.args import (in_file, non_negative, out_dir, positive, say, seed,
+                                 show_progress)
 from benchmarks.lab.model import DEFAULT_ALGORITHM, DETRENDS, WALL_BUDGET, LabModel
 from benchmarks.records.files import claim_outputs, write_figure, write_output, write_table
 from benchmarks.records.optional import require
@@ -181,28 +182,25 @@ def _models(args, laws) -> dict:
 
 def _fit_laws(args, models: dict, given: dict):
     """``(fit, notes, laws, switches)``: each law's model fitted (``given``: the held
-    parameters, each where its law has it), the first one's switch times refined on the
-    friction (``--switches-from friction``; :mod:`benchmarks.lab.switches`, their table) and the
-    others fitted there; with several laws, their table
-    (:func:`benchmarks.lab.laws.compare_laws`) and ``args.law`` set to the chosen one, whose fit
-    and notes are returned."""
-    fits, switches, record = {}, None, None
+    parameters, each where its law has it) and its switch times refined on the friction with
+    that law (``--switches-from friction``; :mod:`benchmarks.lab.switches`, their table: the
+    chosen law's); with several laws, their table (:func:`benchmarks.lab.laws.compare_laws`)
+    and ``args.law`` set to the chosen one, whose fit and notes are returned. (Refining with
+    the first law alone and fitting the others there made the comparison depend on the laws'
+    order: a slip-law record compared as aging,slip read the slip law as not fitting.)"""
+    fits, tables = {}, {}
     for law, model in models.items():
-        if record is not None:
-            model = dataclasses.replace(model, record=record)
         fixed = {k: v for k, v in given.items() if k in model.parameters}
         _stage(args, f"fitting {', '.join(n for n in model.parameters if n not in fixed)} "
                      f"({law} law) to {len(model.record.t):,} samples")
         fits[law] = _fit(model, fixed, args.weights)
-        if (record is None and args.switches is None and args.switches_from == "friction"
-                and fits[law][0].success):
+        if args.switches is None and args.switches_from == "friction" and fits[law][0].success:
             from benchmarks.lab.switches import refine_switches
-            _stage(args, "the switch times on the friction")
+            _stage(args, f"the switch times on the friction ({law} law)")
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                refined, switches = refine_switches(fits[law][0])
+                refined, tables[law] = refine_switches(fits[law][0])
             fits[law] = (refined, list(refined.notes))
-            record = refined.model.record
     laws = list(models)
     table = None
     if len(laws) > 1:
@@ -210,7 +208,7 @@ def _fit_laws(args, models: dict, given: dict):
         table = compare_laws({law: f for law, (f, _) in fits.items()})
         chosen = table.law[table.chosen]
         args.law = str(chosen.iloc[0]) if len(chosen) else laws[0]
-    return (*fits[args.law], table, switches)
+    return (*fits[args.law], table, tables.get(args.law))
 
 
 def _switches_doc(args, switches) -> dict:
@@ -646,7 +644,7 @@ def _add_run_options(p) -> None:
                    help="emcee walkers, with --posterior (default: 32)")
     p.add_argument("--steps", type=int, default=600,
                    help="emcee steps, with --posterior; a quarter is dropped (default: 600)")
-    p.add_argument("--seed", type=int, default=0,
+    p.add_argument("--seed", type=seed, default=0,
                    help="the posterior's random seed (default: 0)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--no-profiles", action="store_true",

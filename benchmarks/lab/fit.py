@@ -61,6 +61,9 @@ FD_STEP = 1e-5
 #: the starts of Dc, as multiples of the record's own estimate
 DC_STARTS = (0.3, 1.0, 3.0)
 Z95 = 1.959963984540054
+#: a response whose extreme stands less than this many smoothed-noise σ above its settled level
+#: has no peak (``starting_values``' ``monotone``)
+PEAK_NOISE = 4.0
 #: a piece after a step shorter than this many Dc of load-point travel does not show the
 #: evolution: the fit warns
 SETTLE_DC = 3.0
@@ -406,6 +409,11 @@ def starting_values(record) -> dict:
     ratio = math.log(v2 / v1)
     i_ext = int(np.argmax(early) if v2 > v1 else np.argmin(early))
     jump = abs(early[i_ext] - base)
+    # an extreme that stands no higher above the settled level than the smoothed noise reaches
+    # is no peak (a noisy plateau's argmax falls anywhere on it)
+    half = len(level) // 2
+    smoothed_noise = float(np.std(level[half:] - smooth[half:])) / math.sqrt(2 * k_smooth + 1)
+    overshoot = (early[i_ext] - end) * (1.0 if v2 > v1 else -1.0)
     a = float(np.clip(jump / abs(ratio), 1e-3, 0.1))
     b = a - (end - base) / ratio                  # negative: the evolution strengthens
     b = float(np.clip(math.copysign(max(abs(b), 1e-3), b), -0.2, 0.2))
@@ -418,7 +426,9 @@ def starting_values(record) -> dict:
     dc = max(travel[j] - travel[i_ext], 1e-7)
     k = 2.0 * max(jump, 1e-4) / x_ext
     return {"a": a, "b": b, "dc": float(np.clip(dc, 2e-9, 0.05)),
-            "k": float(np.clip(k, 2.0, 5e9)), "monotone": i_ext >= 0.9 * (len(early) - 1)}
+            "k": float(np.clip(k, 2.0, 5e9)),
+            "monotone": bool(i_ext >= 0.9 * (len(early) - 1)
+                             or overshoot <= PEAK_NOISE * smoothed_noise)}
 
 
 def fit_lab(model, fixed: dict | None = None, weights=None, start: dict | None = None,
@@ -617,7 +627,9 @@ def _notes(fit: LabFit, lo, hi) -> None:
                          "the slope can take up part of the evolution; compare --detrend "
                          "none or one, or --detrend auto, and a window that ends where the "
                          "slider is steady")
-    if fit.sigma > NOT_FIT * fit.noise and fit.rho > NOT_FIT_RHO:
+    # a record of no sample-to-sample noise (μ made by a model, exactly linear between its
+    # transients) has nothing to judge a misfit against here
+    if fit.noise > 0 and fit.sigma > NOT_FIT * fit.noise and fit.rho > NOT_FIT_RHO:
         fit.notes.append(f"the {fit.model.law} law does not fit this record: its residuals' σ "
                          f"({fit.sigma:.2g}) is {fit.sigma / fit.noise:.3g} × the record's own "
                          f"sample-to-sample noise ({fit.noise:.2g}) and they follow each other "
