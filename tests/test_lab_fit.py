@@ -761,3 +761,17 @@ def test_a_record_without_sample_noise_is_fitted_without_a_division_by_zero():
         warnings.simplefilter("ignore", LabFitWarning)
         fit = fit_lab(LabModel(lab_record_from(df, COLUMNS), "aging"))
     assert fit.noise == 0 and not any("does not fit" in n for n in fit.notes)
+
+
+def test_the_noise_model_says_how_it_was_read():
+    """describe(): white noise is said as white (found by a probe: "100% of the variance
+    correlated, φ = 0"), and a record too short for the variogram says it was read from its
+    lag-1 correlation."""
+    from benchmarks.lab.noise import NoiseModel, read_noise
+    assert "white noise (f = 1)" in NoiseModel(correlated=1.0, phi=0.0).describe()
+    assert "from their variogram" in NoiseModel(white=1.0).describe()
+    rng = np.random.default_rng(5)
+    short = read_noise(rng.standard_normal(50))
+    assert not short.from_variogram and "lag-1 correlation" in short.describe()
+    mixed = NoiseModel(white=1.0, correlated=1.0, phi=0.9)
+    assert "50% of the variance correlated" in mixed.describe()

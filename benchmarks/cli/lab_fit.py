@@ -424,7 +424,7 @@ def _report(fit, table, profiles, check, inertia, notes, record, args) -> None:
     say(shown.to_string(index=False))
     model = fit.noise_model.describe() if fit.noise_model is not None else "AR(1)"
     say(f"noise: σ = {fit.sigma:.3g} (the residuals' scatter; lag-1 autocorrelation "
-        f"ρ = {fit.rho:.3f}), read from their variogram as {model}: the variances are "
+        f"ρ = {fit.rho:.3f}), {model}: the variances are "
         f"f σ² (JᵀJ)⁻¹ with f = {fit.inflation:.3g} (standard errors ×"
         f"{math.sqrt(max(fit.inflation, 0.0)):.3g}); Wald intervals are value ± 1.96 se, "
         "profile ones where the squares rise by 3.84 f σ² (trust the profile where they "

@@ -42,7 +42,7 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import least_squares
 
-from benchmarks.lab.noise import (RANK_TOL, NoiseModel, covariance, drift_covariance,
+from benchmarks.lab.noise import (RANK_TOL, NoiseModel, covariance, drift_covariance, lag1,
                                    read_noise)
 
 __all__ = ["LabFit", "fit_lab", "LabFitWarning", "starting_values", "BOUNDS", "FD_STEP",
@@ -380,12 +380,6 @@ def _trend_correlation(cov: np.ndarray, free, linear_names) -> float:
     return best
 
 
-def _lag1(r: np.ndarray) -> float:
-    r = r - r.mean()
-    d = float(r @ r)
-    return 0.0 if d == 0 else float(np.clip((r[1:] @ r[:-1]) / d, 0.0, 0.999))
-
-
 def starting_values(record) -> dict:
     """a, b, Dc and k′ read off the record's first step (module docstring), each piece's drift
     taken out first: the piece before the step by a line through it, the piece after by a line
@@ -521,7 +515,7 @@ def _result(prob, res, wall_s, uncertainty: bool = True) -> LabFit:
     n, p = int((prob.w > 0).sum()), len(x) + prob.q.shape[1]
     rss = float(r @ r)
     sigma = math.sqrt(rss / max(n - p, 1))
-    rho = _lag1(r[prob.w > 0])
+    rho = lag1(r[prob.w > 0])
     if not uncertainty:
         return _values_only(prob, res, wall_s, ok, coef, r, mu_model, rss, sigma, rho, n)
     jac = prob.jacobian(x)

@@ -44,7 +44,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import nnls
 
-__all__ = ["NoiseModel", "read_noise", "covariance", "drift_covariance", "DRIFT_SPAN",
+__all__ = ["NoiseModel", "read_noise", "lag1", "covariance", "drift_covariance", "DRIFT_SPAN",
            "SHORT_LAGS", "LONG_POINTS", "LONGEST_CORRELATION", "RANK_TOL"]
 
 #: the variogram's lags: every one from 1 to SHORT_LAGS, then LONG_POINTS spaced in log up to
@@ -74,12 +74,15 @@ class NoiseModel:
         The AR(1) part's correlation from one sample to the next.
     walk : float
         σ²_rw, the walk's variance per sample (0: none read).
+    from_variogram : bool
+        False for a record too short for the variogram: AR(1) of its lag-1 correlation.
     """
 
     white: float = 0.0
     correlated: float = 0.0
     phi: float = 0.0
     walk: float = 0.0
+    from_variogram: bool = True
 
     @property
     def inflation(self) -> float:
@@ -100,11 +103,19 @@ class NoiseModel:
         return 1.0 / (1.0 - self.phi)
 
     def describe(self) -> str:
-        share = self.correlated / (self.white + self.correlated) if self.white + self.correlated \
-            > 0 else 0.0
-        return (f"white + AR(1) ({share:.0%} of the variance correlated, φ = {self.phi:.3g}: "
-                f"f = {self.inflation:.3g})" + (f" + a random walk of σ = {math.sqrt(self.walk):.2g}"
-                                                f" per sample" if self.walk > 0 else ""))
+        """The model in words: how it was read, its parts, f and the walk."""
+        how = "from their variogram" if self.from_variogram else \
+            "from their lag-1 correlation (too short for a variogram)"
+        total = self.white + self.correlated
+        if self.phi == 0 or not self.correlated > 0 or not total > 0:
+            # φ = 0 makes the AR(1) column the white one's: no share of it is correlated
+            parts = "white noise (f = 1)"
+        else:
+            parts = (f"white + AR(1) ({self.correlated / total:.0%} of the variance correlated, "
+                     f"φ = {self.phi:.3g}: f = {self.inflation:.3g})")
+        walk = f" + a random walk of σ = {math.sqrt(self.walk):.2g} per sample" \
+            if self.walk > 0 else ""
+        return f"read {how} as {parts}{walk}"
 
 
 def _variogram(r: np.ndarray, lags: np.ndarray) -> np.ndarray:
@@ -172,13 +183,17 @@ def read_noise(r: np.ndarray, basis: np.ndarray | None = None) -> NoiseModel:
                       walk=float(walk))
 
 
-def _lag1_model(r: np.ndarray) -> NoiseModel:
-    """AR(1) noise of the residuals' variance and lag-1 correlation (0 if negative; at most
-    0.999): the reading of a record too short for a variogram."""
-    c = r - r.mean()
+def lag1(r: np.ndarray) -> float:
+    """The lag-1 autocorrelation of ``r`` (0 if negative or undefined; at most 0.999)."""
+    c = np.asarray(r, dtype=float) - np.mean(r)
     d = float(c @ c)
-    rho = 0.0 if d == 0 or len(r) < 3 else float(np.clip((c[1:] @ c[:-1]) / d, 0.0, 0.999))
-    return NoiseModel(correlated=float(np.var(r)), phi=rho)
+    return 0.0 if d == 0 or len(c) < 3 else float(np.clip((c[1:] @ c[:-1]) / d, 0.0, 0.999))
+
+
+def _lag1_model(r: np.ndarray) -> NoiseModel:
+    """AR(1) noise of the residuals' variance and lag-1 correlation: the reading of a record
+    too short for a variogram."""
+    return NoiseModel(correlated=float(np.var(r)), phi=lag1(r), from_variogram=False)
 
 
 #: a singular value of a Jacobian or basis below this share of the largest is a direction the
