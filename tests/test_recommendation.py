@@ -56,3 +56,30 @@ def test_the_commands_do_not_read_the_study_at_run_time(monkeypatch, tmp_path):
     algorithm, why = integrator_from_args(Namespace(integrator=None, rtol=None, atol=None,
                                                     rhs=None, accuracy=1e-3))
     assert algorithm == recommendation.recommended(1e-3)[0] and "quick work-precision" in why
+
+
+def _worst(algorithm) -> float:
+    """The front's worst error of ``algorithm`` (its place on the front)."""
+    return next(worst for worst, _w, name, tier, value in recommendation.FRONT
+                if name == algorithm.name and tier == algorithm.rhs and value == algorithm.rtol)
+
+
+def test_tightening_along_the_front_gains_a_factor_each_step_and_then_stops():
+    """From the default recommendation, each step is a front setting at least TIGHTER times as
+    accurate (its worst error) and the fastest such; the walk ends in None."""
+    algorithm, _ = recommendation.recommended(1e-3)
+    seen = 0
+    while (nxt := recommendation.tighter_on_front(algorithm)) is not None:
+        assert _worst(nxt) <= _worst(algorithm) / recommendation.TIGHTER
+        # no faster setting of the front is that accurate
+        faster = [w for w, wall, *_ in recommendation.FRONT
+                  if wall < next(r[1] for r in recommendation.FRONT if r[2:] == (
+                      nxt.name, nxt.rhs, nxt.rtol))]
+        assert all(w > _worst(algorithm) / recommendation.TIGHTER for w in faster)
+        algorithm, seen = nxt, seen + 1
+    assert seen >= 3
+
+
+def test_a_setting_off_the_front_is_not_tightened_along_it():
+    from integrators import make_algorithm
+    assert recommendation.tighter_on_front(make_algorithm("Exprb43", rtol=2e-3, atol=2e-3)) is None

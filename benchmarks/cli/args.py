@@ -516,14 +516,19 @@ def add_solver_check_option(p) -> None:
 
 def checked_integrator(args, problem, obs, b_range, lc_range, algorithm, why: str):
     """``(algorithm, why, check)``: the integrator checked on ``problem``'s box for ``obs``
-    (:func:`benchmarks.inversion.solver_check.check_solver`), tightened if it had to be;
+    (:func:`benchmarks.inversion.solver_check.check_solver`), tightened if it had to be (a
+    recommended one along the work-precision front, which may change the method);
     ``ValueError`` when no setting passes; ``check`` None with --no-solver-check."""
     from benchmarks.inversion.solver_check import check_solver
     if args.no_solver_check:
         return algorithm, why + " (not checked on this problem: --no-solver-check)", None
-    from benchmarks.inversion.solver_check import WALL_BUDGET
+    from benchmarks.inversion.solver_check import WALL_BUDGET, tighter
     talk = (lambda text: None) if args.json else (lambda text: say(f"… {text}"))
-    check = check_solver(problem, algorithm, obs, b_range, lc_range,
+    step = tighter
+    if not getattr(args, "integrator", None):     # the recommendation: tightened along its front
+        from benchmarks.devtools.recommendation import tighter_on_front
+        step = lambda alg: tighter_on_front(alg) or tighter(alg)  # noqa: E731
+    check = check_solver(problem, algorithm, obs, b_range, lc_range, next_setting=step,
                          workers=getattr(args, "workers", None), say=talk,
                          wall_budget=getattr(args, "wall_budget", None) or WALL_BUDGET)
     if check.nothing_to_check:

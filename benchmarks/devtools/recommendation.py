@@ -6,7 +6,8 @@ one integrator for the whole problem set, each faster than every more accurate o
 worst error in the recurrence interval over the study problems. The study writes it
 (:func:`benchmarks.devtools.work_precision.write_recommendation`);
 ``tests/test_recommendation.py`` checks it against the committed study. :func:`recommended`
-takes the fastest setting within a level.
+takes the fastest setting within a level, and :func:`tighter_on_front` the next setting
+:data:`TIGHTER` times as accurate when a check on the user's own problem asks for more.
 """
 
 from __future__ import annotations
@@ -14,7 +15,11 @@ from __future__ import annotations
 from benchmarks.devtools.work_precision import algorithm_at
 from integrators import ETD2, REGISTRY
 
-__all__ = ["FRONT", "STUDY", "recommended"]
+__all__ = ["FRONT", "STUDY", "recommended", "tighter_on_front", "TIGHTER"]
+
+#: a tighter setting on the front is at least this many times as accurate: about what rtol ÷ 10
+#: gives a method of order p = 3 to 5 (10^(p/(p+1)) = 5.6 to 6.8)
+TIGHTER = 5.0
 
 # --- written by the quick work-precision study (`rsfbench study work-precision`); do not edit ---
 STUDY = {"file": 'wp_quick.csv', "commit": '2f5dc43a4efe',
@@ -64,3 +69,20 @@ def recommended(level: float):
                 f"(worst {worst:.2g}): {name} [{tier}] at {setting:g}")
     return ETD2(), (f"the quick work-precision study recommends nothing for err_recurrence ≤ "
                     f"{level:g}: ETD2 at the paper's settings")
+
+
+def tighter_on_front(algorithm):
+    """The fastest setting of :data:`FRONT` at least :data:`TIGHTER` times as accurate (its
+    worst error) as ``algorithm``'s own place on it, which may be another method: the front's
+    way of tightening, as rtol ÷ 10 is one method's. None when ``algorithm`` is not on the front or
+    nothing on it is that accurate."""
+    setting = getattr(algorithm, "rtol", getattr(algorithm, "dtau_cnst", None))
+    rhs = getattr(algorithm, "rhs", None)
+    here = [worst for worst, _wall, name, tier, value in FRONT
+            if name == algorithm.name and value == setting and (rhs is None or tier == rhs)]
+    if not here:
+        return None
+    for worst, _wall, name, tier, value in FRONT:
+        if worst <= here[0] / TIGHTER and name in REGISTRY:
+            return algorithm_at(name, tier, value)
+    return None

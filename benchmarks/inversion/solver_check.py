@@ -19,7 +19,9 @@ accuracy) is not used, and said. At least one checked point must have a limit cy
 without one in the integrator and in the references checks nothing but that): if none of the
 five has, a 3 × 3 grid inside the box is tried, and then the check says that it checked nothing
 (``nothing_to_check``: the commands go on with a warning). If the integrator
-fails, a tighter setting is tried (rtol and atol ÷ 10, or the ETD family's steps ÷ 4), at most
+fails, a tighter setting is tried (``next_setting``: by default rtol and atol ÷ 10, or the ETD
+family's steps ÷ 4; the commands tighten a recommended integrator along the work-precision
+front, :func:`benchmarks.devtools.recommendation.tighter_on_front`), at most
 :data:`TIGHTENINGS` times, and then the check refuses, naming the worst point.
 """
 
