@@ -431,7 +431,8 @@ def test_dc_trading_with_the_trend_is_said():
                               noise=2e-4, seed=3)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", LabFitWarning)
-            fit = fit_lab(LabModel(lab_record_from(df, COLUMNS), "aging"))
+            # a slope per piece fitted with the rest: the trend that can trade
+            fit = fit_lab(LabModel(lab_record_from(df, COLUMNS), "aging", detrend="piece"))
         said = any("trade" in str(w.message) for w in caught)
         assert said == trades and (abs(fit.trend_rho) > 0.9) == trades
     basis = fit.model.linear_basis()
@@ -541,13 +542,26 @@ def test_a_switch_placed_off_is_moved_to_where_the_friction_says():
     assert fit.interval("k")[0] <= TRUTH["k"] <= fit.interval("k")[1]
 
 
+def test_a_switch_the_friction_cannot_place_keeps_the_displacements_time():
+    """A piece of 22 samples between two switches (0.33 s at 10 µm/s): a trial that would leave
+    it under the pieces' 20 samples is skipped, not refused; and the friction, which does not
+    reject the displacement's times there, leaves them where they are."""
+    from benchmarks.lab.switches import refine_switches, with_switches
+    rec = with_switches(_record(seed=0), (20.0, 20.33, 100.0))
+    fit, table = refine_switches(fit_lab(LabModel(rec, "aging", detrend="piece")))
+    for row in table.itertuples():
+        assert row.friction_s == row.displacement_s
+        assert not row.disagree
+    assert fit.model.record.switch_times == pytest.approx((20.0, 20.33, 100.0))
+
+
 def test_the_command_chooses_the_trend_with_detrend_auto(tmp_path):
     out = _cli(BASALT, *[f"--column={c}" for c in REAL_COLUMNS], "--detrend", "auto",
                "--no-profiles", "--no-solver-check", "--out", tmp_path, "--json")
     assert out.returncode == 0, out.stderr
     doc = json.loads(out.stdout)
     trends = pd.read_csv(tmp_path / "lab_fit_trends.csv").set_index("detrend")
-    assert set(trends.index) == {"none", "one", "piece"}
+    assert set(trends.index) == {"none", "one", "piece", "steady"}
     assert doc["detrend"] == trends.bic_ar1.idxmin() == doc["trends"]["table"][
         [r["chosen"] for r in doc["trends"]["table"]].index(True)]["detrend"]
 
@@ -705,12 +719,14 @@ def test_the_noise_reader_finds_walks_and_mixtures_and_invents_only_small_walks(
 
 def test_a_trial_fit_without_its_uncertainty_has_the_full_fits_values():
     """fit_lab(uncertainty=False), a switch search's trial: the same values and squares as the
-    full fit (one least-squares run), no covariance (NaN) and no noise model or notes."""
-    model = LabModel(_record(seed=3), "aging")
-    full = fit_lab(model)
-    trial = fit_lab(model, uncertainty=False)
-    assert trial.rss == full.rss
-    assert all(trial.values[n] == full.values[n] for n in ("a", "b", "dc", "k", "mu_ref"))
+    full fit (started from its values: the full fit settles its held trend in more runs), no
+    covariance (NaN) and no noise model or notes."""
+    full = fit_lab(LabModel(_record(seed=3), "aging"))
+    # the full fit's model: its held trend as the fit settled it (a trial does not settle)
+    trial = fit_lab(full.model, uncertainty=False, start=full.values)
+    assert trial.rss == pytest.approx(full.rss, rel=1e-9)
+    assert all(trial.values[n] == pytest.approx(full.values[n], rel=1e-6)
+               for n in ("a", "b", "dc", "k", "mu_ref"))
     assert np.isnan(trial.covariance).all() and trial.noise_model is None and not trial.notes
     assert full.noise_model is not None and np.isfinite(full.covariance).all()
 

@@ -327,6 +327,7 @@ def _doc(args, record, fit, table, fixed, notes, profiles, check, inertia, poste
                             t_end_s=record.pieces.t_end_s + record.t_offset).to_dict(
                             orient="records")},
             "samples": fit.n, "parameters": table.to_dict(orient="records"),
+            "trend": _trend_doc(fit, record.t_offset),
             "noise": {"model": "white + AR(1) + random walk, fitted to the residuals' "
                                "variogram (benchmarks.lab.noise): covariance = inflation * "
                                "sigma^2 (J'J)^-1 (inflation * sigma^2 the white + AR(1) part's "
@@ -355,6 +356,28 @@ def _doc(args, record, fit, table, fixed, notes, profiles, check, inertia, poste
                 "tau_reliable": posterior.tau_reliable,
                 "effective_samples": posterior.effective_samples, "solves": posterior.solves,
                 "wall_s": posterior.wall_s}}
+
+
+def _trend_doc(fit, offset: float) -> dict:
+    """lab_fit.json's trend: ln Dc's correlation with the slope it follows most, and with
+    ``--detrend steady`` each piece's held slope (per m; None where the slope was fitted), its
+    error, where its steady part starts and where the fit said it may ("steady_after_s"):
+    file times in s, None where no word, "never" for a piece whose evolution does not end."""
+    def when(v):
+        return None if math.isnan(v) else "never" if math.isinf(v) else float(v) + offset
+
+    doc = {"dc_trend_correlation": None if math.isnan(fit.trend_rho) else fit.trend_rho}
+    steady = fit.model.steady
+    if steady is not None:
+        after = fit.model.steady_after or (math.nan,) * len(steady.slopes)
+        doc.update(held_slopes_per_m=[None if f else float(v) for v, f in
+                                      zip(steady.slopes, steady.fitted)],
+                   held_se_per_m=[None if f else float(v) for v, f in
+                                  zip(steady.se, steady.fitted)],
+                   fitted_pieces=[i for i, f in enumerate(steady.fitted) if f],
+                   steady_from_s=[when(v) for v in steady.steady_from],
+                   steady_after_s=[when(v) for v in after])
+    return doc
 
 
 #: how the laws and the trends are chosen, for lab_fit.json
@@ -607,11 +630,15 @@ def add_parser(tests) -> None:
                         "is 1000), held fixed (default: fitted)")
     p.add_argument("--c", type=non_negative,
                    help="the Nagata law's c, dimensionless, held fixed (default: fitted)")
-    p.add_argument("--detrend", choices=(*DETRENDS, "auto"), default="piece",
+    p.add_argument("--detrend", choices=(*DETRENDS, "auto"), default="steady",
                    help="a linear trend in the load point's displacement: a slope per piece of "
-                        "the history, one slope, none, or auto: each fitted and the lowest BIC "
-                        "of n/f independent samples chosen (f the residuals' AR(1) inflation; "
-                        "the table is written as lab_fit_trends.csv) (default: piece)")
+                        "the history fitted with the rest, one slope, none, steady (a slope per "
+                        "piece read beforehand only where the slider is steady, before the step "
+                        "and after the evolution has ended, as Giacomel et al.'s steadystate "
+                        "finds it, then held; its error is carried into the intervals), or "
+                        "auto: each fitted and the lowest BIC of n/f independent samples chosen "
+                        "(f the residuals' AR(1) inflation; the table is written as "
+                        "lab_fit_trends.csv) (default: steady)")
     p.add_argument("--weights", type=float, nargs="+", metavar="W",
                    help="a weight per piece of the history, multiplying its residuals "
                         "(default: 1 each)")

@@ -33,6 +33,7 @@ after it Dc; the fit starts from Dc × :data:`DC_STARTS` and keeps the best.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 import warnings
@@ -122,7 +123,8 @@ class LabFit:
     drift_sigma : float
         The random walk's σ per sample under the noise (:attr:`noise_model`; 0: none).
     drift_factor : dict of str to float
-        Each free parameter's variance with the walk ÷ without it (≥ 1).
+        Each free parameter's variance with the walk and a held trend's errors ÷ without them
+        (≥ 1).
     fixed : dict of str to float
         The parameters held at given values.
     piece_weights : numpy.ndarray, optional
@@ -254,7 +256,7 @@ class _Problem:
         w = np.ones(len(rec.t)) if weights is None else np.asarray(weights, float)[
             rec.piece_index()]
         self.w = w
-        self.wmu = w * rec.mu
+        self.wmu = w * (rec.mu - model.offset)       # a trend held fixed is taken off
         self.q = _orthonormal(w[:, None] * model.linear_basis())
         self.solves = 0
         self.failed = 0                  # solves that failed or ran out of their budget
@@ -469,20 +471,17 @@ def fit_lab(model, fixed: dict | None = None, weights=None, start: dict | None =
         if not (isinstance(value, (int, float)) and lo <= value <= hi):
             raise ValueError(f"fixed {name} = {value!r} {PARAMETER_UNITS[name]}: expected a "
                              f"number from {lo:g} to {hi:g}")
-    n_pieces = len(model.record.velocities)
-    if weights is not None:
-        weights = np.asarray(weights, dtype=float)
-        if weights.shape != (n_pieces,) or not np.all(np.isfinite(weights)) or (weights < 0).any() \
-                or not (weights > 0).any():
-            raise ValueError(f"weights must be {n_pieces} non-negative numbers, one per piece of "
-                             f"the history (not all 0), got {np.atleast_1d(weights).tolist()}")
+    weights = _checked_weights(weights, len(model.record.velocities))
     free = tuple(n for n in names if n not in fixed)
     if not free:
         raise ValueError("every parameter is fixed: nothing to fit")
     guess = starting_values(model.record)
     guess.update(c=2.0, b2=0.0, dc2=guess["dc"] * DC2_START)
     guess.update(start or {})
-    prob = _Problem(model, free, fixed, weights)
+    settle = model.steady is not None and model.steady_after is None and uncertainty
+    # a held trend is settled from the fit with a slope per piece (_settle)
+    prob = _Problem(dataclasses.replace(model, detrend="piece") if settle else model, free,
+                    fixed, weights)
     starts = []
     for factor in (dc_starts if "dc" in free and start is None else (1.0,)):
         p0 = dict(guess, dc=guess["dc"] * factor)
@@ -500,7 +499,82 @@ def fit_lab(model, fixed: dict | None = None, weights=None, start: dict | None =
         res = prob.solve(prob.coordinates({n: p0[n] for n in free}))
         if best is None or res.cost < best.cost:
             best = res
+    if settle:
+        prob, best = _settle(model, prob, best)
     return _result(prob, best, time.perf_counter() - t0, uncertainty)
+
+
+def _checked_weights(weights, n_pieces: int):
+    """``weights`` as an array of one non-negative weight per piece (not all 0), or None."""
+    if weights is None:
+        return None
+    weights = np.asarray(weights, dtype=float)
+    if weights.shape != (n_pieces,) or not np.all(np.isfinite(weights)) or (weights < 0).any() \
+            or not (weights > 0).any():
+        raise ValueError(f"weights must be {n_pieces} non-negative numbers, one per piece of "
+                         f"the history (not all 0), got {np.atleast_1d(weights).tolist()}")
+    return weights
+
+
+#: rounds of moving the steady parts to where the fitted model says the evolution has ended
+SETTLE_ROUNDS = 3
+#: a held slope more uncertain than this many times the same slope fitted with the rest is not
+#: held: its steady part is too short to say more than the fit does, and a noisy slope held
+#: moves the law's parameters by its noise
+HELD_WORSE = 3.0
+
+
+def _settle(model, prob, best):
+    """The held trend's steady parts moved to where a fitted model says each piece's evolution
+    has ended (:func:`~benchmarks.lab.steady_trend.settled_after`), first the fit with a slope
+    per piece (``prob``, ``best``; a held slope read off a transient makes its own fit say
+    that the evolution ended early), then the held fit's own, each fit made again from the
+    last; a part only ever moves later, until it stays (at most :data:`SETTLE_ROUNDS`
+    rounds). A slope whose held error exceeds :data:`HELD_WORSE` times its error in the fit
+    with a slope per piece is fitted instead. The last model keeps its steady parts for the
+    profiles and refits."""
+    from benchmarks.lab.steady_trend import settled_after
+    rec = model.record
+    fitted_se = _slope_errors(prob, best.x)
+    after, steady = None, model.steady
+    forced = np.zeros(len(rec.velocities), bool)
+    for _ in range(SETTLE_ROUNDS):
+        g = prob.g(best.x)
+        if not np.isfinite(g).all():
+            break
+        now = settled_after(steady, rec.t, rec.mu, g, rec.velocities, rec.switch_times)
+        with np.errstate(invalid="ignore"):
+            worse = forced | (np.asarray(steady.se) > HELD_WORSE * fitted_se)
+        now = now if after is None else np.fmax(after, now)
+        if after is not None and np.array_equal(now, after, equal_nan=True) and \
+                np.array_equal(worse, forced):
+            break
+        after, forced = now, worse
+        held = dataclasses.replace(model, steady_after=tuple(map(float, after)),
+                                   steady_fitted=tuple(map(bool, forced)))
+        steady, solves = held.steady, prob.solves
+        prob = _Problem(held, prob.free, prob.fixed, prob.piece_weights)
+        prob.solves = solves
+        best = prob.solve(best.x)
+    return prob, best
+
+
+def _slope_errors(prob, x) -> np.ndarray:
+    """Per piece, the standard error of its slope fitted with the rest (``prob`` a fit with a
+    slope per piece, at ``x``), by the noise model of its residuals; NaN for a piece without
+    one."""
+    model = prob.model
+    full = np.column_stack([prob.jacobian(x, projected=False),
+                            -prob.w[:, None] * model.linear_basis()])
+    r = prob.residual(x)
+    noise = read_noise(r)
+    cov = covariance(full, noise.long_run) + drift_covariance(full, noise.walk)
+    out = np.full(len(model.record.velocities), np.nan)
+    for j, name in enumerate(model.linear_names):
+        if name.startswith("trend_"):
+            k = len(x) + j
+            out[int(name.split("_")[1])] = math.sqrt(max(cov[k, k], 0.0))
+    return out
 
 
 def _result(prob, res, wall_s, uncertainty: bool = True) -> LabFit:
@@ -509,7 +583,7 @@ def _result(prob, res, wall_s, uncertainty: bool = True) -> LabFit:
     g = prob.g(x)
     ok = bool(np.isfinite(g).all())
     coef = prob.linear(x) if ok else np.full(len(model.linear_names), np.nan)
-    mu_model = g + model.linear_basis() @ coef
+    mu_model = g + model.linear_basis() @ coef + model.offset
     r = prob.w * (model.record.mu - mu_model)
     # the samples of weight 0 are no data: they count neither in n nor in ρ
     n, p = int((prob.w > 0).sum()), len(x) + prob.q.shape[1]
@@ -525,18 +599,20 @@ def _result(prob, res, wall_s, uncertainty: bool = True) -> LabFit:
     noise = read_noise(r[kept], _orthonormal(np.column_stack([prob.q, jac])[kept]))
     walk = noise.walk
     f = noise.long_run / sigma ** 2 if walk > 0 and sigma > 0 else noise.inflation
-    ar1 = covariance(jac, f * sigma ** 2)
-    cov = ar1 + drift_covariance(jac, walk)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        grow = np.diag(cov) / np.diag(ar1)
-    drift_factor = {name: float(g) if np.isfinite(g) and g >= 1 else 1.0
-                    for name, g in zip(prob.free, grow)}
     # the linear parameters' errors and their correlations with the others: the full
     # problem's covariance, from the unprojected Jacobian (the projected one is orthogonal to
     # the basis, and would leave out what the nonlinear parameters' uncertainty adds)
     full = np.column_stack([prob.jacobian(x, projected=False),
                             -prob.w[:, None] * model.linear_basis()])
-    full_cov = covariance(full, f * sigma ** 2) + drift_covariance(full, walk)
+    held = _held_trend(model, prob.w, jac, full)
+    ar1 = covariance(jac, f * sigma ** 2)
+    cov = ar1 + drift_covariance(jac, walk) + held["cov"]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        grow = np.diag(cov) / np.diag(ar1)
+    drift_factor = {name: float(g) if np.isfinite(g) and g >= 1 else 1.0
+                    for name, g in zip(prob.free, grow)}
+    full_cov = (covariance(full, f * sigma ** 2) + drift_covariance(full, walk)
+                + held["full_cov"])
     params = prob.params(x)
     values = dict(params)
     values["a_minus_b"] = values["a"] - values["b"]
@@ -544,6 +620,10 @@ def _result(prob, res, wall_s, uncertainty: bool = True) -> LabFit:
     linear_se = {k: float(np.sqrt(max(full_cov[len(x) + i, len(x) + i], 0.0)))
                  for i, k in enumerate(model.linear_names)}
     trend_rho = _trend_correlation(full_cov, prob.free, model.linear_names)
+    if model.steady is not None:
+        linear.update(held["slopes"])
+        linear_se.update(held["se"])
+        trend_rho = _held_correlation(cov, prob.free, held["moves"])
     values.update(linear)
     lo, hi = prob.bounds()
     # at a bound: held there by the solver, or within 1e-3 of the log range (Dc, k′ at 1e-9 m
@@ -564,12 +644,56 @@ def _result(prob, res, wall_s, uncertainty: bool = True) -> LabFit:
     return fit
 
 
+def _held_trend(model, w, jac, full) -> dict:
+    """What a trend held fixed (``detrend="steady"``) adds: each slope's error moves the
+    parameters by J⁺(w c) per unit (c its travel column), so its variance adds
+    se² (J⁺wc)(J⁺wc)ᵀ to the covariance (``cov`` over the nonlinear parameters, ``full_cov``
+    with the linear ones); the slopes and errors as ``trend_i``, and ``moves``, each slope's
+    (J⁺wc, se). Zeros without a held trend."""
+    out = {"cov": np.zeros((jac.shape[1],) * 2), "full_cov": np.zeros((full.shape[1],) * 2),
+           "slopes": {}, "se": {}, "moves": []}
+    steady = model.steady
+    if steady is None:
+        return out
+    for i, (slope, se) in enumerate(zip(steady.slopes, steady.se)):
+        if model.record.velocities[i] > 0 and not steady.fitted[i]:
+            out["slopes"][f"trend_{i}"], out["se"][f"trend_{i}"] = float(slope), float(se)
+        if steady.fitted[i] or not se > 0:
+            continue
+        wc = w * steady.columns[:, i]
+        g, *_ = np.linalg.lstsq(jac, wc, rcond=None)
+        out["cov"] += se ** 2 * np.outer(g, g)
+        gf, *_ = np.linalg.lstsq(full, wc, rcond=None)
+        out["full_cov"] += se ** 2 * np.outer(gf, gf)
+        out["moves"].append((g, se))
+    return out
+
+
+def _held_correlation(cov: np.ndarray, free, moves) -> float:
+    """The correlation of ln Dc with a held slope of the largest size (cov(θ, s) = J⁺wc·se²);
+    NaN without Dc or a slope with an error."""
+    if "dc" not in free:
+        return math.nan
+    i = list(free).index("dc")
+    best = math.nan
+    for g, se in moves:
+        if cov[i, i] > 0 and np.isfinite(cov[i, i]):
+            rho = float(g[i] * se / math.sqrt(cov[i, i]))
+            if not abs(rho) <= abs(best):
+                best = rho
+    return best
+
+
 def _values_only(prob, res, wall_s, ok, coef, r, mu_model, rss, sigma, rho, n) -> LabFit:
     """A fit's values and squares without its uncertainty (``fit_lab(uncertainty=False)``)."""
     model = prob.model
     values = prob.params(res.x)
     values["a_minus_b"] = values["a"] - values["b"]
     linear = dict(zip(model.linear_names, map(float, coef)))
+    if model.steady is not None:
+        linear.update({f"trend_{i}": float(s) for i, (s, v, f) in enumerate(
+            zip(model.steady.slopes, model.record.velocities, model.steady.fitted))
+            if v > 0 and not f})
     values.update(linear)
     size = len(res.x)
     return LabFit(model=model, free=prob.free, values=values,
@@ -616,11 +740,17 @@ def _notes(fit: LabFit, lo, hi) -> None:
     elif not fit.success:
         fit.notes.append(f"the fit did not converge ({fit.message}): its values are where it "
                          "stopped, not a minimum")
-    if abs(fit.trend_rho) > TRADES:
+    if abs(fit.trend_rho) > TRADES and fit.model.steady is not None:
+        fit.notes.append(f"Dc follows a held trend slope's error (correlation "
+                         f"{fit.trend_rho:+.3f}): the steady part it was read from is short; a "
+                         "longer record after the step would settle it")
+    elif abs(fit.trend_rho) > TRADES:
         fit.notes.append(f"Dc and the trend's slope trade (correlation {fit.trend_rho:+.3f}): "
                          "the slope can take up part of the evolution; compare --detrend "
-                         "none or one, or --detrend auto, and a window that ends where the "
-                         "slider is steady")
+                         "steady, none or one, or --detrend auto, and a window that ends where "
+                         "the slider is steady")
+    if fit.model.steady is not None:
+        fit.notes.extend(fit.model.steady.notes)
     # a record of no sample-to-sample noise (μ made by a model, exactly linear between its
     # transients) has nothing to judge a misfit against here
     if fit.noise > 0 and fit.sigma > NOT_FIT * fit.noise and fit.rho > NOT_FIT_RHO:

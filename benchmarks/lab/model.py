@@ -16,9 +16,13 @@ states; ``algorithm`` then does not apply.
 
 The friction μ the model returns is μ_ref + (Fs/Fn − μ0) + the trend: μ_ref the steady friction
 at the first speed (a fit parameter), the trend a straight line in the load point's displacement
-per piece of the history (``detrend="piece"``, each piece its own slope, continuous at the
-switches: the linear detrend of RSFit3000 and of Giacomel et al. 2024, fitted with the rest),
-one line through the record (``"one"``) or none. The offset and the slopes enter linearly.
+per piece of the history, continuous at the switches. By default (``detrend="steady"``,
+:mod:`benchmarks.lab.steady_trend`) each piece's slope is read beforehand where the slider is
+steady (before the step; after the evolution has ended, as Giacomel et al. 2024's steadystate
+finds it) and held, its error carried into the fit's; a piece without a steady part has its
+slope fitted. ``"piece"`` fits every slope with the rest, which can take up part of the
+evolution; ``"one"`` is one line through the record; ``"none"`` no trend. The offset and the fitted slopes enter linearly; a held trend is
+:attr:`LabModel.offset`.
 """
 
 from __future__ import annotations
@@ -36,8 +40,9 @@ __all__ = ["LabModel", "DETRENDS", "NOMINAL_NORMAL_FORCE", "LAB_MU0", "DEFAULT_A
 NOMINAL_NORMAL_FORCE = 1e4
 #: the reference friction of the slider; the fit's own level is μ_ref, added on
 LAB_MU0 = 0.6
-#: the ways of detrending: a slope per piece of the history, one slope, none
-DETRENDS = ("piece", "one", "none")
+#: the ways of detrending: the slopes per piece read where the slider is steady (the default),
+#: a slope per piece of the history fitted with the rest, one slope, none
+DETRENDS = ("steady", "piece", "one", "none")
 #: (name, rtol = atol): the fit's integrator unless told (checked by the fit's solver check)
 DEFAULT_ALGORITHM = ("Rodas5P", 1e-10)
 #: s of wall time per solve unless told: a solve over it fails (NaN, never read as μ). A fit's
@@ -59,7 +64,7 @@ class LabModel:
         A law of :data:`problems.LAWS` (default ``"aging"``).
     detrend : str
         How the level and trend of μ are taken out, one of :data:`DETRENDS` (default
-        ``"piece"``).
+        ``"steady"``).
     mass : float
         The slider's mass (kg; default 0, quasi-static).
     radiation_damping : float
@@ -74,6 +79,13 @@ class LabModel:
     wall_budget : float or None
         Seconds per solve (None: no budget; the two-state model has its step budget,
         ``MAX_STEPS``).
+    steady_after : tuple of float, optional
+        ``detrend="steady"``: per piece, the time (s) before which it is not steady, as a
+        fitted model says (:func:`~benchmarks.lab.steady_trend.settled_after`; the fit sets
+        it).
+    steady_fitted : tuple of bool, optional
+        ``detrend="steady"``: per piece, True to fit its slope with the rest rather than hold
+        it (the fit sets it where a held slope would be less precise).
 
     Raises
     ------
@@ -85,15 +97,18 @@ class LabModel:
 
     record: object
     law: str = "aging"
-    detrend: str = "piece"
+    detrend: str = "steady"
     mass: float = 0.0
     radiation_damping: float = 0.0
     normal_force: float | None = None
     algorithm: object = None
     states: int = 1
     wall_budget: float | None = WALL_BUDGET
+    steady_after: tuple | None = None
+    steady_fitted: tuple | None = None
     _basis: np.ndarray = field(init=False, repr=False, compare=False)
     _names: tuple = field(init=False, repr=False, compare=False)
+    _steady: object = field(init=False, repr=False, compare=False, default=None)
 
     def __post_init__(self) -> None:
         from problems.friction import LAWS
@@ -127,6 +142,13 @@ class LabModel:
         elif self.states == 1 and not self.algorithm.saves_at_times:
             raise ValueError(f"{self.algorithm.name} saves at its own step ends; a fit needs "
                              "μ at the record's times from a method's dense output")
+        if self.detrend == "steady":
+            from benchmarks.lab.steady_trend import steady_trend
+            rec = self.record
+            object.__setattr__(self, "_steady", steady_trend(rec.t, rec.mu, rec.velocities,
+                                                             rec.switch_times,
+                                                             after=self.steady_after,
+                                                             fitted=self.steady_fitted))
         basis, names = self._trend_basis()
         object.__setattr__(self, "_basis", basis)
         object.__setattr__(self, "_names", names)
@@ -149,6 +171,21 @@ class LabModel:
         """(samples, 1 + slopes): the columns the linear parameters multiply."""
         return self._basis
 
+    @property
+    def steady(self):
+        """The trend read where the slider is steady
+        (:class:`~benchmarks.lab.steady_trend.SteadyTrend`), for ``detrend="steady"``; else
+        None."""
+        return self._steady
+
+    @property
+    def offset(self) -> np.ndarray:
+        """The trend held fixed at each sample (``detrend="steady"``), else zeros: the fit
+        takes it off the record's μ."""
+        if self._steady is None:
+            return np.zeros(len(self.record.t))
+        return self._steady.offset
+
     def _trend_basis(self):
         rec = self.record
         t = rec.t
@@ -160,9 +197,12 @@ class LabModel:
             piece = rec.piece_index()
             columns.append(x_at[piece] + (t - bounds[piece]) * np.asarray(rec.velocities)[piece])
             names.append("trend")
-        elif self.detrend == "piece":
+        elif self.detrend in ("piece", "steady"):
+            fitted = self._steady.fitted if self._steady is not None else (True,) * len(
+                rec.velocities)
             for i, v in enumerate(rec.velocities):
-                if v > 0:          # a hold moves no load point: no trend of its own
+                # a hold moves no load point: no trend of its own; a steady slope is held
+                if v > 0 and fitted[i]:
                     columns.append(np.clip(t - bounds[i], 0.0, bounds[i + 1] - bounds[i]) * v)
                     names.append(f"trend_{i}")
         return np.column_stack(columns), tuple(names)

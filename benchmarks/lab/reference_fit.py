@@ -78,7 +78,7 @@ class ReferenceFit:
         return v - Z95 * s, v + Z95 * s
 
 
-def _basis(t, velocities, switch_times, detrend: str) -> np.ndarray:
+def _basis(t, velocities, switch_times, detrend: str, more=None) -> np.ndarray:
     bounds = np.array([0.0, *switch_times, np.inf])
     columns = [np.ones(len(t))]
     travel = [np.clip(t - bounds[i], 0.0, bounds[i + 1] - bounds[i]) * v
@@ -89,11 +89,13 @@ def _basis(t, velocities, switch_times, detrend: str) -> np.ndarray:
         columns += [x for x, v in zip(travel, velocities) if v > 0]
     elif detrend != "none":
         raise ValueError(f"detrend must be none, one or piece, got {detrend!r}")
+    if more is not None and np.size(more):
+        columns += list(np.asarray(more, dtype=float).reshape(len(t), -1).T)
     return np.column_stack(columns)
 
 
 def fit_reference(t, mu, velocities, switch_times, law: str, detrend: str, start: dict,
-                  dc_starts=(0.3, 1.0, 3.0), rtol: float = 1e-9) -> ReferenceFit:
+                  dc_starts=(0.3, 1.0, 3.0), rtol: float = 1e-9, trend_columns=None):
     """Fit ``law`` (aging or slip) to μ(t) under the load-point history (``velocities`` in m/s,
     ``switch_times`` in s from t = 0, the record's first sample) with the trend ``detrend``,
     from ``start`` (a, b, dc in m, k in 1/m) with Dc also at ``dc_starts`` times its start;
@@ -115,6 +117,8 @@ def fit_reference(t, mu, velocities, switch_times, law: str, detrend: str, start
         Multiples of the start's Dc also tried.
     rtol : float
         Radau's rtol (atol 1e-3 × rtol).
+    trend_columns : numpy.ndarray, optional
+        (samples, m): more columns fitted linearly (a held trend's fitted pieces).
 
     Returns
     -------
@@ -122,7 +126,7 @@ def fit_reference(t, mu, velocities, switch_times, law: str, detrend: str, start
     """
     started = time.perf_counter()
     t, mu = np.asarray(t, dtype=float), np.asarray(mu, dtype=float)
-    basis = _basis(t, velocities, switch_times, detrend)
+    basis = _basis(t, velocities, switch_times, detrend, trend_columns)
     q, _ = np.linalg.qr(basis)
     runs = [0]
 

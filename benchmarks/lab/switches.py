@@ -11,10 +11,14 @@ of a second moves a, Dc and k′ by more than their errors.
 the current one) at trial switch times, its squares as a function of the switch time (the
 others held), over ± :data:`WINDOW_SAMPLES` samples of the displacement's switch (at most a
 quarter of the shorter piece beside it): a scan of :data:`SCAN` points, then a bounded search
-about the best to :data:`TOLERANCE` of a sample. The switch's 95 % interval is where the squares
+about the best to :data:`TOLERANCE` of a sample (a trial that would leave a piece too short is
+skipped). The switch's 95 % interval is where the squares
 are within 3.84 f σ² of their minimum (f σ² the best fit's noise variance, grown by the walk
-as for the parameter it moves most: :attr:`~benchmarks.lab.fit.LabFit.walk_variance`), each end bisected :data:`BISECT` times; an end that
-the window does not close is open. The switches are refined one after the other, each with
+as for the parameter it moves most: :attr:`~benchmarks.lab.fit.LabFit.walk_variance`), each end
+bisected :data:`BISECT` times; an end that the window does not close is open. Where neither end
+closes, or the friction does not reject the displacement's time (its squares' rise there is at
+most :data:`REJECTED`), the displacement's time is kept: the friction moves a switch only where
+it says the displacement is wrong. The switches are refined one after the other, each with
 those before it at their refined times. What the refinement assumes: the load point switches
 when the friction responds (no lag of the machine's servo), and one switch's time does not
 depend on the next's.
@@ -124,7 +128,11 @@ def _refine(fit, i: int):
         if ts not in fits:
             times = list(rec.switch_times)
             times[i] = ts
-            model = dataclasses.replace(fit.model, record=with_switches(rec, times))
+            try:
+                model = dataclasses.replace(fit.model, record=with_switches(rec, times))
+            except ValueError:           # a piece too short: no trial there
+                fits[ts] = None
+                return None
             start = {n: fit.values[n] for n in model.parameters}
             fits[ts] = fit_lab(model, fixed=fit.fixed, weights=fit.piece_weights, start=start,
                                uncertainty=False)
@@ -132,7 +140,7 @@ def _refine(fit, i: int):
 
     def squares(ts: float) -> float:
         f = at(ts)
-        return f.rss if f.success and np.isfinite(f.rss) else math.inf
+        return f.rss if f is not None and f.success and np.isfinite(f.rss) else math.inf
 
     scan = np.linspace(t0 - width, t0 + width, SCAN)
     values = [squares(ts) for ts in scan]
@@ -141,6 +149,9 @@ def _refine(fit, i: int):
     minimize_scalar(squares, bounds=(lo, hi), method="bounded",
                             options={"xatol": TOLERANCE * dt})
     best_t = min(fits, key=lambda ts: squares(ts))
+    if not np.isfinite(squares(best_t)):     # no trial fitted: the displacement's switch kept
+        best_t = t0
+        fits[t0] = fit
     # a trial has no noise model: the best's is refitted from its values (a warm start that
     # stays there)
     trial = fits[best_t]
@@ -150,7 +161,8 @@ def _refine(fit, i: int):
     level = squares(best_t) + CHI2_95_1DOF * unit
     ends, closed = [], []
     for side in (-1, 1):
-        outside = [ts for ts in fits if (ts - best_t) * side > 0 and squares(ts) > level]
+        outside = [ts for ts in fits if fits[ts] is not None and (ts - best_t) * side > 0
+                   and squares(ts) > level]
         if not outside:
             ends.append(t0 + side * width)
             closed.append(False)
@@ -164,8 +176,12 @@ def _refine(fit, i: int):
             inside, out = (mid, out) if squares(mid) <= level else (inside, mid)
         ends.append(0.5 * (inside + out))
         closed.append(True)
-    within = [fits[ts] for ts in fits if squares(ts) <= level]
     rise = (squares(t0) - squares(best_t)) / unit
+    if best_t != t0 and (not any(closed) or rise <= REJECTED):
+        # the friction does not place the switch, or does not reject the displacement's: the
+        # displacement's time is kept
+        best_t, best = t0, fit
+    within = [fits[ts] for ts in fits if squares(ts) <= level]
     offset = rec.t_offset
     row = {"switch": i + 1, "displacement_s": t0 + offset, "friction_s": best_t + offset,
            "low95_s": ends[0] + offset, "high95_s": ends[1] + offset,

@@ -231,6 +231,21 @@ def _compare(doc: dict, ref) -> list[dict]:
     return rows
 
 
+def _held(record, doc, velocities, switches):
+    """``(μ, detrend, columns)`` for the reference fit: the record's μ and trend, or with
+    ``--detrend steady`` μ less the command's held trend (its steady parts as the command
+    settled them, ``trend.steady_after``) and the travel columns of the pieces whose slopes it
+    fitted."""
+    if doc["detrend"] != "steady":
+        return record.mu, doc["detrend"], None
+    from benchmarks.lab.steady_trend import steady_trend
+    after = [math.nan if a is None else math.inf if a == "never" else a - record.t_offset
+             for a in doc["trend"]["steady_after_s"]]
+    held = steady_trend(record.t, record.mu, velocities, switches, after=after)
+    fitted = [i for i, (f, v) in enumerate(zip(held.fitted, velocities)) if f and v > 0]
+    return record.mu - held.offset, "none", held.columns[:, fitted]
+
+
 def _real(root: Path, out: Path, say) -> list[dict]:
     """Each real record through ``rsfbench lab fit`` at its defaults with both laws, and the
     independent reference fit (:mod:`benchmarks.lab.reference_fit`) of the chosen law on
@@ -249,8 +264,9 @@ def _real(root: Path, out: Path, say) -> list[dict]:
         switches = [s - record.t_offset for s in history["switch_times_s"]]
         record = with_switches(record, switches)
         start = {k: v for k, v in starting_values(record).items() if k != "monotone"}
-        ref = fit_reference(record.t, record.mu, history["velocities_m_s"], switches,
-                            doc["law"], doc["detrend"], start)
+        mu, trend, columns = _held(record, doc, history["velocities_m_s"], switches)
+        ref = fit_reference(record.t, mu, history["velocities_m_s"], switches, doc["law"],
+                            trend, start, trend_columns=columns)
         say(f"real: {name}: reference fit {ref.wall_s:.0f} s, {ref.runs} runs")
         check = doc.get("solver_check") or {}
         results.append({
