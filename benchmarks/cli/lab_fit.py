@@ -140,7 +140,7 @@ def cmd_lab_fit(args) -> int:
     table = _table(fit, profiles, posterior)
     doc = _doc(args, record, fit, table, fixed, notes, profiles, check, inertia, posterior)
     for name, extra, compared in (("laws", laws_table, list(laws)),
-                                  ("trends", trends, ["none", "one", "piece"])):
+                                  ("trends", trends, list(AUTO_TRENDS))):
         doc[name] = None if extra is None else {
             "compared": compared, "chosen_by": CHOSEN_BY, "table": extra.to_dict("records")}
     doc["switches"] = _switches_doc(args, switches)
@@ -332,8 +332,10 @@ def _doc(args, record, fit, table, fixed, notes, profiles, check, inertia, poste
                                "variogram (benchmarks.lab.noise): covariance = inflation * "
                                "sigma^2 (J'J)^-1 (inflation * sigma^2 the white + AR(1) part's "
                                "long-run variance) plus the walk's share (drift_sigma per "
-                               "sample; benchmarks.lab.noise.drift_covariance); rho is the "
-                               "residuals' lag-1 autocorrelation",
+                               "sample; benchmarks.lab.noise.drift_covariance), plus with "
+                               "--detrend steady each held slope's se^2 (J+ w c)(J+ w c)' "
+                               "(benchmarks.lab.fit); rho is the residuals' lag-1 "
+                               "autocorrelation",
                       "white_variance": _noise_part(fit, "white"),
                       "ar1_variance": _noise_part(fit, "correlated"),
                       "ar1_phi": _noise_part(fit, "phi"),
@@ -360,9 +362,11 @@ def _doc(args, record, fit, table, fixed, notes, profiles, check, inertia, poste
 
 def _trend_doc(fit, offset: float) -> dict:
     """lab_fit.json's trend: ln Dc's correlation with the slope it follows most, and with
-    ``--detrend steady`` each piece's held slope (per m; None where the slope was fitted), its
+    ``--detrend steady`` each piece's held slope (per m; None where the slope was fitted or
+    the piece is a hold), its
     error, where its steady part starts and where the fit said it may ("steady_after_s"):
-    file times in s, None where no word, "never" for a piece whose evolution does not end."""
+    file times in s, None where no word, "never" for a piece whose evolution does not end;
+    and the law's parameters with every slope fitted instead ("alternatives")."""
     def when(v):
         return None if math.isnan(v) else "never" if math.isinf(v) else float(v) + offset
 
@@ -370,15 +374,21 @@ def _trend_doc(fit, offset: float) -> dict:
     steady = fit.model.steady
     if steady is not None:
         after = fit.model.steady_after or (math.nan,) * len(steady.slopes)
-        doc.update(held_slopes_per_m=[None if f else float(v) for v, f in
-                                      zip(steady.slopes, steady.fitted)],
-                   held_se_per_m=[None if f else float(v) for v, f in
-                                  zip(steady.se, steady.fitted)],
+        moving = [v > 0 for v in fit.model.record.velocities]    # a hold has no trend
+        doc.update(held_slopes_per_m=[float(v) if m and not f else None for v, f, m in
+                                      zip(steady.slopes, steady.fitted, moving)],
+                   held_se_per_m=[float(v) if m and not f else None for v, f, m in
+                                  zip(steady.se, steady.fitted, moving)],
                    fitted_pieces=[i for i, f in enumerate(steady.fitted) if f],
                    steady_from_s=[when(v) for v in steady.steady_from],
-                   steady_after_s=[when(v) for v in after])
+                   steady_after_s=[when(v) for v in after],
+                   alternatives=fit.alternatives)
     return doc
 
+
+#: the trends --detrend auto compares: not steady, whose slopes are the piece trend's held at
+#: other values (its squares are never below piece's, and it has as many parameters)
+AUTO_TRENDS = ("piece", "one", "none")
 
 #: how the laws and the trends are chosen, for lab_fit.json
 CHOSEN_BY = ("the lowest bic_ar1 = n ln(RSS/n)/f + p ln(n/f), the BIC of n/f independent "
@@ -408,7 +418,7 @@ def _choose_trend(args, fit):
     ``bic_ar1`` chosen (``args.detrend`` set to it); ``(fit, notes, table)``."""
     from benchmarks.lab.laws import compare_laws
     fits = {}
-    for trend in DETRENDS:
+    for trend in AUTO_TRENDS:
         model = dataclasses.replace(fit.model, detrend=trend)
         _stage(args, f"the {args.law} law with the trend {trend}")
         fits[trend] = (fit if trend == fit.model.detrend else
@@ -452,11 +462,7 @@ def _report(fit, table, profiles, check, inertia, notes, record, args) -> None:
         f"{math.sqrt(max(fit.inflation, 0.0)):.3g}); Wald intervals are value ± 1.96 se, "
         "profile ones where the squares rise by 3.84 f σ² (trust the profile where they "
         "differ; an open end is the parameter's bound)")
-    if fit.drift_sigma > 0:
-        grown = ", ".join(f"{k} ×{math.sqrt(v):.3g}" for k, v in fit.drift_factor.items())
-        say(f"drift: the residuals wander as a random walk of {fit.drift_sigma:.3g} per sample "
-            f"beyond their AR(1) correlation; its share widens the standard errors ({grown}) "
-            "and each profile's unit alike")
+    _report_trend(fit)
     for note in notes:
         say(f"note: {note}")
     if check is not None:
@@ -480,6 +486,38 @@ def _report(fit, table, profiles, check, inertia, notes, record, args) -> None:
                 index=False))
     if args.out is not None:
         say(f"wrote {', '.join(args.written)} to {args.out}")
+
+
+def _report_trend(fit) -> None:
+    """What widens the errors beyond the noise (a walk, a held trend's slopes); with a held
+    trend, which slopes were held from where, and the law's parameters with every slope
+    fitted instead."""
+    steady = fit.model.steady
+    why = ([f"the residuals wander as a random walk of {fit.drift_sigma:.3g} per sample beyond "
+            "their AR(1) correlation"] if fit.drift_sigma > 0 else [])
+    if steady is not None and not all(steady.fitted):
+        why.append("the held trend's slopes carry their own errors")
+    if why and any(v > 1 for v in fit.drift_factor.values()):
+        grown = ", ".join(f"{k} ×{math.sqrt(v):.3g}" for k, v in fit.drift_factor.items())
+        say(f"drift: {'; '.join(why)}: these widen the standard errors ({grown}) and each "
+            "profile's unit alike")
+    if steady is None:
+        return
+    held = [f"piece {i} {s * 1e-6:.3g} ± {e * 1e-6:.2g} per µm from "
+            f"{t + fit.model.record.t_offset:.6g} s"
+            for i, (s, e, t, f) in enumerate(zip(steady.slopes, steady.se, steady.steady_from,
+                                                  steady.fitted)) if not f and math.isfinite(s)]
+    fitted = [str(i) for i, (f, v) in enumerate(zip(steady.fitted, fit.model.record.velocities))
+              if f and v > 0]
+    say("trend: held where the slider is steady: " + ("; ".join(held) or "none")
+        + (f"; fitted with the rest: piece {', '.join(fitted)}" if fitted else ""))
+    piece = fit.alternatives.get("piece")
+    if piece:
+        from benchmarks.lab.fit import PARAMETER_UNITS
+        shown = {"m": " µm", "1/m": " per µm"}
+        say("with every slope fitted instead (--detrend piece): " + ", ".join(
+            f"{n} {_num(v, PARAMETER_UNITS.get(n, '1'))}{shown.get(PARAMETER_UNITS.get(n), '')}"
+            for n, v in piece.items()))
 
 
 def _noise_part(fit, name: str) -> float:
@@ -631,14 +669,13 @@ def add_parser(tests) -> None:
     p.add_argument("--c", type=non_negative,
                    help="the Nagata law's c, dimensionless, held fixed (default: fitted)")
     p.add_argument("--detrend", choices=(*DETRENDS, "auto"), default="steady",
-                   help="a linear trend in the load point's displacement: a slope per piece of "
-                        "the history fitted with the rest, one slope, none, steady (a slope per "
-                        "piece read beforehand only where the slider is steady, before the step "
-                        "and after the evolution has ended, as Giacomel et al.'s steadystate "
-                        "finds it, then held; its error is carried into the intervals), or "
-                        "auto: each fitted and the lowest BIC of n/f independent samples chosen "
-                        "(f the residuals' AR(1) inflation; the table is written as "
-                        "lab_fit_trends.csv) (default: steady)")
+                   help="a linear trend in the load point's displacement: steady (a slope per "
+                        "piece read only where the slider is steady, before the step and after "
+                        "the evolution has ended, as Giacomel et al.'s steadystate finds it, "
+                        "then held, its error carried into the intervals), piece (a slope per "
+                        "piece fitted with the rest), one slope, none, or auto: piece, one and "
+                        "none fitted and the lowest BIC of n/f independent samples chosen (f "
+                        "the AR(1) inflation; lab_fit_trends.csv) (default: steady)")
     p.add_argument("--weights", type=float, nargs="+", metavar="W",
                    help="a weight per piece of the history, multiplying its residuals "
                         "(default: 1 each)")

@@ -18,10 +18,13 @@ fitted to their variogram (:mod:`benchmarks.lab.noise`): σ² = RSS/(n − p), a
 f σ² (JᵀJ)⁻¹ with f the white + AR(1) part's long-run variance inflation (1 for white noise,
 (1 + ρ)/(1 − ρ) for AR(1) alone; a record's unmodelled wiggles make it large, honestly), plus the
 walk's share σ²_rw B CᵀC B where the variogram reads one (B = (JᵀJ)⁻¹, C the reverse
-cumulative sums of J's rows). ρ, the residuals' lag-1 autocorrelation, is reported beside it.
+cumulative sums of J's rows), plus, with a trend held where the slider is steady
+(``detrend="steady"``), each held slope's se² (J⁺Wc)(J⁺Wc)ᵀ (c its travel column: what its error
+moves the parameters by). Such a trend is first settled (:func:`_settle`). ρ, the residuals'
+lag-1 autocorrelation, is reported beside it.
 Intervals: Wald (value ± 1.96 s.e.; Dc and k′ on the log scale) here, profile intervals in
 :mod:`benchmarks.lab.profile_intervals` (Δ(RSS)/(f σ²) ≤ 3.84, the unit widened by each
-parameter's share of the walk: :meth:`LabFit.profile_scale`). A parameter at a bound of
+parameter's share of the walk and of a held trend: :meth:`LabFit.profile_scale`). A parameter at a bound of
 :data:`BOUNDS` is named (``at_bound``) and its interval is not a confidence interval.
 
 Its checks (the integrator, the inertia) are :mod:`benchmarks.lab.checks`.
@@ -135,6 +138,9 @@ class LabFit:
         The optimiser's message.
     noise_model : NoiseModel, optional
         The noise read from the residuals (:mod:`benchmarks.lab.noise`).
+    alternatives : dict
+        Other trends' values of the law's parameters, by trend: with a held trend, ``piece``
+        (every slope fitted with the rest), the fit its steady parts were first settled by.
     """
 
     model: object
@@ -171,6 +177,7 @@ class LabFit:
     message: str = ""
     #: the noise read from the residuals (None: AR(1) of ``rho``)
     noise_model: NoiseModel | None = None
+    alternatives: dict = field(default_factory=dict)
 
     @property
     def inflation(self) -> float:
@@ -231,10 +238,12 @@ class LabFit:
                  if n in self.values]
         names += list(self.linear)
         rows = []
+        held = set(self.linear) - set(self.model.linear_names)   # a held trend's slopes
         for n in names:
             low, high = self.interval(n)
-            kind = ("fitted" if n in self.free or n in self.linear else
-                    "derived" if n == "a_minus_b" and {"a", "b"} & set(self.free) else "fixed")
+            kind = ("held" if n in held else "fitted" if n in self.free or n in self.linear
+                    else "derived" if n == "a_minus_b" and {"a", "b"} & set(self.free)
+                    else "fixed")
             known = kind != "fixed"
             se = self.se(n) * (self.values[n] if n in _LOG else 1.0)
             rows.append({"parameter": n, "value": self.values[n], "se": se if known else 0.0,
@@ -430,9 +439,8 @@ def starting_values(record) -> dict:
 def fit_lab(model, fixed: dict | None = None, weights=None, start: dict | None = None,
             dc_starts=DC_STARTS, uncertainty: bool = True) -> LabFit:
     """Least squares of ``model`` (a :class:`~benchmarks.lab.model.LabModel`) to its
-    record. ``fixed``: parameters held at given values (``k`` in 1/m: friction per metre of
-    load-point travel; ``c`` of the Nagata law, whose default is fitted); ``weights``: one per
-    piece of the history; ``start``: starting values instead of the record's own.
+    record (``k`` in 1/m: friction per metre of load-point travel; the Nagata law's ``c`` is
+    fitted unless fixed).
 
     Parameters
     ----------
@@ -448,7 +456,8 @@ def fit_lab(model, fixed: dict | None = None, weights=None, start: dict | None =
         The Dc values (m) the fit also starts from.
     uncertainty : bool
         False: the values and squares only (a trial of a search): no covariance (NaN), noise
-        model or notes.
+        model or notes, and a held trend as the model has it (not settled: a trial of a
+        settled model's).
 
     Returns
     -------
@@ -499,9 +508,13 @@ def fit_lab(model, fixed: dict | None = None, weights=None, start: dict | None =
         res = prob.solve(prob.coordinates({n: p0[n] for n in free}))
         if best is None or res.cost < best.cost:
             best = res
+    alternatives = {}
     if settle:
+        alternatives["piece"] = {n: v for n, v in prob.params(best.x).items() if n in names}
         prob, best = _settle(model, prob, best)
-    return _result(prob, best, time.perf_counter() - t0, uncertainty)
+    fit = _result(prob, best, time.perf_counter() - t0, uncertainty)
+    fit.alternatives.update(alternatives)
+    return fit
 
 
 def _checked_weights(weights, n_pieces: int):
@@ -537,7 +550,9 @@ def _settle(model, prob, best):
     rec = model.record
     fitted_se = _slope_errors(prob, best.x)
     after, steady = None, model.steady
-    forced = np.zeros(len(rec.velocities), bool)
+    # a piece of weight 0 is no data: its slope is free, as with a slope per piece
+    forced = (np.zeros(len(rec.velocities), bool) if prob.piece_weights is None
+              else np.asarray(prob.piece_weights) == 0)
     for _ in range(SETTLE_ROUNDS):
         g = prob.g(best.x)
         if not np.isfinite(g).all():
@@ -552,9 +567,15 @@ def _settle(model, prob, best):
         after, forced = now, worse
         held = dataclasses.replace(model, steady_after=tuple(map(float, after)),
                                    steady_fitted=tuple(map(bool, forced)))
-        steady, solves = held.steady, prob.solves
+        steady, counts = held.steady, (prob.solves, prob.failed)
         prob = _Problem(held, prob.free, prob.fixed, prob.piece_weights)
-        prob.solves = solves
+        prob.solves, prob.failed = counts
+        best = prob.solve(best.x)
+    if prob.model.steady is None:        # the fit with a slope per piece failed: held as read
+        counts = (prob.solves, prob.failed)
+        prob = _Problem(dataclasses.replace(model, steady_fitted=tuple(map(bool, forced))),
+                        prob.free, prob.fixed, prob.piece_weights)
+        prob.solves, prob.failed = counts
         best = prob.solve(best.x)
     return prob, best
 
@@ -566,8 +587,8 @@ def _slope_errors(prob, x) -> np.ndarray:
     model = prob.model
     full = np.column_stack([prob.jacobian(x, projected=False),
                             -prob.w[:, None] * model.linear_basis()])
-    r = prob.residual(x)
-    noise = read_noise(r)
+    kept = prob.w > 0
+    noise = read_noise(prob.residual(x)[kept], _orthonormal(full[kept]))
     cov = covariance(full, noise.long_run) + drift_covariance(full, noise.walk)
     out = np.full(len(model.record.velocities), np.nan)
     for j, name in enumerate(model.linear_names):
@@ -623,7 +644,9 @@ def _result(prob, res, wall_s, uncertainty: bool = True) -> LabFit:
     if model.steady is not None:
         linear.update(held["slopes"])
         linear_se.update(held["se"])
-        trend_rho = _held_correlation(cov, prob.free, held["moves"])
+        held_rho = _held_correlation(cov, prob.free, held["moves"])
+        if not abs(trend_rho) >= abs(held_rho):     # NaN: the other one
+            trend_rho = held_rho
     values.update(linear)
     lo, hi = prob.bounds()
     # at a bound: held there by the solver, or within 1e-3 of the log range (Dc, k′ at 1e-9 m

@@ -106,9 +106,12 @@ def refine_switches(fit) -> tuple[object, pd.DataFrame]:
     for i in range(len(fit.model.record.switch_times)):
         fit, row = _refine(fit, i)
         rows.append(row)
-    model = fit.model
+    # a held trend is settled again at the refined switches (fit_lab's _settle)
+    model = dataclasses.replace(fit.model, steady_after=None, steady_fitted=None)
     final = fit_lab(model, fixed=fit.fixed, weights=fit.piece_weights)
-    if not final.rss <= fit.rss:         # the multi-start refit may stop worse than the warm one
+    # the multi-start refit may stop worse than the warm one (squares of one trend model: a
+    # held trend settled again is another)
+    if model.steady is None and not final.rss <= fit.rss:
         final = fit
     return final, pd.DataFrame(rows, columns=list(SWITCH_COLUMNS))
 
@@ -121,7 +124,8 @@ def _refine(fit, i: int):
     t0 = rec.switch_times[i]
     edges = (float(rec.t[0]), *rec.switch_times, float(rec.t[-1]))
     width = min(WINDOW_SAMPLES * dt, 0.25 * min(t0 - edges[i], edges[i + 2] - t0))
-    fits = {}
+    # a held trend keeps its held and fitted pieces: every trial has the same basis
+    fits, held = {}, None if fit.model.steady is None else fit.model.steady.fitted
 
     def at(ts: float):
         ts = float(ts)
@@ -129,7 +133,8 @@ def _refine(fit, i: int):
             times = list(rec.switch_times)
             times[i] = ts
             try:
-                model = dataclasses.replace(fit.model, record=with_switches(rec, times))
+                model = dataclasses.replace(fit.model, record=with_switches(rec, times),
+                                            steady_fitted=held)
             except ValueError:           # a piece too short: no trial there
                 fits[ts] = None
                 return None
@@ -159,23 +164,7 @@ def _refine(fit, i: int):
                    start={n: trial.values[n] for n in trial.model.parameters})
     unit = best.walk_variance
     level = squares(best_t) + CHI2_95_1DOF * unit
-    ends, closed = [], []
-    for side in (-1, 1):
-        outside = [ts for ts in fits if fits[ts] is not None and (ts - best_t) * side > 0
-                   and squares(ts) > level]
-        if not outside:
-            ends.append(t0 + side * width)
-            closed.append(False)
-            continue
-        out = min(outside, key=lambda ts: abs(ts - best_t))
-        inside = max((ts for ts in fits if (ts - best_t) * side >= 0
-                      and abs(ts - best_t) < abs(out - best_t) and squares(ts) <= level),
-                     key=lambda ts: abs(ts - best_t))
-        for _ in range(BISECT):
-            mid = 0.5 * (inside + out)
-            inside, out = (mid, out) if squares(mid) <= level else (inside, mid)
-        ends.append(0.5 * (inside + out))
-        closed.append(True)
+    ends, closed = _ends(fits, squares, best_t, t0 - width, t0 + width, level)
     rise = (squares(t0) - squares(best_t)) / unit
     if best_t != t0 and (not any(closed) or rise <= REJECTED):
         # the friction does not place the switch, or does not reject the displacement's: the
@@ -191,3 +180,27 @@ def _refine(fit, i: int):
         vals = [f.values[p] for f in within]
         row[f"{p}_min"], row[f"{p}_max"] = min(vals), max(vals)
     return best, row
+
+
+def _ends(fits, squares, best_t: float, low: float, high: float, level: float):
+    """The switch interval's ends and whether each is closed: from the best time, the nearest
+    trial above ``level`` on each side, bisected :data:`BISECT` times; open at ``low`` or
+    ``high`` where none is. A trial that failed is no evidence: it closes no end."""
+    ends, closed = [], []
+    for side, edge in ((-1, low), (1, high)):
+        outside = [ts for ts in fits if (ts - best_t) * side > 0
+                   and level < squares(ts) < math.inf]
+        if not outside:
+            ends.append(edge)
+            closed.append(False)
+            continue
+        out = min(outside, key=lambda ts: abs(ts - best_t))
+        inside = max((ts for ts in fits if (ts - best_t) * side >= 0
+                      and abs(ts - best_t) < abs(out - best_t) and squares(ts) <= level),
+                     key=lambda ts: abs(ts - best_t))
+        for _ in range(BISECT):
+            mid = 0.5 * (inside + out)
+            inside, out = (inside, mid) if level < squares(mid) < math.inf else (mid, out)
+        ends.append(0.5 * (inside + out))
+        closed.append(True)
+    return ends, closed

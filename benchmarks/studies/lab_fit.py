@@ -233,17 +233,16 @@ def _compare(doc: dict, ref) -> list[dict]:
 
 def _held(record, doc, velocities, switches):
     """``(μ, detrend, columns)`` for the reference fit: the record's μ and trend, or with
-    ``--detrend steady`` μ less the command's held trend (its steady parts as the command
-    settled them, ``trend.steady_after``) and the travel columns of the pieces whose slopes it
-    fitted."""
+    ``--detrend steady`` μ less the command's held trend (its slopes from lab_fit.json times
+    the pieces' travel) and the travel columns of the pieces whose slopes it fitted."""
     if doc["detrend"] != "steady":
         return record.mu, doc["detrend"], None
-    from benchmarks.lab.steady_trend import steady_trend
-    after = [math.nan if a is None else math.inf if a == "never" else a - record.t_offset
-             for a in doc["trend"]["steady_after_s"]]
-    held = steady_trend(record.t, record.mu, velocities, switches, after=after)
-    fitted = [i for i, (f, v) in enumerate(zip(held.fitted, velocities)) if f and v > 0]
-    return record.mu - held.offset, "none", held.columns[:, fitted]
+    from benchmarks.lab.steady_trend import travel_columns
+    columns = travel_columns(record.t, velocities, switches)
+    trend = doc["trend"]
+    slopes = np.array([0.0 if s is None else s for s in trend["held_slopes_per_m"]])
+    fitted = [i for i in trend["fitted_pieces"] if velocities[i] > 0]
+    return record.mu - columns @ slopes, "none", columns[:, fitted]
 
 
 def _real(root: Path, out: Path, say) -> list[dict]:
