@@ -520,7 +520,10 @@ def test_the_command_fits_a_real_basalt_step(tmp_path):
     assert abs(switch - 11676.37) < 0.1 and doc["solver_check"]["passed"]
     (row,) = doc["switches"]["table"]
     assert row["disagree"] and row["displacement_s"] == pytest.approx(11676.14, abs=0.02)
-    assert row["low95_s"] < switch < row["high95_s"] and row["rise_at_displacement"] > 20
+    # the squares' rise at the displacement's switch, in units of the noise variance grown as
+    # for the parameter it moves most: 11.0 with the held trend (whose errors widen the unit),
+    # over 20 with a slope per piece (rsfbench lab fit at fa19c0b and before)
+    assert row["low95_s"] < switch < row["high95_s"] and row["rise_at_displacement"] > 8
     assert pd.read_csv(tmp_path / "lab_fit_switches.csv").friction_s[0] == pytest.approx(switch)
     assert doc["git_commit"] and doc["command"].startswith("rsfbench lab fit")
     assert doc["sha256"] and doc["tool"].startswith("rsfbench")
