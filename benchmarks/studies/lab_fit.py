@@ -6,7 +6,8 @@ real records against an independent fit (``lab_fit.*``).
   1 → 10 → 1 → 3 µm/s at 20, 50 and 100 s, aging law a = 0.006, b = 0.009, Dc = 10 µm,
   k′ = 0.003 per µm; white noise of 0.1 % of μ (σ = 6e-4) on μ and 0.05 µm on the
   displacement, and a drift of 5e-5 per µm of load-point travel. For ``seeds`` seeds: the fit
-  (a, b, Dc, k′, a level and a slope per piece) and its errors against the truth. Targets:
+  (a, b, Dc, k′, a level and the trend at its default, held where the slider is steady) and
+  its errors against the truth. Targets:
   a, b within 2 %, Dc within 5 %.
 * **Coverage under real noise** (:data:`NOISE_KINDS`): the same records with white noise, AR(1)
   noise (φ = 0.9 per sample), white noise + a random walk that wanders 2 σ over the record, and
@@ -437,8 +438,10 @@ def _markdown(info: dict) -> str:
         "the load point at 1 → 10 → 1 → 3 µm/s (switches at 20, 50, 100 s), 10⁴ samples over "
         f"150 s; noise σ = {NOISE:g} in μ (0.1 %), {DISPLACEMENT_NOISE * 1e6:g} µm on the "
         f"displacement, a drift of {DRIFT * 1e-6:g} per µm. {info['seeds']} seeds; the fit "
-        "finds the history in the displacement and fits a, b, Dc, k′, a level and a slope per "
-        "piece. The errors below are the white-noise records'.\n\n"
+        "finds the history in the displacement and fits a, b, Dc, k′ and a level, the trend "
+        "at its default (each piece's slope read where the slider is steady and held, or "
+        "fitted where that is less precise). The errors below are the white-noise "
+        "records'.\n\n"
         + markdown_table(pd.DataFrame(err_rows)) +
         "\n## Coverage under real noise\n\n"
         "The same records with four kinds of noise: white (σ above); AR(1) of the same σ and "
@@ -468,9 +471,9 @@ def _markdown(info: dict) -> str:
         "The demo records published with Giacomel et al. (2024), *steadystate*, Geosphere, "
         "doi:10.1130/GES02739.1 (`tests/data/lab-velocity-steps`, MIT licence; three of them "
         "from the branch's history, as its README says), each through `rsfbench lab fit "
-        f"RECORD --law {LAWS}` at its defaults (the switch refined on the friction, a slope "
-        "per piece, profiles, the solver check, the figure) in a fresh process, as a user runs "
-        "it. Each cell: the chosen law's value and its 95 % interval (profile where both ends "
+        f"RECORD --law {LAWS}` at its defaults (the switch refined on the friction, the "
+        "trend read where the slider is steady and held, profiles, the solver check, the "
+        "figure) in a fresh process, as a user runs it. Each cell: the chosen law's value and its 95 % interval (profile where both ends "
         "close, else Wald). Then the independent reference fit "
         "(`benchmarks/lab/reference_fit.py`: scipy's least_squares on scipy's Radau, no "
         "code of the project's model) of the same law on the same window, switch times and "
