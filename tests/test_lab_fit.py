@@ -552,6 +552,7 @@ def test_a_switch_placed_off_is_moved_to_where_the_friction_says():
     assert fit.interval("k")[0] <= TRUTH["k"] <= fit.interval("k")[1]
 
 
+@pytest.mark.slow                      # 20 s: make test-slow
 def test_a_switch_the_friction_cannot_place_keeps_the_displacements_time():
     """A piece of 22 samples between two switches (0.33 s at 10 µm/s): a trial that would leave
     it under the pieces' 20 samples is skipped, not refused; and the friction, which does not
