@@ -198,12 +198,15 @@ class LabModel:
             columns.append(x_at[piece] + (t - bounds[piece]) * np.asarray(rec.velocities)[piece])
             names.append("trend")
         elif self.detrend in ("piece", "steady"):
+            from benchmarks.lab.steady_trend import travel_columns
             fitted = self._steady.fitted if self._steady is not None else (True,) * len(
                 rec.velocities)
+            travel = (self._steady.columns if self._steady is not None else
+                      travel_columns(t, rec.velocities, rec.switch_times))
             for i, v in enumerate(rec.velocities):
                 # a hold moves no load point: no trend of its own; a steady slope is held
                 if v > 0 and fitted[i]:
-                    columns.append(np.clip(t - bounds[i], 0.0, bounds[i + 1] - bounds[i]) * v)
+                    columns.append(travel[:, i])
                     names.append(f"trend_{i}")
         return np.column_stack(columns), tuple(names)
 

@@ -284,7 +284,7 @@ def settled_after(trend: SteadyTrend, t, mu, g, velocities, switch_times) -> np.
     piece, holds and pieces without a steady part. The error at each start is the white-noise error of a line through μ
     there, scaled by the ratio of the steady part's error to its white-noise one."""
     t, mu, g = (np.asarray(v, dtype=float) for v in (t, mu, g))
-    x = travel_columns(t, velocities, switch_times).sum(axis=1)
+    x = trend.columns.sum(axis=1)         # the load point's travel, as the trend read it
     bounds = np.concatenate(([0.0], np.asarray(switch_times, dtype=float), [np.inf]))
     out = np.full(len(velocities), np.nan)
     for i in range(1, len(velocities)):
