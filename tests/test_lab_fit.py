@@ -683,6 +683,43 @@ def test_the_drift_term_is_the_covariance_of_a_random_walks_error():
     assert not drift_covariance(jac, 0.0).any()
 
 
+def test_a_held_slope_and_the_fit_share_one_noise_in_the_propagated_covariance():
+    """propagated_covariance maps a held slope's error and the fit's own through one noise:
+    a slope read off the last third of the samples (s = R η) is taken off times its column
+    before a least-squares fit of two columns; over 20,000 draws of white + walk noise the
+    parameters' covariance, their covariance with the slope and the slope's variance match
+    the formula within 5 % (Monte Carlo), where adding the slope's variance to the fit's (the
+    old sum) is more than 10 % off on a parameter; without a held slope it is
+    covariance + drift_covariance."""
+    from benchmarks.lab.noise import covariance, drift_covariance, propagated_covariance
+    rng = np.random.default_rng(5)
+    n = 300
+    x = np.linspace(0.0, 1.0, n)
+    jac = np.column_stack([np.exp(-x / 0.1), np.ones(n)])
+    column = x[:, None]
+    part = np.arange(2 * n // 3, n)
+    reads = np.zeros((1, n))
+    u = x[part] - x[part].mean()
+    reads[0, part] = u / (u @ u)
+    noise = rng.standard_normal((20_000, n)) * 0.5 + np.cumsum(
+        rng.standard_normal((20_000, n)) * 0.05, axis=1)
+    slopes = noise @ reads.T
+    b = np.linalg.inv(jac.T @ jac)
+    errors = (noise - slopes @ column.T) @ jac @ b
+    # the residuals' derivative, as a fit passes it: r = y − J θ
+    cov, cross, held = propagated_covariance(-jac, 0.25, 0.0025, column, reads)
+    np.testing.assert_allclose(cov, np.cov(errors.T), rtol=0.05)
+    np.testing.assert_allclose(cross[:, 0], [np.cov(e, slopes[:, 0])[0, 1] for e in errors.T],
+                               rtol=0.05)
+    np.testing.assert_allclose(held[0, 0], slopes.var(), rtol=0.05)
+    g = b @ jac.T @ column[:, 0]
+    summed = (covariance(jac, 0.25) + drift_covariance(jac, 0.0025)
+              + held[0, 0] * np.outer(g, g))
+    assert (np.abs(np.diag(summed) / np.diag(cov) - 1) > 0.1).any()
+    alone, _, _ = propagated_covariance(-jac, 0.25, 0.0025)
+    np.testing.assert_allclose(alone, covariance(jac, 0.25) + drift_covariance(jac, 0.0025))
+
+
 def test_the_noise_reader_finds_walks_and_mixtures_and_invents_only_small_walks():
     """read_noise on noise drawn with a known truth: a random walk under white noise is found
     and its step variance read within a factor 2; white noise, AR(1) noise and a white + AR(1)

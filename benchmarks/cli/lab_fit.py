@@ -377,8 +377,8 @@ def _trend_doc(fit, offset: float) -> dict:
         moving = [v > 0 for v in fit.model.record.velocities]    # a hold has no trend
         doc.update(held_slopes_per_m=[float(v) if m and not f else None for v, f, m in
                                       zip(steady.slopes, steady.fitted, moving)],
-                   held_se_per_m=[float(v) if m and not f else None for v, f, m in
-                                  zip(steady.se, steady.fitted, moving)],
+                   held_se_per_m=[fit.linear_se.get(f"trend_{i}") if m and not f else None
+                                  for i, (f, m) in enumerate(zip(steady.fitted, moving))],
                    fitted_pieces=[i for i, f in enumerate(steady.fitted) if f],
                    steady_from_s=[when(v) for v in steady.steady_from],
                    steady_after_s=[when(v) for v in after],
@@ -503,10 +503,11 @@ def _report_trend(fit) -> None:
             "profile's unit alike")
     if steady is None:
         return
-    held = [f"piece {i} {s * 1e-6:.3g} ± {e * 1e-6:.2g} per µm from "
-            f"{t + fit.model.record.t_offset:.6g} s"
-            for i, (s, e, t, f) in enumerate(zip(steady.slopes, steady.se, steady.steady_from,
-                                                  steady.fitted)) if not f and math.isfinite(s)]
+    # each held slope's error as the covariance carries it (the fit's noise model)
+    held = [f"piece {i} {s * 1e-6:.3g} ± {fit.linear_se.get(f'trend_{i}', math.nan) * 1e-6:.2g}"
+            f" per µm from {t + fit.model.record.t_offset:.6g} s"
+            for i, (s, t, f) in enumerate(zip(steady.slopes, steady.steady_from,
+                                               steady.fitted)) if not f and math.isfinite(s)]
     fitted = [str(i) for i, (f, v) in enumerate(zip(steady.fitted, fit.model.record.velocities))
               if f and v > 0]
     say("trend: held where the slider is steady: " + ("; ".join(held) or "none")

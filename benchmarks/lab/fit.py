@@ -47,7 +47,7 @@ import pandas as pd
 from scipy.optimize import least_squares
 
 from benchmarks.lab.noise import (RANK_TOL, NoiseModel, covariance, drift_covariance, lag1,
-                                   read_noise)
+                                   propagated_covariance, read_noise)
 
 __all__ = ["LabFit", "fit_lab", "LabFitWarning", "starting_values", "BOUNDS", "FD_STEP",
            "sample_noise", "NOT_FIT", "NOT_FIT_RHO", "TRADES", "drift_covariance",
@@ -625,15 +625,14 @@ def _result(prob, res, wall_s, uncertainty: bool = True) -> LabFit:
     # the basis, and would leave out what the nonlinear parameters' uncertainty adds)
     full = np.column_stack([prob.jacobian(x, projected=False),
                             -prob.w[:, None] * model.linear_basis()])
-    held = _held_trend(model, prob.w, jac, full)
+    loads, reads, pieces = _held_maps(model, prob.w)
     ar1 = covariance(jac, f * sigma ** 2)
-    cov = ar1 + drift_covariance(jac, walk) + held["cov"]
+    cov, cross, _ = propagated_covariance(jac, f * sigma ** 2, walk, loads, reads)
     with np.errstate(invalid="ignore", divide="ignore"):
         grow = np.diag(cov) / np.diag(ar1)
     drift_factor = {name: float(g) if np.isfinite(g) and g >= 1 else 1.0
                     for name, g in zip(prob.free, grow)}
-    full_cov = (covariance(full, f * sigma ** 2) + drift_covariance(full, walk)
-                + held["full_cov"])
+    full_cov, _, held_cov = propagated_covariance(full, f * sigma ** 2, walk, loads, reads)
     params = prob.params(x)
     values = dict(params)
     values["a_minus_b"] = values["a"] - values["b"]
@@ -642,9 +641,10 @@ def _result(prob, res, wall_s, uncertainty: bool = True) -> LabFit:
                  for i, k in enumerate(model.linear_names)}
     trend_rho = _trend_correlation(full_cov, prob.free, model.linear_names)
     if model.steady is not None:
-        linear.update(held["slopes"])
-        linear_se.update(held["se"])
-        held_rho = _held_correlation(cov, prob.free, held["moves"])
+        for j, i in enumerate(pieces):
+            linear[f"trend_{i}"] = float(model.steady.slopes[i])
+            linear_se[f"trend_{i}"] = float(np.sqrt(max(held_cov[j, j], 0.0)))
+        held_rho = _held_correlation(cov, cross, held_cov, prob.free)
         if not abs(trend_rho) >= abs(held_rho):     # NaN: the other one
             trend_rho = held_rho
     values.update(linear)
@@ -667,41 +667,32 @@ def _result(prob, res, wall_s, uncertainty: bool = True) -> LabFit:
     return fit
 
 
-def _held_trend(model, w, jac, full) -> dict:
-    """What a trend held fixed (``detrend="steady"``) adds: each slope's error moves the
-    parameters by J⁺(w c) per unit (c its travel column), so its variance adds
-    se² (J⁺wc)(J⁺wc)ᵀ to the covariance (``cov`` over the nonlinear parameters, ``full_cov``
-    with the linear ones); the slopes and errors as ``trend_i``, and ``moves``, each slope's
-    (J⁺wc, se). Zeros without a held trend."""
-    out = {"cov": np.zeros((jac.shape[1],) * 2), "full_cov": np.zeros((full.shape[1],) * 2),
-           "slopes": {}, "se": {}, "moves": []}
+def _held_maps(model, w) -> tuple:
+    """(loads, reads, pieces) of a trend held fixed (``detrend="steady"``) for
+    :func:`~benchmarks.lab.noise.propagated_covariance`: each held slope is a line through
+    the samples of its steady part (``reads``, on the residuals' scale: a sample of weight w
+    carries w times its noise; weight 0: its own), taken off the data times its travel
+    column (``loads``, weighted as the residuals are); None without a held slope."""
     steady = model.steady
     if steady is None:
-        return out
-    for i, (slope, se) in enumerate(zip(steady.slopes, steady.se)):
-        if model.record.velocities[i] > 0 and not steady.fitted[i]:
-            out["slopes"][f"trend_{i}"], out["se"][f"trend_{i}"] = float(slope), float(se)
-        if steady.fitted[i] or not se > 0:
-            continue
-        wc = w * steady.columns[:, i]
-        g, *_ = np.linalg.lstsq(jac, wc, rcond=None)
-        out["cov"] += se ** 2 * np.outer(g, g)
-        gf, *_ = np.linalg.lstsq(full, wc, rcond=None)
-        out["full_cov"] += se ** 2 * np.outer(gf, gf)
-        out["moves"].append((g, se))
-    return out
+        return None, None, []
+    pieces, rows = steady.readers()
+    if not pieces:
+        return None, None, []
+    loads = w[:, None] * steady.columns[:, pieces]
+    return loads, rows / np.where(w > 0, w, 1.0), pieces
 
 
-def _held_correlation(cov: np.ndarray, free, moves) -> float:
-    """The correlation of ln Dc with a held slope of the largest size (cov(θ, s) = J⁺wc·se²);
-    NaN without Dc or a slope with an error."""
-    if "dc" not in free:
+def _held_correlation(cov: np.ndarray, cross: np.ndarray, held: np.ndarray, free) -> float:
+    """The correlation of ln Dc with the held slope it follows most (largest in size); NaN
+    without Dc or a held slope with an error."""
+    if "dc" not in free or not cross.size:
         return math.nan
     i = list(free).index("dc")
     best = math.nan
-    for g, se in moves:
-        if cov[i, i] > 0 and np.isfinite(cov[i, i]):
-            rho = float(g[i] * se / math.sqrt(cov[i, i]))
+    for j in range(cross.shape[1]):
+        if cov[i, i] > 0 and np.isfinite(cov[i, i]) and held[j, j] > 0:
+            rho = float(cross[i, j] / math.sqrt(cov[i, i] * held[j, j]))
             if not abs(rho) <= abs(best):
                 best = rho
     return best

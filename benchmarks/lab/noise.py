@@ -44,7 +44,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import nnls
 
-__all__ = ["NoiseModel", "read_noise", "lag1", "covariance", "drift_covariance", "DRIFT_SPAN",
+__all__ = ["NoiseModel", "read_noise", "lag1", "covariance", "drift_covariance",
+           "propagated_covariance", "DRIFT_SPAN",
            "SHORT_LAGS", "LONG_POINTS", "LONGEST_CORRELATION", "RANK_TOL"]
 
 #: the variogram's lags: every one from 1 to SHORT_LAGS, then LONG_POINTS spaced in log up to
@@ -234,3 +235,39 @@ def drift_covariance(jac: np.ndarray, variance: float) -> np.ndarray:
     bk = b[np.ix_(ok, ok)]
     out[np.ix_(ok, ok)] = variance * bk @ (c.T @ c) @ bk
     return out
+
+
+def propagated_covariance(jac: np.ndarray, long_run: float, walk: float, loads=None,
+                          reads=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The covariance of a least-squares fit's parameters (``jac`` the residuals' derivative,
+    r = data − model) when the residuals' noise η (white +
+    AR(1) of long-run variance ``long_run``, a walk of ``walk`` per sample) also made a trend
+    that was taken off the data before the fit: h slopes s = R η (``reads``, h × samples)
+    times their columns (``loads``, samples × h). The parameters then move by −B K η with
+    K = Jᵀ − (Jᵀ loads) R (B = (JᵀJ)⁻¹, :func:`covariance`): the trend's error and the fit's
+    own share one noise, so their variances are not summed but mapped together. Returns
+    (cov over ``jac``'s columns, their covariance with the slopes, the slopes' covariance);
+    without ``loads`` this is :func:`covariance` plus :func:`drift_covariance`, and the other
+    two are empty."""
+    n, p = jac.shape
+    h = 0 if loads is None else loads.shape[1]
+    cov = covariance(jac, long_run)
+    cross, slopes = np.full((p, h), np.nan), np.full((h, h), np.nan)
+    if not np.isfinite(cov).any():
+        return cov, cross, slopes
+    b = covariance(jac, 1.0)
+    ok = np.isfinite(np.diag(b)) & np.isfinite(b).all(axis=0)
+    k = jac[:, ok].T
+    if h:
+        k = k - (k @ loads) @ reads
+    m = b[np.ix_(ok, ok)] @ k
+    if h:
+        cov[np.ix_(ok, ok)] = long_run * (m @ m.T)
+    if walk > 0:
+        mc = np.cumsum(m[:, ::-1], axis=1)[:, ::-1]
+        cov[np.ix_(ok, ok)] += walk * (mc @ mc.T)
+    if h:
+        rc = np.cumsum(reads[:, ::-1], axis=1)[:, ::-1] if walk > 0 else None
+        slopes = long_run * (reads @ reads.T) + (walk * (rc @ rc.T) if walk > 0 else 0.0)
+        cross[ok] = -(long_run * (m @ reads.T) + (walk * (mc @ rc.T) if walk > 0 else 0.0))
+    return cov, cross, slopes

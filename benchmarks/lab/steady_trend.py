@@ -30,9 +30,13 @@ record's noise (:func:`settled_after`; first the fit with a slope per piece, the
 fits again; a slope held with an error several times that of the same slope fitted with the
 rest is fitted instead (:func:`benchmarks.lab.fit.fit_lab`).
 
-Each slope's standard error comes from its line's residuals read by the fit's own noise model
-(white + AR(1) + a random walk, :mod:`benchmarks.lab.noise`); a fit adds what they contribute
-to its parameters' covariance. The trend, as in ``detrend="piece"``, is continuous at the
+Each slope's standard error here comes from its line's residuals read by the noise model of
+:mod:`benchmarks.lab.noise` (white + AR(1) + a random walk); it decides whether a slope is held
+at all. A fit's covariance does not add it to its own: the held slopes are lines through the
+samples of :attr:`SteadyTrend.reads`, whose noise also moves the fit, and
+:func:`~benchmarks.lab.noise.propagated_covariance` maps that one noise through both (a walk
+that tilts a steady part tilts its slope with it, which then takes the tilt off the data the
+fit sees; the two errors added would count it twice). The trend, as in ``detrend="piece"``, is continuous at the
 switches, and a hold has none.
 """
 
@@ -86,6 +90,10 @@ class SteadyTrend:
     columns : numpy.ndarray
         (samples, pieces): each piece's load-point travel at each sample (m), the columns the
         slopes multiply.
+    reads : tuple
+        Per piece, the indices of the samples its held slope is a line through (None: no held
+        slope), so that a fit can follow what their noise does to the slope and to itself at
+        once (:meth:`readers`).
     notes : list of str
         What was assumed where the record did not say.
     """
@@ -95,6 +103,7 @@ class SteadyTrend:
     steady_from: tuple
     fitted: tuple
     columns: np.ndarray = field(repr=False)
+    reads: tuple = field(default=(), repr=False)
     notes: list = field(default_factory=list)
 
     @property
@@ -102,6 +111,21 @@ class SteadyTrend:
         """The held trend at each sample: the columns times the slopes held."""
         held = np.nan_to_num(np.asarray(self.slopes, dtype=float))
         return self.columns @ held
+
+    def readers(self) -> tuple[list, np.ndarray]:
+        """(pieces, L): the pieces with a held slope and, per row, the linear map of the
+        samples onto that slope (the line's least-squares slope: L μ is the slope held)."""
+        x = self.columns.sum(axis=1)
+        pieces, rows = [], []
+        for i, idx in enumerate(self.reads):
+            if idx is None or self.fitted[i]:
+                continue
+            u = x[idx] - x[idx].mean()
+            row = np.zeros(len(x))
+            row[idx] = u / (u @ u)
+            pieces.append(i)
+            rows.append(row)
+        return pieces, np.array(rows).reshape(len(rows), len(x))
 
 
 def travel_columns(t, velocities, switch_times) -> np.ndarray:
@@ -123,17 +147,14 @@ def _line(x, y) -> tuple[float, float, np.ndarray]:
     return float(coef[1]), math.sqrt(max(float(var[1, 1]), 0.0)), r
 
 
-def _first_piece(x, y) -> tuple[float, float]:
-    """The first piece's slope and error: a line, its outliers out, a line again."""
+def _first_piece(x, y) -> np.ndarray:
+    """The first piece's samples kept for its line: a line, its outliers out (all kept if
+    fewer than :data:`FEWEST` would stay)."""
     design = np.column_stack([np.ones_like(x), x - x.mean()])
     r = y - design @ np.linalg.lstsq(design, y, rcond=None)[0]
     s = math.sqrt(r @ r / max(len(r) - 2, 1))
     keep = np.abs(r) <= OUTLIER * s if s > 0 else np.ones(len(r), bool)
-    if keep.all() or keep.sum() < FEWEST:
-        slope, se, _ = _line(x, y)
-    else:
-        slope, se, _ = _line(x[keep], y[keep])
-    return slope, se
+    return np.ones(len(r), bool) if keep.sum() < FEWEST else keep
 
 
 def _window_slopes(x, y, starts, ends):
@@ -229,7 +250,7 @@ def steady_trend(t, mu, velocities, switch_times, after=None, fitted=None) -> St
     bounds = np.concatenate(([0.0], np.asarray(switch_times, dtype=float), [np.inf]))
     after = np.full(len(velocities), np.nan) if after is None else np.asarray(after, float)
     leave = (False,) * len(velocities) if fitted is None else tuple(map(bool, fitted))
-    slopes, ses, starts, fitted, notes = [], [], [], [], []
+    slopes, ses, starts, fitted, reads, notes = [], [], [], [], [], []
     for i, v in enumerate(velocities):
         inside = np.flatnonzero((t >= bounds[i]) & (t < bounds[i + 1]))
         held, chosen = None, leave[i]
@@ -254,6 +275,7 @@ def steady_trend(t, mu, velocities, switch_times, after=None, fitted=None) -> St
             ses.append(0.0 if not v > 0 else math.nan)
             starts.append(math.nan)
             fitted.append(bool(v > 0))
+            reads.append(None)
             if v > 0 and not chosen:
                 notes.append(f"piece {i} (after the switch at {bounds[i]:.6g} s) has no steady "
                              "part long enough to read its slope (the evolution ends late in it, "
@@ -261,14 +283,15 @@ def steady_trend(t, mu, velocities, switch_times, after=None, fitted=None) -> St
             continue
         part = inside[held:]
         if i == 0:
-            slope, se = _first_piece(x[part], mu[part])
-        else:
-            slope, se, _ = _line(x[part], mu[part])
+            part = part[_first_piece(x[part], mu[part])]
+        slope, se, _ = _line(x[part], mu[part])
         slopes.append(slope)
         ses.append(se)
-        starts.append(float(t[part[0]]))
+        starts.append(float(t[inside[held]]))
         fitted.append(False)
-    return SteadyTrend(tuple(slopes), tuple(ses), tuple(starts), tuple(fitted), cols, notes)
+        reads.append(part)
+    return SteadyTrend(tuple(slopes), tuple(ses), tuple(starts), tuple(fitted), cols,
+                       tuple(reads), notes)
 
 
 #: the evolution a fitted model leaves in a steady part may bias its slope by at most this
