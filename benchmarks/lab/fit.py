@@ -329,12 +329,13 @@ class _Problem:
         coef, *_ = np.linalg.lstsq(basis, self.wmu - self.w * self.g(x), rcond=None)
         return coef
 
-    def solve(self, x0, max_nfev=200):
+    def solve(self, x0, max_nfev=200, tol=1e-10):
+        """scipy's least_squares from ``x0``; ``tol`` its xtol (ftol 100× finer)."""
         lo, hi = self.bounds()
         x0 = np.clip(x0, lo + 1e-12, hi - 1e-12)
         return least_squares(self.residual, x0, jac=self.jacobian, bounds=(lo, hi),
                              method="trf", x_scale="jac", max_nfev=max_nfev,
-                             xtol=1e-10, ftol=1e-12, gtol=1e-10)
+                             xtol=tol, ftol=tol * 1e-2, gtol=1e-10)
 
 
 def coordinate_bounds(names) -> tuple[np.ndarray, np.ndarray]:
@@ -505,7 +506,8 @@ def fit_lab(model, fixed: dict | None = None, weights=None, start: dict | None =
                    for p0 in list(starts)]
     best = None
     for p0 in starts:
-        res = prob.solve(prob.coordinates({n: p0[n] for n in free}))
+        res = prob.solve(prob.coordinates({n: p0[n] for n in free}),
+                         tol=TOL if uncertainty else TRIAL_TOL)
         if best is None or res.cost < best.cost:
             best = res
     alternatives = {}
@@ -529,6 +531,10 @@ def _checked_weights(weights, n_pieces: int):
     return weights
 
 
+#: the least squares' xtol (ftol 100× finer): a fit, and a trial of a search (values and
+#: squares only, ``uncertainty=False``), whose squares need resolving to a small part of a
+#: noise variance only (1e-10 of the squares is ~1e-6 of one on 10⁴ samples)
+TOL, TRIAL_TOL = 1e-10, 1e-8
 #: rounds of moving the steady parts to where the fitted model says the evolution has ended
 SETTLE_ROUNDS = 3
 #: a held slope more uncertain than this many times the same slope fitted with the rest is not

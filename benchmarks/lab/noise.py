@@ -38,6 +38,7 @@ would read σ²_rw low.
 
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import dataclass
 
@@ -123,14 +124,30 @@ def _variogram(r: np.ndarray, lags: np.ndarray) -> np.ndarray:
     return np.array([0.5 * np.mean((r[k:] - r[:-k]) ** 2) for k in lags])
 
 
+#: the last walk variograms computed, by (n, lags, basis digest): a search's trials read the
+#: noise of the same steady parts again
+_WALK_CACHE: dict = {}
+
+
 def _walk_variogram(basis: np.ndarray | None, n: int, lags: np.ndarray) -> np.ndarray:
+    """:func:`_projected_walk_variogram`, remembered for the last few bases."""
+    if basis is None or basis.shape[1] == 0:
+        return lags / 2.0
+    q = np.ascontiguousarray(basis, dtype=float)
+    key = (n, lags.tobytes(), q.shape, hashlib.blake2b(q.tobytes(), digest_size=16).digest())
+    if key not in _WALK_CACHE:
+        if len(_WALK_CACHE) >= 64:
+            _WALK_CACHE.clear()
+        _WALK_CACHE[key] = _projected_walk_variogram(q, n, lags)
+    return _WALK_CACHE[key].copy()
+
+
+def _projected_walk_variogram(basis: np.ndarray, n: int, lags: np.ndarray) -> np.ndarray:
     """The expected variogram of a unit random walk (w[i] = η[0] + … + η[i], Cov = min + 1)
     projected off the columns of the orthonormal ``basis`` (the fit's levels and slopes take
     out part of a walk, and would bias its reading low); ℓ/2 without a basis. With
     A = K Q and G = Qᵀ K Q, P⊥ K P⊥ = K − Q Aᵀ − A Qᵀ + Q G Qᵀ, read along the lags'
     diagonals."""
-    if basis is None or basis.shape[1] == 0:
-        return lags / 2.0
     q = basis
     i = np.arange(n, dtype=float)
     # (K q)_i = Σ_j (min(i, j) + 1) q_j = Σ_{j ≤ i} (j + 1) q_j + (i + 1) Σ_{j > i} q_j
@@ -139,13 +156,16 @@ def _walk_variogram(basis: np.ndarray | None, n: int, lags: np.ndarray) -> np.nd
     a = below + (i + 1)[:, None] * above
     h = q @ (q.T @ a)
     diag = -2.0 * np.einsum("ij,ij->i", q, a) + np.einsum("ij,ij->i", h, q)
-    out = np.empty(len(lags))
-    for m, lag in enumerate(lags):
-        x, y = slice(0, n - lag), slice(lag, n)
-        cross = (-np.einsum("ij,ij->i", q[x], a[y]) - np.einsum("ij,ij->i", a[x], q[y])
-                 + np.einsum("ij,ij->i", h[x], q[y]))
-        out[m] = lag / 2.0 + 0.5 * np.mean(diag[x] + diag[y] - 2.0 * cross)
-    return out
+    sums = np.concatenate(([0.0], np.cumsum(diag)))
+    # Σ_i (−q_i a_{i+ℓ} − a_i q_{i+ℓ} + h_i q_{i+ℓ}) for every lag ℓ at once: cross-correlations
+    # by FFT, summed over the columns
+    size = 1 << int(2 * n - 1).bit_length()
+    fq, fa, fh = (np.fft.rfft(m, size, axis=0) for m in (q, a, h))
+    corr = np.fft.irfft((np.conj(fh - fa) * fq - np.conj(fq) * fa).sum(axis=1), size)
+    lags = np.asarray(lags, dtype=int)
+    count = n - lags
+    mean_diag = (sums[count] + sums[n] - sums[lags]) / count
+    return lags / 2.0 + 0.5 * (mean_diag - 2.0 * corr[lags] / count)
 
 
 def read_noise(r: np.ndarray, basis: np.ndarray | None = None) -> NoiseModel:

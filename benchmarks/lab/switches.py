@@ -10,9 +10,11 @@ of a second moves a, Dc and k′ by more than their errors.
 :func:`refine_switches` profiles each switch on the friction: the whole fit (warm-started from
 the current one) at trial switch times, its squares as a function of the switch time (the
 others held), over ± :data:`WINDOW_SAMPLES` samples of the displacement's switch (at most a
-quarter of the shorter piece beside it): a scan of :data:`SCAN` points, then a bounded search
-about the best to :data:`TOLERANCE` of a sample (a trial that would leave a piece too short is
-skipped). The switch's 95 % interval is where the squares
+quarter of the shorter piece beside it): a scan of :data:`SCAN` points (each trial started
+from the nearest one made), then a bounded search about the best to :data:`TOLERANCE` of a
+sample (a trial that would leave a piece too short is skipped). A scan whose squares stay
+within 3.84 f σ² of their least over the window places no switch: the displacement's time is
+kept with both ends open, and no search is made. The switch's 95 % interval is where the squares
 are within 3.84 f σ² of their minimum (f σ² the best fit's noise variance, grown by the walk
 as for the parameter it moves most: :attr:`~benchmarks.lab.fit.LabFit.walk_variance`), each end
 bisected :data:`BISECT` times; an end that the window does not close is open. Where neither end
@@ -51,8 +53,9 @@ WINDOW_SAMPLES = 50
 SCAN = 9
 #: the search's tolerance on a switch time, in samples
 TOLERANCE = 0.1
-#: bisections of each end of a switch's interval
-BISECT = 6
+#: bisections of each end of a switch's interval (to 1/16 of the scan's spacing, under a
+#: sample)
+BISECT = 4
 #: the squares' rise (in f σ²) at the displacement's switch above which the two are said to
 #: disagree (the 95 % level)
 REJECTED = CHI2_95_1DOF
@@ -106,11 +109,13 @@ def refine_switches(fit) -> tuple[object, pd.DataFrame]:
     for i in range(len(fit.model.record.switch_times)):
         fit, row = _refine(fit, i)
         rows.append(row)
-    # a held trend is settled again at the refined switches (fit_lab's _settle)
+    # a held trend is settled again at the refined switches (fit_lab's _settle), from the
+    # refined fit's values
     model = dataclasses.replace(fit.model, steady_after=None, steady_fitted=None)
-    final = fit_lab(model, fixed=fit.fixed, weights=fit.piece_weights)
-    # the multi-start refit may stop worse than the warm one (squares of one trend model: a
-    # held trend settled again is another)
+    final = fit_lab(model, fixed=fit.fixed, weights=fit.piece_weights,
+                    start={n: fit.values[n] for n in model.parameters})
+    # the refit may stop worse than the refined fit (squares of one trend model: a held trend
+    # settled again is another)
     if model.steady is None and not final.rss <= fit.rss:
         final = fit
     return final, pd.DataFrame(rows, columns=list(SWITCH_COLUMNS))
@@ -138,7 +143,11 @@ def _refine(fit, i: int):
             except ValueError:           # a piece too short: no trial there
                 fits[ts] = None
                 return None
-            start = {n: fit.values[n] for n in model.parameters}
+            # from the nearest trial made (the squares' valley moves little between trials)
+            near = min((s for s in fits if fits[s] is not None and fits[s].success),
+                       key=lambda s: abs(s - ts), default=None)
+            source = fit if near is None else fits[near]
+            start = {n: source.values[n] for n in model.parameters}
             fits[ts] = fit_lab(model, fixed=fit.fixed, weights=fit.piece_weights, start=start,
                                uncertainty=False)
         return fits[ts]
@@ -147,12 +156,18 @@ def _refine(fit, i: int):
         f = at(ts)
         return f.rss if f is not None and f.success and np.isfinite(f.rss) else math.inf
 
+    # the scan from the displacement's time outwards, so that each trial starts next to one
     scan = np.linspace(t0 - width, t0 + width, SCAN)
-    values = [squares(ts) for ts in scan]
-    k = int(np.argmin(values))
+    values = dict((ts, squares(ts)) for ts in sorted(scan, key=lambda ts: abs(ts - t0)))
+    finite = [v for v in values.values() if math.isfinite(v)]
+    if finite and max(finite) - min(finite) <= CHI2_95_1DOF * fit.walk_variance:
+        # flat over the window: the friction places no switch in it (both ends open), and the
+        # displacement's time is kept without a search
+        return fit, _flat_row(fit, i, fits, squares, t0, (t0 - width, t0 + width))
+    k = int(np.argmin([values[ts] for ts in scan]))
     lo, hi = scan[max(k - 1, 0)], scan[min(k + 1, SCAN - 1)]
     minimize_scalar(squares, bounds=(lo, hi), method="bounded",
-                            options={"xatol": TOLERANCE * dt})
+                    options={"xatol": TOLERANCE * dt})
     best_t = min(fits, key=lambda ts: squares(ts))
     if not np.isfinite(squares(best_t)):     # no trial fitted: the displacement's switch kept
         best_t = t0
@@ -171,15 +186,30 @@ def _refine(fit, i: int):
         # displacement's time is kept
         best_t, best = t0, fit
     within = [fits[ts] for ts in fits if squares(ts) <= level]
-    offset = rec.t_offset
+    return best, _row(i, rec.t_offset, t0, best_t, ends, closed, rise, len(fits), within)
+
+
+def _row(i, offset, t0, best_t, ends, closed, rise, n_fits, within) -> dict:
+    """Switch ``i``'s row of the table (times in the file's time), the ranges of
+    :data:`RANGED` over the fits ``within`` its interval."""
     row = {"switch": i + 1, "displacement_s": t0 + offset, "friction_s": best_t + offset,
            "low95_s": ends[0] + offset, "high95_s": ends[1] + offset,
            "low_closed": closed[0], "high_closed": closed[1], "rise_at_displacement": rise,
-           "disagree": bool(rise > REJECTED), "fits": len(fits)}
+           "disagree": bool(rise > REJECTED), "fits": n_fits}
     for p in RANGED:
         vals = [f.values[p] for f in within]
         row[f"{p}_min"], row[f"{p}_max"] = min(vals), max(vals)
-    return best, row
+    return row
+
+
+def _flat_row(fit, i, fits, squares, t0, window) -> dict:
+    """The row of a switch whose scan stayed within 3.84 noise variances: the displacement's
+    time, the window's ends open, the ranges over every trial that fitted."""
+    within = [f for f in fits.values() if f is not None and f.success] or [fit]
+    least = min(squares(ts) for ts in fits)
+    rise = (squares(t0) - least) / fit.walk_variance if math.isfinite(least) else math.nan
+    return _row(i, fit.model.record.t_offset, t0, t0, window, (False, False), rise, len(fits),
+                within)
 
 
 def _ends(fits, squares, best_t: float, low: float, high: float, level: float):
