@@ -57,6 +57,26 @@ def test_the_history_is_found_in_a_noisy_displacement():
     assert list(pieces.samples.cumsum())[-1] == len(T)
 
 
+def test_glitches_in_the_displacement_do_not_pull_a_switch():
+    """Four glitches of 1 µm (20 σ of the sensor noise, 3 samples each) within 4 s after the
+    first switch, as the basalt step's sensor shows: the switch is found to 1 ms (1/15 of a
+    sample) in each of 20 records, where the least-squares corner alone errs up to 2.3 ms
+    (measured with this seed: robust 0.7 ms at most)."""
+    from benchmarks.lab.history import _refined
+    rng = np.random.default_rng(0)
+    ls, robust = [], []
+    for _ in range(20):
+        x = _x(T, VELOCITIES, SWITCHES) + rng.standard_normal(len(T)) * 0.05e-6
+        for at in rng.uniform(SWITCHES[0] + 0.3, SWITCHES[0] + 4.0, 4):
+            k = np.searchsorted(T, at)
+            x[k:k + 3] += 1e-6 * rng.choice([-1, 1])
+        _, switches, pieces = find_history(T, x)
+        cuts = np.cumsum([0, *pieces.samples])
+        ls.append(abs(_refined(T, x, cuts[0], cuts[1], cuts[2]) - SWITCHES[0]))
+        robust.append(abs(switches[0] - SWITCHES[0]))
+    assert max(robust) < 1e-3 and max(ls) > 2 * max(robust), (max(ls), max(robust))
+
+
 def test_holds_are_found_and_a_velocity_column_is_integrated():
     velocities, switches = (1e-6, 0.0, 1e-6, 0.0, 1e-6), (10.0, 20.0, 40.0, 140.0)
     t = np.linspace(0.0, 200.0, 8000)
@@ -456,7 +476,7 @@ def test_the_trend_is_chosen_by_the_bic_of_independent_samples():
                                                                              "piece")}
         table = compare_laws(fits, label="detrend").set_index("detrend")
         assert table.index[table.chosen].tolist() == [want]
-        assert sorted(table.delta_bic_ar1)[1] > 2
+        assert sorted(table.delta_bic_eff)[1] > 2
 
 
 def test_a_law_that_does_not_fit_is_said_and_the_laws_are_compared():
@@ -472,11 +492,13 @@ def test_a_law_that_does_not_fit_is_said_and_the_laws_are_compared():
     table = compare_laws({"aging": aging, "slip": slip}).set_index("law")
     assert table.chosen["aging"] and not table.chosen["slip"]
     assert table.fits["aging"] and not table.fits["slip"]
-    f = (1 + aging.rho) / (1 - aging.rho)       # the AR(1) inflation of the smaller squares
+    # the long-run inflation of the noise model of the smaller squares
+    f = max(aging.noise_model.inflation, 1.0)
+    assert table.inflation["slip"] == pytest.approx(f)
     n, p = aging.n, 9
-    assert table.bic_ar1["slip"] == pytest.approx(n * math.log(slip.rss / n) / f
+    assert table.bic_eff["slip"] == pytest.approx(n * math.log(slip.rss / n) / f
                                                   + p * math.log(n / f))
-    assert table.delta_bic["slip"] > 0 == table.delta_bic["aging"] == table.delta_bic_ar1["aging"]
+    assert table.delta_bic["slip"] > 0 == table.delta_bic["aging"] == table.delta_bic_eff["aging"]
     # the criteria: n ln(RSS/n) + 2p (AIC) and + p ln n (BIC), p = a, b, ln Dc, ln k′, μ_ref
     # and the four pieces' slopes
     assert table.parameters["aging"] == p
@@ -573,7 +595,7 @@ def test_the_command_chooses_the_trend_with_detrend_auto(tmp_path):
     doc = json.loads(out.stdout)
     trends = pd.read_csv(tmp_path / "lab_fit_trends.csv").set_index("detrend")
     assert set(trends.index) == {"none", "one", "piece"}
-    assert doc["detrend"] == trends.bic_ar1.idxmin() == doc["trends"]["table"][
+    assert doc["detrend"] == trends.bic_eff.idxmin() == doc["trends"]["table"][
         [r["chosen"] for r in doc["trends"]["table"]].index(True)]["detrend"]
 
 
@@ -593,9 +615,9 @@ def test_switches_given_by_hand_are_used_and_bad_ones_refused(tmp_path):
 
 def test_the_command_compares_laws_and_reports_the_chosen_one(tmp_path):
     """--law aging,slip on the basalt step: both fitted, tabled (lab_fit_laws.csv, the JSON's
-    laws) and the lowest BIC reported in full; the slip law's RSS was 0.003872 against the
-    aging law's 0.003896 when written (the switch refined on the friction; ΔBIC 36, 6.3 after
-    the AR(1) inflation)."""
+    laws) and the lowest BIC reported in full; the slip law's RSS was 0.003933 against the
+    aging law's 0.003973 when written (the switch refined on the friction, the default
+    trend; ΔBIC 59, 12.3 after the noise's long-run inflation f = 4.79)."""
     out = _cli(BASALT, *[f"--column={c}" for c in REAL_COLUMNS], "--law", "aging,slip",
                "--no-profiles", "--no-solver-check", "--out", tmp_path, "--json")
     assert out.returncode == 0, out.stderr

@@ -391,21 +391,22 @@ def _trend_doc(fit, offset: float) -> dict:
 AUTO_TRENDS = ("piece", "one", "none")
 
 #: how the laws and the trends are chosen, for lab_fit.json
-CHOSEN_BY = ("the lowest bic_ar1 = n ln(RSS/n)/f + p ln(n/f), the BIC of n/f independent "
-             "samples, f the AR(1) inflation of the fit with the smallest squares "
+CHOSEN_BY = ("the lowest bic_eff = n ln(RSS/n)/f + p ln(n/f), the BIC of n/f independent "
+             "samples, f the long-run inflation of the noise model of the fit with the "
+             "smallest squares "
              "(benchmarks/lab/laws.py)")
 
 
 def _report_variants(table, what: str) -> None:
     """The laws or the trends side by side, and which is reported in full."""
     label = table.columns[0]
-    shown = table[[label, "rss", "sigma", "rho", "sigma_over_noise", "fits", "bic", "bic_ar1",
-                   "delta_bic_ar1", "a", "b", "dc", "k"]].copy()
+    shown = table[[label, "rss", "sigma", "rho", "sigma_over_noise", "fits", "bic", "bic_eff",
+                   "delta_bic_eff", "a", "b", "dc", "k"]].copy()
     shown["dc"], shown["k"] = shown.dc * 1e6, shown.k * 1e-6
     shown = shown.rename(columns={"dc": "dc_um", "k": "k_per_um"})
     from benchmarks.lab.fit import NOT_FIT, NOT_FIT_RHO
     say(f"the {what} on this record (the lowest BIC of n/f independent samples chosen, f the "
-        f"AR(1) inflation; 'fits' False: residuals over {NOT_FIT:g} × the record's "
+        f"noise model's long-run inflation; 'fits' False: residuals over {NOT_FIT:g} × the record's "
         f"sample-to-sample noise with ρ over {NOT_FIT_RHO:g}):")
     say(shown.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
     chosen = table[label][table.chosen]
@@ -415,7 +416,7 @@ def _report_variants(table, what: str) -> None:
 
 def _choose_trend(args, fit):
     """``--detrend auto``: the chosen law refitted with each trend at its switches, the lowest
-    ``bic_ar1`` chosen (``args.detrend`` set to it); ``(fit, notes, table)``."""
+    ``bic_eff`` chosen (``args.detrend`` set to it); ``(fit, notes, table)``."""
     from benchmarks.lab.laws import compare_laws
     fits = {}
     for trend in AUTO_TRENDS:
@@ -676,7 +677,8 @@ def add_parser(tests) -> None:
                         "then held, its error carried into the intervals), piece (a slope per "
                         "piece fitted with the rest), one slope, none, or auto: piece, one and "
                         "none fitted and the lowest BIC of n/f independent samples chosen (f "
-                        "the AR(1) inflation; lab_fit_trends.csv) (default: steady)")
+                        "the noise's long-run inflation; lab_fit_trends.csv) (default: "
+                        "steady)")
     p.add_argument("--weights", type=float, nargs="+", metavar="W",
                    help="a weight per piece of the history, multiplying its residuals "
                         "(default: 1 each)")

@@ -753,6 +753,10 @@ def _notes(fit: LabFit, lo, hi) -> None:
                          f"determine it there; its interval is not a confidence interval")
     rec = fit.model.record
     dc = fit.values["dc"]
+    if fit.model.steady is None:          # the held trend's own reading says it otherwise
+        from benchmarks.lab.steady_trend import OPENS_IN_TRANSIENT, opens_in_transient
+        if opens_in_transient(rec.t, rec.mu, rec.velocities, rec.switch_times):
+            fit.notes.append(OPENS_IN_TRANSIENT)
     if not np.isfinite(fit.sigma):
         fit.notes.append("the forward model failed at the fit's end: if the record opens in a "
                          "transient (just after a step), start it (--window) in steady "

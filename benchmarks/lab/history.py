@@ -7,7 +7,9 @@ squares most (binary segmentation) as long as the two sides' speeds differ by mo
 holding :data:`MIN_SAMPLES` samples. A split of a piece that holds several corners lands
 between them, so each switch is then moved to its best place between its neighbours, pieces
 left shorter than :data:`MIN_SAMPLES` are merged away, and each switch time is refined between
-samples (the two pieces' continuous fit, minimised over the switch time). A speed within
+samples (the two pieces' continuous fit, minimised over the switch time), without the
+samples beyond :data:`GLITCH` robust σ of the displacement's running median (a sensor's
+glitches, which pull a least-squares corner). A speed within
 :data:`SIGNIFICANCE` standard errors of 0 (or under :data:`HOLD` of the fastest) is a hold (0).
 
 Refused in one line: a record with no step (one speed throughout), one that opens with a hold,
@@ -24,7 +26,7 @@ import pandas as pd
 from problems._validate import warn_unit
 
 __all__ = ["find_history", "MIN_SAMPLES", "MIN_CHANGE", "HOLD", "SIGNIFICANCE", "LAB_FASTEST",
-           "PIECE_COLUMNS", "LAB_TYPICAL"]
+           "PIECE_COLUMNS", "LAB_TYPICAL", "GLITCH", "GLITCH_WIDTH"]
 
 #: samples a piece of the history holds at least
 MIN_SAMPLES = 20
@@ -160,6 +162,37 @@ def _refined(t, x, lo, j, hi) -> float:
     return float(t[lo] + 0.5 * (a + b))
 
 
+#: a displacement sample further than this many robust σ (1.4826 × the median absolute
+#: deviation) from the running median of :data:`GLITCH_WIDTH` samples about it is a glitch
+GLITCH = 5.0
+#: samples of the running median that glitches are measured from (a glitch spans fewer than
+#: half of them)
+GLITCH_WIDTH = 9
+
+
+def _glitches(x: np.ndarray) -> np.ndarray:
+    """The samples of the displacement ``x`` that are glitches: beyond :data:`GLITCH` robust
+    σ of its running median. A monotone record's median is its own sample, so a clean corner
+    (or a noise-free record) has none."""
+    from scipy.ndimage import median_filter
+    d = x - median_filter(x, size=GLITCH_WIDTH, mode="nearest")
+    scale = max(1.4826 * float(np.median(np.abs(d - np.median(d)))),
+                1e-9 * float(np.ptp(x)))         # round-off is no glitch
+    return np.abs(d) > GLITCH * scale
+
+
+def _robust_switch(t, x, lo, j, hi, glitch) -> float:
+    """The switch time between pieces [lo, j) and [j, hi) (:func:`_refined`), found without
+    the samples that are ``glitch``\ es (:func:`_glitches`): the best corner among the others
+    (:func:`_best_hinge`), then refined. A sensor's glitches and resets near a switch pull a
+    least-squares corner."""
+    keep = ~glitch[lo:hi]
+    if keep.all() or keep.sum() < 2 * MIN_SAMPLES:
+        return _refined(t, x, lo, j, hi)
+    tk, xk = t[lo:hi][keep], x[lo:hi][keep]
+    return _refined(tk, xk, 0, _best_hinge(tk, xk, side=3)[0], len(tk))
+
+
 def find_history(t: np.ndarray, x: np.ndarray, what: str = "the load point"):
     """(velocities, switch_times, pieces) of the displacement ``x`` (m) at times ``t`` (s): see
     the module docstring. ``what`` names the channel in a refusal."""
@@ -215,7 +248,8 @@ def find_history(t: np.ndarray, x: np.ndarray, what: str = "the load point"):
         raise ValueError(f"{what} holds from the record's start to t = {t[cuts[1]]:.6g} s: the "
                          "fit starts from steady sliding; start the record (--window) while "
                          "the load point moves")
-    switches = tuple(_refined(t, x, lo, j, hi)
+    glitch = _glitches(x)
+    switches = tuple(_robust_switch(t, x, lo, j, hi, glitch)
                      for lo, j, hi in zip(cuts[:-2], cuts[1:-1], cuts[2:]))
     bounds = (0.0, *switches, float(t[-1]))
     pieces = pd.DataFrame({"t_start_s": bounds[:-1], "t_end_s": bounds[1:],

@@ -7,12 +7,16 @@ n ln(RSS/n) + 2p and BIC = n ln(RSS/n) + p ln n, p the fitted parameters (the la
 linear level and slopes), n the samples (the constants every fit shares are dropped).
 
 **What the criteria assume, and the one that chooses.** Independent residuals. A record's
-residuals follow each other (AR(1) ρ of 0.7–0.96 on the five real steps): n samples then carry
-about n/f independent ones, f = (1 + ρ)/(1 − ρ), and a difference in AIC or BIC overstates
-the evidence by about f. The choice is the lowest ``bic_ar1`` = n ln(RSS/n)/f + p ln(n/f), the
-BIC of n/f independent samples, with one f for all (that of the fit with the smallest
-squares, whose residuals are nearest the noise; a law that does not fit has ρ near 1 and no
-say in it); ``delta_bic_ar1`` is each one's difference from the chosen. Laws with as many
+residuals follow each other (lag-1 ρ of 0.7–0.96 on the five real steps): n samples then carry
+about n/f independent ones, f the long-run inflation of the residuals' noise model (the
+variance of a long mean over that of independent samples: :attr:`~benchmarks.lab.fit.LabFit.
+inflation`, white + AR(1) read from the variogram, :mod:`benchmarks.lab.noise`; the lag-1
+(1 + ρ)/(1 − ρ) for a fit without one, which misreads a mixture of white and slow AR(1) noise
+by up to a factor of 4), and a difference in AIC or BIC overstates the evidence by about f.
+The choice is the lowest ``bic_eff`` = n ln(RSS/n)/f + p ln(n/f), the BIC of n/f independent
+samples, with one f for all (``inflation``: that of the fit with the smallest squares, whose
+residuals are nearest the noise; a law that does not fit has ρ near 1 and no say in it);
+``delta_bic_eff`` is each one's difference from the chosen. Laws with as many
 parameters (aging, slip) are ranked by their RSS alone either way; a richer trend (a slope per
 piece) must lower the squares by more than its parameters' worth in n/f samples, so that a
 slope cannot take up an evolution the residuals' correlation does not support.
@@ -37,8 +41,8 @@ __all__ = ["compare_laws", "LAW_COLUMNS", "parse_laws"]
 
 #: the columns of the comparison (lab_fit_laws.csv); a, b, dc (m), k (1/m) are each law's fit
 LAW_COLUMNS = ("law", "success", "n", "parameters", "rss", "sigma", "rho", "noise",
-               "sigma_over_noise", "fits", "aic", "bic", "bic_ar1", "delta_bic",
-               "delta_bic_ar1", "chosen", "a", "b", "dc", "k", "c")
+               "sigma_over_noise", "fits", "aic", "bic", "inflation", "bic_eff", "delta_bic",
+               "delta_bic_eff", "chosen", "a", "b", "dc", "k", "c")
 
 
 def parse_laws(text: str, known) -> tuple[str, ...]:
@@ -57,7 +61,7 @@ def parse_laws(text: str, known) -> tuple[str, ...]:
 def compare_laws(fits: dict, label: str = "law") -> pd.DataFrame:
     """One row per variant of ``fits`` (its name → :class:`~benchmarks.lab.fit.LabFit`), with
     :data:`LAW_COLUMNS` (``label`` naming the first; module docstring); ``chosen`` marks the
-    lowest ``bic_ar1`` among the fits that succeeded (none when none did)."""
+    lowest ``bic_eff`` among the fits that succeeded (none when none did)."""
     rows = []
     for law, fit in fits.items():
         p = len(fit.free) + len(fit.linear)
@@ -73,16 +77,25 @@ def compare_laws(fits: dict, label: str = "law") -> pd.DataFrame:
     table = pd.DataFrame(rows)
     ok = table[table.success]
     tightest = ok.rss.idxmin() if len(ok) else None         # nearest the noise
-    f = (1 + table.rho[tightest]) / (1 - table.rho[tightest]) if len(ok) else math.nan
-    table["bic_ar1"] = (table.n * np.log(table.rss / table.n) / f
+    f = _inflation(list(fits.values())[tightest]) if len(ok) else math.nan
+    table["inflation"] = f
+    table["bic_eff"] = (table.n * np.log(table.rss / table.n) / f
                         + table.parameters * np.log(table.n / f))
-    table.loc[~table.success, "bic_ar1"] = math.nan
+    table.loc[~table.success, "bic_eff"] = math.nan
     table["chosen"] = False
     if len(ok):
-        best = table.bic_ar1[table.success].idxmin()
+        best = table.bic_eff[table.success].idxmin()
         table.loc[best, "chosen"] = True
         table["delta_bic"] = table.bic - table.bic[best]
-        table["delta_bic_ar1"] = table.bic_ar1 - table.bic_ar1[best]
+        table["delta_bic_eff"] = table.bic_eff - table.bic_eff[best]
     else:
-        table["delta_bic"] = table["delta_bic_ar1"] = math.nan
+        table["delta_bic"] = table["delta_bic_eff"] = math.nan
     return table[[label, *LAW_COLUMNS[1:]]]
+
+
+def _inflation(fit) -> float:
+    """f of ``fit``: its noise model's long-run inflation (at least 1), or the lag-1
+    (1 + ρ)/(1 − ρ) without a noise model."""
+    if fit.noise_model is not None:
+        return max(fit.noise_model.inflation, 1.0)
+    return (1 + fit.rho) / (1 - fit.rho)

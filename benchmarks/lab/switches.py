@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import time
 
 import numpy as np
 import pandas as pd
@@ -105,10 +106,12 @@ def refine_switches(fit) -> tuple[object, pd.DataFrame]:
     """``(fit, table)``: each switch of ``fit``'s history profiled on the friction (module
     docstring), the model's record moved to the friction's switches and refitted (its fixed
     parameters and weights kept); ``table`` has :data:`SWITCH_COLUMNS`, one row per switch."""
-    rows = []
+    started, first = time.perf_counter(), fit
+    rows, trials = [], 0
     for i in range(len(fit.model.record.switch_times)):
-        fit, row = _refine(fit, i)
+        fit, row, solves = _refine(fit, i)
         rows.append(row)
+        trials += solves
     # a held trend is settled again at the refined switches (fit_lab's _settle), from the
     # refined fit's values
     model = dataclasses.replace(fit.model, steady_after=None, steady_fitted=None)
@@ -118,11 +121,15 @@ def refine_switches(fit) -> tuple[object, pd.DataFrame]:
     # settled again is another)
     if model.steady is None and not final.rss <= fit.rss:
         final = fit
+    # the fit's cost is all of it: the first fit, every trial and the refits
+    final = dataclasses.replace(final, solves=first.solves + trials + final.solves,
+                                wall_s=first.wall_s + time.perf_counter() - started)
     return final, pd.DataFrame(rows, columns=list(SWITCH_COLUMNS))
 
 
 def _refine(fit, i: int):
-    """Switch ``i`` profiled and moved (module docstring): the fit there and its row."""
+    """Switch ``i`` profiled and moved (module docstring): the fit there, its row and the
+    solves it took."""
     from scipy.optimize import minimize_scalar
     rec = fit.model.record
     dt = float(np.median(np.diff(rec.t)))
@@ -163,7 +170,8 @@ def _refine(fit, i: int):
     if finite and max(finite) - min(finite) <= CHI2_95_1DOF * fit.walk_variance:
         # flat over the window: the friction places no switch in it (both ends open), and the
         # displacement's time is kept without a search
-        return fit, _flat_row(fit, i, fits, squares, t0, (t0 - width, t0 + width))
+        return (fit, _flat_row(fit, i, fits, squares, t0, (t0 - width, t0 + width)),
+                _solves(fits, fit))
     k = int(np.argmin([values[ts] for ts in scan]))
     lo, hi = scan[max(k - 1, 0)], scan[min(k + 1, SCAN - 1)]
     minimize_scalar(squares, bounds=(lo, hi), method="bounded",
@@ -175,8 +183,8 @@ def _refine(fit, i: int):
     # a trial has no noise model: the best's is refitted from its values (a warm start that
     # stays there)
     trial = fits[best_t]
-    best = fit_lab(trial.model, fixed=fit.fixed, weights=fit.piece_weights,
-                   start={n: trial.values[n] for n in trial.model.parameters})
+    best = refit = fit_lab(trial.model, fixed=fit.fixed, weights=fit.piece_weights,
+                           start={n: trial.values[n] for n in trial.model.parameters})
     unit = best.walk_variance
     level = squares(best_t) + CHI2_95_1DOF * unit
     ends, closed = _ends(fits, squares, best_t, t0 - width, t0 + width, level)
@@ -186,7 +194,14 @@ def _refine(fit, i: int):
         # displacement's time is kept
         best_t, best = t0, fit
     within = [fits[ts] for ts in fits if squares(ts) <= level]
-    return best, _row(i, rec.t_offset, t0, best_t, ends, closed, rise, len(fits), within)
+    return (best, _row(i, rec.t_offset, t0, best_t, ends, closed, rise, len(fits), within),
+            _solves(fits, fit) + refit.solves)
+
+
+def _solves(fits: dict, fit) -> int:
+    """The forward solves of a switch's trial fits (``fit``, the one it started from, not
+    counted)."""
+    return sum(f.solves for f in fits.values() if f is not None and f is not fit)
 
 
 def _row(i, offset, t0, best_t, ends, closed, rise, n_fits, within) -> dict:
