@@ -740,6 +740,17 @@ def test_a_held_slope_and_the_fit_share_one_noise_in_the_propagated_covariance()
     assert (np.abs(np.diag(summed) / np.diag(cov) - 1) > 0.1).any()
     alone, _, _ = propagated_covariance(-jac, 0.25, 0.0025)
     np.testing.assert_allclose(alone, covariance(jac, 0.25) + drift_covariance(jac, 0.0025))
+    # a column repeated: its two copies are lost (infinite), the first parameter's variance
+    # is the full-rank one's (found in review: (JᵀJ)⁻¹ over the ok block times its columns
+    # dropped what the lost columns carry)
+    twice = np.column_stack([jac, jac[:, 1]])
+    for loads, r in ((None, None), (column, reads)):
+        lost, _, _ = propagated_covariance(-twice, 0.25, 0.0025, loads, r)
+        full, _, _ = propagated_covariance(-jac, 0.25, 0.0025, loads, r)
+        assert np.isinf(lost[1, 1]) and np.isinf(lost[2, 2])
+        assert lost[0, 0] == pytest.approx(full[0, 0], rel=1e-9)
+    assert drift_covariance(twice, 0.0025)[0, 0] == pytest.approx(
+        drift_covariance(jac, 0.0025)[0, 0], rel=1e-9)
 
 
 def test_the_noise_reader_finds_walks_and_mixtures_and_invents_only_small_walks():

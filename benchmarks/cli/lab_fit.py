@@ -332,10 +332,11 @@ def _doc(args, record, fit, table, fixed, notes, profiles, check, inertia, poste
                                "variogram (benchmarks.lab.noise): covariance = inflation * "
                                "sigma^2 (J'J)^-1 (inflation * sigma^2 the white + AR(1) part's "
                                "long-run variance) plus the walk's share (drift_sigma per "
-                               "sample; benchmarks.lab.noise.drift_covariance), plus with "
-                               "--detrend steady each held slope's se^2 (J+ w c)(J+ w c)' "
-                               "(benchmarks.lab.fit); rho is the residuals' lag-1 "
-                               "autocorrelation",
+                               "sample; benchmarks.lab.noise.drift_covariance); with "
+                               "--detrend steady the held slopes and the fit mapped through "
+                               "that one noise together "
+                               "(benchmarks.lab.noise.propagated_covariance); rho is the "
+                               "residuals' lag-1 autocorrelation",
                       "white_variance": _noise_part(fit, "white"),
                       "ar1_variance": _noise_part(fit, "correlated"),
                       "ar1_phi": _noise_part(fit, "phi"),
@@ -507,8 +508,9 @@ def _report_trend(fit) -> None:
     # each held slope's error as the covariance carries it (the fit's noise model)
     held = [f"piece {i} {s * 1e-6:.3g} ± {fit.linear_se.get(f'trend_{i}', math.nan) * 1e-6:.2g}"
             f" per µm from {t + fit.model.record.t_offset:.6g} s"
-            for i, (s, t, f) in enumerate(zip(steady.slopes, steady.steady_from,
-                                               steady.fitted)) if not f and math.isfinite(s)]
+            for i, (s, t, f, v) in enumerate(zip(steady.slopes, steady.steady_from,
+                                                  steady.fitted, fit.model.record.velocities))
+            if not f and v > 0 and math.isfinite(s)]
     fitted = [str(i) for i, (f, v) in enumerate(zip(steady.fitted, fit.model.record.velocities))
               if f and v > 0]
     say("trend: held where the slider is steady: " + ("; ".join(held) or "none")

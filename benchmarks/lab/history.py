@@ -176,8 +176,11 @@ def _glitches(x: np.ndarray) -> np.ndarray:
     (or a noise-free record) has none."""
     from scipy.ndimage import median_filter
     d = x - median_filter(x, size=GLITCH_WIDTH, mode="nearest")
+    # round-off is no glitch, nor is a quantised sensor's flicker by one step (the smallest
+    # deviation that is not 0) where most deviations are 0
+    step = np.abs(d[np.abs(d) > 1e-12 * max(float(np.ptp(x)), 1e-300)])
     scale = max(1.4826 * float(np.median(np.abs(d - np.median(d)))),
-                1e-9 * float(np.ptp(x)))         # round-off is no glitch
+                float(step.min()) if len(step) else 0.0, 1e-9 * float(np.ptp(x)))
     return np.abs(d) > GLITCH * scale
 
 

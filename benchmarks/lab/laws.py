@@ -8,11 +8,10 @@ linear level and slopes), n the samples (the constants every fit shares are drop
 
 **What the criteria assume, and the one that chooses.** Independent residuals. A record's
 residuals follow each other (lag-1 ρ of 0.7–0.96 on the five real steps): n samples then carry
-about n/f independent ones, f the long-run inflation of the residuals' noise model (the
-variance of a long mean over that of independent samples: :attr:`~benchmarks.lab.fit.LabFit.
-inflation`, white + AR(1) read from the variogram, :mod:`benchmarks.lab.noise`; the lag-1
-(1 + ρ)/(1 − ρ) for a fit without one, which misreads a mixture of white and slow AR(1) noise
-by up to a factor of 4), and a difference in AIC or BIC overstates the evidence by about f.
+about n/f independent ones, f the long-run inflation of the residuals' noise model (the white
++ AR(1) part's long-run variance over its variance, read from the variogram:
+:attr:`benchmarks.lab.noise.NoiseModel.inflation`; the lag-1 (1 + ρ)/(1 − ρ) for a fit without
+one, which misreads a mixture of white and slow AR(1) noise by up to a factor of 4), and a difference in AIC or BIC overstates the evidence by about f.
 The choice is the lowest ``bic_eff`` = n ln(RSS/n)/f + p ln(n/f), the BIC of n/f independent
 samples, with one f for all (``inflation``: that of the fit with the smallest squares, whose
 residuals are nearest the noise; a law that does not fit has ρ near 1 and no say in it);

@@ -238,22 +238,33 @@ def covariance(jac: np.ndarray, scale: float) -> np.ndarray:
     return cov
 
 
+def _solution_map(jac: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(P, ok): the rows of J⁺ (the least-squares solution's map of the residuals, on the
+    directions the data determine: singular values above :data:`RANK_TOL` of the largest, as
+    :func:`covariance` keeps) of the parameters ``ok`` whose variance is finite. With the full
+    rank P = (JᵀJ)⁻¹Jᵀ; with collinear columns the rows of P, not (JᵀJ)⁻¹ over the ok block
+    times their columns, map the residuals (that product drops what the lost columns carry)."""
+    ok = np.isfinite(np.diag(covariance(jac, 1.0)))
+    if not ok.any():
+        return np.zeros((0, jac.shape[0])), ok
+    return np.linalg.pinv(jac, rcond=RANK_TOL)[ok], ok
+
+
 def drift_covariance(jac: np.ndarray, variance: float) -> np.ndarray:
-    """σ²_rw B CᵀC B over ``jac``'s columns, B = (JᵀJ)⁻¹ on the directions the data determine
-    (:func:`covariance`) and C the reverse cumulative sums of J's rows (a
-    walk's step at sample j moves every residual after it: Jᵀw = Cᵀη); 0 where B is not
-    finite, and without a walk."""
+    """σ²_rw (P C)(P C)ᵀ over ``jac``'s columns, P the least-squares map of the residuals
+    (:func:`_solution_map`; (JᵀJ)⁻¹Jᵀ at full rank) and C the walk's cumulative sums (a walk's
+    step at sample j moves every residual after it: P C is the reverse cumulative sums of P's
+    columns); σ²_rw B CᵀC B at full rank. 0 where the variance is not finite, and without a
+    walk."""
     n = jac.shape[1]
     out = np.zeros((n, n))
     if not variance > 0:
         return out
-    b = covariance(jac, 1.0)
-    ok = np.isfinite(np.diag(b)) & np.isfinite(b).all(axis=0)
+    m, ok = _solution_map(jac)
     if not ok.any():
         return out
-    c = np.cumsum(jac[::-1, ok], axis=0)[::-1]
-    bk = b[np.ix_(ok, ok)]
-    out[np.ix_(ok, ok)] = variance * bk @ (c.T @ c) @ bk
+    mc = np.cumsum(m[:, ::-1], axis=1)[:, ::-1]
+    out[np.ix_(ok, ok)] = variance * (mc @ mc.T)
     return out
 
 
@@ -263,18 +274,30 @@ def propagated_covariance(jac: np.ndarray, long_run: float, walk: float, loads=N
     r = data − model) when the residuals' noise η (white +
     AR(1) of long-run variance ``long_run``, a walk of ``walk`` per sample) also made a trend
     that was taken off the data before the fit: h slopes s = R η (``reads``, h × samples)
-    times their columns (``loads``, samples × h). The parameters then move by −B K η with
-    K = Jᵀ − (Jᵀ loads) R (B = (JᵀJ)⁻¹, :func:`covariance`): the trend's error and the fit's
+    times their columns (``loads``, samples × h). The parameters then move by −P (I − loads R) η
+    (P = J⁺, :func:`_solution_map`; (JᵀJ)⁻¹Jᵀ at full rank): the trend's error and the fit's
     own share one noise, so their variances are not summed but mapped together. Returns
     (cov over ``jac``'s columns, their covariance with the slopes, the slopes' covariance);
     without ``loads`` this is :func:`covariance` plus :func:`drift_covariance`, and the other
     two are empty."""
-    n, p = jac.shape
-    h = 0 if loads is None else loads.shape[1]
+    p, h = jac.shape[1], 0 if loads is None else loads.shape[1]
     cov = covariance(jac, long_run)
     cross, slopes = np.full((p, h), np.nan), np.full((h, h), np.nan)
-    if not np.isfinite(cov).any():
+    rc = np.cumsum(reads[:, ::-1], axis=1)[:, ::-1] if h and walk > 0 else None
+    if h:                                 # the slopes' own errors do not depend on J
+        slopes = long_run * (reads @ reads.T) + (walk * (rc @ rc.T) if walk > 0 else 0.0)
+    m, ok = _solution_map(jac)
+    if not ok.any():
         return cov, cross, slopes
+    if h:
+        m = m - (m @ loads) @ reads
+        cov[np.ix_(ok, ok)] = long_run * (m @ m.T)
+    if walk > 0:
+        mc = np.cumsum(m[:, ::-1], axis=1)[:, ::-1]
+        cov[np.ix_(ok, ok)] += walk * (mc @ mc.T)
+    if h:
+        cross[ok] = -(long_run * (m @ reads.T) + (walk * (mc @ rc.T) if walk > 0 else 0.0))
+    return cov, cross, slopes
     b = covariance(jac, 1.0)
     ok = np.isfinite(np.diag(b)) & np.isfinite(b).all(axis=0)
     k = jac[:, ok].T

@@ -281,9 +281,7 @@ def steady_trend(t, mu, velocities, switch_times, after=None, fitted=None) -> St
         if chosen:
             pass
         elif v > 0 and len(inside) >= FEWEST and i == 0:
-            held = 0
-            if _curvature(x[inside], mu[inside]) > OPENS_CURVED:
-                notes.append(OPENS_IN_TRANSIENT)
+            held = 0           # (a first piece that curves is a fit's note, whatever its trend)
         elif v > 0 and len(inside) >= FEWEST:
             u, ti = cols[inside, i], t[inside]
             found = _steady_start(u, mu[inside])

@@ -1,10 +1,12 @@
 """The switch times of a fit's history where the friction says, not only the displacement.
 
 :func:`benchmarks.lab.history.find_history` places each switch on the load point's displacement
-(a continuous piecewise line). A displacement sensor's glitches and resets pull that line: on the
-basalt step of ``tests/data/lab-velocity-steps`` it puts the 3 → 10 µm/s switch at 68.44 s after
-the first sample, where the friction starts to rise at 68.66–68.68 s, and the fit there has a
-stiffness k′ less than half the one at the friction's switch. A switch placed off by a fraction
+(a continuous piecewise line, its glitches left out). A displacement that does not follow two
+straight lines near a switch still pulls the corner: on the basalt step of
+``tests/data/lab-velocity-steps`` the displacement lags its line by up to 2.4 µm for 3 s after
+the 3 → 10 µm/s switch, the corner lands at 68.44 s after the first sample, where the friction
+starts to rise at 68.66–68.68 s, and the fit there has a stiffness k′ less than half the one at
+the friction's switch. A switch placed off by a fraction
 of a second moves a, Dc and k′ by more than their errors.
 
 :func:`refine_switches` profiles each switch on the friction: the whole fit (warm-started from
@@ -13,8 +15,8 @@ others held), over ± :data:`WINDOW_SAMPLES` samples of the displacement's switc
 quarter of the shorter piece beside it): a scan of :data:`SCAN` points (each trial started
 from the nearest one made), then a bounded search about the best to :data:`TOLERANCE` of a
 sample (a trial that would leave a piece too short is skipped). A scan whose squares stay
-within 3.84 f σ² of their least over the window places no switch: the displacement's time is
-kept with both ends open, and no search is made. The switch's 95 % interval is where the squares
+within :data:`FLAT` × 3.84 f σ² of their least over the window places no switch: the
+displacement's time is kept with both ends open, and no search is made. The switch's 95 % interval is where the squares
 are within 3.84 f σ² of their minimum (f σ² the best fit's noise variance, grown by the walk
 as for the parameter it moves most: :attr:`~benchmarks.lab.fit.LabFit.walk_variance`), each end
 bisected :data:`BISECT` times; an end that the window does not close is open. Where neither end
@@ -46,7 +48,7 @@ from benchmarks.lab.step_data import LabRecord
 from benchmarks.inversion.objectives import CHI2_95_1DOF
 
 __all__ = ["refine_switches", "with_switches", "SWITCH_COLUMNS", "WINDOW_SAMPLES", "SCAN",
-           "TOLERANCE", "BISECT", "REJECTED"]
+           "TOLERANCE", "BISECT", "REJECTED", "FLAT"]
 
 #: samples either side of the displacement's switch that the friction's may lie
 WINDOW_SAMPLES = 50
@@ -57,6 +59,8 @@ TOLERANCE = 0.1
 #: bisections of each end of a switch's interval (to 1/16 of the scan's spacing, under a
 #: sample)
 BISECT = 4
+#: a scan whose squares vary by less than this share of 3.84 f σ² is flat: no search
+FLAT = 0.5
 #: the squares' rise (in f σ²) at the displacement's switch above which the two are said to
 #: disagree (the 95 % level)
 REJECTED = CHI2_95_1DOF
@@ -119,10 +123,11 @@ def refine_switches(fit) -> tuple[object, pd.DataFrame]:
                     start={n: fit.values[n] for n in model.parameters})
     # the refit may stop worse than the refined fit (squares of one trend model: a held trend
     # settled again is another)
+    refit = final.solves
     if model.steady is None and not final.rss <= fit.rss:
         final = fit
     # the fit's cost is all of it: the first fit, every trial and the refits
-    final = dataclasses.replace(final, solves=first.solves + trials + final.solves,
+    final = dataclasses.replace(final, solves=first.solves + trials + refit,
                                 wall_s=first.wall_s + time.perf_counter() - started)
     return final, pd.DataFrame(rows, columns=list(SWITCH_COLUMNS))
 
@@ -167,9 +172,11 @@ def _refine(fit, i: int):
     scan = np.linspace(t0 - width, t0 + width, SCAN)
     values = dict((ts, squares(ts)) for ts in sorted(scan, key=lambda ts: abs(ts - t0)))
     finite = [v for v in values.values() if math.isfinite(v)]
-    if finite and max(finite) - min(finite) <= CHI2_95_1DOF * fit.walk_variance:
+    if finite and max(finite) - min(finite) <= FLAT * CHI2_95_1DOF * fit.walk_variance:
         # flat over the window: the friction places no switch in it (both ends open), and the
-        # displacement's time is kept without a search
+        # displacement's time is kept without a search (a shortcut of the rule below, taken
+        # with a margin: this unit is the displacement's fit's, and a search between the
+        # scan's points may find squares lower than the scan's)
         return (fit, _flat_row(fit, i, fits, squares, t0, (t0 - width, t0 + width)),
                 _solves(fits, fit))
     k = int(np.argmin([values[ts] for ts in scan]))
