@@ -123,6 +123,7 @@ def cmd_lab_fit(args) -> int:
         claim_outputs(args.out / n for n in LAB_FIT_FILES)
         args.out.mkdir(parents=True, exist_ok=True)
     fit, notes, laws_table, switches = _fit_laws(args, models, given)
+    notes = [*args.clock_notes, *notes]
     trends = None
     if args.detrend == "auto":
         fit, notes, trends = _choose_trend(args, fit)
@@ -173,6 +174,13 @@ def _models(args, laws) -> dict:
     if args.switches is not None:
         from benchmarks.lab.switches import with_switches
         record = with_switches(record, [s - record.t_offset for s in args.switches])
+    if args.velocities is not None:
+        from benchmarks.lab.switches import with_velocities
+        record = with_velocities(record, [v * 1e-6 for v in args.velocities])
+    args.clock_notes = []
+    if args.clock == "displacement":
+        from benchmarks.lab.clock import displacement_clock
+        record, args.clock_notes = displacement_clock(record)
     if args.weights is not None and len(args.weights) != len(record.velocities):
         raise ValueError(f"--weights: {len(args.weights)} given, but the record's history has "
                          f"{len(record.velocities)} pieces (one weight each): "
@@ -318,7 +326,8 @@ def _doc(args, record, fit, table, fixed, notes, profiles, check, inertia, poste
     return {"tool": version_line(), **provenance(), "command": args.command_line,
             "recording": str(Path(args.recording).resolve()), "sha256": record.sha256,
             "columns": record.columns, "window_s": list(args.window) if args.window else None,
-            "law": args.law, "states": args.states, "detrend": args.detrend, "fixed": fixed,
+            "law": args.law, "states": args.states, "detrend": args.detrend, "clock": args.clock,
+            "fixed": fixed,
             "weights": list(args.weights) if args.weights else None,
             "history": {"velocities_m_s": list(record.velocities),
                         "switch_times_s": [s + record.t_offset for s in record.switch_times],
@@ -554,6 +563,15 @@ def _times(text: str) -> tuple[float, ...]:
                                          f"(11676.3,11720), got {text!r}") from None
 
 
+def _speeds(text: str) -> tuple[float, ...]:
+    """``--velocities``: comma-separated speeds in µm/s."""
+    try:
+        return tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected speeds in µm/s separated by commas "
+                                         f"(3,10), got {text!r}") from None
+
+
 def _num(v, unit) -> str:
     if v is None or (isinstance(v, float) and math.isnan(v)):
         return ""
@@ -652,13 +670,7 @@ def add_parser(tests) -> None:
     p.add_argument("--window", type=float, nargs=2, metavar=("START", "END"),
                    help="fit the part of the record from START to END, in the file's time, s "
                         "(default: all of it; it must start in steady sliding)")
-    p.add_argument("--switches-from", choices=("friction", "displacement"), default="friction",
-                   help="where the history's switch times come from: the displacement's "
-                        "piecewise line refined on the friction (each switch profiled within "
-                        "±50 samples; default), or the displacement alone")
-    p.add_argument("--switches", type=_times, metavar="T1,T2,…",
-                   help="the switch times by hand, in the file's time (s), comma-separated: "
-                        "taken as they are (default: found; see --switches-from)")
+    _add_history_options(p)
     p.add_argument("--law", default="aging", metavar="LAW[,LAW…]",
                    help=f"the friction law ({', '.join(LAWS)}), or several separated by commas "
                         "to compare them (aging,slip): each is fitted, the laws are tabled "
@@ -696,6 +708,26 @@ def add_parser(tests) -> None:
                         "lab_fit_profiles.csv and lab_fit.png there (default: print only)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=cmd_lab_fit)
+
+
+def _add_history_options(p) -> None:
+    """The load point's history and clock: switches, speeds by hand, the clock."""
+    p.add_argument("--switches-from", choices=("friction", "displacement"), default="friction",
+                   help="where the history's switch times come from: the displacement's "
+                        "piecewise line refined on the friction (each switch profiled within "
+                        "±50 samples; default), or the displacement alone")
+    p.add_argument("--velocities", type=_speeds, metavar="V1,V2,…",
+                   help="the load point's speeds by hand, in µm/s, one per piece of the "
+                        "history, comma-separated (0: a hold): the commanded speeds (default: "
+                        "each piece's slope in the displacement)")
+    p.add_argument("--clock", choices=("time", "displacement"), default="time",
+                   help="the model's clock: the record's time, or the load point's "
+                        "displacement (each sample at the time a load point keeping the "
+                        "history's speeds reaches its measured displacement, as xlook and "
+                        "RSFit3000 fit; for a poor time base) (default: time)")
+    p.add_argument("--switches", type=_times, metavar="T1,T2,…",
+                   help="the switch times by hand, in the file's time (s), comma-separated: "
+                        "taken as they are (default: found; see --switches-from)")
 
 
 def _add_run_options(p) -> None:

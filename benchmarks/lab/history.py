@@ -186,7 +186,7 @@ def _glitches(x: np.ndarray) -> np.ndarray:
 
 def _robust_switch(t, x, lo, j, hi, glitch) -> float:
     """The switch time between pieces [lo, j) and [j, hi) (:func:`_refined`), found without
-    the samples that are ``glitch``\ es (:func:`_glitches`): the best corner among the others
+    the samples marked in ``glitch`` (:func:`_glitches`): the best corner among the others
     (:func:`_best_hinge`), then refined. A sensor's glitches and resets near a switch pull a
     least-squares corner."""
     keep = ~glitch[lo:hi]

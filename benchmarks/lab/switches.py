@@ -47,7 +47,7 @@ from benchmarks.lab.history import MIN_SAMPLES, PIECE_COLUMNS, _line
 from benchmarks.lab.step_data import LabRecord
 from benchmarks.inversion.objectives import CHI2_95_1DOF
 
-__all__ = ["refine_switches", "with_switches", "SWITCH_COLUMNS", "WINDOW_SAMPLES", "SCAN",
+__all__ = ["refine_switches", "with_switches", "with_velocities", "SWITCH_COLUMNS", "WINDOW_SAMPLES", "SCAN",
            "TOLERANCE", "BISECT", "REJECTED", "FLAT"]
 
 #: samples either side of the displacement's switch that the friction's may lie
@@ -104,6 +104,21 @@ def with_switches(record: LabRecord, switches) -> LabRecord:
                            "samples": sizes}, columns=list(PIECE_COLUMNS))
     return dataclasses.replace(record, velocities=velocities, switch_times=tuple(map(float, s)),
                                pieces=pieces)
+
+
+def with_velocities(record: LabRecord, velocities) -> LabRecord:
+    """``record`` with its history's speeds ``velocities`` (m/s, one per piece, the first
+    moving; 0 a hold) in place of those its displacement gave: the speeds the machine was
+    commanded to run at, which a record's clock cannot bias."""
+    v = np.asarray(velocities, dtype=float)
+    if v.shape != (len(record.velocities),):
+        raise ValueError(f"{len(v)} velocities given, but the history has "
+                         f"{len(record.velocities)} pieces (one speed each)")
+    if not np.isfinite(v).all() or (v < 0).any() or not v[0] > 0:
+        raise ValueError("velocities must be speeds of 0 (a hold) or more, the first above 0, "
+                         f"got {', '.join(f'{x * 1e6:g}' for x in v)} µm/s")
+    return dataclasses.replace(record, velocities=tuple(map(float, v)),
+                               pieces=record.pieces.assign(velocity_m_s=v))
 
 
 def refine_switches(fit) -> tuple[object, pd.DataFrame]:
