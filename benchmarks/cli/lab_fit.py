@@ -554,22 +554,19 @@ def _report_check(check: dict) -> None:
                "FAILED: tighten --rtol or choose another --integrator"))
 
 
-def _times(text: str) -> tuple[float, ...]:
-    """``--switches``: comma-separated times in s."""
-    try:
-        return tuple(float(v) for v in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected times in s separated by commas "
-                                         f"(11676.3,11720), got {text!r}") from None
+def _numbers(what: str, example: str):
+    """An argparse type: comma-separated numbers (``what`` and an ``example`` in its error)."""
+    def parse(text: str) -> tuple[float, ...]:
+        try:
+            return tuple(float(v) for v in text.split(","))
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {what} separated by commas "
+                                             f"({example}), got {text!r}") from None
+    return parse
 
 
-def _speeds(text: str) -> tuple[float, ...]:
-    """``--velocities``: comma-separated speeds in µm/s."""
-    try:
-        return tuple(float(v) for v in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected speeds in µm/s separated by commas "
-                                         f"(3,10), got {text!r}") from None
+#: ``--switches``: times in s; ``--velocities``: speeds in µm/s
+_times, _speeds = _numbers("times in s", "11676.3,11720"), _numbers("speeds in µm/s", "3,10")
 
 
 def _num(v, unit) -> str:
