@@ -77,6 +77,24 @@ def test_glitches_in_the_displacement_do_not_pull_a_switch():
     assert max(robust) < 1e-3 and max(ls) > 2 * max(robust), (max(ls), max(robust))
 
 
+def test_big_spikes_are_no_hold_and_a_jump_back_is_refused():
+    """Spikes of ±500 µm in the displacement (found by a hostile probe: they inflated the first
+    piece's speed error until it read as a hold) leave the history as it is; a drop of 30 µm
+    that stays (a sensor's re-zero) is refused in one line, where it was read as a speed."""
+    rng = np.random.default_rng(5)
+    x = _x(T, VELOCITIES, SWITCHES) + 0.05e-6 * rng.standard_normal(len(T))
+    spiked = x.copy()
+    spiked[rng.choice(len(T), 15, replace=False)] += rng.choice([-5e-4, 5e-4], 15)
+    velocities, switches, pieces = find_history(T, spiked)
+    np.testing.assert_allclose(velocities, VELOCITIES, rtol=2e-3)
+    # to a fifth of the sampling interval (1.8 ms at most when written)
+    np.testing.assert_allclose(switches, SWITCHES, atol=3e-3)
+    assert pieces.samples.sum() == len(T)
+    reset = x - 30e-6 * (T > 30.0)
+    with pytest.raises(ValueError, match=r"jumps back by 2\d\.\d µm at t = 30\.0"):
+        find_history(T, reset)
+
+
 def test_holds_are_found_and_a_velocity_column_is_integrated():
     velocities, switches = (1e-6, 0.0, 1e-6, 0.0, 1e-6), (10.0, 20.0, 40.0, 140.0)
     t = np.linspace(0.0, 200.0, 8000)

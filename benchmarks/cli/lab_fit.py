@@ -123,10 +123,10 @@ def cmd_lab_fit(args) -> int:
         claim_outputs(args.out / n for n in LAB_FIT_FILES)
         args.out.mkdir(parents=True, exist_ok=True)
     fit, notes, laws_table, switches = _fit_laws(args, models, given)
-    notes = [*args.clock_notes, *notes]
     trends = None
     if args.detrend == "auto":
         fit, notes, trends = _choose_trend(args, fit)
+    notes = [*args.clock_notes, *notes]
     fixed = {k: v for k, v in given.items() if k in fit.model.parameters}
     record = fit.model.record             # the switches where the friction put them
     profiles = {} if args.no_profiles else _profiles(args, fit, notes)
@@ -595,9 +595,12 @@ def _write(out: Path, fit, table, profiles, doc) -> list[str]:
     rec = fit.model.record
     write_table(table.assign(command=doc["command"], tool=doc["tool"]),
                 out / "lab_fit_parameters.csv")
-    write_table(pd.DataFrame({"t_s": rec.t + rec.t_offset, "load_point_m": rec.load_point,
-                              "mu": rec.mu, "mu_model": fit.mu_model,
-                              "residual": rec.mu - fit.mu_model}), out / "lab_fit_residuals.csv")
+    # t_s is the file's time; on the displacement's clock, the model's is t_clock_s
+    clock = {} if rec.file_t is None else {"t_clock_s": rec.t + rec.t_offset}
+    write_table(pd.DataFrame({"t_s": rec.t + rec.t_offset if rec.file_t is None else rec.file_t,
+                              **clock, "load_point_m": rec.load_point, "mu": rec.mu,
+                              "mu_model": fit.mu_model, "residual": rec.mu - fit.mu_model}),
+                out / "lab_fit_residuals.csv")
     if profiles:
         from benchmarks.lab.fit import PARAMETER_UNITS
         write_table(pd.concat([p.points.rename(columns={p.parameter: "value"}).assign(

@@ -7,18 +7,22 @@ squares most (binary segmentation) as long as the two sides' speeds differ by mo
 holding :data:`MIN_SAMPLES` samples. A split of a piece that holds several corners lands
 between them, so each switch is then moved to its best place between its neighbours, pieces
 left shorter than :data:`MIN_SAMPLES` are merged away, and each switch time is refined between
-samples (the two pieces' continuous fit, minimised over the switch time), without the
-samples beyond :data:`GLITCH` robust σ of the displacement's running median (a sensor's
-glitches, which pull a least-squares corner). A speed within
+samples (the two pieces' continuous fit, minimised over the switch time). All of it is done
+without the samples beyond :data:`GLITCH` robust σ of the displacement's running median (a
+sensor's glitches, which pull a least-squares corner and inflate a speed's error until it
+reads as a hold). A speed within
 :data:`SIGNIFICANCE` standard errors of 0 (or under :data:`HOLD` of the fastest) is a hold (0).
 
 Refused in one line: a record with no step (one speed throughout), one that opens with a hold,
 a load point faster than :data:`LAB_FASTEST` (a unit slip), and one that moves back (a piece
-whose speed is negative beyond its error). A load point outside :data:`LAB_TYPICAL` is warned
+whose speed is negative beyond its error, or a jump back beyond :data:`RESET` robust σ: a
+sensor's reset). A load point outside :data:`LAB_TYPICAL` is warned
 about (a :class:`~problems._validate.UnitWarning`: most likely a unit).
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 import pandas as pd
@@ -26,7 +30,7 @@ import pandas as pd
 from problems._validate import warn_unit
 
 __all__ = ["find_history", "MIN_SAMPLES", "MIN_CHANGE", "HOLD", "SIGNIFICANCE", "LAB_FASTEST",
-           "PIECE_COLUMNS", "LAB_TYPICAL", "GLITCH", "GLITCH_WIDTH"]
+           "PIECE_COLUMNS", "LAB_TYPICAL", "GLITCH", "GLITCH_WIDTH", "RESET"]
 
 #: samples a piece of the history holds at least
 MIN_SAMPLES = 20
@@ -171,34 +175,50 @@ GLITCH_WIDTH = 9
 
 
 def _glitches(x: np.ndarray) -> np.ndarray:
-    """The samples of the displacement ``x`` that are glitches: beyond :data:`GLITCH` robust
-    σ of its running median. A monotone record's median is its own sample, so a clean corner
-    (or a noise-free record) has none."""
+    """The samples of the displacement ``x`` that are glitches: beyond :data:`GLITCH` σ of its
+    running median, σ the sensor's noise read from the second differences (robustly: a
+    straight line has none, and a glitch moves few of them). A monotone record's median is its
+    own sample, so a clean corner (or a noise-free record) has none; a quantised sensor's
+    flicker by one step is none either."""
     from scipy.ndimage import median_filter
+    if len(x) < GLITCH_WIDTH:
+        return np.zeros(len(x), bool)
     d = x - median_filter(x, size=GLITCH_WIDTH, mode="nearest")
-    # round-off is no glitch, nor is a quantised sensor's flicker by one step (the smallest
-    # deviation that is not 0) where most deviations are 0
-    step = np.abs(d[np.abs(d) > 1e-12 * max(float(np.ptp(x)), 1e-300)])
-    scale = max(1.4826 * float(np.median(np.abs(d - np.median(d)))),
-                float(step.min()) if len(step) else 0.0, 1e-9 * float(np.ptp(x)))
-    return np.abs(d) > GLITCH * scale
+    return np.abs(d) > GLITCH * _noise_scale(x)
 
 
-def _robust_switch(t, x, lo, j, hi, glitch) -> float:
-    """The switch time between pieces [lo, j) and [j, hi) (:func:`_refined`), found without
-    the samples marked in ``glitch`` (:func:`_glitches`): the best corner among the others
-    (:func:`_best_hinge`), then refined. A sensor's glitches and resets near a switch pull a
-    least-squares corner."""
-    keep = ~glitch[lo:hi]
-    if keep.all() or keep.sum() < 2 * MIN_SAMPLES:
-        return _refined(t, x, lo, j, hi)
-    tk, xk = t[lo:hi][keep], x[lo:hi][keep]
-    return _refined(tk, xk, 0, _best_hinge(tk, xk, side=3)[0], len(tk))
+def _noise_scale(x: np.ndarray) -> float:
+    """The displacement sensor's noise σ, from the second differences (robustly: a straight
+    line has none, and a glitch or a corner moves few of them), at least one quantisation step
+    (the smallest change that is not 0) and 1e-9 of the travel (round-off)."""
+    second = np.diff(x, 2)
+    step = np.abs(np.diff(x))
+    step = step[step > 1e-12 * max(float(np.ptp(x)), 1e-300)]
+    return max(1.4826 * float(np.median(np.abs(second - np.median(second)))) / math.sqrt(6.0),
+               float(step.min()) if len(step) else 0.0, 1e-9 * float(np.ptp(x)))
+
+
+#: a drop of the displacement's running median by more than this many σ of the sensor's noise
+#: is a jump back (a sensor's reset or re-zero), not noise
+RESET = 20.0
 
 
 def find_history(t: np.ndarray, x: np.ndarray, what: str = "the load point"):
     """(velocities, switch_times, pieces) of the displacement ``x`` (m) at times ``t`` (s): see
-    the module docstring. ``what`` names the channel in a refusal."""
+    the module docstring, found without the displacement's glitches (:func:`_glitches`; each
+    piece's ``samples`` counts them too). ``what`` names the channel in a refusal."""
+    _refuse_jumps_back(t, x, what)
+    glitch = _glitches(x)
+    if not glitch.any() or (~glitch).sum() < 2 * MIN_SAMPLES:
+        return _found(t, x, what)
+    velocities, switches, pieces = _found(t[~glitch], x[~glitch], what)
+    cuts = np.searchsorted(t, switches, side="left")
+    return velocities, switches, pieces.assign(
+        t_end_s=(*switches, float(t[-1])), samples=np.diff(np.concatenate(([0], cuts, [len(t)]))))
+
+
+def _found(t, x, what: str):
+    """:func:`find_history` of samples without glitches."""
     cuts = [0, len(t)]
     while True:
         added = False
@@ -251,11 +271,25 @@ def find_history(t: np.ndarray, x: np.ndarray, what: str = "the load point"):
         raise ValueError(f"{what} holds from the record's start to t = {t[cuts[1]]:.6g} s: the "
                          "fit starts from steady sliding; start the record (--window) while "
                          "the load point moves")
-    glitch = _glitches(x)
-    switches = tuple(_robust_switch(t, x, lo, j, hi, glitch)
+    switches = tuple(_refined(t, x, lo, j, hi)
                      for lo, j, hi in zip(cuts[:-2], cuts[1:-1], cuts[2:]))
     bounds = (0.0, *switches, float(t[-1]))
     pieces = pd.DataFrame({"t_start_s": bounds[:-1], "t_end_s": bounds[1:],
                            "velocity_m_s": velocities, "velocity_se_m_s": errors,
                            "samples": np.diff(cuts)}, columns=list(PIECE_COLUMNS))
     return velocities, switches, pieces
+
+
+def _refuse_jumps_back(t, x, what: str) -> None:
+    """A ValueError where the displacement's running median drops by more than :data:`RESET`
+    σ of the sensor's noise (:func:`_noise_scale`; a sensor's reset: the fit would read it as
+    a speed). A glitch of fewer than half the running median's samples moves it not."""
+    from scipy.ndimage import median_filter
+    if len(x) < GLITCH_WIDTH:
+        return
+    scale = _noise_scale(x)
+    drop = np.diff(median_filter(x, size=GLITCH_WIDTH, mode="nearest"))
+    k = int(np.argmin(drop))
+    if drop[k] < -RESET * scale:
+        raise ValueError(f"{what} jumps back by {-drop[k] * 1e6:.3g} µm at t = {t[k + 1]:.6g} s "
+                         "(a sensor's reset or re-zero?): fit a --window on one side of it")

@@ -78,6 +78,9 @@ class LabRecord:
         The file and its hash.
     columns : dict
         Each channel's column in the file.
+    file_t : numpy.ndarray or None
+        The file's times of the samples (s) when ``t`` runs on another clock
+        (:mod:`benchmarks.lab.clock`); None when ``t + t_offset`` is the file's time.
     """
 
     t: np.ndarray = field(repr=False)
@@ -90,6 +93,7 @@ class LabRecord:
     source: str = "table"
     sha256: str = ""
     columns: dict = field(default_factory=dict)
+    file_t: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def history(self):

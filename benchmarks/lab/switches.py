@@ -48,7 +48,7 @@ from benchmarks.lab.step_data import LabRecord
 from benchmarks.inversion.objectives import CHI2_95_1DOF
 
 __all__ = ["refine_switches", "with_switches", "with_velocities", "SWITCH_COLUMNS", "WINDOW_SAMPLES", "SCAN",
-           "TOLERANCE", "BISECT", "REJECTED", "FLAT"]
+           "TOLERANCE", "BISECT", "REJECTED", "FLAT", "HAND_SPEED"]
 
 #: samples either side of the displacement's switch that the friction's may lie
 WINDOW_SAMPLES = 50
@@ -106,17 +106,30 @@ def with_switches(record: LabRecord, switches) -> LabRecord:
                                pieces=pieces)
 
 
+#: a speed given by hand may differ from the displacement's by at most this factor
+HAND_SPEED = 1.25
+
+
 def with_velocities(record: LabRecord, velocities) -> LabRecord:
     """``record`` with its history's speeds ``velocities`` (m/s, one per piece, the first
     moving; 0 a hold) in place of those its displacement gave: the speeds the machine was
     commanded to run at, which a record's clock cannot bias."""
-    v = np.asarray(velocities, dtype=float)
+    v = np.asarray(velocities, dtype=float) + 0.0          # (−0 is 0)
     if v.shape != (len(record.velocities),):
         raise ValueError(f"{len(v)} velocities given, but the history has "
                          f"{len(record.velocities)} pieces (one speed each)")
     if not np.isfinite(v).all() or (v < 0).any() or not v[0] > 0:
         raise ValueError("velocities must be speeds of 0 (a hold) or more, the first above 0, "
                          f"got {', '.join(f'{x * 1e6:g}' for x in v)} µm/s")
+    found = np.asarray(record.velocities, dtype=float)
+    for i, (given, seen) in enumerate(zip(v, found)):
+        # a commanded speed differs from the measured one by a calibration, not by a unit or
+        # a hold
+        if (given > 0) != (seen > 0) or (seen > 0 and not
+                                         1 / HAND_SPEED <= given / seen <= HAND_SPEED):
+            raise ValueError(f"velocity {i + 1} given as {given * 1e6:g} µm/s, where the "
+                             f"displacement moves at {seen * 1e6:.4g} µm/s (a hand speed must "
+                             f"be within a factor {HAND_SPEED:g} of it, and 0 only at a hold)")
     return dataclasses.replace(record, velocities=tuple(map(float, v)),
                                pieces=record.pieces.assign(velocity_m_s=v))
 
