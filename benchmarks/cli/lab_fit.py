@@ -180,7 +180,7 @@ def _models(args, laws) -> dict:
     args.clock_notes = []
     if args.clock == "displacement":
         from benchmarks.lab.clock import displacement_clock
-        record, args.clock_notes = displacement_clock(record)
+        record, args.clock_notes = displacement_clock(record, refit=args.switches is None)
     if args.weights is not None and len(args.weights) != len(record.velocities):
         raise ValueError(f"--weights: {len(args.weights)} given, but the record's history has "
                          f"{len(record.velocities)} pieces (one weight each): "
@@ -330,13 +330,13 @@ def _doc(args, record, fit, table, fixed, notes, profiles, check, inertia, poste
             "fixed": fixed,
             "weights": list(args.weights) if args.weights else None,
             "history": {"velocities_m_s": list(record.velocities),
-                        "switch_times_s": [s + record.t_offset for s in record.switch_times],
+                        "switch_times_s": record.file_time(record.switch_times).tolist(),
                         "pieces": record.pieces.assign(
-                            t_start_s=record.pieces.t_start_s + record.t_offset,
-                            t_end_s=record.pieces.t_end_s + record.t_offset).to_dict(
+                            t_start_s=record.file_time(record.pieces.t_start_s),
+                            t_end_s=record.file_time(record.pieces.t_end_s)).to_dict(
                             orient="records")},
             "samples": fit.n, "parameters": table.to_dict(orient="records"),
-            "trend": _trend_doc(fit, record.t_offset),
+            "trend": _trend_doc(fit, record),
             "noise": {"model": "white + AR(1) + random walk, fitted to the residuals' "
                                "variogram (benchmarks.lab.noise): covariance = inflation * "
                                "sigma^2 (J'J)^-1 (inflation * sigma^2 the white + AR(1) part's "
@@ -370,7 +370,7 @@ def _doc(args, record, fit, table, fixed, notes, profiles, check, inertia, poste
                 "wall_s": posterior.wall_s}}
 
 
-def _trend_doc(fit, offset: float) -> dict:
+def _trend_doc(fit, record) -> dict:
     """lab_fit.json's trend: ln Dc's correlation with the slope it follows most, and with
     ``--detrend steady`` each piece's held slope (per m; None where the slope was fitted or
     the piece is a hold), its
@@ -378,7 +378,8 @@ def _trend_doc(fit, offset: float) -> dict:
     file times in s, None where no word, "never" for a piece whose evolution does not end;
     and the law's parameters with every slope fitted instead ("alternatives")."""
     def when(v):
-        return None if math.isnan(v) else "never" if math.isinf(v) else float(v) + offset
+        return (None if math.isnan(v) else "never" if math.isinf(v) else
+                float(record.file_time(v)))
 
     doc = {"dc_trend_correlation": None if math.isnan(fit.trend_rho) else fit.trend_rho}
     steady = fit.model.steady
@@ -442,7 +443,7 @@ def _choose_trend(args, fit):
 
 
 def _pieces_line(record) -> str:
-    return ", ".join(f"{v * 1e6:.4g} µm/s from {t + record.t_offset:.6g} s"
+    return ", ".join(f"{v * 1e6:.4g} µm/s from {record.file_time(t):.6g} s"
                      for v, t in zip(record.pieces.velocity_m_s, record.pieces.t_start_s))
 
 
@@ -516,7 +517,7 @@ def _report_trend(fit) -> None:
         return
     # each held slope's error as the covariance carries it (the fit's noise model)
     held = [f"piece {i} {s * 1e-6:.3g} ± {fit.linear_se.get(f'trend_{i}', math.nan) * 1e-6:.2g}"
-            f" per µm from {t + fit.model.record.t_offset:.6g} s"
+            f" per µm from {fit.model.record.file_time(t):.6g} s"
             for i, (s, t, f, v) in enumerate(zip(steady.slopes, steady.steady_from,
                                                   steady.fitted, fit.model.record.velocities))
             if not f and v > 0 and math.isfinite(s)]

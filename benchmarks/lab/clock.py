@@ -48,10 +48,11 @@ CORNER_SAMPLES = 9
 SMOOTH = 51
 
 
-def displacement_clock(record: LabRecord) -> tuple[LabRecord, list[str]]:
+def displacement_clock(record: LabRecord, refit: bool = True) -> tuple[LabRecord, list[str]]:
     """``(record on the displacement's clock, notes)``: the samples at the times t′ of the
     module docstring, in t′'s order, the switch times s′ on the same clock, the file's times
-    kept in ``file_t``. A ValueError for a record whose load point was given as a velocity."""
+    kept in ``file_t``; ``refit`` False keeps the switches where they are (given by hand). A
+    ValueError for a record whose load point was given as a velocity."""
     from scipy.signal import savgol_filter
     from benchmarks.lab.history import _glitches
     if "load_velocity" in record.columns:
@@ -60,9 +61,17 @@ def displacement_clock(record: LabRecord) -> tuple[LabRecord, list[str]]:
     t, x = record.t, record.load_point
     v = np.asarray(record.velocities, dtype=float)
     # each switch where the displacement bends in a short window about it (a whole piece's
-    # line is bent by the clock's wander), and the displacement there
-    corners = [_local_corner(t, x, at) for at in record.switch_times]
+    # line is bent by the clock's wander), and the displacement there; a switch given by
+    # hand is kept where it was given
+    given = np.asarray(record.switch_times, dtype=float)
+    cuts = np.concatenate(([0], np.searchsorted(t, given), [len(t)]))
+    corners = [_local_corner(t, x, at, cuts[k], cuts[k + 2]) if refit else
+               (at, _corner(t, x, at, v[k], v[k + 1])) for k, at in enumerate(given)]
     recorded = np.concatenate(([0.0], [c for c, _ in corners]))
+    if np.any(np.diff(recorded) <= 0):
+        raise ValueError("--clock displacement: the switches re-fitted on the displacement do "
+                         "not stay in order (a piece too short to hold its own corner); use "
+                         "--clock time")
     corner = np.concatenate(([_corner(t, x, 0.0, v[0], v[0])], [X for _, X in corners]))
     # each piece's start on the new clock: the travel between corners at the piece's speed,
     # a hold's duration as recorded
@@ -101,8 +110,10 @@ def displacement_clock(record: LabRecord) -> tuple[LabRecord, list[str]]:
         notes.append(f"on the displacement's clock {moved} of {len(t)} samples change order "
                      "(near a switch that the displacement and the time stamps place "
                      "differently)")
-    edges = (0.0, *switches, float(clock[-1]))
-    pieces = record.pieces.assign(t_start_s=edges[:-1], t_end_s=edges[1:])
+    edges = (0.0, *switches, float(clock[order][-1]))
+    at = np.searchsorted(np.asarray(switches), clock[order], side="right")
+    pieces = record.pieces.assign(t_start_s=edges[:-1], t_end_s=edges[1:],
+                                  samples=np.bincount(at, minlength=len(v)))
     return dataclasses.replace(record, t=clock[order], mu=record.mu[order],
                                load_point=x[order], switch_times=switches, pieces=pieces,
                                t_offset=record.t_offset + shift,
@@ -123,12 +134,14 @@ def _corner(t, x, at: float, before: float, after: float) -> float:
 LOCAL = 100
 
 
-def _local_corner(t, x, at: float) -> tuple[float, float]:
+def _local_corner(t, x, at: float, first: int, last: int) -> tuple[float, float]:
     """(time, displacement) of the corner of the continuous two-line fit of x(t) within
-    :data:`LOCAL` samples of ``at``, without the displacement's glitches."""
+    :data:`LOCAL` samples of ``at`` and halfway to the switches beside it (samples ``first``
+    and ``last``: a window over three lines would settle between their corners), without the
+    displacement's glitches."""
     from benchmarks.lab.history import _best_hinge, _glitches, _refined
     j = int(np.searchsorted(t, at))
-    lo, hi = max(j - LOCAL, 0), min(j + LOCAL, len(t))
+    lo, hi = max(j - LOCAL, (first + j) // 2), min(j + LOCAL, (j + last) // 2)
     keep = ~_glitches(x[lo:hi])
     tk, xk = t[lo:hi][keep], x[lo:hi][keep]
     c = _refined(tk, xk, 0, _best_hinge(tk, xk, side=3)[0], len(tk))

@@ -30,7 +30,7 @@ import pandas as pd
 from problems._validate import warn_unit
 
 __all__ = ["find_history", "MIN_SAMPLES", "MIN_CHANGE", "HOLD", "SIGNIFICANCE", "LAB_FASTEST",
-           "PIECE_COLUMNS", "LAB_TYPICAL", "GLITCH", "GLITCH_WIDTH", "RESET"]
+           "PIECE_COLUMNS", "LAB_TYPICAL", "GLITCH", "GLITCH_WIDTH", "RESET", "NOISE_WIDTH"]
 
 #: samples a piece of the history holds at least
 MIN_SAMPLES = 20
@@ -187,19 +187,30 @@ def _glitches(x: np.ndarray) -> np.ndarray:
     return np.abs(d) > GLITCH * _noise_scale(x)
 
 
-def _noise_scale(x: np.ndarray) -> float:
-    """The displacement sensor's noise σ, from the second differences (robustly: a straight
-    line has none, and a glitch or a corner moves few of them), at least one quantisation step
-    (the smallest change that is not 0) and 1e-9 of the travel (round-off)."""
+def _noise_scale(x: np.ndarray) -> np.ndarray:
+    """The displacement sensor's noise σ at each sample: the larger of the white noise read
+    from the second differences (robustly: a straight line has none, and a glitch or a corner
+    moves few of them) and the local spread about a running median of :data:`NOISE_WIDTH`
+    samples (noise that follows itself, as a filtered sensor's, has small second differences),
+    at least one quantisation step (the smallest change that is not 0) and 1e-9 of the travel
+    (round-off)."""
+    from scipy.ndimage import median_filter
     second = np.diff(x, 2)
     step = np.abs(np.diff(x))
     step = step[step > 1e-12 * max(float(np.ptp(x)), 1e-300)]
-    return max(1.4826 * float(np.median(np.abs(second - np.median(second)))) / math.sqrt(6.0),
-               float(step.min()) if len(step) else 0.0, 1e-9 * float(np.ptp(x)))
+    white = max(1.4826 * float(np.median(np.abs(second - np.median(second)))) / math.sqrt(6.0),
+                float(step.min()) if len(step) else 0.0, 1e-9 * float(np.ptp(x)))
+    width = min(NOISE_WIDTH, len(x) // 2 * 2 - 1)
+    spread = 1.4826 * median_filter(np.abs(x - median_filter(x, size=width, mode="nearest")),
+                                    size=4 * width + 1, mode="nearest")
+    return np.maximum(spread, white)
 
 
+#: samples of the running median about which the sensor's local noise is read
+NOISE_WIDTH = 51
 #: a drop of the displacement's running median by more than this many σ of the sensor's noise
-#: is a jump back (a sensor's reset or re-zero), not noise
+#: that stays over the next :data:`NOISE_WIDTH` samples is a jump back (a sensor's reset or
+#: re-zero), not noise nor a dropout
 RESET = 20.0
 
 
@@ -289,7 +300,9 @@ def _refuse_jumps_back(t, x, what: str) -> None:
         return
     scale = _noise_scale(x)
     drop = np.diff(median_filter(x, size=GLITCH_WIDTH, mode="nearest"))
-    k = int(np.argmin(drop))
-    if drop[k] < -RESET * scale:
+    k = int(np.argmin(drop / scale[1:]))
+    w = NOISE_WIDTH
+    stays = np.median(x[k + 1:k + 1 + w]) - np.median(x[max(k + 1 - w, 0):k + 1])
+    if drop[k] < -RESET * scale[k + 1] and stays < -RESET * scale[k + 1]:
         raise ValueError(f"{what} jumps back by {-drop[k] * 1e6:.3g} µm at t = {t[k + 1]:.6g} s "
                          "(a sensor's reset or re-zero?): fit a --window on one side of it")

@@ -102,6 +102,14 @@ class LabRecord:
             return LoadHistory(velocities=tuple(self.velocities),
                                switch_times=tuple(self.switch_times))
 
+    def file_time(self, s):
+        """The file's time (s) of the record's time ``s`` (s from its first sample, on the
+        model's clock): ``s + t_offset``, or on another clock (``file_t``) interpolated between
+        the samples."""
+        if self.file_t is None:
+            return np.asarray(s, dtype=float) + self.t_offset
+        return np.interp(s, self.t, self.file_t)
+
     def piece_index(self) -> np.ndarray:
         """The piece of the history each sample is in (a switch time belongs to the piece after
         it)."""

@@ -229,7 +229,7 @@ def _refine(fit, i: int):
         # displacement's time is kept
         best_t, best = t0, fit
     within = [fits[ts] for ts in fits if squares(ts) <= level]
-    return (best, _row(i, rec.t_offset, t0, best_t, ends, closed, rise, len(fits), within),
+    return (best, _row(i, rec.file_time, t0, best_t, ends, closed, rise, len(fits), within),
             _solves(fits, fit) + refit.solves)
 
 
@@ -239,11 +239,12 @@ def _solves(fits: dict, fit) -> int:
     return sum(f.solves for f in fits.values() if f is not None and f is not fit)
 
 
-def _row(i, offset, t0, best_t, ends, closed, rise, n_fits, within) -> dict:
-    """Switch ``i``'s row of the table (times in the file's time), the ranges of
-    :data:`RANGED` over the fits ``within`` its interval."""
-    row = {"switch": i + 1, "displacement_s": t0 + offset, "friction_s": best_t + offset,
-           "low95_s": ends[0] + offset, "high95_s": ends[1] + offset,
+def _row(i, file_time, t0, best_t, ends, closed, rise, n_fits, within) -> dict:
+    """Switch ``i``'s row of the table (times in the file's time: ``file_time`` of the
+    record's), the ranges of :data:`RANGED` over the fits ``within`` its interval."""
+    row = {"switch": i + 1, "displacement_s": float(file_time(t0)),
+           "friction_s": float(file_time(best_t)), "low95_s": float(file_time(ends[0])),
+           "high95_s": float(file_time(ends[1])),
            "low_closed": closed[0], "high_closed": closed[1], "rise_at_displacement": rise,
            "disagree": bool(rise > REJECTED), "fits": n_fits}
     for p in RANGED:
@@ -258,7 +259,7 @@ def _flat_row(fit, i, fits, squares, t0, window) -> dict:
     within = [f for f in fits.values() if f is not None and f.success] or [fit]
     least = min(squares(ts) for ts in fits)
     rise = (squares(t0) - least) / fit.walk_variance if math.isfinite(least) else math.nan
-    return _row(i, fit.model.record.t_offset, t0, t0, window, (False, False), rise, len(fits),
+    return _row(i, fit.model.record.file_time, t0, t0, window, (False, False), rise, len(fits),
                 within)
 
 
