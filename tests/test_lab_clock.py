@@ -136,3 +136,18 @@ def test_the_clock_reports_file_times_and_keeps_a_short_piece():
                                           "friction": 0.6 + 0.0 * t}), COLUMNS)
     clocked, _ = displacement_clock(short)
     assert np.max(np.abs(clocked.t + clocked.t_offset - clocked.file_t)) < 0.01
+
+
+def test_a_unit_warning_reaches_the_json_notes(tmp_path):
+    """A load point in µm read as nm (0.5 and 5 nm/s): the unit warning goes to the standard
+    error as before and now also into lab_fit.json's notes (found by a hostile probe: with
+    --json it reached the standard error only)."""
+    df = synthetic_record(T, (0.5e-6, 5e-6), SWITCHES, **TRUTH, noise=2e-4, seed=0)
+    path = tmp_path / "nm.csv"
+    df.to_csv(path, index=False)
+    out = _cli(path, "--column=time=time_s", "--column=load_point=load_point_um:nm",
+               "--column=friction=friction", "--no-profiles", "--no-solver-check",
+               "--switches-from", "displacement", "--json")
+    doc = json.loads(out.stdout)
+    assert "is its unit right?" in out.stderr
+    assert any("is its unit right?" in n for n in doc["notes"])

@@ -126,7 +126,7 @@ def cmd_lab_fit(args) -> int:
     trends = None
     if args.detrend == "auto":
         fit, notes, trends = _choose_trend(args, fit)
-    notes = [*args.clock_notes, *notes]
+    notes = [*args.record_notes, *notes]
     fixed = {k: v for k, v in given.items() if k in fit.model.parameters}
     record = fit.model.record             # the switches where the friction put them
     profiles = {} if args.no_profiles else _profiles(args, fit, notes)
@@ -170,17 +170,23 @@ def cmd_lab_fit(args) -> int:
 def _models(args, laws) -> dict:
     """Each law's model of the record (its switches ``--switches`` if given), every check of
     the record and the options made before any fit."""
-    record = _record(args)
+    from problems._validate import UnitWarning
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        record = _record(args)
+    for w in caught:                        # on the standard error as before, and in the notes
+        warnings.showwarning(w.message, w.category, w.filename, w.lineno)
+    args.record_notes = [str(w.message) for w in caught if issubclass(w.category, UnitWarning)]
     if args.switches is not None:
         from benchmarks.lab.switches import with_switches
         record = with_switches(record, [s - record.t_offset for s in args.switches])
     if args.velocities is not None:
         from benchmarks.lab.switches import with_velocities
         record = with_velocities(record, [v * 1e-6 for v in args.velocities])
-    args.clock_notes = []
     if args.clock == "displacement":
         from benchmarks.lab.clock import displacement_clock
-        record, args.clock_notes = displacement_clock(record, refit=args.switches is None)
+        record, clock_notes = displacement_clock(record, refit=args.switches is None)
+        args.record_notes += clock_notes
     if args.weights is not None and len(args.weights) != len(record.velocities):
         raise ValueError(f"--weights: {len(args.weights)} given, but the record's history has "
                          f"{len(record.velocities)} pieces (one weight each): "
