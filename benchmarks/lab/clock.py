@@ -103,9 +103,8 @@ def displacement_clock(record: LabRecord, refit: bool = True) -> tuple[LabRecord
                          "clock; use --clock time")
     switches = tuple(float(b - shift) for b in begin[1:])
     notes = [f"the clock is the load point's displacement: the record's time corrected by "
-             f"{np.min(correction):+.3g} to {np.max(correction):+.3g} s (times reported are "
-             "the model's; lab_fit_residuals.csv has both, t_s the file's and t_clock_s the "
-             "model's)"]
+             f"{np.min(correction):+.3g} to {np.max(correction):+.3g} s (the times reported "
+             "are the file's; lab_fit_residuals.csv also has the model's, t_clock_s)"]
     if moved:
         notes.append(f"on the displacement's clock {moved} of {len(t)} samples change order "
                      "(near a switch that the displacement and the time stamps place "
