@@ -40,6 +40,7 @@ from numba import njit
 __all__ = ["ode_rhs", "ode_jacobian", "OdeForm", "to_ode_state", "from_ode_state", "dae_residual",
            "dae_jacobian", "dae_initial", "DaeForm", "dae_differential", "SLIP_LAW", "AGING_LAW",
            "NAGATA_LAW", "LAW_CODES", "check_law_code", "state_rate", "state_rate_partials",
+           "state_rate_second_partials",
            "ln_slip_rate", "etd_targets", "s_of_psi", "psi_of_s", "psi_rate", "form_vector",
            "slip_rate_rate", "peak_function", "Q_LAW", "Q_BETA", "Q_C", "Q_D", "Q_E", "Q_G",
            "Q_QS", "Q_LAWP", "N_Q"]
@@ -87,6 +88,11 @@ def _slip_partials(q, u, s, w):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _slip_second(q, u, s, w):
+    return -w * (u + s) - 2.0 * w, -w, 0.0, 0.0, 0.0
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _slip_ln_w(beta, eta, psi):
     return eta - beta * psi
 
@@ -106,6 +112,11 @@ def _aging_rate(q, u, s, w):
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _aging_partials(q, u, s, w):
     return -w, -np.exp(-s)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _aging_second(q, u, s, w):
+    return -w, 0.0, np.exp(-s), 0.0, 0.0
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -130,6 +141,11 @@ def _nagata_rate(q, u, s, w):
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _nagata_partials(q, u, s, w):
     return -w * (1.0 - q[Q_LAWP]), -np.exp(-s)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _nagata_second(q, u, s, w):
+    return -w * (1.0 - q[Q_LAWP]), 0.0, np.exp(-s), -(q[Q_E] - w), w
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -168,6 +184,21 @@ def state_rate_partials(q, u, s, w):
     if law == NAGATA_LAW:
         return _nagata_partials(q, u, s, w)
     return np.nan, np.nan
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def state_rate_second_partials(q, u, s, w):
+    """(∂²s'/∂u², ∂²s'/∂u∂s, ∂²s'/∂s², ∂s'/∂γ, ∂²s'/∂u∂γ) of :func:`state_rate`, γ the law's
+    parameter q[Q_LAWP] (∂²s'/∂s∂γ is 0 for every law here): forward sensitivities
+    differentiate the Jacobian with them."""
+    law = int(q[Q_LAW])
+    if law == SLIP_LAW:
+        return _slip_second(q, u, s, w)
+    if law == AGING_LAW:
+        return _aging_second(q, u, s, w)
+    if law == NAGATA_LAW:
+        return _nagata_second(q, u, s, w)
+    return np.nan, np.nan, np.nan, np.nan, np.nan
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")

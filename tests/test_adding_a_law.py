@@ -49,6 +49,11 @@ def _toy_partials(q, u, s, w):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _toy_second(q, u, s, w):
+    return -w, 0.0, np.exp(-s), 0.0, 0.0
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _toy_targets(q, h, lnw, w, psi):
     beta = q[Q_BETA]
     return (q[Q_C] * h + beta * w / psi - beta * w * w) / q[Q_D], 1.0 / w, w
@@ -59,6 +64,8 @@ def _toy_targets(q, h, lnw, w, psi):
 #: one line per dispatcher (before its ``return np.nan``), as the guide's step 2 says
 DISPATCH = {"state_rate": "    if law == 3:\n        return _toy_rate(q, u, s, w)\n",
             "state_rate_partials": "    if law == 3:\n        return _toy_partials(q, u, s, w)\n",
+            "state_rate_second_partials":
+                "    if law == 3:\n        return _toy_second(q, u, s, w)\n",
             "ln_slip_rate": "    if law == 3:\n        return _log_state_ln_w(beta, eta, psi)\n",
             "etd_targets": "    if law == 3:\n        return _toy_targets(q, h, lnw, w, psi)\n"}
 

@@ -125,9 +125,10 @@ def test_a_lab_solve_over_its_budget_is_no_friction_and_fails_the_check():
     check = check_lab_solver(dataclasses.replace(fit, model=starved))
     assert check["checked"] and not check["passed"] and not check["references_agree"]
     assert "did not finish" in check["reason"] and "WallTime" in check["reason"]
-    # a step budget of 3: every solve of the fit runs out; a failed fit that counts them
-    steps = dataclasses.replace(model, algorithm=dataclasses.replace(model.algorithm,
-                                                                     max_steps=3))
+    # a step budget of 3 (the project's slider, by finite differences): every solve of the
+    # fit runs out; a failed fit that counts them
+    steps = dataclasses.replace(model, algorithm=dataclasses.replace(
+        make_algorithm("Rodas5P", 1e-10, 1e-10), max_steps=3))
     with warnings.catch_warnings():          # it says what failed: asserted here instead
         warnings.simplefilter("ignore", LabFitWarning)
         failed = fit_lab(steps, start=p)

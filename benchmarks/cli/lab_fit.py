@@ -88,7 +88,7 @@ def _check_flags(args, laws) -> None:
         raise ValueError("--states 2 fits the quasi-static slider only: no --mass or "
                          "--radiation-damping")
     if args.states == 2 and (args.integrator is not None or args.rtol is not None):
-        raise ValueError("--states 2 has its own compiled model (Rodas5P's tableau at 1e-10): "
+        raise ValueError("--states 2 has its own compiled model (Rodas5P's tableau at 1e-11): "
                          "--integrator and --rtol do not apply")
     if args.weights is not None and any(w < 0 for w in args.weights):
         raise ValueError("--weights must be non-negative")

@@ -13,46 +13,58 @@ import pandas as pd
 
 from benchmarks.lab.fit import _LOG, LabFit, fit_lab
 from benchmarks.lab.independent_model import reference_friction
-from benchmarks.lab.model import LAB_MU0
+from benchmarks.lab.model import COMPILED_TOL, LAB_MU0
 from integrators import make_algorithm
 
 __all__ = ["check_lab_solver", "inertia_check", "CHECK_REFERENCES"]
 
-#: the reference pair of the solver check: (name, rtol = atol), two independent libraries
+#: the reference pair of the solver check of a slider with mass or damping: (name, rtol =
+#: atol), two independent libraries; the first also checks a quasi-static one-state slider
 CHECK_REFERENCES = (("Rodas5P", 1e-12), ("scipy-Radau", 1e-12))
 #: the check's σ is at least this multiple of the references' own disagreement: a record more
 #: precise than that (noise-free, made by a model) is judged at what the references resolve
 RESOLVED = 100.0
-#: with two states: the two-state model's rtol and scipy's Radau on the published equations'
+#: quasi-static: the two-state model's rtol and scipy's Radau's on the published equations
 TWO_STATE_REFERENCES = (1e-12, 1e-11)
 
 
 def _references(fit: LabFit, p: dict):
     """μ − μ0 at the best fit by two independent solvers, their names, and why one did not
     finish ("" when both did): each solve has the model's wall budget (the two-state model its
-    step budget)."""
+    step budget). A quasi-static slider is checked against scipy's Radau on the published
+    equations (:mod:`benchmarks.lab.independent_model`, no code shared) and, with one state,
+    the project's slider through :func:`integrators.solve` (Rodas5P at 1e-12), with two the
+    two-state model at 1e-12; a slider with mass or damping against :data:`CHECK_REFERENCES`
+    (the independent model has neither)."""
     model, rec = fit.model, fit.model.record
+    if model.mass > 0 or model.radiation_damping > 0:
+        refs, why = [], ""
+        for name, tol in CHECK_REFERENCES:
+            mu, sol = model.response(**p, algorithm=make_algorithm(name, rtol=tol, atol=tol))
+            refs.append(mu)
+            if not sol.success and not why:
+                why = f"{name} at {tol:g}: {sol.retcode.value}: {sol.message}"
+        return refs, [f"{n} at {t:g}" for n, t in CHECK_REFERENCES], why
+    own_tol, ref_tol = TWO_STATE_REFERENCES
+    ref_name = f"scipy-Radau (an independent model of the published equations) at {ref_tol:g}"
     if model.states == 2:
-        own_tol, ref_tol = TWO_STATE_REFERENCES
-        names = [f"the two-state model at {own_tol:g}", "scipy-Radau (an independent model "
-                 f"of the published equations) at {ref_tol:g}"]
+        names = [f"the two-state model at {own_tol:g}", ref_name]
         own, _ = model.response(**p, rtol=own_tol)
         why = "" if np.isfinite(own).all() else f"{names[0]} failed (its step budget?)"
-        try:
-            ref = reference_friction(rec.t, rec.velocities, rec.switch_times, p["a"], p["b"],
-                                     p["dc"], p["k"], law=model.law, c=p.get("c", 2.0),
-                                     b2=p["b2"], dc2=p["dc2"], mu0=LAB_MU0, rtol=ref_tol,
-                                     atol=1e-13, wall_budget=model.wall_budget) - LAB_MU0
-        except RuntimeError as exc:
-            ref, why = np.full(len(rec.t), np.nan), why or f"{names[1]}: {exc}"
-        return [own, ref], names, why
-    refs, why = [], ""
-    for name, tol in CHECK_REFERENCES:
-        mu, sol = model.response(**p, algorithm=make_algorithm(name, rtol=tol, atol=tol))
-        refs.append(mu)
-        if not sol.success and not why:
-            why = f"{name} at {tol:g}: {sol.retcode.value}: {sol.message}"
-    return refs, [f"{n} at {t:g}" for n, t in CHECK_REFERENCES], why
+    else:
+        name, tol = CHECK_REFERENCES[0]
+        names = [f"{name} at {tol:g} (the project's slider through solve)", ref_name]
+        own, sol = model.response(**p, algorithm=make_algorithm(name, rtol=tol, atol=tol))
+        why = "" if sol.success else f"{name} at {tol:g}: {sol.retcode.value}: {sol.message}"
+    try:
+        ref = reference_friction(rec.t, rec.velocities, rec.switch_times, p["a"], p["b"],
+                                 p["dc"], p["k"], law=model.law, c=p.get("c", 2.0),
+                                 b2=p.get("b2", 0.0), dc2=p.get("dc2", 1.0), mu0=LAB_MU0,
+                                 rtol=ref_tol, atol=1e-13,
+                                 wall_budget=model.wall_budget) - LAB_MU0
+    except RuntimeError as exc:
+        ref, why = np.full(len(rec.t), np.nan), why or f"{names[1]}: {exc}"
+    return [own, ref], names, why
 
 
 def check_lab_solver(fit: LabFit) -> dict:
@@ -78,9 +90,11 @@ def check_lab_solver(fit: LabFit) -> dict:
     dict
         The errors (in σ), ``passed``, ``checked``, ``references_agree`` and ``reason``.
     """
-    algorithm = fit.model.algorithm
+    model = fit.model
+    options = ({"rtol": COMPILED_TOL, "atol": COMPILED_TOL} if model.compiled
+               else model.algorithm.options())
     if not fit.success or not np.isfinite(fit.sigma):
-        return {"integrator": algorithm.name if algorithm is not None else "the two-state model",
+        return {"integrator": model.integrator,
                 "checked": False, "passed": False,
                 "reason": f"the fit failed ({fit.message}): nothing to check"}
     p = {n: fit.values[n] for n in fit.model.parameters}
@@ -92,10 +106,7 @@ def check_lab_solver(fit: LabFit) -> dict:
                   "the fit's model at the best fit failed")
     if failed:
         budget = fit.model.wall_budget
-        return {"checked": True, "integrator": (algorithm.name if algorithm is not None
-                                                else "the two-state model"),
-                "options": algorithm.options() if algorithm is not None else {"rtol": 1e-10,
-                                                                               "atol": 1e-10},
+        return {"checked": True, "integrator": model.integrator, "options": options,
                 "references": names, "references_disagree_sigma": math.nan,
                 "references_agree": False, "error_sigma": math.nan, "passed": False,
                 "wall_budget_s": budget,
@@ -108,9 +119,7 @@ def check_lab_solver(fit: LabFit) -> dict:
     agree = gap / sigma
     error = float(np.max(np.abs(own - refs[0]))) / sigma
     agreed = agree <= (1.0 + 1e-9) / RESOLVED
-    return {"checked": True, "integrator": algorithm.name if algorithm is not None else "the two-state model",
-            "options": algorithm.options() if algorithm is not None else {"rtol": 1e-10,
-                                                                           "atol": 1e-10},
+    return {"checked": True, "integrator": model.integrator, "options": options,
             "references": names, "references_disagree_sigma": agree,
             "references_agree": bool(agreed), "error_sigma": error,
             "sigma": sigma, "residual_sigma": fit.sigma,

@@ -50,6 +50,7 @@ from scipy.optimize import least_squares
 
 from benchmarks.lab.noise import (RANK_TOL, NoiseModel, covariance, drift_covariance, lag1,
                                    propagated_covariance, read_noise)
+from benchmarks.lab.squeeze import compress
 
 __all__ = ["LabFit", "fit_lab", "LabFitWarning", "starting_values", "BOUNDS", "FD_STEP",
            "sample_noise", "NOT_FIT", "NOT_FIT_RHO", "TRADES", "drift_covariance",
@@ -64,6 +65,8 @@ PARAMETER_UNITS = {"a": "1", "b": "1", "dc": "m", "k": "1/m", "c": "1", "b2": "1
                    "a_minus_b": "1", "mu_ref": "1"}
 #: forward-difference step in the fitted coordinates (a, b, ln Dc, ln k′, c)
 FD_STEP = 1e-5
+#: bytes of solves a fit keeps (μ and its sensitivities per point tried)
+CACHE_BYTES = 2 ** 27
 #: the starts of Dc, as multiples of the record's own estimate
 DC_STARTS = (0.3, 1.0, 3.0)
 Z95 = 1.959963984540054
@@ -271,8 +274,15 @@ class _Problem:
         self.wmu = w * (rec.mu - model.offset)       # a trend held fixed is taken off
         self.q = _orthonormal(w[:, None] * model.linear_basis())
         self.solves = 0
+        self.sensitive = 0               # of which with the sensitivities
         self.failed = 0                  # solves that failed or ran out of their budget
         self.cache = {}
+        #: the Jacobian from the model's sensitivities (not finite differences)
+        self.exact = model.compiled
+        self._squeezed = (None, None)    # the last (x, compressed residuals and Jacobian)
+        #: with :attr:`exact`, every solve computes them (scipy asks for the Jacobian at
+        #: nearly every point it evaluates); a sampler, which never does, sets it False
+        self.eager = True
 
     def params(self, x) -> dict:
         p = dict(self.fixed)
@@ -286,20 +296,35 @@ class _Problem:
     def bounds(self):
         return coordinate_bounds(self.free)
 
-    def g(self, x) -> np.ndarray:
+    def _run(self, x, exact: bool):
+        """(g, ∂g/∂x or None) at x, cached: one solve, with the sensitivities if ``exact``."""
         key = tuple(np.round(x, 15))
-        if key not in self.cache:
-            p = self.params(x)
-            self.solves += 1
-            try:
+        hit = self.cache.get(key)
+        if hit is not None and (hit[1] is not None or not exact):
+            return hit
+        p = self.params(x)
+        self.solves += 1
+        self.sensitive += exact
+        mu, d = np.full(len(self.w), np.nan), None
+        try:
+            if exact:
+                mu, d, _ = self.model.sensitivities(self.free, **p)
+            else:
                 mu, _ = self.model.response(**p)
-            except ValueError:      # a trial the law refuses (the Nagata law at b = 0)
-                mu = np.full(len(self.w), np.nan)
-            self.failed += not np.isfinite(mu).all()
-            if len(self.cache) > 64:
-                self.cache.clear()
-            self.cache[key] = mu
-        return self.cache[key]
+        except ValueError:          # a trial the law refuses (the Nagata law at b = 0)
+            pass
+        self.failed += not np.isfinite(mu).all()
+        if len(self.cache) > 64 or len(self.cache) * mu.nbytes * (1 + len(x)) > CACHE_BYTES:
+            self.cache.clear()
+        self.cache[key] = (mu, d)
+        return mu, d
+
+    def _scales(self, x) -> np.ndarray:
+        """∂θ/∂x of each free parameter: θ for ln θ, else 1 (the sensitivities are ∂/∂θ)."""
+        return np.array([math.exp(u) if n in _LOG else 1.0 for n, u in zip(self.free, x)])
+
+    def g(self, x) -> np.ndarray:
+        return self._run(x, self.exact and self.eager)[0]
 
     def project(self, v):
         return v - self.q @ (self.q.T @ v)
@@ -311,8 +336,20 @@ class _Problem:
         return self.project(self.wmu - self.w * g)
 
     def jacobian(self, x, projected: bool = True) -> np.ndarray:
-        """−W ∂g/∂θ by forward differences, projected off the linear basis (the problem's
-        own, :meth:`residual`'s) unless ``projected`` is False (the full problem's)."""
+        """−W ∂g/∂θ, from the model's sensitivities (:attr:`exact`) or by forward
+        differences, projected off the linear basis (the problem's own, :meth:`residual`'s)
+        unless ``projected`` is False (the full problem's)."""
+        if self.exact:
+            g0, d = self._run(x, True)
+            jac = -self.w[:, None] * (d * self._scales(x) if d is not None else
+                                      np.full((len(g0), len(x)), np.nan))
+        else:
+            jac = self._differences(x)
+        if not np.isfinite(jac).all():
+            jac = np.nan_to_num(jac, nan=0.0, posinf=0.0, neginf=0.0)
+        return jac - self.q @ (self.q.T @ jac) if projected else jac
+
+    def _differences(self, x) -> np.ndarray:
         g0 = self.g(x)
         lo, hi = self.bounds()
         cols = []
@@ -321,10 +358,7 @@ class _Problem:
             xj = np.array(x, dtype=float)
             xj[j] += h
             cols.append(-(self.w * (self.g(xj) - g0)) / h)
-        jac = np.column_stack(cols)
-        if not np.isfinite(jac).all():
-            jac = np.nan_to_num(jac, nan=0.0, posinf=0.0, neginf=0.0)
-        return jac - self.q @ (self.q.T @ jac) if projected else jac
+        return np.column_stack(cols)
 
     def linear(self, x):
         """The linear parameters (level, slopes) at x: the least squares of the rest."""
@@ -333,12 +367,32 @@ class _Problem:
         return coef
 
     def solve(self, x0, max_nfev=200, tol=1e-10):
-        """scipy's least_squares from ``x0``; ``tol`` its xtol (ftol 100× finer)."""
+        """scipy's least_squares from ``x0``; ``tol`` its xtol (ftol 100× finer). With the
+        exact Jacobian it sees the residuals compressed (:meth:`_compressed`): the same
+        steps, on p + 1 numbers rather than the record's n."""
         lo, hi = self.bounds()
         x0 = np.clip(x0, lo + 1e-12, hi - 1e-12)
-        return least_squares(self.residual, x0, jac=self.jacobian, bounds=(lo, hi),
-                             method="trf", x_scale="jac", max_nfev=max_nfev,
-                             xtol=tol, ftol=tol * 1e-2, gtol=1e-10)
+        if self.exact:
+            fun, jac = (lambda x: self._compressed(x)[0]), (lambda x: self._compressed(x)[1])
+        else:
+            fun, jac = self.residual, self.jacobian
+        return least_squares(fun, x0, jac=jac, bounds=(lo, hi), method="trf", x_scale="jac",
+                             max_nfev=max_nfev, xtol=tol, ftol=tol * 1e-2, gtol=1e-10)
+
+    def _compressed(self, x):
+        """(r̃, J̃) at x (:func:`benchmarks.lab.squeeze.compress`): ‖r̃‖ = ‖r‖, J̃ᵀr̃ = Jᵀr and
+        J̃ᵀJ̃ = JᵀJ, all that scipy's trust region reads of r and J, in p + 1 rows."""
+        key = tuple(np.round(x, 15))
+        if self._squeezed[0] != key:
+            g, d = self._run(x, True)
+            if d is None or not (np.isfinite(g).all() and np.isfinite(d).all()):
+                r = self.residual(x)                # a failed run: no gradient
+                squeezed = (np.append(np.zeros(len(x)), math.sqrt(r @ r)),
+                            np.zeros((len(x) + 1, len(x))))
+            else:
+                squeezed = compress(self.wmu, self.w, g, d, self._scales(x), self.q)[:2]
+            self._squeezed = (key, squeezed)
+        return self._squeezed[1]
 
 
 def coordinate_bounds(names) -> tuple[np.ndarray, np.ndarray]:

@@ -1,9 +1,14 @@
 """The forward model of a laboratory fit: μ(t) at a record's sample times, for given friction
 parameters, on the record's own load-point history.
 
-The slider is the project's :class:`problems.SpringSlider` solved with :func:`integrators.solve`
-(``save_at`` the record's times, from the method's dense output): quasi-static by default (as
-rsfmodel, RSFit3000 and Marone's code), with mass or radiation damping on request. Its stiffness
+The slider is quasi-static by default (as rsfmodel, RSFit3000 and Marone's code), with mass or
+radiation damping on request. Quasi-static and with no integrator asked for, it is solved by the
+compiled model of :mod:`benchmarks.lab.two_state` (Rodas5P's stages at rtol = atol =
+:data:`COMPILED_TOL`, the
+second state idle with one), which also gives the exact forward sensitivities ∂μ/∂θ
+(:meth:`LabModel.sensitivities`): a fit then needs no finite differences. Otherwise it is the
+project's :class:`problems.SpringSlider` solved with :func:`integrators.solve` (``save_at`` the
+record's times, from the method's dense output). Its stiffness
 is given as k′ = k/Fn, friction per metre of load-point displacement (RSFit3000's k in µm⁻¹ is
 k′ · 10⁻⁶); without mass or damping the friction coefficient does not depend on Fn, which is
 then the nominal :data:`NOMINAL_NORMAL_FORCE`. The run starts from steady sliding at the first
@@ -34,6 +39,7 @@ import numpy as np
 from problems.friction import law_parameters
 
 __all__ = ["LabModel", "DETRENDS", "NOMINAL_NORMAL_FORCE", "LAB_MU0", "DEFAULT_ALGORITHM",
+           "COMPILED_TOL",
            "WALL_BUDGET"]
 
 #: N: the normal force of a model whose friction does not depend on it (quasi-static, undamped)
@@ -45,6 +51,11 @@ LAB_MU0 = 0.6
 DETRENDS = ("steady", "piece", "one", "none")
 #: (name, rtol = atol): the fit's integrator unless told (checked by the fit's solver check)
 DEFAULT_ALGORITHM = ("Rodas5P", 1e-10)
+#: rtol = atol of the compiled quasi-static model (:attr:`LabModel.compiled`) on (μ, L1, L2):
+#: 1e-11 keeps its error (2e-12 in μ on the tests' synthetic step; 1e-11 at 1e-10, whose
+#: elementary step control is looser than the engine's) under what the solver check resolves
+#: on a noise-free record
+COMPILED_TOL = 1e-11
 #: s of wall time per solve unless told: a solve over it fails (NaN, never read as μ). A fit's
 #: solves take milliseconds; the solver check's scipy Radau at 1e-12 about 3 ms a step, so a
 #: long record may need more (a slide-hold-slide of 20,000 samples: about 40 s)
@@ -72,7 +83,8 @@ class LabModel:
     normal_force : float or None
         Fn (N), needed with a mass or damping (μ then depends on it).
     algorithm : Algorithm or None
-        The one-state model's integrator (default :data:`DEFAULT_ALGORITHM`).
+        The one-state model's integrator. None: the compiled quasi-static model where there
+        is no mass or damping (:attr:`compiled`), else :data:`DEFAULT_ALGORITHM`.
     states : int
         1, or 2 for a second state variable (quasi-static only;
         :mod:`benchmarks.lab.two_state`).
@@ -135,11 +147,11 @@ class LabModel:
         elif self.mass > 0 or self.radiation_damping > 0:
             raise ValueError("a slider with mass or radiation damping needs the normal force "
                              "(N): the friction then depends on it")
-        if self.algorithm is None and self.states == 1:
+        if self.algorithm is None and (self.mass > 0 or self.radiation_damping > 0):
             from integrators import make_algorithm
             name, tol = DEFAULT_ALGORITHM
             object.__setattr__(self, "algorithm", make_algorithm(name, rtol=tol, atol=tol))
-        elif self.states == 1 and not self.algorithm.saves_at_times:
+        elif self.algorithm is not None and not self.algorithm.saves_at_times:
             raise ValueError(f"{self.algorithm.name} saves at its own step ends; a fit needs "
                              "μ at the record's times from a method's dense output")
         if self.detrend == "steady":
@@ -232,21 +244,49 @@ class LabModel:
         return (("a", "b", "dc", "k") + (("c",) if "c" in law_parameters(self.law) else ())
                 + (("b2", "dc2") if self.states == 2 else ()))
 
+    @property
+    def compiled(self) -> bool:
+        """True if the model is the compiled quasi-static one (:mod:`benchmarks.lab.two_state`,
+        with exact sensitivities): two states, or one state without mass, damping or an
+        integrator asked for (``algorithm`` None)."""
+        return self.algorithm is None
+
+    @property
+    def integrator(self) -> str:
+        """What solves the model, in words."""
+        if self.compiled:
+            return ("the compiled quasi-static model (Rodas5P's stages, exact sensitivities)"
+                    if self.states == 1 else "the two-state model")
+        return self.algorithm.name
+
+    def sensitivities(self, names, a, b, dc, k, c=None, b2=None, dc2=None, rtol=None):
+        """(μ − μ0 at the record's times, ∂μ/∂θ there: one column per name of ``names``, a
+        subset of :attr:`parameters`, steps): one solve of the compiled model
+        (:func:`~benchmarks.lab.two_state.two_state_sensitivities`); NaN where it failed.
+        ValueError if the model is not :attr:`compiled`."""
+        if not self.compiled:
+            raise ValueError(f"sensitivities: the model solved by {self.integrator} has none; "
+                             "the compiled quasi-static model has (no mass, damping or "
+                             "integrator asked for)")
+        from benchmarks.lab.two_state import two_state_sensitivities
+        rec = self.record
+        tol = COMPILED_TOL if rtol is None else rtol
+        mu, steps, d = two_state_sensitivities(
+            rec.t, rec.velocities, rec.switch_times, a, b, dc, k, tuple(names),
+            b2=0.0 if b2 is None else b2, dc2=1.0 if dc2 is None else dc2, law=self.law,
+            c=2.0 if c is None else c, mu0=LAB_MU0, rtol=tol, atol=tol)
+        return mu - LAB_MU0, d, steps
+
     def response(self, a, b, dc, k, c=None, b2=None, dc2=None, algorithm=None,
                  wall_budget=None, rtol=None):
-        """(μ − μ0 at the record's times, the Solution or, with two states, the steps): the
-        rate-and-state part of μ, without the level and the trend; NaN where the run failed
-        (also over its ``wall_budget``, s: default the model's). ``rtol``: the two-state model's
-        rtol = atol (default 1e-10)."""
-        if self.states == 2:
-            from benchmarks.lab.two_state import two_state_friction
-            rec = self.record
-            tol = 1e-10 if rtol is None else rtol
-            mu, steps = two_state_friction(rec.t, rec.velocities, rec.switch_times, a, b, dc,
-                                           k, b2=b2, dc2=dc2, law=self.law,
-                                           c=2.0 if c is None else c, mu0=LAB_MU0, rtol=tol,
-                                           atol=tol)
-            return mu - LAB_MU0, steps
+        """(μ − μ0 at the record's times, the Solution or, with the compiled model, the
+        steps): the rate-and-state part of μ, without the level and the trend; NaN where the
+        run failed (also over its ``wall_budget``, s: default the model's). ``rtol``: the
+        compiled model's rtol = atol (default :data:`COMPILED_TOL`). An ``algorithm`` solves the
+        :class:`~problems.SpringSlider` (one state) even where the model is compiled."""
+        if algorithm is None and self.compiled or self.states == 2:
+            mu, _, steps = self.sensitivities((), a, b, dc, k, c=c, b2=b2, dc2=dc2, rtol=rtol)
+            return mu, steps
         from integrators import solve
         sol = solve(self.problem(a, b, dc, k, c), algorithm or self.algorithm,
                     save_at=self.record.t,

@@ -104,6 +104,7 @@ def sample_lab(fit: LabFit, walkers: int = 32, steps: int = 600, seed: int = 0,
     if steps < 20:
         raise ValueError(f"steps must be at least 20, got {steps}")
     prob = _Problem(fit.model, fit.free, fit.fixed, fit.piece_weights)
+    prob.eager = False              # μ only: a sampler needs no Jacobian
     lo, hi = prob.bounds()
     scale = fit.walk_variance
     stopped = CtrlC()

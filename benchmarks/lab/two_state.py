@@ -27,12 +27,14 @@ import math
 import numpy as np
 from numba import njit
 
-from integrators.own.rodas5p import stages, workspace
-from problems.formulations import N_Q, Q_E, Q_LAW, Q_LAWP, state_rate, state_rate_partials
+from integrators.own.linalg import lu_solve3
+from integrators.own.rodas5p import A5P, C5P, G5P, H5P, stages, workspace
+from problems.formulations import (N_Q, Q_E, Q_LAW, Q_LAWP, state_rate, state_rate_partials,
+                                   state_rate_second_partials)
 from problems._validate import units_checked_already
 from problems.friction import compiled_law_code, law_from_name, law_parameters
 
-__all__ = ["two_state_friction", "MAX_STEPS"]
+__all__ = ["two_state_friction", "two_state_sensitivities", "MAX_STEPS", "SENSITIVE"]
 
 #: steps per run before it is given up (a NaN result)
 MAX_STEPS = 2_000_000
@@ -42,6 +44,11 @@ MAX_STEPS = 2_000_000
 _Q1, _Q2 = 0, N_Q
 _A, _B, _DC, _B2, _DC2, _K, _V0, _MU0, _VL = range(2 * N_Q, 2 * N_Q + 9)
 N_P = 2 * N_Q + 9
+#: the parameters θ whose sensitivities ∂μ/∂θ the model gives, in this order (c: the Nagata
+#: law's, through the first state's γ = c k′ Dc/b)
+SENSITIVE = ("a", "b", "dc", "k", "b2", "dc2", "c")
+_TA, _TB, _TDC, _TK, _TB2, _TDC2, _TC = range(7)
+N_T = len(SENSITIVE)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -84,16 +91,199 @@ def _dense_mu(t, h, y, y1, D, time):
     return w * y[0] + x * (y1[0] + w * (D[0, 0] + x * (D[1, 0] + x * D[2, 0])))
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _u_theta(p, y, u, m):
+    """(∂u/∂θ_m, ∂²u/∂μ∂θ_m, ∂²u/∂L1∂θ_m, ∂²u/∂L2∂θ_m), u = (μ − μ0 − b L1 − b2 L2)/a."""
+    a = p[_A]
+    if m == _TA:
+        return -u / a, -1.0 / (a * a), p[_B] / (a * a), p[_B2] / (a * a)
+    if m == _TB:
+        return -y[1] / a, 0.0, -1.0 / a, 0.0
+    if m == _TB2:
+        return -y[2] / a, 0.0, 0.0, -1.0 / a
+    return 0.0, 0.0, 0.0, 0.0
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _gamma_theta(p, gam, m):
+    """∂γ/∂θ_m of the first state's γ = c k′ Dc/b (the Nagata law's; 0 for the others)."""
+    if m == _TB:
+        return -gam / p[_B]
+    if m == _TDC:
+        return gam / p[_DC]
+    if m == _TK:
+        return gam / p[_K]
+    if m == _TC:
+        return p[_K] * p[_DC] / p[_B] if gam != 0.0 else 0.0
+    return 0.0
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _partials(p, which, y, jac, fth, s):
+    """At y: ∂f/∂y into ``jac[s]`` (3×3) and ∂f/∂θ for the parameters ``which`` (indices of
+    :data:`SENSITIVE`) into ``fth[s]``'s columns. f = (dμ/dt, dL1/dt, dL2/dt) of :func:`_rate`:
+    f0 = k′ (vL − v0 e^u), f_r = (v0/Dc_r) R(u, L_r; γ) for the states."""
+    a = p[_A]
+    u = _ln_w(p, y)
+    w = math.exp(u)
+    c0 = -p[_K] * p[_V0] * w                      # ∂f0/∂u
+    jac[s, 0, 0], jac[s, 0, 1], jac[s, 0, 2] = c0 / a, -c0 * p[_B] / a, -c0 * p[_B2] / a
+    for n in range(which.shape[0]):
+        m = which[n]
+        ut = _u_theta(p, y, u, m)[0]
+        fth[s, 0, n] = c0 * ut + (p[_VL] - p[_V0] * w if m == _TK else 0.0)
+    for r in range(1, 3):
+        q0, dc, td = (_Q1, p[_DC], _TDC) if r == 1 else (_Q2, p[_DC2], _TDC2)
+        q = p[q0:q0 + N_Q]
+        g = p[_V0] / dc
+        gam = q[Q_LAWP]                              # γ: the first state's only
+        rate = state_rate(q, u, y[r], w)
+        r_u, r_s = state_rate_partials(q, u, y[r], w)
+        r_g = state_rate_second_partials(q, u, y[r], w)[3] if gam != 0.0 else 0.0
+        cu = g * r_u
+        jac[s, r, 0], jac[s, r, 1], jac[s, r, 2] = cu / a, -cu * p[_B] / a, -cu * p[_B2] / a
+        jac[s, r, r] += g * r_s
+        for n in range(which.shape[0]):
+            m = which[n]
+            ut = _u_theta(p, y, u, m)[0]
+            d_gam = _gamma_theta(p, gam, m) if r == 1 else 0.0
+            fth[s, r, n] = (-rate if m == td else 0.0) * g / dc + g * (r_u * ut + r_g * d_gam)
+
+
 @njit(cache=True, error_model="numpy")
-def _run(p, velocities, bounds, times, rtol, atol, out):
-    """μ at ``times`` (within [bounds[0], bounds[-1]]) into ``out``; returns the steps taken,
-    or −1 if a run failed."""
+def _second_partials(p, which, y, hyy, hyt):
+    """At y: ∂²f/∂y∂y into ``hyy`` (3×3×3) and ∂²f/∂y∂θ for the parameters ``which`` into
+    ``hyt`` (3×3×columns): what dJ, the Jacobian's change with θ along the sensitivities,
+    needs (:func:`_partials` has f's names)."""
+    a = p[_A]
+    u = _ln_w(p, y)
+    w = math.exp(u)
+    uy = (1.0 / a, -p[_B] / a, -p[_B2] / a)
+    c0 = -p[_K] * p[_V0] * w
+    for j in range(3):
+        for l in range(3):
+            hyy[0, j, l] = c0 * uy[j] * uy[l]
+    for n in range(which.shape[0]):
+        m = which[n]
+        ut, ut0, ut1, ut2 = _u_theta(p, y, u, m)
+        uyt = (ut0, ut1, ut2)
+        for j in range(3):
+            hyt[0, j, n] = c0 * (ut * uy[j] + uyt[j]) - (p[_V0] * w * uy[j] if m == _TK else 0.0)
+    for r in range(1, 3):
+        q0, dc, td = (_Q1, p[_DC], _TDC) if r == 1 else (_Q2, p[_DC2], _TDC2)
+        q = p[q0:q0 + N_Q]
+        g = p[_V0] / dc
+        gam = q[Q_LAWP]
+        r_u, r_s = state_rate_partials(q, u, y[r], w)
+        r_uu, r_us, r_ss, r_g, r_ug = state_rate_second_partials(q, u, y[r], w)
+        for n in range(which.shape[0]):
+            m = which[n]
+            ut, ut0, ut1, ut2 = _u_theta(p, y, u, m)
+            uyt = (ut0, ut1, ut2)
+            d_gam = _gamma_theta(p, gam, m) if r == 1 else 0.0
+            d_g = -g / dc if m == td else 0.0
+            for j in range(3):
+                on = 1.0 if j == r else 0.0
+                hyt[r, j, n] = (d_g * (r_u * uy[j] + r_s * on)
+                                + g * ((r_uu * ut + r_ug * d_gam) * uy[j]
+                                       + r_u * uyt[j] + r_us * ut * on))
+        for j in range(3):
+            for l in range(3):
+                hyy[r, j, l] = g * r_uu * uy[j] * uy[l]
+        for j in range(3):                           # ∂L_r/∂y = e_r (after the fill)
+            hyy[r, j, r] += g * r_us * uy[j]
+            hyy[r, r, j] += g * r_us * uy[j]
+        hyy[r, r, r] += g * r_ss
+
+
+@njit(cache=True, error_model="numpy")
+def sensitivity_workspace(n_s):
+    """Room for :func:`_step_sensitivity` with ``n_s`` parameters: the stages' Jacobians and
+    ∂f/∂θ, the second derivatives at the step's start, the stages' dK, dJ, the stage's
+    argument's dU, a right-hand side, and the dense output's dD of μ."""
+    return (np.empty((8, 3, 3)), np.empty((8, 3, n_s)), np.empty((3, 3, 3)),
+            np.empty((3, 3, n_s)), np.empty((n_s, 8, 3)), np.empty((3, 3)), np.empty(3),
+            np.empty((1, 3)), np.empty((n_s, 3)))
+
+
+@njit(cache=True, error_model="numpy")
+def _step_sensitivity(p, which, hs, ws, sw, z0, S):
+    """S (one row ∂z/∂θ per parameter ``which``) from the accepted step ``hs`` at ``z0`` to
+    its end, in place: Rodas5P's stages differentiated (internal differentiation on the step's
+    own h, M's factors reused)::
+
+        M dK_s = hγ (J(u_s) dU_s + ∂f/∂θ(u_s)) + γ Σ_l C_sl dK_l + hγ dJ K_s,
+        dU_s = S + Σ_l A_sl dK_l,   dJ = ∂J/∂y·S + ∂J/∂θ at z0,   S ← dU_7 + dK_7
+
+    (dJ K_s because M = I − hγ J(z0) depends on θ); the dense output's dD of μ into ``sw``."""
+    J, M, piv, K, u, fb = ws
+    jst, fst, hyy, hyt, dk, dj, du, rhs, dd = sw
+    hg = hs * G5P
+    _partials(p, which, z0, jst, fst, 0)
+    _second_partials(p, which, z0, hyy, hyt)
+    for s in range(1, 8):
+        for i in range(3):
+            acc = z0[i]
+            for j in range(s):
+                acc += A5P[s, j] * K[j, i]
+            u[i] = acc
+        _partials(p, which, u, jst, fst, s)
+    for n in range(which.shape[0]):
+        for i in range(3):
+            for j in range(3):
+                acc = hyt[i, j, n]
+                for l in range(3):
+                    acc += hyy[i, j, l] * S[n, l]
+                dj[i, j] = acc
+        for s in range(8):
+            for i in range(3):
+                acc = S[n, i]
+                for j in range(s):
+                    acc += A5P[s, j] * dk[n, j, i]
+                du[i] = acc
+            for i in range(3):
+                acc = fst[s, i, n]
+                for j in range(3):
+                    acc += jst[s, i, j] * du[j] + dj[i, j] * K[s, j]
+                cc = 0.0
+                for j in range(s):
+                    cc += C5P[s, j] * dk[n, j, i]
+                rhs[0, i] = hg * acc + G5P * cc
+            lu_solve3(M, piv, rhs, 0)
+            for i in range(3):
+                dk[n, s, i] = rhs[0, i]
+        for i in range(3):
+            S[n, i] = du[i] + dk[n, 7, i]
+        for r in range(3):
+            acc = 0.0
+            for s in range(8):
+                acc += H5P[r, s] * dk[n, s, 0]
+            dd[n, r] = acc
+
+
+@njit(cache=True, error_model="numpy")
+def _dense_sensitivity(n, h, s0, s1, dd, time, t):
+    """∂μ/∂θ_n at ``time`` in the step [t, t + h]: :func:`_dense_mu` differentiated."""
+    x = (time - t) / h
+    w = 1.0 - x
+    return w * s0[n, 0] + x * (s1[n, 0] + w * (dd[n, 0] + x * (dd[n, 1] + x * dd[n, 2])))
+
+
+@njit(cache=True, error_model="numpy")
+def _run(p, velocities, bounds, times, rtol, atol, out, which, dout):
+    """μ at ``times`` (within [bounds[0], bounds[-1]]) into ``out`` and, for each parameter
+    index of ``which`` (:data:`SENSITIVE`; empty: none), ∂μ/∂θ there into ``dout``'s columns;
+    returns the steps taken, or −1 if a run failed."""
     ws = workspace()
+    n_s = which.shape[0]
+    sw = sensitivity_workspace(n_s)
     y, f, y1, D = np.zeros(3), np.empty(3), np.empty(3), np.empty((3, 3))
+    S, S0 = np.zeros((n_s, 3)), np.zeros((n_s, 3))  # steady sliding at v0 for every θ
     y[0] = p[_MU0]
     i_out, steps, n_out = 0, 0, times.shape[0]
     while i_out < n_out and times[i_out] <= bounds[0]:
         out[i_out] = y[0]
+        dout[i_out, :] = 0.0
         i_out += 1
     for piece in range(velocities.shape[0]):
         t, t_end = bounds[piece], bounds[piece + 1]
@@ -113,9 +303,14 @@ def _run(p, velocities, bounds, times, rtol, atol, out):
                     return -1
                 err = stages(_rate, p, rtol, atol, h, ws, y, f, y1, D)
             steps += 1
+            if n_s:
+                S0[:, :] = S
+                _step_sensitivity(p, which, h, ws, sw, y, S)
             t_new = t + h if t + h < t_end else t_end
             while i_out < n_out and times[i_out] <= t_new:
                 out[i_out] = _dense_mu(t, h, y, y1, D, times[i_out])
+                for n in range(n_s):
+                    dout[i_out, n] = _dense_sensitivity(n, h, S0, S, sw[8], times[i_out], t)
                 i_out += 1
             t = t_new
             y[:] = y1
@@ -178,11 +373,36 @@ def two_state_friction(times, velocities, switch_times, a, b, dc, k, b2=0.0, dc2
     ValueError
         For a law the compiled forms do not know, or a law's parameter out of its range.
     """
+    mu, steps, _ = two_state_sensitivities(times, velocities, switch_times, a, b, dc, k, (),
+                                           b2=b2, dc2=dc2, law=law, c=c, mu0=mu0, rtol=rtol,
+                                           atol=atol)
+    return mu, steps
+
+
+def two_state_sensitivities(times, velocities, switch_times, a, b, dc, k, sensitivity,
+                            b2=0.0, dc2=1.0, law="aging", c=0.0, mu0=0.6, rtol=1e-10,
+                            atol=1e-10):
+    """:func:`two_state_friction` and the forward sensitivities ∂μ/∂θ at the record's times
+    for the parameters named in ``sensitivity`` (a subset of :data:`SENSITIVE`; ``k`` is k′):
+    each step's Rodas5P stages differentiated on the step's own h, reusing its factorisation
+    (the derivative of the computed μ, exact to rounding; the step control sees μ and the
+    states only). Returns (μ, steps, ∂μ/∂θ as an array of one column per name); NaN
+    everywhere and steps −1 if the run failed. ValueError for a name not in
+    :data:`SENSITIVE`, or c under a law without it."""
+    names = tuple(sensitivity)
+    for name in names:
+        if name not in SENSITIVE:
+            raise ValueError(f"sensitivity: no parameter {name!r} in the laboratory model; "
+                             f"it has {', '.join(SENSITIVE)}")
+    if "c" in names and "c" not in law_parameters(law):
+        raise ValueError(f"sensitivity: the {law} law has no stress coefficient c")
     times = np.ascontiguousarray(times, dtype=float)
     p = _parameters(law, a, b, dc, k, b2, dc2, c, float(velocities[0]), mu0)
     bounds = np.array([0.0, *switch_times, max(float(times[-1]), *switch_times)])
-    out = np.empty(len(times))
-    steps = _run(p, np.asarray(velocities, dtype=float), bounds, times, rtol, atol, out)
-    if steps < 0 or not np.isfinite(out).all():
-        out[:] = np.nan
-    return out, steps
+    out, dout = np.empty(len(times)), np.empty((len(times), len(names)))
+    which = np.array([SENSITIVE.index(n) for n in names], dtype=np.int64)
+    steps = _run(p, np.asarray(velocities, dtype=float), bounds, times, rtol, atol, out, which,
+                 dout)
+    if steps < 0 or not (np.isfinite(out).all() and np.isfinite(dout).all()):
+        out[:], dout[:], steps = np.nan, np.nan, -1
+    return out, steps, dout

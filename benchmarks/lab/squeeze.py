@@ -1,0 +1,84 @@
+"""A least-squares problem of n residuals and p parameters, told to scipy's trust region in p + 1
+numbers: what a long record's fit needs once the model gives its exact Jacobian.
+
+scipy's ``least_squares`` (trf) reads the residuals r and the Jacobian J only through ‖r‖, Jᵀr
+and JᵀJ (its step, its quadratic model, the scaling by J's column norms and its tests), yet does
+an SVD and several products of n rows at every step. Told instead
+
+    J̃ = [R; 0] with RᵀR = JᵀJ,      r̃ = (R⁻ᵀ Jᵀr, (‖r‖² − ‖R⁻ᵀ Jᵀr‖²)^½)
+
+at each point (R from the eigenvectors of the column-scaled JᵀJ, which also stands a rank-
+deficient J: Jᵀr then has no part in its null space), it takes the same steps on a 75,000-sample
+record at a fraction of the cost. :func:`compress` builds (r̃, J̃) in two compiled passes over
+the samples, without forming the projected J: the residuals are r = P(ỹ − W g) and J = −P W ∂g/∂x
+with P the projection off an orthonormal linear basis Q (the level and trend).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+__all__ = ["compress"]
+
+#: eigenvalues of the column-scaled JᵀJ under this fraction of the largest count as zero
+RANK_FLOOR = 1e-15
+
+
+@njit(cache=True, error_model="numpy")
+def _passes(wmu, w, g, d, scales, q, r):
+    """r ← P(wmu − w g) in place; returns (AᵀA − (QᵀA)ᵀ(QᵀA), Aᵀr) for A = −w d scales, the
+    full problem's Jacobian (J = P A)."""
+    n, p = d.shape
+    m = q.shape[1]
+    qu, qa, gram = np.zeros(m), np.zeros((m, p)), np.zeros((p, p))
+    a = np.empty(p)
+    for i in range(n):
+        u = wmu[i] - w[i] * g[i]
+        r[i] = u
+        for j in range(p):
+            a[j] = -w[i] * d[i, j] * scales[j]
+        for k in range(m):
+            qu[k] += q[i, k] * u
+            for j in range(p):
+                qa[k, j] += q[i, k] * a[j]
+        for j in range(p):
+            for l in range(j + 1):
+                gram[j, l] += a[j] * a[l]
+    ar = np.zeros(p)
+    for i in range(n):
+        s = r[i]
+        for k in range(m):
+            s -= q[i, k] * qu[k]
+        r[i] = s
+        for j in range(p):
+            ar[j] -= w[i] * d[i, j] * scales[j] * s
+    for j in range(p):
+        for l in range(j + 1):
+            acc = gram[j, l]
+            for k in range(m):
+                acc -= qa[k, j] * qa[k, l]
+            gram[j, l] = gram[l, j] = acc
+    return gram, ar
+
+
+def compress(wmu, w, g, d, scales, q):
+    """(r̃, J̃, r) of the module docstring: ``wmu`` the weighted data ỹ (n), ``w`` the weights,
+    ``g`` the model (n), ``d`` its derivatives (n × p) and ``scales`` their columns' factors
+    (to the fitted coordinates), ``q`` the linear basis (n × m, orthonormal); r the projected
+    residuals themselves (n). Every input finite."""
+    r = np.empty(len(wmu))
+    gram, ar = _passes(np.ascontiguousarray(wmu), np.ascontiguousarray(w),
+                       np.ascontiguousarray(g), np.ascontiguousarray(d),
+                       np.ascontiguousarray(scales, dtype=float), np.ascontiguousarray(q), r)
+    scale = np.sqrt(np.clip(np.diag(gram), 0.0, None))
+    scale[~(scale > 0)] = 1.0
+    lam, vec = np.linalg.eigh(gram / np.outer(scale, scale))
+    keep = lam > max(lam.max(initial=0.0), 0.0) * RANK_FLOOR
+    root = np.sqrt(np.where(keep, lam, 0.0))
+    top = np.where(keep, vec.T @ (ar / scale) / np.where(keep, root, 1.0), 0.0)
+    rest = math.sqrt(max(float(r @ r) - float(top @ top), 0.0))
+    jac = np.vstack([root[:, None] * vec.T * scale, np.zeros(len(scale))])
+    return np.append(top, rest), jac, r
