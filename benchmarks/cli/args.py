@@ -234,6 +234,17 @@ def quantity(kind, what: str):
 SPEED, TIME = quantity(positive, "a speed in m/s"), quantity(positive, "a time in s")
 
 
+def numbers(what: str, example: str):
+    """An argparse type: comma-separated numbers (``what`` and an ``example`` in its error)."""
+    def parse(text: str) -> tuple[float, ...]:
+        try:
+            return tuple(float(v) for v in text.split(","))
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {what} separated by commas "
+                                             f"({example}), got {text!r}") from None
+    return parse
+
+
 def _writable_dir(path: Path, what: str) -> None:
     """``path`` is a directory that exists or can be made, and can be written in."""
     probe = path
@@ -288,7 +299,7 @@ def in_file(text: str) -> Path:
 #: the commands whose files never replace a user's (:mod:`benchmarks.records.files`)
 GUARDED_COMMANDS = ("simulate", "observe", "invert", "sweep", "solver-effect", "fit", "shs",
                     "step", "compare", "slip-weakening", "study", "reproduce",
-                    "work-precision", "convergence", "windows")
+                    "work-precision", "convergence", "windows", "design")
 
 
 def add_overwrite_options(sub) -> None:

@@ -13,7 +13,6 @@ each is fitted and compared (benchmarks.lab.laws), and the lowest BIC is reporte
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import json
 import math
@@ -23,7 +22,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from benchmarks.cli.args import (in_file, non_negative, out_dir, positive, say, seed,
+from benchmarks.cli.args import (in_file, non_negative, numbers, out_dir, positive, say, seed,
                                  show_progress)
 from benchmarks.lab.model import DEFAULT_ALGORITHM, DETRENDS, WALL_BUDGET, LabModel
 from benchmarks.records.files import claim_outputs, write_figure, write_output, write_table
@@ -561,19 +560,8 @@ def _report_check(check: dict) -> None:
                "FAILED: tighten --rtol or choose another --integrator"))
 
 
-def _numbers(what: str, example: str):
-    """An argparse type: comma-separated numbers (``what`` and an ``example`` in its error)."""
-    def parse(text: str) -> tuple[float, ...]:
-        try:
-            return tuple(float(v) for v in text.split(","))
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected {what} separated by commas "
-                                             f"({example}), got {text!r}") from None
-    return parse
-
-
 #: ``--switches``: times in s; ``--velocities``: speeds in µm/s
-_times, _speeds = _numbers("times in s", "11676.3,11720"), _numbers("speeds in µm/s", "3,10")
+_times, _speeds = numbers("times in s", "11676.3,11720"), numbers("speeds in µm/s", "3,10")
 
 
 def _num(v, unit) -> str:
@@ -740,11 +728,13 @@ def _add_history_options(p) -> None:
 def _add_run_options(p) -> None:
     """The integrator, the posterior, what to skip and the wall budget of each solve."""
     p.add_argument("--integrator", metavar="NAME",
-                   help=f"registry name of a method with dense output (default: "
-                        f"{DEFAULT_ALGORITHM[0]})")
+                   help=f"registry name of a method with dense output: the project's slider "
+                        f"through solve, its Jacobian by finite differences ({DEFAULT_ALGORITHM[0]} "
+                        "with --rtol alone; default: none, the compiled model with exact "
+                        "sensitivities)")
     p.add_argument("--rtol", type=positive,
-                   help=f"rtol = atol of the integrator, dimensionless (default: "
-                        f"{DEFAULT_ALGORITHM[1]:g})")
+                   help=f"rtol = atol of --integrator, dimensionless ({DEFAULT_ALGORITHM[1]:g} "
+                        "with --integrator alone; default: none, the compiled model at 1e-11)")
     p.add_argument("--posterior", action="store_true",
                    help="sample the posterior with emcee too (the inversion extra; uniform "
                         "prior in a, b, c, b2, ln Dc, ln k′, ln Dc2 within the fit's bounds)")
@@ -762,5 +752,5 @@ def _add_run_options(p) -> None:
     p.add_argument("--wall-budget", type=positive, default=WALL_BUDGET, metavar="S",
                    help="wall-time budget of each solve in s: the fit's, its profiles', the "
                         "posterior's and the solver check's (a reference over it fails the "
-                        "check: exit status 1; the two-state model has a step budget instead) "
+                        "check: exit status 1; the compiled model has a step budget too) "
                         f"(default: {WALL_BUDGET:g} s per solve)")

@@ -30,6 +30,7 @@ import warnings
 
 from benchmarks.cli import (
     args as cli_args,
+    design,
     invert,
     lab,
     observe,
@@ -56,7 +57,7 @@ __all__ = ["main", "build_parser", "COMMANDS"]
 #: the command modules, each adding its commands' parsers (``add_parsers``) in this order: the
 #: order of ``rsfbench --help``'s list
 COMMANDS = (simulate, work_precision, reproduce, sweep, invert, lab, observe, solver_effect,
-            self_check)
+            self_check, design)
 
 
 def build_parser() -> Parser:

@@ -69,8 +69,9 @@ def _references(fit: LabFit, p: dict):
 
 def check_lab_solver(fit: LabFit) -> dict:
     """Is the fit's integrator accurate enough for this record? μ(t) at the best fit against
-    two independent references (:data:`CHECK_REFERENCES`; with two states, the two-state model
-    at 1e-12 and scipy's Radau on the published equations), which must agree to σ/100 of the
+    two independent references (:func:`_references`: quasi-static, scipy's Radau on the
+    published equations and the project's slider through solve or the two-state model at
+    1e-12; with mass or damping :data:`CHECK_REFERENCES`), which must agree to σ/100 of the
     record's noise; the fit's own error must be under σ/10 (σ the fit's residual scatter, or
     :data:`RESOLVED` × the references' disagreement where that is larger: on a noise-free
     record σ is the integrators' own error, and the references cannot judge below it; said in
@@ -103,7 +104,8 @@ def check_lab_solver(fit: LabFit) -> dict:
     if not np.isfinite(own).all():
         failed = (f"the fit's integrator at the best fit: {own_run.retcode.value}: "
                   f"{own_run.message}" if hasattr(own_run, "retcode") else
-                  "the fit's model at the best fit failed")
+                  "the fit's model at the best fit ran out of its wall budget" if own_run == -2
+                  else "the fit's model at the best fit failed")
     if failed:
         budget = fit.model.wall_budget
         return {"checked": True, "integrator": model.integrator, "options": options,

@@ -274,7 +274,6 @@ class _Problem:
         self.wmu = w * (rec.mu - model.offset)       # a trend held fixed is taken off
         self.q = _orthonormal(w[:, None] * model.linear_basis())
         self.solves = 0
-        self.sensitive = 0               # of which with the sensitivities
         self.failed = 0                  # solves that failed or ran out of their budget
         self.cache = {}
         #: the Jacobian from the model's sensitivities (not finite differences)
@@ -300,11 +299,10 @@ class _Problem:
         """(g, ∂g/∂x or None) at x, cached: one solve, with the sensitivities if ``exact``."""
         key = tuple(np.round(x, 15))
         hit = self.cache.get(key)
-        if hit is not None and (hit[1] is not None or not exact):
-            return hit
+        if hit is not None and (hit[1] is not None or not exact or not np.isfinite(hit[0][0])):
+            return hit                      # a failed point is not tried again
         p = self.params(x)
         self.solves += 1
-        self.sensitive += exact
         mu, d = np.full(len(self.w), np.nan), None
         try:
             if exact:

@@ -89,7 +89,7 @@ class LabModel:
         1, or 2 for a second state variable (quasi-static only;
         :mod:`benchmarks.lab.two_state`).
     wall_budget : float or None
-        Seconds per solve (None: no budget; the two-state model has its step budget,
+        Seconds per solve (None: no budget; the compiled model also has its step budget,
         ``MAX_STEPS``).
     steady_after : tuple of float, optional
         ``detrend="steady"``: per piece, the time (s) before which it is not steady, as a
@@ -259,10 +259,12 @@ class LabModel:
                     if self.states == 1 else "the two-state model")
         return self.algorithm.name
 
-    def sensitivities(self, names, a, b, dc, k, c=None, b2=None, dc2=None, rtol=None):
+    def sensitivities(self, names, a, b, dc, k, c=None, b2=None, dc2=None, rtol=None,
+                      wall_budget=None):
         """(μ − μ0 at the record's times, ∂μ/∂θ there: one column per name of ``names``, a
         subset of :attr:`parameters`, steps): one solve of the compiled model
-        (:func:`~benchmarks.lab.two_state.two_state_sensitivities`); NaN where it failed.
+        (:func:`~benchmarks.lab.two_state.two_state_sensitivities`, within ``wall_budget`` s,
+        default the model's); NaN where it failed.
         ValueError if the model is not :attr:`compiled`."""
         if not self.compiled:
             raise ValueError(f"sensitivities: the model solved by {self.integrator} has none; "
@@ -274,7 +276,8 @@ class LabModel:
         mu, steps, d = two_state_sensitivities(
             rec.t, rec.velocities, rec.switch_times, a, b, dc, k, tuple(names),
             b2=0.0 if b2 is None else b2, dc2=1.0 if dc2 is None else dc2, law=self.law,
-            c=2.0 if c is None else c, mu0=LAB_MU0, rtol=tol, atol=tol)
+            c=2.0 if c is None else c, mu0=LAB_MU0, rtol=tol, atol=tol,
+            wall_budget=self.wall_budget if wall_budget is None else wall_budget)
         return mu - LAB_MU0, d, steps
 
     def response(self, a, b, dc, k, c=None, b2=None, dc2=None, algorithm=None,
@@ -285,7 +288,8 @@ class LabModel:
         compiled model's rtol = atol (default :data:`COMPILED_TOL`). An ``algorithm`` solves the
         :class:`~problems.SpringSlider` (one state) even where the model is compiled."""
         if algorithm is None and self.compiled or self.states == 2:
-            mu, _, steps = self.sensitivities((), a, b, dc, k, c=c, b2=b2, dc2=dc2, rtol=rtol)
+            mu, _, steps = self.sensitivities((), a, b, dc, k, c=c, b2=b2, dc2=dc2, rtol=rtol,
+                                              wall_budget=wall_budget)
             return mu, steps
         from integrators import solve
         sol = solve(self.problem(a, b, dc, k, c), algorithm or self.algorithm,

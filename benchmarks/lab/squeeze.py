@@ -9,7 +9,10 @@ an SVD and several products of n rows at every step. Told instead
 
 at each point (R from the eigenvectors of the column-scaled JᵀJ, which also stands a rank-
 deficient J: Jᵀr then has no part in its null space), it takes the same steps on a 75,000-sample
-record at a fraction of the cost. :func:`compress` builds (r̃, J̃) in two compiled passes over
+record at a fraction of the cost. "The same" as far as the Gram matrix holds J: directions whose
+singular values are under ~3e−8 of the largest (after scaling the columns) count as lost, where
+trf on the n rows would still step along them (on a flat valley the two can end at different
+points of equal squares). :func:`compress` builds (r̃, J̃) in two compiled passes over
 the samples, without forming the projected J: the residuals are r = P(ỹ − W g) and J = −P W ∂g/∂x
 with P the projection off an orthonormal linear basis Q (the level and trend).
 """

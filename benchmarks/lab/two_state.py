@@ -23,10 +23,12 @@ slider (tests/test_lab_fit.py).
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 from numba import njit
 
+from integrators.core.clock import monotonic
 from integrators.own.linalg import lu_solve3
 from integrators.own.rodas5p import A5P, C5P, G5P, H5P, stages, workspace
 from problems.formulations import (N_Q, Q_E, Q_LAW, Q_LAWP, state_rate, state_rate_partials,
@@ -38,6 +40,8 @@ __all__ = ["two_state_friction", "two_state_sensitivities", "MAX_STEPS", "SENSIT
 
 #: steps per run before it is given up (a NaN result)
 MAX_STEPS = 2_000_000
+#: steps between two readings of the clock (a wall budget's deadline)
+CLOCK_EVERY = 256
 # p: the first state's problem vector q (problems.formulations: its law code, its γ at Q_LAWP
 # and the load point's speed over v0 at Q_E), the second's, then a, b, dc, b2, dc2, k, v0, μ0
 # and the load point's speed vl (m/s)
@@ -106,16 +110,27 @@ def _u_theta(p, y, u, m):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _gamma_theta(p, gam, m):
-    """∂γ/∂θ_m of the first state's γ = c k′ Dc/b (the Nagata law's; 0 for the others)."""
+    """∂γ/∂θ_m of the first state's γ = c k′ Dc/b (the Nagata law's; 0 for the others, whose
+    rates do not depend on γ; c is asked for under the Nagata law only)."""
+    if m == _TC:
+        return p[_K] * p[_DC] / p[_B]
+    if gam == 0.0:              # c = 0 or no such law: no term, even at b = 0
+        return 0.0
     if m == _TB:
         return -gam / p[_B]
     if m == _TDC:
         return gam / p[_DC]
     if m == _TK:
         return gam / p[_K]
-    if m == _TC:
-        return p[_K] * p[_DC] / p[_B] if gam != 0.0 else 0.0
     return 0.0
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _asks_c(which):
+    for m in which:
+        if m == _TC:
+            return True
+    return False
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -139,7 +154,9 @@ def _partials(p, which, y, jac, fth, s):
         gam = q[Q_LAWP]                              # γ: the first state's only
         rate = state_rate(q, u, y[r], w)
         r_u, r_s = state_rate_partials(q, u, y[r], w)
-        r_g = state_rate_second_partials(q, u, y[r], w)[3] if gam != 0.0 else 0.0
+        r_g = 0.0
+        if r == 1 and (gam != 0.0 or _asks_c(which)):
+            r_g = state_rate_second_partials(q, u, y[r], w)[3]
         cu = g * r_u
         jac[s, r, 0], jac[s, r, 1], jac[s, r, 2] = cu / a, -cu * p[_B] / a, -cu * p[_B2] / a
         jac[s, r, r] += g * r_s
@@ -270,10 +287,12 @@ def _dense_sensitivity(n, h, s0, s1, dd, time, t):
 
 
 @njit(cache=True, error_model="numpy")
-def _run(p, velocities, bounds, times, rtol, atol, out, which, dout):
+def _run(p, velocities, bounds, times, rtol, atol, out, which, dout, deadline):
     """μ at ``times`` (within [bounds[0], bounds[-1]]) into ``out`` and, for each parameter
     index of ``which`` (:data:`SENSITIVE`; empty: none), ∂μ/∂θ there into ``dout``'s columns;
-    returns the steps taken, or −1 if a run failed."""
+    returns the steps taken, −1 if a run failed, −2 if it ran past ``deadline`` (the
+    monotonic clock's s, :func:`integrators.core.clock.monotonic`; read every
+    :data:`CLOCK_EVERY` steps)."""
     ws = workspace()
     n_s = which.shape[0]
     sw = sensitivity_workspace(n_s)
@@ -293,6 +312,8 @@ def _run(p, velocities, bounds, times, rtol, atol, out, which, dout):
         while t < t_end:
             if steps > MAX_STEPS:
                 return -1
+            if steps % CLOCK_EVERY == 0 and monotonic() > deadline:
+                return -2
             h = min(h, t_end - t)
             _rate(p, y, f)
             _jacobian(p, y, ws[0])
@@ -334,7 +355,7 @@ def _parameters(law, a, b, dc, k, b2, dc2, c, v0, mu0):
 
 
 def two_state_friction(times, velocities, switch_times, a, b, dc, k, b2=0.0, dc2=1.0,
-                       law="aging", c=0.0, mu0=0.6, rtol=1e-10, atol=1e-10):
+                       law="aging", c=0.0, mu0=0.6, rtol=1e-10, atol=1e-10, wall_budget=None):
     """μ at the record's times of the two-state slider (the module docstring) on a load point
     at ``velocities`` between ``switch_times``, from steady sliding at the first speed.
 
@@ -360,13 +381,16 @@ def two_state_friction(times, velocities, switch_times, a, b, dc, k, b2=0.0, dc2
         Steady-state friction at v0.
     rtol, atol : float
         The step control's tolerances on (μ, L1, L2).
+    wall_budget : float or None
+        Seconds the run may take (None: no limit but :data:`MAX_STEPS`).
 
     Returns
     -------
     mu : ndarray
         μ at ``times``; NaN everywhere if the run failed.
     steps : int
-        The steps taken (−1 if the run failed).
+        The steps taken: −1 if the run failed (its step budget, a non-finite value), −2 if it
+        ran out of its wall budget.
 
     Raises
     ------
@@ -375,20 +399,20 @@ def two_state_friction(times, velocities, switch_times, a, b, dc, k, b2=0.0, dc2
     """
     mu, steps, _ = two_state_sensitivities(times, velocities, switch_times, a, b, dc, k, (),
                                            b2=b2, dc2=dc2, law=law, c=c, mu0=mu0, rtol=rtol,
-                                           atol=atol)
+                                           atol=atol, wall_budget=wall_budget)
     return mu, steps
 
 
 def two_state_sensitivities(times, velocities, switch_times, a, b, dc, k, sensitivity,
                             b2=0.0, dc2=1.0, law="aging", c=0.0, mu0=0.6, rtol=1e-10,
-                            atol=1e-10):
+                            atol=1e-10, wall_budget=None):
     """:func:`two_state_friction` and the forward sensitivities ∂μ/∂θ at the record's times
     for the parameters named in ``sensitivity`` (a subset of :data:`SENSITIVE`; ``k`` is k′):
     each step's Rodas5P stages differentiated on the step's own h, reusing its factorisation
-    (the derivative of the computed μ, exact to rounding; the step control sees μ and the
-    states only). Returns (μ, steps, ∂μ/∂θ as an array of one column per name); NaN
-    everywhere and steps −1 if the run failed. ValueError for a name not in
-    :data:`SENSITIVE`, or c under a law without it."""
+    (the derivative of the computed μ with its steps held, exact to rounding; the step control
+    sees μ and the states only). Returns (μ, steps, ∂μ/∂θ as an array of one column per
+    name); NaN everywhere and steps < 0 as :func:`two_state_friction`'s if the run failed.
+    ValueError for a name not in :data:`SENSITIVE`, or c under a law without it."""
     names = tuple(sensitivity)
     for name in names:
         if name not in SENSITIVE:
@@ -401,8 +425,9 @@ def two_state_sensitivities(times, velocities, switch_times, a, b, dc, k, sensit
     bounds = np.array([0.0, *switch_times, max(float(times[-1]), *switch_times)])
     out, dout = np.empty(len(times)), np.empty((len(times), len(names)))
     which = np.array([SENSITIVE.index(n) for n in names], dtype=np.int64)
+    deadline = math.inf if wall_budget is None else time.perf_counter() + wall_budget
     steps = _run(p, np.asarray(velocities, dtype=float), bounds, times, rtol, atol, out, which,
-                 dout)
+                 dout, deadline)
     if steps < 0 or not (np.isfinite(out).all() and np.isfinite(dout).all()):
-        out[:], dout[:], steps = np.nan, np.nan, -1
+        out[:], dout[:], steps = np.nan, np.nan, min(steps, -1)
     return out, steps, dout
