@@ -1,8 +1,8 @@
 """Do the Fisher errors of ``rsfbench design`` hold? Each plan's expected standard errors of (a, b,
 ln Dc, ln k′) against the spread of the fits to ``fits`` records of the independent model
 (scipy's Radau on the published equations, white noise of the plan's σ, seeds 0, 1, …), fitted
-by ``fit_lab`` with the plan's detrend from the law's values (:func:`benchmarks.lab.design.
-check_plan`). Target: each ratio within 25 % of 1. The plans: a 1 → 10 µm/s aging step at 50 Hz;
+by ``fit_lab`` with the plan's detrend from the law's values
+(``benchmarks.lab.design.check_plan``). Target: each ratio within 25 % of 1. The plans: a 1 → 10 µm/s aging step at 50 Hz;
 a slip-law 1 → 10 → 1 µm/s with a slope fitted (``detrend one``); a precise, coarsely sampled one
 (σ 1e−4 at 5 Hz, a 3 → 30 µm/s step with Dc = 20 µm).
 """
