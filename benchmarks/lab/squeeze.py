@@ -32,8 +32,8 @@ RANK_FLOOR = 1e-15
 
 @njit(cache=True, error_model="numpy")
 def _passes(wmu, w, g, d, scales, q, r):
-    """r ← P(wmu − w g) in place; returns (AᵀA − (QᵀA)ᵀ(QᵀA), Aᵀr) for A = −w d scales, the
-    full problem's Jacobian (J = P A)."""
+    """r ← P(wmu − w g) in place; returns (AᵀA − (QᵀA)ᵀ(QᵀA), Aᵀr, r·r) for A = −w d scales,
+    the full problem's Jacobian (J = P A)."""
     n, p = d.shape
     m = q.shape[1]
     qu, qa, gram = np.zeros(m), np.zeros((m, p)), np.zeros((p, p))
@@ -51,11 +51,13 @@ def _passes(wmu, w, g, d, scales, q, r):
             for l in range(j + 1):
                 gram[j, l] += a[j] * a[l]
     ar = np.zeros(p)
+    rr = 0.0
     for i in range(n):
         s = r[i]
         for k in range(m):
             s -= q[i, k] * qu[k]
         r[i] = s
+        rr += s * s
         for j in range(p):
             ar[j] -= w[i] * d[i, j] * scales[j] * s
     for j in range(p):
@@ -64,7 +66,7 @@ def _passes(wmu, w, g, d, scales, q, r):
             for k in range(m):
                 acc -= qa[k, j] * qa[k, l]
             gram[j, l] = gram[l, j] = acc
-    return gram, ar
+    return gram, ar, rr
 
 
 def compress(wmu, w, g, d, scales, q):
@@ -73,7 +75,7 @@ def compress(wmu, w, g, d, scales, q):
     (to the fitted coordinates), ``q`` the linear basis (n × m, orthonormal); r the projected
     residuals themselves (n). Every input finite."""
     r = np.empty(len(wmu))
-    gram, ar = _passes(np.ascontiguousarray(wmu), np.ascontiguousarray(w),
+    gram, ar, rr = _passes(np.ascontiguousarray(wmu), np.ascontiguousarray(w),
                        np.ascontiguousarray(g), np.ascontiguousarray(d),
                        np.ascontiguousarray(scales, dtype=float), np.ascontiguousarray(q), r)
     scale = np.sqrt(np.clip(np.diag(gram), 0.0, None))
@@ -82,6 +84,6 @@ def compress(wmu, w, g, d, scales, q):
     keep = lam > max(lam.max(initial=0.0), 0.0) * RANK_FLOOR
     root = np.sqrt(np.where(keep, lam, 0.0))
     top = np.where(keep, vec.T @ (ar / scale) / np.where(keep, root, 1.0), 0.0)
-    rest = math.sqrt(max(float(r @ r) - float(top @ top), 0.0))
+    rest = math.sqrt(max(rr - float(top @ top), 0.0))
     jac = np.vstack([root[:, None] * vec.T * scale, np.zeros(len(scale))])
     return np.append(top, rest), jac, r
