@@ -75,3 +75,23 @@ def test_the_command_ranks_the_designs_and_writes_its_files(tmp_path):
         bad = _cli(*BASE, *args)
         assert bad.returncode == 2 and match in bad.stderr and "Traceback" not in bad.stderr
         assert len(bad.stderr.strip().splitlines()) == 1
+
+
+def test_the_plans_own_history_is_modelled_and_unstable_or_unfit_plans_are_refused():
+    """A piece of 0.5 s (25 samples) and a 2 s hold are modelled as planned (their history
+    once came from the displacement, which merged the short piece and refused the hold); a
+    stiffness near the critical (b − a)/Dc, a piece under 20 samples, a check of fewer than
+    10 fits and a non-finite duration are refused in one line."""
+    short = Plan(**dict(PLAN, velocities=(1e-6, 1e-5, 1e-6), durations=(10.0, 0.5, 10.0)))
+    model = short.model()
+    assert model.record.velocities == short.velocities
+    np.testing.assert_allclose(model.record.switch_times, (10.0, 10.5))
+    hold = Plan(**dict(PLAN, velocities=(1e-6, 0.0, 1e-6), durations=(10.0, 2.0, 10.0)))
+    assert np.isfinite(fisher_errors(hold).se).all()
+    for change, match in ((dict(k=330.0), "critical stiffness"),
+                          (dict(durations=(10.0, 0.3)), "15 samples"),
+                          (dict(durations=(10.0, float("nan"))), "durations")):
+        with pytest.raises(ValueError, match=match):
+            Plan(**dict(PLAN, **change))
+    with pytest.raises(ValueError, match="at least 10"):
+        check_plan(Plan(**PLAN), n=3)

@@ -238,10 +238,13 @@ def numbers(what: str, example: str):
     """An argparse type: comma-separated numbers (``what`` and an ``example`` in its error)."""
     def parse(text: str) -> tuple[float, ...]:
         try:
-            return tuple(float(v) for v in text.split(","))
+            values = tuple(float(v) for v in text.split(","))
         except ValueError:
-            raise argparse.ArgumentTypeError(f"expected {what} separated by commas "
-                                             f"({example}), got {text!r}") from None
+            values = ()
+        if not values or not all(math.isfinite(v) for v in values):
+            raise argparse.ArgumentTypeError(f"expected finite {what} separated by commas "
+                                             f"({example}), got {text!r}")
+        return values
     return parse
 
 

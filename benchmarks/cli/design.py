@@ -19,7 +19,8 @@ from pathlib import Path
 
 from benchmarks.cli.args import (bounded, non_negative, numbers, out_dir, positive, quantity,
                                  say, seed, show_progress)
-from benchmarks.lab.design import DETRENDS, Plan, check_plan, compare_plans, fisher_errors
+from benchmarks.lab.design import (CHECK_MIN, DETRENDS, Plan, check_plan, compare_plans,
+                                   fisher_errors, undetermined)
 from benchmarks.records.files import claim_outputs, write_output, write_table
 from benchmarks.records.provenance import provenance, version_line
 from benchmarks.records.report import jsonable
@@ -59,6 +60,8 @@ def _plans(args) -> dict:
                 k=args.stiffness, law=args.law, c=args.c, detrend=args.detrend)
     plans = {"plan": base}
     for text, field, value in args.vary or ():
+        if text in plans:
+            raise ValueError(f"--vary {text} is given twice")
         try:
             plans[text] = Plan(**{**base.__dict__, field: value})
         except ValueError as exc:
@@ -78,6 +81,9 @@ def _check(args, plan):
 
 
 def cmd_design(args) -> int:
+    if 0 < args.check < CHECK_MIN:
+        raise ValueError(f"--check {args.check}: 0 (none) or at least {CHECK_MIN} fits (the "
+                         "spread of fewer is no measure of an error)")
     plans = _plans(args)
     if args.target not in plans["plan"].fitted + ("a_minus_b",):
         raise ValueError(f"--target {args.target}: the {args.law} law's fit has "
@@ -110,6 +116,7 @@ def _write(out: Path, table, errors, check, record) -> None:
 def _report(args, table, errors, check, record) -> None:
     if args.json:
         say(json.dumps(jsonable({"errors": errors.to_dict(orient="records"),
+                                 "undetermined": undetermined(errors),
                                  "designs": table.to_dict(orient="records"),
                                  "check": None if check is None else
                                  check.to_dict(orient="records"),
@@ -118,11 +125,16 @@ def _report(args, table, errors, check, record) -> None:
         return
     say("expected standard errors of the plan (Fisher information, white noise):")
     say(errors.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
-    say(f"\nthe designs, by the target {args.target} (relative se per parameter; gain over the "
-        "plan):")
+    lost = undetermined(errors)
+    if lost:
+        say(f"the plan does not determine {', '.join(lost)}: the other errors hold "
+            f"{'it' if len(lost) == 1 else 'them'} fixed, and a fit would not")
+    say(f"\nthe designs, by the target {args.target}'s relative se (relative se per parameter; "
+        "gain over the plan):")
     say(table.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
-    best = table.loc[table.best, "design"].iloc[0]
-    say(f"\nbest for {args.target}: {best}")
+    best = table.loc[table.best, "design"]
+    say(f"\nbest for {args.target}: {best.iloc[0]}" if len(best) else
+        f"\nno design determines {args.target}")
     if check is not None:
         say(f"\nagainst {int(check.fits.iloc[0])} fits to records of the independent model "
             "(ratio = Fisher se / the fits' spread):")
@@ -163,8 +175,9 @@ def add_parsers(sub) -> None:
     p.add_argument("--target", default="dc", help="the parameter the designs are ranked by: "
                    "a, b, dc, k, c (Nagata) or a_minus_b (default: dc)")
     p.add_argument("--check", type=bounded(0, 10_000, "fits"), default=0, metavar="N",
-                   help="fit N records of the independent model with the plan's noise and "
-                        "compare their spread with the Fisher errors (default: 0, none)")
+                   help=f"fit N records (at least {CHECK_MIN}) of the independent model with "
+                        "the plan's noise and compare their spread with the Fisher errors "
+                        "(default: 0, none)")
     p.add_argument("--seed", type=seed, default=0, help="the check's first seed (default 0)")
     p.add_argument("--out", type=out_dir, metavar="DIR",
                    help="write design.csv, design_errors.csv, design_check.csv and "

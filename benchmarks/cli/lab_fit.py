@@ -214,6 +214,12 @@ def _fit_laws(args, models: dict, given: dict):
                 warnings.simplefilter("ignore")
                 refined, tables[law] = refine_switches(fits[law][0])
             fits[law] = (refined, list(refined.notes))
+    for law, (fit, notes) in fits.items():
+        if fit.failed_solves:
+            notes.append(f"{fit.failed_solves} of {fit.solves} solves failed or ran over the "
+                         f"{args.wall_budget:g} s budget each (--wall-budget): the fit, its "
+                         "switch times and profiles stand on the others, and open intervals "
+                         "may be the budget's, not the record's")
     laws = list(models)
     table = None
     if len(laws) > 1:

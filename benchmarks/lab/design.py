@@ -27,14 +27,21 @@ import pandas as pd
 
 from problems.friction import LAWS, law_parameters
 
-__all__ = ["Plan", "DETRENDS", "fisher_errors", "compare_plans", "check_plan", "varied", "SAMPLES"]
+__all__ = ["Plan", "DETRENDS", "fisher_errors", "compare_plans", "check_plan", "varied",
+           "undetermined", "SAMPLES", "PIECE_SAMPLES", "STABLE", "CHECK_MIN"]
 
 #: what the planned fit takes out linearly besides the level (:class:`~benchmarks.lab.model.
 #: LabModel`'s detrends that do not depend on the record: "steady" reads the record itself)
 DETRENDS = ("none", "one", "piece")
 #: the fewest and most samples a plan may have
 SAMPLES = (20, 2_000_000)
-_COLUMNS = ["time=time_s", "load_point=load_point_um:um", "friction=friction"]
+#: the fewest fits of a check
+CHECK_MIN = 10
+#: the fewest samples of a piece (as the fit's history needs, history.MIN_SAMPLES)
+PIECE_SAMPLES = 20
+#: a plan's k′ must exceed the critical stiffness (b − a)/Dc by this factor: near it the
+#: slider rings for long after each step and its errors are no velocity step's
+STABLE = 1.2
 
 
 @dataclass(frozen=True)
@@ -91,11 +98,12 @@ class Plan:
                              "durations")
         if not all(math.isfinite(v) and v >= 0 for v in self.velocities) or not (
                 self.velocities[0] > 0):
-            raise ValueError(f"velocities (m/s) must be finite and ≥ 0, the first > 0 (the "
-                             f"law's v0): got {self.velocities}")
-        for name, value in (("durations (s)", min(self.durations)), ("rate (Hz)", self.rate),
-                            ("noise (σ of μ)", self.noise), ("a", self.a), ("dc (m)", self.dc),
-                            ("k (1/m)", self.k)):
+            raise ValueError("velocities must be finite and ≥ 0, the first > 0 (the law's "
+                             "v0): got " + ", ".join(f"{v * 1e6:.6g}" for v in self.velocities)
+                             + " µm/s")
+        for name, value in (*((f"durations (s): {d!r}", d) for d in self.durations),
+                            ("rate (Hz)", self.rate), ("noise (σ of μ)", self.noise),
+                            ("a", self.a), ("dc (m)", self.dc), ("k (1/m)", self.k)):
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be positive and finite, got {value!r}")
         if not math.isfinite(self.b):
@@ -109,6 +117,15 @@ class Plan:
         if not SAMPLES[0] <= n <= SAMPLES[1]:
             raise ValueError(f"the plan has {n} samples ({sum(self.durations):g} s at "
                              f"{self.rate:g} Hz): {SAMPLES[0]} to {SAMPLES[1]} are planned")
+        short = min(self.durations) * self.rate
+        if short < PIECE_SAMPLES:
+            raise ValueError(f"a piece of {min(self.durations):g} s at {self.rate:g} Hz has "
+                             f"{short:.3g} samples: a fit needs {PIECE_SAMPLES} a piece")
+        critical = (self.b - self.a) / self.dc
+        if self.k <= STABLE * critical:
+            raise ValueError(f"k (1/m) = {self.k:g} is not above the critical stiffness "
+                             f"(b − a)/Dc = {critical:.4g} per m by a factor {STABLE:g}: the "
+                             "slider would stick and slip (or nearly), not follow the steps")
 
     @property
     def samples(self) -> int:
@@ -132,12 +149,27 @@ class Plan:
         return {n: getattr(self, n) for n in self.fitted}
 
     def record(self, noise: float = 0.0, seed: int = 0):
-        """A record of the plan by the independent model, with white noise of ``noise``."""
+        """A record of the plan by the independent model, with white noise of ``noise``, and
+        the plan's own history (not one read off its displacement). ValueError if the model
+        cannot run it."""
         from benchmarks.lab.independent_model import synthetic_record
-        from benchmarks.lab.step_data import lab_record_from
-        df = synthetic_record(self.times, self.velocities, self.switch_times, self.a, self.b,
-                              self.dc, self.k, law=self.law, c=self.c, noise=noise, seed=seed)
-        return lab_record_from(df, _COLUMNS, source=f"plan, seed {seed}")
+        from benchmarks.lab.step_data import LabRecord
+        t, switches = self.times, self.switch_times
+        try:
+            df = synthetic_record(t, self.velocities, switches, self.a, self.b, self.dc,
+                                  self.k, law=self.law, c=self.c, noise=noise, seed=seed)
+        except RuntimeError as exc:
+            raise ValueError(f"the plan's record cannot be made ({exc}): are its values a "
+                             "laboratory's?") from None
+        edges = np.array([0.0, *switches, t[-1]])
+        pieces = pd.DataFrame({"t_start_s": edges[:-1], "t_end_s": edges[1:],
+                               "velocity_m_s": self.velocities,
+                               "velocity_se_m_s": np.zeros(len(self.velocities)),
+                               "samples": np.diff(np.searchsorted(t, edges, side="left"))})
+        return LabRecord(t=t, mu=df.friction.to_numpy(float),
+                         load_point=df.load_point_um.to_numpy(float) * 1e-6,
+                         velocities=self.velocities, switch_times=switches, pieces=pieces,
+                         source=f"plan, seed {seed}")
 
     def model(self, record=None):
         """The fit's :class:`~benchmarks.lab.model.LabModel` of the plan's record (noise-free
@@ -173,7 +205,9 @@ def _covariance(plan: Plan) -> np.ndarray:
 def fisher_errors(plan: Plan) -> pd.DataFrame:
     """The expected standard errors of the fitted parameters and a − b: ``parameter``,
     ``value``, ``unit``, ``se`` (in the unit), ``relative_se`` (se over the value's size; for
-    Dc and k′, whose fit is in ln, the se of ln)."""
+    Dc and k′, whose fit is in ln, the se of ln). Where the plan does not determine a
+    parameter (its se inf), the others' are those with it held: said by :func:`undetermined`
+    and the command."""
     from benchmarks.lab.fit import _LOG, PARAMETER_UNITS
     cov = _covariance(plan)
     names = plan.fitted
@@ -193,10 +227,17 @@ def fisher_errors(plan: Plan) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def undetermined(errors: pd.DataFrame) -> list:
+    """The parameters of :func:`fisher_errors`' table the plan does not determine."""
+    return [n for n, se in zip(errors.parameter, errors.se) if not math.isfinite(se)]
+
+
 def compare_plans(plans: dict, target: str = "dc") -> pd.DataFrame:
     """One row per named plan: each parameter's relative se (``<name>_rse``), the target's
-    se in its unit, how many times better than the first plan (``gain``), and ``best`` (True
-    on the plan that resolves ``target`` best)."""
+    se in its unit, how many times smaller the target's relative se than the first plan's
+    (``gain``; relative, as a variation may change the value itself), and ``best`` (True on
+    the plan with the smallest finite relative se of ``target``; none if no plan determines
+    it)."""
     rows = []
     for label, plan in plans.items():
         table = fisher_errors(plan).set_index("parameter")
@@ -208,9 +249,10 @@ def compare_plans(plans: dict, target: str = "dc") -> pd.DataFrame:
         row.update({f"{n}_rse": table.at[n, "relative_se"] for n in table.index})
         rows.append(row)
     out = pd.DataFrame(rows)
-    first = out[f"{target}_se"].iloc[0]
-    out["gain"] = first / out[f"{target}_se"]
-    out["best"] = out[f"{target}_se"] == out[f"{target}_se"].min()
+    rse = out[f"{target}_rse"]
+    out["gain"] = rse.iloc[0] / rse if math.isfinite(rse.iloc[0]) else np.nan
+    finite = np.isfinite(rse)
+    out["best"] = finite & (rse == rse[finite].min()) if finite.any() else False
     return out
 
 
@@ -219,8 +261,12 @@ def check_plan(plan: Plan, n: int = 100, seed: int = 0, progress=None) -> pd.Dat
     the plan's detrend) to records of the independent model with the plan's noise (seeds
     ``seed`` …): per fitted coordinate, ``fisher_se``, ``spread`` (the fits' standard
     deviation), ``ratio`` = fisher_se/spread, the fits' ``bias`` over the spread, and how many
-    ``fits`` succeeded. ``progress(i, n)`` is called after each fit."""
+    ``fits`` succeeded of the ``attempts``. ``progress(i, n)`` is called after each fit.
+    ValueError for fewer than :data:`CHECK_MIN` fits (a spread of fewer says little)."""
     from benchmarks.lab.fit import _LOG, fit_lab
+    if n < CHECK_MIN:
+        raise ValueError(f"a check of {n} fits: at least {CHECK_MIN} (the spread of fewer is "
+                         "no measure of an error)")
     names = plan.fitted
     cov = _covariance(plan)
     found = []
@@ -240,7 +286,7 @@ def check_plan(plan: Plan, n: int = 100, seed: int = 0, progress=None) -> pd.Dat
     return pd.DataFrame({"parameter": [f"ln {m}" if m in _LOG else m for m in names],
                          "fisher_se": fisher, "spread": spread, "ratio": fisher / spread,
                          "bias": (found.mean(axis=0) - truth) / spread,
-                         "fits": len(found)})
+                         "fits": len(found), "attempts": n})
 
 
 def varied(plan: Plan, **changes) -> Plan:

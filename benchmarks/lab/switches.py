@@ -193,8 +193,11 @@ def _refine(fit, i: int):
         return fits[ts]
 
     def squares(ts: float) -> float:
+        # a trial with a failed solve (its budget, say) is no evidence where the switch is:
+        # its squares are not those of the model
         f = at(ts)
-        return f.rss if f is not None and f.success and np.isfinite(f.rss) else math.inf
+        return (f.rss if f is not None and f.success and not f.failed_solves
+                and np.isfinite(f.rss) else math.inf)
 
     # the scan from the displacement's time outwards, so that each trial starts next to one
     scan = np.linspace(t0 - width, t0 + width, SCAN)
