@@ -406,10 +406,20 @@ def test_a_second_state_that_strengthens_is_recovered():
         assert fit.values[name] == pytest.approx(truth[name], rel=tol)
     assert fit.sigma == pytest.approx(2e-4, rel=0.05)
     assert check_lab_solver(fit)["passed"]
+    # the slider's steady-state rate dependence is a − b − b2 (a − b is the first state's)
+    table = fit.table().set_index("parameter")
+    whole = table.loc["a_minus_b_minus_b2"]
+    assert whole.value == pytest.approx(fit.values["a"] - fit.values["b"] - fit.values["b2"])
+    assert whole.kind == "derived" and 0 < whole.se < abs(whole.value)
+    i = [fit.free.index(n) for n in ("a", "b", "b2")]
+    weights = np.array([1.0, -1.0, -1.0])
+    assert whole.se == pytest.approx(math.sqrt(weights @ fit.covariance[np.ix_(i, i)] @ weights))
+    assert abs(whole.value - (truth["a"] - truth["b"] - truth["b2"])) < 3 * whole.se
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", LabFitWarning)
         one = fit_lab(LabModel(rec, "aging", detrend="none"))
     assert one.notes or one.sigma > 3 * fit.sigma
+    assert "a_minus_b_minus_b2" not in one.values
 
 
 def test_the_independent_model_imports_nothing_of_the_project():

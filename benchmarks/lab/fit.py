@@ -55,14 +55,19 @@ from benchmarks.lab.squeeze import compress
 __all__ = ["LabFit", "fit_lab", "LabFitWarning", "starting_values", "BOUNDS", "FD_STEP",
            "sample_noise", "NOT_FIT", "NOT_FIT_RHO", "TRADES", "drift_covariance",
            "DC_STARTS", "Z95", "SETTLE_DC", "PARAMETER_UNITS", "covariance",
-           "RANK_TOL", "DC_LONGEST", "coordinate_bounds"]
+           "RANK_TOL", "DC_LONGEST", "coordinate_bounds", "DERIVED"]
 
 #: each nonlinear parameter's bounds in its own unit (a, b, c dimensionless; dc m; k 1/m); b and
 #: b2 may be negative (an evolution that strengthens with slip, as some clays show)
 BOUNDS = {"a": (1e-5, 0.5), "b": (-0.5, 0.5), "dc": (1e-9, 0.1), "k": (1.0, 1e10),
           "c": (0.0, 100.0), "b2": (-0.5, 0.5), "dc2": (1e-9, 0.1)}
 PARAMETER_UNITS = {"a": "1", "b": "1", "dc": "m", "k": "1/m", "c": "1", "b2": "1", "dc2": "m",
-                   "a_minus_b": "1", "mu_ref": "1"}
+                   "a_minus_b": "1", "mu_ref": "1", "a_minus_b_minus_b2": "1"}
+#: the derived parameters, as combinations of the fitted ones: a − b, the steady-state rate
+#: dependence of one state, and with two a − b − b2, the whole slider's (a − b alone is then
+#: the first state's)
+DERIVED = {"a_minus_b": {"a": 1.0, "b": -1.0},
+           "a_minus_b_minus_b2": {"a": 1.0, "b": -1.0, "b2": -1.0}}
 #: forward-difference step in the fitted coordinates (a, b, ln Dc, ln k′, c)
 FD_STEP = 1e-5
 #: bytes of solves a fit keeps (μ and its sensitivities per point tried)
@@ -219,12 +224,16 @@ class LabFit:
         if name in self.free:
             i = self.free.index(name)
             return float(math.sqrt(max(self.covariance[i, i], 0.0)))
-        if name == "a_minus_b" and {"a", "b"} <= set(self.free):
-            i, j = self.free.index("a"), self.free.index("b")
-            c = self.covariance
-            if not (np.isfinite(c[i, i]) and np.isfinite(c[j, j])):
+        parts = {n: w for n, w in DERIVED.get(name, {}).items() if n in self.free}
+        if parts and (name == "a_minus_b_minus_b2" or {"a", "b"} <= set(parts)):
+            weights = np.zeros(len(self.free))
+            for n, w in parts.items():
+                weights[self.free.index(n)] = w
+            used = weights != 0
+            c = self.covariance[np.ix_(used, used)]
+            if not np.isfinite(c).all():
                 return math.inf
-            return float(math.sqrt(max(c[i, i] + c[j, j] - 2 * c[i, j], 0.0)))
+            return float(math.sqrt(max(weights[used] @ c @ weights[used], 0.0)))
         return self.linear_se.get(name, 0.0)
 
     def interval(self, name: str) -> tuple[float, float]:
@@ -240,15 +249,15 @@ class LabFit:
         return low, high
 
     def table(self) -> pd.DataFrame:
-        names = [n for n in ("a", "b", "a_minus_b", "dc", "k", "c", "b2", "dc2")
-                 if n in self.values]
+        names = [n for n in ("a", "b", "a_minus_b", "dc", "k", "c", "b2", "dc2",
+                             "a_minus_b_minus_b2") if n in self.values]
         names += list(self.linear)
         rows = []
         held = set(self.linear) - set(self.model.linear_names)   # a held trend's slopes
         for n in names:
             low, high = self.interval(n)
             kind = ("held" if n in held else "fitted" if n in self.free or n in self.linear
-                    else "derived" if n == "a_minus_b" and {"a", "b"} & set(self.free)
+                    else "derived" if n in DERIVED and set(DERIVED[n]) & set(self.free)
                     else "fixed")
             known = kind != "fixed"
             se = self.se(n) * (self.values[n] if n in _LOG else 1.0)
@@ -698,8 +707,7 @@ def _result(prob, res, wall_s, uncertainty: bool = True) -> LabFit:
                     for name, g in zip(prob.free, grow)}
     full_cov, _, held_cov = propagated_covariance(full, f * sigma ** 2, walk, loads, reads)
     params = prob.params(x)
-    values = dict(params)
-    values["a_minus_b"] = values["a"] - values["b"]
+    values = _derived(dict(params))
     linear = dict(zip(model.linear_names, map(float, coef)))
     linear_se = {k: float(np.sqrt(max(full_cov[len(x) + i, len(x) + i], 0.0)))
                  for i, k in enumerate(model.linear_names)}
@@ -765,8 +773,7 @@ def _held_correlation(cov: np.ndarray, cross: np.ndarray, held: np.ndarray, free
 def _values_only(prob, res, wall_s, ok, coef, r, mu_model, rss, sigma, rho, n) -> LabFit:
     """A fit's values and squares without its uncertainty (``fit_lab(uncertainty=False)``)."""
     model = prob.model
-    values = prob.params(res.x)
-    values["a_minus_b"] = values["a"] - values["b"]
+    values = _derived(prob.params(res.x))
     linear = dict(zip(model.linear_names, map(float, coef)))
     if model.steady is not None:
         linear.update({f"trend_{i}": float(s) for i, (s, v, f) in enumerate(
@@ -781,6 +788,14 @@ def _values_only(prob, res, wall_s, ok, coef, r, mu_model, rss, sigma, rho, n) -
                   failed_solves=prob.failed, weights=prob.w, fixed=dict(prob.fixed),
                   piece_weights=prob.piece_weights, success=ok and res.status > 0,
                   message=res.message if ok else "the forward model failed at the fit's end")
+
+
+def _derived(values: dict) -> dict:
+    """``values`` with the :data:`DERIVED` combinations of those it has."""
+    for name, parts in DERIVED.items():
+        if set(parts) <= set(values):
+            values[name] = sum(w * values[n] for n, w in parts.items())
+    return values
 
 
 def _shown(name: str) -> tuple[float, str]:
