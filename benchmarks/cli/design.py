@@ -14,6 +14,7 @@ spread of the estimates beside them.
 
 from __future__ import annotations
 
+import argparse
 import json
 from pathlib import Path
 
@@ -41,7 +42,6 @@ _PIECES = ("velocities", "durations")
 
 def _variation(text: str) -> tuple[str, str, object]:
     """``--vary NAME=VALUE``: (the text, a field of the plan, its value in the field's unit)."""
-    import argparse
     name, sep, value = text.partition("=")
     if not sep or name not in VARIABLE:
         raise argparse.ArgumentTypeError(f"expected NAME=VALUE with NAME one of "

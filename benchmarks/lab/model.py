@@ -4,12 +4,11 @@ parameters, on the record's own load-point history.
 The slider is quasi-static by default (as rsfmodel, RSFit3000 and Marone's code), with mass or
 radiation damping on request. Quasi-static and with no integrator asked for, it is solved by the
 compiled model of :mod:`benchmarks.lab.two_state` (Rodas5P's stages at rtol = atol =
-:data:`COMPILED_TOL`, the
-second state idle with one), which also gives the exact forward sensitivities ∂μ/∂θ
-(:meth:`LabModel.sensitivities`): a fit then needs no finite differences. Otherwise it is the
-project's :class:`problems.SpringSlider` solved with :func:`integrators.solve` (``save_at`` the
-record's times, from the method's dense output). Its stiffness
-is given as k′ = k/Fn, friction per metre of load-point displacement (RSFit3000's k in µm⁻¹ is
+:data:`COMPILED_TOL`, the second state idle with one), which also gives the exact forward
+sensitivities ∂μ/∂θ (:meth:`LabModel.sensitivities`): a fit then needs no finite differences.
+Otherwise it is the project's :class:`problems.SpringSlider` solved with
+:func:`integrators.solve` (``save_at`` the record's times, from the method's dense output). Its
+stiffness is given as k′ = k/Fn, friction per metre of load-point displacement (RSFit3000's k in µm⁻¹ is
 k′ · 10⁻⁶); without mass or damping the friction coefficient does not depend on Fn, which is
 then the nominal :data:`NOMINAL_NORMAL_FORCE`. The run starts from steady sliding at the first
 piece's speed, which is also the law's reference speed v0.
@@ -39,8 +38,7 @@ import numpy as np
 from problems.friction import law_parameters
 
 __all__ = ["LabModel", "DETRENDS", "NOMINAL_NORMAL_FORCE", "LAB_MU0", "DEFAULT_ALGORITHM",
-           "COMPILED_TOL",
-           "WALL_BUDGET"]
+           "COMPILED_TOL", "WALL_BUDGET"]
 
 #: N: the normal force of a model whose friction does not depend on it (quasi-static, undamped)
 NOMINAL_NORMAL_FORCE = 1e4
