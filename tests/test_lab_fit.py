@@ -317,7 +317,7 @@ def test_the_models_second_derivatives_are_its_jacobians_derivatives(law):
         p = ts._parameters(law, *(values[n] for n in ("a", "b", "dc", "k", "b2", "dc2", "c")),
                            1e-6, 0.6)
         p[ts._VL], p[ts._Q1 + 4], p[ts._Q2 + 4] = 1e-5, 10.0, 10.0     # Q_E = vL/v0
-        room = ts.sensitivity_workspace(len(which))
+        room = ts.sensitivity_workspace(len(which))   # rodas5p's, imported there
         ts._partials(p, which, at, room[0], room[1], 0)
         ts._second_partials(p, which, at, room[2], room[3])
         return room[0][0].copy(), room[2].copy(), room[3].copy()

@@ -281,7 +281,7 @@ def test_the_plans(fake, monkeypatch):
 def test_every_study_declares_inputs_that_resolve(tmp_path):
     import inspect
     plan = RP.studies()
-    assert len(plan) == 32
+    assert len(plan) == 34
     for study in plan:
         assert list(inspect.signature(study.run).parameters)[1:] == list(study.settings), \
             study.name

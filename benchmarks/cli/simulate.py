@@ -69,8 +69,10 @@ def cmd_simulate(args) -> int:
     problem = problem_from_args(args)
     check_save_rate(args.save_rate, problem.t_end, args.save or args.plot)
     algorithm, why = integrator_from_args(args)
+    names, algorithm, why = _sensitivity_request(args, problem, algorithm, why)
+    grads = args.save and names and args.save.with_name(args.save.stem + ".sensitivity.csv")
     claim_outputs([p for p in (args.save, args.save and args.save.with_name(
-        args.save.name + ".json"), args.plot) if p])   # a user's file there: refused now
+        args.save.name + ".json"), args.plot, grads) if p])   # a user's file: refused now
     warm_up(problem, algorithm, wall_budget=args.wall_budget)   # wall_s excludes compiling
     # the run summarised: saved as it always was, unless a method without dense output saves
     # at the rate (its steps are its rule's: it saves the step end at or after each time)
@@ -78,8 +80,10 @@ def cmd_simulate(args) -> int:
     if args.save_rate and not algorithm.saves_at_times:
         saving = {"save_every": 1.0 / args.save_rate}
     sol = solve(problem, algorithm, **saving, progress=args.progress,
-                wall_budget=args.wall_budget)
+                wall_budget=args.wall_budget, sensitivity=names or None)
     summary = {**simulate_summary(sol), "integrator_choice": why}
+    if names:
+        summary["sensitivity"] = _sensitivity_summary(sol, grads, args.command_line)
     samples = sampled(sol, args.save_rate)
     if args.save:
         summary["trajectory"] = _save_trajectory(samples, args.save, summary,
@@ -93,11 +97,71 @@ def cmd_simulate(args) -> int:
         say(json.dumps(summary, indent=2))
     else:
         _print_summary(summary)
+        if names:
+            _print_sensitivity(summary["sensitivity"])
         if args.save:
             say(f"  trajectory  {args.save} (and {summary['trajectory']['about']})")
         if args.plot:
             say(f"  figure      {args.plot}")
     return 0 if sol.success else 1
+
+
+def _sensitivity_request(args, problem, algorithm, why):
+    """(parameter names, the algorithm, why) for --sensitivity: the names checked against the
+    problem, and the method Rodas5P at the chosen tolerance when the recommendation is one
+    without sensitivities; a named one without them is refused (ValueError)."""
+    if not args.sensitivity:
+        return (), algorithm, why
+    from integrators import make_algorithm
+    from problems.directions import sensitivity_names
+    names = sensitivity_names(problem, args.sensitivity)
+    if not getattr(algorithm, "sensitive", False):
+        if args.integrator:
+            raise ValueError(f"--sensitivity: {algorithm.name} has no forward sensitivities; "
+                             "use --integrator Rodas5P")
+        why = (f"Rodas5P at the recommended tolerance (rtol {algorithm.rtol:g}): "
+               f"{algorithm.name} has no forward sensitivities")
+        algorithm = make_algorithm("Rodas5P", rtol=algorithm.rtol, atol=algorithm.atol)
+    return names, algorithm, why
+
+
+def _sensitivity_summary(sol, path, command: str) -> dict:
+    """The gradients of the limit cycle's metrics and of the last event's (SI per unit of
+    each parameter); with ``path``, every event's metrics and their derivatives written
+    there (CSV, one row per event)."""
+    import pandas as pd
+    sens, p = sol.sensitivity, sol.problem
+    if sens is None or not sol.reached_end:
+        return {"parameters": list(sens.names) if sens else [], "limit_cycle": {},
+                "last_event": {}, "note": "the run did not reach its end: no gradients"}
+    d_fn = [1.0 if n == "normal_force" else 0.0 for n in sens.names]
+    per = metrics.metric_gradients(sol.event_array, sens.events, p.normal_force, d_fn)
+    last = ({m: {n: float(per[-1, i, j]) for j, n in enumerate(sens.names)}
+             for i, m in enumerate(metrics.METRICS)} if len(per) else {})
+    out = {"parameters": list(sens.names), "limit_cycle": metrics.cycle_gradient(sol),
+           "last_event": last,
+           "method": "forward sensitivities through Rodas5P's steps and the event roots"}
+    if path:
+        table = metrics.event_metrics(sol.events, p.normal_force)
+        cols = {f"d_{m}/d_{n}": per[:, i, j] for i, m in enumerate(metrics.METRICS)
+                for j, n in enumerate(sens.names)}
+        write_table(pd.concat([table, pd.DataFrame(cols)], axis=1), path)
+        out["file"] = str(path)
+    return out
+
+
+def _print_sensitivity(s: dict) -> None:
+    grads = s["limit_cycle"] or s["last_event"]
+    if not grads:
+        say(f"  gradients   none ({s.get('note', 'no events')})")
+        return
+    which = "limit cycle" if s["limit_cycle"] else "last event (not a limit cycle)"
+    say(f"  gradients of the {which}, per unit of each parameter (SI):")
+    say("    " + " " * 20 + "".join(f"{'d/d' + n:>16}" for n in s["parameters"]))
+    for m, row in grads.items():
+        say(f"    {m:<20}" + "".join(f"{row[n]:>16.6g}" for n in s["parameters"]))
+    if s.get("file"):
+        say(f"  per event   {s['file']}")
 
 
 def check_save_rate(rate, t_end: float, used) -> None:
@@ -226,6 +290,12 @@ def add_parsers(sub) -> None:
                         f"samples over the run, t_end/{DEFAULT_POINTS - 1:,} apart: "
                         "about 500 Hz over 40 s)")
     s.add_argument("--progress", action="store_true", help="show a progress bar")
+    s.add_argument("--sensitivity", metavar="NAMES",
+                   help="parameters to differentiate by, comma-separated (a, b, lc, c, k, m, "
+                        "fn, damping, vl, vls, vlf, df, the initial state's): the gradients "
+                        "of the limit cycle's metrics (SI per unit), from forward "
+                        "sensitivities through Rodas5P's steps and event roots; with --save, "
+                        "every event's in FILE.sensitivity.csv (default: none)")
     s.set_defaults(func=cmd_simulate)
 
     i = sub.add_parser("integrators", help="list the registry")

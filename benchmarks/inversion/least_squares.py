@@ -66,9 +66,32 @@ class FitResult:
     message: str = ""
 
 
+class _ExactResiduals:
+    """The residuals of x = (b, log10 Lc) and their Jacobian from one solve with
+    sensitivities per point (the last point's kept: least squares asks for both there)."""
+
+    def __init__(self, misfit: Misfit, count: dict):
+        self.misfit, self.count, self.last = misfit, count, (None, None, None)
+
+    def _at(self, x):
+        if self.last[0] is None or not np.array_equal(self.last[0], x):
+            self.count["n"] += 1
+            lc = 10.0 ** x[1]
+            r, jac = self.misfit.residuals_and_jacobian({"b": x[0], "lc": lc})
+            jac = jac * np.array([1.0, lc * np.log(10.0)])      # ∂/∂log10 Lc
+            self.last = (np.array(x, dtype=float), r, jac)
+        return self.last
+
+    def residuals(self, x):
+        return self._at(x)[1]
+
+    def jacobian(self, x):
+        return self._at(x)[2]
+
+
 def fit(misfit: Misfit, b_range=(0.005, 0.02), lc_range=(1e-8, 1e-5), grid: int = 9,
         starts: int = 3, diff_step: float = 1e-3, max_solves: int = 2000,
-        start=None) -> FitResult:
+        start=None, jacobian: str = "differences") -> FitResult:
     """Fit (b, Lc) within the box ``b_range`` × ``lc_range``, from the ``starts`` best points
     of a ``grid`` × ``grid`` scan (module docstring), or from one ``start`` without a scan. A
     box with no limit cycle on its scan is a failed fit (``success`` False), not a guess.
@@ -87,6 +110,10 @@ def fit(misfit: Misfit, b_range=(0.005, 0.02), lc_range=(1e-8, 1e-5), grid: int 
         Forward solves per start at most.
     start : tuple of float, optional
         One start (b, Lc in m) instead of the scan.
+    jacobian : str
+        ``"differences"`` (forward differences of ``diff_step``, default) or ``"exact"``: the
+        residuals and their Jacobian from one solve with forward sensitivities each
+        (:meth:`Misfit.residuals_and_jacobian`; ΔT and Δμ only, without curves).
 
     Returns
     -------
@@ -116,17 +143,21 @@ def fit(misfit: Misfit, b_range=(0.005, 0.02), lc_range=(1e-8, 1e-5), grid: int 
         return FitResult(np.nan, np.nan, np.nan, np.full((2, 2), np.nan), np.nan, np.nan,
                          n_solves, pd.DataFrame(), success=False,
                          message=f"no point of the {grid} × {grid} scan has a limit cycle")
+    if jacobian not in ("differences", "exact"):
+        raise ValueError(f"jacobian must be 'differences' or 'exact', got {jacobian!r}")
     count = {"n": 0}
 
     def residuals(x):
         count["n"] += 1
         return misfit.residuals(x[0], 10.0 ** x[1])
 
+    exact = _ExactResiduals(misfit, count)
+    how = (dict(jac=exact.jacobian) if jacobian == "exact" else dict(diff_step=diff_step))
     rows, best = [], None
     for start in ok.itertuples():
         x0 = np.clip([start.b, np.log10(start.lc)], lo, hi)
-        res = least_squares(residuals, x0, bounds=(lo, hi), diff_step=diff_step,
-                            max_nfev=max_solves, x_scale="jac")
+        res = least_squares(exact.residuals if jacobian == "exact" else residuals, x0,
+                            bounds=(lo, hi), max_nfev=max_solves, x_scale="jac", **how)
         value = float(2.0 * res.cost)
         rows.append({"b_start": start.b, "lc_start": start.lc, "b": res.x[0],
                      "lc": 10.0 ** res.x[1], "misfit": value, "status": res.status,
@@ -134,7 +165,12 @@ def fit(misfit: Misfit, b_range=(0.005, 0.02), lc_range=(1e-8, 1e-5), grid: int 
         if best is None or value < best[1]:
             best = (res, value)
     res, value = best
-    n_solves += count["n"]
+    return _result(res, value, n_solves + count["n"], rows)
+
+
+def _result(res, value: float, n_solves: int, rows: list) -> FitResult:
+    """The :class:`FitResult` of the best start's ``res`` (scipy's), its Gauss–Newton
+    covariance from the Jacobian there."""
     try:
         cov = np.linalg.inv(res.jac.T @ res.jac)
     except np.linalg.LinAlgError:

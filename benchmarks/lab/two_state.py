@@ -9,7 +9,7 @@ In friction units, with Lk = ln(v0 θk/Dck) (0 at steady sliding at v0)::
 
 (Dieterich 1979, Ruina 1983; two state variables as in Blanpied et al. 1998 and RSFit3000;
 b2 may be negative, an evolution that strengthens, as clays show.) Solved for (μ, L1, L2) with
-Rodas5P: the engine's stage loop (:func:`integrators.own.rodas5p.stages`: order 5, its
+Rodas5P: the engine's stage loop (:func:`integrators.own.rodas5p_stages.stages`: order 5, its
 4th-order dense output) on the analytic Jacobian, elementary step control on atol + rtol·|y|, a
 restart at each switch of the load point; μ at the record's times from the dense output. Each
 state's rate is the problems' own (:func:`problems.formulations.state_rate`, in the time
@@ -29,8 +29,8 @@ import numpy as np
 from numba import njit
 
 from integrators.core.clock import monotonic
-from integrators.own.linalg import lu_solve3
-from integrators.own.rodas5p import A5P, C5P, G5P, H5P, stages, workspace
+from integrators.own.rodas5p_stages import (dense_sensitivities, sensitivity_workspace,
+                                            stage_sensitivities, stages, workspace)
 from problems.formulations import (N_Q, Q_E, Q_LAW, Q_LAWP, state_rate, state_rate_partials,
                                    state_rate_second_partials)
 from problems._validate import units_checked_already
@@ -214,76 +214,12 @@ def _second_partials(p, which, y, hyy, hyt):
 
 
 @njit(cache=True, error_model="numpy")
-def sensitivity_workspace(n_s):
-    """Room for :func:`_step_sensitivity` with ``n_s`` parameters: the stages' Jacobians and
-    ∂f/∂θ, the second derivatives at the step's start, the stages' dK, dJ, the stage's
-    argument's dU, a right-hand side, and the dense output's dD of μ."""
-    return (np.empty((8, 3, 3)), np.empty((8, 3, n_s)), np.empty((3, 3, 3)),
-            np.empty((3, 3, n_s)), np.empty((n_s, 8, 3)), np.empty((3, 3)), np.empty(3),
-            np.empty((1, 3)), np.empty((n_s, 3)))
-
-
-@njit(cache=True, error_model="numpy")
-def _step_sensitivity(p, which, hs, ws, sw, z0, S):
-    """S (one row ∂z/∂θ per parameter ``which``) from the accepted step ``hs`` at ``z0`` to
-    its end, in place: Rodas5P's stages differentiated (internal differentiation on the step's
-    own h, M's factors reused)::
-
-        M dK_s = hγ (J(u_s) dU_s + ∂f/∂θ(u_s)) + γ Σ_l C_sl dK_l + hγ dJ K_s,
-        dU_s = S + Σ_l A_sl dK_l,   dJ = ∂J/∂y·S + ∂J/∂θ at z0,   S ← dU_7 + dK_7
-
-    (dJ K_s because M = I − hγ J(z0) depends on θ); the dense output's dD of μ into ``sw``."""
-    J, M, piv, K, u, fb = ws
-    jst, fst, hyy, hyt, dk, dj, du, rhs, dd = sw
-    hg = hs * G5P
-    _partials(p, which, z0, jst, fst, 0)
-    _second_partials(p, which, z0, hyy, hyt)
-    for s in range(1, 8):
-        for i in range(3):
-            acc = z0[i]
-            for j in range(s):
-                acc += A5P[s, j] * K[j, i]
-            u[i] = acc
-        _partials(p, which, u, jst, fst, s)
-    for n in range(which.shape[0]):
-        for i in range(3):
-            for j in range(3):
-                acc = hyt[i, j, n]
-                for l in range(3):
-                    acc += hyy[i, j, l] * S[n, l]
-                dj[i, j] = acc
-        for s in range(8):
-            for i in range(3):
-                acc = S[n, i]
-                for j in range(s):
-                    acc += A5P[s, j] * dk[n, j, i]
-                du[i] = acc
-            for i in range(3):
-                acc = fst[s, i, n]
-                for j in range(3):
-                    acc += jst[s, i, j] * du[j] + dj[i, j] * K[s, j]
-                cc = 0.0
-                for j in range(s):
-                    cc += C5P[s, j] * dk[n, j, i]
-                rhs[0, i] = hg * acc + G5P * cc
-            lu_solve3(M, piv, rhs, 0)
-            for i in range(3):
-                dk[n, s, i] = rhs[0, i]
-        for i in range(3):
-            S[n, i] = du[i] + dk[n, 7, i]
-        for r in range(3):
-            acc = 0.0
-            for s in range(8):
-                acc += H5P[r, s] * dk[n, s, 0]
-            dd[n, r] = acc
-
-
-@njit(cache=True, error_model="numpy")
 def _dense_sensitivity(n, h, s0, s1, dd, time, t):
     """∂μ/∂θ_n at ``time`` in the step [t, t + h]: :func:`_dense_mu` differentiated."""
     x = (time - t) / h
     w = 1.0 - x
-    return w * s0[n, 0] + x * (s1[n, 0] + w * (dd[n, 0] + x * (dd[n, 1] + x * dd[n, 2])))
+    return w * s0[n, 0] + x * (s1[n, 0] + w * (dd[0, n, 0] + x * (dd[1, n, 0]
+                                                                 + x * dd[2, n, 0])))
 
 
 @njit(cache=True, error_model="numpy")
@@ -295,7 +231,7 @@ def _run(p, velocities, bounds, times, rtol, atol, out, which, dout, deadline):
     :data:`CLOCK_EVERY` steps)."""
     ws = workspace()
     n_s = which.shape[0]
-    sw = sensitivity_workspace(n_s)
+    sw, dd = sensitivity_workspace(n_s), np.empty((3, n_s, 3))
     y, f, y1, D = np.zeros(3), np.empty(3), np.empty(3), np.empty((3, 3))
     S, S0 = np.zeros((n_s, 3)), np.zeros((n_s, 3))  # steady sliding at v0 for every θ
     y[0] = p[_MU0]
@@ -326,12 +262,13 @@ def _run(p, velocities, bounds, times, rtol, atol, out, which, dout, deadline):
             steps += 1
             if n_s:
                 S0[:, :] = S
-                _step_sensitivity(p, which, h, ws, sw, y, S)
+                stage_sensitivities(_partials, _second_partials, p, which, h, ws, sw, y, S)
+                dense_sensitivities(sw, dd)
             t_new = t + h if t + h < t_end else t_end
             while i_out < n_out and times[i_out] <= t_new:
                 out[i_out] = _dense_mu(t, h, y, y1, D, times[i_out])
                 for n in range(n_s):
-                    dout[i_out, n] = _dense_sensitivity(n, h, S0, S, sw[8], times[i_out], t)
+                    dout[i_out, n] = _dense_sensitivity(n, h, S0, S, dd, times[i_out], t)
                 i_out += 1
             t = t_new
             y[:] = y1

@@ -51,7 +51,7 @@ from problems import stability
 from problems.slider import TAU_END_MAX
 
 __all__ = ["event_metrics", "LimitCycle", "limit_cycle", "cycle_from", "summarize", "EndState", "end_state",
-           "METRICS", "CLASSIFICATIONS", "CYCLES", "LOCKED_SLIP_RATE", "STEADY_LOG_TOLERANCE"]
+           "METRICS", "metric_gradients", "cycle_gradient", "CLASSIFICATIONS", "CYCLES", "LOCKED_SLIP_RATE", "STEADY_LOG_TOLERANCE"]
 
 #: the limit-cycle metrics, in the order tables show them
 METRICS = ("recurrence_s", "friction_drop", "slip_m", "peak_velocity_m_s")
@@ -422,3 +422,40 @@ def summarize(solution, rtol: float = 1e-3) -> LimitCycle:
         return LimitCycle("failed", n_events=len(events), rtol=rtol, reason=why)
     return limit_cycle(events, p.normal_force, p.t_end, rtol=rtol, v_slow=p.loading.v_slow,
                        end=end_state(solution))
+
+
+def metric_gradients(events: np.ndarray, d_events: np.ndarray, normal_force: float,
+                     d_fn: np.ndarray) -> np.ndarray:
+    """The derivatives of each event's four :data:`METRICS` (n × 4 × parameters) from the
+    events table (n × 8, SI) and its derivatives (n × 8 × parameters; a solve's
+    :class:`~integrators.core.solution.Sensitivity`), ``d_fn`` = ∂Fn/∂θ per parameter:
+    ΔT_i = t_start,i − t_start,i−1 (NaN for the first), Δμ = (fs_max − fs_min)/Fn,
+    slip_end − slip_start, v_peak."""
+    out = np.full((len(events), 4, d_events.shape[2]), np.nan)
+    if len(events):
+        out[1:, 0] = np.diff(d_events[:, 0], axis=0)
+        drop = (events[:, 2] - events[:, 3])[:, None]
+        out[:, 1] = ((d_events[:, 2] - d_events[:, 3]) / normal_force
+                     - drop * np.asarray(d_fn)[None, :] / normal_force ** 2)
+        out[:, 2] = d_events[:, 7] - d_events[:, 6]
+        out[:, 3] = d_events[:, 4]
+    return out
+
+
+def cycle_gradient(solution, cycle: LimitCycle | None = None) -> dict:
+    """The gradient of the limit cycle's four :data:`METRICS` (means over its last period)
+    from a solve with sensitivities: {metric: {parameter: derivative (SI per unit)}}; empty
+    when the run has no cycle (``cycle``: :func:`summarize`'s, computed if not given)."""
+    sens = solution.sensitivity
+    if sens is None:
+        raise ValueError("cycle_gradient: the solve has no sensitivities; "
+                         "solve(..., sensitivity=(...)) with Rodas5P")
+    cycle = summarize(solution) if cycle is None else cycle
+    if cycle.classification not in CYCLES or not cycle.period:
+        return {}
+    d_fn = np.array([1.0 if n == "normal_force" else 0.0 for n in sens.names])
+    grads = metric_gradients(solution.event_array, sens.events,
+                             solution.problem.normal_force, d_fn)
+    tail = grads[-cycle.period:].mean(axis=0)
+    return {m: {n: float(tail[i, j]) for j, n in enumerate(sens.names)}
+            for i, m in enumerate(METRICS)}

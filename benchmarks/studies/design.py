@@ -63,7 +63,8 @@ def run(out: Path, fits: int = 100) -> None:
             + __doc__.split("\n\n")[0].replace("\n", " ") + "\n\n"
             + markdown_table(rows, floatfmt=".4g")
             + f"\n{held} of {len(rows)} ratios within {TOLERANCE:.0%} of 1. Stick–slip plans "
-            "are not covered: their sensitivities need the engine's (not built yet).\n\n"
+            "are not covered: the engine has sensitivities now, but no stick–slip plan is "
+            "built on them yet.\n\n"
             f"Command: `rsfbench study design --set fits={fits}`.\n")
     write_output(out / "design.md", text)
     print(text)

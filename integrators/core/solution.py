@@ -19,7 +19,7 @@ if TYPE_CHECKING:
 
 __all__ = ["ReturnCode", "Stats", "Solution", "EVENT_COLUMNS", "TRAJECTORY_UNITS", "Output",
            "RawRun", "DEFAULT_POINTS", "SAVE_LIMIT", "RunNotRepeated", "REPEAT_FACTOR",
-           "REPEAT_CAP"]
+           "REPEAT_CAP", "Sensitivity"]
 
 #: points saved over a run when neither ``save_every`` nor ``max_points`` is given
 DEFAULT_POINTS = 20_000
@@ -195,6 +195,36 @@ class Output:
 
 
 @dataclass
+class Sensitivity:
+    """Forward sensitivities of a solve (``solve(..., sensitivity=("b", "lc"))``): the
+    derivatives of what it saved and of its events table with respect to each parameter of
+    ``names``, in SI units per unit of the parameter (per m for lc, per N/m for stiffness).
+
+    Parameters
+    ----------
+    names : tuple of str
+        The parameters (:data:`problems.directions.SENSITIVE`).
+    y : numpy.ndarray
+        (len(t), 3, len(names)): ∂(v, fs, theta)/∂θ at the saved times, each at its fixed t.
+    events : numpy.ndarray
+        (events, len(EVENT_COLUMNS), len(names)): ∂(each column of the events table)/∂θ.
+    """
+
+    names: tuple
+    y: np.ndarray
+    events: np.ndarray
+
+    def event_frame(self, name: str) -> pd.DataFrame:
+        """∂(events table)/∂``name``: one row per event, the columns of
+        :data:`EVENT_COLUMNS`."""
+        import pandas as pd
+        if name not in self.names:
+            raise ValueError(f"no sensitivity to {name!r}; this solve has {self.names}")
+        return pd.DataFrame(self.events[:, :, self.names.index(name)],
+                            columns=list(EVENT_COLUMNS))
+
+
+@dataclass
 class RawRun:
     """What a backend hands back to :func:`integrators.core.solve`: SI arrays, counters, outcome."""
 
@@ -205,6 +235,7 @@ class RawRun:
     retcode: ReturnCode
     message: str = ""
     meta: dict = field(default_factory=dict)   # a method's own diagnostics (Solution.meta)
+    sensitivity: "Sensitivity | None" = None   # forward sensitivities, when asked for
 
 
 @dataclass
@@ -240,6 +271,8 @@ class Solution:
         What happened, in words (empty on success).
     meta : dict
         The method's own diagnostics.
+    sensitivity : Sensitivity, optional
+        Forward sensitivities, when the solve was asked for them.
     rerun : callable, optional
         Repeats the solve saving at given times (s); set by :func:`~integrators.solve`.
     """
@@ -256,6 +289,8 @@ class Solution:
     retcode: ReturnCode
     message: str = ""
     meta: dict = field(default_factory=dict)
+    #: the forward sensitivities, when the solve was asked for them (:class:`Sensitivity`)
+    sensitivity: Sensitivity | None = None
     #: repeats this solve saving at given times (``rerun(times) -> Solution``): set by
     #: :func:`integrators.core.solve.solve`; None in a Solution built otherwise, which
     #: ``sol(t)`` then refuses

@@ -60,7 +60,8 @@ def _check_arguments(problem, algorithm, wall_budget) -> None:
 
 def solve(problem: SpringSlider, algorithm: Algorithm, *, save_every: float | None = None,
           max_points: int | None = None, save_at=None, wall_budget: float | None = None,
-          progress: bool = False) -> Solution:
+          progress: bool = False, sensitivity=None,
+          sensitivity_error: bool = True) -> Solution:
     """Integrate ``problem`` with ``algorithm`` from t = 0 to ``problem.t_end``.
 
     The saved grid never changes the steps a method takes, and events are recorded exactly
@@ -97,6 +98,12 @@ def solve(problem: SpringSlider, algorithm: Algorithm, *, save_every: float | No
         a tenth of the budget), then starts the clock.
     progress : bool
         Show a progress bar.
+    sensitivity : str or sequence of str, optional
+        Parameters to differentiate by (``("b", "lc")``): ``Solution.sensitivity`` holds the
+        derivatives of the saved states and events (Rodas5P; docs/sensitivities.md).
+    sensitivity_error : bool
+        Put the sensitivities' error in the step control (default True; False: the steps
+        taken without them, the derivatives of that solution).
 
     Returns
     -------
@@ -119,24 +126,47 @@ def solve(problem: SpringSlider, algorithm: Algorithm, *, save_every: float | No
         raise ValueError(f"{algorithm.name} saves at its own step ends: save_at needs a method "
                          "with dense output")
     output.times(problem.t_end)             # validates the decimation now, not mid-run
+    directions = _directions(problem, algorithm, sensitivity)
     if wall_budget is not None:
         _compile_once(problem, algorithm, wall_budget)
     budget = Budget(wall_s=wall_budget, start=time.perf_counter())
     bar = _progress_bar(problem, algorithm) if progress else None
     try:
-        # trial steps of adaptive methods overflow exp(ln v) before being rejected: expected,
-        # and a run that ends non-finite is a retcode anyway
-        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-            raw = algorithm.run(problem, output, budget, bar.update_to if bar else None)
-    except Exception as exc:  # a library failure is a result, not a crash of the caller
-        raw = RawRun(t=np.empty(0), y=np.empty((0, 3)), events=np.empty((0, len(EVENT_COLUMNS))),
-                     stats=Stats(), retcode=ReturnCode.FAILURE,
-                     message=f"{type(exc).__name__}: {exc}")
+        raw = _run(problem, algorithm, output, budget, bar, directions, sensitivity_error)
     finally:
         if bar:
             bar.close()
     raw.stats = dataclasses.replace(raw.stats, wall_s=time.perf_counter() - budget.start)
     return _solution(problem, algorithm, raw)
+
+
+def _run(problem, algorithm, output, budget, bar, directions, sensitivity_error) -> RawRun:
+    """The backend's run; a library failure is a result (a FAILURE RawRun), not a crash."""
+    try:
+        # trial steps of adaptive methods overflow exp(ln v) before being rejected: expected,
+        # and a run that ends non-finite is a retcode anyway
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            update = bar.update_to if bar else None
+            if not directions:
+                return algorithm.run(problem, output, budget, update)
+            return algorithm.run(problem, output, budget, update, sensitivity=directions,
+                                 sensitivity_error=bool(sensitivity_error))
+    except Exception as exc:  # a library failure is a result, not a crash of the caller
+        return RawRun(t=np.empty(0), y=np.empty((0, 3)),
+                      events=np.empty((0, len(EVENT_COLUMNS))), stats=Stats(),
+                      retcode=ReturnCode.FAILURE, message=f"{type(exc).__name__}: {exc}")
+
+
+def _directions(problem: SpringSlider, algorithm: Algorithm, sensitivity) -> tuple:
+    """The :class:`problems.directions.Direction` objects of ``sensitivity`` (empty: none), or
+    ValueError for a method without forward sensitivities or a name the problem lacks."""
+    if sensitivity is None:
+        return ()
+    if not getattr(algorithm, "sensitive", False):
+        raise ValueError(f"sensitivity: {algorithm.name} has no forward sensitivities; "
+                         "Rodas5P has")
+    from problems.directions import direction, sensitivity_names
+    return tuple(direction(problem, n) for n in sensitivity_names(problem, sensitivity))
 
 
 def short_piece(problem: SpringSlider, fraction: float = 1e-3) -> SpringSlider:
@@ -210,7 +240,7 @@ def _solution(problem: SpringSlider, algorithm: Algorithm, raw: RawRun) -> Solut
     return Solution(problem=problem, algorithm=algorithm, t=raw.t, v=v, fs=fs, ft=ft, theta=theta,
                     event_array=np.asarray(raw.events, dtype=float).reshape(-1, len(EVENT_COLUMNS)),
                     stats=raw.stats, retcode=raw.retcode, message=raw.message,
-                    meta=dict(raw.meta),
+                    meta=dict(raw.meta), sensitivity=raw.sensitivity,
                     rerun=functools.partial(_save_at, problem, algorithm))
 
 

@@ -96,7 +96,7 @@ def _attempt(p, hs, ws, z, f, z1, f1, D):
 @njit(**engine.NO_NRT)
 def kernel(ws, sc, st, p, Z, G, dirs, grid, saved, ev, n_max):
     return engine.run(engine.prepare_nothing, _attempt, engine.nr_reject, engine.nr_accept,
-                      ws, sc, st, p, Z, G, dirs, grid, saved, ev, n_max)
+                      ws, sc, st, p, Z, G, dirs, grid, saved, ev, n_max, engine.no_sense, ())
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

@@ -25,6 +25,7 @@ from integrators.core.registry import AdaptiveAlgorithm
 from integrators.core.solution import RawRun, ReturnCode, Stats
 from integrators.own import batch as B
 from integrators.own import engine as E
+from integrators.own import sensitivity as SE
 from problems.formulations import from_ode_state
 
 __all__ = ["CompiledAlgorithm", "failure", "CHUNK_STEPS"]
@@ -58,6 +59,14 @@ def failure(status: int, t_stop: float, max_steps: int, wall_s: float | None,
     }[status]
 
 
+def _sensitivity_arrays(directions, n_grid: int, n_events: int, error_control: bool):
+    """The arrays of :func:`integrators.own.sensitivity.sense` for ``directions`` (None: a
+    plain solve)."""
+    if not directions:
+        return None
+    return SE.arrays(SE.direction_matrix(directions), n_grid, n_events, error_control)
+
+
 class CompiledAlgorithm(AdaptiveAlgorithm):
     """An adaptive method of this project on the compiled engine: the whole solve (events,
     loading switches, save grid, budgets) runs in numba, so it offers the numba tier only."""
@@ -84,7 +93,11 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
         import numba
         return f"numba {numba.__version__}"
 
-    def run(self, problem, output, budget, progress):
+    def run(self, problem, output, budget, progress, sensitivity=(), sensitivity_error=False):
+        """The solve; with ``sensitivity`` (:class:`problems.directions.Direction` objects)
+        also the forward sensitivities along them (:mod:`integrators.own.sensitivity`), in
+        ``RawRun.sensitivity``, with their error in the step control if
+        ``sensitivity_error``."""
         nd = problem.nondimensional()
         grid_t = output.times(problem.t_end)
         # the kernel saves the start as the grid's first point: one not asked for is dropped
@@ -101,14 +114,20 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
         n_max = CHUNK_STEPS if progress is not None else LONG_CHUNK_STEPS
         # the scratch arrays made by numpy (the compiled makers' boxing costs microseconds)
         ws, sc = type(self).workspace.py_func(), E.scratch.py_func()
-        announce_compile(type(self).kernel, f"the {self.name} kernel")
+        sa = _sensitivity_arrays(sensitivity, len(grid), len(ev), sensitivity_error)
+        kernel = type(self).kernel if sa is None else type(self).sensitive_kernel
+        announce_compile(kernel, f"the {self.name} kernel")
         kernel_s = 0.0
         while True:
             start = time.perf_counter()
-            status = type(self).kernel(ws, sc, st, p, Z, G, _DIRS, grid, saved, ev, n_max)
+            status = (kernel(ws, sc, st, p, Z, G, _DIRS, grid, saved, ev, n_max) if sa is None
+                      else kernel(ws, sc, st, p, Z, G, _DIRS, grid, saved, ev, n_max, sa))
             kernel_s += time.perf_counter() - start
             if status == E.GROW:
                 ev = np.concatenate([ev, np.empty_like(ev)])
+                if sa is not None:
+                    sa = sa[:9] + (np.concatenate([sa[9], np.full_like(sa[9], np.nan)]),) \
+                        + sa[10:]
             elif status == E.CHUNK:
                 if progress is not None:
                     progress(st[E.CURSOR] * nd.time_scale)
@@ -121,9 +140,19 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
             progress(st[E.CURSOR] * nd.time_scale)
         raw = self._raw(problem, nd, status, st, Z, grid_t, saved, ev, budget)
         raw.meta["kernel_s"] = kernel_s
+        if sa is not None:
+            raw.sensitivity = SE.physical(problem, sensitivity, saved[:len(raw.t)], sa,
+                                          ev[:int(st[E.REC + N_EVENTS])])
         if unasked:
             raw.t, raw.y = raw.t[1:], raw.y[1:]
+            if raw.sensitivity is not None:
+                raw.sensitivity.y = raw.sensitivity.y[1:]
         return raw
+
+    #: has forward sensitivities (:mod:`integrators.own.sensitivity`: Rodas5P's stages), and
+    #: the kernel that carries them
+    sensitive: ClassVar[bool] = False
+    sensitive_kernel: ClassVar[Callable | None] = None
 
     def _start(self, nd, deadline: float):
         """The arrays (st, p, Z, G) of a solve of ``nd`` (:func:`integrators.own.engine.

@@ -76,7 +76,7 @@ from problems.loading import H_TAU_FAST, LN_E_HOLD, load_segment
 __all__ = ["run", "scratch", "NO_NRT", "fixed_steps", "rhs", "jacobian", "hermite", "new_state",
            "P", "ST", "ZROW", "DONE", "CHUNK", "GROW", "NONFINITE", "UNDERFLOW", "MAX_STEPS",
            "WALL_TIME", "prepare_jacobian", "prepare_nothing", "nr_reject", "nr_accept",
-           "rodas_reject", "rodas_accept", "pred_reject", "pred_accept"]
+           "rodas_reject", "rodas_accept", "pred_reject", "pred_accept", "no_sense"]
 
 # --- layouts -------------------------------------------------------------------------------
 #: st: the last step [TAU_OLD, TAU], its proposed successor H, the CURSOR ≤ TAU up to which
@@ -661,12 +661,16 @@ def _hand_on(st, Z, tau, row):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def run(prepare, attempt, reject, accept, ws, sc, st, p, Z, G, dirs, grid, saved, ev, n_max):
+def run(prepare, attempt, reject, accept, ws, sc, st, p, Z, G, dirs, grid, saved, ev, n_max,
+        sense, sa):
     """The solve (module docstring), resumed from the state in ``st``, ``Z``, ``G`` and ``p``:
     at most ``n_max`` accepted steps. ``ws``: the method's workspace, ``sc``: the engine's
     (:func:`scratch`); ``grid``: the save times (τ), ``saved``: the states there; ``ev``: the
     events table. Returns DONE, CHUNK, GROW (``ev`` full), NONFINITE, UNDERFLOW, MAX_STEPS or
-    WALL_TIME; the counters are in ``st``.
+    WALL_TIME; the counters are in ``st``. ``sense(op, arg, st, p, Z, G, ws, grid, sa)`` is told
+    of every step, root, save, segment end and restart (the ``SENSE_*`` codes), before the
+    recorder sees them, so that forward sensitivities (:mod:`integrators.own.sensitivity`, in
+    the arrays ``sa``) can follow the solve; :func:`no_sense` for a plain solve.
 
     The caller compiles it without numba's reference counting (``_nrt=False``, see
     :data:`NO_NRT`), so it allocates nothing: every array comes in as an argument."""
@@ -689,12 +693,16 @@ def run(prepare, attempt, reject, accept, ws, sc, st, p, Z, G, dirs, grid, saved
                     for i in range(3):
                         saved[k, i] = Z[_ZC, i]
                     k += 1
+                k_first = st[NEXT_SAVE]
                 st[NEXT_SAVE] = k
+                sense(SENSE_SAVE_HANDED, k_first, st, p, Z, G, ws, grid, sa)
                 return DONE
             e, t_bound = load_segment(hist, tau, st[FAST_UNTIL], tau_end, tiny)
+            sense(SENSE_LOAD, tau, st, p, Z, G, ws, grid, sa)
             st[LOAD0] = st[LOAD0] + p[_E] * (tau - st[TAU0])     # the load at τ
             st[TAU0] = tau
             start(st, p, Z, G, tau, Z[_ZC], e, t_bound, D)
+            sense(SENSE_RESTART, tau, st, p, Z, G, ws, grid, sa)
             st[NEED_START] = 0.0
             if not _finite(Z[_F]):
                 return NONFINITE
@@ -703,8 +711,11 @@ def run(prepare, attempt, reject, accept, ws, sc, st, p, Z, G, dirs, grid, saved
                 return GROW
             found = _scan(st, p, Z, G, dirs, stick_peaks, st[TAU], scan_w)
             t_ret = st[T_RET]
+            k0 = st[NEXT_SAVE]
             _save_until(st, Z, grid, saved, t_ret, not found, zt)
+            sense(SENSE_SAVE, k0, st, p, Z, G, ws, grid, sa)
             if found:
+                sense(SENSE_ROOT, t_ret, st, p, Z, G, ws, grid, sa)
                 z = Z[_ZR]
                 load = st[LOAD0] + p[_E] * (t_ret - st[TAU0])
                 ended = False
@@ -721,9 +732,11 @@ def run(prepare, attempt, reject, accept, ws, sc, st, p, Z, G, dirs, grid, saved
                     st[FAST_UNTIL] = t_ret + hist[H_TAU_FAST]
                     st[NEED_START] = 1.0
                 continue
+            sense(SENSE_STEP_END, st[TAU], st, p, Z, G, ws, grid, sa)
             observe(rec, Z[_Z, 0])              # the step's end, its roots done
             _hand_on(st, Z, st[TAU], _Z)
         if st[CURSOR] >= st[T_BOUND]:           # the end of the segment: restart or done
+            sense(SENSE_SEGMENT_END, st[TAU], st, p, Z, G, ws, grid, sa)
             observe(rec, Z[_Z, 0])
             _hand_on(st, Z, st[TAU], _Z)
             st[NEED_START] = 1.0
@@ -746,6 +759,9 @@ def run(prepare, attempt, reject, accept, ws, sc, st, p, Z, G, dirs, grid, saved
             tau, h = _arrest(st, p, Z, z0, f0, z1, f1, D, st[T_BOUND])
             if tau < 0.0:
                 return UNDERFLOW
+            sense(SENSE_ARREST, tau, st, p, Z, G, ws, grid, sa)
+        else:
+            sense(SENSE_STEP, tau, st, p, Z, G, ws, grid, sa)
         n += 1
         st[STEPS] += 1
         if tau - st[TAU] <= FLOOR_REL * st[TAU]:
@@ -755,12 +771,29 @@ def run(prepare, attempt, reject, accept, ws, sc, st, p, Z, G, dirs, grid, saved
         st[TAU_OLD], st[TAU], st[H] = st[TAU], tau, h
         roots(p, z_now, g)
         if not _crossed(G, g, dirs, stick_peaks):   # else the scan at the top places them
+            k0 = st[NEXT_SAVE]
             _save_until(st, Z, grid, saved, tau, True, zt)
+            sense(SENSE_SAVE, k0, st, p, Z, G, ws, grid, sa)
+            sense(SENSE_STEP_END, tau, st, p, Z, G, ws, grid, sa)
             observe(rec, z_now[0])              # the step's end (one comparison a step)
             carry_signs(g_cur, g)
             st[CURSOR] = tau
             _copy(g, g_cur)
             _hand_on(st, Z, tau, _Z)
+
+
+#: what :func:`run` tells ``sense``: a step accepted (its start in Z[ZO], h in st[HACC]), an
+#: arrest taken, the save points from ``arg`` on filled, the ones from ``arg`` on given the
+#: state handed on, a root located at τ = ``arg`` (before the recorder sees it), a step's end
+#: or a segment's end observed, the load at a restart about to move on, a restart made
+(SENSE_STEP, SENSE_ARREST, SENSE_SAVE, SENSE_SAVE_HANDED, SENSE_ROOT, SENSE_STEP_END,
+ SENSE_SEGMENT_END, SENSE_LOAD, SENSE_RESTART) = range(9)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def no_sense(op, arg, st, p, Z, G, ws, grid, sa):
+    """The ``sense`` of a plain solve: nothing."""
+    return None
 
 
 @njit(cache=True, nogil=True)

@@ -86,7 +86,7 @@ def _attempt(p, hs, ws, z0, f0, z1, f1, D):
 @njit(**engine.NO_NRT)
 def kernel(ws, sc, st, p, Z, G, dirs, grid, saved, ev, n_max):
     return engine.run(engine.prepare_jacobian, _attempt, engine.rodas_reject, engine.rodas_accept,
-                      ws, sc, st, p, Z, G, dirs, grid, saved, ev, n_max)
+                      ws, sc, st, p, Z, G, dirs, grid, saved, ev, n_max, engine.no_sense, ())
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

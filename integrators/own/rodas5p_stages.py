@@ -1,0 +1,178 @@
+"""Rodas5P's tableau, its stage loop and the stages' derivatives: what the engine's Rodas5P
+(:mod:`integrators.own.rodas5p`), its forward sensitivities (:mod:`integrators.own.sensitivity`)
+and the laboratory's two-state model (:mod:`benchmarks.lab.two_state`) share. The method, the
+tableau's source and the controller are described in :mod:`integrators.own.rodas5p`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from integrators.own.linalg import factor, lu_solve3
+
+__all__ = ["stages", "workspace", "stage_sensitivities", "sensitivity_workspace",
+           "dense_sensitivities", "A5P", "C5P", "G5P", "H5P"]
+
+# Rodas5P (Steinebach 2023), from OrdinaryDiffEq.jl's Rodas5PTableau; C padded to 8×8
+G5P = 0.21193756319429014
+A5P = np.zeros((8, 8))
+A5P[1, :1] = [3.0]
+A5P[2, :2] = [2.849394379747939, 0.45842242204463923]
+A5P[3, :3] = [-6.954028509809101, 2.489845061869568, -10.358996098473584]
+A5P[4, :4] = [2.8029986275628964, 0.5072464736228206, -0.3988312541770524, -0.04721187230404641]
+A5P[5, :5] = [-7.502846399306121, 2.561846144803919, -11.627539656261098, -0.18268767659942256,
+              0.030198172008377946]
+A5P[6, :6] = list(A5P[5, :5]) + [1.0]
+A5P[7, :7] = list(A5P[5, :5]) + [1.0, 1.0]
+C5P = np.zeros((8, 8))
+C5P[1, :1] = [-14.155112264123755]
+C5P[2, :2] = [-17.97296035885952, -2.859693295451294]
+C5P[3, :3] = [147.12150275711716, -1.41221402718213, 71.68940251302358]
+C5P[4, :4] = [165.43517024871676, -0.4592823456491126, 42.90938336958603, -5.961986721573306]
+C5P[5, :5] = [24.854864614690072, -3.0009227002832186, 47.4931110020768, 5.5814197821558125,
+              -0.6610691825249471]
+C5P[6, :6] = [30.91273214028599, -3.1208243349937974, 77.79954646070892, 34.28646028294783,
+              -19.097331116725623, -28.087943162872662]
+C5P[7, :7] = [37.80277123390563, -3.2571969029072276, 112.26918849496327, 66.9347231244047,
+              -40.06618937091002, -54.66780262877968, -9.48861652309627]
+H5P = np.array([
+    [25.948786856663858, -2.5579724845846235, 10.433815404888879, -2.3679251022685204,
+     0.524948541321073, 1.1241088310450404, 0.4272876194431874, -0.17202221070155493],
+    [-9.91568850695171, -0.9689944594115154, 3.0438037242978453, -24.495224566215796,
+     20.176138334709044, 15.98066361424651, -6.789040303419874, -6.710236069923372],
+    [11.419903575922262, 2.8879645146136994, 72.92137995996029, 80.12511834622643,
+     -52.072871366152654, -59.78993625266729, -0.15582684282751913, 4.883087185713722]])
+
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def workspace():
+    """J, M (the LU), piv, K (the stages), u (a stage's argument), fb (f there)."""
+    return (np.empty((3, 3)), np.empty((3, 3)), np.empty(3, np.int64), np.empty((8, 3)),
+            np.empty(3), np.empty(3))
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def stages(rhs, p, rtol, atol, hs, ws, z0, f0, z1, D):
+    """One attempt of a step ``hs`` from ``z0`` (``f0`` = f(z0), ws[0] = J(z0)) for the
+    right-hand side ``rhs(p, z, out)``: z1 into ``z1``, the dense output's D (an accepted
+    attempt only); returns the scaled error (inf if M is singular or the error not finite).
+    The slider's kernel and the laboratory's two-state model (:mod:`benchmarks.lab.two_state`)
+    share it."""
+    J, M, piv, K, u, fb = ws
+    hg = hs * G5P
+    regular = factor(hg, J, M, piv)
+    for s in range(8):
+        for i in range(3):
+            acc = z0[i]
+            for j in range(s):
+                acc += A5P[s, j] * K[j, i]
+            u[i] = acc
+        if s == 0:
+            for i in range(3):
+                fb[i] = f0[i]
+        else:
+            rhs(p, u, fb)
+        for i in range(3):
+            acc = 0.0
+            for j in range(s):
+                acc += C5P[s, j] * K[j, i]
+            K[s, i] = hg * fb[i] + G5P * acc
+        lu_solve3(M, piv, K, s)
+    errmax = 0.0
+    for i in range(3):
+        z1[i] = u[i] + K[7, i]
+        r = abs(K[7, i]) / (atol + rtol * max(abs(z0[i]), abs(z1[i])))
+        if not r <= errmax:         # max() would drop a NaN and accept the trial
+            errmax = r
+    if errmax <= 1.0:               # the dense output of an accepted step only
+        for i in range(3):
+            for r in range(3):
+                acc = 0.0
+                for s in range(8):
+                    acc += H5P[r, s] * K[s, i]
+                D[r, i] = acc
+    return errmax if regular and np.isfinite(errmax) else np.inf
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def sensitivity_workspace(n_s):
+    """Room for :func:`stage_sensitivities` with ``n_s`` directions: the stages' Jacobians and
+    ∂f/∂θ, the second derivatives at the step's start, the stages' dK, dJ, a stage argument's
+    dU, a right-hand side."""
+    return (np.empty((8, 3, 3)), np.empty((8, 3, n_s)), np.empty((3, 3, 3)),
+            np.empty((3, 3, n_s)), np.empty((n_s, 8, 3)), np.empty((3, 3)), np.empty(3),
+            np.empty((1, 3)))
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def stage_sensitivities(partials, second, p, dirs, hs, ws, sw, z0, S):
+    """The forward sensitivities S (row n: ∂z/∂θ_n, one row per direction of ``dirs``) from
+    the accepted step ``hs`` at ``z0`` to its end, in place (the dense output's:
+    :func:`dense_sensitivities`): the step's stages differentiated (internal
+    differentiation on the step's own h, M's factors reused; ``ws`` as :func:`stages` left it)::
+
+        M dK_s = hγ (J(u_s) dU_s + ∂f/∂θ(u_s)) + γ Σ_l C_sl dK_l + hγ dJ K_s,
+        dU_s = S + Σ_l A_sl dK_l,   dJ = ∂J/∂z·S + ∂J/∂θ at z0,   S ← dU_7 + dK_7
+
+    (dJ K_s because M = I − hγ J(z0) depends on θ). The model gives ``partials(p, dirs, z,
+    jac, fth, s)``: ∂f/∂z into jac[s], ∂f/∂θ into fth[s]'s columns; and ``second(p, dirs, z,
+    hyy, hyt)``: ∂²f/∂z∂z, ∂²f/∂z∂θ. Allocates nothing."""
+    M, piv, K, u = ws[1], ws[2], ws[3], ws[4]       # ws may carry more (a kernel's own)
+    jst, fst, hyy, hyt, dk, dj, du, rhs = sw
+    hg = hs * G5P
+    partials(p, dirs, z0, jst, fst, 0)
+    second(p, dirs, z0, hyy, hyt)
+    for s in range(1, 8):
+        for i in range(3):
+            acc = z0[i]
+            for j in range(s):
+                acc += A5P[s, j] * K[j, i]
+            u[i] = acc
+        partials(p, dirs, u, jst, fst, s)
+    for n in range(S.shape[0]):
+        for i in range(3):
+            for j in range(3):
+                acc = hyt[i, j, n]
+                for l in range(3):
+                    acc += hyy[i, j, l] * S[n, l]
+                dj[i, j] = acc
+        for s in range(8):
+            if s < 6:
+                for i in range(3):
+                    acc = S[n, i]
+                    for j in range(s):
+                        acc += A5P[s, j] * dk[n, j, i]
+                    du[i] = acc
+            else:                       # A's rows 6 and 7 are row s − 1 plus e_(s−1)
+                for i in range(3):
+                    du[i] += dk[n, s - 1, i]
+            for i in range(3):
+                acc = fst[s, i, n]
+                for j in range(3):
+                    acc += jst[s, i, j] * du[j] + dj[i, j] * K[s, j]
+                cc = 0.0
+                for j in range(s):
+                    cc += C5P[s, j] * dk[n, j, i]
+                rhs[0, i] = hg * acc + G5P * cc
+            lu_solve3(M, piv, rhs, 0)
+            for i in range(3):
+                dk[n, s, i] = rhs[0, i]
+        for i in range(3):
+            S[n, i] = du[i] + dk[n, 7, i]
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def dense_sensitivities(sw, dD):
+    """The dense output's dD (dD[r, n] the derivative of D[r] along direction n) of the step
+    :func:`stage_sensitivities` last differentiated (its dK in ``sw``): wanted only where a
+    step has a save point or a root, so computed apart."""
+    dk = sw[4]
+    for n in range(dD.shape[1]):
+        for i in range(3):
+            for r in range(3):
+                acc = 0.0
+                for s in range(8):
+                    acc += H5P[r, s] * dk[n, s, i]
+                dD[r, n, i] = acc

@@ -1,0 +1,169 @@
+"""How the nondimensional problem moves with one physical parameter: the direction a forward
+sensitivity follows (:mod:`integrators.own.sensitivity`).
+
+The ODE form (:mod:`problems.formulations`) sees a physical parameter θ only through the
+problem vector q (β, C, D, E, G, γ), the time scale Lc/v0 (which turns the fixed times in
+seconds — the end, a loading switch, the overshoot's duration — into τ), the loading rates and
+the initial state. Each entry of q is a monomial in the physical parameters (with mass:
+β = b/a, C = k Lc²/(m v0²), D = a Fn Lc/(m v0²), E = vL/v0, G = ηr Lc/(m v0),
+γ = (c/b) k Lc/Fn), so its derivative is exact: ∂q/∂θ = q·(power of θ)/θ, or the coefficient
+where θ = 0 (damping, c). The initial state is not a monomial (a :class:`BalancedStart` solves
+for a force balance): its derivative is a central difference of that algebra, no solve, with a
+relative step of 1e−6 (truncation and rounding both ~1e−11 of z0).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from problems.formulations import N_Q, Q_BETA, Q_C, Q_D, Q_E, Q_G, Q_LAWP, to_ode_state
+from problems.loading import ConstantLoading, TwoSpeedLoading
+from problems.slider import SpringSlider, variant
+
+__all__ = ["Direction", "direction", "SENSITIVE", "ALIASES", "sensitivity_names"]
+
+#: the parameters a solve can be differentiated by (:func:`problems.slider.variant`'s names)
+SENSITIVE = ("a", "b", "lc", "c", "stiffness", "mass", "normal_force", "radiation_damping",
+             "vl", "vls", "vlf", "df", "slowdown", "initial_v", "initial_theta", "initial_fs")
+#: short names users type for some of them
+ALIASES = {"k": "stiffness", "m": "mass", "fn": "normal_force", "damping": "radiation_damping",
+           "dc": "lc"}
+#: the relative step of the initial state's central difference (module docstring)
+X0_STEP = 1e-6
+
+
+@dataclass(frozen=True)
+class Direction:
+    """The derivative of what the ODE form sees along one parameter θ (per unit of θ).
+
+    Parameters
+    ----------
+    name : str
+        θ's name (:data:`SENSITIVE`).
+    dq : numpy.ndarray
+        ∂q/∂θ (layout of :mod:`problems.formulations`; its E entry is the slow rate's).
+    de_fast : float
+        ∂E_fast/∂θ of a two-speed loading's overshoot.
+    dtau_fast : float
+        ∂τ_fast/∂θ, the overshoot's duration in τ.
+    dln_ts : float
+        ∂ ln(Lc/v0)/∂θ: a time fixed in seconds moves in τ by −τ times it.
+    dz0 : numpy.ndarray
+        ∂z0/∂θ, the initial ODE state (h, u, s).
+    d_force_h : float
+        ∂(k Lc)/∂θ, newtons per unit of h.
+    d_fn : float
+        ∂Fn/∂θ.
+    d_b : float
+        ∂b/∂θ (the slip law's θ = Ψ b Fn).
+    scale : float
+        |θ| (1 where θ = 0): the size the sensitivities' error test weighs ∂z/∂θ by.
+    """
+
+    name: str
+    dq: np.ndarray
+    de_fast: float
+    dtau_fast: float
+    dln_ts: float
+    dz0: np.ndarray
+    d_force_h: float
+    d_fn: float
+    d_b: float
+    scale: float = 1.0
+
+
+def sensitivity_names(problem: SpringSlider, names) -> tuple[str, ...]:
+    """``names`` (a string "b,lc" or a sequence) as :data:`SENSITIVE` names, aliases resolved;
+    ValueError naming one the problem does not have, a repeat, or a solve without mass."""
+    if isinstance(names, str):
+        names = [n.strip() for n in names.split(",") if n.strip()]
+    names = tuple(ALIASES.get(str(n), str(n)) for n in names)
+    if not names:
+        raise ValueError("sensitivity: name at least one parameter, e.g. ('b', 'lc')")
+    if problem.mass <= 0.0:
+        raise ValueError("sensitivity: the quasi-static limit (mass = 0 kg) has no forward "
+                         "sensitivities yet; give the slider a mass")
+    fields = _fields(problem)
+    for name in names:
+        if name not in fields:
+            raise ValueError(f"sensitivity: {problem.name!r} has no parameter {name!r}; it has "
+                             f"{', '.join(fields)} (aliases: "
+                             f"{', '.join(f'{k}={v}' for k, v in ALIASES.items())})")
+    if len(set(names)) < len(names):
+        raise ValueError(f"sensitivity: a parameter named twice in {names}")
+    return names
+
+
+def _fields(problem: SpringSlider) -> tuple[str, ...]:
+    """The :data:`SENSITIVE` names ``problem`` has."""
+    from problems.slider import variant_fields
+    have = set(variant_fields(problem))
+    if not isinstance(problem.loading, (ConstantLoading, TwoSpeedLoading)):
+        have -= {"vl", "vls", "vlf", "df"}
+    return tuple(n for n in SENSITIVE if n in have)
+
+
+def _value(problem: SpringSlider, name: str) -> float:
+    for obj in (problem.law, problem, problem.loading, problem.initial):
+        if hasattr(obj, name):
+            return float(getattr(obj, name))
+    return float(getattr(problem.initial, name.removeprefix("initial_")))
+
+
+def _z0(problem: SpringSlider) -> np.ndarray:
+    nd = problem.nondimensional()
+    return to_ode_state(nd.law_code, nd.beta, nd.x0)
+
+
+def _dz0(problem: SpringSlider, name: str, value: float) -> np.ndarray:
+    """∂z0/∂θ by a central difference of the initial state's algebra (a forward three-point
+    one where θ − δ is refused, as a damping of 0)."""
+    step = X0_STEP * (abs(value) if value != 0.0 else 1.0)
+    up = _z0(variant(problem, **{name: value + step}))
+    try:
+        down = _z0(variant(problem, **{name: value - step}))
+        return (up - down) / (2.0 * step)
+    except ValueError:
+        up2 = _z0(variant(problem, **{name: value + 2.0 * step}))
+        return (-3.0 * _z0(problem) + 4.0 * up - up2) / (2.0 * step)
+
+
+def direction(problem: SpringSlider, name: str) -> Direction:
+    """The :class:`Direction` of ``problem`` along the parameter ``name`` (one of
+    :func:`sensitivity_names`'s)."""
+    nd = problem.nondimensional()
+    law, m, k, fn = problem.law, problem.mass, problem.stiffness, problem.normal_force
+    lc, v0, a = law.lc, law.v0, law.a
+    dq = np.zeros(N_Q)
+    de_fast = dtau_fast = dln_ts = d_force_h = d_fn = d_b = 0.0
+    beta, c, d, g, gam = nd.beta, nd.c, nd.d, nd.g, nd.law_param
+    if name == "a":
+        dq[Q_BETA], dq[Q_D] = -beta / a, d / a
+    elif name == "b":
+        dq[Q_BETA], d_b = 1.0 / a, 1.0
+        dq[Q_LAWP] = -gam / law.b if law.b != 0.0 else 0.0
+    elif name == "lc":
+        dq[Q_C], dq[Q_D], dq[Q_G], dq[Q_LAWP] = 2 * c / lc, d / lc, g / lc, gam / lc
+        dln_ts, dtau_fast, d_force_h = 1.0 / lc, -nd.tau_fast / lc, k
+    elif name == "c":
+        dq[Q_LAWP] = k * lc / (law.b * fn)
+    elif name == "stiffness":
+        dq[Q_C], dq[Q_LAWP], d_force_h = c / k, gam / k, lc
+    elif name == "mass":
+        dq[Q_C], dq[Q_D], dq[Q_G] = -c / m, -d / m, -g / m
+    elif name == "normal_force":
+        dq[Q_D], dq[Q_LAWP], d_fn = d / fn, -gam / fn, 1.0
+    elif name == "radiation_damping":
+        dq[Q_G] = lc / (m * v0)
+    elif name in ("vl", "vls"):
+        dq[Q_E] = 1.0 / v0
+    elif name == "vlf":
+        de_fast = 1.0 / v0
+    elif name == "df":
+        dtau_fast = v0 / lc
+    value = _value(problem, name)
+    return Direction(name=name, dq=dq, de_fast=de_fast, dtau_fast=dtau_fast, dln_ts=dln_ts,
+                     dz0=_dz0(problem, name, value), d_force_h=d_force_h, d_fn=d_fn, d_b=d_b,
+                     scale=abs(value) if value != 0.0 else 1.0)
