@@ -61,6 +61,11 @@ def warm(names=None, progress: bool = True) -> dict[str, float]:
                     warnings.simplefilter("ignore")
                     compile_ahead(problem, algorithm, wall_budget=1.0)
                 bar.update()
+            if getattr(cls, "sensitive", False):      # its kernel with sensitivities
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")
+                    compile_ahead(problems[0], cls(rtol=1e-6, atol=1e-6), wall_budget=1.0,
+                                  sensitivity=("b",))
             _warm_fixed_steps(cls)
             took[name] = time.perf_counter() - started
     return took

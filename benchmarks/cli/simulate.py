@@ -72,7 +72,8 @@ def cmd_simulate(args) -> int:
     names, algorithm, why = _sensitivity_request(args, problem, algorithm, why)
     grads = args.save and names and args.save.with_name(args.save.stem + ".sensitivity.csv")
     claim_outputs([p for p in (args.save, args.save and args.save.with_name(
-        args.save.name + ".json"), args.plot, grads) if p])   # a user's file: refused now
+        args.save.name + ".json"), args.plot, grads, grads and grads.with_name(
+        grads.name + ".json")) if p])   # a user's file there: refused now
     warm_up(problem, algorithm, wall_budget=args.wall_budget)   # wall_s excludes compiling
     # the run summarised: saved as it always was, unless a method without dense output saves
     # at the rate (its steps are its rule's: it saves the step end at or after each time)
@@ -110,18 +111,20 @@ def _sensitivity_request(args, problem, algorithm, why):
     """(parameter names, the algorithm, why) for --sensitivity: the names checked against the
     problem, and the method Rodas5P at the chosen tolerance when the recommendation is one
     without sensitivities; a named one without them is refused (ValueError)."""
-    if not args.sensitivity:
+    if args.sensitivity is None:
         return (), algorithm, why
     from integrators import make_algorithm
+    from problems.directions import SENSITIVITY_RTOL
     from problems.directions import sensitivity_names
     names = sensitivity_names(problem, args.sensitivity)
     if not getattr(algorithm, "sensitive", False):
         if args.integrator:
             raise ValueError(f"--sensitivity: {algorithm.name} has no forward sensitivities; "
                              "use --integrator Rodas5P")
-        why = (f"Rodas5P at the recommended tolerance (rtol {algorithm.rtol:g}): "
-               f"{algorithm.name} has no forward sensitivities")
-        algorithm = make_algorithm("Rodas5P", rtol=algorithm.rtol, atol=algorithm.atol)
+        tol = min(algorithm.rtol, SENSITIVITY_RTOL)
+        why = (f"Rodas5P at rtol {tol:g} (the recommended {algorithm.name} has no forward "
+               f"sensitivities, and gradients need rtol ≤ {SENSITIVITY_RTOL:g})")
+        algorithm = make_algorithm("Rodas5P", rtol=tol, atol=tol)
     return names, algorithm, why
 
 
@@ -139,15 +142,20 @@ def _sensitivity_summary(sol, path, command: str) -> dict:
     last = ({m: {n: float(per[-1, i, j]) for j, n in enumerate(sens.names)}
              for i, m in enumerate(metrics.METRICS)} if len(per) else {})
     out = {"parameters": list(sens.names), "limit_cycle": metrics.cycle_gradient(sol),
-           "last_event": last,
+           "last_event": last, "note": sens.message,
            "method": "forward sensitivities through Rodas5P's steps and the event roots"}
     if path:
         table = metrics.event_metrics(sol.events, p.normal_force)
         cols = {f"d_{m}/d_{n}": per[:, i, j] for i, m in enumerate(metrics.METRICS)
                 for j, n in enumerate(sens.names)}
         write_table(pd.concat([table, pd.DataFrame(cols)], axis=1), path)
-        out["file"] = str(path)
-    return out
+        side = path.with_name(path.name + ".json")
+        write_output(side, json.dumps(_jsonable(
+            {"tool": version_line(), "command": command, **provenance(),
+             "columns": "each event's metrics (SI) and d(metric)/d(parameter), SI per unit of "
+                        "the parameter", "gradients": out}), indent=2))
+        out["file"], out["about"] = str(path), str(side)
+    return _jsonable(out)
 
 
 def _print_sensitivity(s: dict) -> None:
@@ -157,9 +165,11 @@ def _print_sensitivity(s: dict) -> None:
         return
     which = "limit cycle" if s["limit_cycle"] else "last event (not a limit cycle)"
     say(f"  gradients of the {which}, per unit of each parameter (SI):")
-    say("    " + " " * 20 + "".join(f"{'d/d' + n:>16}" for n in s["parameters"]))
+    width = {n: max(16, len(n) + 5) for n in s["parameters"]}
+    say("    " + " " * 20 + "".join(f"{'d/d' + n:>{width[n]}}" for n in s["parameters"]))
     for m, row in grads.items():
-        say(f"    {m:<20}" + "".join(f"{row[n]:>16.6g}" for n in s["parameters"]))
+        say(f"    {m:<20}" + "".join(f"{row[n]:>{width[n]}.6g}" if row[n] is not None
+                                     else f"{'n/a':>{width[n]}}" for n in s["parameters"]))
     if s.get("file"):
         say(f"  per event   {s['file']}")
 
@@ -295,7 +305,8 @@ def add_parsers(sub) -> None:
                         "fn, damping, vl, vls, vlf, df, the initial state's): the gradients "
                         "of the limit cycle's metrics (SI per unit), from forward "
                         "sensitivities through Rodas5P's steps and event roots; with --save, "
-                        "every event's in FILE.sensitivity.csv (default: none)")
+                        "every event's in FILE.sensitivity.csv; Rodas5P at rtol ≤ 1e-6 "
+                        "unless --integrator says otherwise (default: none)")
     s.set_defaults(func=cmd_simulate)
 
     i = sub.add_parser("integrators", help="list the registry")

@@ -288,6 +288,7 @@ def _summary(inv: Inversion) -> dict:
         "b_range": list(inv.b_range), "lc_range_m": list(inv.lc_range),
         "fit": {"b": f.b, "lc_m": f.lc, "log10_lc": float(np.log10(f.lc)) if f.lc > 0 else None,
                 "misfit": f.misfit, "sigma_b": f.sigma_b, "sigma_log10_lc": f.sigma_log10_lc,
+                "jacobian": f.jacobian,
                 "covariance_b_log10_lc": f.covariance.tolist(), "success": f.success,
                 "message": f.message, "n_solves": f.n_solves},
         "profiles": {k: {"low": p.low, "high": p.high, "open_low": p.open_low,

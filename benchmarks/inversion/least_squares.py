@@ -7,9 +7,11 @@ Jacobian there (Gauss–Newton; the residuals are already scaled by σ, or white
 
 Starts: the misfit over a coarse grid of the box (one ensemble batch), the ``starts`` best points
 with a limit cycle. Each start runs ``scipy.optimize.least_squares`` (trust-region reflective,
-within the box) with forward differences of relative step ``diff_step``: the step must stay well
-above the solver's own noise in the metrics (about its tolerance), or the Jacobian is noise. The
-best end point wins; every start's end point is reported.
+within the box) with forward differences of relative step ``diff_step`` (the step must stay well
+above the solver's own noise in the metrics, about its tolerance, or the Jacobian is noise), or
+with exact Jacobians: each point's residuals and their derivatives from one solve with forward
+sensitivities (docs/sensitivities.md). The best end point wins; every start's end point is
+reported.
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ import pandas as pd
 
 from benchmarks.inversion.misfit import Misfit
 
-__all__ = ["fit", "FitResult"]
+__all__ = ["fit", "FitResult", "EXACT_RTOL", "exact_jacobian_applies"]
 
 
 @dataclass
@@ -52,6 +54,8 @@ class FitResult:
         False for a failed fit (no limit cycle on the scan).
     message : str
         The optimiser's message, or why the fit failed.
+    jacobian : str
+        How the Jacobian was made: "forward differences" or "exact (forward sensitivities)".
     """
 
     b: float
@@ -64,6 +68,33 @@ class FitResult:
     starts: pd.DataFrame = field(repr=False)
     success: bool = True
     message: str = ""
+    jacobian: str = "forward differences"
+
+
+#: the loosest tolerance at which ``fit`` takes exact Jacobians by itself
+#: (:data:`problems.directions.SENSITIVITY_RTOL`)
+EXACT_RTOL = 1e-6
+
+
+def exact_jacobian_applies(misfit: Misfit) -> bool:
+    """Does ``fit(..., jacobian="auto")`` take exact Jacobians for ``misfit``?"""
+    alg = getattr(misfit, "algorithm", None)         # (a stand-in misfit may have none)
+    obs = getattr(misfit, "obs", None)
+    return bool(getattr(alg, "sensitive", False) and hasattr(misfit, "residuals_and_jacobian")
+                and getattr(obs, "curve_likelihood", None) is None
+                and alg.rtol is not None and alg.rtol <= EXACT_RTOL)
+
+
+def _jacobian_kind(misfit: Misfit, jacobian: str) -> str:
+    """``fit``'s ``jacobian`` resolved ("auto"), or ValueError for a value it does not take."""
+    if jacobian not in ("differences", "exact", "auto"):
+        raise ValueError(f"jacobian must be 'differences', 'exact' or 'auto', got {jacobian!r}")
+    if jacobian == "exact" and getattr(misfit.obs, "curve_likelihood", None) is not None:
+        raise ValueError("jacobian='exact' covers ΔT and Δμ only: with slip-weakening curves "
+                         "use 'differences'")
+    if jacobian == "auto":
+        return "exact" if exact_jacobian_applies(misfit) else "differences"
+    return jacobian
 
 
 class _ExactResiduals:
@@ -91,7 +122,7 @@ class _ExactResiduals:
 
 def fit(misfit: Misfit, b_range=(0.005, 0.02), lc_range=(1e-8, 1e-5), grid: int = 9,
         starts: int = 3, diff_step: float = 1e-3, max_solves: int = 2000,
-        start=None, jacobian: str = "differences") -> FitResult:
+        start=None, jacobian: str = "auto") -> FitResult:
     """Fit (b, Lc) within the box ``b_range`` × ``lc_range``, from the ``starts`` best points
     of a ``grid`` × ``grid`` scan (module docstring), or from one ``start`` without a scan. A
     box with no limit cycle on its scan is a failed fit (``success`` False), not a guess.
@@ -111,9 +142,11 @@ def fit(misfit: Misfit, b_range=(0.005, 0.02), lc_range=(1e-8, 1e-5), grid: int 
     start : tuple of float, optional
         One start (b, Lc in m) instead of the scan.
     jacobian : str
-        ``"differences"`` (forward differences of ``diff_step``, default) or ``"exact"``: the
-        residuals and their Jacobian from one solve with forward sensitivities each
-        (:meth:`Misfit.residuals_and_jacobian`; ΔT and Δμ only, without curves).
+        ``"differences"`` (forward differences of ``diff_step``), ``"exact"`` (the residuals
+        and their Jacobian from one solve with forward sensitivities each,
+        :meth:`Misfit.residuals_and_jacobian`; ΔT and Δμ only, without curves) or ``"auto"``
+        (default): exact when the misfit's method has sensitivities at rtol ≤
+        :data:`EXACT_RTOL` and there are no curves, else differences.
 
     Returns
     -------
@@ -130,6 +163,7 @@ def fit(misfit: Misfit, b_range=(0.005, 0.02), lc_range=(1e-8, 1e-5), grid: int 
     if not (0 <= b_lo < b_hi and 0 < lc_lo < lc_hi):
         raise ValueError(f"the box must have 0 ≤ b_lo < b_hi and 0 < lc_lo < lc_hi, got "
                          f"b_range = {b_range!r}, lc_range = {lc_range!r}")
+    jacobian = _jacobian_kind(misfit, jacobian)
     lo, hi = np.array([b_lo, np.log10(lc_lo)]), np.array([b_hi, np.log10(lc_hi)])
     if start is not None:
         ok, n_solves = pd.DataFrame({"b": [float(start[0])], "lc": [float(start[1])]}), 0
@@ -143,8 +177,6 @@ def fit(misfit: Misfit, b_range=(0.005, 0.02), lc_range=(1e-8, 1e-5), grid: int 
         return FitResult(np.nan, np.nan, np.nan, np.full((2, 2), np.nan), np.nan, np.nan,
                          n_solves, pd.DataFrame(), success=False,
                          message=f"no point of the {grid} × {grid} scan has a limit cycle")
-    if jacobian not in ("differences", "exact"):
-        raise ValueError(f"jacobian must be 'differences' or 'exact', got {jacobian!r}")
     count = {"n": 0}
 
     def residuals(x):
@@ -152,7 +184,7 @@ def fit(misfit: Misfit, b_range=(0.005, 0.02), lc_range=(1e-8, 1e-5), grid: int 
         return misfit.residuals(x[0], 10.0 ** x[1])
 
     exact = _ExactResiduals(misfit, count)
-    how = (dict(jac=exact.jacobian) if jacobian == "exact" else dict(diff_step=diff_step))
+    how = dict(jac=exact.jacobian) if jacobian == "exact" else dict(diff_step=diff_step)
     rows, best = [], None
     for start in ok.itertuples():
         x0 = np.clip([start.b, np.log10(start.lc)], lo, hi)
@@ -165,12 +197,12 @@ def fit(misfit: Misfit, b_range=(0.005, 0.02), lc_range=(1e-8, 1e-5), grid: int 
         if best is None or value < best[1]:
             best = (res, value)
     res, value = best
-    return _result(res, value, n_solves + count["n"], rows)
+    return _result(res, value, n_solves + count["n"], rows, jacobian)
 
 
-def _result(res, value: float, n_solves: int, rows: list) -> FitResult:
+def _result(res, value: float, n_solves: int, rows: list, jacobian: str) -> FitResult:
     """The :class:`FitResult` of the best start's ``res`` (scipy's), its Gauss–Newton
-    covariance from the Jacobian there."""
+    covariance from the Jacobian there (made by ``jacobian``: "exact" or "differences")."""
     try:
         cov = np.linalg.inv(res.jac.T @ res.jac)
     except np.linalg.LinAlgError:
@@ -180,4 +212,6 @@ def _result(res, value: float, n_solves: int, rows: list) -> FitResult:
     return FitResult(b=float(res.x[0]), lc=float(10.0 ** res.x[1]), misfit=value, covariance=cov,
                      sigma_b=float(sd[0]), sigma_log10_lc=float(sd[1]),
                      n_solves=n_solves, starts=pd.DataFrame(rows), success=bool(res.success),
-                     message=res.message)
+                     message=res.message,
+                     jacobian=("exact (forward sensitivities)" if jacobian == "exact"
+                               else "forward differences"))

@@ -141,39 +141,57 @@ class Misfit:
 
     def residuals_and_jacobian(self, values: dict) -> tuple[np.ndarray, np.ndarray]:
         """The residuals (ΔT, Δμ in σ, :meth:`residuals`) at the problem with ``values``
-        (parameter name → value, SI; b and lc among them or kept) and their derivatives with
-        respect to each of ``values``' parameters (2 × len(values)), from one solve with
-        forward sensitivities (Rodas5P at this misfit's tolerance; no finite differences).
-        Without a limit cycle: :data:`NO_CYCLE_RESIDUAL` twice and a zero Jacobian (the
-        misfit's plateau). Curves are not differentiated: ValueError with curves."""
-        from benchmarks.physics.metrics import cycle_gradient, summarize
-        from integrators import make_algorithm, solve
+        (parameter name → value, SI; the others kept) and their derivatives with respect to
+        each of ``values``' parameters (2 × len(values)), from one solve with forward
+        sensitivities: Rodas5P at this misfit's tolerance, at most
+        :data:`problems.directions.SENSITIVITY_RTOL`. Where a cycle has no derivative
+        (an arrest in it), forward differences of relative step 1e−3 instead. Without a limit
+        cycle: :data:`NO_CYCLE_RESIDUAL` twice and a zero Jacobian (the misfit's plateau).
+        Curves are not differentiated: ValueError with curves."""
+        from benchmarks.physics.metrics import cycle_gradient
+        from integrators import make_algorithm
+        from problems.directions import SENSITIVITY_RTOL
         from problems.slider import variant
         if self.obs.curve_likelihood is not None:
             raise ValueError("exact Jacobians cover ΔT and Δμ; with slip-weakening curves in "
                              "the likelihood the fit differentiates by differences")
         names = tuple(values)
         problem = variant(self.problem, **{n: float(v) for n, v in values.items()})
-        algorithm = self.algorithm
-        if not getattr(algorithm, "sensitive", False):
-            algorithm = make_algorithm("Rodas5P", rtol=algorithm.rtol, atol=algorithm.atol)
+        tol = min(getattr(self.algorithm, "rtol", None) or SENSITIVITY_RTOL, SENSITIVITY_RTOL)
+        algorithm = make_algorithm("Rodas5P", rtol=tol, atol=tol)
+        r, sol, cycle = self._cycle_residuals(problem, algorithm, names)
+        if cycle is None:
+            return r, np.zeros((2, len(names)))
+        grad = cycle_gradient(sol, cycle)
+        if grad:
+            sigma_t, sigma_mu = getattr(self.obs, "sigmas", (self.obs.sigma_recurrence_s,
+                                                             self.obs.sigma_friction_drop))
+            return r, np.array([[grad["recurrence_s"][n] / sigma_t for n in names],
+                                [grad["friction_drop"][n] / sigma_mu for n in names]])
+        jac = np.zeros((2, len(names)))
+        for j, name in enumerate(names):
+            step = 1e-3 * (abs(float(values[name])) or 1.0)
+            moved = variant(problem, **{name: float(values[name]) + step})
+            jac[:, j] = (self._cycle_residuals(moved, algorithm, ())[0] - r) / step
+        return r, jac
+
+    def _cycle_residuals(self, problem, algorithm, names):
+        """(ΔT, Δμ residuals in σ, the solution, its cycle or None) of one solve of
+        ``problem`` (with the sensitivities ``names``), counted as this misfit's solves."""
+        from benchmarks.physics.metrics import summarize
+        from integrators import solve
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UnitWarning)
-            sol = solve(problem, algorithm, max_points=2, sensitivity=names,
+            sol = solve(problem, algorithm, max_points=2, sensitivity=names or None,
                         wall_budget=self.wall_budget)
         self._counts["solves"] += 1
         self._counts["failed"] += int(not sol.success)
         self._counts["over_budget"] += int(sol.retcode.value in BUDGET_STOPS)
         cycle = summarize(sol)
-        grad = cycle_gradient(sol, cycle) if cycle.classification in CYCLES else {}
-        if not grad:
-            return np.full(2, NO_CYCLE_RESIDUAL), np.zeros((2, len(names)))
+        if cycle.classification not in CYCLES:
+            return np.full(2, NO_CYCLE_RESIDUAL), sol, None
         s = scores([cycle.recurrence_s], [cycle.friction_drop], [True], self.obs)
-        sigma_t, sigma_mu = getattr(self.obs, "sigmas", (self.obs.sigma_recurrence_s,
-                                                         self.obs.sigma_friction_drop))
-        jac = np.array([[grad["recurrence_s"][n] / sigma_t for n in names],
-                        [grad["friction_drop"][n] / sigma_mu for n in names]])
-        return np.array([s.penalised[0][0], s.penalised[1][0]]), jac
+        return np.array([s.penalised[0][0], s.penalised[1][0]]), sol, cycle
 
     def __call__(self, b: float, lc: float) -> float:
         """The misfit at one point (``NO_CYCLE_J1`` without a limit cycle)."""

@@ -35,7 +35,7 @@ __all__ = ["NuisanceFit", "fit_with_nuisance", "sample_with_nuisance", "PRIOR_SP
 #: a nuisance constant is searched within this many prior σ of its stated value
 PRIOR_SPAN = 5.0
 #: the nuisance constants a fit can free (:data:`problems.directions.SENSITIVE` names)
-NUISANCE = ("stiffness", "vl", "vls", "mass", "normal_force", "a")
+NUISANCE = ("stiffness", "vl", "vls", "mass", "normal_force")
 
 
 @dataclass
@@ -129,6 +129,10 @@ def _check_priors(misfit: Misfit, priors: dict) -> None:
         if name not in NUISANCE:
             raise ValueError(f"nuisance: {name!r} cannot be freed; the constants are "
                              f"{', '.join(NUISANCE)}")
+        if not (isinstance(spec, (tuple, list)) and len(spec) == 2
+                and all(isinstance(v, (int, float)) for v in spec)):
+            raise ValueError(f"nuisance: the prior of {name} must be (mean, σ) in SI, got "
+                             f"{spec!r}")
         mean, sd = spec
         if not (np.isfinite(mean) and np.isfinite(sd) and sd > 0 and mean > 0):
             raise ValueError(f"nuisance: the prior of {name} must have a positive mean and "
@@ -184,7 +188,8 @@ def fit_with_nuisance(misfit: Misfit, priors: dict, b_range, lc_range, start=Non
     if abs(res.fun[0]) >= NO_CYCLE_RESIDUAL:
         return NuisanceFit(names, res.x, np.full((len(names),) * 2, np.nan),
                            np.full(len(names), np.nan), math.inf, post.solves, success=False,
-                           message="no limit cycle where the fit ended", priors=dict(priors))
+                           message="no limit cycle where the fit ended", priors=dict(priors),
+                           bounds=(lo, hi))
     jac = post.at(res.x)[2]
     try:
         cov = np.linalg.inv(jac.T @ jac)
@@ -218,6 +223,9 @@ def sample_with_nuisance(misfit: Misfit, fitted: NuisanceFit, steps: int = 2000,
     """Random-walk Metropolis from the fit's optimum with its Laplace covariance as the
     proposal's metric (module docstring): one row per step (``names``' columns and χ²).
     A step outside the fit's box and priors' spans is rejected without a solve."""
+    if not fitted.success:
+        raise ValueError(f"sample_with_nuisance: the fit failed ({fitted.message}); nothing to "
+                         "start from")
     post = _Posterior(misfit, fitted.priors, *fitted.bounds)
     rng = np.random.default_rng(seed)
     d = len(fitted.x)

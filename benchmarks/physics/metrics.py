@@ -445,7 +445,9 @@ def metric_gradients(events: np.ndarray, d_events: np.ndarray, normal_force: flo
 def cycle_gradient(solution, cycle: LimitCycle | None = None) -> dict:
     """The gradient of the limit cycle's four :data:`METRICS` (means over its last period)
     from a solve with sensitivities: {metric: {parameter: derivative (SI per unit)}}; empty
-    when the run has no cycle (``cycle``: :func:`summarize`'s, computed if not given)."""
+    when the run has no cycle or the cycle's derivatives are unknown (after an arrest:
+    ``solution.sensitivity.message``) (``cycle``: :func:`summarize`'s, computed if not
+    given)."""
     sens = solution.sensitivity
     if sens is None:
         raise ValueError("cycle_gradient: the solve has no sensitivities; "
@@ -457,5 +459,7 @@ def cycle_gradient(solution, cycle: LimitCycle | None = None) -> dict:
     grads = metric_gradients(solution.event_array, sens.events,
                              solution.problem.normal_force, d_fn)
     tail = grads[-cycle.period:].mean(axis=0)
+    if not np.isfinite(tail).all():     # after an arrest: no derivative (sens.message)
+        return {}
     return {m: {n: float(tail[i, j]) for j, n in enumerate(sens.names)}
             for i, m in enumerate(METRICS)}

@@ -208,16 +208,22 @@ class Sensitivity:
         (len(t), 3, len(names)): ∂(v, fs, theta)/∂θ at the saved times, each at its fixed t.
     events : numpy.ndarray
         (events, len(EVENT_COLUMNS), len(names)): ∂(each column of the events table)/∂θ.
+    message : str
+        Why some are NaN, if any are (after an arrest; a failed run's stop point): empty
+        otherwise. A repeat of the solve (``sol(t)``) carries no sensitivities.
     """
 
     names: tuple
     y: np.ndarray
     events: np.ndarray
+    message: str = ""
 
     def event_frame(self, name: str) -> pd.DataFrame:
-        """∂(events table)/∂``name``: one row per event, the columns of
+        """∂(events table)/∂``name`` (its alias too): one row per event, the columns of
         :data:`EVENT_COLUMNS`."""
         import pandas as pd
+        from problems.directions import ALIASES
+        name = ALIASES.get(name, name)
         if name not in self.names:
             raise ValueError(f"no sensitivity to {name!r}; this solve has {self.names}")
         return pd.DataFrame(self.events[:, :, self.names.index(name)],

@@ -10,6 +10,7 @@ import dataclasses
 import functools
 import math
 import time
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -126,9 +127,9 @@ def solve(problem: SpringSlider, algorithm: Algorithm, *, save_every: float | No
         raise ValueError(f"{algorithm.name} saves at its own step ends: save_at needs a method "
                          "with dense output")
     output.times(problem.t_end)             # validates the decimation now, not mid-run
-    directions = _directions(problem, algorithm, sensitivity)
+    directions = _directions(problem, algorithm, sensitivity, sensitivity_error)
     if wall_budget is not None:
-        _compile_once(problem, algorithm, wall_budget)
+        _compile_once(problem, algorithm, wall_budget, bool(directions))
     budget = Budget(wall_s=wall_budget, start=time.perf_counter())
     bar = _progress_bar(problem, algorithm) if progress else None
     try:
@@ -157,16 +158,22 @@ def _run(problem, algorithm, output, budget, bar, directions, sensitivity_error)
                       retcode=ReturnCode.FAILURE, message=f"{type(exc).__name__}: {exc}")
 
 
-def _directions(problem: SpringSlider, algorithm: Algorithm, sensitivity) -> tuple:
+def _directions(problem: SpringSlider, algorithm: Algorithm, sensitivity, control) -> tuple:
     """The :class:`problems.directions.Direction` objects of ``sensitivity`` (empty: none), or
     ValueError for a method without forward sensitivities or a name the problem lacks."""
+    if not isinstance(control, bool):
+        raise ValueError(f"sensitivity_error must be True or False, got {control!r}")
     if sensitivity is None:
         return ()
     if not getattr(algorithm, "sensitive", False):
         raise ValueError(f"sensitivity: {algorithm.name} has no forward sensitivities; "
                          "Rodas5P has")
-    from problems.directions import direction, sensitivity_names
-    return tuple(direction(problem, n) for n in sensitivity_names(problem, sensitivity))
+    from problems.directions import SENSITIVITY_RTOL, direction, sensitivity_names
+    names = sensitivity_names(problem, sensitivity)
+    if algorithm.rtol > SENSITIVITY_RTOL:
+        warnings.warn(f"sensitivity at rtol {algorithm.rtol:g}: gradients of event times can "
+                      f"be far off, even in sign, above {SENSITIVITY_RTOL:g}", stacklevel=3)
+    return tuple(direction(problem, n) for n in names)
 
 
 def short_piece(problem: SpringSlider, fraction: float = 1e-3) -> SpringSlider:
@@ -190,7 +197,7 @@ def short_piece(problem: SpringSlider, fraction: float = 1e-3) -> SpringSlider:
 
 
 def compile_ahead(problem: SpringSlider, algorithm: Algorithm, fraction: float = 1e-3,
-                  wall_budget: float | None = None) -> None:
+                  wall_budget: float | None = None, sensitivity=None) -> None:
     """Run ``algorithm`` on :func:`short_piece` of ``problem``, unsaved, so that numba has
     compiled (or loaded from its cache) every kernel the run needs: the warm-up before any clock
     is read (three saved points: one between steps, from the dense output). ``wall_budget``
@@ -208,13 +215,18 @@ def compile_ahead(problem: SpringSlider, algorithm: Algorithm, fraction: float =
         The part of the run the piece covers (dimensionless, default 1e-3).
     wall_budget : float, optional
         Bounds the piece's run, not its compiling (s).
+    sensitivity : sequence of str, optional
+        Compile the kernel with forward sensitivities too (as :func:`solve`'s).
 
     Raises
     ------
     ValueError
         As :func:`solve`, for arguments it refuses.
     """
-    solve(short_piece(problem, fraction), algorithm, max_points=3, wall_budget=wall_budget)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")     # (a loose tolerance's sensitivity warning)
+        solve(short_piece(problem, fraction), algorithm, max_points=3, wall_budget=wall_budget,
+              sensitivity=sensitivity)
 
 
 #: (method, its right-hand-side tier, law, with or without mass) compiled in this process by a
@@ -226,12 +238,14 @@ _COMPILED: set = set()
 WARM_UP_SHARE = 0.1
 
 
-def _compile_once(problem: SpringSlider, algorithm: Algorithm, wall_budget: float) -> None:
+def _compile_once(problem: SpringSlider, algorithm: Algorithm, wall_budget: float,
+                  sensitive: bool = False) -> None:
     key = (type(algorithm), getattr(algorithm, "rhs", None), type(problem.law),
-           problem.quasi_static)
+           problem.quasi_static, sensitive)
     if key not in _COMPILED:
         _COMPILED.add(key)              # first: the warm-up's own budgeted solve skips this
-        compile_ahead(problem, algorithm, wall_budget=WARM_UP_SHARE * wall_budget)
+        compile_ahead(problem, algorithm, wall_budget=WARM_UP_SHARE * wall_budget,
+                      sensitivity=("b",) if sensitive else None)
 
 
 def _solution(problem: SpringSlider, algorithm: Algorithm, raw: RawRun) -> Solution:

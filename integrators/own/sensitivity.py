@@ -14,7 +14,9 @@ every step, save, root and restart (:func:`integrators.own.engine.run`), and it 
 * at a restart where the loading rate jumps at a moving time τ* (the overshoot starts at an
   event's end, ends τ_fast later; a switch fixed in seconds moves with Lc/v0),
   S⁺ = S⁻ + (f⁻ − f⁺) dτ*;
-* an arrest (the engine's limit step) has no derivative: S becomes NaN from there.
+* an arrest (the engine's limit step through a deep lock) has no derivative: S becomes NaN
+  from there, the step control goes on with the state alone, and
+  ``Sensitivity.message`` says where.
 
 Only with mass (the quasi-static form's force balance is refused by :mod:`problems.directions`).
 Everything here is nondimensional (z, τ); :func:`physical` converts to SI units.
@@ -117,7 +119,7 @@ def arrays(directions: np.ndarray, n_grid: int, n_events: int, error_control: bo
     workspace, the directions, the current dq, S, S at the step's start, the dense output's dD,
     S at a root, S handed on, the scalars :data:`V`, the events' derivatives (n_events, 8, n),
     S at the save points (n_grid, n, 3), a scratch (3, 3: f, a state, and flags: DD stale,
-    the sensitivities in the error test), and S at a trial step's end."""
+    the sensitivities in the error test, an arrest taken), and S at a trial step's end."""
     n = directions.shape[0]
     dq = np.ascontiguousarray(directions[:, :N_Q]).copy()
     sc = np.zeros((n, 3))
@@ -287,6 +289,7 @@ def sense(op, arg, st, p, Z, G, ws, grid, sa):
                 for r in range(3):
                     DD[r, n, i] = 0.0
         tmp[2, 0] = 0.0
+        tmp[2, 2] = 1.0                 # no derivative from here on: the solve goes on alone
     elif op == SENSE_SAVE or op == SENSE_SAVE_HANDED:
         # a save time is fixed in seconds: it moves in τ by −τ d ln(Lc/v0)
         if tmp[2, 0] != 0.0 and int(arg) < int(st[engine.NEXT_SAVE]):
@@ -342,8 +345,8 @@ def _attempt(p, hs, ws, z0, f0, z1, f1, D):
     err = stages(engine.f_of, p, p[_P_RTOL], p[_P_ATOL], hs,
                  (ws[0], ws[1], ws[2], ws[3], ws[4], ws[5]), z0, f0, z1, D)
     tmp, SN = sa[11], sa[12]
-    if tmp[2, 1] == 0.0 or not err <= 1.0:
-        return err
+    if tmp[2, 1] == 0.0 or not err <= 1.0 or tmp[2, 2] != 0.0:
+        return err                      # (after an arrest S is NaN: the state's test alone)
     S, DIRS, sw = sa[3], sa[1], sa[0]
     for n in range(S.shape[0]):
         for i in range(3):
@@ -410,4 +413,9 @@ def physical(problem, directions, saved: np.ndarray, sa, rows: np.ndarray):
         else:
             b = problem.law.b
             y[:, 2, j] = b * fn * ds + s * (d.d_b * fn + b * d.d_fn)
-    return Sensitivity(names=tuple(d.name for d in directions), y=y, events=events)
+    message = ""
+    if sa[11][2, 2] != 0.0:
+        message = ("an arrest (the engine's limit step through a deep lock) has no derivative: "
+                   "the sensitivities after the first are NaN")
+    return Sensitivity(names=tuple(d.name for d in directions), y=y, events=events,
+                       message=message)
