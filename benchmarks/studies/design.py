@@ -50,20 +50,25 @@ TOLERANCE = 0.25
 def design_study(fits: int = 100, progress: bool = False) -> pd.DataFrame:
     """One row per plan and coordinate: the Fisher se, the fits' spread, their ratio and bias,
     and the plan's wall time (s)."""
-    rows = []
-    for label, plan in PLANS.items():
-        started = time.perf_counter()
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")     # a fit's notes; its values are what is read
-            table = check_plan(plan, n=fits)
-        table.insert(0, "plan", label)
-        table["wall_s"] = time.perf_counter() - started
-        table["within"] = (table.ratio - 1.0).abs() <= TOLERANCE
-        rows.append(table)
-        if progress:
-            print(f"design: {label}: ratios {', '.join(f'{r:.2f}' for r in table.ratio)}")
+    rows = [_checked(label, lambda plan=plan: check_plan(plan, n=fits), progress)
+            for label, plan in PLANS.items()]
     rows += stick_slip_rows(fits // 2, progress)
     return pd.concat(rows, ignore_index=True)
+
+
+def _checked(label: str, check, progress: bool) -> pd.DataFrame:
+    """``check()``'s table (Fisher se against the fits' spread), labelled, timed and judged
+    against :data:`TOLERANCE`."""
+    started = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")         # a fit's notes; its values are what is read
+        table = check()
+    table.insert(0, "plan", label)
+    table["wall_s"] = time.perf_counter() - started
+    table["within"] = (table.ratio - 1.0).abs() <= TOLERANCE
+    if progress:
+        print(f"design: {label}: ratios {', '.join(f'{r:.2f}' for r in table.ratio)}")
+    return table
 
 
 def stick_slip_rows(fits: int, progress: bool = False) -> list:
@@ -75,17 +80,9 @@ def stick_slip_rows(fits: int, progress: bool = False) -> list:
     from problems.slider import variant
     rows = []
     for label, (name, law, changes, duration, s_t, s_mu) in STICK_SLIP.items():
-        started = time.perf_counter()
         plan = StickSlipPlan(variant(window(name, law=law), **changes), duration, s_t, s_mu)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            table = check_stick_slip(plan, n=fits)
-        table.insert(0, "plan", label)
-        table["wall_s"] = time.perf_counter() - started
-        table["within"] = (table.ratio - 1.0).abs() <= TOLERANCE
-        rows.append(table)
-        if progress:
-            print(f"design: {label}: ratios {', '.join(f'{r:.2f}' for r in table.ratio)}")
+        rows.append(_checked(label, lambda plan=plan: check_stick_slip(plan, n=fits),
+                             progress))
     return rows
 
 
