@@ -22,7 +22,7 @@ import numpy as np
 
 from problems.formulations import N_Q, Q_BETA, Q_C, Q_D, Q_E, Q_G, Q_LAWP, to_ode_state
 from problems.loading import ConstantLoading, TwoSpeedLoading
-from problems.slider import SpringSlider, variant
+from problems.slider import SpringSlider, variant, variant_fields
 
 __all__ = ["Direction", "direction", "SENSITIVE", "ALIASES", "sensitivity_names",
            "SENSITIVITY_RTOL"]
@@ -108,7 +108,6 @@ def sensitivity_names(problem: SpringSlider, names) -> tuple[str, ...]:
 
 def _fields(problem: SpringSlider) -> tuple[str, ...]:
     """The :data:`SENSITIVE` names ``problem`` has."""
-    from problems.slider import variant_fields
     have = set(variant_fields(problem))
     if not isinstance(problem.loading, (ConstantLoading, TwoSpeedLoading)):
         have -= {"vl", "vls", "vlf", "df"}
@@ -139,7 +138,8 @@ def _natural_scale(problem: SpringSlider, name: str) -> float:
 def _dz0(problem: SpringSlider, name: str, value: float) -> np.ndarray:
     """∂z0/∂θ by a central difference of the initial state's algebra (a forward three-point
     one where θ − δ is refused, as a damping of 0), of step X0_STEP times the larger of |θ|
-    and θ's natural scale (a damping of 0 or 1 N s/m moves the forces by nothing a relative step sees)."""
+    and θ's natural scale (a damping of 0 or 1 N s/m moves the forces by nothing a relative
+    step sees)."""
     step = X0_STEP * (max(abs(value), _natural_scale(problem, name)) or 1.0)
     up = _z0(variant(problem, **{name: value + step}))
     try:

@@ -137,8 +137,7 @@ def _sensitivity_summary(sol, path, command: str) -> dict:
     if sens is None or not sol.reached_end:
         return {"parameters": list(sens.names) if sens else [], "limit_cycle": {},
                 "last_event": {}, "note": "the run did not reach its end: no gradients"}
-    d_fn = [1.0 if n == "normal_force" else 0.0 for n in sens.names]
-    per = metrics.metric_gradients(sol.event_array, sens.events, p.normal_force, d_fn)
+    per = metrics.event_gradients(sol)
     last = ({m: {n: float(per[-1, i, j]) for j, n in enumerate(sens.names)}
              for i, m in enumerate(metrics.METRICS)} if len(per) else {})
     out = {"parameters": list(sens.names), "limit_cycle": metrics.cycle_gradient(sol),

@@ -23,7 +23,7 @@ import pandas as pd
 
 from benchmarks.inversion.misfit import Misfit
 
-__all__ = ["fit", "FitResult", "EXACT_RTOL", "exact_jacobian_applies"]
+__all__ = ["fit", "FitResult", "EXACT_RTOL", "exact_jacobian_applies", "ExactResiduals"]
 
 
 @dataclass
@@ -97,27 +97,42 @@ def _jacobian_kind(misfit: Misfit, jacobian: str) -> str:
     return jacobian
 
 
-class _ExactResiduals:
-    """The residuals of x = (b, log10 Lc) and their Jacobian from one solve with
-    sensitivities per point (the last point's kept: least squares asks for both there)."""
+class ExactResiduals:
+    """The residuals of x = (b, log10 Lc, θ_1, …) and their Jacobian, one solve with
+    sensitivities per point (:meth:`Misfit.residuals_and_jacobian`; the last point's kept:
+    least squares asks for both there). ``priors`` (name → (mean, σ), SI) frees those
+    constants as θ and adds (θ − mean)/σ to the residuals. ``solves`` counts the solves."""
 
-    def __init__(self, misfit: Misfit, count: dict):
-        self.misfit, self.count, self.last = misfit, count, (None, None, None)
+    def __init__(self, misfit: Misfit, priors: dict | None = None):
+        self.misfit, self.priors = misfit, dict(priors or {})
+        self.nuisance = tuple(self.priors)
+        self.solves, self.last = 0, (None, None, None)
 
-    def _at(self, x):
+    def values(self, x) -> dict:
+        """x as the problem's values by name (Lc in m)."""
+        return {"b": x[0], "lc": 10.0 ** x[1], **dict(zip(self.nuisance, x[2:]))}
+
+    def at(self, x):
+        """(x, residuals, Jacobian) at x."""
         if self.last[0] is None or not np.array_equal(self.last[0], x):
-            self.count["n"] += 1
-            lc = 10.0 ** x[1]
-            r, jac = self.misfit.residuals_and_jacobian({"b": x[0], "lc": lc})
-            jac = jac * np.array([1.0, lc * np.log(10.0)])      # ∂/∂log10 Lc
+            self.solves += 1
+            values = self.values(x)
+            r, jac = self.misfit.residuals_and_jacobian(values)
+            jac = jac * np.array([1.0, values["lc"] * np.log(10.0)]     # ∂/∂log10 Lc
+                                 + [1.0] * len(self.nuisance))
+            if self.nuisance:
+                mean = np.array([self.priors[n][0] for n in self.nuisance])
+                sd = np.array([self.priors[n][1] for n in self.nuisance])
+                r = np.concatenate([r, (np.asarray(x[2:]) - mean) / sd])
+                jac = np.vstack([jac, np.hstack([np.zeros((len(sd), 2)), np.diag(1.0 / sd)])])
             self.last = (np.array(x, dtype=float), r, jac)
         return self.last
 
     def residuals(self, x):
-        return self._at(x)[1]
+        return self.at(x)[1]
 
     def jacobian(self, x):
-        return self._at(x)[2]
+        return self.at(x)[2]
 
 
 def fit(misfit: Misfit, b_range=(0.005, 0.02), lc_range=(1e-8, 1e-5), grid: int = 9,
@@ -183,7 +198,7 @@ def fit(misfit: Misfit, b_range=(0.005, 0.02), lc_range=(1e-8, 1e-5), grid: int 
         count["n"] += 1
         return misfit.residuals(x[0], 10.0 ** x[1])
 
-    exact = _ExactResiduals(misfit, count)
+    exact = ExactResiduals(misfit)
     how = dict(jac=exact.jacobian) if jacobian == "exact" else dict(diff_step=diff_step)
     rows, best = [], None
     for start in ok.itertuples():
@@ -197,7 +212,7 @@ def fit(misfit: Misfit, b_range=(0.005, 0.02), lc_range=(1e-8, 1e-5), grid: int 
         if best is None or value < best[1]:
             best = (res, value)
     res, value = best
-    return _result(res, value, n_solves + count["n"], rows, jacobian)
+    return _result(res, value, n_solves + count["n"] + exact.solves, rows, jacobian)
 
 
 def _result(res, value: float, n_solves: int, rows: list, jacobian: str) -> FitResult:

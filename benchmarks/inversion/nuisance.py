@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from benchmarks.inversion.least_squares import ExactResiduals
 from benchmarks.inversion.misfit import NO_CYCLE_RESIDUAL, Misfit
 
 __all__ = ["NuisanceFit", "fit_with_nuisance", "sample_with_nuisance", "PRIOR_SPAN"]
@@ -88,31 +89,13 @@ class NuisanceFit:
             "prior_sd": [self.priors.get(n, (math.nan, math.nan))[1] for n in self.names]})
 
 
-class _Posterior:
-    """χ²'s residuals and Jacobian in x, one solve with sensitivities per point (the last
-    kept)."""
+class _Posterior(ExactResiduals):
+    """χ²'s residuals and Jacobian in x (priors among the residuals), and χ² within the box
+    and the priors' spans."""
 
     def __init__(self, misfit: Misfit, priors: dict, lo, hi):
-        self.misfit, self.priors, self.lo, self.hi = misfit, priors, lo, hi
-        self.nuisance = tuple(priors)
-        self.solves, self.last = 0, (None, None, None)
-
-    def values(self, x) -> dict:
-        return {"b": x[0], "lc": 10.0 ** x[1], **dict(zip(self.nuisance, x[2:]))}
-
-    def at(self, x):
-        if self.last[0] is None or not np.array_equal(self.last[0], x):
-            self.solves += 1
-            values = self.values(x)
-            r, jac = self.misfit.residuals_and_jacobian(values)
-            jac = jac * np.array([1.0, values["lc"] * np.log(10.0)]
-                                 + [1.0] * len(self.nuisance))
-            mean = np.array([self.priors[n][0] for n in self.nuisance])
-            sd = np.array([self.priors[n][1] for n in self.nuisance])
-            r_all = np.concatenate([r, (np.asarray(x[2:]) - mean) / sd])
-            j_all = np.vstack([jac, np.hstack([np.zeros((len(sd), 2)), np.diag(1.0 / sd)])])
-            self.last = (np.array(x, dtype=float), r_all, j_all)
-        return self.last
+        super().__init__(misfit, priors)
+        self.lo, self.hi = lo, hi
 
     def chi2(self, x) -> float:
         """χ² at x; inf outside the box and the priors' spans (no solve there)."""
@@ -182,8 +165,8 @@ def fit_with_nuisance(misfit: Misfit, priors: dict, b_range, lc_range, start=Non
     post = _Posterior(misfit, dict(priors), lo, hi)
     b0, lc0 = start if start is not None else (0.5 * (b_lo + b_hi), math.sqrt(lc_lo * lc_hi))
     x0 = np.clip(np.concatenate([[b0, math.log10(lc0)], means]), lo, hi)
-    res = least_squares(lambda x: post.at(x)[1], x0, jac=lambda x: post.at(x)[2],
-                        bounds=(lo, hi), x_scale="jac", max_nfev=max_solves)
+    res = least_squares(post.residuals, x0, jac=post.jacobian, bounds=(lo, hi), x_scale="jac",
+                        max_nfev=max_solves)
     names = ("b", "log10_lc", *priors)
     if abs(res.fun[0]) >= NO_CYCLE_RESIDUAL:
         return NuisanceFit(names, res.x, np.full((len(names),) * 2, np.nan),

@@ -50,8 +50,9 @@ from integrators.core import cycles
 from problems import stability
 from problems.slider import TAU_END_MAX
 
-__all__ = ["event_metrics", "LimitCycle", "limit_cycle", "cycle_from", "summarize", "EndState", "end_state",
-           "METRICS", "metric_gradients", "cycle_gradient", "CLASSIFICATIONS", "CYCLES", "LOCKED_SLIP_RATE", "STEADY_LOG_TOLERANCE"]
+__all__ = ["event_metrics", "LimitCycle", "limit_cycle", "cycle_from", "summarize", "EndState",
+           "end_state", "METRICS", "metric_gradients", "event_gradients", "cycle_gradient",
+           "CLASSIFICATIONS", "CYCLES", "LOCKED_SLIP_RATE", "STEADY_LOG_TOLERANCE"]
 
 #: the limit-cycle metrics, in the order tables show them
 METRICS = ("recurrence_s", "friction_drop", "slip_m", "peak_velocity_m_s")
@@ -442,24 +443,30 @@ def metric_gradients(events: np.ndarray, d_events: np.ndarray, normal_force: flo
     return out
 
 
+def event_gradients(solution) -> np.ndarray:
+    """:func:`metric_gradients` of a solve with sensitivities (events × 4 metrics ×
+    parameters), ValueError for one without."""
+    sens = solution.sensitivity
+    if sens is None:
+        raise ValueError("the solve has no sensitivities; solve(..., sensitivity=(...)) with "
+                         "Rodas5P")
+    d_fn = np.array([1.0 if n == "normal_force" else 0.0 for n in sens.names])
+    return metric_gradients(solution.event_array, sens.events, solution.problem.normal_force,
+                            d_fn)
+
+
 def cycle_gradient(solution, cycle: LimitCycle | None = None) -> dict:
     """The gradient of the limit cycle's four :data:`METRICS` (means over its last period)
     from a solve with sensitivities: {metric: {parameter: derivative (SI per unit)}}; empty
     when the run has no cycle or the cycle's derivatives are unknown (after an arrest:
     ``solution.sensitivity.message``) (``cycle``: :func:`summarize`'s, computed if not
     given)."""
-    sens = solution.sensitivity
-    if sens is None:
-        raise ValueError("cycle_gradient: the solve has no sensitivities; "
-                         "solve(..., sensitivity=(...)) with Rodas5P")
+    grads = event_gradients(solution)
     cycle = summarize(solution) if cycle is None else cycle
     if cycle.classification not in CYCLES or not cycle.period:
         return {}
-    d_fn = np.array([1.0 if n == "normal_force" else 0.0 for n in sens.names])
-    grads = metric_gradients(solution.event_array, sens.events,
-                             solution.problem.normal_force, d_fn)
     tail = grads[-cycle.period:].mean(axis=0)
     if not np.isfinite(tail).all():     # after an arrest: no derivative (sens.message)
         return {}
-    return {m: {n: float(tail[i, j]) for j, n in enumerate(sens.names)}
+    return {m: {n: float(tail[i, j]) for j, n in enumerate(solution.sensitivity.names)}
             for i, m in enumerate(METRICS)}

@@ -209,8 +209,9 @@ class Sensitivity:
     events : numpy.ndarray
         (events, len(EVENT_COLUMNS), len(names)): ∂(each column of the events table)/∂θ.
     message : str
-        Why some are NaN, if any are (after an arrest; a failed run's stop point): empty
-        otherwise. A repeat of the solve (``sol(t)``) carries no sensitivities.
+        Why they are NaN from some point on (after an arrest), else empty. A failed run's
+        appended stop point has NaN rows too; a repeat of the solve (``sol(t)``) carries no
+        sensitivities.
     """
 
     names: tuple

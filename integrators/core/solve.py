@@ -151,7 +151,7 @@ def _run(problem, algorithm, output, budget, bar, directions, sensitivity_error)
             if not directions:
                 return algorithm.run(problem, output, budget, update)
             return algorithm.run(problem, output, budget, update, sensitivity=directions,
-                                 sensitivity_error=bool(sensitivity_error))
+                                 sensitivity_error=sensitivity_error)
     except Exception as exc:  # a library failure is a result, not a crash of the caller
         return RawRun(t=np.empty(0), y=np.empty((0, 3)),
                       events=np.empty((0, len(EVENT_COLUMNS))), stats=Stats(),
@@ -224,7 +224,8 @@ def compile_ahead(problem: SpringSlider, algorithm: Algorithm, fraction: float =
         As :func:`solve`, for arguments it refuses.
     """
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore")     # (a loose tolerance's sensitivity warning)
+        if sensitivity is not None:         # the real run says so, if its tolerance is loose
+            warnings.filterwarnings("ignore", "sensitivity at rtol", UserWarning)
         solve(short_piece(problem, fraction), algorithm, max_points=3, wall_budget=wall_budget,
               sensitivity=sensitivity)
 

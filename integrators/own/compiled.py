@@ -126,8 +126,7 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
             if status == E.GROW:
                 ev = np.concatenate([ev, np.empty_like(ev)])
                 if sa is not None:
-                    sa = sa[:9] + (np.concatenate([sa[9], np.full_like(sa[9], np.nan)]),) \
-                        + sa[10:]
+                    sa = SE.grow_events(sa)
             elif status == E.CHUNK:
                 if progress is not None:
                     progress(st[E.CURSOR] * nd.time_scale)

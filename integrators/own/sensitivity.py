@@ -41,11 +41,12 @@ from integrators.own.engine import (HACC, SENSE_ARREST, SENSE_LOAD, SENSE_RESTAR
 from integrators.core.events import END, H_EXTREMUM, PEAK, START
 from integrators.own.rodas5p_stages import (dense_sensitivities, sensitivity_workspace,
                                             stage_sensitivities, stages)
-from problems.formulations import (N_Q, Q_BETA, Q_C, Q_D, Q_E, Q_G, Q_LAWP, state_rate,
-                                   state_rate_partials, state_rate_second_partials)
+from problems.formulations import (N_Q, Q_BETA, Q_C, Q_D, Q_E, Q_G, Q_LAWP, ode_jacobian,
+                                   state_rate_second_partials)
 from problems.loading import H_E_FAST, H_TAU_FAST
 
-__all__ = ["sense", "arrays", "DIR", "V", "rodas5p_kernel", "direction_matrix", "physical"]
+__all__ = ["sense", "arrays", "grow_events", "DIR", "V", "rodas5p_kernel", "direction_matrix",
+           "physical"]
 
 #: columns of the directions array: dq (E: the slow rate's), then these
 DIR = dict(E_FAST=N_Q, TAU_FAST=N_Q + 1, LN_TS=N_Q + 2, Z0=N_Q + 3, SCALE=N_Q + 6)
@@ -70,14 +71,10 @@ def _partials(p, dq, z, jac, fth, s):
     """∂f/∂z into jac[s], ∂f/∂θ along the directions ``dq`` into fth[s] (module docstring)."""
     h, u, sv = z[0], z[1], z[2]
     w = math.exp(u)
-    beta, c, d = p[Q_BETA], p[Q_C], p[Q_D]
-    r_u, r_s = state_rate_partials(p, u, sv, w)
+    beta, d = p[Q_BETA], p[Q_D]
+    ode_jacobian(p, z, jac[s])
     r_g = state_rate_second_partials(p, u, sv, w)[3]
     inv = 1.0 / w
-    n1 = (c * h - d * (u + beta * sv)) * inv
-    jac[s, 0, 0], jac[s, 0, 1], jac[s, 0, 2] = 0.0, -w, 0.0
-    jac[s, 1, 0], jac[s, 1, 1], jac[s, 1, 2] = c * inv, -d * inv - n1, -d * beta * inv
-    jac[s, 2, 0], jac[s, 2, 1], jac[s, 2, 2] = 0.0, r_u, r_s
     for n in range(dq.shape[0]):
         de = dq[n, Q_E]
         fth[s, 0, n] = de
@@ -129,6 +126,11 @@ def arrays(directions: np.ndarray, n_grid: int, n_events: int, error_control: bo
             _recorder_start(np.zeros((n, N_V)), sc), np.full((n_events, 8, n), np.nan),
             _first_save(np.full((n_grid, n, 3), np.nan), sc),
             np.array([[0.0] * 3, [0.0] * 3, [0.0, float(error_control), 0.0]]), np.zeros((n, 3)))
+
+
+def grow_events(sa):
+    """``sa`` with the events' derivatives doubled in length, as the engine's events table."""
+    return sa[:9] + (np.concatenate([sa[9], np.full_like(sa[9], np.nan)]),) + sa[10:]
 
 
 def _recorder_start(v, dz0):
@@ -374,7 +376,8 @@ def rodas5p_kernel(ws, sc, st, p, Z, G, dirs, grid, saved, ev, n_max, sa):
 
 
 def direction_matrix(directions) -> np.ndarray:
-    """The (n, N_DIR) array of :func:`sense` from :class:`problems.directions.Direction` objects."""
+    """The (n, N_DIR) array of :func:`sense` from
+    :class:`problems.directions.Direction` objects."""
     out = np.zeros((len(directions), N_DIR))
     for n, d in enumerate(directions):
         out[n, :N_Q] = d.dq
