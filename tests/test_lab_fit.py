@@ -789,12 +789,21 @@ def test_the_command_compares_laws_and_reports_the_chosen_one(tmp_path):
     """--law aging,slip on the basalt step: both fitted, tabled (lab_fit_laws.csv, the JSON's
     laws) and the lowest BIC reported in full; the slip law's RSS was 0.003933 against the
     aging law's 0.003973 when written (the switch refined on the friction, the default
-    trend; ΔBIC 59, 12.3 after the noise's long-run inflation f = 4.79)."""
-    out = _cli(BASALT, *[f"--column={c}" for c in REAL_COLUMNS], "--law", "aging,slip",
-               "--no-profiles", "--no-solver-check", "--out", tmp_path, "--json")
-    assert out.returncode == 0, out.stderr
-    doc = json.loads(out.stdout)
-    laws = pd.read_csv(tmp_path / "lab_fit_laws.csv").set_index("law")
+    trend; ΔBIC 59, 12.3 after the noise's long-run inflation f = 4.79). The laws fitted in
+    two processes (--workers 2) give what one process gives, to the last digit."""
+    runs = {}
+    for workers in (2, 1):
+        out = _cli(BASALT, *[f"--column={c}" for c in REAL_COLUMNS], "--law", "aging,slip",
+                   "--no-profiles", "--no-solver-check", "--out", tmp_path / str(workers),
+                   "--json", "--workers", workers)
+        assert out.returncode == 0, out.stderr
+        runs[workers] = (json.loads(out.stdout),
+                         pd.read_csv(tmp_path / str(workers) / "lab_fit_laws.csv"))
+    assert runs[1][0]["parameters"] == runs[2][0]["parameters"]
+    pd.testing.assert_frame_equal(runs[1][1].drop(columns="command"),
+                                  runs[2][1].drop(columns="command"))
+    doc = runs[2][0]
+    laws = runs[2][1].set_index("law")
     assert doc["laws"]["compared"] == ["aging", "slip"] and set(laws.index) == {"aging", "slip"}
     chosen = laws.index[laws.chosen][0]
     assert doc["law"] == chosen == laws.bic.idxmin() and laws.fits.all()

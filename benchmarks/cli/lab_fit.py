@@ -14,6 +14,7 @@ each is fitted and compared (benchmarks.lab.laws), and the lowest BIC is reporte
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import math
 import sys
@@ -23,7 +24,7 @@ from pathlib import Path
 import pandas as pd
 
 from benchmarks.cli.args import (in_file, non_negative, numbers, out_dir, positive, say, seed,
-                                 show_progress)
+                                 show_progress, workers)
 from benchmarks.lab.model import DEFAULT_ALGORITHM, DETRENDS, WALL_BUDGET, LabModel
 from benchmarks.records.files import claim_outputs, write_figure, write_output, write_table
 from benchmarks.records.optional import require
@@ -111,6 +112,9 @@ def _check_flags(args, laws) -> None:
 def cmd_lab_fit(args) -> int:
     from benchmarks.lab.laws import parse_laws
     laws = parse_laws(args.law, tuple(LAWS))
+    if args.workers is None:
+        from benchmarks.lab.parallel import cores
+        args.workers = cores()
     _check_flags(args, laws)
     models = _models(args, laws)
     given = {k: v for k, v in (("k", args.stiffness), ("c", args.c)) if v is not None}
@@ -128,12 +132,7 @@ def cmd_lab_fit(args) -> int:
     notes = [*args.record_notes, *notes]
     fixed = {k: v for k, v in given.items() if k in fit.model.parameters}
     record = fit.model.record             # the switches where the friction put them
-    profiles = {} if args.no_profiles else _profiles(args, fit, notes)
-    check = None
-    if not args.no_solver_check:
-        from benchmarks.lab.checks import check_lab_solver
-        _stage(args, "the solver check")
-        check = check_lab_solver(fit)
+    profiles, check = _profiles_and_check(args, fit, notes)
     posterior = _posterior(args, fit) if args.posterior else None
     inertia = (_inertia(args, fit, record)
                if args.mass is not None or args.radiation_damping is not None else None)
@@ -201,19 +200,11 @@ def _fit_laws(args, models: dict, given: dict):
     and ``args.law`` set to the chosen one, whose fit and notes are returned. (Refining with
     the first law alone and fitting the others there made the comparison depend on the laws'
     order: a slip-law record compared as aging,slip read the slip law as not fitting.)"""
-    fits, tables = {}, {}
-    for law, model in models.items():
-        fixed = {k: v for k, v in given.items() if k in model.parameters}
-        _stage(args, f"fitting {', '.join(n for n in model.parameters if n not in fixed)} "
-                     f"({law} law) to {len(model.record.t):,} samples")
-        fits[law] = _fit(model, fixed, args.weights)
-        if args.switches is None and args.switches_from == "friction" and fits[law][0].success:
-            from benchmarks.lab.switches import refine_switches
-            _stage(args, f"the switch times on the friction ({law} law)")
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                refined, tables[law] = refine_switches(fits[law][0])
-            fits[law] = (refined, list(refined.notes))
+    from benchmarks.lab.parallel import run_all
+    done = run_all([functools.partial(_fit_law, args, law, model, given)
+                    for law, model in models.items()], args.workers)
+    fits = {law: (fit, notes) for law, (fit, notes, _) in zip(models, done)}
+    tables = {law: table for law, (_, _, table) in zip(models, done) if table is not None}
     for law, (fit, notes) in fits.items():
         if fit.failed_solves:
             notes.append(f"{fit.failed_solves} of {fit.solves} solves failed or ran over the "
@@ -228,6 +219,23 @@ def _fit_laws(args, models: dict, given: dict):
         chosen = table.law[table.chosen]
         args.law = str(chosen.iloc[0]) if len(chosen) else laws[0]
     return (*fits[args.law], table, tables.get(args.law))
+
+
+def _fit_law(args, law: str, model, given: dict):
+    """``(fit, notes, switches)`` of one law (:func:`_fit_laws`); ``switches`` is None unless
+    refined on the friction."""
+    fixed = {k: v for k, v in given.items() if k in model.parameters}
+    _stage(args, f"fitting {', '.join(n for n in model.parameters if n not in fixed)} "
+                 f"({law} law) to {len(model.record.t):,} samples")
+    fit, notes = _fit(model, fixed, args.weights)
+    if args.switches is None and args.switches_from == "friction" and fit.success:
+        from benchmarks.lab.switches import refine_switches
+        _stage(args, f"the switch times on the friction ({law} law)")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            refined, table = refine_switches(fit)
+        return refined, list(refined.notes), table
+    return fit, notes, None
 
 
 def _switches_doc(args, switches) -> dict:
@@ -273,17 +281,31 @@ def _fit(model, fixed: dict, weights):
     return fit, [str(w.message) for w in caught if issubclass(w.category, LabFitWarning)]
 
 
-def _profiles(args, fit, notes: list) -> dict:
-    """The profile of each fitted parameter of :data:`PROFILED`; a profile's note joins
-    ``notes``."""
+def _profiles_and_check(args, fit, notes: list):
+    """``(profiles, check)``: the profile of each fitted parameter of :data:`PROFILED` (a
+    profile's note joins ``notes``) and the solver check, side by side on ``--workers``; each
+    None or empty where its option turns it off."""
+    from benchmarks.lab.parallel import run_all
+    names = [] if args.no_profiles else [n for n in PROFILED if n in fit.free]
+    pieces = [functools.partial(_profile, args, fit, n) for n in names]
+    if not args.no_solver_check:
+        pieces.append(functools.partial(_check, args, fit))
+    done = run_all(pieces, args.workers)
+    profiles = dict(zip(names, done))
+    notes.extend(p.note for p in profiles.values() if p.note)
+    return profiles, None if args.no_solver_check else done[-1]
+
+
+def _profile(args, fit, name: str):
     from benchmarks.lab.profile_intervals import profile_lab
-    profiles = {}
-    for name in (n for n in PROFILED if n in fit.free):
-        _stage(args, f"the profile of {name}")
-        profiles[name] = profile_lab(fit, name)
-        if profiles[name].note:
-            notes.append(profiles[name].note)
-    return profiles
+    _stage(args, f"the profile of {name}")
+    return profile_lab(fit, name)
+
+
+def _check(args, fit) -> dict:
+    from benchmarks.lab.checks import check_lab_solver
+    _stage(args, "the solver check")
+    return check_lab_solver(fit)
 
 
 def _posterior(args, fit):
@@ -617,6 +639,7 @@ def _plot(fit, profiles, path: Path) -> None:
     """Data and fit, residuals (against the load point), and each profile in its own panel."""
     from matplotlib.figure import Figure
 
+    from benchmarks.lab.figures import envelope
     from benchmarks.lab.fit import _LOG
     rec = fit.model.record
     cols = max(len(profiles), 1)
@@ -626,14 +649,15 @@ def _plot(fit, profiles, path: Path) -> None:
     x = rec.load_point * 1e6
     ax = fig.add_subplot(grid[0, :])
     states = "" if fit.model.states == 1 else ", two state variables"
-    ax.plot(x, rec.mu, lw=0.5, color="0.6", label="record")
-    ax.plot(x, fit.mu_model, lw=1.2, color="C3", label=f"fit ({fit.model.law} law{states})")
+    ax.plot(*envelope(x, rec.mu), lw=0.5, color="0.6", label="record")
+    ax.plot(*envelope(x, fit.mu_model), lw=1.2, color="C3",
+            label=f"fit ({fit.model.law} law{states})")
     for s in rec.switch_times:
         ax.axvline(float(x[min(int((rec.t < s).sum()), len(x) - 1)]), color="k", lw=0.5, ls=":")
     ax.set_ylabel("μ")
     ax.legend(fontsize=8)
     ax = fig.add_subplot(grid[1, :])
-    ax.plot(x, rec.mu - fit.mu_model, lw=0.5, color="C0")
+    ax.plot(*envelope(x, rec.mu - fit.mu_model), lw=0.5, color="C0")
     ax.axhline(0, color="k", lw=0.5)
     ax.set_ylabel("residual")
     ax.set_xlabel("load-point displacement (µm)")
@@ -755,6 +779,10 @@ def _add_run_options(p) -> None:
                    help="skip the profile intervals of a, b and Dc (and b2, Dc2)")
     p.add_argument("--no-solver-check", action="store_true",
                    help="skip the check of the integrator against two references at 1e-12")
+    p.add_argument("--workers", type=workers, metavar="N",
+                   help="processes for the independent pieces: each law's fit and switch "
+                        "times, each profile (the results do not depend on it) (default: "
+                        "this machine's cores)")
     p.add_argument("--wall-budget", type=positive, default=WALL_BUDGET, metavar="S",
                    help="wall-time budget of each solve in s: the fit's, its profiles', the "
                         "posterior's and the solver check's (a reference over it fails the "
