@@ -25,7 +25,7 @@ from problems.loading import ConstantLoading, TwoSpeedLoading
 from problems.slider import SpringSlider, variant, variant_fields
 
 __all__ = ["Direction", "direction", "SENSITIVE", "ALIASES", "sensitivity_names",
-           "SENSITIVITY_RTOL"]
+           "SENSITIVITY_RTOL", "value_of"]
 
 #: the parameters a solve can be differentiated by (:func:`problems.slider.variant`'s names)
 SENSITIVE = ("a", "b", "lc", "c", "stiffness", "mass", "normal_force", "radiation_damping",
@@ -116,7 +116,8 @@ def _fields(problem: SpringSlider) -> tuple[str, ...]:
     return tuple(n for n in SENSITIVE if n in have)
 
 
-def _value(problem: SpringSlider, name: str) -> float:
+def value_of(problem: SpringSlider, name: str) -> float:
+    """The value of ``problem``'s parameter ``name`` (a :data:`SENSITIVE` name), SI."""
     for obj in (problem.law, problem, problem.loading, problem.initial):
         if hasattr(obj, name):
             return float(getattr(obj, name))
@@ -183,7 +184,7 @@ def direction(problem: SpringSlider, name: str) -> Direction:
         de_fast = 1.0 / v0
     elif name == "df":
         dtau_fast = v0 / lc
-    value = _value(problem, name)
+    value = value_of(problem, name)
     return Direction(name=name, dq=dq, de_fast=de_fast, dtau_fast=dtau_fast, dln_ts=dln_ts,
                      dz0=_dz0(problem, name, value), d_force_h=d_force_h, d_fn=d_fn, d_b=d_b,
                      scale=abs(value) if value != 0.0 else 1.0)

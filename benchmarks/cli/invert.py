@@ -41,6 +41,14 @@ from benchmarks.cli.args import (
     show_progress,
     workers,
 )
+from benchmarks.cli.invert_nuisance import (
+    SPEC_HELP,
+    check_nuisance_observations,
+    check_nuisance_options,
+    nuisance_algorithm,
+    nuisance_spec,
+    run_nuisance,
+)
 from benchmarks.inversion import Misfit
 from benchmarks.inversion.curve_likelihood import CURVE_NOISES
 from benchmarks.inversion.fit_figure import observed_events
@@ -52,8 +60,9 @@ from benchmarks.inversion.invert import (
     invert,
     write_inversion,
 )
+from benchmarks.inversion.nuisance import nuisance_files
 from benchmarks.inversion.posterior import MAX_POSTERIOR_SOLVES, check_sampler
-from benchmarks.records.files import claim_outputs
+from benchmarks.records.files import claim_outputs, remove_own
 from benchmarks.records.optional import require
 from benchmarks.records.report import jsonable
 from problems import PRESET_NAMES, WINDOWS
@@ -99,6 +108,8 @@ def _box(args, problem, published: bool):
 def cmd_invert(args) -> int:
     problem, published, box_b, box_lc, walkers, steps = _checked(args)
     obs = observations_from_args(args, published)
+    if args.nuisance:
+        check_nuisance_observations(obs)
     # the per-event table fit.png draws, read now: the file may change during the work
     events = None if args.observations is None else observed_events(args.observations)
     cycles = problem.t_end / obs.recurrence_s
@@ -107,9 +118,12 @@ def cmd_invert(args) -> int:
                          f"observed ΔT = {obs.recurrence_s:g} s per solve; a limit cycle is "
                          f"read in tens: at most {MAX_CYCLES:,}")
     algorithm, why = integrator_from_args(args)
+    if args.nuisance:
+        algorithm, why = nuisance_algorithm(algorithm)
     name = args.preset if args.problem is None else Path(args.problem).stem
     out = Path(args.out or f"invert_{name}_{problem.law.name}")
-    claim_outputs(inversion_files(out))                  # a user's file there: refused now
+    # a user's file there: refused now
+    claim_outputs(nuisance_files(out) if args.nuisance else inversion_files(out))
     out.mkdir(parents=True, exist_ok=True)               # before the work, not after it
     try:
         algorithm, why, check = checked_integrator(args, problem, obs, box_b, box_lc,
@@ -120,6 +134,8 @@ def cmd_invert(args) -> int:
     misfit = Misfit(problem, obs, algorithm, wall_budget=args.wall_budget, workers=args.workers)
     if not args.json:
         _say_setting(why, obs)
+    if args.nuisance:
+        return run_nuisance(args, misfit, (box_b, box_lc), steps, out, _record(args, why, check))
     stage = ["the start"]
     try:
         inv, summary = _run(args, misfit, (box_b, box_lc), walkers, steps, out, why, check,
@@ -156,6 +172,9 @@ def _checked(args):
         raise ValueError("--grid is the grid posterior's first grid: drop it with --method emcee")
     walkers = 32 if args.walkers is None else args.walkers
     steps = 2000 if args.steps is None else args.steps
+    if args.nuisance:                    # a fit by gradients and a Metropolis sampler: no emcee
+        check_nuisance_options(args, problem)
+        return problem, published, box_b, box_lc, walkers, steps
     if steps:                            # the corner plot is written after all the work
         require("corner", "inversion", "the corner plot of a posterior")
         require("emcee", "inversion", "a posterior sample")
@@ -197,14 +216,20 @@ def _run(args, misfit, box, walkers, steps, out: Path, why: str, check, stage: l
                  seed=args.seed, progress=not args.json and show_progress(args), say=progress,
                  method=args.method, grid=args.grid or 33)
     stage[0] = "writing of its files"
-    record = {"command": args.command_line, "integrator_choice": why,
-              "solver_check": None if check is None else check.summary(),
-              "observations_file": (None if args.observations is None
-                                    else str(Path(args.observations).resolve())),
-              "problem_file": (None if args.problem is None
-                               else str(Path(args.problem).resolve()))}
-    return inv, {**write_inversion(inv, out, record, events), "integrator_choice": why,
-                 "out": str(out)}
+    summary = write_inversion(inv, out, _record(args, why, check), events)
+    for path in nuisance_files(out):         # an earlier run's, of the other route
+        remove_own(path)
+    return inv, {**summary, "integrator_choice": why, "out": str(out)}
+
+
+def _record(args, why: str, check) -> dict:
+    """The run's provenance beside the machine's: command, integrator, check, input files."""
+    return {"command": args.command_line, "integrator_choice": why,
+            "solver_check": None if check is None else check.summary(),
+            "observations_file": (None if args.observations is None
+                                  else str(Path(args.observations).resolve())),
+            "problem_file": (None if args.problem is None
+                             else str(Path(args.problem).resolve()))}
 
 
 def _warn(args, inv, summary) -> None:
@@ -315,6 +340,8 @@ def add_parsers(sub) -> None:
     _add_posterior_options(i)
     i.add_argument("--workers", type=workers, metavar="N",
                    help="threads (own methods) or processes per batch (default: all cores)")
+    i.add_argument("--nuisance", type=nuisance_spec, action="append", metavar="NAME=SIGMA",
+                   help=SPEC_HELP)
     i.add_argument("--wall-budget", type=positive, default=WALL_BUDGET, metavar="S",
                    help="wall budget per forward solve in s, of the inversion and of its "
                         "solver check; a solve over it is a failed point, counted in the "

@@ -149,16 +149,13 @@ class Misfit:
         cycle: :data:`NO_CYCLE_RESIDUAL` twice and a zero Jacobian (the misfit's plateau).
         Curves are not differentiated: ValueError with curves."""
         from benchmarks.physics.metrics import cycle_gradient
-        from integrators import make_algorithm
-        from problems.directions import SENSITIVITY_RTOL
         from problems.slider import variant
         if self.obs.curve_likelihood is not None:
             raise ValueError("exact Jacobians cover ΔT and Δμ; with slip-weakening curves in "
                              "the likelihood the fit differentiates by differences")
         names = tuple(values)
         problem = variant(self.problem, **{n: float(v) for n, v in values.items()})
-        tol = min(getattr(self.algorithm, "rtol", None) or SENSITIVITY_RTOL, SENSITIVITY_RTOL)
-        algorithm = make_algorithm("Rodas5P", rtol=tol, atol=tol)
+        algorithm = self._sensitive_algorithm()
         r, sol, cycle = self._cycle_residuals(problem, algorithm, names)
         if cycle is None:
             return r, np.zeros((2, len(names)))
@@ -174,6 +171,21 @@ class Misfit:
             moved = variant(problem, **{name: float(values[name]) + step})
             jac[:, j] = (self._cycle_residuals(moved, algorithm, ())[0] - r) / step
         return r, jac
+
+    def residuals_at(self, values: dict) -> np.ndarray:
+        """The residuals of :meth:`residuals_and_jacobian` at ``values`` without the Jacobian:
+        one plain solve of the same integrator (a sampler's step needs no gradient)."""
+        from problems.slider import variant
+        problem = variant(self.problem, **{n: float(v) for n, v in values.items()})
+        return self._cycle_residuals(problem, self._sensitive_algorithm(), ())[0]
+
+    def _sensitive_algorithm(self):
+        """Rodas5P at this misfit's tolerance, at most
+        :data:`problems.directions.SENSITIVITY_RTOL`."""
+        from integrators import make_algorithm
+        from problems.directions import SENSITIVITY_RTOL
+        tol = min(getattr(self.algorithm, "rtol", None) or SENSITIVITY_RTOL, SENSITIVITY_RTOL)
+        return make_algorithm("Rodas5P", rtol=tol, atol=tol)
 
     def _cycle_residuals(self, problem, algorithm, names):
         """(ΔT, Δμ residuals in σ, the solution, its cycle or None) of one solve of

@@ -17,13 +17,17 @@ along ±1 and ±2 standard deviations of each principal axis of that covariance 
 quadratic's 1 and 4 (:attr:`NuisanceFit.laplace_check`: the worst ratio; inf when such a step
 leaves the box or the cycles). The sampler:
 random-walk Metropolis with the Laplace covariance (the Gauss–Newton metric at the optimum) as
-its proposal, scaled by 2.38/√d (Gelman et al. 1996), one solve per step.
+its proposal, scaled by 2.38/√d (Gelman et al. 1996), each sd capped at a tenth of its search
+span (:func:`proposal_covariance`), one plain solve per step.
 """
 
 from __future__ import annotations
 
+import json
 import math
+import sys
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -31,10 +35,14 @@ import pandas as pd
 from benchmarks.inversion.least_squares import ExactResiduals
 from benchmarks.inversion.misfit import NO_CYCLE_RESIDUAL, Misfit
 
-__all__ = ["NuisanceFit", "fit_with_nuisance", "sample_with_nuisance", "PRIOR_SPAN"]
+__all__ = ["NuisanceFit", "fit_with_nuisance", "sample_with_nuisance", "PRIOR_SPAN",
+           "NUISANCE", "priors_of", "nuisance_files", "write_nuisance"]
 
 #: a nuisance constant is searched within this many prior σ of its stated value
 PRIOR_SPAN = 5.0
+#: a proposal's sd along a parameter at most this fraction of its search span
+#: (:func:`proposal_covariance`)
+PROPOSAL_SPAN = 0.1
 #: the nuisance constants a fit can free (:data:`problems.directions.SENSITIVE` names)
 NUISANCE = ("stiffness", "vl", "vls", "mass", "normal_force")
 
@@ -56,7 +64,7 @@ class NuisanceFit:
     chi2 : float
         χ² at the best point.
     n_solves : int
-        Forward solves (each with sensitivities).
+        Forward solves: the fit's with sensitivities, the Laplace check's plain.
     laplace_check : float
         The worst of |Δχ²/expected − 1| along ±1, ±2 σ of the principal axes (0: Gaussian).
     success : bool
@@ -98,11 +106,17 @@ class _Posterior(ExactResiduals):
         self.lo, self.hi = lo, hi
 
     def chi2(self, x) -> float:
-        """χ² at x; inf outside the box and the priors' spans (no solve there)."""
+        """χ² at x by a plain solve (no sensitivities); inf outside the box and the priors'
+        spans (no solve there)."""
         if not (np.all(x >= self.lo) and np.all(x <= self.hi)):
             return math.inf
-        r = self.at(x)[1]
-        return float(r @ r) if abs(r[0]) < NO_CYCLE_RESIDUAL else math.inf
+        self.solves += 1
+        r = self.misfit.residuals_at(self.values(x))
+        if not abs(r[0]) < NO_CYCLE_RESIDUAL:
+            return math.inf
+        prior = [(v - self.priors[n][0]) / self.priors[n][1]
+                 for n, v in zip(self.nuisance, x[2:])]
+        return float(r @ r + np.sum(np.square(prior)))
 
 
 def _check_priors(misfit: Misfit, priors: dict) -> None:
@@ -201,24 +215,145 @@ def _laplace_check(post: _Posterior, x, cov, chi2: float) -> float:
     return worst
 
 
+def proposal_covariance(fitted: NuisanceFit) -> np.ndarray:
+    """The Laplace covariance with each parameter's sd capped at :data:`PROPOSAL_SPAN` of its
+    search span (its correlations kept): where the means leave a direction unresolved (an sd of
+    13 decades of Lc in a box of 2), the uncapped proposal leaves the box at every step and
+    the chain never moves."""
+    lo, hi = fitted.bounds
+    sd = np.sqrt(np.clip(np.diag(fitted.covariance), 0.0, None))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cap = np.where(sd > 0, np.minimum(1.0, PROPOSAL_SPAN * (hi - lo) / sd), 1.0)
+    return fitted.covariance * np.outer(cap, cap)
+
+
 def sample_with_nuisance(misfit: Misfit, fitted: NuisanceFit, steps: int = 2000,
-                         seed: int = 0) -> pd.DataFrame:
+                         seed: int = 0, progress: bool = False) -> pd.DataFrame:
     """Random-walk Metropolis from the fit's optimum with its Laplace covariance as the
     proposal's metric (module docstring): one row per step (``names``' columns and χ²).
-    A step outside the fit's box and priors' spans is rejected without a solve."""
+    A step outside the fit's box and priors' spans is rejected without a solve. ``progress``:
+    a bar on the standard error."""
     if not fitted.success:
         raise ValueError(f"sample_with_nuisance: the fit failed ({fitted.message}); nothing to "
                          "start from")
     post = _Posterior(misfit, fitted.priors, *fitted.bounds)
     rng = np.random.default_rng(seed)
     d = len(fitted.x)
-    chol = np.linalg.cholesky(fitted.covariance * (2.38 ** 2 / d))
+    cov = proposal_covariance(fitted) * (2.38 ** 2 / d)
+    if not np.isfinite(cov).all():
+        raise ValueError("sample_with_nuisance: the fit has no Laplace covariance (JᵀJ is "
+                         "singular) to propose steps with")
+    val, vec = np.linalg.eigh(cov)                # a square root even where cov is singular
+    chol = vec * np.sqrt(np.clip(val, 0.0, None))
     x, chi2 = fitted.x.copy(), post.chi2(fitted.x)
     rows = np.empty((steps, d + 1))
-    for i in range(steps):
+    from tqdm.auto import tqdm
+    for i in tqdm(range(steps), desc="sampler", unit="step", disable=not progress,
+                  file=sys.stderr):
         y = x + chol @ rng.standard_normal(d)
         c = post.chi2(y)
         if math.log(rng.random()) < -0.5 * (c - chi2):
             x, chi2 = y, c
         rows[i, :d], rows[i, d] = x, chi2
     return pd.DataFrame(rows, columns=[*fitted.names, "chi2"])
+
+
+def priors_of(problem, specs) -> dict:
+    """The priors of ``specs`` ((name, σ, relative) each), each about ``problem``'s own value:
+    name (:data:`NUISANCE`, or an alias of :data:`problems.directions.ALIASES`) → (mean, σ)
+    in SI, σ a fraction of the mean where ``relative``. ValueError naming a constant that
+    cannot be freed, one named twice, or a σ not above 0."""
+    from problems.directions import ALIASES, sensitivity_names, value_of
+    priors = {}
+    for given, sigma, relative in specs:
+        name = ALIASES.get(given, given)
+        if name not in NUISANCE:
+            raise ValueError(f"--nuisance {given}: not a constant the inversion can free; "
+                             f"they are {', '.join(NUISANCE)} (aliases k, m, fn)")
+        if name in priors:
+            raise ValueError(f"--nuisance: {name} named twice")
+        sensitivity_names(problem, (name,))     # one the problem has, with mass: or ValueError
+        mean = value_of(problem, name)
+        sd = sigma * mean if relative else sigma
+        if not (math.isfinite(sd) and sd > 0 and mean > 0):
+            raise ValueError(f"--nuisance {given}: the prior needs a σ above 0 about a "
+                             f"positive value; the problem's {name} is {mean:g} (SI), σ "
+                             f"{sd:g}")
+        priors[name] = (mean, sd)
+    return priors
+
+
+def nuisance_files(out: Path) -> list[Path]:
+    """Every file :func:`write_nuisance` may write to ``out``."""
+    return [Path(out) / n for n in ("nuisance.json", "nuisance_parameters.csv",
+                                    "nuisance_samples.csv", "nuisance.png")]
+
+
+def write_nuisance(fitted: NuisanceFit, samples, out: Path, record: dict) -> dict:
+    """``nuisance.json`` (the summary, with ``record``'s provenance), the parameters' table,
+    the sampler's steps (if any) and the figure (each parameter's sampled histogram over the
+    Laplace Gaussian and the prior) to ``out``; the summary with the paths written."""
+    from benchmarks.records.files import claim_outputs, write_output, write_table
+    from benchmarks.records.provenance import provenance as machine, version_line
+    from benchmarks.records.report import jsonable
+    out = Path(out)
+    claim_outputs(nuisance_files(out))
+    table = fitted.table()
+    files = {"summary": out / "nuisance.json", "parameters": out / "nuisance_parameters.csv"}
+    summary = {"names": list(fitted.names), "success": fitted.success,
+               "message": fitted.message, "chi2": fitted.chi2, "solves": fitted.n_solves,
+               "laplace_check": fitted.laplace_check,
+               "laplace_check_is": "the worst |Δχ²/k² − 1| at ±1, ±2 sd along the Laplace "
+                                   "covariance's principal axes (0: Gaussian); null: such a "
+                                   "step left the box, the priors' spans or the cycles",
+               "parameters": table.to_dict("records"),
+               "covariance": fitted.covariance.tolist(),
+               "assumed": "ΔT̄ and Δμ̄ Gaussian with the observations' σ; each constant "
+                          "Gaussian about the problem's value with its --nuisance σ; b and "
+                          "log10 Lc flat in the box; Laplace: (JᵀJ)⁻¹ at the fit",
+               "provenance": {"tool": version_line(), **machine(), **record}}
+    write_table(table, files["parameters"])
+    if samples is not None and len(samples):
+        kept = samples.iloc[len(samples) // 4:]          # the first quarter: burn-in
+        files["samples"] = out / "nuisance_samples.csv"
+        write_table(samples, files["samples"])
+        summary["sampler"] = {
+            "steps": len(samples), "burn_in": len(samples) - len(kept),
+            "acceptance": float((samples[fitted.names[0]].diff().iloc[1:] != 0).mean()),
+            "mean": {n: float(kept[n].mean()) for n in fitted.names},
+            "sd": {n: float(kept[n].std()) for n in fitted.names},
+            "interval_95": {n: [float(v) for v in kept[n].quantile([0.025, 0.975])]
+                            for n in fitted.names}}
+        files["figure"] = out / "nuisance.png"
+        _plot(fitted, kept, files["figure"])
+    from benchmarks.records.files import remove_own
+    for path in nuisance_files(out):               # an earlier run's this one did not make
+        if path not in files.values():
+            remove_own(path)
+    summary["files"] = {k: str(v) for k, v in files.items()}
+    write_output(files["summary"], json.dumps(jsonable(summary), indent=2) + "\n")
+    return summary
+
+
+def _plot(fitted: NuisanceFit, kept, path: Path) -> None:
+    """Each parameter: the sampler's histogram, the Laplace Gaussian, the prior's."""
+    from matplotlib.figure import Figure
+
+    from benchmarks.records.files import write_figure
+    fig = Figure(figsize=(3.0 * len(fitted.names), 3.0))
+    for j, name in enumerate(fitted.names):
+        ax = fig.add_subplot(1, len(fitted.names), j + 1)
+        ax.hist(kept[name], bins=40, density=True, color="0.7", label="sampler")
+        grid = np.linspace(*np.quantile(kept[name], [0.001, 0.999]), 200)
+        for mean, sd, style, label in ((fitted.x[j], fitted.sd[j], "-", "Laplace"),
+                                       (*fitted.priors.get(name, (math.nan, math.nan)), "--",
+                                        "prior")):
+            if np.isfinite(sd) and sd > 0:
+                ax.plot(grid, np.exp(-0.5 * ((grid - mean) / sd) ** 2) / (sd * math.sqrt(
+                    2 * math.pi)), ls=style, color="C3" if style == "-" else "C0", lw=1.2,
+                    label=label)
+        ax.set_xlabel(name, fontsize=8)
+        ax.tick_params(labelsize=7)
+        ax.legend(fontsize=6)
+    fig.tight_layout()
+    write_figure(fig, path, dpi=110)

@@ -1,0 +1,132 @@
+"""``rsfbench invert --nuisance NAME=SIGMA``: (b, Lc) with apparatus constants the record leaves
+uncertain, each with a Gaussian prior about the problem's value
+(:mod:`benchmarks.inversion.nuisance`).
+
+    rsfbench invert --preset W2 --law slip --nuisance k=3% --nuisance vls=2% --out inv_W2
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+import numpy as np
+
+from benchmarks.cli.args import say, show_progress
+
+__all__ = ["nuisance_spec", "check_nuisance_options", "check_nuisance_observations",
+           "nuisance_algorithm", "run_nuisance"]
+
+#: what a prior's σ means, in --help and in nuisance.json
+SPEC_HELP = ("NAME=SIGMA: free the constant NAME (stiffness or k, vl, vls, mass or m, "
+             "normal_force or fn) with a Gaussian prior about the problem's value of σ SIGMA, "
+             "in SI or as a percentage of the value (k=3%%); repeatable. The fit uses exact "
+             "gradients (Rodas5P's forward sensitivities), reports the Laplace covariance and "
+             "its check, and samples the posterior with --steps Metropolis steps on the "
+             "Gauss–Newton metric (default: no constant freed)")
+
+
+def nuisance_spec(text: str):
+    """``NAME=SIGMA`` or ``NAME=PERCENT%`` → (name, σ, relative)."""
+    name, sep, sigma = text.partition("=")
+    name, sigma = name.strip().lower(), sigma.strip()
+    relative = sigma.endswith("%")
+    try:
+        value = float(sigma[:-1] if relative else sigma)
+    except ValueError:
+        value = float("nan")
+    if not sep or not name or not (np.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected NAME=SIGMA or NAME=PERCENT% with a σ above "
+                                         f"0 (k=3%, vl=2e-8), got {text!r}")
+    return name, value / 100.0 if relative else value, relative
+
+
+def check_nuisance_options(args, problem) -> None:
+    """What --nuisance cannot go with, and its priors about ``problem``'s values, refused
+    before any work."""
+    from benchmarks.inversion.nuisance import priors_of
+    priors_of(problem, args.nuisance)
+    for flag, given in (("--method emcee", args.method == "emcee"),
+                        ("--grid", args.grid is not None),
+                        ("--walkers", args.walkers is not None)):
+        if given:
+            raise ValueError(f"{flag} is the (b, Lc) posterior's; with --nuisance the fit is "
+                             "by exact gradients and the sampler takes --steps only")
+    if args.integrator and args.integrator.lower() != "rodas5p":
+        raise ValueError(f"--integrator {args.integrator}: --nuisance differentiates through "
+                         "Rodas5P's forward sensitivities; drop --integrator or name Rodas5P")
+
+
+def check_nuisance_observations(obs) -> None:
+    """The curves are not differentiated: refused before any work."""
+    if obs.curve_likelihood is not None:
+        raise ValueError("--nuisance fits the means ΔT̄ and Δμ̄; the slip-weakening curves are "
+                         "not differentiated: add --curve-noise none")
+
+
+def nuisance_algorithm(algorithm):
+    """``(algorithm, why)``: Rodas5P at the chosen tolerance or at most
+    :data:`problems.directions.SENSITIVITY_RTOL`, as the nuisance fit solves."""
+    from integrators import make_algorithm
+    from problems.directions import SENSITIVITY_RTOL
+    tol = min(getattr(algorithm, "rtol", None) or SENSITIVITY_RTOL, SENSITIVITY_RTOL)
+    return (make_algorithm("Rodas5P", rtol=tol, atol=tol),
+            f"Rodas5P at rtol {tol:g} with forward sensitivities (--nuisance: exact gradients)")
+
+
+def run_nuisance(args, misfit, box, steps: int, out, record: dict) -> int:
+    """The fit, its Laplace check and the sampler; files to ``out``; the summary said (or
+    one JSON document). Exit status 1 when no start found a limit cycle."""
+    from benchmarks.inversion.invert import inversion_files
+    from benchmarks.inversion.nuisance import (fit_with_nuisance, priors_of,
+                                               sample_with_nuisance, write_nuisance)
+    from benchmarks.records.files import remove_own
+    priors = priors_of(misfit.problem, args.nuisance)
+    if not args.json:
+        say("… the fit of b, log10 Lc, " + ", ".join(priors) + " (exact gradients)")
+    fitted = fit_with_nuisance(misfit, priors, *box)
+    samples = None
+    if fitted.success and steps:
+        if not args.json:
+            say(f"… {steps} Metropolis steps on the Gauss–Newton metric")
+        samples = sample_with_nuisance(misfit, fitted, steps=steps, seed=args.seed,
+                                       progress=not args.json and show_progress(args))
+    summary = write_nuisance(fitted, samples, out, record)
+    for path in inversion_files(out):        # an earlier run's, of the (b, Lc) posterior
+        remove_own(path)
+    if args.json:
+        say(_json(summary))
+    else:
+        _report(fitted, summary)
+    return 0 if fitted.success else 1
+
+
+def _json(summary: dict) -> str:
+    from benchmarks.records.report import jsonable
+    return json.dumps(jsonable(summary), indent=2)
+
+
+def _report(fitted, summary: dict) -> None:
+    if not fitted.success:
+        say(f"nuisance fit failed: {fitted.message}; written: "
+            f"{', '.join(summary['files'].values())}")
+        return
+    for name, x, sd, lo, hi in zip(fitted.names, fitted.x, fitted.sd, *fitted.bounds):
+        prior = fitted.priors.get(name)
+        moved = "" if prior is None else (f" (prior {prior[0]:.5g} ± {prior[1]:.2g}: moved "
+                                          f"{(x - prior[0]) / prior[1]:+.2f} σ)")
+        wide = (" — wider than its search span: the data do not resolve it, read the sampler"
+                if sd > hi - lo else "")
+        say(f"{name} = {x:.5g} ± {sd:.2g} (Laplace){moved}{wide}")
+    check = fitted.laplace_check
+    say(f"χ² = {fitted.chi2:.3g}, {fitted.n_solves} solves; Laplace check "
+        + ("(±1, ±2 sd along each principal axis): a step leaves the box or the cycles, so "
+           "the Gaussian is not checked — read the sampler" if not np.isfinite(check) else
+           f"(worst |Δχ²/k² − 1| at ±1, ±2 sd): {check:.2f}"
+           + (" — not Gaussian: read the sampler" if check > 0.5 else "")))
+    s = summary.get("sampler")
+    if s:
+        say(f"sampler ({s['steps']} steps, the first {s['burn_in']} dropped, acceptance "
+            f"{s['acceptance']:.2f}): " + ", ".join(
+                f"{n} 95 % {lo:.5g} to {hi:.5g}" for n, (lo, hi) in s["interval_95"].items()))
+    say(f"written: {', '.join(summary['files'].values())}")
