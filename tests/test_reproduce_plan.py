@@ -281,7 +281,7 @@ def test_the_plans(fake, monkeypatch):
 def test_every_study_declares_inputs_that_resolve(tmp_path):
     import inspect
     plan = RP.studies()
-    assert len(plan) == 34
+    assert len(plan) == 35
     for study in plan:
         assert list(inspect.signature(study.run).parameters)[1:] == list(study.settings), \
             study.name
@@ -300,7 +300,8 @@ def test_every_study_declares_inputs_that_resolve(tmp_path):
     assert "benchmarks/pipeline/reproduce.py" not in code and "benchmarks/cli/main.py" not in code
     assert {s.name for s in plan if s.full} == {
         "speedup", "work-precision", "target-full", "binding-overhead", "ensemble-scaling",
-        "solver-effect", "family", "mass-limit", "nied-catalogue", "settled-coverage"}
+        "solver-effect", "family", "mass-limit", "nied-catalogue", "settled-coverage",
+        "nuisance-settled"}
 
 
 def test_each_committed_result_file_belongs_to_one_study():

@@ -42,6 +42,7 @@ from benchmarks.cli.args import (
     workers,
 )
 from benchmarks.cli.invert_nuisance import (
+    SAMPLER_HELP,
     SPEC_HELP,
     check_nuisance_observations,
     check_nuisance_options,
@@ -172,9 +173,12 @@ def _checked(args):
         raise ValueError("--grid is the grid posterior's first grid: drop it with --method emcee")
     walkers = 32 if args.walkers is None else args.walkers
     steps = 2000 if args.steps is None else args.steps
-    if args.nuisance:                    # a fit by gradients and a Metropolis sampler: no emcee
+    if args.nuisance:                    # a fit by gradients and its own samplers: no emcee
         check_nuisance_options(args, problem)
         return problem, published, box_b, box_lc, walkers, steps
+    if args.nuisance_sampler is not None:
+        raise ValueError("--nuisance-sampler samples the --nuisance inversion: add --nuisance "
+                         "NAME=SIGMA or drop it")
     if steps:                            # the corner plot is written after all the work
         require("corner", "inversion", "the corner plot of a posterior")
         require("emcee", "inversion", "a posterior sample")
@@ -342,6 +346,8 @@ def add_parsers(sub) -> None:
                    help="threads (own methods) or processes per batch (default: all cores)")
     i.add_argument("--nuisance", type=nuisance_spec, action="append", metavar="NAME=SIGMA",
                    help=SPEC_HELP)
+    i.add_argument("--nuisance-sampler", choices=("nested", "metropolis"),
+                   help=SAMPLER_HELP)
     i.add_argument("--wall-budget", type=positive, default=WALL_BUDGET, metavar="S",
                    help="wall budget per forward solve in s, of the inversion and of its "
                         "solver check; a solve over it is a failed point, counted in the "

@@ -14,6 +14,9 @@ import numpy as np
 
 from benchmarks.cli.args import say, show_progress
 
+#: draws of the nested sampler unless --steps says
+NESTED_DRAWS = 200
+
 __all__ = ["nuisance_spec", "check_nuisance_options", "check_nuisance_observations",
            "nuisance_algorithm", "run_nuisance"]
 
@@ -22,8 +25,13 @@ SPEC_HELP = ("NAME=SIGMA: free the constant NAME (stiffness or k, vl, vls, mass 
              "normal_force or fn) with a Gaussian prior about the problem's value of σ SIGMA, "
              "in SI or as a percentage of the value (k=3%%); repeatable. The fit uses exact "
              "gradients (Rodas5P's forward sensitivities), reports the Laplace covariance and "
-             "its check, and samples the posterior with --steps Metropolis steps on the "
-             "Gauss–Newton metric (default: no constant freed)")
+             "its check, and samples the posterior (--nuisance-sampler) (default: no "
+             "constant freed)")
+SAMPLER_HELP = ("with --nuisance: nested (the constants drawn from their priors, (b, log10 Lc) "
+                "fitted for each, the draws weighted by the Laplace evidence; --steps draws, "
+                "default 200; it follows the thin sheet of a precise record) or metropolis "
+                "(--steps random-walk steps on the Gauss–Newton metric, default 2000) "
+                "(default: nested)")
 
 
 def nuisance_spec(text: str):
@@ -76,8 +84,10 @@ def nuisance_algorithm(algorithm):
 
 def run_nuisance(args, misfit, box, steps: int, out, record: dict) -> int:
     """The fit, its Laplace check and the sampler; files to ``out``; the summary said (or
-    one JSON document). Exit status 1 when no start found a limit cycle."""
+    one JSON document). Exit status 1 when the fit did not converge (the sampler still runs
+    from where it stopped on a limit cycle) or found none."""
     from benchmarks.inversion.invert import inversion_files
+    from benchmarks.inversion.nested_laplace import sample_nested
     from benchmarks.inversion.nuisance import (fit_with_nuisance, priors_of,
                                                sample_with_nuisance, write_nuisance)
     from benchmarks.records.files import remove_own
@@ -86,11 +96,20 @@ def run_nuisance(args, misfit, box, steps: int, out, record: dict) -> int:
         say("… the fit of b, log10 Lc, " + ", ".join(priors) + " (exact gradients)")
     fitted = fit_with_nuisance(misfit, priors, *box)
     samples = None
-    if fitted.success and steps:
-        if not args.json:
-            say(f"… {steps} Metropolis steps on the Gauss–Newton metric")
-        samples = sample_with_nuisance(misfit, fitted, steps=steps, seed=args.seed,
-                                       progress=not args.json and show_progress(args))
+    # the optimiser at its budget still ends on a cycle, a start for the chain
+    sampler = args.nuisance_sampler or "nested"
+    draws = steps if args.steps is not None or sampler == "metropolis" else NESTED_DRAWS
+    bar = not args.json and show_progress(args)
+    if np.isfinite(fitted.chi2) and np.isfinite(fitted.covariance).all() and draws:
+        if sampler == "nested":
+            if not args.json:
+                say(f"… {draws} draws of the constants, (b, log10 Lc) fitted for each")
+            samples = sample_nested(misfit, fitted, draws=draws, seed=args.seed, progress=bar)
+        else:
+            if not args.json:
+                say(f"… {draws} Metropolis steps on the Gauss–Newton metric")
+            samples = sample_with_nuisance(misfit, fitted, steps=draws, seed=args.seed,
+                                           progress=bar)
     summary = write_nuisance(fitted, samples, out, record)
     for path in inversion_files(out):        # an earlier run's, of the (b, Lc) posterior
         remove_own(path)
@@ -107,10 +126,12 @@ def _json(summary: dict) -> str:
 
 
 def _report(fitted, summary: dict) -> None:
-    if not fitted.success:
+    if not np.isfinite(fitted.chi2):
         say(f"nuisance fit failed: {fitted.message}; written: "
             f"{', '.join(summary['files'].values())}")
         return
+    if not fitted.success:
+        say(f"the fit did not converge ({fitted.message}): where it stopped, on a cycle")
     for name, x, sd, lo, hi in zip(fitted.names, fitted.x, fitted.sd, *fitted.bounds):
         prior = fitted.priors.get(name)
         moved = "" if prior is None else (f" (prior {prior[0]:.5g} ± {prior[1]:.2g}: moved "
@@ -126,7 +147,9 @@ def _report(fitted, summary: dict) -> None:
            + (" — not Gaussian: read the sampler" if check > 0.5 else "")))
     s = summary.get("sampler")
     if s:
-        say(f"sampler ({s['steps']} steps, the first {s['burn_in']} dropped, acceptance "
-            f"{s['acceptance']:.2f}): " + ", ".join(
+        say((f"nested sampler ({s['draws']} draws, {s['effective_draws']:.0f} effective)"
+             if "draws" in s else
+             f"sampler ({s['steps']} steps, the first {s['burn_in']} dropped, acceptance "
+             f"{s['acceptance']:.2f})") + ": " + ", ".join(
                 f"{n} 95 % {lo:.5g} to {hi:.5g}" for n, (lo, hi) in s["interval_95"].items()))
     say(f"written: {', '.join(summary['files'].values())}")

@@ -232,10 +232,11 @@ def sample_with_nuisance(misfit: Misfit, fitted: NuisanceFit, steps: int = 2000,
     """Random-walk Metropolis from the fit's optimum with its Laplace covariance as the
     proposal's metric (module docstring): one row per step (``names``' columns and χ²).
     A step outside the fit's box and priors' spans is rejected without a solve. ``progress``:
-    a bar on the standard error."""
-    if not fitted.success:
-        raise ValueError(f"sample_with_nuisance: the fit failed ({fitted.message}); nothing to "
-                         "start from")
+    a bar on the standard error. A fit the optimiser left at its budget is a start as good as
+    any (the chain forgets it in its burn-in); one without a limit cycle is none."""
+    if not np.isfinite(fitted.chi2):
+        raise ValueError(f"sample_with_nuisance: the fit ended without a limit cycle "
+                         f"({fitted.message}); nothing to start from")
     post = _Posterior(misfit, fitted.priors, *fitted.bounds)
     rng = np.random.default_rng(seed)
     d = len(fitted.x)
@@ -314,18 +315,11 @@ def write_nuisance(fitted: NuisanceFit, samples, out: Path, record: dict) -> dic
                "provenance": {"tool": version_line(), **machine(), **record}}
     write_table(table, files["parameters"])
     if samples is not None and len(samples):
-        kept = samples.iloc[len(samples) // 4:]          # the first quarter: burn-in
         files["samples"] = out / "nuisance_samples.csv"
         write_table(samples, files["samples"])
-        summary["sampler"] = {
-            "steps": len(samples), "burn_in": len(samples) - len(kept),
-            "acceptance": float((samples[fitted.names[0]].diff().iloc[1:] != 0).mean()),
-            "mean": {n: float(kept[n].mean()) for n in fitted.names},
-            "sd": {n: float(kept[n].std()) for n in fitted.names},
-            "interval_95": {n: [float(v) for v in kept[n].quantile([0.025, 0.975])]
-                            for n in fitted.names}}
+        summary["sampler"] = _sampler_summary(fitted, samples)
         files["figure"] = out / "nuisance.png"
-        _plot(fitted, kept, files["figure"])
+        _plot(fitted, samples, files["figure"])
     from benchmarks.records.files import remove_own
     for path in nuisance_files(out):               # an earlier run's this one did not make
         if path not in files.values():
@@ -335,15 +329,36 @@ def write_nuisance(fitted: NuisanceFit, samples, out: Path, record: dict) -> dic
     return summary
 
 
-def _plot(fitted: NuisanceFit, kept, path: Path) -> None:
-    """Each parameter: the sampler's histogram, the Laplace Gaussian, the prior's."""
+def _sampler_summary(fitted: NuisanceFit, samples: pd.DataFrame) -> dict:
+    """The nested sampler's weighted summary (a ``weight`` column), or the Metropolis
+    chain's with its first quarter dropped (burn-in)."""
+    if "weight" in samples:
+        from benchmarks.inversion.nested_laplace import weighted_summary
+        return {"method": "nested Laplace (benchmarks/inversion/nested_laplace.py)",
+                **weighted_summary(samples, fitted.names)}
+    kept = samples.iloc[len(samples) // 4:]
+    return {"method": "Metropolis on the Gauss–Newton metric", "steps": len(samples),
+            "burn_in": len(samples) - len(kept),
+            "acceptance": float((samples[fitted.names[0]].diff().iloc[1:] != 0).mean()),
+            "mean": {n: float(kept[n].mean()) for n in fitted.names},
+            "sd": {n: float(kept[n].std()) for n in fitted.names},
+            "interval_95": {n: [float(v) for v in kept[n].quantile([0.025, 0.975])]
+                            for n in fitted.names}}
+
+
+def _plot(fitted: NuisanceFit, samples, path: Path) -> None:
+    """Each parameter: the sampler's histogram (weighted, or the chain after its burn-in), the
+    Laplace Gaussian, the prior's."""
     from matplotlib.figure import Figure
 
     from benchmarks.records.files import write_figure
+    weights = samples.weight if "weight" in samples else None
+    kept = samples if weights is not None else samples.iloc[len(samples) // 4:]
     fig = Figure(figsize=(3.0 * len(fitted.names), 3.0))
     for j, name in enumerate(fitted.names):
         ax = fig.add_subplot(1, len(fitted.names), j + 1)
-        ax.hist(kept[name], bins=40, density=True, color="0.7", label="sampler")
+        ax.hist(kept[name], bins=40, density=True, weights=weights, color="0.7",
+                label="sampler")
         grid = np.linspace(*np.quantile(kept[name], [0.001, 0.999]), 200)
         for mean, sd, style, label in ((fitted.x[j], fitted.sd[j], "-", "Laplace"),
                                        (*fitted.priors.get(name, (math.nan, math.nan)), "--",

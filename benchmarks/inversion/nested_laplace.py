@@ -1,0 +1,136 @@
+"""The posterior of (b, log10 Lc, nuisance…) where the means are precise: the nuisance constants
+drawn from their priors, (b, log10 Lc) fitted exactly for each draw, and the draws weighted by
+how well that fit can do — a nested Laplace approximation, sampled by importance.
+
+Why: a settled cycle measures ΔT̄ and Δμ̄ to ~4e−5 and ~1e−3. With k and vL free, those two
+numbers fix two combinations of the four parameters, and the posterior is a thin curved sheet
+about a two-dimensional manifold. A random walk with the Laplace covariance at one point of it
+leaves the sheet at every step (acceptance 0 on 2 of 2 such recordings,
+``rsfbench study nuisance-settled``). Here the sheet is followed by construction.
+
+For each draw θ of the constants (their Gaussian priors, cut to ``PRIOR_SPAN`` σ), the
+(b, log10 Lc) that best fit the means with θ held (least squares from the fit's point, exact
+Jacobians), then
+
+    log w(θ) = −χ²_min(θ)/2 − ½ log det(J_θᵀ J_θ),
+
+the Laplace approximation of p(data | θ) with (b, log10 Lc) flat in the box and J_θ the
+residuals' Jacobian in (b, log10 Lc) there; (b, log10 Lc) | θ is drawn from N(x*(θ), (J_θᵀJ_θ)⁻¹)
+within the box. What it assumes beyond the module :mod:`benchmarks.inversion.nuisance`'s model:
+that (b, log10 Lc) given θ is Gaussian (exact in the limit of precise means; the draws' own
+inner χ² says how far from it each is) and that the inner fit finds the best (b, log10 Lc)
+(a draw whose inner fit ends without a cycle has weight 0). The effective sample size
+(Σw)²/Σw² says how many draws the weights leave.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+
+import numpy as np
+import pandas as pd
+
+from benchmarks.inversion.misfit import NO_CYCLE_RESIDUAL, Misfit
+
+__all__ = ["sample_nested", "weighted_summary"]
+
+
+def _inner(misfit: Misfit, theta: dict, x0, lo, hi):
+    """(x*, χ²_min, J at x*) of (b, log10 Lc) with ``theta`` held; None without a cycle."""
+    from scipy.optimize import least_squares
+    last = {}
+
+    def at(x):
+        key = tuple(x)
+        if key not in last:
+            values = {"b": x[0], "lc": 10.0 ** x[1], **theta}
+            r, jac = misfit.residuals_and_jacobian(values)
+            jac = jac[:, :2] * np.array([1.0, values["lc"] * math.log(10.0)])
+            last.clear()
+            last[key] = (r, jac)
+        return last[key]
+
+    res = least_squares(lambda x: at(x)[0], np.clip(x0, lo, hi), jac=lambda x: at(x)[1],
+                        bounds=(lo, hi), x_scale="jac", max_nfev=50)
+    r, jac = at(res.x)
+    if not abs(r[0]) < NO_CYCLE_RESIDUAL:
+        return None
+    return res.x, float(r @ r), jac
+
+
+def sample_nested(misfit: Misfit, fitted, draws: int = 200, seed: int = 0,
+                  progress: bool = False) -> pd.DataFrame:
+    """``draws`` weighted draws of (b, log10 Lc, nuisance…) (module docstring): one row per
+    draw, ``fitted.names``' columns, ``weight`` (normalised to sum 1), ``inner_chi2`` (χ²_min
+    of its θ) and ``inner_solves``. ``fitted``: a
+    :class:`~benchmarks.inversion.nuisance.NuisanceFit` with a limit cycle (its priors, box and
+    point)."""
+    from tqdm.auto import tqdm
+    if not np.isfinite(fitted.chi2):
+        raise ValueError(f"sample_nested: the fit ended without a limit cycle "
+                         f"({fitted.message}); nothing to start from")
+    lo, hi = fitted.bounds
+    names = list(fitted.priors)
+    rng = np.random.default_rng(seed)
+    rows, start = [], np.asarray(fitted.x[:2], dtype=float)
+    for _ in tqdm(range(draws), desc="nested draws", unit="draw", disable=not progress,
+                  file=sys.stderr):
+        theta = {}
+        for j, name in enumerate(names):
+            mean, sd = fitted.priors[name]
+            while True:                   # the prior cut to the search's span
+                v = mean + sd * rng.standard_normal()
+                if lo[2 + j] <= v <= hi[2 + j]:
+                    break
+            theta[name] = float(v)
+        before = misfit.failures["solves"]
+        found = _inner(misfit, theta, start, lo[:2], hi[:2])
+        solves = misfit.failures["solves"] - before
+        if found is None:
+            rows.append([*start, *theta.values(), -math.inf, math.inf, solves])
+            continue
+        x, chi2, jac = found
+        info = jac.T @ jac
+        sign, logdet = np.linalg.slogdet(info)
+        if sign <= 0:
+            rows.append([*x, *theta.values(), -math.inf, chi2, solves])
+            continue
+        cov = np.linalg.inv(info)
+        draw = _in_box(rng, x, cov, lo[:2], hi[:2])
+        rows.append([*draw, *theta.values(), -0.5 * chi2 - 0.5 * logdet, chi2, solves])
+    table = pd.DataFrame(rows, columns=[*fitted.names, "log_weight", "inner_chi2",
+                                        "inner_solves"])
+    logw = table.pop("log_weight").to_numpy()
+    w = np.exp(logw - logw.max()) if np.isfinite(logw).any() else np.zeros(len(logw))
+    table.insert(len(fitted.names), "weight", w / w.sum() if w.sum() > 0 else w)
+    return table
+
+
+def _in_box(rng, x, cov, lo, hi, tries: int = 100):
+    """A draw of N(x, cov) within [lo, hi] (x itself if ``tries`` draws all fall outside)."""
+    root = np.linalg.cholesky(cov)
+    for _ in range(tries):
+        y = x + root @ rng.standard_normal(len(x))
+        if np.all(y >= lo) and np.all(y <= hi):
+            return y
+    return np.asarray(x, dtype=float)
+
+
+def weighted_summary(table: pd.DataFrame, names) -> dict:
+    """Weighted mean, sd and 95 % interval of each of ``names``, and the effective sample
+    size (Σw)²/Σw²."""
+    w = table.weight.to_numpy()
+    ess = float(w.sum() ** 2 / (w ** 2).sum()) if (w > 0).any() else 0.0
+    out = {"draws": len(table), "effective_draws": ess, "mean": {}, "sd": {},
+           "interval_95": {}}
+    for name in names:
+        v = table[name].to_numpy()
+        mean = float(np.sum(w * v)) if ess else math.nan
+        out["mean"][name] = mean
+        out["sd"][name] = float(math.sqrt(np.sum(w * (v - mean) ** 2))) if ess else math.nan
+        order = np.argsort(v)
+        cdf = np.cumsum(w[order])
+        out["interval_95"][name] = ([float(np.interp(q, cdf, v[order])) for q in (0.025, 0.975)]
+                                    if ess else [math.nan, math.nan])
+    return out
