@@ -58,14 +58,15 @@ def test_misuse_is_refused_in_one_line_before_any_work(tmp_path, args, match):
     assert len(out.stderr.strip().splitlines()) == 1 and not (tmp_path / "o").exists()
 
 
-def test_the_proposal_is_capped_to_a_tenth_of_each_span():
-    cov = np.array([[169.0, 0.13], [0.13, 0.01]])   # sd 13 and 0.1, correlation 0.1
+def test_the_proposal_is_shrunk_as_a_whole_to_a_tenth_of_each_span():
+    # sd 13 and 0.1, correlation 0.9: shrunk by 2/10/13 as a whole, its shape kept (a cap per
+    # parameter turned a thin valley's long axis off the valley)
+    cov = np.array([[169.0, 1.17], [1.17, 0.01]])
     fitted = NuisanceFit(("log10_lc", "b"), np.zeros(2), cov, np.sqrt(np.diag(cov)), 0.0, 1,
                          bounds=(np.array([-8.0, 0.0]), np.array([-6.0, 10.0])))
     prop = proposal_covariance(fitted)
-    sd = np.sqrt(np.diag(prop))
-    assert sd == pytest.approx([0.2, 0.1])          # capped at 2/10; within 10/10 kept
-    assert prop[0, 1] / (sd[0] * sd[1]) == pytest.approx(0.1)
+    assert np.sqrt(np.diag(prop)) == pytest.approx([0.2, 0.1 * 0.2 / 13])
+    assert prop / prop[0, 0] == pytest.approx(cov / cov[0, 0])
 
 
 def test_the_nested_sampler_weights_its_draws(tmp_path):
@@ -93,3 +94,87 @@ def test_the_weighted_summary_of_draws():
     assert s["sd"]["x"] == pytest.approx(1.0, abs=0.05)
     assert s["interval_95"]["x"] == pytest.approx([1 - 1.96, 1 + 1.96], abs=0.1)
     assert 0.25 * 20_000 < s["effective_draws"] < 0.5 * 20_000     # e^{-1} of them in theory
+
+
+class _LinearMisfit:
+    """Residuals linear in (b, log10 Lc, θ1, θ2): r = 100 (b, log10 Lc) + (10 θ1, 0), whose
+    posterior is known in closed form."""
+
+    def __init__(self):
+        self.failures = {"solves": 0}
+
+    def residuals_and_jacobian(self, values):
+        self.failures["solves"] += 1
+        u = np.log10(values["lc"])
+        r = np.array([100.0 * values["b"] + 10.0 * values["t1"], 100.0 * u])
+        jac = np.array([[100.0, 0.0, 10.0, 0.0],
+                        [0.0, 100.0 / (values["lc"] * np.log(10.0)), 0.0, 0.0]])
+        return r, jac
+
+
+@pytest.mark.parametrize("b_low", [-1.0, -0.05])
+def test_the_nested_sampler_matches_a_posterior_known_in_closed_form(b_low):
+    """θ1 ~ N(0, 1) moves the best b to −θ1/10 (sd 0.01 about it): with the box wide (b from
+    −1) the data leave θ1 at its prior; with b ≥ −0.05 the box cuts every θ1 above 0.5, and
+    θ1's posterior is its prior times Φ((b* + 0.05)/0.01)'s complement, integrated here on a
+    grid. The nested draws' weighted mean and sd of θ1 and b agree within their Monte Carlo
+    error (1500 draws)."""
+    from scipy.stats import norm
+
+    from benchmarks.inversion.nested_laplace import sample_nested, weighted_summary
+    names = ("b", "log10_lc", "t1", "t2")
+    lo, hi = np.array([b_low, -1.0, -5.0, -5.0]), np.array([1.0, 1.0, 5.0, 5.0])
+    fitted = NuisanceFit(names, np.zeros(4), np.eye(4), np.ones(4), 0.0, 1,
+                         priors={"t1": (0.0, 1.0), "t2": (0.0, 1.0)}, bounds=(lo, hi))
+    table = sample_nested(_LinearMisfit(), fitted, draws=1500, seed=1)
+    s = weighted_summary(table, names)
+    t = np.linspace(-5, 5, 20001)
+    bstar = -t / 10.0
+    mass = norm.cdf((hi[0] - bstar) / 0.01) - norm.cdf((lo[0] - bstar) / 0.01)
+    p = norm.pdf(t) * mass
+    p /= p.sum()
+    mean_t = float((t * p).sum())
+    sd_t = float(np.sqrt(((t - mean_t) ** 2 * p).sum()))
+    mc = sd_t / np.sqrt(s["effective_draws"])
+    assert s["mean"]["t1"] == pytest.approx(mean_t, abs=4 * mc)
+    assert s["sd"]["t1"] == pytest.approx(sd_t, rel=0.1)
+    # b = b* + N(0, 0.01²) cut to the box: its mean follows θ1's
+    assert s["mean"]["b"] == pytest.approx(-mean_t / 10.0, abs=4 * mc / 10.0 + 0.002)
+    assert s["mean"]["t2"] == pytest.approx(0.0, abs=4 / np.sqrt(s["effective_draws"]))
+    if b_low > -1:
+        assert mean_t < -0.1 and table.b.min() >= b_low      # the cut moved θ1, no draw out
+
+
+class _UnresolvedMisfit(_LinearMisfit):
+    """r = (100 b, c(θ2) log10 Lc) with c = ½ e^{2 θ2}: where θ2 is low, Lc is unresolved in
+    its box of [−1, 1] decades."""
+
+    def residuals_and_jacobian(self, values):
+        self.failures["solves"] += 1
+        c = 0.5 * np.exp(2.0 * values["t2"])
+        u = np.log10(values["lc"])
+        return (np.array([100.0 * values["b"], c * u]),
+                np.array([[100.0, 0.0, 0.0, 0.0],
+                          [0.0, c / (values["lc"] * np.log(10.0)), 0.0, 0.0]]))
+
+
+def test_the_nested_weights_count_the_box_where_a_parameter_is_unresolved():
+    """p(θ2 | data) ∝ N(θ2; 0, 1) ∫ e^{−c² u²/2} du over the box, which is
+    N(θ2; 0, 1)·√(2π)(2Φ(c) − 1)/c: finite where c → 0 (its mean −0.34, on a grid here).
+    Without the box's mass in the weights, 1/c alone makes it N(−2, 1), and the test fails
+    (checked by taking the mass out)."""
+    from scipy.stats import norm
+
+    from benchmarks.inversion.nested_laplace import sample_nested, weighted_summary
+    names = ("b", "log10_lc", "t1", "t2")
+    lo, hi = np.array([-1.0, -1.0, -5.0, -5.0]), np.array([1.0, 1.0, 5.0, 5.0])
+    fitted = NuisanceFit(names, np.zeros(4), np.eye(4), np.ones(4), 0.0, 1,
+                         priors={"t1": (0.0, 1.0), "t2": (0.0, 1.0)}, bounds=(lo, hi))
+    s = weighted_summary(sample_nested(_UnresolvedMisfit(), fitted, draws=1500, seed=2), names)
+    t = np.linspace(-5, 5, 20001)
+    c = 0.5 * np.exp(2.0 * t)
+    p = norm.pdf(t) * (2 * norm.cdf(c) - 1) / c
+    p /= p.sum()
+    mean_t = float((t * p).sum())
+    sd_t = float(np.sqrt(((t - mean_t) ** 2 * p).sum()))
+    assert s["mean"]["t2"] == pytest.approx(mean_t, abs=4 * sd_t / np.sqrt(s["effective_draws"]))

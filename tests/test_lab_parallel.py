@@ -27,20 +27,48 @@ def test_the_results_come_in_order_whatever_the_workers(workers):
     pieces = [functools.partial(_square, x) for x in range(7)]
     out = run_all(pieces, workers)
     assert [v for v, _ in out] == [x * x for x in range(7)]
-    pids = {pid for _, pid in out}
-    # one worker: all here; several: forked copies took some (at least this process did one)
-    assert (pids == {os.getpid()}) if workers == 1 else os.getpid() in pids
+    if workers == 1:
+        assert {pid for _, pid in out} == {os.getpid()}
+
+
+def _wait_for_both(barrier):
+    barrier.wait(timeout=30)               # returns only when both processes are in here
+    return os.getpid()
 
 
 def test_forked_workers_take_pieces():
-    # a piece that waits lets the other process take the next: two processes ran
-    import time
+    # two pieces that each wait for the other: they can only both finish in two processes
+    import multiprocessing
+    barrier = multiprocessing.get_context("fork").Barrier(2)
+    pids = run_all([functools.partial(_wait_for_both, barrier)] * 2, 2)
+    assert len(set(pids)) == 2 and os.getpid() in pids
 
-    def slow(x):
-        time.sleep(0.3)
-        return os.getpid()
-    pids = run_all([functools.partial(slow, x) for x in range(2)], 2)
-    assert len(set(pids)) == 2
+
+class _Odd(ValueError):
+    def __init__(self, a, b):
+        super().__init__(f"{a} and {b}")
+
+
+def _odd(sleep):
+    import time
+    time.sleep(sleep)
+    raise _Odd(1, 2)
+
+
+def test_an_error_that_pickle_cannot_rebuild_keeps_its_text():
+    # _Odd pickles but cannot be rebuilt (two arguments): the worker's error keeps its text
+    with pytest.raises(Exception, match="1 and 2"):
+        run_all([functools.partial(_sleep, 0.5), functools.partial(_odd, 0.0)], 2)
+
+
+def _nested():
+    return run_all([functools.partial(_square, x) for x in range(3)], 2)
+
+
+def test_a_run_inside_a_piece_runs_whole():
+    # each piece runs its own run_all: here and in a worker (there one after another)
+    out = run_all([_nested, _nested, functools.partial(_square, 5)], 2)
+    assert [v for v, _ in out[0]] == [v for v, _ in out[1]] == [0, 1, 4] and out[2][0] == 25
 
 
 @pytest.mark.parametrize("workers", [1, 2])

@@ -87,20 +87,43 @@ def run_nuisance(args, misfit, box, steps: int, out, record: dict) -> int:
     one JSON document). Exit status 1 when the fit did not converge (the sampler still runs
     from where it stopped on a limit cycle) or found none."""
     from benchmarks.inversion.invert import inversion_files
-    from benchmarks.inversion.nested_laplace import sample_nested
-    from benchmarks.inversion.nuisance import (fit_with_nuisance, priors_of,
-                                               sample_with_nuisance, write_nuisance)
+    from benchmarks.inversion.nuisance import priors_of, write_nuisance
     from benchmarks.records.files import remove_own
     priors = priors_of(misfit.problem, args.nuisance)
     if not args.json:
         say("… the fit of b, log10 Lc, " + ", ".join(priors) + " (exact gradients)")
+    try:
+        fitted, samples = _fit_and_sample(args, misfit, priors, box, steps)
+    except KeyboardInterrupt:
+        raise KeyboardInterrupt(f"invert --nuisance interrupted (Ctrl-C): nothing written to "
+                                f"{out}") from None
+    summary = write_nuisance(fitted, samples, out, record)
+    for path in inversion_files(out):        # an earlier run's, of the (b, Lc) posterior
+        remove_own(path)
+    if args.json:
+        say(_json(summary))
+    else:
+        _report(fitted, summary)
+    return 0 if fitted.success else 1
+
+
+def _fit_and_sample(args, misfit, priors: dict, box, steps: int):
+    """``(fitted, samples or None)``: the fit, then the chosen sampler where it can start."""
+    from benchmarks.inversion.nested_laplace import sample_nested
+    from benchmarks.inversion.nuisance import fit_with_nuisance, sample_with_nuisance
     fitted = fit_with_nuisance(misfit, priors, *box)
     samples = None
     # the optimiser at its budget still ends on a cycle, a start for the chain
     sampler = args.nuisance_sampler or "nested"
     draws = steps if args.steps is not None or sampler == "metropolis" else NESTED_DRAWS
     bar = not args.json and show_progress(args)
-    if np.isfinite(fitted.chi2) and np.isfinite(fitted.covariance).all() and draws:
+    usable = np.isfinite(fitted.chi2) and (sampler == "nested"
+                                            or np.isfinite(fitted.covariance).all())
+    if draws and not usable and not args.json:
+        say(f"no {sampler} sample: the fit ended "
+            + ("without a limit cycle" if not np.isfinite(fitted.chi2) else
+               "with a singular JᵀJ (no metric to step with: try --nuisance-sampler nested)"))
+    if usable and draws:
         if sampler == "nested":
             if not args.json:
                 say(f"… {draws} draws of the constants, (b, log10 Lc) fitted for each")
@@ -110,14 +133,7 @@ def run_nuisance(args, misfit, box, steps: int, out, record: dict) -> int:
                 say(f"… {draws} Metropolis steps on the Gauss–Newton metric")
             samples = sample_with_nuisance(misfit, fitted, steps=draws, seed=args.seed,
                                            progress=bar)
-    summary = write_nuisance(fitted, samples, out, record)
-    for path in inversion_files(out):        # an earlier run's, of the (b, Lc) posterior
-        remove_own(path)
-    if args.json:
-        say(_json(summary))
-    else:
-        _report(fitted, summary)
-    return 0 if fitted.success else 1
+    return fitted, samples
 
 
 def _json(summary: dict) -> str:
@@ -147,7 +163,8 @@ def _report(fitted, summary: dict) -> None:
            + (" — not Gaussian: read the sampler" if check > 0.5 else "")))
     s = summary.get("sampler")
     if s:
-        say((f"nested sampler ({s['draws']} draws, {s['effective_draws']:.0f} effective)"
+        say((f"nested sampler ({s['draws']} draws, {s['effective_draws']:.0f} effective, "
+             f"{s['inner_fits_not_converged']} of their fits of (b, log10 Lc) not converged)"
              if "draws" in s else
              f"sampler ({s['steps']} steps, the first {s['burn_in']} dropped, acceptance "
              f"{s['acceptance']:.2f})") + ": " + ", ".join(

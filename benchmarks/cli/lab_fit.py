@@ -781,8 +781,9 @@ def _add_run_options(p) -> None:
                    help="skip the check of the integrator against two references at 1e-12")
     p.add_argument("--workers", type=workers, metavar="N",
                    help="processes for the independent pieces: each law's fit and switch "
-                        "times, each profile (the results do not depend on it) (default: "
-                        "this machine's cores)")
+                        "times, each profile and the solver check (the results do not depend "
+                        "on it, unless a solve runs into --wall-budget: more processes than "
+                        "cores make each solve slower) (default: this machine's cores)")
     p.add_argument("--wall-budget", type=positive, default=WALL_BUDGET, metavar="S",
                    help="wall-time budget of each solve in s: the fit's, its profiles', the "
                         "posterior's and the solver check's (a reference over it fails the "

@@ -12,13 +12,18 @@ For each draw θ of the constants (their Gaussian priors, cut to ``PRIOR_SPAN`` 
 (b, log10 Lc) that best fit the means with θ held (least squares from the fit's point, exact
 Jacobians), then
 
-    log w(θ) = −χ²_min(θ)/2 − ½ log det(J_θᵀ J_θ),
+    log w(θ) = −χ²_min(θ)/2 − ½ log det(J_θᵀ J_θ) + log P_θ(box),
 
-the Laplace approximation of p(data | θ) with (b, log10 Lc) flat in the box and J_θ the
-residuals' Jacobian in (b, log10 Lc) there; (b, log10 Lc) | θ is drawn from N(x*(θ), (J_θᵀJ_θ)⁻¹)
-within the box. What it assumes beyond the module :mod:`benchmarks.inversion.nuisance`'s model:
-that (b, log10 Lc) given θ is Gaussian (exact in the limit of precise means; the draws' own
-inner χ² says how far from it each is) and that the inner fit finds the best (b, log10 Lc)
+the Laplace approximation of p(data | θ) with (b, log10 Lc) flat in the box: J_θ the
+residuals' Jacobian in (b, log10 Lc) there, P_θ(box) the mass of N(x*(θ), (J_θᵀJ_θ)⁻¹) inside
+the box (without it a θ that leaves (b, Lc) unresolved, det → 0, would take every weight);
+(b, log10 Lc) | θ is drawn from that Gaussian cut to the box. Where x*(θ) lies on the box's
+edge the squares' slope there is not 0 and the quadratic is only a guide: such draws are
+those whose ``inner_converged`` is False, or whose x* is at a bound.
+
+What it assumes beyond :mod:`benchmarks.inversion.nuisance`'s model: that (b, log10 Lc) given
+θ is Gaussian (exact in the limit of precise means; the draws' own inner χ² says how far from
+it each is) and that the inner fit finds the best (b, log10 Lc)
 (a draw whose inner fit ends without a cycle has weight 0). The effective sample size
 (Σw)²/Σw² says how many draws the weights leave.
 """
@@ -34,6 +39,11 @@ import pandas as pd
 from benchmarks.inversion.misfit import NO_CYCLE_RESIDUAL, Misfit
 
 __all__ = ["sample_nested", "weighted_summary"]
+
+#: least-squares evaluations of each draw's (b, log10 Lc) fit at most
+INNER_SOLVES = 50
+#: draws of each θ's Gaussian in (b, log10 Lc) that measure its mass in the box
+BOX_DRAWS = 4000
 
 
 def _inner(misfit: Misfit, theta: dict, x0, lo, hi):
@@ -52,20 +62,20 @@ def _inner(misfit: Misfit, theta: dict, x0, lo, hi):
         return last[key]
 
     res = least_squares(lambda x: at(x)[0], np.clip(x0, lo, hi), jac=lambda x: at(x)[1],
-                        bounds=(lo, hi), x_scale="jac", max_nfev=50)
+                        bounds=(lo, hi), x_scale="jac", max_nfev=INNER_SOLVES)
     r, jac = at(res.x)
-    if not abs(r[0]) < NO_CYCLE_RESIDUAL:
+    if not (abs(r[0]) < NO_CYCLE_RESIDUAL and np.isfinite(r).all() and np.isfinite(jac).all()):
         return None
-    return res.x, float(r @ r), jac
+    return res.x, float(r @ r), jac, bool(res.success)
 
 
 def sample_nested(misfit: Misfit, fitted, draws: int = 200, seed: int = 0,
                   progress: bool = False) -> pd.DataFrame:
     """``draws`` weighted draws of (b, log10 Lc, nuisance…) (module docstring): one row per
     draw, ``fitted.names``' columns, ``weight`` (normalised to sum 1), ``inner_chi2`` (χ²_min
-    of its θ) and ``inner_solves``. ``fitted``: a
-    :class:`~benchmarks.inversion.nuisance.NuisanceFit` with a limit cycle (its priors, box and
-    point)."""
+    of its θ), ``inner_solves`` and ``inner_converged`` (its least squares' own verdict).
+    ``fitted``: a :class:`~benchmarks.inversion.nuisance.NuisanceFit` with a limit cycle
+    (its priors, box and point)."""
     from tqdm.auto import tqdm
     if not np.isfinite(fitted.chi2):
         raise ValueError(f"sample_nested: the fit ended without a limit cycle "
@@ -88,33 +98,36 @@ def sample_nested(misfit: Misfit, fitted, draws: int = 200, seed: int = 0,
         found = _inner(misfit, theta, start, lo[:2], hi[:2])
         solves = misfit.failures["solves"] - before
         if found is None:
-            rows.append([*start, *theta.values(), -math.inf, math.inf, solves])
+            rows.append([*start, *theta.values(), -math.inf, math.inf, solves, False])
             continue
-        x, chi2, jac = found
-        info = jac.T @ jac
-        sign, logdet = np.linalg.slogdet(info)
-        if sign <= 0:
-            rows.append([*x, *theta.values(), -math.inf, chi2, solves])
-            continue
-        cov = np.linalg.inv(info)
-        draw = _in_box(rng, x, cov, lo[:2], hi[:2])
-        rows.append([*draw, *theta.values(), -0.5 * chi2 - 0.5 * logdet, chi2, solves])
+        x, chi2, jac, converged = found
+        draw, log_mass = _in_box(rng, x, jac.T @ jac, lo[:2], hi[:2])
+        rows.append([*draw, *theta.values(), -0.5 * chi2 + log_mass, chi2, solves, converged])
     table = pd.DataFrame(rows, columns=[*fitted.names, "log_weight", "inner_chi2",
-                                        "inner_solves"])
-    logw = table.pop("log_weight").to_numpy()
+                                        "inner_solves", "inner_converged"])
+    logw = np.nan_to_num(table.pop("log_weight").to_numpy(), nan=-math.inf)
     w = np.exp(logw - logw.max()) if np.isfinite(logw).any() else np.zeros(len(logw))
     table.insert(len(fitted.names), "weight", w / w.sum() if w.sum() > 0 else w)
     return table
 
 
-def _in_box(rng, x, cov, lo, hi, tries: int = 100):
-    """A draw of N(x, cov) within [lo, hi] (x itself if ``tries`` draws all fall outside)."""
-    root = np.linalg.cholesky(cov)
-    for _ in range(tries):
-        y = x + root @ rng.standard_normal(len(x))
-        if np.all(y >= lo) and np.all(y <= hi):
-            return y
-    return np.asarray(x, dtype=float)
+def _in_box(rng, x, info, lo, hi):
+    """A draw of N(x, info⁻¹) within [lo, hi] and the log of that Gaussian's integral over the
+    box, ∫ exp(−½ (y−x)ᵀ info (y−x)) dy = (2π)^{d/2} det(info)^{−½} P(box), P(box) the share
+    of :data:`BOX_DRAWS` draws inside (its square root from the eigenvalues: an info whose
+    condition is 1e7 or worse has no Cholesky factor of its inverse). ``-inf`` where info is
+    singular or no draw falls inside."""
+    val, vec = np.linalg.eigh(info)
+    if not (np.isfinite(val).all() and val.min() > 0):
+        return np.asarray(x, dtype=float), -math.inf
+    root = vec / np.sqrt(val)                  # root @ rootᵀ = info⁻¹
+    ys = x + rng.standard_normal((BOX_DRAWS, len(x))) @ root.T
+    inside = np.all((ys >= lo) & (ys <= hi), axis=1)
+    if not inside.any():
+        return np.asarray(x, dtype=float), -math.inf
+    log_mass = (0.5 * len(x) * math.log(2 * math.pi) - 0.5 * float(np.sum(np.log(val)))
+                + math.log(inside.mean()))
+    return ys[rng.choice(np.flatnonzero(inside))], log_mass
 
 
 def weighted_summary(table: pd.DataFrame, names) -> dict:

@@ -14,14 +14,13 @@ it was handed.
 
 from __future__ import annotations
 
+import multiprocessing
 import os
+import pickle
 import signal
+import traceback
 
 __all__ = ["run_all", "cores"]
-
-#: the pieces of the current :func:`run_all`, inherited by its forked workers (a closure does
-#: not pickle; an index does)
-_PIECES: list = []
 
 
 def cores() -> int:
@@ -39,65 +38,87 @@ def _claim(counter) -> int:
     return i
 
 
-def _take(counter, out: dict) -> None:
-    """Pieces claimed and run until none is left or one raises: ``out[i]`` is (True, result)
-    or (False, the exception)."""
-    while (i := _claim(counter)) < len(_PIECES):
+def _take(pieces: list, counter, out: dict, parent: int | None = None) -> None:
+    """Pieces claimed and run until none is left, one raises (the others then claim no more)
+    or, in a worker, its parent is gone: ``out[i]`` is (True, result) or (False, the
+    exception)."""
+    while (parent is None or os.getppid() == parent) and \
+            (i := _claim(counter)) < len(pieces):
         try:
-            out[i] = (True, _PIECES[i]())
+            out[i] = (True, pieces[i]())
         except Exception as exc:            # noqa: BLE001 (raised where the caller is)
+            with counter.get_lock():        # nothing more is started anywhere
+                counter.value = len(pieces)
             out[i] = (False, exc)
             return
 
 
-def _work(conn, counter) -> None:
+def _portable(exc: BaseException) -> BaseException:
+    """``exc`` if it comes back whole through pickle, else a RuntimeError with its text; its
+    traceback here is lost either way, so its text goes with it (``remote_traceback``)."""
+    text = "".join(traceback.format_exception(exc))
+    try:
+        back = pickle.loads(pickle.dumps(exc))
+        if type(back) is not type(exc) or str(back) != str(exc):
+            raise TypeError("changed on the way")
+    except Exception:                       # noqa: BLE001 (any failure to rebuild it)
+        back = RuntimeError(f"{type(exc).__name__}: {exc}")
+    back.remote_traceback = text
+    return back
+
+
+def _work(pieces: list, conn, counter, parent: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)    # Ctrl-C is the parent's to handle
     from threadpoolctl import threadpool_limits
     out: dict = {}
     with threadpool_limits(limits=1, user_api="blas"):     # as the parent's, after the fork
-        _take(counter, out)
+        _take(pieces, counter, out, parent)
+    out = {i: (ok, value if ok else _portable(value)) for i, (ok, value) in out.items()}
     try:
         conn.send(out)
-    except Exception as exc:                # noqa: BLE001 (a result or error that won't pickle)
+    except BrokenPipeError:                 # the parent is gone: nobody to tell
+        pass
+    except Exception as exc:                # noqa: BLE001 (a result that won't pickle)
         conn.send({i: (False, RuntimeError(f"{type(exc).__name__}: {exc}")) for i in out})
     conn.close()
 
 
 def run_all(pieces: list, workers: int) -> list:
     """Each of ``pieces`` (calls without arguments) called; their results in order. With
-    ``workers`` > 1, this process and ``workers`` − 1 forked ones take the pieces in turn. An
-    exception in a piece is raised here (the first piece's, in order)."""
-    import multiprocessing
-    global _PIECES
+    ``workers`` > 1, this process and ``workers`` − 1 forked ones take the pieces in turn (in
+    a worker of another run_all, one after another here). An exception in a piece is raised
+    here (the first piece's, in order); once one has raised, no further piece starts."""
     workers = min(workers, len(pieces))
-    if workers <= 1 or "fork" not in multiprocessing.get_all_start_methods():
+    if workers <= 1 or "fork" not in multiprocessing.get_all_start_methods() or \
+            multiprocessing.current_process().daemon:
         return [p() for p in pieces]
     from threadpoolctl import threadpool_limits
     ctx = multiprocessing.get_context("fork")
-    _PIECES = list(pieces)
-    counter, procs, out = ctx.Value("i", 0), [], {}
+    counter, out = ctx.Value("i", 0), {}
     with threadpool_limits(limits=1, user_api="blas"):
-        _run(ctx, counter, procs, out, workers)
+        _run(ctx, list(pieces), counter, out, workers)
     for i in range(len(pieces)):
-        if i not in out:                    # a worker stopped at its error before this one
-            continue
-        ok, value = out[i]
-        if not ok:
-            raise value
+        if i in out and not out[i][0]:
+            exc = out[i][1]
+            remote = getattr(exc, "remote_traceback", None)
+            # the worker's traceback as the cause (what RSFBENCH_DEBUG=1 shows)
+            raise exc from (RuntimeError(f"in a worker:\n{remote}") if remote else None)
     return [out[i][1] for i in range(len(pieces))]
 
 
-def _run(ctx, counter, procs: list, out: dict, workers: int) -> None:
-    """The workers started, this process's share taken, their results into ``out``."""
-    global _PIECES
+def _run(ctx, pieces: list, counter, out: dict, workers: int) -> None:
+    """The workers started (the pieces go to them by the fork itself, never pickled), this
+    process's share taken, their results into ``out``."""
+    procs = []
     try:
         for _ in range(workers - 1):
             here, there = ctx.Pipe(duplex=False)
-            proc = ctx.Process(target=_work, args=(there, counter), daemon=True)
+            proc = ctx.Process(target=_work, args=(pieces, there, counter, os.getpid()),
+                               daemon=True)
             proc.start()
             there.close()
             procs.append((proc, here))
-        _take(counter, out)
+        _take(pieces, counter, out)
         for proc, here in procs:
             try:
                 out.update(here.recv())
@@ -109,5 +130,3 @@ def _run(ctx, counter, procs: list, out: dict, workers: int) -> None:
         for proc, _ in procs:
             proc.terminate()
         raise
-    finally:
-        _PIECES = []

@@ -157,6 +157,7 @@ def _markdown(rows: pd.DataFrame, settings: dict) -> str:
                       "met": "yes" if check["consistent"] else "**no**"})
     rows = rows.reindex(columns=list(dict.fromkeys([
         *rows.columns, "nuisance_s", "effective_draws", "laplace_check", "converged",
+        "calibrated_stiffness_error", "calibrated_vls_error",
         "sampler_width_b_box", "sampler_width_log10_lc_box", "held_width_b_box",
         "held_width_log10_lc_box"])))
     times = rows.nuisance_s
