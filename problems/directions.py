@@ -25,7 +25,7 @@ from problems.loading import ConstantLoading, TwoSpeedLoading
 from problems.slider import SpringSlider, variant, variant_fields
 
 __all__ = ["Direction", "direction", "SENSITIVE", "ALIASES", "sensitivity_names",
-           "SENSITIVITY_RTOL", "value_of"]
+           "SENSITIVITY_RTOL", "value_of", "fields_of"]
 
 #: the parameters a solve can be differentiated by (:func:`problems.slider.variant`'s names)
 SENSITIVE = ("a", "b", "lc", "c", "stiffness", "mass", "normal_force", "radiation_damping",
@@ -95,7 +95,7 @@ def sensitivity_names(problem: SpringSlider, names) -> tuple[str, ...]:
     if problem.mass <= 0.0:
         raise ValueError("sensitivity: the quasi-static limit (mass = 0 kg) has no forward "
                          "sensitivities yet; give the slider a mass")
-    fields = _fields(problem)
+    fields = fields_of(problem)
     for name in names:
         if name not in fields:
             raise ValueError(f"sensitivity: {problem.name!r} has no parameter {name!r}; it has "
@@ -106,7 +106,7 @@ def sensitivity_names(problem: SpringSlider, names) -> tuple[str, ...]:
     return names
 
 
-def _fields(problem: SpringSlider) -> tuple[str, ...]:
+def fields_of(problem: SpringSlider) -> tuple[str, ...]:
     """The :data:`SENSITIVE` names ``problem`` has."""
     have = set(variant_fields(problem))
     if not isinstance(problem.loading, (ConstantLoading, TwoSpeedLoading)):

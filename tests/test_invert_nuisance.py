@@ -49,7 +49,7 @@ def test_the_command_fits_and_samples_w2_with_the_stiffness_and_load_speed_free(
     (["--nuisance", "k=3%", "--nuisance", "stiffness=1e6"], "named twice"),
     (["--nuisance", "k=3%", "--method", "emcee"], "--method emcee"),
     (["--nuisance", "k=3%", "--integrator", "Tsit5"], "Rodas5P"),
-    (["--nuisance", "vl=1%"], "no parameter 'vl'"),       # W2 loads at vls, then vlf
+    (["--nuisance", "vl=1%"], "has no vl"),       # W2 loads at vls, then vlf
     (["--nuisance-sampler", "nested"], "add --nuisance"),
 ])
 def test_misuse_is_refused_in_one_line_before_any_work(tmp_path, args, match):
@@ -77,6 +77,7 @@ def test_the_nested_sampler_weights_its_draws(tmp_path):
     assert out.returncode == 0, out.stderr
     s = json.loads(out.stdout)["sampler"]
     assert s["method"].startswith("nested") and s["draws"] == 30
+    assert "few effective samples" in out.stderr          # 30 draws: under 50, said
     assert 1.0 <= s["effective_draws"] <= 30.0
     samples = pd.read_csv(tmp_path / "nuisance_samples.csv")
     assert samples.weight.sum() == pytest.approx(1.0) and (samples.inner_solves > 0).all()

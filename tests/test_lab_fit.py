@@ -800,6 +800,13 @@ def test_the_command_compares_laws_and_reports_the_chosen_one(tmp_path):
         runs[workers] = (json.loads(out.stdout),
                          pd.read_csv(tmp_path / str(workers) / "lab_fit_laws.csv"))
     assert runs[1][0]["parameters"] == runs[2][0]["parameters"]
+    # one law into the same directory: the laws' table of the run before is its own, gone
+    out = _cli(BASALT, *[f"--column={c}" for c in REAL_COLUMNS], "--law", "slip",
+               "--no-profiles", "--no-solver-check", "--switches-from", "displacement",
+               "--out", tmp_path / "1", "--json")
+    assert out.returncode == 0, out.stderr
+    assert not (tmp_path / "1" / "lab_fit_laws.csv").exists()
+    assert not (tmp_path / "1" / "lab_fit_switches.csv").exists()
     pd.testing.assert_frame_equal(runs[1][1].drop(columns="command"),
                                   runs[2][1].drop(columns="command"))
     doc = runs[2][0]

@@ -9,13 +9,16 @@ from __future__ import annotations
 
 import argparse
 import json
+import warnings
 
 import numpy as np
 
-from benchmarks.cli.args import say, show_progress
+from benchmarks.cli.args import ACCURACY, say, show_progress
 
 #: draws of the nested sampler unless --steps says
 NESTED_DRAWS = 200
+#: effective samples under which the intervals are called rough (a warning, also in --json)
+MIN_EFFECTIVE = 50
 
 __all__ = ["nuisance_spec", "check_nuisance_options", "check_nuisance_observations",
            "nuisance_algorithm", "run_nuisance"]
@@ -45,7 +48,7 @@ def nuisance_spec(text: str):
         value = float("nan")
     if not sep or not name or not (np.isfinite(value) and value > 0):
         raise argparse.ArgumentTypeError(f"expected NAME=SIGMA or NAME=PERCENT% with a σ above "
-                                         f"0 (k=3%, vl=2e-8), got {text!r}")
+                                         f"0 (k=3%, vls=1.5e-6), got {text!r}")
     return name, value / 100.0 if relative else value, relative
 
 
@@ -56,10 +59,13 @@ def check_nuisance_options(args, problem) -> None:
     priors_of(problem, args.nuisance)
     for flag, given in (("--method emcee", args.method == "emcee"),
                         ("--grid", args.grid is not None),
-                        ("--walkers", args.walkers is not None)):
+                        ("--walkers", args.walkers is not None),
+                        ("--profile-points", args.profile_points != 21),
+                        ("--accuracy", args.accuracy != ACCURACY)):
         if given:
-            raise ValueError(f"{flag} is the (b, Lc) posterior's; with --nuisance the fit is "
-                             "by exact gradients and the sampler takes --steps only")
+            raise ValueError(f"{flag} is not used with --nuisance: the fit is by exact "
+                             "gradients with Rodas5P at --rtol (at most 1e-6; atol = rtol), "
+                             "and the sampler takes --steps only")
     if args.integrator and args.integrator.lower() != "rodas5p":
         raise ValueError(f"--integrator {args.integrator}: --nuisance differentiates through "
                          "Rodas5P's forward sensitivities; drop --integrator or name Rodas5P")
@@ -101,6 +107,10 @@ def run_nuisance(args, misfit, box, steps: int, out, record: dict) -> int:
     for path in inversion_files(out):        # an earlier run's, of the (b, Lc) posterior
         remove_own(path)
     if args.json:
+        n = few_samples(summary.get("sampler") or {})
+        if n:                                # on the standard error, beside the document
+            warnings.warn(f"few effective samples ({n:.0f}, under {MIN_EFFECTIVE}): the "
+                          "sampler's intervals are rough; raise --steps", stacklevel=1)
         say(_json(summary))
     else:
         _report(fitted, summary)
@@ -154,6 +164,8 @@ def _report(fitted, summary: dict) -> None:
                                           f"{(x - prior[0]) / prior[1]:+.2f} σ)")
         wide = (" — wider than its search span: the data do not resolve it, read the sampler"
                 if sd > hi - lo else "")
+        if min(x - lo, hi - x) <= 1e-6 * (hi - lo):
+            wide += " — at the edge of its search span: widen the box (or the prior)"
         say(f"{name} = {x:.5g} ± {sd:.2g} (Laplace){moved}{wide}")
     check = fitted.laplace_check
     say(f"χ² = {fitted.chi2:.3g}, {fitted.n_solves} solves; Laplace check "
@@ -167,6 +179,17 @@ def _report(fitted, summary: dict) -> None:
              f"{s['inner_fits_not_converged']} of their fits of (b, log10 Lc) not converged)"
              if "draws" in s else
              f"sampler ({s['steps']} steps, the first {s['burn_in']} dropped, acceptance "
-             f"{s['acceptance']:.2f})") + ": " + ", ".join(
+             f"{s['acceptance']:.2f}, τ {s['tau_steps']:.0f} steps: "
+             f"{s['effective_steps']:.0f} effective)") + ": " + ", ".join(
                 f"{n} 95 % {lo:.5g} to {hi:.5g}" for n, (lo, hi) in s["interval_95"].items()))
+    if s and few_samples(s):
+        say(f"few effective samples ({few_samples(s):.0f}, under {MIN_EFFECTIVE}): the "
+            "intervals above are rough; raise --steps")
     say(f"written: {', '.join(summary['files'].values())}")
+
+
+def few_samples(s: dict) -> float:
+    """The sampler's effective sample size where it is under :data:`MIN_EFFECTIVE`, else 0
+    (and 0 without a sampler)."""
+    n = s.get("effective_draws", s.get("effective_steps"))
+    return n if n is not None and n < MIN_EFFECTIVE else 0.0

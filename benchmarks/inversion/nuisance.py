@@ -274,7 +274,7 @@ def priors_of(problem, specs) -> dict:
     name (:data:`NUISANCE`, or an alias of :data:`problems.directions.ALIASES`) → (mean, σ)
     in SI, σ a fraction of the mean where ``relative``. ValueError naming a constant that
     cannot be freed, one named twice, or a σ not above 0."""
-    from problems.directions import ALIASES, sensitivity_names, value_of
+    from problems.directions import ALIASES, fields_of, sensitivity_names, value_of
     priors = {}
     for given, sigma, relative in specs:
         name = ALIASES.get(given, given)
@@ -283,7 +283,11 @@ def priors_of(problem, specs) -> dict:
                              f"they are {', '.join(NUISANCE)} (aliases k, m, fn)")
         if name in priors:
             raise ValueError(f"--nuisance: {name} named twice")
-        sensitivity_names(problem, (name,))     # one the problem has, with mass: or ValueError
+        if problem.mass > 0 and name not in fields_of(problem):
+            have = [n for n in NUISANCE if n in fields_of(problem)]
+            raise ValueError(f"--nuisance {given}: {problem.name!r} has no {name}; the "
+                             f"constants it can free are {', '.join(have)}")
+        sensitivity_names(problem, (name,))     # with mass, or ValueError
         mean = value_of(problem, name)
         sd = sigma * mean if relative else sigma
         if not (math.isfinite(sd) and sd > 0 and mean > 0):
@@ -348,13 +352,31 @@ def _sampler_summary(fitted: NuisanceFit, samples: pd.DataFrame) -> dict:
                 **weighted_summary(samples, fitted.names),
                 "inner_fits_not_converged": int((~samples.inner_converged.astype(bool)).sum())}
     kept = samples.iloc[len(samples) // 4:]
+    tau = max(integrated_time(kept[n].to_numpy()) for n in fitted.names)
     return {"method": "Metropolis on the Gauss–Newton metric", "steps": len(samples),
-            "burn_in": len(samples) - len(kept),
+            "burn_in": len(samples) - len(kept), "tau_steps": tau,
+            "effective_steps": len(kept) / tau,
             "acceptance": float((samples[fitted.names[0]].diff().iloc[1:] != 0).mean()),
             "mean": {n: float(kept[n].mean()) for n in fitted.names},
             "sd": {n: float(kept[n].std()) for n in fitted.names},
             "interval_95": {n: [float(v) for v in kept[n].quantile([0.025, 0.975])]
                             for n in fitted.names}}
+
+
+def integrated_time(x: np.ndarray, window: float = 5.0) -> float:
+    """The chain's integrated autocorrelation time in steps, 1 + 2 Σ ρ_k summed up to the
+    first lag M ≥ ``window`` × the sum so far (Sokal's window; emcee's estimator); 1 for a
+    chain too short or constant."""
+    x = np.asarray(x, dtype=float) - np.mean(x)
+    n = len(x)
+    if n < 4 or not np.any(x):
+        return 1.0
+    f = np.fft.rfft(x, 2 * n)
+    acf = np.fft.irfft(f * np.conj(f))[:n]
+    acf /= acf[0]
+    taus = 2.0 * np.cumsum(acf) - 1.0
+    past = np.arange(n) >= window * taus
+    return float(max(taus[int(np.argmax(past))] if past.any() else taus[-1], 1.0))
 
 
 def _plot(fitted: NuisanceFit, samples, path: Path) -> None:

@@ -67,7 +67,11 @@ def _portable(exc: BaseException) -> BaseException:
     return back
 
 
-def _work(pieces: list, conn, counter, parent: int) -> None:
+def _work(pieces: list, conn, theirs: list, counter, parent: int) -> None:
+    # the parent's ends of the pipes, inherited by the fork, closed: with its own open here, a
+    # parent that died unasked (SIGTERM, SIGKILL) left this worker blocked on a full pipe
+    for end in theirs:
+        end.close()
     signal.signal(signal.SIGINT, signal.SIG_IGN)    # Ctrl-C is the parent's to handle
     from threadpoolctl import threadpool_limits
     out: dict = {}
@@ -88,11 +92,12 @@ def run_all(pieces: list, workers: int) -> list:
     ``workers`` > 1, this process and ``workers`` − 1 forked ones take the pieces in turn (in
     a worker of another run_all, one after another here). An exception in a piece is raised
     here (the first piece's, in order); once one has raised, no further piece starts."""
+    from threadpoolctl import threadpool_limits
     workers = min(workers, len(pieces))
     if workers <= 1 or "fork" not in multiprocessing.get_all_start_methods() or \
             multiprocessing.current_process().daemon:
-        return [p() for p in pieces]
-    from threadpoolctl import threadpool_limits
+        with threadpool_limits(limits=1, user_api="blas"):      # as in parallel: the same
+            return [p() for p in pieces]                        # sums, to the last digit
     ctx = multiprocessing.get_context("fork")
     counter, out = ctx.Value("i", 0), {}
     with threadpool_limits(limits=1, user_api="blas"):
@@ -113,7 +118,8 @@ def _run(ctx, pieces: list, counter, out: dict, workers: int) -> None:
     try:
         for _ in range(workers - 1):
             here, there = ctx.Pipe(duplex=False)
-            proc = ctx.Process(target=_work, args=(pieces, there, counter, os.getpid()),
+            ends = [h for _, h in procs] + [here]
+            proc = ctx.Process(target=_work, args=(pieces, there, ends, counter, os.getpid()),
                                daemon=True)
             proc.start()
             there.close()

@@ -65,9 +65,28 @@ def atomic_write(path: Path, text: str | bytes) -> None:
 
 
 @contextlib.contextmanager
-def _temporary(path: Path):
+def _uninterrupted():
+    """Ctrl-C held back for the block (delivered after it): a file renamed into place and its
+    ledger entry go together, or a rerun would find a file of rsfbench's it cannot tell is
+    its own, and refuse it."""
+    import signal
+    import threading
+    if threading.current_thread() is not threading.main_thread() or \
+            not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+@contextlib.contextmanager
+def _temporary(path: Path, then=None):
     """A temporary path beside ``path``, renamed to it when the block ends without an error and
-    removed otherwise; an OSError names ``path``."""
+    removed otherwise (``then()`` right after the rename, Ctrl-C held back between them); an
+    OSError names ``path``."""
     try:
         fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f"{_PREFIX}{path.name}.",
                                    suffix=".tmp")
@@ -77,7 +96,10 @@ def _temporary(path: Path):
         os.fchmod(fd, 0o666 & ~_UMASK)
         os.close(fd)
         yield Path(tmp)
-        os.replace(tmp, path)
+        with _uninterrupted():
+            os.replace(tmp, path)
+            if then is not None:
+                then()
     except OSError as exc:
         Path(tmp).unlink(missing_ok=True)
         raise OSError(exc.errno, f"cannot write {path}: {exc.strerror or exc}",
@@ -227,9 +249,8 @@ def writing(path):
     path = Path(path)
     claim_outputs([path])
     path.parent.mkdir(parents=True, exist_ok=True)
-    with _temporary(path) as tmp:
+    with _temporary(path, then=lambda: _record(path)) as tmp:
         yield tmp
-    _record(path)
 
 
 def write_output(path, data: str | bytes) -> Path:
