@@ -15,8 +15,6 @@ import numpy as np
 
 from benchmarks.cli.args import ACCURACY, say, show_progress
 
-#: draws of the nested sampler unless --steps says
-NESTED_DRAWS = 200
 #: effective samples under which the intervals are called rough (a warning, also in --json)
 MIN_EFFECTIVE = 50
 
@@ -119,14 +117,14 @@ def run_nuisance(args, misfit, box, steps: int, out, record: dict) -> int:
 
 def _fit_and_sample(args, misfit, priors: dict, box, steps: int):
     """``(fitted, samples or None)``: the fit, then the chosen sampler where it can start."""
-    from benchmarks.inversion.nested_laplace import sample_nested
+    from benchmarks.inversion.nested_laplace import DRAWS, sample_nested
     from benchmarks.inversion.nuisance import fit_with_nuisance, sample_with_nuisance
     fitted = fit_with_nuisance(misfit, priors, *box)
     samples = None
-    # the optimiser at its budget still ends on a cycle, a start for the chain
     sampler = args.nuisance_sampler or "nested"
-    draws = steps if args.steps is not None or sampler == "metropolis" else NESTED_DRAWS
+    draws = steps if args.steps is not None or sampler == "metropolis" else DRAWS
     bar = not args.json and show_progress(args)
+    # the optimiser at its budget still ends on a cycle, a start for the chain
     usable = np.isfinite(fitted.chi2) and (sampler == "nested"
                                             or np.isfinite(fitted.covariance).all())
     if draws and not usable and not args.json:

@@ -121,12 +121,17 @@ class ExactResiduals:
             jac = jac * np.array([1.0, values["lc"] * np.log(10.0)]     # ∂/∂log10 Lc
                                  + [1.0] * len(self.nuisance))
             if self.nuisance:
-                mean = np.array([self.priors[n][0] for n in self.nuisance])
                 sd = np.array([self.priors[n][1] for n in self.nuisance])
-                r = np.concatenate([r, (np.asarray(x[2:]) - mean) / sd])
+                r = np.concatenate([r, self.prior_residuals(x)])
                 jac = np.vstack([jac, np.hstack([np.zeros((len(sd), 2)), np.diag(1.0 / sd)])])
             self.last = (np.array(x, dtype=float), r, jac)
         return self.last
+
+    def prior_residuals(self, x) -> np.ndarray:
+        """(θ − mean)/σ of each nuisance constant in x."""
+        mean = np.array([self.priors[n][0] for n in self.nuisance])
+        sd = np.array([self.priors[n][1] for n in self.nuisance])
+        return (np.asarray(x[2:], dtype=float) - mean) / sd
 
     def residuals(self, x):
         return self.at(x)[1]

@@ -38,8 +38,10 @@ import pandas as pd
 
 from benchmarks.inversion.misfit import NO_CYCLE_RESIDUAL, Misfit
 
-__all__ = ["sample_nested", "weighted_summary"]
+__all__ = ["sample_nested", "weighted_summary", "DRAWS"]
 
+#: draws unless told (``invert --nuisance``'s default, and the studies')
+DRAWS = 200
 #: least-squares evaluations of each draw's (b, log10 Lc) fit at most
 INNER_SOLVES = 50
 #: draws of each θ's Gaussian in (b, log10 Lc) that measure its mass in the box
@@ -69,7 +71,7 @@ def _inner(misfit: Misfit, theta: dict, x0, lo, hi):
     return res.x, float(r @ r), jac, bool(res.success)
 
 
-def sample_nested(misfit: Misfit, fitted, draws: int = 200, seed: int = 0,
+def sample_nested(misfit: Misfit, fitted, draws: int = DRAWS, seed: int = 0,
                   progress: bool = False) -> pd.DataFrame:
     """``draws`` weighted draws of (b, log10 Lc, nuisance…) (module docstring): one row per
     draw, ``fitted.names``' columns, ``weight`` (normalised to sum 1), ``inner_chi2`` (χ²_min

@@ -118,9 +118,8 @@ class _Posterior(ExactResiduals):
         r = self.misfit.residuals_at(self.values(x))
         if not abs(r[0]) < NO_CYCLE_RESIDUAL:
             return math.inf
-        prior = [(v - self.priors[n][0]) / self.priors[n][1]
-                 for n, v in zip(self.nuisance, x[2:])]
-        return float(r @ r + np.sum(np.square(prior)))
+        prior = self.prior_residuals(x)
+        return float(r @ r + prior @ prior)
 
 
 def _check_priors(misfit: Misfit, priors: dict) -> None:

@@ -4,8 +4,8 @@ machine's cores: this process and forked copies of it take the pieces in turn.
 A fork shares what this process has compiled and read (numba's machine code, the record), so
 a piece starts at once; a worker sends back only its results (pickled). While they run, each
 process's BLAS has one thread: two processes with OpenBLAS's two threads each on two cores
-took 8.8–9.6 s on the 75,220-sample sepiolite step against 6.7–7.4 s with one (three runs
-each, interleaved), and one thread costs nothing on the fit's small matrices.
+were slower on the largest real step (timed by hand, fc70830's message), and one thread costs
+nothing on the fit's small matrices.
 
 Where fork is not available, or one worker is asked for, the pieces run here one after
 another. The results are the same either way: every piece is a deterministic function of what

@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 
 from benchmarks.inversion.misfit import Misfit
-from benchmarks.inversion.nested_laplace import sample_nested, weighted_summary
+from benchmarks.inversion.nested_laplace import DRAWS, sample_nested, weighted_summary
 from benchmarks.inversion.nuisance import (fit_with_nuisance, integrated_time,
                                            sample_with_nuisance)
 from benchmarks.inversion.observations import Observations
@@ -34,9 +34,6 @@ from problems.presets import window
 from problems.slider import variant
 
 __all__ = ["STUDY", "nuisance_coverage"]
-
-#: draws of the nested sampler per seed (the command's default)
-NESTED_DRAWS = 200
 
 #: the priors' relative σ, the observations' relative σ, the box
 PRIOR_REL = {"stiffness": 0.03, "vls": 0.02}
@@ -73,7 +70,7 @@ def _one(truth, cycle, seed: int, steps: int) -> dict:
         row["effective_steps"] = len(chain) / max(integrated_time(chain[n].to_numpy())
                                                   for n in fitted.names)
     if np.isfinite(fitted.chi2):        # the command's default sampler, on every seed
-        nested = weighted_summary(sample_nested(misfit, fitted, draws=NESTED_DRAWS, seed=seed),
+        nested = weighted_summary(sample_nested(misfit, fitted, draws=DRAWS, seed=seed),
                                   fitted.names)
         for name, t in zip(fitted.names, true_x):
             lo, hi = nested["interval_95"][name]
