@@ -14,11 +14,14 @@ __all__ = ["main"]
 def main(argv: list[str] | None = None) -> int:
     """:func:`benchmarks.cli.main.main` (``argv``: the arguments, default the command line's)."""
     try:
-        from benchmarks.cli.main import main as run
+        from benchmarks.cli.main import exit_program, main as run
     except KeyboardInterrupt:
         print("rsfbench: error: interrupted (Ctrl-C) while starting", file=sys.stderr)
         return 130
-    return run(argv)
+    status = run(argv)
+    if argv is None:                   # the program: it ends here (exit_program)
+        exit_program(status)
+    return status
 
 
 if __name__ == "__main__":

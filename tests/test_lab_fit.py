@@ -750,14 +750,17 @@ def test_a_switch_placed_off_is_moved_to_where_the_friction_says():
 def test_a_switch_the_friction_cannot_place_keeps_the_displacements_time():
     """A piece of 22 samples between two switches (0.33 s at 10 µm/s): a trial that would leave
     it under the pieces' 20 samples is skipped, not refused; and the friction, which does not
-    reject the displacement's times there, leaves them where they are."""
+    reject the displacement's times there, leaves them where they are: the first fit stands
+    (not fitted again), its cost now with the trials'."""
     from benchmarks.lab.switches import refine_switches, with_switches
     rec = with_switches(_record(seed=0), (20.0, 20.33, 100.0))
-    fit, table = refine_switches(fit_lab(LabModel(rec, "aging", detrend="piece")))
+    first = fit_lab(LabModel(rec, "aging", detrend="piece"))
+    fit, table = refine_switches(first)
     for row in table.itertuples():
         assert row.friction_s == row.displacement_s
         assert not row.disagree
     assert fit.model.record.switch_times == pytest.approx((20.0, 20.33, 100.0))
+    assert fit.values == first.values and fit.solves > first.solves
 
 
 def test_the_command_chooses_the_trend_with_detrend_auto(tmp_path):

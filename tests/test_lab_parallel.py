@@ -44,6 +44,28 @@ def test_forked_workers_take_pieces():
     assert len(set(pids)) == 2 and os.getpid() in pids
 
 
+def _here_waits(barrier):
+    barrier.wait(timeout=30)               # a worker must be at the barrier too
+    return "here", os.getpid()
+
+
+def test_here_runs_in_this_process_beside_the_workers():
+    # `here` waits for a piece at a barrier: it returns only if a worker runs that piece at
+    # the same time; its result comes last, in this process
+    import multiprocessing
+    barrier = multiprocessing.get_context("fork").Barrier(2)
+    out = run_all([functools.partial(_wait_for_both, barrier)], 2,
+                  here=functools.partial(_here_waits, barrier))
+    assert out[-1] == ("here", os.getpid()) and out[0] != os.getpid()
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_here_comes_last_whatever_the_workers(workers):
+    out = run_all([functools.partial(_square, x) for x in range(3)], workers,
+                  here=lambda: os.getpid())
+    assert [v for v, _ in out[:-1]] == [0, 1, 4] and out[-1] == os.getpid()
+
+
 class _Odd(ValueError):
     def __init__(self, a, b):
         super().__init__(f"{a} and {b}")

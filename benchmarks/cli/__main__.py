@@ -1,7 +1,5 @@
 """``python -m benchmarks.cli``: the same as the ``rsfbench`` console script."""
 
-import sys
+from benchmarks.cli.main import exit_program, main
 
-from benchmarks.cli.main import main
-
-sys.exit(main())
+exit_program(main())

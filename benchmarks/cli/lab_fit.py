@@ -132,7 +132,7 @@ def cmd_lab_fit(args) -> int:
     notes = [*args.record_notes, *notes]
     fixed = {k: v for k, v in given.items() if k in fit.model.parameters}
     record = fit.model.record             # the switches where the friction put them
-    profiles, check = _profiles_and_check(args, fit, notes)
+    profiles, check, early = _profiles_and_check(args, fit, notes)
     posterior = _posterior(args, fit) if args.posterior else None
     inertia = (_inertia(args, fit, record)
                if args.mass is not None or args.radiation_damping is not None else None)
@@ -144,7 +144,7 @@ def cmd_lab_fit(args) -> int:
             "compared": compared, "chosen_by": CHOSEN_BY, "table": extra.to_dict("records")}
     doc["switches"] = _switches_doc(args, switches)
     if args.out is not None:
-        _write_all(args, fit, table, profiles, doc, posterior,
+        _write_all(args, early, table, profiles, doc, posterior,
                    {"laws": laws_table, "switches": switches, "trends": trends})
     # a fit whose integrator failed its check, or that did not converge, is no answer: exit 1
     status = 0 if fit.success and (check is None or check["passed"]) else 1
@@ -282,18 +282,41 @@ def _fit(model, fixed: dict, weights):
 
 
 def _profiles_and_check(args, fit, notes: list):
-    """``(profiles, check)``: the profile of each fitted parameter of :data:`PROFILED` (a
-    profile's note joins ``notes``) and the solver check, side by side on ``--workers``; each
-    None or empty where its option turns it off."""
+    """``(profiles, check, early)``: the profile of each fitted parameter of :data:`PROFILED`
+    (a profile's note joins ``notes``) and the solver check, side by side on ``--workers``;
+    each None or empty where its option turns it off. With ``--out``, the files' parts that
+    need the fit alone are made meanwhile (``early``, else None): the figure begun here
+    (:class:`~benchmarks.lab.fit_figure.FitFigure`, matplotlib imported with it) and the
+    residuals' table as CSV text by a worker."""
     from benchmarks.lab.parallel import run_all
     names = [] if args.no_profiles else [n for n in PROFILED if n in fit.free]
     pieces = [functools.partial(_profile, args, fit, n) for n in names]
     if not args.no_solver_check:
         pieces.append(functools.partial(_check, args, fit))
-    done = run_all(pieces, args.workers)
+    files = args.out is not None
+    # the CSV first: a worker takes it while this process begins the figure
+    done = run_all([functools.partial(_residuals_csv, fit)] * files + pieces, args.workers,
+                   here=functools.partial(_figure, fit, names) if files else None)
+    early = (done.pop(), done.pop(0)) if files else None      # (the figure, the CSV)
     profiles = dict(zip(names, done))
     notes.extend(p.note for p in profiles.values() if p.note)
-    return profiles, None if args.no_solver_check else done[-1]
+    return profiles, None if args.no_solver_check else done[-1], early
+
+
+def _figure(fit, names: list):
+    from benchmarks.lab.fit_figure import FitFigure
+    return FitFigure(fit, names)
+
+
+def _residuals_csv(fit) -> str:
+    """lab_fit_residuals.csv's text: the record, the fit and their difference."""
+    rec = fit.model.record
+    # t_s is the file's time; on the displacement's clock, the model's is t_clock_s
+    clock = {} if rec.file_t is None else {"t_clock_s": rec.t + rec.t_offset}
+    return pd.DataFrame({
+        "t_s": rec.t + rec.t_offset if rec.file_t is None else rec.file_t, **clock,
+        "load_point_m": rec.load_point, "mu": rec.mu, "mu_model": fit.mu_model,
+        "residual": rec.mu - fit.mu_model}).to_csv(index=False)
 
 
 def _profile(args, fit, name: str):
@@ -599,10 +622,11 @@ def _num(v, unit) -> str:
     return f"{v * scale:.5g}"
 
 
-def _write_all(args, fit, table, profiles, doc, posterior, extras: dict) -> None:
-    """Every file of ``--out`` (``extras``: name → a table or None, lab_fit_NAME.csv), their
-    names into ``args.written``."""
-    args.written = _write(args.out, fit, table, profiles, doc)
+def _write_all(args, early, table, profiles, doc, posterior, extras: dict) -> None:
+    """Every file of ``--out`` (``early``: the figure begun and the residuals' CSV text,
+    :func:`_profiles_and_check`'s; ``extras``: name → a table or None, lab_fit_NAME.csv),
+    their names into ``args.written``."""
+    args.written = _write(args.out, early, table, profiles, doc)
     for name, extra in extras.items():
         if extra is not None:
             write_table(extra.assign(command=doc["command"], tool=doc["tool"]),
@@ -618,69 +642,20 @@ def _write_all(args, fit, table, profiles, doc, posterior, extras: dict) -> None
     doc["out"] = str(args.out)
 
 
-def _write(out: Path, fit, table, profiles, doc) -> list[str]:
-    rec = fit.model.record
+def _write(out: Path, early, table, profiles, doc) -> list[str]:
+    figure, residuals = early
     write_table(table.assign(command=doc["command"], tool=doc["tool"]),
                 out / "lab_fit_parameters.csv")
-    # t_s is the file's time; on the displacement's clock, the model's is t_clock_s
-    clock = {} if rec.file_t is None else {"t_clock_s": rec.t + rec.t_offset}
-    write_table(pd.DataFrame({"t_s": rec.t + rec.t_offset if rec.file_t is None else rec.file_t,
-                              **clock, "load_point_m": rec.load_point, "mu": rec.mu,
-                              "mu_model": fit.mu_model, "residual": rec.mu - fit.mu_model}),
-                out / "lab_fit_residuals.csv")
+    write_output(out / "lab_fit_residuals.csv", residuals)
     if profiles:
         from benchmarks.lab.fit import PARAMETER_UNITS
         write_table(pd.concat([p.points.rename(columns={p.parameter: "value"}).assign(
             parameter=p.parameter, unit=PARAMETER_UNITS[p.parameter])
             for p in profiles.values()]), out / "lab_fit_profiles.csv")
     write_output(out / "lab_fit.json", json.dumps(jsonable(doc), indent=2))
-    _plot(fit, profiles, out / "lab_fit.png")
+    write_figure(figure.finish(profiles), out / "lab_fit.png", dpi=110)
     return ["lab_fit.json", "lab_fit_parameters.csv", "lab_fit_residuals.csv",
             *(["lab_fit_profiles.csv"] if profiles else []), "lab_fit.png"]
-
-
-def _plot(fit, profiles, path: Path) -> None:
-    """Data and fit, residuals (against the load point), and each profile in its own panel."""
-    from matplotlib.figure import Figure
-
-    from benchmarks.lab.figures import envelope
-    from benchmarks.lab.fit import _LOG
-    rec = fit.model.record
-    cols = max(len(profiles), 1)
-    fig = Figure(figsize=(max(8, 2.6 * cols), 7.6 if profiles else 5.6))
-    grid = fig.add_gridspec(3 if profiles else 2, cols, height_ratios=[3, 1.4, 2][:2 + bool(
-        profiles)])
-    x = rec.load_point * 1e6
-    ax = fig.add_subplot(grid[0, :])
-    states = "" if fit.model.states == 1 else ", two state variables"
-    ax.plot(*envelope(x, rec.mu), lw=0.5, color="0.6", label="record")
-    ax.plot(*envelope(x, fit.mu_model), lw=1.2, color="C3",
-            label=f"fit ({fit.model.law} law{states})")
-    for s in rec.switch_times:
-        ax.axvline(float(x[min(int((rec.t < s).sum()), len(x) - 1)]), color="k", lw=0.5, ls=":")
-    ax.set_ylabel("μ")
-    ax.legend(fontsize=8)
-    ax = fig.add_subplot(grid[1, :])
-    ax.plot(*envelope(x, rec.mu - fit.mu_model), lw=0.5, color="C0")
-    ax.axhline(0, color="k", lw=0.5)
-    ax.set_ylabel("residual")
-    ax.set_xlabel("load-point displacement (µm)")
-    for j, (name, prof) in enumerate(profiles.items()):
-        ax = fig.add_subplot(grid[2, j])
-        scale = 1e6 if name in ("dc", "dc2") else 1.0
-        ax.plot(prof.points[name] * scale, prof.points.delta, "o-", ms=2.5, color="C2")
-        ax.axhline(3.841, color="k", lw=0.5, ls="--")
-        ax.axvline(prof.value * scale, color="C3", lw=0.6)
-        if name in _LOG:
-            ax.set_xscale("log")
-        ax.set_ylim(0, 10)
-        ax.set_xlabel(f"{name}{' (µm)' if scale != 1.0 else ''}", fontsize=8)
-        ax.tick_params(labelsize=7)
-        if j == 0:
-            ax.set_ylabel("Δ squares / (f σ²)", fontsize=8)
-    fig.suptitle(Path(rec.source).name, fontsize=9)
-    fig.tight_layout()
-    write_figure(fig, path, dpi=110)
 
 
 def add_parser(tests) -> None:

@@ -27,6 +27,7 @@ import math
 import numpy as np
 import pandas as pd
 
+from benchmarks.lab.running import running_median
 from problems._validate import warn_unit
 
 __all__ = ["find_history", "MIN_SAMPLES", "MIN_CHANGE", "HOLD", "SIGNIFICANCE", "LAB_FASTEST",
@@ -180,10 +181,9 @@ def _glitches(x: np.ndarray) -> np.ndarray:
     straight line has none, and a glitch moves few of them). A monotone record's median is its
     own sample, so a clean corner (or a noise-free record) has none; a quantised sensor's
     flicker by one step is none either."""
-    from scipy.ndimage import median_filter
     if len(x) < GLITCH_WIDTH:
         return np.zeros(len(x), bool)
-    d = x - median_filter(x, size=GLITCH_WIDTH, mode="nearest")
+    d = x - running_median(x, GLITCH_WIDTH)
     return np.abs(d) > GLITCH * _noise_scale(x)
 
 
@@ -194,15 +194,13 @@ def _noise_scale(x: np.ndarray) -> np.ndarray:
     samples (noise that follows itself, as a filtered sensor's, has small second differences),
     at least one quantisation step (the smallest change that is not 0) and 1e-9 of the travel
     (round-off)."""
-    from scipy.ndimage import median_filter
     second = np.diff(x, 2)
     step = np.abs(np.diff(x))
     step = step[step > 1e-12 * max(float(np.ptp(x)), 1e-300)]
     white = max(1.4826 * float(np.median(np.abs(second - np.median(second)))) / math.sqrt(6.0),
                 float(step.min()) if len(step) else 0.0, 1e-9 * float(np.ptp(x)))
-    width = min(NOISE_WIDTH, len(x) // 2 * 2 - 1)
-    spread = 1.4826 * median_filter(np.abs(x - median_filter(x, size=width, mode="nearest")),
-                                    size=4 * width + 1, mode="nearest")
+    width = max(min(NOISE_WIDTH, len(x) // 2 * 2 - 1), 1)
+    spread = 1.4826 * running_median(np.abs(x - running_median(x, width)), 4 * width + 1)
     return np.maximum(spread, white)
 
 
@@ -295,11 +293,10 @@ def _refuse_jumps_back(t, x, what: str) -> None:
     """A ValueError where the displacement's running median drops by more than :data:`RESET`
     σ of the sensor's noise (:func:`_noise_scale`; a sensor's reset: the fit would read it as
     a speed). A glitch of fewer than half the running median's samples moves it not."""
-    from scipy.ndimage import median_filter
     if len(x) < GLITCH_WIDTH:
         return
     scale = _noise_scale(x)
-    drop = np.diff(median_filter(x, size=GLITCH_WIDTH, mode="nearest"))
+    drop = np.diff(running_median(x, GLITCH_WIDTH))
     k = int(np.argmin(drop / scale[1:]))
     w = NOISE_WIDTH
     stays = np.median(x[k + 1:k + 1 + w]) - np.median(x[max(k + 1 - w, 0):k + 1])

@@ -159,10 +159,12 @@ def _projected_walk_variogram(basis: np.ndarray, n: int, lags: np.ndarray) -> np
     sums = np.concatenate(([0.0], np.cumsum(diag)))
     # Σ_i (−q_i a_{i+ℓ} − a_i q_{i+ℓ} + h_i q_{i+ℓ}) for every lag ℓ at once: cross-correlations
     # by FFT, summed over the columns
-    size = 1 << int(2 * n - 1).bit_length()
-    fq, fa, fh = (np.fft.rfft(m, size, axis=0) for m in (q, a, h))
-    corr = np.fft.irfft((np.conj(fh - fa) * fq - np.conj(fq) * fa).sum(axis=1), size)
+    # (zero-padded to n + the longest lag: no lag wraps round; a length FFTPACK factors well)
+    from scipy import fft
     lags = np.asarray(lags, dtype=int)
+    size = fft.next_fast_len(n + int(lags.max(initial=0)), real=True)
+    fq, fa, fh = (fft.rfft(m, size, axis=0) for m in (q, a, h))
+    corr = fft.irfft((np.conj(fh - fa) * fq - np.conj(fq) * fa).sum(axis=1), size)
     count = n - lags
     mean_diag = (sums[count] + sums[n] - sums[lags]) / count
     return lags / 2.0 + 0.5 * (mean_diag - 2.0 * corr[lags] / count)

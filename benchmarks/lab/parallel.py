@@ -87,47 +87,54 @@ def _work(pieces: list, conn, theirs: list, counter, parent: int) -> None:
     conn.close()
 
 
-def run_all(pieces: list, workers: int) -> list:
+def run_all(pieces: list, workers: int, here=None) -> list:
     """Each of ``pieces`` (calls without arguments) called; their results in order. With
     ``workers`` > 1, this process and ``workers`` − 1 forked ones take the pieces in turn (in
-    a worker of another run_all, one after another here). An exception in a piece is raised
-    here (the first piece's, in order); once one has raised, no further piece starts."""
+    a worker of another run_all, one after another here). ``here``: a call this process
+    makes before it takes a piece, whatever the workers (work that must stay in this
+    process, such as a figure begun while the workers take the pieces); its result is then
+    the list's last. An exception in a piece is raised here (the first piece's, in order);
+    once one has raised, no further piece starts."""
     from threadpoolctl import threadpool_limits
-    workers = min(workers, len(pieces))
+    extra = [] if here is None else [here]
+    workers = min(workers, len(pieces) + len(extra))
     if workers <= 1 or "fork" not in multiprocessing.get_all_start_methods() or \
             multiprocessing.current_process().daemon:
         with threadpool_limits(limits=1, user_api="blas"):      # as in parallel: the same
-            return [p() for p in pieces]                        # sums, to the last digit
+            first = [h() for h in extra]                        # sums, to the last digit
+            return [p() for p in pieces] + first
     ctx = multiprocessing.get_context("fork")
     counter, out = ctx.Value("i", 0), {}
     with threadpool_limits(limits=1, user_api="blas"):
-        _run(ctx, list(pieces), counter, out, workers)
+        first = _run(ctx, list(pieces), counter, out, workers, extra)
     for i in range(len(pieces)):
         if i in out and not out[i][0]:
             exc = out[i][1]
             remote = getattr(exc, "remote_traceback", None)
             # the worker's traceback as the cause (what RSFBENCH_DEBUG=1 shows)
             raise exc from (RuntimeError(f"in a worker:\n{remote}") if remote else None)
-    return [out[i][1] for i in range(len(pieces))]
+    return [out[i][1] for i in range(len(pieces))] + first
 
 
-def _run(ctx, pieces: list, counter, out: dict, workers: int) -> None:
-    """The workers started (the pieces go to them by the fork itself, never pickled), this
-    process's share taken, their results into ``out``."""
+def _run(ctx, pieces: list, counter, out: dict, workers: int, here: list) -> list:
+    """The workers started (the pieces go to them by the fork itself, never pickled), the
+    calls ``here`` made and this process's share taken, the pieces' results into ``out``;
+    returns those of ``here``."""
     procs = []
     try:
         for _ in range(workers - 1):
-            here, there = ctx.Pipe(duplex=False)
-            ends = [h for _, h in procs] + [here]
+            mine, there = ctx.Pipe(duplex=False)
+            ends = [m for _, m in procs] + [mine]
             proc = ctx.Process(target=_work, args=(pieces, there, ends, counter, os.getpid()),
                                daemon=True)
             proc.start()
             there.close()
-            procs.append((proc, here))
+            procs.append((proc, mine))
+        first = [h() for h in here]
         _take(pieces, counter, out)
-        for proc, here in procs:
+        for proc, end in procs:
             try:
-                out.update(here.recv())
+                out.update(end.recv())
             except EOFError:
                 raise RuntimeError(f"a worker of this run stopped (exit code "
                                    f"{proc.exitcode}) before sending its results") from None
@@ -136,3 +143,4 @@ def _run(ctx, pieces: list, counter, out: dict, workers: int) -> None:
         for proc, _ in procs:
             proc.terminate()
         raise
+    return first

@@ -29,7 +29,7 @@ import pandas as pd
 
 from benchmarks.inversion.objectives import CHI2_95_1DOF
 from benchmarks.inversion.profile_ends import ends, next_point
-from benchmarks.lab.fit import (_LOG, TRIAL_TOL, LabFit, _Problem, _shown,
+from benchmarks.lab.fit import (_LOG, LabFit, _Problem, _shown,
                                 coordinate_bounds)
 
 __all__ = ["LabProfile", "profile_lab", "MAX_POINTS", "BISECTIONS", "OVERSHOOT", "BOX_EDGES"]
@@ -137,7 +137,7 @@ def profile_lab(fit: LabFit, parameter: str, level: float = CHI2_95_1DOF) -> Lab
         prob = _Problem(fit.model, others, fixed, fit.piece_weights)
         x = np.empty(0)
         if others:
-            res = prob.solve(prob.coordinates(start), max_nfev=60, tol=TRIAL_TOL)
+            res = prob.solve(prob.coordinates(start), max_nfev=60, trial=True)
             x, start = res.x, prob.params(res.x)
         r = prob.residual(x)
         failed = not np.isfinite(prob.g(x)).all()

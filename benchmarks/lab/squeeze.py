@@ -30,26 +30,31 @@ __all__ = ["compress"]
 RANK_FLOOR = 1e-15
 
 
+#: rows of A formed at a time in the first pass, whose products go to BLAS: a block of a few
+#: tens of kB stays in the cache (0.97 against 1.32 ms a call on 75,220 samples and 4
+#: parameters, timed by hand)
+BLOCK = 1024
+
+
 @njit(cache=True, error_model="numpy")
 def _passes(wmu, w, g, d, scales, q, r):
     """r ← P(wmu − w g) in place; returns (AᵀA − (QᵀA)ᵀ(QᵀA), Aᵀr, r·r) for A = −w d scales,
-    the full problem's Jacobian (J = P A)."""
+    the full problem's Jacobian (J = P A). Aᵀr is summed in a second pass over the projected
+    r, not as Aᵀu − (QᵀA)ᵀQᵀu: near the fit's optimum that difference cancels to nothing."""
     n, p = d.shape
     m = q.shape[1]
     qu, qa, gram = np.zeros(m), np.zeros((m, p)), np.zeros((p, p))
-    a = np.empty(p)
-    for i in range(n):
-        u = wmu[i] - w[i] * g[i]
-        r[i] = u
-        for j in range(p):
-            a[j] = -w[i] * d[i, j] * scales[j]
-        for k in range(m):
-            qu[k] += q[i, k] * u
+    a = np.empty((BLOCK, p))
+    for start in range(0, n, BLOCK):
+        end = min(start + BLOCK, n)
+        for i in range(start, end):
+            r[i] = wmu[i] - w[i] * g[i]
             for j in range(p):
-                qa[k, j] += q[i, k] * a[j]
-        for j in range(p):
-            for l in range(j + 1):
-                gram[j, l] += a[j] * a[l]
+                a[i - start, j] = -w[i] * d[i, j] * scales[j]
+        block, qb = a[:end - start], q[start:end]
+        gram += block.T @ block
+        qa += qb.T @ block
+        qu += qb.T @ r[start:end]
     ar = np.zeros(p)
     rr = 0.0
     for i in range(n):
@@ -60,12 +65,7 @@ def _passes(wmu, w, g, d, scales, q, r):
         rr += s * s
         for j in range(p):
             ar[j] -= w[i] * d[i, j] * scales[j] * s
-    for j in range(p):
-        for l in range(j + 1):
-            acc = gram[j, l]
-            for k in range(m):
-                acc -= qa[k, j] * qa[k, l]
-            gram[j, l] = gram[l, j] = acc
+    gram -= qa.T @ qa
     return gram, ar, rr
 
 

@@ -48,6 +48,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from benchmarks.lab.noise import covariance, drift_covariance, read_noise
+from benchmarks.lab.running import running_mean
 
 __all__ = ["SteadyTrend", "steady_trend", "settled_after", "travel_columns",
            "opens_in_transient", "OPENS_CURVED", "SLOPE_TOL", "WINDOWS", "STABLE", "BIAS"]
@@ -157,14 +158,19 @@ def _first_piece(x, y) -> np.ndarray:
     return np.ones(len(r), bool) if keep.sum() < FEWEST else keep
 
 
-def _window_slopes(x, y, starts, ends):
-    """Slopes and their white-noise standard errors of lines through [starts, ends) (index
-    ranges), by cumulative sums."""
+def _window_sums(x, y) -> tuple:
+    """The cumulative sums of 1, x, y, x², xy and y² (x and y centred) that
+    :func:`_window_slopes` reads any window's line from."""
     x = x - x.mean()
     y = y - y.mean()
-    cum = [np.concatenate(([0.0], np.cumsum(v))) for v in (np.ones_like(x), x, y, x * x, x * y,
-                                                            y * y)]
-    n, sx, sy, sxx, sxy, syy = (c[ends] - c[starts] for c in cum)
+    return tuple(np.concatenate(([0.0], np.cumsum(v)))
+                 for v in (np.ones_like(x), x, y, x * x, x * y, y * y))
+
+
+def _window_slopes(sums, starts, ends):
+    """Slopes and their white-noise standard errors of lines through [starts, ends) (index
+    ranges), by the cumulative ``sums`` of :func:`_window_sums`."""
+    n, sx, sy, sxx, sxy, syy = (c[ends] - c[starts] for c in sums)
     with np.errstate(invalid="ignore", divide="ignore"):
         dxx = sxx - sx * sx / n
         slope = (sxy - sx * sy / n) / dxx
@@ -178,22 +184,22 @@ def _steady_start(u, y) -> float:
     of the module docstring on the piece's friction ``y`` against ``u``, its travel since the
     switch."""
     width = max(5, len(y) // 100)
-    smooth = np.convolve(y, np.ones(width) / width, mode="valid")
+    smooth = running_mean(y, width)
     half = max(len(smooth) // 2, 1)
     first = int(np.argmax(np.abs(smooth[:half] - smooth[0]))) + width // 2
     span = u[-1] - u[first]
     if not span > 0:
         return math.nan
-    points = []
+    points, sums = [], _window_sums(u, y)
     for frac in WINDOWS:
         length = frac * span
         # the piece's last window of this length, and the starts that end before it begins
-        end_slope, end_se = _window_slopes(u, y, *(np.array([np.searchsorted(u, u[-1] - length),
+        end_slope, end_se = _window_slopes(sums, *(np.array([np.searchsorted(u, u[-1] - length),
                                                               len(u)]).reshape(2, 1)))
         begin = np.linspace(u[first], u[-1] - 2.0 * length, STARTS)
         i0 = np.searchsorted(u, begin)
         i1 = np.searchsorted(u, begin + length, side="right")
-        slope, se = _window_slopes(u, y, i0, i1)
+        slope, se = _window_slopes(sums, i0, i1)
         with np.errstate(invalid="ignore"):
             steady = (i1 - i0 >= FEWEST) & (np.abs(slope - end_slope[0]) <= np.maximum(
                 SLOPE_TOL, 2.0 * np.sqrt(se ** 2 + end_se[0] ** 2)))
@@ -340,8 +346,8 @@ def settled_after(trend: SteadyTrend, t, mu, g, velocities, switch_times) -> np.
         starts = np.unique(np.linspace(first, len(ti) - FEWEST, STARTS).astype(int))
         starts = starts[starts >= first]
         ends = np.full(len(starts), len(ti))
-        slope_g, _ = _window_slopes(xi, g[inside], starts, ends)
-        _, se_white = _window_slopes(xi, mu[inside], starts, ends)
+        slope_g, _ = _window_slopes(_window_sums(xi, g[inside]), starts, ends)
+        _, se_white = _window_slopes(_window_sums(xi, mu[inside]), starts, ends)
         scale = trend.se[i] / se_white[0] if len(starts) and se_white[0] > 0 else 1.0
         with np.errstate(invalid="ignore"):
             ok = np.abs(slope_g) <= BIAS * scale * se_white

@@ -144,6 +144,10 @@ def refine_switches(fit) -> tuple[object, pd.DataFrame]:
         fit, row, solves = _refine(fit, i)
         rows.append(row)
         trials += solves
+    if fit is first:        # every switch where the displacement put it: the fit stands
+        return (dataclasses.replace(first, solves=first.solves + trials,
+                                    wall_s=first.wall_s + time.perf_counter() - started),
+                pd.DataFrame(rows, columns=list(SWITCH_COLUMNS)))
     # a held trend is settled again at the refined switches (fit_lab's _settle), from the
     # refined fit's values
     model = dataclasses.replace(fit.model, steady_after=None, steady_fitted=None)
