@@ -316,7 +316,7 @@ def _residuals_csv(fit) -> str:
     return pd.DataFrame({
         "t_s": rec.t + rec.t_offset if rec.file_t is None else rec.file_t, **clock,
         "load_point_m": rec.load_point, "mu": rec.mu, "mu_model": fit.mu_model,
-        "residual": rec.mu - fit.mu_model}).to_csv(index=False)
+        "residual": rec.mu - fit.mu_model}).to_csv(index=False, lineterminator="\n")
 
 
 def _profile(args, fit, name: str):

@@ -1,0 +1,148 @@
+"""The lead on a problem nobody here chose: Im, Elsworth, Marone & Leeman's stick-slip
+spring-slider (:func:`problems.external.im_spring_slider`), every stiff adaptive method of the
+project and of its compiled peers over the quick ladder, and the three ways its authors solved
+it (their implicit method at 1e−4 s and classical RK4 at 1e−6 s, ported to numba by
+:mod:`benchmarks.devtools.im_methods`; ode23s, the Shampine–Reichelt Rosenbrock 2(3), is the
+project's Rosenbrock23). Achieved errors against the reference of two solvers that agree
+(:mod:`benchmarks.devtools.reference`), on the last complete event of the 2 s run.
+
+Writes the work-precision files ``wp_external*``, the 2× target on this problem
+(``target_external.*``, as :mod:`benchmarks.studies.target` reads it), and ``external.md``:
+their ways beside the project's, and whether the quick study's recommendation for each error
+level reaches that level here.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from types import SimpleNamespace
+
+import pandas as pd
+
+from benchmarks.devtools.errors import HEADLINE_ERRORS, errors
+from benchmarks.devtools.im_methods import IM_STEP, RK4_STEP, im_scheme, rk4, trajectory_events
+from benchmarks.devtools.reference import reference
+from benchmarks.devtools.work_precision import (
+    QUICK,
+    read_study,
+    recommend,
+    reliable_error,
+    work_precision,
+)
+from benchmarks.devtools.wp_files import ERROR_LEVELS, write_work_precision
+from benchmarks.records.files import write_output, write_table
+from benchmarks.records.report import fmt, markdown_table
+from benchmarks.studies.study import Study
+from benchmarks.studies.target import target_integrators, target_markdown, write_target
+from integrators import REGISTRY
+from problems.external import im_spring_slider
+
+__all__ = ["STUDY", "their_ways"]
+
+#: timed runs of each ported method (the minimum counts), after one that compiles and warms up
+REPEATS = 5
+
+
+def their_ways(problem, ref) -> pd.DataFrame:
+    """One row per way the authors solved ``problem``: their implicit method and RK4 (the
+    ports, timed as the minimum of :data:`REPEATS` runs after a warm-up), with the errors of
+    :func:`benchmarks.devtools.errors.errors` and how far the run got."""
+    rows = []
+    for name, run, step in (("their implicit method (port)", im_scheme, IM_STEP),
+                            ("classical RK4 (port)", rk4, RK4_STEP)):
+        run(problem, step)
+        walls = []
+        for _ in range(REPEATS):
+            started = time.perf_counter()
+            out = run(problem, step)
+            walls.append(time.perf_counter() - started)
+        t, v, slip, fs = out[:4]
+        reached = float(t[-1])
+        done = reached >= problem.t_end - step / 2
+        events = trajectory_events(t, v, slip, fs, problem.loading)
+        sol = SimpleNamespace(success=done, events=events, problem=problem, t=t,
+                              mu=fs / problem.normal_force)
+        rows.append({"way": name, "step_s": step, "wall_s": min(walls), "reached_s": reached,
+                     "events": len(events), **errors(sol, ref)})
+    return pd.DataFrame(rows)
+
+
+def run(out: Path) -> None:
+    problem = im_spring_slider("stick-slip")
+    ref = reference(problem)
+    names = sorted(set(target_integrators()) | set(REGISTRY.select("own")), key=str.lower)
+    df = work_precision([problem], QUICK, names=names, tiers=("numba",))
+    paths = write_work_precision(df, out, "external")
+    target = write_target(paths["csv"], out)
+    ways = their_ways(problem, ref)
+    write_table(ways, out / "external_their_ways.csv")
+    advice = _advice(read_study(paths["csv"]), out / "wp_quick.csv")
+    write_table(advice, out / "external_advice.csv")
+    write_output(out / "external.md", _markdown(problem, ref, df, ways, target, advice))
+    print((out / "external.md").read_text())
+
+
+def _advice(df: pd.DataFrame, quick_csv: Path) -> pd.DataFrame:
+    """Each error level's setting as the quick study recommends it, and its reliable error
+    on the external problem (met: the setting reaches the level there)."""
+    rec = recommend(read_study(quick_csv), ERROR_LEVELS)
+    df = df.assign(reliable=reliable_error(df, "err_recurrence"))
+    rows = []
+    for r in rec.itertuples():
+        if not isinstance(getattr(r, "integrator", None), str):
+            continue
+        here = df[(df.integrator == r.integrator) & (df.rhs_tier == r.rhs_tier)
+                  & (df.setting == r.setting)]
+        err = float(here.reliable.iloc[0]) if len(here) else float("nan")
+        rows.append({"level": r.level, "integrator": r.integrator, "setting": r.setting,
+                     "error_here": err, "wall_s_here": float(here.wall_s.iloc[0])
+                     if len(here) else float("nan"), "met": bool(err <= r.level)})
+    return pd.DataFrame(rows)
+
+
+def _markdown(problem, ref, df, ways, target, advice) -> str:
+    m = ref.metrics
+    head = (f"The problem: {problem.name}, aging law a = {problem.law.a:g}, b = {problem.law.b:g},"
+            f" Dc = {problem.law.lc * 1e6:g} µm, per m² (m = {problem.mass:g} kg, "
+            f"k = {problem.stiffness:g} N/m, Fn = {problem.normal_force:g} N), "
+            f"vL = {problem.loading.vl:g} m/s, {problem.t_end:g} s. The reference's event "
+            f"{ref.event_index + 1} (the last complete): ΔT = {m['recurrence_s']:.6g} s, "
+            f"Δμ = {m['friction_drop']:.6g}, slip {m['slip_m'] * 1e6:.5g} µm, peak slip rate "
+            f"{m['peak_velocity_m_s']:.5g} m/s; its two solvers agree to "
+            f"{ref.agreement['max']:.2g}.\n\n")
+    rb = df[(df.integrator == "Rosenbrock23") & (df.setting == 1e-3)]
+    ways = pd.concat([ways, pd.DataFrame([{
+        "way": "ode23s's method at its default RelTol 1e-3 (Rosenbrock23)", "step_s": None,
+        "wall_s": float(rb.wall_s.iloc[0]) if len(rb) else float("nan"),
+        "reached_s": problem.t_end if len(rb) and rb.retcode.iloc[0] == "Success" else None,
+        "events": int(rb.n_events.iloc[0]) if len(rb) else None,
+        **{c: float(rb[c].iloc[0]) if len(rb) else float("nan") for c in HEADLINE_ERRORS}}])])
+    table = pd.DataFrame({"way": ways.way, "wall (ms)": [fmt(w * 1e3, ".3g") for w in ways.wall_s],
+                          "reached (s)": [fmt(x, "g") for x in ways.reached_s],
+                          **{c.removeprefix("err_"): [fmt(x, ".2g") for x in ways[c]]
+                             for c in HEADLINE_ERRORS}})
+    adv = pd.DataFrame({"level": advice.level.map("{:g}".format),
+                        "recommended (quick study)": [f"{i} {s:g}" for i, s in
+                                                      zip(advice.integrator, advice.setting)],
+                        "its error here": [fmt(x, ".2g") for x in advice.error_here],
+                        "wall here (ms)": [fmt(x * 1e3, ".3g") for x in advice.wall_s_here],
+                        "reaches the level here": advice.met.map({True: "yes", False: "no"})})
+    return (head + "## Their three ways\n\nTheir implicit method and RK4 at their own steps "
+            "(ports to numba, the minimum of 5 runs after a warm-up); ode23s's method from the "
+            "work-precision run below. Errors relative, on the reference's last complete "
+            "event.\n\n" + markdown_table(table) + "\n\n## The 2× target here\n\n"
+            + target_markdown(target) + "\n\n## The quick study's advice, here\n\n"
+            + markdown_table(adv) + "\n")
+
+
+def report(out: Path) -> str:
+    return ((out / "external.md").read_text() + "\n![work-precision](wp_external_im_stick-slip.png)\n")
+
+
+STUDY = Study("external", "The lead on Im et al.'s spring-slider: their solvers, ours and the "
+              "compiled peers (`external.*`, `wp_external*`, `target_external.*`)", 105, run,
+              report=report, plan="full", timed=True, reads=("wp_quick.csv",),
+              writes=("external.md", "external_their_ways.csv", "external_advice.csv",
+                      "wp_external.csv", "wp_external_pareto.*", "wp_external_*.png",
+                      "target_external.csv", "target_external.md"), minutes=6)
