@@ -306,3 +306,18 @@ def test_a_ctrl_c_in_a_posterior_names_the_step_it_came_in(where):
     stopped = CtrlC()
     run_sampler(Sampler(), None, 3, False, stopped)       # ends before step 4: no interruption
     assert not stopped
+
+
+def test_a_ctrl_c_that_compiled_code_passes_on_is_an_interrupt():
+    """numba's compiled code hit by a Ctrl-C while it calls back into Python raises a
+    SystemError whose context is the KeyboardInterrupt (a hostile probe: exit 3, "internal
+    error"): it counts as an interrupt; a SystemError of its own does not."""
+    from benchmarks.cli.main import _interrupted
+    try:
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt:
+            raise SystemError("returned a result with an exception set")
+    except SystemError as exc:
+        assert _interrupted(exc)
+    assert not _interrupted(SystemError("a bug"))

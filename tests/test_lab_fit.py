@@ -93,6 +93,9 @@ def test_big_spikes_are_no_hold_and_a_jump_back_is_refused():
     reset = x - 30e-6 * (T > 30.0)
     with pytest.raises(ValueError, match=r"jumps back by 2\d\.\d µm at t = 30\.0"):
         find_history(T, reset)
+    # said in the file's time, which --window takes (a probe found the record's own)
+    with pytest.raises(ValueError, match=r"at t = 1103\d\.\d+ s \(the file's time"):
+        find_history(T, reset, t_offset=11000.0)
 
 
 def test_a_filtered_sensors_noise_is_no_reset():
@@ -1063,3 +1066,15 @@ def test_the_noise_model_says_how_it_was_read():
     assert not short.from_variogram and "lag-1 correlation" in short.describe()
     mixed = NoiseModel(white=1.0, correlated=1.0, phi=0.9)
     assert "50% of the variance correlated" in mixed.describe()
+
+
+def test_a_dollar_pair_in_the_records_name_is_drawn_as_written(tmp_path):
+    """A file named with two $ went through matplotlib's mathematics and failed the figure
+    (a hostile probe): the title is drawn literally."""
+    import shutil
+    record = tmp_path / "step$_$1.txt"
+    shutil.copy(BASALT, record)
+    out = _cli(record, *[f"--column={c}" for c in REAL_COLUMNS], "--no-profiles",
+               "--no-solver-check", "--out", tmp_path / "out")
+    assert out.returncode == 0, out.stderr
+    assert (tmp_path / "out" / "lab_fit.png").stat().st_size > 10_000

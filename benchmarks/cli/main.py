@@ -159,10 +159,25 @@ def _command(argv: list[str] | None, json_mode: bool) -> int:
                 if getattr(args, "command", None) == "sweep" else "")
         return _fail(_one_line(exc) if str(exc) else f"interrupted{kept}", 130, json_mode)
     except Exception as exc:                      # a bug: one line, the traceback on request
+        if _interrupted(exc):                     # a Ctrl-C that compiled code passed on
+            return _fail("interrupted", 130, json_mode)
         if os.environ.get("RSFBENCH_DEBUG"):
             raise
         return _fail(f"internal error: {type(exc).__name__}: {_one_line(exc)} (set "
                      "RSFBENCH_DEBUG=1 for the traceback; please report it)", 3, json_mode)
+
+
+def _interrupted(exc: BaseException) -> bool:
+    """Whether ``exc`` was caused by a Ctrl-C: numba's compiled code hit by one while it calls
+    back into Python returns "a result with an exception set", a SystemError whose context is
+    the KeyboardInterrupt."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
 
 
 def _one_line(exc: BaseException) -> str:
@@ -176,7 +191,10 @@ def _fail(message: str, status: int, json_mode: bool) -> int:
     prefix = "" if message.startswith("rsfbench") else "rsfbench: error: "
     print(f"{prefix}{message}", file=sys.stderr)
     if json_mode:
-        say(json.dumps({"error": message, "exit_status": status}))
+        try:
+            say(json.dumps({"error": message, "exit_status": status}))
+        except OSError:                   # the standard output is gone (a closed pipe, a
+            pass                          # full disk): the standard error has said it
     return status
 
 

@@ -10,10 +10,16 @@ from matplotlib.figure import Figure
 
 from benchmarks.records.files import write_figure
 
-__all__ = ["plot_recording", "envelope"]
+__all__ = ["plot_recording", "envelope", "literal"]
 
 #: samples drawn of the record at most (a 4-million-row record is drawn from every k-th)
 MAX_DRAWN = 50_000
+
+
+def literal(text: str) -> str:
+    """``text`` as matplotlib draws it literally: a pair of ``$`` in a file's name would
+    otherwise be read as mathematics (and a stray one fail the figure)."""
+    return text.replace("$", r"\$")
 
 
 def envelope(x, y, most: int = 4000):
@@ -48,7 +54,8 @@ def plot_recording(rec, analysis, path) -> Path:
     for t0 in ev.t_start:
         ax.axvline(t0, color="tab:red", lw=0.6, alpha=0.6)
     ax.set(xlabel="time (s)", ylabel="Fs/Fn",
-           title=f"{Path(rec.source).name}: {len(ev)} complete events (red: their starts)")
+           title=f"{literal(Path(rec.source).name)}: {len(ev)} complete events (red: their "
+                 "starts)")
     ax = axes[1]
     ax.plot(ev.t_start, ev.recurrence_s, "o-", ms=3, color="tab:blue")
     ax.set(xlabel="event start (s)", ylabel="ΔT (s)")

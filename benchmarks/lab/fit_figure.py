@@ -12,7 +12,7 @@ from pathlib import Path
 
 from matplotlib.figure import Figure
 
-from benchmarks.lab.figures import envelope
+from benchmarks.lab.figures import envelope, literal
 
 __all__ = ["FitFigure"]
 
@@ -47,7 +47,7 @@ class FitFigure:
         ax.axhline(0, color="k", lw=0.5)
         ax.set_ylabel("residual")
         ax.set_xlabel("load-point displacement (µm)")
-        fig.suptitle(Path(rec.source).name, fontsize=9)
+        fig.suptitle(literal(Path(rec.source).name), fontsize=9)
         self.axes = [self._panel(fig.add_subplot(grid[2, j]), j, name)
                      for j, name in enumerate(names)]
         # laid out now, with the profiles' panels empty: their data change no label's size

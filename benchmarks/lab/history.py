@@ -212,21 +212,23 @@ NOISE_WIDTH = 51
 RESET = 20.0
 
 
-def find_history(t: np.ndarray, x: np.ndarray, what: str = "the load point"):
+def find_history(t: np.ndarray, x: np.ndarray, what: str = "the load point",
+                 t_offset: float = 0.0):
     """(velocities, switch_times, pieces) of the displacement ``x`` (m) at times ``t`` (s): see
     the module docstring, found without the displacement's glitches (:func:`_glitches`; each
-    piece's ``samples`` counts them too). ``what`` names the channel in a refusal."""
-    _refuse_jumps_back(t, x, what)
+    piece's ``samples`` counts them too). ``what`` names the channel in a refusal, whose times
+    are the file's: ``t`` + ``t_offset`` (what ``--window`` takes)."""
+    _refuse_jumps_back(t, x, what, t_offset)
     glitch = _glitches(x)
     if not glitch.any() or (~glitch).sum() < 2 * MIN_SAMPLES:
-        return _found(t, x, what)
-    velocities, switches, pieces = _found(t[~glitch], x[~glitch], what)
+        return _found(t, x, what, t_offset)
+    velocities, switches, pieces = _found(t[~glitch], x[~glitch], what, t_offset)
     cuts = np.searchsorted(t, switches, side="left")
     return velocities, switches, pieces.assign(
         t_end_s=(*switches, float(t[-1])), samples=np.diff(np.concatenate(([0], cuts, [len(t)]))))
 
 
-def _found(t, x, what: str):
+def _found(t, x, what: str, t_offset: float = 0.0):
     """:func:`find_history` of samples without glitches."""
     cuts = [0, len(t)]
     while True:
@@ -257,8 +259,9 @@ def _found(t, x, what: str):
     if back.any():
         k = int(np.argmax(back))
         raise ValueError(f"{what} moves back at {speeds[k]:.3g} m/s from t = "
-                         f"{t[cuts[k]]:.6g} s to {t[cuts[k + 1] - 1]:.6g} s: a fit needs a "
-                         "load point that only moves forward or holds")
+                         f"{t[cuts[k]] + t_offset:.9g} s to {t[cuts[k + 1] - 1] + t_offset:.9g}"
+                         " s (the file's time): a fit needs a load point that only moves "
+                         "forward or holds")
     fastest = speeds.max()
     if fastest <= 0:
         raise ValueError(f"{what} does not move")
@@ -277,7 +280,8 @@ def _found(t, x, what: str):
                   f"{LAB_TYPICAL[0]:g} to {LAB_TYPICAL[1]:g} m/s of most velocity-step tests: "
                   "is its unit right? (a displacement in µm is load_point=COLUMN:um, in mm :mm)")
     if velocities[0] == 0.0:
-        raise ValueError(f"{what} holds from the record's start to t = {t[cuts[1]]:.6g} s: the "
+        raise ValueError(f"{what} holds from the record's start to t = "
+                         f"{t[cuts[1]] + t_offset:.9g} s (the file's time): the "
                          "fit starts from steady sliding; start the record (--window) while "
                          "the load point moves")
     switches = tuple(_refined(t, x, lo, j, hi)
@@ -289,7 +293,7 @@ def _found(t, x, what: str):
     return velocities, switches, pieces
 
 
-def _refuse_jumps_back(t, x, what: str) -> None:
+def _refuse_jumps_back(t, x, what: str, t_offset: float = 0.0) -> None:
     """A ValueError where the displacement's running median drops by more than :data:`RESET`
     σ of the sensor's noise (:func:`_noise_scale`; a sensor's reset: the fit would read it as
     a speed). A glitch of fewer than half the running median's samples moves it not."""
@@ -301,5 +305,6 @@ def _refuse_jumps_back(t, x, what: str) -> None:
     w = NOISE_WIDTH
     stays = np.median(x[k + 1:k + 1 + w]) - np.median(x[max(k + 1 - w, 0):k + 1])
     if drop[k] < -RESET * scale[k + 1] and stays < -RESET * scale[k + 1]:
-        raise ValueError(f"{what} jumps back by {-drop[k] * 1e6:.3g} µm at t = {t[k + 1]:.6g} s "
-                         "(a sensor's reset or re-zero?): fit a --window on one side of it")
+        raise ValueError(f"{what} jumps back by {-drop[k] * 1e6:.3g} µm at t = "
+                         f"{t[k + 1] + t_offset:.9g} s (the file's time; a sensor's reset or "
+                         "re-zero?): fit a --window on one side of it")

@@ -226,8 +226,9 @@ def lab_record_from(table: pd.DataFrame, columns, normal_force: float | None = N
         x = np.concatenate(([0.0], np.cumsum(v[:-1] * np.diff(t))))
     t0 = float(t[0])
     t, x = t - t0, x - x[0]
+    channel = names.get("load_point") or names["load_velocity"]
     velocities, switches, pieces = find_history(t, x, what=f"{source}: the load point "
-                                                f"({names.get('load_point') or names['load_velocity']!r})")
+                                                f"({channel!r})", t_offset=t0)
     return LabRecord(t=t, mu=np.asarray(mu, dtype=float), load_point=x, velocities=velocities,
                      switch_times=switches, pieces=pieces, t_offset=t0, source=source,
                      sha256=sha256, columns=names)
