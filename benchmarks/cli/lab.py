@@ -38,7 +38,7 @@ from benchmarks.cli.args import (
 )
 from benchmarks.cli.lab_fit import add_parser as add_fit_parser
 from benchmarks.records.files import claim_outputs, write_figure, write_table
-from benchmarks.records.report import jsonable
+from benchmarks.records.report import jsonable, literal
 from integrators import make_algorithm, solve
 from problems import LAWS, law_parameters, load_problem, slide_hold_slide_test, velocity_step_test
 
@@ -206,7 +206,7 @@ def _plot(sol, heal, path: Path) -> None:
         axes[2].set_xlabel("hold time (s)")
         axes[2].set_ylabel("Δμ_peak")
         axes[2].grid(True, which="both", alpha=0.3)
-    fig.suptitle(sol.problem.name, fontsize=9)
+    fig.suptitle(literal(sol.problem.name), fontsize=9)
     fig.tight_layout()
     write_figure(fig, path, dpi=110)
 

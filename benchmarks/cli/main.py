@@ -155,29 +155,34 @@ def _command(argv: list[str] | None, json_mode: bool) -> int:
     except (RunStopped, OSError, MissingExtra) as exc:   # the run could not go on: say why
         return _fail(_one_line(exc), 1, json_mode)
     except KeyboardInterrupt as exc:              # a command may say what it kept
-        kept = (" (a sweep keeps its finished points: run it again to resume)"
-                if getattr(args, "command", None) == "sweep" else "")
-        return _fail(_one_line(exc) if str(exc) else f"interrupted{kept}", 130, json_mode)
+        return _interrupt(exc, args, json_mode)
     except Exception as exc:                      # a bug: one line, the traceback on request
-        if _interrupted(exc):                     # a Ctrl-C that compiled code passed on
-            return _fail("interrupted", 130, json_mode)
+        if _interrupted(exc) is not None:         # a Ctrl-C that compiled code passed on
+            return _interrupt(_interrupted(exc), args, json_mode)
         if os.environ.get("RSFBENCH_DEBUG"):
             raise
         return _fail(f"internal error: {type(exc).__name__}: {_one_line(exc)} (set "
                      "RSFBENCH_DEBUG=1 for the traceback; please report it)", 3, json_mode)
 
 
-def _interrupted(exc: BaseException) -> bool:
-    """Whether ``exc`` was caused by a Ctrl-C: numba's compiled code hit by one while it calls
-    back into Python returns "a result with an exception set", a SystemError whose context is
-    the KeyboardInterrupt."""
+def _interrupt(exc: KeyboardInterrupt, args, json_mode: bool) -> int:
+    """The one line of a Ctrl-C (``exc``'s own words if it has any), status 130."""
+    kept = (" (a sweep keeps its finished points: run it again to resume)"
+            if getattr(args, "command", None) == "sweep" else "")
+    return _fail(_one_line(exc) if str(exc) else f"interrupted{kept}", 130, json_mode)
+
+
+def _interrupted(exc: BaseException) -> KeyboardInterrupt | None:
+    """The Ctrl-C that caused ``exc``, or None: numba's compiled code hit by one while it
+    calls back into Python returns "a result with an exception set", a SystemError whose
+    context is the KeyboardInterrupt."""
     seen = set()
     while exc is not None and id(exc) not in seen:
         if isinstance(exc, KeyboardInterrupt):
-            return True
+            return exc
         seen.add(id(exc))
         exc = exc.__cause__ or exc.__context__
-    return False
+    return None
 
 
 def _one_line(exc: BaseException) -> str:

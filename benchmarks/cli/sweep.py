@@ -40,7 +40,7 @@ from benchmarks.inversion.sweep import MAX_GRID_POINTS, parse_b, parse_lc, sweep
 from benchmarks.physics.curves import read_curves, sample_curves, write_curves
 from benchmarks.physics.metrics import CYCLES, summarize
 from benchmarks.records.files import claim_outputs
-from benchmarks.records.report import jsonable
+from benchmarks.records.report import jsonable, literal
 from integrators import solve
 from problems import PRESET_NAMES, WINDOWS
 
@@ -94,7 +94,7 @@ def cmd_sweep(args) -> int:
         mark, label = ((args.mark, "given") if args.mark is not None else
                        ((problem.law.b, problem.law.lc), "published")
                        if published and not own_obs else (None, ""))
-        plot_sweep(result.table, out / "maps.png", title=problem.name or name, mark=mark,
+        plot_sweep(result.table, out / "maps.png", title=literal(problem.name or name), mark=mark,
                    mark_label=label,
                    best=None if s["best_b"] is None else (s["best_b"], s["best_lc_m"]))
         s["maps"] = str(out / "maps.png")

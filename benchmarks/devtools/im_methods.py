@@ -41,9 +41,10 @@ IM_STEP, RK4_STEP = 1e-4, 1e-6
 
 
 def _constants(problem) -> tuple:
-    if problem.law.name != "aging" or not hasattr(problem.loading, "vl"):
-        raise ValueError(f"{problem.name}: Im et al.'s solvers are for the aging law under "
-                         "constant loading")
+    if (problem.law.name != "aging" or not hasattr(problem.loading, "vl")
+            or not problem.mass > 0 or problem.radiation_damping != 0):
+        raise ValueError(f"{problem.name}: Im et al.'s solvers are for a slider with mass, "
+                         "no radiation damping, the aging law and constant loading")
     law, init = problem.law, problem.initial_state
     return (law.a, law.b, law.lc, law.v0, problem.mu0, problem.normal_force, problem.stiffness,
             problem.mass, problem.loading.vl, init.v, init.theta, init.fs)
@@ -157,7 +158,7 @@ def trajectory_events(t, v, slip, fs, loading) -> pd.DataFrame:
             t0, u0 = _cross(t, slip, v, i, start)
             t1, u1 = _cross(t, slip, v, j, end)
             peak = i + int(np.argmax(v[i:j]))
-            rows.append((t0, t1, float(fs[after:i].max(initial=fs[i])),
+            rows.append((t0, t1, float(fs[after:i].max()),
                          float(fs[i - 1:j + 1].min()), float(v[peak]), float(t[peak]), u0, u1))
             after, i = j, j + 1
         else:

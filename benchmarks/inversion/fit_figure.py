@@ -31,6 +31,7 @@ from benchmarks.ensemble import ensemble
 from benchmarks.inversion.objectives import event_samples
 from benchmarks.physics.metrics import CYCLES
 from benchmarks.records.files import BadResultsFile, read_json_record, write_figure
+from benchmarks.records.report import literal
 
 __all__ = ["fit_figure", "plot_fit", "model_at", "observed_events", "MODEL_GID"]
 
@@ -141,7 +142,7 @@ def fit_figure(inv, events: pd.DataFrame | None = None, model: pd.Series | None 
     if obs.curves is not None:
         _draw_curves(axes[2], obs, model if cycle else None)
     f = inv.fit
-    fig.suptitle(f"{inv.misfit.problem.name}: least-squares fit b = {f.b:.5g}, Lc = "
+    fig.suptitle(f"{literal(inv.misfit.problem.name)}: least-squares fit b = {f.b:.5g}, Lc = "
                  f"{f.lc * 1e6:.4g} µm (misfit {f.misfit:.4g}), {inv.misfit.algorithm.name}"
                  + ("" if cycle else f" — no limit cycle at the fit ({model.classification}, "
                                      f"{model.retcode})"), fontsize=10)

@@ -51,7 +51,7 @@ from benchmarks.records.files import (
 )
 from benchmarks.records.optional import require
 from benchmarks.records.provenance import provenance as machine, version_line
-from benchmarks.records.report import jsonable
+from benchmarks.records.report import jsonable, literal
 from problems import variant
 
 __all__ = ["invert", "Inversion", "write_inversion", "check_box", "MAX_SAMPLES_SAVED",
@@ -422,7 +422,7 @@ def _plot_profiles(inv: Inversion, path: Path) -> None:
         ax.set_ylabel("misfit − its minimum (profile)")
         if ax.get_legend_handles_labels()[0]:
             ax.legend(fontsize=8)
-    fig.suptitle(f"{inv.misfit.problem.name}: profiles ({inv.misfit.algorithm.name})", fontsize=10)
+    fig.suptitle(f"{literal(inv.misfit.problem.name)}: profiles ({inv.misfit.algorithm.name})", fontsize=10)
     fig.tight_layout()
     write_figure(fig, path, dpi=110)
 
@@ -440,6 +440,6 @@ def _plot_corner(inv: Inversion, path: Path) -> None:
                         labels=["b", "log10 Lc (m)"],
                         quantiles=[0.025, 0.5, 0.975], show_titles=True, title_fmt=".4g",
                         truths=truths, truth_color="C3")
-    fig.suptitle(f"{inv.misfit.problem.name}: posterior ({inv.method}, "
+    fig.suptitle(f"{literal(inv.misfit.problem.name)}: posterior ({inv.method}, "
                  f"{inv.misfit.algorithm.name}); red: least-squares fit", fontsize=9, y=1.02)
     write_figure(fig, path, dpi=110, bbox_inches="tight")

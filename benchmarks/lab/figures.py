@@ -9,17 +9,12 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from benchmarks.records.files import write_figure
+from benchmarks.records.report import literal
 
-__all__ = ["plot_recording", "envelope", "literal"]
+__all__ = ["plot_recording", "envelope"]
 
 #: samples drawn of the record at most (a 4-million-row record is drawn from every k-th)
 MAX_DRAWN = 50_000
-
-
-def literal(text: str) -> str:
-    """``text`` as matplotlib draws it literally: a pair of ``$`` in a file's name would
-    otherwise be read as mathematics (and a stray one fail the figure)."""
-    return text.replace("$", r"\$")
 
 
 def envelope(x, y, most: int = 4000):

@@ -12,7 +12,8 @@ from pathlib import Path
 
 from matplotlib.figure import Figure
 
-from benchmarks.lab.figures import envelope, literal
+from benchmarks.lab.figures import envelope
+from benchmarks.records.report import literal
 
 __all__ = ["FitFigure"]
 

@@ -10,6 +10,7 @@ from matplotlib.figure import Figure
 
 from integrators.core.plotting import draw_rate_and_friction
 from benchmarks.records.files import write_figure
+from benchmarks.records.report import literal
 
 __all__ = ["plot_solution", "draw_event_zoom", "event_zoom_window", "plot_work_precision",
            "plot_convergence"]
@@ -46,7 +47,7 @@ def plot_solution(solution, path, title: str | None = None, saved=None) -> None:
     _draw_phase(solution, ax_ph)
 
     law = p.law
-    fig.suptitle(title or (f"{p.name}: {type(solution.algorithm).__name__}, "
+    fig.suptitle(title or (f"{literal(p.name)}: {type(solution.algorithm).__name__}, "
                            f"b = {law.b:.5g}, Lc = {law.lc * 1e6:.4g} µm, k = {p.stiffness:.3g} N/m"),
                  fontsize=11)
     write_figure(fig, path, dpi=110)

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pandas as pd
 
-__all__ = ["markdown_table", "jsonable", "fmt"]
+__all__ = ["markdown_table", "jsonable", "fmt", "literal"]
 
 
 def markdown_table(df: pd.DataFrame, floatfmt: str | None = None) -> str:
@@ -57,6 +57,12 @@ def jsonable(x):
     if isinstance(x, list):
         return [jsonable(v) for v in x]
     return x
+
+
+def literal(text: str) -> str:
+    """``text`` (a file's or a problem's name) as matplotlib draws it literally: a pair of
+    ``$`` in it would otherwise be read as mathematics (and a stray one fail the figure)."""
+    return str(text).replace("$", r"\$")
 
 
 def fmt(x, spec: str = ".3g") -> str:
