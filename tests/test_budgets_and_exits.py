@@ -321,3 +321,21 @@ def test_a_ctrl_c_that_compiled_code_passes_on_is_an_interrupt():
     except SystemError as exc:
         assert isinstance(_interrupted(exc), KeyboardInterrupt)
     assert _interrupted(SystemError("a bug")) is None
+
+
+@pytest.mark.parametrize("args,status", [(["--version"], 0),
+                                         (["lab", "fit", "/nonexistent", "--json"], 2)])
+def test_a_closed_standard_output_is_no_crash(args, status):
+    """Started with its standard output closed (``>&-``), Python leaves ``sys.stdout`` None:
+    rsfbench failed with an AttributeError before any command ran (a hostile probe). Its
+    output now goes nowhere, its errors still to the standard error, with their status."""
+    import os
+    import subprocess
+    import sys
+    run = subprocess.run([sys.executable, "-m", "benchmarks.cli", *args],
+                         preexec_fn=lambda: os.close(1), stderr=subprocess.PIPE, text=True,
+                         timeout=120)
+    assert run.returncode == status, run.stderr
+    assert "Traceback" not in run.stderr and "AttributeError" not in run.stderr
+    if status:
+        assert run.stderr.count("\n") == 1 and "does not exist" in run.stderr

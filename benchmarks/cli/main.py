@@ -207,12 +207,26 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
     print(f"rsfbench: warning: {' '.join(str(message).split())}", file=sys.stderr)
 
 
+def _stdout_to_devnull() -> None:
+    """Descriptor 1 and ``sys.stdout`` on /dev/null: a program started with its standard
+    output closed runs as one whose output nobody reads (Python leaves ``sys.stdout`` None,
+    and every print, and the redirection below, would fail)."""
+    fd = os.open(os.devnull, os.O_WRONLY)
+    if fd != 1:
+        os.dup2(fd, 1)
+        os.close(fd)
+    sys.stdout = sys.__stdout__ = io.TextIOWrapper(os.fdopen(1, "wb", closefd=False),
+                                                   encoding="utf-8", line_buffering=True)
+
+
 @contextlib.contextmanager
 def _library_output_to_stderr(keep: bool):
     """While a command runs, the standard output is the standard error — for Python code
     (``sys.stdout``) and for C and Fortran (file descriptor 1) — and :func:`say` writes to the
     standard output as it was. ``keep``: leave descriptor 1 on the standard error at the end (a
     program exits next, and Fortran flushes unit 6 at exit)."""
+    if sys.stdout is None:                    # started with it closed (>&-): to /dev/null
+        _stdout_to_devnull()
     sys.stdout.flush()
     saved = os.dup(1)
     os.dup2(2, 1)
