@@ -295,7 +295,8 @@ def _profiles_and_check(args, fit, notes: list):
         pieces.append(functools.partial(_check, args, fit))
     files = args.out is not None
     # the CSV first: a worker takes it while this process begins the figure
-    done = run_all([functools.partial(_residuals_csv, fit)] * files + pieces, args.workers,
+    csv = [functools.partial(_residuals_csv, fit)] if files else []
+    done = run_all(csv + pieces, args.workers,
                    here=functools.partial(_figure, fit, names) if files else None)
     early = (done.pop(), done.pop(0)) if files else None      # (the figure, the CSV)
     profiles = dict(zip(names, done))

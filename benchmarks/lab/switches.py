@@ -144,20 +144,19 @@ def refine_switches(fit) -> tuple[object, pd.DataFrame]:
         fit, row, solves = _refine(fit, i)
         rows.append(row)
         trials += solves
-    if fit is first:        # every switch where the displacement put it: the fit stands
-        return (dataclasses.replace(first, solves=first.solves + trials,
-                                    wall_s=first.wall_s + time.perf_counter() - started),
-                pd.DataFrame(rows, columns=list(SWITCH_COLUMNS)))
-    # a held trend is settled again at the refined switches (fit_lab's _settle), from the
-    # refined fit's values
-    model = dataclasses.replace(fit.model, steady_after=None, steady_fitted=None)
-    final = fit_lab(model, fixed=fit.fixed, weights=fit.piece_weights,
-                    start={n: fit.values[n] for n in model.parameters})
-    # the refit may stop worse than the refined fit (squares of one trend model: a held trend
-    # settled again is another)
-    refit = final.solves
-    if model.steady is None and not final.rss <= fit.rss:
-        final = fit
+    final, refit = fit, 0
+    if fit is not first:
+        # a held trend is settled again at the refined switches (fit_lab's _settle), from the
+        # refined fit's values; every switch where the displacement put it: the first fit
+        # stands (the same model, fitted again from its own values, changed nothing)
+        model = dataclasses.replace(fit.model, steady_after=None, steady_fitted=None)
+        final = fit_lab(model, fixed=fit.fixed, weights=fit.piece_weights,
+                        start={n: fit.values[n] for n in model.parameters})
+        # the refit may stop worse than the refined fit (squares of one trend model: a held
+        # trend settled again is another)
+        refit = final.solves
+        if model.steady is None and not final.rss <= fit.rss:
+            final = fit
     # the fit's cost is all of it: the first fit, every trial and the refits
     final = dataclasses.replace(final, solves=first.solves + trials + refit,
                                 wall_s=first.wall_s + time.perf_counter() - started)
