@@ -99,11 +99,11 @@ def stages(rhs, p, rtol, atol, hs, ws, z0, f0, z1, D):
 @njit(cache=True, nogil=True, error_model="numpy")
 def sensitivity_workspace(n_s):
     """Room for :func:`stage_sensitivities` with ``n_s`` directions: the stages' Jacobians and
-    ∂f/∂θ, the second derivatives at the step's start, the stages' dK, dJ, a stage argument's
-    dU, a right-hand side."""
-    return (np.empty((8, 3, 3)), np.empty((8, 3, n_s)), np.empty((3, 3, 3)),
-            np.empty((3, 3, n_s)), np.empty((n_s, 8, 3)), np.empty((3, 3)), np.empty(3),
-            np.empty((1, 3)))
+    ∂f/∂θ, the second derivatives at the step's start, the stages' dK, M⁻¹ (by rows:
+    M⁻¹e_k), and a direction's sums for the later stages."""
+    return (np.empty((8, 3, 3)), np.zeros((8, 3, n_s)), np.empty((3, 3, 3)),
+            np.zeros((3, 3, n_s)), np.zeros((n_s, 8, 3)), np.empty((3, 3)), np.zeros((8, 3)),
+            np.zeros((8, 3)))
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -120,7 +120,7 @@ def stage_sensitivities(partials, second, p, dirs, hs, ws, sw, z0, S):
     jac, fth, s)``: ∂f/∂z into jac[s], ∂f/∂θ into fth[s]'s columns; and ``second(p, dirs, z,
     hyy, hyt)``: ∂²f/∂z∂z, ∂²f/∂z∂θ. Allocates nothing."""
     M, piv, K, u = ws[1], ws[2], ws[3], ws[4]       # ws may carry more (a kernel's own)
-    jst, fst, hyy, hyt, dk, dj, du, rhs = sw
+    jst, fst, hyy, hyt, dk, mi, ua, ca = sw
     hg = hs * G5P
     partials(p, dirs, z0, jst, fst, 0)
     second(p, dirs, z0, hyy, hyt)
@@ -131,36 +131,65 @@ def stage_sensitivities(partials, second, p, dirs, hs, ws, sw, z0, S):
                 acc += A5P[s, j] * K[j, i]
             u[i] = acc
         partials(p, dirs, u, jst, fst, s)
-    for n in range(S.shape[0]):
+    for k in range(3):
         for i in range(3):
-            for j in range(3):
-                acc = hyt[i, j, n]
-                for l in range(3):
-                    acc += hyy[i, j, l] * S[n, l]
-                dj[i, j] = acc
+            mi[k, i] = 1.0 if i == k else 0.0
+        lu_solve3(M, piv, mi, k)
+    directions(hg, mi, K, jst, fst, hyy, hyt, dk, ua, ca, S)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
+def directions(hg, mi, K, jst, fst, hyy, hyt, dk, ua, ca, S):
+    """:func:`stage_sensitivities` after the step's shared part, one direction at a time.
+
+    A direction's stages form a chain, so its time is latency more than arithmetic: M⁻¹
+    (by rows, ``mi``) replaces the 3×3 solve, each dK_l is added into the later stages' sums
+    (``ua``, ``ca``) as soon as it is known, the state is in local variables, and products
+    and sums fuse (``contract``: a multiply-add rounds once; no other license is taken)."""
+    for n in range(S.shape[0]):
+        s0, s1, s2 = S[n, 0], S[n, 1], S[n, 2]
+        d00 = hyt[0, 0, n] + hyy[0, 0, 0] * s0 + hyy[0, 0, 1] * s1 + hyy[0, 0, 2] * s2
+        d01 = hyt[0, 1, n] + hyy[0, 1, 0] * s0 + hyy[0, 1, 1] * s1 + hyy[0, 1, 2] * s2
+        d02 = hyt[0, 2, n] + hyy[0, 2, 0] * s0 + hyy[0, 2, 1] * s1 + hyy[0, 2, 2] * s2
+        d10 = hyt[1, 0, n] + hyy[1, 0, 0] * s0 + hyy[1, 0, 1] * s1 + hyy[1, 0, 2] * s2
+        d11 = hyt[1, 1, n] + hyy[1, 1, 0] * s0 + hyy[1, 1, 1] * s1 + hyy[1, 1, 2] * s2
+        d12 = hyt[1, 2, n] + hyy[1, 2, 0] * s0 + hyy[1, 2, 1] * s1 + hyy[1, 2, 2] * s2
+        d20 = hyt[2, 0, n] + hyy[2, 0, 0] * s0 + hyy[2, 0, 1] * s1 + hyy[2, 0, 2] * s2
+        d21 = hyt[2, 1, n] + hyy[2, 1, 0] * s0 + hyy[2, 1, 1] * s1 + hyy[2, 1, 2] * s2
+        d22 = hyt[2, 2, n] + hyy[2, 2, 0] * s0 + hyy[2, 2, 1] * s1 + hyy[2, 2, 2] * s2
+        for s in range(8):
+            ua[s, 0], ua[s, 1], ua[s, 2] = s0, s1, s2
+            ca[s, 0] = ca[s, 1] = ca[s, 2] = 0.0
+        u0, u1, u2 = s0, s1, s2
         for s in range(8):
             if s < 6:
-                for i in range(3):
-                    acc = S[n, i]
-                    for j in range(s):
-                        acc += A5P[s, j] * dk[n, j, i]
-                    du[i] = acc
+                u0, u1, u2 = ua[s, 0], ua[s, 1], ua[s, 2]
             else:                       # A's rows 6 and 7 are row s − 1 plus e_(s−1)
-                for i in range(3):
-                    du[i] += dk[n, s - 1, i]
-            for i in range(3):
-                acc = fst[s, i, n]
-                for j in range(3):
-                    acc += jst[s, i, j] * du[j] + dj[i, j] * K[s, j]
-                cc = 0.0
-                for j in range(s):
-                    cc += C5P[s, j] * dk[n, j, i]
-                rhs[0, i] = hg * acc + G5P * cc
-            lu_solve3(M, piv, rhs, 0)
-            for i in range(3):
-                dk[n, s, i] = rhs[0, i]
-        for i in range(3):
-            S[n, i] = du[i] + dk[n, 7, i]
+                u0 += dk[n, s - 1, 0]
+                u1 += dk[n, s - 1, 1]
+                u2 += dk[n, s - 1, 2]
+            k0, k1, k2 = K[s, 0], K[s, 1], K[s, 2]
+            e0 = (hg * (fst[s, 0, n] + d00 * k0 + d01 * k1 + d02 * k2) + G5P * ca[s, 0]
+                  + hg * (jst[s, 0, 0] * u0 + jst[s, 0, 1] * u1 + jst[s, 0, 2] * u2))
+            e1 = (hg * (fst[s, 1, n] + d10 * k0 + d11 * k1 + d12 * k2) + G5P * ca[s, 1]
+                  + hg * (jst[s, 1, 0] * u0 + jst[s, 1, 1] * u1 + jst[s, 1, 2] * u2))
+            e2 = (hg * (fst[s, 2, n] + d20 * k0 + d21 * k1 + d22 * k2) + G5P * ca[s, 2]
+                  + hg * (jst[s, 2, 0] * u0 + jst[s, 2, 1] * u1 + jst[s, 2, 2] * u2))
+            r0 = mi[0, 0] * e0 + mi[1, 0] * e1 + mi[2, 0] * e2
+            r1 = mi[0, 1] * e0 + mi[1, 1] * e1 + mi[2, 1] * e2
+            r2 = mi[0, 2] * e0 + mi[1, 2] * e1 + mi[2, 2] * e2
+            dk[n, s, 0], dk[n, s, 1], dk[n, s, 2] = r0, r1, r2
+            for t in range(s + 1, 8):
+                c = C5P[t, s]
+                ca[t, 0] += c * r0
+                ca[t, 1] += c * r1
+                ca[t, 2] += c * r2
+                if t < 6:
+                    a = A5P[t, s]
+                    ua[t, 0] += a * r0
+                    ua[t, 1] += a * r1
+                    ua[t, 2] += a * r2
+        S[n, 0], S[n, 1], S[n, 2] = u0 + dk[n, 7, 0], u1 + dk[n, 7, 1], u2 + dk[n, 7, 2]
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")

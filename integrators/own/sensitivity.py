@@ -41,8 +41,8 @@ from integrators.own.engine import (HACC, SENSE_ARREST, SENSE_LOAD, SENSE_RESTAR
 from integrators.core.events import END, H_EXTREMUM, PEAK, START
 from integrators.own.rodas5p_stages import (dense_sensitivities, sensitivity_workspace,
                                             stage_sensitivities, stages)
-from problems.formulations import (N_Q, Q_BETA, Q_C, Q_D, Q_E, Q_G, Q_LAWP, ode_jacobian,
-                                   state_rate_second_partials)
+from problems.formulations import (N_Q, Q_BETA, Q_C, Q_D, Q_E, Q_G, Q_LAWP,
+                                   state_rate_partials, state_rate_second_partials)
 from problems.loading import H_E_FAST, H_TAU_FAST
 
 __all__ = ["sense", "arrays", "grow_events", "DIR", "V", "rodas5p_kernel", "direction_matrix",
@@ -71,10 +71,15 @@ def _partials(p, dq, z, jac, fth, s):
     """∂f/∂z into jac[s], ∂f/∂θ along the directions ``dq`` into fth[s] (module docstring)."""
     h, u, sv = z[0], z[1], z[2]
     w = math.exp(u)
-    beta, d = p[Q_BETA], p[Q_D]
-    ode_jacobian(p, z, jac[s])
-    r_g = state_rate_second_partials(p, u, sv, w)[3]
+    beta, c, d = p[Q_BETA], p[Q_C], p[Q_D]
     inv = 1.0 / w
+    r_u, r_s = state_rate_partials(p, u, sv, w)
+    r_g = state_rate_second_partials(p, u, sv, w)[3]
+    j = jac[s]                          # ode_jacobian's form with mass, sharing w and 1/w
+    j[0, 0], j[0, 1], j[0, 2] = 0.0, -w, 0.0
+    j[1, 0], j[1, 1] = c * inv, -d * inv - (c * h - d * (u + beta * sv)) * inv
+    j[1, 2] = -d * beta * inv
+    j[2, 0], j[2, 1], j[2, 2] = 0.0, r_u, r_s
     for n in range(dq.shape[0]):
         de = dq[n, Q_E]
         fth[s, 0, n] = de
