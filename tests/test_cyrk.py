@@ -100,3 +100,38 @@ def test_a_call_that_runs_out_goes_on_chunked_its_steps_counted(monkeypatch):
     assert sol.stats.steps > 2000 + 3900
     short = I.solve(p, REGISTRY["CyRK-Radau"](rtol=1e-7, atol=1e-7, max_steps=2500))
     assert short.retcode is I.ReturnCode.MAX_STEPS and short.stats.steps == 2500
+
+
+@pytest.mark.parametrize("problem, method, tol", [
+    (P.variant(P.paper_example(), t_end=10.0), "BDF", 1e-6),   # one call (1e-5: CyRK fails)
+    (P.window("W2", "aging", t_end=60.0), "RADAU", 1e-5)])     # two-speed: restarts
+def test_the_plain_call_takes_the_adapters_steps_and_finds_its_starts(problem, method, tol):
+    """The harness's plain CyRK call (no counters, starts only, its own compiled segment loop)
+    takes the adapter's steps and finds its event starts to the bit: so its time is the same
+    solve's, called as CyRK's numba users call it."""
+    from integrators.external.cyrk_backend import plain_starts
+    name = {"RADAU": "CyRK-Radau", "BDF": "CyRK-BDF"}[method]
+    sol = I.solve(problem, REGISTRY[name](rtol=tol, atol=tol), max_points=2)
+    steps, starts = plain_starts(problem, method, tol, tol)
+    assert sol.success and len(sol.events) >= 2
+    assert steps == sol.stats.steps
+    np.testing.assert_array_equal(starts, sol.events["t_start"].to_numpy())
+
+
+def test_the_target_takes_the_faster_cyrk_call():
+    """A (problem, level) row re-timed: the own run, the adapter and the plain call, and the
+    CyRK ratio against the faster of the two; a row without a CyRK run says why."""
+    import pandas as pd
+    from benchmarks.studies.target import plain_cyrk
+    problem = P.variant(P.paper_example(), t_end=5.0)
+    row = dict(problem=problem.name, level=1e-3, own="Rodas5P", own_setting=1e-3,
+               own_tier="numba", own_wall_s=1e-3, cyrk="CyRK-Radau", cyrk_setting=1e-3,
+               cyrk_tier="numba", cyrk_wall_s=2e-3, ratio_lsoda=9.0, ratio_sundials=40.0,
+               ratio_cyrk=2.0, ratio_peer=2.0, met="yes")
+    t = plain_cyrk(pd.DataFrame([row, {**row, "cyrk": None}]), [problem], repeats=2)
+    done, skipped = t.iloc[0], t.iloc[1]
+    assert done.cyrk_plain_note == "" and done.own_again_wall_s > 0
+    assert done.ratio_cyrk_faster == pytest.approx(
+        min(done.cyrk_again_wall_s, done.cyrk_plain_wall_s) / done.own_again_wall_s)
+    assert done.ratio_peer == min(9.0, 40.0, done.ratio_cyrk_faster)
+    assert "no CyRK" in skipped.cyrk_plain_note and np.isnan(skipped.ratio_cyrk_faster)

@@ -77,7 +77,7 @@ def run(out: Path) -> None:
     names = sorted(set(target_integrators()) | set(REGISTRY.select("own")), key=str.lower)
     df = work_precision([problem], QUICK, names=names, tiers=("numba",))
     paths = write_work_precision(df, out, "external")
-    target = write_target(paths["csv"], out)
+    target = write_target(paths["csv"], out, problems=[problem])
     ways = their_ways(problem, ref)
     write_table(ways, out / "external_their_ways.csv")
     advice = _advice(read_study(paths["csv"]), out / "wp_quick.csv")

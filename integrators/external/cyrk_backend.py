@@ -61,15 +61,16 @@ from numba.extending import intrinsic
 
 from integrators.core.cache import announce_compile
 from integrators.core.crossings import carry_last_root, push_crossing, queue_crossings
-from integrators.core.events import (DIRECTIONS, END, N_EVENTS, PEAK, compiled_roots,
+from integrators.core.events import (DIRECTIONS, END, N_EVENTS, PEAK, START, compiled_roots,
                                      events_table, new_recorder, observe, record, sign_change)
 from integrators.core.registry import AdaptiveAlgorithm, register
 from integrators.core.segments import Advance, run_segments, save_grid
 from integrators.core.solution import RawRun, ReturnCode, Stats
 from problems.formulations import N_Q, Q_E, form_vector, from_ode_state, ode_rhs, to_ode_state
-from problems.loading import ln_load_rate, load_segment
+from problems.loading import H_TAU_FAST, LN_E_HOLD, ln_load_rate, load_segment
 
-__all__ = ["CyRKRK45", "CyRKDOP853", "CyRKTsit5", "CyRKBDF", "CyRKRadau", "CyRKLSODA"]
+__all__ = ["CyRKRK45", "CyRKDOP853", "CyRKTsit5", "CyRKBDF", "CyRKRadau", "CyRKLSODA",
+           "plain_starts"]
 
 if importlib.util.find_spec("CyRK") is None:
     raise ImportError("No module named 'CyRK'")
@@ -232,6 +233,123 @@ def _whole_run(rhs, call, method, tau_end, z0, args, q, rtol, atol, max_steps, r
             saved[k] = zt
     r.free()
     return status, taken, ev[:int(rec[N_EVENTS])], t_last, end
+
+
+def _plain_rhs(dy, t, y, args):
+    """The right-hand side as a CyRK user writes it: f alone, no counting."""
+    ode_rhs(carray(args, (N_Q,)), carray(y, (3,)), carray(dy, (3,)))
+
+
+@njit(error_model="numpy")
+def _plain_run(rhs, call, method, tau_end, z0, q, hist, first_span, rtol, atol, max_steps):
+    """The plain call (:func:`plain_starts`) over [0, τ_end]: one ``nbsolve2_ivp`` call per
+    loading segment, and under two-speed loading a restart at each event's end, its calls
+    spanned as the adapter spans them (module docstring), so that the two take the same steps.
+    Returns (CyRK's status, steps taken, the event starts' τ)."""
+    tiny = 1e-12 * tau_end
+    starts, m = np.empty(16), 0
+    z, tau, fast_until, cycle, seg, seg_start = z0.copy(), 0.0, -np.inf, -1.0, 0.0, 0.0
+    taken = 0
+    in_event, status = False, _SUCCESS
+    while tau < tau_end - tiny and status == _SUCCESS:
+        e, bound = load_segment(hist, tau, fast_until, tau_end, tiny)
+        if seg > 0.0 and tau < seg:         # the last segment ended at an event's end
+            cycle = tau - seg_start
+        seg_start, seg = tau, bound
+        q[_E] = e
+        q[_LN_E] = math.log(e) if e > 0.0 else LN_E_HOLD
+        two = hist[H_TAU_FAST] > 0.0
+        span = np.inf if not two else (first_span if cycle < 0.0 else 1.25 * cycle)
+        while tau < bound - tiny and status == _SUCCESS:
+            t0, t1 = tau, (bound if tau + span >= bound else tau + span)
+            r = nbsolve2_ivp(rhs, (tau, t1), z, method, dense_output=True, args=q[:N_Q],
+                             rtol=rtol, atol=atol, max_num_steps=max_steps)
+            status, taken = r.status, taken + r.steps_taken
+            if status == _SUCCESS:
+                tau, starts, m, in_event, ended = _plain_scan(call, r, q, tau, z, starts, m,
+                                                              in_event, two)
+                if ended:                   # under two-speed loading: a restart here
+                    fast_until, bound = tau + hist[H_TAU_FAST], tau
+            r.free()
+            span = 2.0 * (t1 - t0)
+    return status, taken, starts[:m]
+
+
+@njit(error_model="numpy")
+def _plain_scan(call, r, q, tau, z, starts, m, in_event, stop_at_end):
+    """One call's steps: the event starts (and ends) bisected to the last bit on its dense
+    output, the starts appended to ``starts``; with ``stop_at_end``, up to the first end.
+    Returns (τ reached, starts, m, in_event, whether it stopped at an end); z left there."""
+    T, Y = r.t, np.ascontiguousarray(r.y.T)
+    g, zt = np.empty(4), np.empty(3)
+    compiled_roots(q, q[_LN_10ES], q[_LN_ES], q[_LN_E], z, g)
+    before = g.copy()
+    for i in range(1, T.shape[0]):
+        compiled_roots(q, q[_LN_10ES], q[_LN_ES], q[_LN_E], Y[i], g)
+        for k in (START, END):
+            if (in_event == (k == END)
+                    and sign_change(before[k], g[k]) == DIRECTIONS[k]):
+                t = _plain_root(call, r, q, k, before[k] > 0.0, T[i - 1], T[i])
+                in_event = k == START
+                if k == START:
+                    if m == starts.shape[0]:
+                        starts = np.concatenate((starts, np.empty_like(starts)))
+                    starts[m] = t
+                    m += 1
+                elif stop_at_end:
+                    if t == T[i]:
+                        z[:] = Y[i]
+                    else:
+                        _dense(call, r._ptr, t, zt.ctypes.data)
+                        z[:] = zt
+                    return t, starts, m, in_event, True
+        before[:] = g
+    z[:] = Y[T.shape[0] - 1]
+    return T[T.shape[0] - 1], starts, m, in_event, False
+
+
+@njit(error_model="numpy")
+def _plain_root(call, r, q, k, left_pos, lo, hi):
+    """Root function k's crossing in (lo, hi], bisected to the last bit on the dense output;
+    ``left_pos``: its sign at lo."""
+    zt, gt = np.empty(3), np.empty(4)
+    while True:
+        mid = 0.5 * (lo + hi)
+        if mid <= lo or mid >= hi:
+            return hi
+        _dense(call, r._ptr, mid, zt.ctypes.data)
+        compiled_roots(q, q[_LN_10ES], q[_LN_ES], q[_LN_E], zt, gt)
+        if gt[k] != 0.0 and (gt[k] > 0.0) == left_pos:
+            lo = mid
+        else:
+            hi = mid
+
+
+@functools.cache
+def _plain_library():
+    """The plain cfunc's address (compiled once)."""
+    double_p = types.CPointer(types.float64)
+    return cfunc(types.void(double_p, types.float64, double_p, double_p), cache=True,
+                 error_model="numpy")(_plain_rhs).address
+
+
+def plain_starts(problem, method: str, rtol: float, atol: float):
+    """CyRK called plainly, as its numba users call it: a cfunc of f alone (no counters),
+    ``nbsolve2_ivp`` from compiled code with dense output, one call per loading segment (and
+    under two-speed loading a restart at each event's end, its calls spanned as the adapter's),
+    and the event starts bisected to the last bit on the dense output: no extrema, peaks or
+    saves. The harness times it beside the adapter (:mod:`benchmarks.studies.target`), so that
+    a ratio is published against the faster of the two. Returns (CyRK's steps taken, the
+    starts in s), or None if CyRK failed. ``method``: CyRK's name ("RADAU", "BDF", …)."""
+    nd = problem.nondimensional()
+    call = _library()[0]
+    q = np.concatenate([form_vector(nd, nd.e_slow),
+                        [math.log(10.0 * nd.e_slow), math.log(nd.e_slow), 0.0]])
+    z0 = to_ode_state(nd.law_code, nd.beta, nd.x0)
+    status, taken, starts = _plain_run(_plain_library(), call, method, nd.tau_end, z0, q,
+                                       nd.history, FIRST_SPAN * nd.grid_tau, rtol, atol,
+                                       2 * CHUNK_STEPS)
+    return None if status != _SUCCESS else (int(taken), starts * nd.time_scale)
 
 
 @functools.cache
