@@ -1,5 +1,6 @@
 """Spring-sliders that someone else wrote down: problems nobody here chose, to check the
-project's methods and advice beyond the paper's.
+project's methods and advice beyond the paper's: Im et al.'s numerical comparison, and NIED's
+4-m apparatus as its catalogue of stick–slips gives it (:func:`nied_4m`).
 
 :func:`im_spring_slider` is the slider of Im, Elsworth, Marone & Leeman's solver comparison
 (public repository ``limkjae/SpringSlider-RSF``, MIT licence; the scripts
@@ -31,9 +32,9 @@ import math
 
 from problems.friction import law_from_name
 from problems.loading import ConstantLoading
-from problems.slider import InitialState, SpringSlider
+from problems.slider import BalancedStart, InitialState, SpringSlider
 
-__all__ = ["im_spring_slider", "IM_CASES", "EXTERNAL_NAMES", "external"]
+__all__ = ["im_spring_slider", "IM_CASES", "nied_4m", "EXTERNAL_NAMES", "external"]
 
 #: one square metre of fault: the per-area quantities in SI forces and masses
 IM_AREA = 1.0
@@ -65,12 +66,44 @@ def im_spring_slider(case: str = "stick-slip", t_end: float = IM_T_END) -> Sprin
                         t_end=t_end, mu0=IM_MU0, name=f"im/{case}")
 
 
+# NIED's 4-m biaxial apparatus, experiment fb03-087 (the catalogue of 56 stick–slips in
+# tests/data/nied-4m-stick-slip, whose README says what its source states). Stated there: the
+# fault, 4 m × 0.1 m, and a normal stress of about 2 MPa. Estimated from the catalogue by
+# `rsfbench study nied-catalogue` (results/nied_catalogue_constants.csv): the stiffness, k/Fn
+# the median of the events' drop/slip, and the load-point speed, the median interval's loading
+# rate over k/Fn. Assumed there: the moving mass (a metagabbro block 0.1–1 m high, the geometric
+# mean) and a (the paper's, Table 4). b and Lc: that study's least-squares fit of the catalogue's
+# mean ΔT and Δμ with these constants (results/nied_catalogue.csv, the row "vl from the median
+# interval's rate": its Lc is inside the box, where the base row's sits at the box's floor).
+NIED_MASS = 376.9434970920708       # kg, assumed
+NIED_STIFFNESS = 240477845.6543534  # N/m, estimated (± 1.2e6)
+NIED_NORMAL_FORCE = 2e6 * 0.4       # N: 2 MPa on 0.4 m²
+NIED_MU0 = 0.328                    # the catalogue's median friction before the events, at v0
+NIED_V0 = 1e-5                      # m/s
+NIED_VL = 9.57887639128662e-06      # m/s, estimated
+NIED_A = 0.008                      # assumed
+NIED_B = 0.008147193094730458       # fitted
+NIED_LC = 2.840817365829046e-07     # m, fitted
+NIED_T_END = 60.0                   # s: about 15 recurrence intervals (3.9 s), ~10 settling
+
+
+def nied_4m(t_end: float = NIED_T_END) -> SpringSlider:
+    """NIED's 4-m apparatus as the catalogue of experiment fb03-087 gives it (the comment
+    above): slip law, the presets' balanced start at the load-point speed, ``t_end`` s. Named
+    ``nied/fb03-087``. A stiff problem: Lc/vL ≈ 30 ms between events, Lc/v ≈ µs in them."""
+    law = law_from_name("slip", a=NIED_A, b=NIED_B, lc=NIED_LC, v0=NIED_V0)
+    return SpringSlider(mass=NIED_MASS, stiffness=NIED_STIFFNESS,
+                        normal_force=NIED_NORMAL_FORCE, law=law,
+                        loading=ConstantLoading(NIED_VL), initial=BalancedStart(),
+                        t_end=t_end, mu0=NIED_MU0, name="nied/fb03-087")
+
+
 #: the external problems by name
-EXTERNAL_NAMES = tuple(f"im/{case}" for case in IM_CASES)
+EXTERNAL_NAMES = tuple(f"im/{case}" for case in IM_CASES) + ("nied/fb03-087",)
 
 
 def external(name: str) -> SpringSlider:
     """The external problem ``name`` (:data:`EXTERNAL_NAMES`); ValueError for another."""
     if name not in EXTERNAL_NAMES:
         raise ValueError(f"no external problem {name!r}; there are {', '.join(EXTERNAL_NAMES)}")
-    return im_spring_slider(name.split("/", 1)[1])
+    return nied_4m() if name.startswith("nied/") else im_spring_slider(name.split("/", 1)[1])

@@ -1,15 +1,16 @@
-"""The lead on a problem nobody here chose: Im, Elsworth, Marone & Leeman's stick-slip
-spring-slider (:func:`problems.external.im_spring_slider`), every stiff adaptive method of the
-project and of its compiled peers over the quick ladder, and the three ways its authors solved
+"""The lead on problems nobody here chose: Im, Elsworth, Marone & Leeman's stick-slip
+spring-slider (:func:`problems.external.im_spring_slider`) and NIED's 4-m apparatus as its
+catalogue gives it (:func:`problems.external.nied_4m`); every stiff adaptive method of the
+project and of its compiled peers over the quick ladder, and the three ways Im et al. solved
 it (their implicit method at 1e−4 s and classical RK4 at 1e−6 s, ported to numba by
 :mod:`benchmarks.devtools.im_methods`; ode23s, the Shampine–Reichelt Rosenbrock 2(3), is the
 project's Rosenbrock23). Achieved errors against the reference of two solvers that agree
 (:mod:`benchmarks.devtools.reference`), on the last complete event of the 2 s run.
 
-Writes the work-precision files ``wp_external*``, the 2× target on this problem
-(``target_external.*``, as :mod:`benchmarks.studies.target` reads it), and ``external.md``:
-their ways beside the project's, and whether the quick study's recommendation for each error
-level reaches that level here.
+Writes the work-precision files ``wp_external*``, the 2× target on these problems
+(``target_external.*``, as :mod:`benchmarks.studies.target` reads it, CyRK also called
+plainly), and ``external.md``: their ways beside the project's, and whether the quick study's
+recommendation for each error level reaches that level here.
 """
 
 from __future__ import annotations
@@ -37,7 +38,7 @@ from benchmarks.records.report import fmt, markdown_table
 from benchmarks.studies.study import Study
 from benchmarks.studies.target import target_integrators, target_markdown, write_target
 from integrators import REGISTRY
-from problems.external import im_spring_slider
+from problems.external import im_spring_slider, nied_4m
 
 __all__ = ["STUDY", "their_ways"]
 
@@ -71,53 +72,68 @@ def their_ways(problem, ref) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def problems() -> list:
+    """The study's problems: Im et al.'s stick-slip case and NIED's 4-m apparatus."""
+    return [im_spring_slider("stick-slip"), nied_4m()]
+
+
 def run(out: Path) -> None:
-    problem = im_spring_slider("stick-slip")
-    ref = reference(problem)
+    im, *others = cases = problems()
     names = sorted(set(target_integrators()) | set(REGISTRY.select("own")), key=str.lower)
-    df = work_precision([problem], QUICK, names=names, tiers=("numba",))
+    df = work_precision(cases, QUICK, names=names, tiers=("numba",))
     paths = write_work_precision(df, out, "external")
-    target = write_target(paths["csv"], out, problems=[problem])
-    ways = their_ways(problem, ref)
+    target = write_target(paths["csv"], out, problems=cases)
+    ways = their_ways(im, reference(im))
     write_table(ways, out / "external_their_ways.csv")
     advice = _advice(read_study(paths["csv"]), out / "wp_quick.csv")
     write_table(advice, out / "external_advice.csv")
-    write_output(out / "external.md", _markdown(problem, ref, df, ways, target, advice))
+    write_output(out / "external.md", _markdown(cases, df, ways, target, advice))
     print((out / "external.md").read_text())
 
 
 def _advice(df: pd.DataFrame, quick_csv: Path) -> pd.DataFrame:
     """Each error level's setting as the quick study recommends it, and its reliable error
-    on the external problem (met: the setting reaches the level there)."""
+    on each external problem (met: the setting reaches the level there)."""
     rec = recommend(read_study(quick_csv), ERROR_LEVELS)
     df = df.assign(reliable=reliable_error(df, "err_recurrence"))
     rows = []
-    for r in rec.itertuples():
-        if not isinstance(getattr(r, "integrator", None), str):
-            continue
-        here = df[(df.integrator == r.integrator) & (df.rhs_tier == r.rhs_tier)
-                  & (df.setting == r.setting)]
-        err = float(here.reliable.iloc[0]) if len(here) else float("nan")
-        met = ("not run here" if here.empty else "failed here" if not np.isfinite(err)
-               else "yes" if err <= r.level else "no")
-        rows.append({"level": r.level, "integrator": r.integrator, "rhs_tier": r.rhs_tier,
-                     "setting": r.setting, "error_here": err,
-                     "wall_s_here": float(here.wall_s.iloc[0]) if len(here) else float("nan"),
-                     "met": met})
+    for problem, p in df.groupby("problem", sort=False):
+        for r in rec.itertuples():
+            if not isinstance(getattr(r, "integrator", None), str):
+                continue
+            here = p[(p.integrator == r.integrator) & (p.rhs_tier == r.rhs_tier)
+                     & (p.setting == r.setting)]
+            err = float(here.reliable.iloc[0]) if len(here) else float("nan")
+            met = ("not run here" if here.empty else "failed here" if not np.isfinite(err)
+                   else "yes" if err <= r.level else "no")
+            rows.append({"problem": problem, "level": r.level, "integrator": r.integrator,
+                         "rhs_tier": r.rhs_tier, "setting": r.setting, "error_here": err,
+                         "wall_s_here": float(here.wall_s.iloc[0]) if len(here) else np.nan,
+                         "met": met})
     return pd.DataFrame(rows)
 
 
-def _markdown(problem, ref, df, ways, target, advice) -> str:
+def _describe(problem) -> str:
+    """One paragraph: the problem's constants and its reference's last complete event."""
+    ref, law = reference(problem), problem.law
     m = ref.metrics
-    head = (f"The problem: {problem.name}, aging law a = {problem.law.a:g}, b = {problem.law.b:g},"
-            f" Dc = {problem.law.lc * 1e6:g} µm, per m² (m = {problem.mass:g} kg, "
-            f"k = {problem.stiffness:g} N/m, Fn = {problem.normal_force:g} N), "
-            f"vL = {problem.loading.vl:g} m/s, {problem.t_end:g} s. The reference's event "
+    return (f"**{problem.name}**: {law.name} law a = {law.a:g}, b = {law.b:.6g}, "
+            f"Lc = {law.lc * 1e6:.4g} µm, m = {problem.mass:.6g} kg, "
+            f"k = {problem.stiffness:.6g} N/m, Fn = {problem.normal_force:g} N, "
+            f"vL = {problem.loading.vl:.4g} m/s, {problem.t_end:g} s. The reference's event "
             f"{ref.event_index + 1} (the last complete): ΔT = {m['recurrence_s']:.6g} s, "
             f"Δμ = {m['friction_drop']:.6g}, slip {m['slip_m'] * 1e6:.5g} µm, peak slip rate "
             f"{m['peak_velocity_m_s']:.5g} m/s; its two solvers agree to "
             f"{ref.agreement['max']:.2g}.\n\n")
-    rb = df[(df.integrator == "Rosenbrock23") & (df.setting == 1e-3)]
+
+
+def _markdown(cases, df, ways, target, advice) -> str:
+    problem = cases[0]
+    head = ("The problems (Im et al.'s per m² of fault, in SI; NIED's constants as "
+            "`problems/external.py` says where each comes from):\n\n"
+            + "".join(_describe(p) for p in cases))
+    rb = df[(df.problem == problem.name) & (df.integrator == "Rosenbrock23")
+            & (df.setting == 1e-3)]
     ways = pd.concat([ways, pd.DataFrame([{
         "way": "ode23s's method (Rosenbrock23) at the project's rtol = atol = 1e-3 (theirs "
                "ran RelTol 1e-3, AbsTol 1e-6 on u, v, θ, MaxStep 1e-4 s)", "step_s": None,
@@ -129,14 +145,15 @@ def _markdown(problem, ref, df, ways, target, advice) -> str:
                           "reached (s)": [fmt(x, "g") for x in ways.reached_s],
                           **{c.removeprefix("err_"): [fmt(x, ".2g") for x in ways[c]]
                              for c in HEADLINE_ERRORS}})
-    adv = pd.DataFrame({"level": advice.level.map("{:g}".format),
+    adv = pd.DataFrame({"problem": advice.problem, "level": advice.level.map("{:g}".format),
                         "recommended (quick study)": [f"{i} [{t}] {s:g}" for i, t, s in
                                                       zip(advice.integrator, advice.rhs_tier,
                                                           advice.setting)],
                         "its error here": [fmt(x, ".2g") for x in advice.error_here],
                         "wall here (ms)": [fmt(x * 1e3, ".3g") for x in advice.wall_s_here],
                         "reaches the level here": advice.met})
-    return (head + "## Their three ways\n\nTheir implicit method and RK4 at their own steps "
+    return (head + f"## Im et al.'s three ways ({problem.name})\n\nTheir implicit method "
+            "and RK4 at their own steps "
             "(ports to numba, the minimum of 5 runs after a warm-up); ode23s's method from the "
             "work-precision run below. Errors relative, on the reference's last complete "
             "event.\n\n" + markdown_table(table) + "\n\n## The 2× target here\n\n"
@@ -145,11 +162,13 @@ def _markdown(problem, ref, df, ways, target, advice) -> str:
 
 
 def report(out: Path) -> str:
-    return ((out / "external.md").read_text() + "\n![work-precision](wp_external_im_stick-slip.png)\n")
+    return ((out / "external.md").read_text()
+            + "\n![work-precision](wp_external_im_stick-slip.png)\n"
+            + "\n![work-precision](wp_external_nied_fb03-087.png)\n")
 
 
-STUDY = Study("external", "The lead on Im et al.'s spring-slider: their solvers, ours and the "
-              "compiled peers (`external.*`, `wp_external*`, `target_external.*`)", 105, run,
+STUDY = Study("external", "The lead on Im et al.'s slider and NIED's 4-m apparatus: their "
+              "solvers, ours and the compiled peers (`external.*`, `wp_external*`, `target_external.*`)", 105, run,
               report=report, plan="full", timed=True, reads=("wp_quick.csv",),
               writes=("external.md", "external_their_ways.csv", "external_advice.csv",
                       "wp_external.csv", "wp_external_pareto.*", "wp_external_*.png",
