@@ -168,7 +168,8 @@ def report(out: Path) -> str:
 
 
 STUDY = Study("external", "The lead on Im et al.'s slider and NIED's 4-m apparatus: their "
-              "solvers, ours and the compiled peers (`external.*`, `wp_external*`, `target_external.*`)", 105, run,
+              "solvers, ours and the compiled peers (`external.*`, `wp_external*`, "
+              "`target_external.*`)", 105, run,
               report=report, plan="full", timed=True, reads=("wp_quick.csv",),
               writes=("external.md", "external_their_ways.csv", "external_advice.csv",
                       "wp_external.csv", "wp_external_pareto.*", "wp_external_*.png",
