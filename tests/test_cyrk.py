@@ -115,7 +115,9 @@ def test_the_plain_call_takes_the_adapters_steps_and_finds_its_starts(problem, m
     steps, starts = plain_starts(problem, method, tol, tol)
     assert sol.success and len(sol.events) >= 2
     assert steps == sol.stats.steps
-    np.testing.assert_array_equal(starts, sol.events["t_start"].to_numpy())
+    done = sol.events["t_start"].to_numpy()
+    assert len(starts) - len(done) in (0, 1)      # an event running at the end: its start
+    np.testing.assert_array_equal(starts[:len(done)], done)
 
 
 def test_the_target_takes_the_faster_cyrk_call():
@@ -134,4 +136,5 @@ def test_the_target_takes_the_faster_cyrk_call():
     assert done.ratio_cyrk_faster == pytest.approx(
         min(done.cyrk_again_wall_s, done.cyrk_plain_wall_s) / done.own_again_wall_s)
     assert done.ratio_peer == min(9.0, 40.0, done.ratio_cyrk_faster)
+    assert done.met == ("yes" if done.ratio_cyrk_faster >= 2.0 else "no")
     assert "no CyRK" in skipped.cyrk_plain_note and np.isnan(skipped.ratio_cyrk_faster)

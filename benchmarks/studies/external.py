@@ -5,7 +5,7 @@ project and of its compiled peers over the quick ladder, and the three ways Im e
 it (their implicit method at 1e−4 s and classical RK4 at 1e−6 s, ported to numba by
 :mod:`benchmarks.devtools.im_methods`; ode23s, the Shampine–Reichelt Rosenbrock 2(3), is the
 project's Rosenbrock23). Achieved errors against the reference of two solvers that agree
-(:mod:`benchmarks.devtools.reference`), on the last complete event of the 2 s run.
+(:mod:`benchmarks.devtools.reference`), on the last complete event of each run.
 
 Writes the work-precision files ``wp_external*``, the 2× target on these problems
 (``target_external.*``, as :mod:`benchmarks.studies.target` reads it, CyRK also called

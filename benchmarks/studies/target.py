@@ -146,16 +146,21 @@ def _plain_columns(t: pd.DataFrame) -> dict:
             "× vs the faster CyRK call": t.ratio_cyrk_faster.map(lambda x: fmt(x, ".3g"))}
 
 
-def plain_cyrk(t: pd.DataFrame, problems, repeats: int = PLAIN_REPEATS) -> pd.DataFrame:
+def plain_cyrk(t: pd.DataFrame, problems, repeats: int = PLAIN_REPEATS,
+               factor: float = TARGET_FACTOR) -> pd.DataFrame:
     """``t`` (:func:`target_table`) with CyRK at its fastest: the setting of the fastest CyRK
     run of each (problem, level) is also called plainly, as CyRK's numba users call it
     (:func:`integrators.external.cyrk_backend.plain_starts`: no counters, event starts only,
-    the adapter's steps to the one), and timed in turn with the fastest own setting and the
-    adapter (``solve(..., max_points=2)``, as the study times them), the minimum over
-    ``repeats`` after a warm-up. ``ratio_cyrk_faster`` is the faster CyRK call over the own
-    one of that run; the verdict and ``ratio_peer`` take it in place of ``ratio_cyrk``. A row
-    it cannot re-time says why in ``cyrk_plain_note``. ``problems``: the study's problems
-    (matched by name)."""
+    the adapter's steps to the one, which is checked), and timed in turn with the fastest own
+    setting and the adapter (``solve(..., max_points=2)``, as the study runs them), each call
+    timed whole (its Python included), the minimum over ``repeats`` after a warm-up.
+    ``ratio_cyrk_faster`` is the faster CyRK call over the own one of that run; the verdict
+    and ``ratio_peer`` take it in place of ``ratio_cyrk`` (each ratio is one run's: the
+    LSODA and SUNDIALS ones the study's). A row it cannot re-time says why in
+    ``cyrk_plain_note``. ``t`` unchanged where CyRK is not installed. ``problems``: the
+    study's problems (matched by name)."""
+    if importlib.util.find_spec("CyRK") is None:
+        return t
     t = t.copy()
     by_name = {p.name: p for p in problems}
     cols = ("own_again_wall_s", "cyrk_again_wall_s", "cyrk_plain_wall_s", "ratio_cyrk_faster")
@@ -170,36 +175,37 @@ def plain_cyrk(t: pd.DataFrame, problems, repeats: int = PLAIN_REPEATS) -> pd.Da
             t.loc[i, list(cols)] = own, adapter, plain, min(adapter, plain) / own
             ratios = [row.ratio_lsoda, row.ratio_sundials, t.at[i, "ratio_cyrk_faster"]]
             t.at[i, "ratio_peer"] = np.nanmin(ratios)
-            t.at[i, "met"] = _verdict(ratios, row.own_wall_s)
+            t.at[i, "met"] = _verdict(ratios, row.own_wall_s, factor)
     return t
 
 
 def _plain_times(row, problem, repeats: int):
     """(why not, None) or ("", (own, adapter, plain) wall times in s) for one row."""
     from integrators.core.solve import solve
+    from integrators.external.cyrk_backend import plain_starts
     if problem is None or not isinstance(row.cyrk, str) or not isinstance(row.own, str):
         return "no CyRK or own run reaches the level", None
-    if importlib.util.find_spec("CyRK") is None:
-        return "CyRK is not installed", None
-    from integrators.external.cyrk_backend import plain_starts
-    tol = float(row.cyrk_setting)
-    method = REGISTRY[row.cyrk].method
-    first = plain_starts(problem, method, tol, tol)
-    if first is None:
-        return "the plain call failed", None
+    tol, method = float(row.cyrk_setting), REGISTRY[row.cyrk].method
     own = algorithm_at(row.own, row.own_tier, row.own_setting)
     peer = algorithm_at(row.cyrk, row.cyrk_tier, tol)
-    steps = solve(problem, peer, max_points=2).stats.steps
-    if steps != first[0]:
-        return f"the plain call took {first[0]} steps, the adapter {steps}: not compared", None
-    solve(problem, own, max_points=2)
+    calls = (lambda: solve(problem, own, max_points=2),
+             lambda: solve(problem, peer, max_points=2),
+             lambda: plain_starts(problem, method, tol, tol))
+    try:
+        first = [call() for call in calls]          # compiles and warms up
+    except Exception as exc:                        # a note in the table, not a crash
+        return f"the re-timing raised {type(exc).__name__}: {exc}", None
+    if not (first[0].success and first[1].success) or first[2] is None:
+        return "a re-timed run failed", None
+    if first[2][0] != first[1].stats.steps:
+        return (f"the plain call took {first[2][0]} steps, the adapter "
+                f"{first[1].stats.steps}: not compared"), None
     times = ([], [], [])
     for _ in range(repeats):
-        times[0].append(solve(problem, own, max_points=2).stats.wall_s)
-        times[1].append(solve(problem, peer, max_points=2).stats.wall_s)
-        start = time.perf_counter()
-        plain_starts(problem, method, tol, tol)
-        times[2].append(time.perf_counter() - start)
+        for call, kept in zip(calls, times):
+            start = time.perf_counter()
+            call()
+            kept.append(time.perf_counter() - start)
     return "", tuple(min(x) for x in times)
 
 

@@ -244,12 +244,14 @@ def _plain_rhs(dy, t, y, args):
 def _plain_run(rhs, call, method, tau_end, z0, q, hist, first_span, rtol, atol, max_steps):
     """The plain call (:func:`plain_starts`) over [0, τ_end]: one ``nbsolve2_ivp`` call per
     loading segment, and under two-speed loading a restart at each event's end, its calls
-    spanned as the adapter spans them (module docstring), so that the two take the same steps.
-    Returns (CyRK's status, steps taken, the event starts' τ)."""
+    spanned and sized as the adapter's (module docstring: a call expected to take more than
+    ``CHUNK_STEPS``/2 steps is shortened, one that runs out of steps done again over less), so
+    that the two take the same steps. Returns (CyRK's status, steps taken, the event starts'
+    τ); the status is −1 for a state that is not finite."""
     tiny = 1e-12 * tau_end
     starts, m = np.empty(16), 0
     z, tau, fast_until, cycle, seg, seg_start = z0.copy(), 0.0, -np.inf, -1.0, 0.0, 0.0
-    taken = 0
+    taken, density, redone = 0, 0.0, 0
     in_event, status = False, _SUCCESS
     while tau < tau_end - tiny and status == _SUCCESS:
         e, bound = load_segment(hist, tau, fast_until, tau_end, tiny)
@@ -261,35 +263,46 @@ def _plain_run(rhs, call, method, tau_end, z0, q, hist, first_span, rtol, atol, 
         two = hist[H_TAU_FAST] > 0.0
         span = np.inf if not two else (first_span if cycle < 0.0 else 1.25 * cycle)
         while tau < bound - tiny and status == _SUCCESS:
-            t0, t1 = tau, (bound if tau + span >= bound else tau + span)
+            size = span if density == 0.0 else min(span, 0.5 * CHUNK_STEPS / density)
+            t0, t1 = tau, (bound if tau + size >= bound else tau + size)
             r = nbsolve2_ivp(rhs, (tau, t1), z, method, dense_output=True, args=q[:N_Q],
                              rtol=rtol, atol=atol, max_num_steps=max_steps)
-            status, taken = r.status, taken + r.steps_taken
-            if status == _SUCCESS:
+            status, n, T = r.status, r.steps_taken, r.t
+            taken += n
+            if n > 0 and T[T.shape[0] - 1] > t0:
+                density = max(n / (T[T.shape[0] - 1] - t0), 1e-300)
+            if status == _MAX_STEPS_USER and n > 0 and redone < 64:
+                status, redone = _SUCCESS, redone + 1   # no dense output: again over less
+            elif status == _SUCCESS:
                 tau, starts, m, in_event, ended = _plain_scan(call, r, q, tau, z, starts, m,
                                                               in_event, two)
+                if not np.all(np.isfinite(z)):
+                    status = -1
                 if ended:                   # under two-speed loading: a restart here
                     fast_until, bound = tau + hist[H_TAU_FAST], tau
+                span = 2.0 * (t1 - t0)
             r.free()
-            span = 2.0 * (t1 - t0)
     return status, taken, starts[:m]
 
 
 @njit(error_model="numpy")
 def _plain_scan(call, r, q, tau, z, starts, m, in_event, stop_at_end):
-    """One call's steps: the event starts (and ends) bisected to the last bit on its dense
-    output, the starts appended to ``starts``; with ``stop_at_end``, up to the first end.
-    Returns (τ reached, starts, m, in_event, whether it stopped at an end); z left there."""
+    """One call's steps from (τ, z): the event starts (and ends) bisected to the last bit on
+    its dense output, the starts appended to ``starts``; with ``stop_at_end``, up to the first
+    end. Returns (τ reached, starts, m, in_event, whether it stopped at an end); z left
+    there."""
     T, Y = r.t, np.ascontiguousarray(r.y.T)
     g, zt = np.empty(4), np.empty(3)
     compiled_roots(q, q[_LN_10ES], q[_LN_ES], q[_LN_E], z, g)
-    before = g.copy()
-    for i in range(1, T.shape[0]):
+    before, t_before = g.copy(), tau
+    for i in range(T.shape[0]):
+        if T[i] <= t_before:                # CyRK's first row is the start
+            continue
         compiled_roots(q, q[_LN_10ES], q[_LN_ES], q[_LN_E], Y[i], g)
         for k in (START, END):
             if (in_event == (k == END)
                     and sign_change(before[k], g[k]) == DIRECTIONS[k]):
-                t = _plain_root(call, r, q, k, before[k] > 0.0, T[i - 1], T[i])
+                t = _plain_root(call, r, q, k, before[k] > 0.0, t_before, T[i])
                 in_event = k == START
                 if k == START:
                     if m == starts.shape[0]:
@@ -304,6 +317,7 @@ def _plain_scan(call, r, q, tau, z, starts, m, in_event, stop_at_end):
                         z[:] = zt
                     return t, starts, m, in_event, True
         before[:] = g
+        t_before = T[i]
     z[:] = Y[T.shape[0] - 1]
     return T[T.shape[0] - 1], starts, m, in_event, False
 
@@ -340,7 +354,8 @@ def plain_starts(problem, method: str, rtol: float, atol: float):
     and the event starts bisected to the last bit on the dense output: no extrema, peaks or
     saves. The harness times it beside the adapter (:mod:`benchmarks.studies.target`), so that
     a ratio is published against the faster of the two. Returns (CyRK's steps taken, the
-    starts in s), or None if CyRK failed. ``method``: CyRK's name ("RADAU", "BDF", …)."""
+    starts in s; a start of an event still running at the end included), or None if CyRK
+    failed or the state is not finite. ``method``: CyRK's name ("RADAU", "BDF", …)."""
     nd = problem.nondimensional()
     call = _library()[0]
     q = np.concatenate([form_vector(nd, nd.e_slow),

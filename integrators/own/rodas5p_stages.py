@@ -99,8 +99,8 @@ def stages(rhs, p, rtol, atol, hs, ws, z0, f0, z1, D):
 @njit(cache=True, nogil=True, error_model="numpy")
 def sensitivity_workspace(n_s):
     """Room for :func:`stage_sensitivities` with ``n_s`` directions: the stages' Jacobians and
-    ∂f/∂θ, the second derivatives at the step's start, the stages' dK, M⁻¹ (by rows:
-    M⁻¹e_k), and a direction's sums for the later stages."""
+    ∂f/∂θ, the second derivatives at the step's start, the stages' dK, M⁻¹'s columns as rows
+    (row k: M⁻¹e_k, so M⁻ᵀ), and a direction's sums for the later stages."""
     return (np.empty((8, 3, 3)), np.zeros((8, 3, n_s)), np.empty((3, 3, 3)),
             np.zeros((3, 3, n_s)), np.zeros((n_s, 8, 3)), np.empty((3, 3)), np.zeros((8, 3)),
             np.zeros((8, 3)))
