@@ -138,3 +138,19 @@ def test_the_target_takes_the_faster_cyrk_call():
     assert done.ratio_peer == min(9.0, 40.0, done.ratio_cyrk_faster)
     assert done.met == ("yes" if done.ratio_cyrk_faster >= 2.0 else "no")
     assert "no CyRK" in skipped.cyrk_plain_note and np.isnan(skipped.ratio_cyrk_faster)
+
+
+@pytest.mark.slow
+def test_the_plain_call_redoes_a_call_that_ran_out_of_steps_as_the_adapter_does():
+    """400 s of the paper example at 1e-9 takes ~370,000 steps: the first call of each runs
+    out of its 2·CHUNK_STEPS (the adapter falls back to its segment path), is done again over
+    less, and the later calls are sized from the steps per unit time seen. The two still take
+    the same steps and find the same starts, to the bit."""
+    from integrators.external.cyrk_backend import CHUNK_STEPS, plain_starts
+    problem = P.variant(P.paper_example(), t_end=400.0)
+    sol = I.solve(problem, REGISTRY["CyRK-Radau"](rtol=1e-9, atol=1e-9), max_points=2)
+    steps, starts = plain_starts(problem, "RADAU", 1e-9, 1e-9)
+    assert sol.success and sol.meta["one_call"] is False and steps > 2 * CHUNK_STEPS
+    assert steps == sol.stats.steps
+    done = sol.events["t_start"].to_numpy()
+    np.testing.assert_array_equal(starts[:len(done)], done)
