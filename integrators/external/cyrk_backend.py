@@ -140,7 +140,7 @@ def _step_crossings(call, result, q, T, Y, g):
     and the result at ``result``): rows (τ, kind, sign, z0, z1, z2), in time order. ``g`` holds
     the root functions at T[0] (signs carried over a restart); left holding them at T[-1]."""
     ln_end = q[_LN_ES]
-    gp, zt, gt = g.copy(), np.empty(3), np.empty(4)
+    gp, zt = g.copy(), np.empty(3)
     R = np.empty((16, 6))
     m = 0
     for i in range(1, T.shape[0]):
@@ -152,19 +152,7 @@ def _step_crossings(call, result, q, T, Y, g):
                 continue
             if k == PEAK and not (gp[END] > 0.0 or g[END] > 0.0):
                 continue           # the stick-phase jitter of C h − D η is not a peak
-            left_pos = gp[k] > 0.0
-            lo, hi = T[i - 1], T[i]
-            while True:
-                mid = 0.5 * (lo + hi)
-                if mid <= lo or mid >= hi:
-                    break
-                _dense(call, result, mid, zt.ctypes.data)
-                compiled_roots(q, q[_LN_10ES], q[_LN_ES], q[_LN_E], zt, gt)
-                gk = gt[k]
-                if gk != 0.0 and (gk > 0.0) == left_pos:
-                    lo = mid
-                else:
-                    hi = mid
+            hi = _bisect(call, result, q, k, gp[k] > 0.0, T[i - 1], T[i])
             if hi == T[i]:
                 zt[0], zt[1], zt[2] = Y[i, 0], Y[i, 1], Y[i, 2]
             else:
@@ -175,6 +163,31 @@ def _step_crossings(call, result, q, T, Y, g):
             m += 1
         gp[:] = g
     return R[:m]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _bisect(call, result, q, k, left_pos, lo, hi):
+    """Root function k's crossing in (lo, hi], bisected to the last bit on the dense output
+    (``_dense`` with CyRK's ``call`` and the result at ``result``); ``left_pos``: its sign at
+    lo."""
+    zt, gt = np.empty(3), np.empty(4)
+    while True:
+        mid = 0.5 * (lo + hi)
+        if mid <= lo or mid >= hi:
+            return hi
+        _dense(call, result, mid, zt.ctypes.data)
+        compiled_roots(q, q[_LN_10ES], q[_LN_ES], q[_LN_E], zt, gt)
+        if gt[k] != 0.0 and (gt[k] > 0.0) == left_pos:
+            lo = mid
+        else:
+            hi = mid
+
+
+def _event_vector(nd, e: float) -> np.ndarray:
+    """The event kernels' q under the loading E = ``e``: the problem vector, then ln 10 E_slow,
+    ln E_slow, ln E."""
+    return np.concatenate([form_vector(nd, e), [math.log(10.0 * nd.e_slow), math.log(nd.e_slow),
+                                                ln_load_rate(e)]])
 
 
 @njit(error_model="numpy")
@@ -302,7 +315,7 @@ def _plain_scan(call, r, q, tau, z, starts, m, in_event, stop_at_end):
         for k in (START, END):
             if (in_event == (k == END)
                     and sign_change(before[k], g[k]) == DIRECTIONS[k]):
-                t = _plain_root(call, r, q, k, before[k] > 0.0, t_before, T[i])
+                t = _bisect(call, r._ptr, q, k, before[k] > 0.0, t_before, T[i])
                 in_event = k == START
                 if k == START:
                     if m == starts.shape[0]:
@@ -320,23 +333,6 @@ def _plain_scan(call, r, q, tau, z, starts, m, in_event, stop_at_end):
         t_before = T[i]
     z[:] = Y[T.shape[0] - 1]
     return T[T.shape[0] - 1], starts, m, in_event, False
-
-
-@njit(error_model="numpy")
-def _plain_root(call, r, q, k, left_pos, lo, hi):
-    """Root function k's crossing in (lo, hi], bisected to the last bit on the dense output;
-    ``left_pos``: its sign at lo."""
-    zt, gt = np.empty(3), np.empty(4)
-    while True:
-        mid = 0.5 * (lo + hi)
-        if mid <= lo or mid >= hi:
-            return hi
-        _dense(call, r._ptr, mid, zt.ctypes.data)
-        compiled_roots(q, q[_LN_10ES], q[_LN_ES], q[_LN_E], zt, gt)
-        if gt[k] != 0.0 and (gt[k] > 0.0) == left_pos:
-            lo = mid
-        else:
-            hi = mid
 
 
 @functools.cache
@@ -358,8 +354,7 @@ def plain_starts(problem, method: str, rtol: float, atol: float):
     failed or the state is not finite. ``method``: CyRK's name ("RADAU", "BDF", …)."""
     nd = problem.nondimensional()
     call = _library()[0]
-    q = np.concatenate([form_vector(nd, nd.e_slow),
-                        [math.log(10.0 * nd.e_slow), math.log(nd.e_slow), 0.0]])
+    q = _event_vector(nd, nd.e_slow)              # its ln E set per loading segment
     z0 = to_ode_state(nd.law_code, nd.beta, nd.x0)
     status, taken, starts = _plain_run(_plain_library(), call, method, nd.tau_end, z0, q,
                                        nd.history, FIRST_SPAN * nd.grid_tau, rtol, atol,
@@ -528,8 +523,7 @@ class _CyRKStepper:
         self._args = np.append(form_vector(nd, nd.e_slow), float(self._counters.ctypes.data))
         if int(self._args[_COUNTERS]) != self._counters.ctypes.data:   # above 2**53
             raise MemoryError("the counters' address does not fit a double exactly")
-        self._q = np.concatenate([form_vector(nd, nd.e_slow),
-                                  [math.log(10.0 * nd.e_slow), math.log(nd.e_slow), 0.0]])
+        self._q = _event_vector(nd, nd.e_slow)     # its E and ln E set by start
         self._two_speed = nd.two_speed
         self._result = None
         self._last_root = None
@@ -664,8 +658,7 @@ def _one_call(algorithm: _CyRK, problem, nd, e: float, output, budget):
     args = np.append(form_vector(nd, e), float(counters.ctypes.data))
     if int(args[_COUNTERS]) != counters.ctypes.data:   # above 2**53
         raise MemoryError("the counters' address does not fit a double exactly")
-    q = np.concatenate([form_vector(nd, e),
-                        [math.log(10.0 * nd.e_slow), math.log(nd.e_slow), ln_load_rate(e)]])
+    q = _event_vector(nd, e)
     taus, times, unasked = _saves(problem, nd, output)
     z0 = to_ode_state(nd.law_code, nd.beta, nd.x0)
     rec, saved = new_recorder(nd.x0[0]), np.empty((len(taus), 3))
