@@ -120,7 +120,7 @@ def _sensitivity_request(args, problem, algorithm, why):
     if not getattr(algorithm, "sensitive", False):
         if args.integrator:
             raise ValueError(f"--sensitivity: {algorithm.name} has no forward sensitivities; "
-                             "use --integrator Rodas5P")
+                             "use --integrator Rodas5P or RadauIIA5")
         tol = min(algorithm.rtol, SENSITIVITY_RTOL)
         why = (f"Rodas5P at rtol {tol:g} (the recommended {algorithm.name} has no forward "
                f"sensitivities, and gradients need rtol ≤ {SENSITIVITY_RTOL:g})")
@@ -142,7 +142,8 @@ def _sensitivity_summary(sol, path, command: str) -> dict:
              for i, m in enumerate(metrics.METRICS)} if len(per) else {})
     out = {"parameters": list(sens.names), "limit_cycle": metrics.cycle_gradient(sol),
            "last_event": last, "note": sens.message,
-           "method": "forward sensitivities through Rodas5P's steps and the event roots"}
+           "method": f"forward sensitivities through {sol.algorithm.name}'s steps and the event "
+                     "roots"}
     if path:
         table = metrics.event_metrics(sol.events, p.normal_force)
         cols = {f"d_{m}/d_{n}": per[:, i, j] for i, m in enumerate(metrics.METRICS)
@@ -303,9 +304,9 @@ def add_parsers(sub) -> None:
                    help="parameters to differentiate by, comma-separated (a, b, lc, c, k, m, "
                         "fn, damping, vl, vls, vlf, df, the initial state's): the gradients "
                         "of the limit cycle's metrics (SI per unit), from forward "
-                        "sensitivities through Rodas5P's steps and event roots; with --save, "
-                        "every event's in FILE.sensitivity.csv; Rodas5P at rtol ≤ 1e-6 "
-                        "unless --integrator says otherwise (default: none)")
+                        "sensitivities through the steps (Rodas5P's or RadauIIA5's) and event "
+                        "roots; with --save, every event's in FILE.sensitivity.csv; Rodas5P "
+                        "at rtol ≤ 1e-6 unless --integrator says otherwise (default: none)")
     s.set_defaults(func=cmd_simulate)
 
     i = sub.add_parser("integrators", help="list the registry")

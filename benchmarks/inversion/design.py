@@ -58,7 +58,7 @@ class StickSlipPlan:
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be positive and finite, got {value!r}")
         if not getattr(self.algorithm, "sensitive", False):
-            raise ValueError(f"the plan's algorithm must have sensitivities (Rodas5P), got "
+            raise ValueError(f"the plan's algorithm must have sensitivities (Rodas5P, RadauIIA5), got "
                              f"{self.algorithm.name}")
 
 

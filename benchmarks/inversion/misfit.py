@@ -143,7 +143,7 @@ class Misfit:
         """The residuals (ΔT, Δμ in σ, :meth:`residuals`) at the problem with ``values``
         (parameter name → value, SI; the others kept) and their derivatives with respect to
         each of ``values``' parameters (2 × len(values)), from one solve with forward
-        sensitivities: Rodas5P at this misfit's tolerance, at most
+        sensitivities: :meth:`_sensitive_algorithm`'s, at this misfit's tolerance, at most
         :data:`problems.directions.SENSITIVITY_RTOL`. Where a cycle has no derivative
         (an arrest in it), forward differences of relative step 1e−3 instead. Without a limit
         cycle: :data:`NO_CYCLE_RESIDUAL` twice and a zero Jacobian (the misfit's plateau).
@@ -180,12 +180,13 @@ class Misfit:
         return self._cycle_residuals(problem, self._sensitive_algorithm(), ())[0]
 
     def _sensitive_algorithm(self):
-        """Rodas5P at this misfit's tolerance, at most
-        :data:`problems.directions.SENSITIVITY_RTOL`."""
+        """This misfit's method if it has sensitivities (Rodas5P, RadauIIA5), else Rodas5P, at
+        this misfit's tolerance, at most :data:`problems.directions.SENSITIVITY_RTOL`."""
         from integrators import make_algorithm
         from problems.directions import SENSITIVITY_RTOL
         tol = min(getattr(self.algorithm, "rtol", None) or SENSITIVITY_RTOL, SENSITIVITY_RTOL)
-        return make_algorithm("Rodas5P", rtol=tol, atol=tol)
+        name = self.algorithm.name if getattr(self.algorithm, "sensitive", False) else "Rodas5P"
+        return make_algorithm(name, rtol=tol, atol=tol)
 
     def _cycle_residuals(self, problem, algorithm, names):
         """(ΔT, Δμ residuals in σ, the solution, its cycle or None) of one solve of

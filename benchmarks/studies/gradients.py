@@ -1,12 +1,12 @@
 """How good are the gradients, and what do they cost? For the paper's example and W1–W4 under
 both laws (b, Lc; short runs of 3–8 events): the worst error of every event's dΔT/dp and dΔμ/dp
 against a reference — Rodas5P's forward sensitivities at rtol 1e−12 with their error in the step
-control, checked against central differences of 1e−12 solves (the two agree to what the
-differences resolve, listed) — by Rodas5P's own sensitivities (its steps held, and with the
-sensitivities in the error test) and by central differences through Rodas5P and RadauIIA5
-(relative step √rtol); and the cost of the sensitivities against the solve alone (2 and 6
-parameters, with their error in the step control and without; interleaved, the minimum of 5
-after a warm-up).
+control, checked against RadauIIA5's made the same way (an independent method: collocation, its
+derivative solved exactly) and against central differences of 1e−12 solves (each agreement
+listed) — by each method's own sensitivities (its steps held, and with the sensitivities in the
+error test) and by central differences through Rodas5P and RadauIIA5 (relative step √rtol); and
+the cost of the sensitivities against the solve alone (2 and 6 parameters, with their error in
+the step control and without, both methods; interleaved, the minimum of 5 after a warm-up).
 """
 
 from __future__ import annotations
@@ -54,8 +54,8 @@ def _grads(events, d_events, problem) -> np.ndarray:
         1:, :2]
 
 
-def _by_sensitivities(problem, tol, error_control: bool):
-    alg = Rodas5P(rtol=tol, atol=tol)
+def _by_sensitivities(problem, tol, error_control: bool, method=Rodas5P):
+    alg = method(rtol=tol, atol=tol)
     start = time.perf_counter()
     sol = solve(problem, alg, max_points=2, sensitivity=NAMES, sensitivity_error=error_control)
     wall = time.perf_counter() - start
@@ -91,6 +91,23 @@ def _error(g, ref) -> tuple[float, float]:
     return float(err[0].max()), float(err[1].max())
 
 
+REFERENCE_RADAU = "reference: RadauIIA5 vs Rodas5P"
+REFERENCE_DIFFERENCES = "reference vs differences"
+
+
+def _ways(problem, tol) -> list:
+    """(way, the call that gives its gradients, wall time and solves) at ``tol``."""
+    out = []
+    for method in (Rodas5P, RadauIIA5):
+        out += [(f"{method.name} sensitivities",
+                 lambda m=method: _by_sensitivities(problem, tol, False, m)),
+                (f"{method.name} sensitivities, error-controlled",
+                 lambda m=method: _by_sensitivities(problem, tol, True, m))]
+    return out + [(f"{method.name} differences",
+                   lambda m=method: _by_differences(problem, m, tol))
+                  for method in (Rodas5P, RadauIIA5)]
+
+
 def gradient_errors(tols=(1e-4, 1e-6, 1e-8, 1e-10), progress: bool = False) -> pd.DataFrame:
     """One row per case, way and tolerance: the worst relative errors of dΔT/dp and dΔμ/dp,
     the wall time (s) and the solves (module docstring); and per case the reference's
@@ -98,19 +115,15 @@ def gradient_errors(tols=(1e-4, 1e-6, 1e-8, 1e-10), progress: bool = False) -> p
     rows = []
     for label, problem in cases():
         ref = _by_sensitivities(problem, 1e-12, True)[0]
-        check = _by_differences(problem, Rodas5P, 1e-12)    # relative step 1e-6 (√rtol)
-        rows.append(dict(case=label, way="reference vs differences", rtol=1e-12,
-                         **dict(zip(("err_dT", "err_dmu"), _error(check[0], ref))),
-                         wall_s=check[1], solves=check[2], events=len(ref) + 1))
+        for way, check in (
+                (REFERENCE_RADAU, _by_sensitivities(problem, 1e-12, True, RadauIIA5)),
+                (REFERENCE_DIFFERENCES,     # relative step 1e-6 (√rtol)
+                 _by_differences(problem, Rodas5P, 1e-12))):
+            rows.append(dict(case=label, way=way, rtol=1e-12,
+                             **dict(zip(("err_dT", "err_dmu"), _error(check[0], ref))),
+                             wall_s=check[1], solves=check[2], events=len(ref) + 1))
         for tol in tols:
-            for way, fn in (("Rodas5P sensitivities", lambda: _by_sensitivities(problem, tol,
-                                                                                 False)),
-                            ("Rodas5P sensitivities, error-controlled",
-                             lambda: _by_sensitivities(problem, tol, True)),
-                            ("Rodas5P differences", lambda: _by_differences(problem, Rodas5P,
-                                                                            tol)),
-                            ("RadauIIA5 differences", lambda: _by_differences(problem,
-                                                                              RadauIIA5, tol))):
+            for way, fn in _ways(problem, tol):
                 fn()                    # compiles (and warms) before it is timed
                 g, wall, solves = fn()
                 rows.append(dict(case=label, way=way, rtol=tol,
@@ -123,15 +136,16 @@ def gradient_errors(tols=(1e-4, 1e-6, 1e-8, 1e-10), progress: bool = False) -> p
 
 def sensitivity_cost(tols=(1e-6, 1e-8), repeats: int = 5) -> pd.DataFrame:
     """The wall time of a solve with the sensitivities of 2 and of 6 parameters over the solve
-    alone (Rodas5P; the paper's example and W2, W4 over 40 s), interleaved, the minimum of
-    ``repeats`` after a warm-up; the spread of the solve alone's repeats says the noise."""
+    alone (Rodas5P and RadauIIA5; the paper's example and W2, W4 over 40 s), interleaved, the
+    minimum of ``repeats`` after a warm-up; the spread of the solve alone's repeats says the
+    noise."""
     problems = [("paper/slip", paper_example(law="slip")),
                 ("W2/aging", window("W2", law="aging")), ("W4/slip", window("W4", law="slip"))]
     sets = {"alone": (None, False), "2 held": (NAMES, False), "6 held": (SIX, False),
             "2 controlled": (NAMES, True), "6 controlled": (SIX, True)}
     rows = []
-    for tol in tols:
-        alg = Rodas5P(rtol=tol, atol=tol)
+    for method, tol in ((m, t) for m in (Rodas5P, RadauIIA5) for t in tols):
+        alg = method(rtol=tol, atol=tol)
         for label, problem in problems:
             times = {k: [] for k in sets}
             for names, control in sets.values():
@@ -142,7 +156,7 @@ def sensitivity_cost(tols=(1e-6, 1e-8), repeats: int = 5) -> pd.DataFrame:
                                 sensitivity_error=control)
                     times[k].append(sol.stats.wall_s)
             alone = min(times["alone"])
-            rows.append(dict(case=label, rtol=tol, alone_ms=1e3 * alone,
+            rows.append(dict(method=method.name, case=label, rtol=tol, alone_ms=1e3 * alone,
                              **{f"ratio_{k.replace(' ', '_')}": min(times[k]) / alone
                                 for k in sets if k != "alone"},
                              noise=(max(times["alone"]) - alone) / alone))
@@ -155,7 +169,7 @@ def _figure(rows: pd.DataFrame, path: Path) -> None:
     from matplotlib.figure import Figure
     fig = Figure(figsize=(6.4, 4.6))
     ax = fig.subplots()
-    data = rows[rows.way != "reference vs differences"]
+    data = rows[~rows.way.isin((REFERENCE_RADAU, REFERENCE_DIFFERENCES))]
     for way, part in data.groupby("way", sort=False):
         agg = part.groupby("rtol").agg(err=("err_dT", "max"), wall=("wall_s", "sum"))
         ax.loglog(agg.wall, agg.err, "o-", label=way)
@@ -190,15 +204,18 @@ def run(out: Path) -> None:
     at8 = rows[rows.rtol == 1e-8]
     summary = at8.groupby("way").agg(worst_dT=("err_dT", "max"), worst_dmu=("err_dmu", "max"),
                                      wall_s=("wall_s", "sum")).reset_index()
-    ref = rows[rows.way == "reference vs differences"]
+    ref = rows[rows.way == REFERENCE_DIFFERENCES]
+    radau = rows[rows.way == REFERENCE_RADAU]
     text = ("# Gradients of ΔT and Δμ: accuracy and cost\n\n"
             + __doc__.split("\n\n")[0].replace("\n", " ") + "\n\n"
             + "![gradients](gradients.png)\n\n## At rtol 1e-8, worst over the 10 cases\n\n"
             + markdown_table(summary, floatfmt=".3g")
-            + f"\nTarget: {TARGET_ERROR:g}. The reference against central differences of "
-            f"1e-12 solves: worst {ref.err_dT.max():.2g} (dΔT), {ref.err_dmu.max():.2g} "
-            "(dΔμ).\n\n## Every case and tolerance\n\n" + markdown_table(rows, floatfmt=".3g")
-            + "\n## Cost of the sensitivities (Rodas5P, 40 s runs)\n\n"
+            + f"\nTarget: {TARGET_ERROR:g}. The reference (Rodas5P's at 1e-12) against "
+            f"RadauIIA5's at 1e-12: worst {radau.err_dT.max():.2g} (dΔT), "
+            f"{radau.err_dmu.max():.2g} (dΔμ); against central differences of 1e-12 solves: "
+            f"worst {ref.err_dT.max():.2g} (dΔT), {ref.err_dmu.max():.2g} (dΔμ).\n\n"
+            "## Every case and tolerance\n\n" + markdown_table(rows, floatfmt=".3g")
+            + "\n## Cost of the sensitivities (40 s runs)\n\n"
             + markdown_table(cost, floatfmt=".3g")
             + f"\nTargets: 2 parameters ≤ {TARGET_TWO:g}×, 6 ≤ {TARGET_SIX:g}×. `held`: the "
             "solve's own steps (`sensitivity_error=False`); `controlled`: the sensitivities in "
@@ -212,5 +229,5 @@ def run(out: Path) -> None:
 STUDY = Study("gradients", "Gradients: the error of dΔT/dp and dΔμ/dp and the cost of "
               "sensitivities (`gradients.*`)", 211, run,
               report=markdown_file("gradients.md"),
-              timed=True, minutes=4,
+              timed=True, minutes=8,
               writes=("gradients.csv", "gradients_cost.csv", "gradients.png", "gradients.md"))

@@ -167,7 +167,7 @@ def _directions(problem: SpringSlider, algorithm: Algorithm, sensitivity, contro
         return ()
     if not getattr(algorithm, "sensitive", False):
         raise ValueError(f"sensitivity: {algorithm.name} has no forward sensitivities; "
-                         "Rodas5P has")
+                         "Rodas5P and RadauIIA5 have")
     from problems.directions import SENSITIVITY_RTOL, direction, sensitivity_names
     names = sensitivity_names(problem, sensitivity)
     if algorithm.rtol > SENSITIVITY_RTOL:

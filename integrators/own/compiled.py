@@ -59,12 +59,14 @@ def failure(status: int, t_stop: float, max_steps: int, wall_s: float | None,
     }[status]
 
 
-def _sensitivity_arrays(directions, n_grid: int, n_events: int, error_control: bool):
+def _sensitivity_arrays(directions, n_grid: int, n_events: int, error_control: bool,
+                        workspace):
     """The arrays of :func:`integrators.own.sensitivity.sense` for ``directions`` (None: a
-    plain solve)."""
+    plain solve), the method's stage workspace made by ``workspace``."""
     if not directions:
         return None
-    return SE.arrays(SE.direction_matrix(directions), n_grid, n_events, error_control)
+    return SE.arrays(SE.direction_matrix(directions), n_grid, n_events, error_control,
+                     workspace)
 
 
 class CompiledAlgorithm(AdaptiveAlgorithm):
@@ -114,7 +116,8 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
         n_max = CHUNK_STEPS if progress is not None else LONG_CHUNK_STEPS
         # the scratch arrays made by numpy (the compiled makers' boxing costs microseconds)
         ws, sc = type(self).workspace.py_func(), E.scratch.py_func()
-        sa = _sensitivity_arrays(sensitivity, len(grid), len(ev), sensitivity_error)
+        sa = _sensitivity_arrays(sensitivity, len(grid), len(ev), sensitivity_error,
+                                 type(self).sensitivity_workspace)
         kernel = type(self).kernel if sa is None else type(self).sensitive_kernel
         announce_compile(kernel, f"the {self.name} kernel")
         kernel_s = 0.0
@@ -148,10 +151,12 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
                 raw.sensitivity.y = raw.sensitivity.y[1:]
         return raw
 
-    #: has forward sensitivities (:mod:`integrators.own.sensitivity`: Rodas5P's stages), and
-    #: the kernel that carries them
+    #: has forward sensitivities (:mod:`integrators.own.sensitivity`: Rodas5P's stages,
+    #: RadauIIA5's collocation equations), the kernel that carries them and the maker of
+    #: their stage workspace
     sensitive: ClassVar[bool] = False
     sensitive_kernel: ClassVar[Callable | None] = None
+    sensitivity_workspace: ClassVar[Callable | None] = None
 
     def _start(self, nd, deadline: float):
         """The arrays (st, p, Z, G) of a solve of ``nd`` (:func:`integrators.own.engine.

@@ -38,9 +38,11 @@ import numpy as np
 from numba import njit
 
 from integrators.core.registry import register
-from integrators.own import batch, engine
+from integrators.own import batch, engine, radau5_sensitivity, sensitivity
 from integrators.own.compiled import CompiledAlgorithm
 from integrators.own.linalg import factor, lu3, lu_solve3
+from integrators.own.radau5_tableau import (C, C1, C2, E_ERR, MU, MU_C, T, TI,
+                                            radau_constants)
 
 __all__ = ["RadauIIA5", "radau_constants"]
 
@@ -51,28 +53,6 @@ FIXED_MAXITER, FIXED_KAPPA = 50, 1e-14
 #: the error an attempt reports when its Newton iteration fails: the RODAS controller then
 #: halves the step (h / (NEWTON_FAIL^(1/4) / 0.9) = h/2)
 NEWTON_FAIL = (2.0 * 0.9) ** 4
-
-
-def radau_constants():
-    """(A, c, e, T, T⁻¹, μ, α, β) of Radau IIA order 5: T⁻¹ A⁻¹ T = [[μ, 0, 0], [0, α, β],
-    [0, −β, α]]."""
-    s6 = math.sqrt(6.0)
-    a = np.array([[(88 - 7 * s6) / 360, (296 - 169 * s6) / 1800, (-2 + 3 * s6) / 225],
-                  [(296 + 169 * s6) / 1800, (88 + 7 * s6) / 360, (-2 - 3 * s6) / 225],
-                  [(16 - s6) / 36, (16 + s6) / 36, 1.0 / 9.0]])
-    c = np.array([(4 - s6) / 10, (4 + s6) / 10, 1.0])
-    e = np.array([-13 - 7 * s6, -13 + 7 * s6, -1.0]) / 3.0
-    values, vectors = np.linalg.eig(np.linalg.inv(a))
-    real, cplx = int(np.argmin(abs(values.imag))), int(np.argmax(values.imag))
-    t = np.column_stack([vectors[:, real].real, vectors[:, cplx].real, vectors[:, cplx].imag])
-    return (a, c, e, t, np.linalg.inv(t), float(values[real].real), float(values[cplx].real),
-            float(values[cplx].imag))
-
-
-_A, C, E_ERR, T, TI, MU, ALPHA, BETA = radau_constants()
-#: (α − iβ): the complex eigenvalue that the transformed (W2 + i W3) sees
-MU_C = complex(ALPHA, -BETA)
-C1, C2 = C[0], C[1]
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -228,6 +208,26 @@ def kernel(ws, sc, st, p, Z, G, dirs, grid, saved, ev, n_max):
                       ws, sc, st, p, Z, G, dirs, grid, saved, ev, n_max, engine.no_sense, ())
 
 
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _sensitive_attempt(p, hs, ws, z0, f0, z1, f1, D):
+    """:func:`_attempt` (``ws`` its workspace and then the sensitivities' arrays), followed by
+    the sensitivities' error test (:func:`integrators.own.sensitivity.radau_error`)."""
+    err = _attempt(p, hs, (ws[0], ws[1], ws[2], ws[3], ws[4], ws[5], ws[6], ws[7], ws[8],
+                           ws[9], ws[10], ws[11], ws[12]), z0, f0, z1, f1, D)
+    return sensitivity.radau_error(p, hs, ws, z0, f0, err)
+
+
+@njit(**engine.NO_NRT)
+def sensitive_kernel(ws, sc, st, p, Z, G, dirs, grid, saved, ev, n_max, sa):
+    """:func:`kernel` with the forward sensitivities following it
+    (:func:`integrators.own.sensitivity.radau_sense`)."""
+    wsx = (ws[0], ws[1], ws[2], ws[3], ws[4], ws[5], ws[6], ws[7], ws[8], ws[9], ws[10],
+           ws[11], ws[12], sa)
+    return engine.run(engine.prepare_jacobian, _sensitive_attempt, engine.rodas_reject,
+                      engine.rodas_accept, wsx, sc, st, p, Z, G, dirs, grid, saved, ev, n_max,
+                      sensitivity.radau_sense, sa)
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def fixed(p, z0, hs, n):
     return engine.fixed_steps(engine.prepare_jacobian, _attempt, _workspace, p, z0, hs, n)
@@ -264,5 +264,8 @@ class RadauIIA5(CompiledAlgorithm):
     fixed: ClassVar = fixed
     batch_kernel: ClassVar = solve_batch
     batch_serial: ClassVar = solve_batch_serial
+    sensitive: ClassVar[bool] = True
+    sensitive_kernel: ClassVar = sensitive_kernel
+    sensitivity_workspace: ClassVar = radau5_sensitivity.workspace
     constants: ClassVar[dict] = dict(INIT_EXPONENT=1.0 / 4, Q=4.0, STICK_PEAKS=1, FSAL=0,
                                      HERMITE=0, STAGES=0)

@@ -29,7 +29,7 @@ from numba import njit
 from integrators.core.registry import register
 from integrators.own import batch, engine, sensitivity
 from integrators.own.compiled import CompiledAlgorithm
-from integrators.own.rodas5p_stages import stages, workspace
+from integrators.own.rodas5p_stages import sensitivity_workspace, stages, workspace
 
 __all__ = ["Rodas5P"]
 
@@ -82,5 +82,6 @@ class Rodas5P(CompiledAlgorithm):
     batch_serial: ClassVar = solve_batch_serial
     sensitive: ClassVar[bool] = True
     sensitive_kernel: ClassVar = sensitivity.rodas5p_kernel
+    sensitivity_workspace: ClassVar = sensitivity_workspace
     constants: ClassVar[dict] = dict(INIT_EXPONENT=1.0 / 5, Q=5.0, STICK_PEAKS=1, FSAL=0,
                                      HERMITE=0, STAGES=7)

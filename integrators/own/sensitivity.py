@@ -1,16 +1,21 @@
 """Forward sensitivities through the compiled engine: ∂z/∂θ along each step, root and restart
-of a Rodas5P solve, for any set of the problem's parameters (:mod:`problems.directions`).
+of a Rodas5P or RadauIIA5 solve, for any set of the problem's parameters
+(:mod:`problems.directions`).
 
-Each accepted step's stages are differentiated on the step's own h, reusing its factorisation
-(:func:`integrators.own.rodas5p.stage_sensitivities`: internal differentiation, the exact
-derivative of the computed solution with its steps held). The engine tells :func:`sense` of
+Each accepted step is differentiated on the step's own h: Rodas5P's stages, reusing its
+factorisation (:func:`integrators.own.rodas5p_stages.stage_sensitivities`: internal
+differentiation, the exact derivative of the computed solution with its steps held);
+RadauIIA5's collocation equations, solved exactly for the derivative
+(:mod:`integrators.own.radau5_sensitivity`). The engine tells :func:`sense` of
 every step, save, root and restart (:func:`integrators.own.engine.run`), and it follows:
 
 * at a located root, g(z(τ_r)) = 0 moves by dτ_r = −(∂g/∂z·S + ∂g/∂θ)/(∂g/∂z·f): the event
   time's sensitivity; a value read at the root moves by S + f dτ_r (at an extremum of h or of
   u, f's component is 0 there);
 * the recorder's choices (the largest h before an event, the smallest within it, the peak w)
-  are mirrored, so that each row of the events table gets its derivative;
+  are mirrored, so that each row of the events table gets its derivative; an extreme h the
+  recorder takes at a step end stands for the extremum near it (the envelope:
+  :func:`_step_end_extremum`);
 * at a restart where the loading rate jumps at a moving time τ* (the overshoot starts at an
   event's end, ends τ_fast later; a switch fixed in seconds moves with Lc/v0),
   S⁺ = S⁻ + (f⁻ − f⁺) dτ*;
@@ -39,14 +44,15 @@ from integrators.own.engine import (HACC, SENSE_ARREST, SENSE_LOAD, SENSE_RESTAR
                                     SENSE_SAVE, SENSE_SAVE_HANDED, SENSE_SEGMENT_END,
                                     SENSE_STEP, SENSE_STEP_END, TAU, TAU_OLD, ZROW)
 from integrators.core.events import END, H_EXTREMUM, PEAK, START
+from integrators.own import radau5_sensitivity as radau
 from integrators.own.rodas5p_stages import (dense_sensitivities, sensitivity_workspace,
                                             stage_sensitivities, stages)
 from problems.formulations import (N_Q, Q_BETA, Q_C, Q_D, Q_E, Q_G, Q_LAWP,
                                    state_rate_partials, state_rate_second_partials)
 from problems.loading import H_E_FAST, H_TAU_FAST
 
-__all__ = ["sense", "arrays", "grow_events", "DIR", "V", "rodas5p_kernel", "direction_matrix",
-           "physical"]
+__all__ = ["sense", "radau_sense", "sense_with", "radau_error", "arrays", "grow_events", "DIR",
+           "V", "rodas5p_kernel", "direction_matrix", "physical"]
 
 #: columns of the directions array: dq (E: the slow rate's), then these
 DIR = dict(E_FAST=N_Q, TAU_FAST=N_Q + 1, LN_TS=N_Q + 2, Z0=N_Q + 3, SCALE=N_Q + 6)
@@ -116,17 +122,19 @@ def _second(p, dq, z, hyy, hyt):
         hyt[2, 1, n] = r_ug * dq[n, Q_LAWP]
 
 
-def arrays(directions: np.ndarray, n_grid: int, n_events: int, error_control: bool = False):
-    """The arrays ``sa`` of :func:`sense` for the (n, N_DIR) ``directions``: the stage
-    workspace, the directions, the current dq, S, S at the step's start, the dense output's dD,
-    S at a root, S handed on, the scalars :data:`V`, the events' derivatives (n_events, 8, n),
-    S at the save points (n_grid, n, 3), a scratch (3, 3: f, a state, and flags: DD stale,
+def arrays(directions: np.ndarray, n_grid: int, n_events: int, error_control: bool = False,
+           workspace=sensitivity_workspace):
+    """The arrays ``sa`` of :func:`sense` for the (n, N_DIR) ``directions``: the method's
+    workspace (its compiled maker ``workspace(n)``: Rodas5P's by default), the directions,
+    the current dq, S, S at the step's start, the dense output's dD, S at a root, S handed
+    on, the scalars :data:`V`, the events' derivatives (n_events, 8, n), S at the save
+    points (n_grid, n, 3), a scratch (3, 3: f, a state, and flags: DD stale,
     the sensitivities in the error test, an arrest taken), and S at a trial step's end."""
     n = directions.shape[0]
     dq = np.ascontiguousarray(directions[:, :N_Q]).copy()
     sc = np.zeros((n, 3))
     sc[:, :] = directions[:, _D_Z0:_D_Z0 + 3]
-    return (sensitivity_workspace.py_func(n), np.ascontiguousarray(directions), dq,
+    return (workspace.py_func(n), np.ascontiguousarray(directions), dq,
             sc.copy(), np.zeros((n, 3)), np.zeros((3, n, 3)), np.zeros((n, 3)), sc,
             _recorder_start(np.zeros((n, N_V)), sc), np.full((n_events, 8, n), np.nan),
             _first_save(np.full((n_grid, n, 3), np.nan), sc),
@@ -167,6 +175,24 @@ def _observe(rec, in_event, h, V, n, dh):
             V[n, _V_HMIN] = dh
     elif h > rec[1]:
         V[n, _V_HMAX] = dh
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _step_end_extremum(st, Z, DQ, S, n):
+    """The derivative of h at a step end, for the recorder's extrema, along direction n. A
+    step end the recorder keeps as an extreme h (one a rounding beyond the located extremum,
+    or the extremum itself) stands for the extremum, whose value moves by S_h there (f_h = 0:
+    the envelope); S_h at the step end is off by dS_h/dτ times the distance, first order. So
+    where one Newton step on f_h = E − w puts the stationary point within the last step,
+    δτ = f_h/(w f_u), S_h is carried there: S_h + (−w S_u + dE) δτ."""
+    dh = S[n, 0]
+    w = math.exp(Z[_Z, 1])
+    den = w * Z[_F, 1]
+    if den != 0.0:
+        delta = Z[_F, 0] / den
+        if abs(delta) <= st[TAU] - st[TAU_OLD]:
+            dh += (DQ[n, Q_E] - w * S[n, 1]) * delta
+    return dh
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -275,9 +301,34 @@ def _restart(tau, st, p, Z, sa):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _rodas_step(p, dq, hs, ws, sw, z0, S):
+    stage_sensitivities(_partials, _second, p, dq, hs, ws, sw, z0, S)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _radau_step(p, dq, hs, ws, sw, z0, S):
+    radau.step_sensitivities(_partials, p, dq, hs, ws[5], ws[10], sw, z0, S)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def sense(op, arg, st, p, Z, G, ws, grid, sa):
     """The engine's ``sense`` (:func:`integrators.own.engine.run`) for Rodas5P's forward
     sensitivities in the arrays ``sa`` (:func:`arrays`)."""
+    sense_with(_rodas_step, dense_sensitivities, op, arg, st, p, Z, G, ws, grid, sa)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def radau_sense(op, arg, st, p, Z, G, ws, grid, sa):
+    """:func:`sense` for RadauIIA5 (:mod:`integrators.own.radau5_sensitivity`; its kernel's
+    ``ws`` is RadauIIA5's workspace and then ``sa``)."""
+    sense_with(_radau_step, radau.dense_sensitivities, op, arg, st, p, Z, G, ws, grid, sa)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def sense_with(step, dense, op, arg, st, p, Z, G, ws, grid, sa):
+    """The engine's ``sense`` for a method whose accepted step's sensitivities
+    ``step(p, dq, h, ws, sw, z0, S)`` makes (in place) and whose dense output's dD
+    ``dense(sw, dD)`` makes from them."""
     sw, DIRS, DQ, S, SO, DD, SR, SC, V, EVS, SS, tmp, SN = sa
     n_s = S.shape[0]
     if op == SENSE_STEP:
@@ -287,7 +338,7 @@ def sense(op, arg, st, p, Z, G, ws, grid, sa):
                 if tmp[2, 1] != 0.0:    # the attempt differentiated its step for the test
                     S[n, i] = SN[n, i]
         if tmp[2, 1] == 0.0:
-            stage_sensitivities(_partials, _second, p, DQ, st[HACC], ws, sw, Z[_ZO], S)
+            step(p, DQ, st[HACC], ws, sw, Z[_ZO], S)
         tmp[2, 0] = 1.0                 # DD is the last step's no more
     elif op == SENSE_ARREST:
         for n in range(n_s):
@@ -300,7 +351,7 @@ def sense(op, arg, st, p, Z, G, ws, grid, sa):
     elif op == SENSE_SAVE or op == SENSE_SAVE_HANDED:
         # a save time is fixed in seconds: it moves in τ by −τ d ln(Lc/v0)
         if tmp[2, 0] != 0.0 and int(arg) < int(st[engine.NEXT_SAVE]):
-            dense_sensitivities(sw, DD)
+            dense(sw, DD)
             tmp[2, 0] = 0.0
         t0, t1 = st[TAU_OLD], st[TAU]
         zt, f = tmp[1], tmp[0]
@@ -322,14 +373,18 @@ def sense(op, arg, st, p, Z, G, ws, grid, sa):
                     SS[k, n, i] = sk + f[i] * dt
     elif op == SENSE_ROOT:
         if tmp[2, 0] != 0.0:
-            dense_sensitivities(sw, DD)
+            dense(sw, DD)
             tmp[2, 0] = 0.0
         _root(st, p, Z, G, sa)
     elif op == SENSE_STEP_END or op == SENSE_SEGMENT_END:
         rec = st[engine.REC:engine.REC + 9]
         for n in range(n_s):
+            if op == SENSE_SEGMENT_END:
+                dh = S[n, 0] + Z[_F, 0] * V[n, _V_BOUND]
+            else:
+                dh = _step_end_extremum(st, Z, DQ, S, n)
+            _observe(rec, rec[0] != 0.0, Z[_Z, 0], V, n, dh)
             dt = V[n, _V_BOUND] if op == SENSE_SEGMENT_END else 0.0
-            _observe(rec, rec[0] != 0.0, Z[_Z, 0], V, n, S[n, 0] + Z[_F, 0] * dt)
             V[n, _V_LAST_T] = dt
             for i in range(3):
                 SC[n, i] = S[n, i]
@@ -359,13 +414,39 @@ def _attempt(p, hs, ws, z0, f0, z1, f1, D):
         for i in range(3):
             SN[n, i] = S[n, i]
     stage_sensitivities(_partials, _second, p, sa[2], hs, ws, sw, z0, SN)
+    return _error_test(p, S, SN, DIRS, sw[4], 7, err)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def radau_error(p, hs, ws, z0, f0, err):
+    """RadauIIA5's attempt (error ``err``) continued: with the sensitivities in the error
+    test, their step (into SN) and its error estimate's derivative, tested as Rodas5P's
+    (:func:`_attempt`); ``ws`` RadauIIA5's workspace and then ``sa``."""
+    sa = ws[13]
+    tmp, SN = sa[11], sa[12]
+    if tmp[2, 1] == 0.0 or not err <= 1.0 or tmp[2, 2] != 0.0:
+        return err
+    S, DIRS, sw = sa[3], sa[1], sa[0]
+    for n in range(S.shape[0]):
+        for i in range(3):
+            SN[n, i] = S[n, i]
+    _radau_step(p, sa[2], hs, ws, sw, z0, SN)
+    radau.error_sensitivities(_partials, _second, p, sa[2], hs, ws[1], ws[2], f0, ws[5],
+                              ws[8], ws[10], sw, z0, S)
+    return _error_test(p, S, SN, DIRS, sw[4], radau.ERROR_ROW, err)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _error_test(p, S, SN, DIRS, dk, row, err):
+    """The larger of ``err`` and the sensitivities' scaled error: dk[n, row] (the error
+    estimate's derivative) by its parameter's size, |θ| ∂z/∂θ (CVODES' scaling), against the
+    state's atol + rtol·|θ S| over the step's ends."""
     rtol, atol = p[_P_RTOL], p[_P_ATOL]
-    dk = sw[4]
     for n in range(S.shape[0]):
         scale = DIRS[n, _D_SCALE]
         for i in range(3):
-            r = abs(scale * dk[n, 7, i]) / (atol + rtol * scale * max(abs(S[n, i]),
-                                                                     abs(SN[n, i])))
+            r = abs(scale * dk[n, row, i]) / (atol + rtol * scale * max(abs(S[n, i]),
+                                                                       abs(SN[n, i])))
             if not r <= err:
                 err = r
     return err if np.isfinite(err) else np.inf
