@@ -4,6 +4,7 @@ as their script writes them (line 157 of ``SolverComparison3_IMvsMatlabODE_Sprin
 integrated by scipy's Radau, which shares no code with the project's model."""
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -160,3 +161,12 @@ def test_nied_4m_is_the_slip_law_slider_written_apart():
     v = np.exp(theirs.sol(ours.t)[1])
     assert np.max(np.abs(ours.v / v - 1)) < 1e-8
     assert 2.1 < ours.t[ours.v.argmax()] < 2.3
+
+
+@pytest.mark.parametrize("name, file", [("im/stick-slip", "im-stick-slip.toml"),
+                                        ("nied/fb03-087", "nied-fb03-087.toml")])
+def test_the_example_files_are_the_external_problems(name, file):
+    """The problem files a user hands to `--problem` hold problems/external.py's numbers."""
+    from problems.files import load_problem, problem_dict
+    path = Path(__file__).resolve().parents[1] / "docs" / "examples" / file
+    assert problem_dict(load_problem(path)) == problem_dict(external(name))
