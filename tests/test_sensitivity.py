@@ -333,3 +333,20 @@ def test_stick_slip_design_errors_hold_for_a_precise_plan_and_rank_alternatives(
     assert ranked.plan.iloc[0] == "stiffer"
     with pytest.raises(ValueError, match="duration"):
         StickSlipPlan(window("W2", law="slip"), 0.0, 0.01, 0.02)
+
+
+def test_a_repeat_at_other_times_is_the_same_run_with_its_sensitivities():
+    """The sensitivities in the step control change the steps: a repeat at other times
+    (``resolved``, ``sol(t)``) solves with them again, so it is the same run, and carries them
+    at its times (before, it repeated the plain solve and dropped them)."""
+    problem = window("W4", law="slip", t_end=3.0)
+    alg = Rodas5P(rtol=1e-8, atol=1e-8)
+    sol = solve(problem, alg, sensitivity=("b", "lc"), max_points=2)
+    times = np.linspace(0.5, 2.5, 7)
+    again = sol._at(times)
+    direct = solve(problem, alg, sensitivity=("b", "lc"), save_at=times)
+    assert again.sensitivity is not None and again.sensitivity.y.shape == (7, 3, 2)
+    assert np.array_equal(again.sensitivity.y, direct.sensitivity.y)
+    assert np.array_equal(again.v, direct.v)
+    plain = solve(problem, alg, save_at=times)
+    assert not np.array_equal(plain.v, direct.v)        # the steps differ without them

@@ -210,8 +210,8 @@ class Sensitivity:
         (events, len(EVENT_COLUMNS), len(names)): ∂(each column of the events table)/∂θ.
     message : str
         Why they are NaN from some point on (after an arrest), else empty. A failed run's
-        appended stop point has NaN rows too; a repeat of the solve (``sol(t)``) carries no
-        sensitivities.
+        appended stop point has NaN rows too. A repeat of the solve at other times
+        (``sol(t)``, :meth:`Solution.resolved`) carries them at its times.
     """
 
     names: tuple
@@ -383,7 +383,8 @@ class Solution:
                                  f"saving at other times: {why}; read the saved trajectory "
                                  "(sol.t), or solve at a tighter rtol")
         return dataclasses.replace(self, t=again.t, v=again.v, fs=again.fs, ft=again.ft,
-                                   theta=again.theta, meta=dict(self.meta))
+                                   theta=again.theta, meta=dict(self.meta),
+                                   sensitivity=again.sensitivity)
 
     def resolved(self, per_event: int = 200) -> Solution:
         """This run at its saved times and ``per_event`` more across each completed event
