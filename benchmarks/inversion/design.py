@@ -43,7 +43,7 @@ class StickSlipPlan:
     scatter_recurrence, scatter_drop : float
         One event's relative σ of ΔT and of Δμ (dimensionless; 0.05 is 5 %).
     algorithm : Algorithm
-        The forward model (Rodas5P: the gradients need its sensitivities).
+        The forward model (Rodas5P or RadauIIA5: the gradients need sensitivities).
     """
 
     problem: SpringSlider
@@ -58,8 +58,8 @@ class StickSlipPlan:
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be positive and finite, got {value!r}")
         if not getattr(self.algorithm, "sensitive", False):
-            raise ValueError(f"the plan's algorithm must have sensitivities (Rodas5P, RadauIIA5), got "
-                             f"{self.algorithm.name}")
+            raise ValueError(f"the plan's algorithm must have sensitivities (Rodas5P, "
+                             f"RadauIIA5), got {self.algorithm.name}")
 
 
 def stick_slip_errors(plan: StickSlipPlan) -> dict:

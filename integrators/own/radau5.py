@@ -211,10 +211,21 @@ def kernel(ws, sc, st, p, Z, G, dirs, grid, saved, ev, n_max):
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _sensitive_attempt(p, hs, ws, z0, f0, z1, f1, D):
     """:func:`_attempt` (``ws`` its workspace and then the sensitivities' arrays), followed by
-    the sensitivities' error test (:func:`integrators.own.sensitivity.radau_error`)."""
+    the sensitivities' error test (:func:`integrators.own.sensitivity.radau_error`). A trial
+    the state passes and the sensitivities reject leaves ``last`` as it was (the next trial's
+    Newton starts from the last accepted step's polynomial, as without sensitivities)."""
+    last, kept = ws[11], ws[13][0][10]
+    for r in range(5):
+        for i in range(3):
+            kept[r, i] = last[r, i]
     err = _attempt(p, hs, (ws[0], ws[1], ws[2], ws[3], ws[4], ws[5], ws[6], ws[7], ws[8],
                            ws[9], ws[10], ws[11], ws[12]), z0, f0, z1, f1, D)
-    return sensitivity.radau_error(p, hs, ws, z0, f0, err)
+    total = sensitivity.radau_error(p, hs, ws, z0, f0, err)
+    if err <= 1.0 and not total <= 1.0:
+        for r in range(5):
+            for i in range(3):
+                last[r, i] = kept[r, i]
+    return total
 
 
 @njit(**engine.NO_NRT)

@@ -34,10 +34,13 @@ P_RTOL, P_ATOL = engine.P["RTOL"], engine.P["ATOL"]
 def workspace(n_s):
     """Room for ``n_s`` directions: the stages' Jacobians (rows 0–2; row 3 at z0) and ∂f/∂θ,
     the second derivatives at z0, dZ (n_s, 8, 3: the stages', then the error estimate's), the
-    9×9 matrix, its pivots and a right-hand side; dJ0 and f for the error estimate's."""
+    9×9 matrix, its pivots and a right-hand side; dJ0 and f for the error estimate's; a copy
+    of RadauIIA5's last accepted step (its ``last``), restored when the sensitivities reject a
+    trial the state passed."""
     return (np.empty((8, 3, 3)), np.zeros((8, 3, n_s)), np.empty((3, 3, 3)),
             np.zeros((3, 3, n_s)), np.zeros((n_s, 8, 3)), np.empty((9, 9)),
-            np.zeros(9, np.int64), np.zeros(9), np.zeros((3, 3)), np.zeros(3))
+            np.zeros(9, np.int64), np.zeros(9), np.zeros((3, 3)), np.zeros(3),
+            np.zeros((5, 3)))
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")

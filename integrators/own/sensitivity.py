@@ -378,8 +378,9 @@ def sense_with(step, dense, op, arg, st, p, Z, G, ws, grid, sa):
         _root(st, p, Z, G, sa)
     elif op == SENSE_STEP_END or op == SENSE_SEGMENT_END:
         rec = st[engine.REC:engine.REC + 9]
+        at_bound = op == SENSE_SEGMENT_END or arg >= st[engine.T_BOUND]
         for n in range(n_s):
-            if op == SENSE_SEGMENT_END:
+            if at_bound:                # the segment's end moves: h there by S + f dτ_bound
                 dh = S[n, 0] + Z[_F, 0] * V[n, _V_BOUND]
             else:
                 dh = _step_end_extremum(st, Z, DQ, S, n)
