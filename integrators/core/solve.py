@@ -101,8 +101,7 @@ def solve(problem: SpringSlider, algorithm: Algorithm, *, save_every: float | No
         Show a progress bar.
     sensitivity : str or sequence of str, optional
         Parameters to differentiate by (``("b", "lc")``): ``Solution.sensitivity`` holds the
-        derivatives of the saved states and events (Rodas5P, RadauIIA5;
-        docs/sensitivities.md).
+        derivatives of the saved states and events (Rodas5P, RadauIIA5; docs/sensitivities.md).
     sensitivity_error : bool
         Put the sensitivities' error in the step control (default True; False: the steps
         taken without them, the derivatives of that solution).
@@ -139,9 +138,7 @@ def solve(problem: SpringSlider, algorithm: Algorithm, *, save_every: float | No
         if bar:
             bar.close()
     raw.stats = dataclasses.replace(raw.stats, wall_s=time.perf_counter() - budget.start)
-    again = (dict(sensitivity=tuple(d.name for d in directions),
-                  sensitivity_error=sensitivity_error) if directions else {})
-    return _solution(problem, algorithm, raw, again)
+    return _solution(problem, algorithm, raw, directions, sensitivity_error)
 
 
 def _run(problem, algorithm, output, budget, bar, directions, sensitivity_error) -> RawRun:
@@ -252,17 +249,19 @@ def _compile_once(problem: SpringSlider, algorithm: Algorithm, wall_budget: floa
                       sensitivity=("b",) if sensitive else None)
 
 
-def _solution(problem: SpringSlider, algorithm: Algorithm, raw: RawRun,
-              again: dict | None = None) -> Solution:
-    """The Solution of ``raw``; ``again``: the options a repeat of the run needs (its
-    sensitivities: with them in the step control, the steps are not the plain solve's)."""
+def _solution(problem: SpringSlider, algorithm: Algorithm, raw: RawRun, directions=(),
+              sensitivity_error: bool = True) -> Solution:
+    """The Solution of ``raw``; a repeat of the run (``rerun``) takes its sensitivities'
+    options too: with them in the step control, the steps are not the plain solve's."""
+    again = (dict(sensitivity=tuple(d.name for d in directions),
+                  sensitivity_error=sensitivity_error) if directions else {})
     v, fs, theta = (raw.y[:, i] for i in range(3))
     ft = problem.friction(v, theta) if len(v) else np.empty(0)
     return Solution(problem=problem, algorithm=algorithm, t=raw.t, v=v, fs=fs, ft=ft, theta=theta,
                     event_array=np.asarray(raw.events, dtype=float).reshape(-1, len(EVENT_COLUMNS)),
                     stats=raw.stats, retcode=raw.retcode, message=raw.message,
                     meta=dict(raw.meta), sensitivity=raw.sensitivity,
-                    rerun=functools.partial(_save_at, problem, algorithm, **(again or {})))
+                    rerun=functools.partial(_save_at, problem, algorithm, **again))
 
 
 def _save_at(problem: SpringSlider, algorithm: Algorithm, times: np.ndarray,

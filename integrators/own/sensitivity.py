@@ -332,12 +332,13 @@ def sense_with(step, dense, op, arg, st, p, Z, G, ws, grid, sa):
     sw, DIRS, DQ, S, SO, DD, SR, SC, V, EVS, SS, tmp, SN = sa
     n_s = S.shape[0]
     if op == SENSE_STEP:
+        arrested = tmp[2, 2] != 0.0     # S stays NaN (the attempts no longer make SN)
         for n in range(n_s):
             for i in range(3):
                 SO[n, i] = S[n, i]
-                if tmp[2, 1] != 0.0:    # the attempt differentiated its step for the test
+                if tmp[2, 1] != 0.0 and not arrested:   # the attempt differentiated its step
                     S[n, i] = SN[n, i]
-        if tmp[2, 1] == 0.0:
+        if tmp[2, 1] == 0.0 and not arrested:
             step(p, DQ, st[HACC], ws, sw, Z[_ZO], S)
         tmp[2, 0] = 1.0                 # DD is the last step's no more
     elif op == SENSE_ARREST:
