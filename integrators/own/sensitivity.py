@@ -15,7 +15,7 @@ every step, save, root and restart (:func:`integrators.own.engine.run`), and it 
 * the recorder's choices (the largest h before an event, the smallest within it, the peak w)
   are mirrored, so that each row of the events table gets its derivative; an extreme h the
   recorder takes at a step end stands for the extremum near it (the envelope:
-  :func:`_step_end_extremum`);
+  :func:`_extremum_shift`);
 * at a restart where the loading rate jumps at a moving time τ* (the overshoot starts at an
   event's end, ends τ_fast later; a switch fixed in seconds moves with Lc/v0),
   S⁺ = S⁻ + (f⁻ − f⁺) dτ*;
@@ -167,32 +167,29 @@ def _dense(S, SO, DD, x, n, i):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _observe(rec, in_event, h, V, n, dh):
-    """The recorder's :func:`~integrators.core.events.observe`, mirrored: which extreme h
-    becomes, and its derivative ``dh`` (direction n)."""
-    if in_event:
-        if h < rec[4]:
-            V[n, _V_HMIN] = dh
-    elif h > rec[1]:
-        V[n, _V_HMAX] = dh
+def _kept(rec, h):
+    """The recorder's :func:`~integrators.core.events.observe`, mirrored: the slot of V
+    whose extreme h becomes at a step end (−1: none)."""
+    if rec[0] != 0.0:
+        return _V_HMIN if h < rec[4] else -1
+    return _V_HMAX if h > rec[1] else -1
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _step_end_extremum(st, Z, DQ, S, n):
-    """The derivative of h at a step end, for the recorder's extrema, along direction n. A
-    step end the recorder keeps as an extreme h (one a rounding beyond the located extremum,
-    or the extremum itself) stands for the extremum, whose value moves by S_h there (f_h = 0:
-    the envelope); S_h at the step end is off by dS_h/dτ times the distance, first order. So
-    where one Newton step on f_h = E − w puts the stationary point within the last step,
-    δτ = f_h/(w f_u), S_h is carried there: S_h + (−w S_u + dE) δτ."""
-    dh = S[n, 0]
+def _extremum_shift(st, Z):
+    """How far a step end the recorder keeps as an extreme h lies from the extremum it
+    stands for (one a rounding beyond the located extremum, or the extremum itself). Its
+    value moves by S_h at the extremum (f_h = 0: the envelope); S_h at the step end is off by
+    dS_h/dτ times the distance, first order. One Newton step on f_h = E − w gives the
+    distance δτ = f_h/(w f_u), returned with w; δτ = 0 where the stationary point is not
+    within the last step. The derivative carried there is S_h + (dE − w S_u) δτ."""
     w = math.exp(Z[_Z, 1])
     den = w * Z[_F, 1]
     if den != 0.0:
         delta = Z[_F, 0] / den
         if abs(delta) <= st[TAU] - st[TAU_OLD]:
-            dh += (DQ[n, Q_E] - w * S[n, 1]) * delta
-    return dh
+            return w, delta
+    return w, 0.0
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -378,16 +375,17 @@ def sense_with(step, dense, op, arg, st, p, Z, G, ws, grid, sa):
             tmp[2, 0] = 0.0
         _root(st, p, Z, G, sa)
     elif op == SENSE_STEP_END or op == SENSE_SEGMENT_END:
-        rec = st[engine.REC:engine.REC + 9]
+        slot = _kept(st[engine.REC:engine.REC + 9], Z[_Z, 0])
         at_bound = op == SENSE_SEGMENT_END or arg >= st[engine.T_BOUND]
+        if slot >= 0:
+            w, delta = (1.0, 0.0) if at_bound else _extremum_shift(st, Z)
+            for n in range(n_s):
+                if at_bound:            # the segment's end moves: h there by S + f dτ_bound
+                    V[n, slot] = S[n, 0] + Z[_F, 0] * V[n, _V_BOUND]
+                else:
+                    V[n, slot] = S[n, 0] + (DQ[n, Q_E] - w * S[n, 1]) * delta
         for n in range(n_s):
-            if at_bound:                # the segment's end moves: h there by S + f dτ_bound
-                dh = S[n, 0] + Z[_F, 0] * V[n, _V_BOUND]
-            else:
-                dh = _step_end_extremum(st, Z, DQ, S, n)
-            _observe(rec, rec[0] != 0.0, Z[_Z, 0], V, n, dh)
-            dt = V[n, _V_BOUND] if op == SENSE_SEGMENT_END else 0.0
-            V[n, _V_LAST_T] = dt
+            V[n, _V_LAST_T] = V[n, _V_BOUND] if op == SENSE_SEGMENT_END else 0.0
             for i in range(3):
                 SC[n, i] = S[n, i]
     elif op == SENSE_LOAD:
