@@ -7,6 +7,8 @@ listed) — by each method's own sensitivities (its steps held, and with the sen
 error test) and by central differences through Rodas5P and RadauIIA5 (relative step √rtol); and
 the cost of the sensitivities against the solve alone (2 and 6 parameters, with their error in
 the step control and without, both methods; interleaved, the minimum of 5 after a warm-up).
+Where JAX and diffrax are installed, diffrax's autodiff through its own solve and events is
+the external peer on the same events (:mod:`benchmarks.devtools.diffrax_peer`).
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from benchmarks.devtools import diffrax_peer
 from benchmarks.physics.metrics import metric_gradients
 from benchmarks.records.files import write_output, write_table
 from benchmarks.records.report import markdown_table
@@ -92,6 +95,7 @@ def _error(g, ref) -> tuple[float, float]:
 
 
 REFERENCE_RADAU = "reference: RadauIIA5 vs Rodas5P"
+PEER = "diffrax Kvaerno5, jax.jacfwd"
 REFERENCE_DIFFERENCES = "reference vs differences"
 
 
@@ -108,11 +112,23 @@ def _ways(problem, tol) -> list:
                   for method in (Rodas5P, RadauIIA5)]
 
 
+def _peer_row(label, problem, tol, ref) -> dict:
+    """The row of the external peer (:mod:`benchmarks.devtools.diffrax_peer`) where JAX and
+    diffrax are installed: its gradients of the same events, their errors, its wall time with
+    the gradients and alone, its compile time and steps."""
+    got = diffrax_peer.event_gradients(problem, tol, len(ref) + 1, repeats=2)
+    return dict(case=label, way=PEER, rtol=tol,
+                **dict(zip(("err_dT", "err_dmu"), _error(got.grads, ref))), wall_s=got.wall_s,
+                solves=1, events=len(got.grads) + 1, solve_alone_s=got.solve_s,
+                compile_s=got.compile_s, steps=got.steps, message=got.message)
+
+
 def gradient_errors(tols=(1e-4, 1e-6, 1e-8, 1e-10), progress: bool = False) -> pd.DataFrame:
     """One row per case, way and tolerance: the worst relative errors of dΔT/dp and dΔμ/dp,
     the wall time (s) and the solves (module docstring); and per case the reference's
-    agreement with the differences of 1e−12 solves (way ``reference vs differences``)."""
-    rows = []
+    agreement with the differences of 1e−12 solves (way ``reference vs differences``); the
+    external peer's rows also carry its solve alone's time, compile time and steps."""
+    rows, peer = [], diffrax_peer.available()
     for label, problem in cases():
         ref = _by_sensitivities(problem, 1e-12, True)[0]
         for way, check in (
@@ -129,6 +145,8 @@ def gradient_errors(tols=(1e-4, 1e-6, 1e-8, 1e-10), progress: bool = False) -> p
                 rows.append(dict(case=label, way=way, rtol=tol,
                                  **dict(zip(("err_dT", "err_dmu"), _error(g, ref))),
                                  wall_s=wall, solves=solves, events=len(g) + 1))
+            if peer:
+                rows.append(_peer_row(label, problem, tol, ref))
         if progress:
             print(f"gradients: {label} done")
     return pd.DataFrame(rows)
@@ -171,7 +189,8 @@ def _figure(rows: pd.DataFrame, path: Path) -> None:
     ax = fig.subplots()
     data = rows[~rows.way.isin((REFERENCE_RADAU, REFERENCE_DIFFERENCES))]
     for way, part in data.groupby("way", sort=False):
-        agg = part.groupby("rtol").agg(err=("err_dT", "max"), wall=("wall_s", "sum"))
+        agg = part.groupby("rtol").agg(     # a failure anywhere leaves no point
+            err=("err_dT", lambda e: e.max(skipna=False)), wall=("wall_s", "sum"))
         ax.loglog(agg.wall, agg.err, "o-", label=way)
         for tol, r in agg.iterrows():
             ax.annotate(f"{tol:g}", (r.wall, r.err), fontsize=7, xytext=(3, 3),
@@ -185,12 +204,24 @@ def _figure(rows: pd.DataFrame, path: Path) -> None:
     fig.savefig(path, dpi=120)
 
 
-def _diffrax_note() -> str:
-    if importlib.util.find_spec("diffrax") is None or importlib.util.find_spec("jax") is None:
+def _peer_text(rows: pd.DataFrame) -> str:
+    """The external peer's paragraph and table, or why it has none."""
+    if not diffrax_peer.available():
         return ("diffrax (the external peer: autodiff through its own event handling) is not "
-                "installed here (JAX on CPU is not among this project's extras yet): no peer "
-                "row.")
-    return "diffrax is installed but not yet wired into this study: no peer row."
+                "installed here (`pip install .[diffrax]`): no peer row.")
+    peer = rows[rows.way == PEER].assign(ratio=lambda d: d.wall_s / d.solve_alone_s)
+    failed = peer[peer.err_dT.isna()]
+    return ("## The external peer: diffrax\n\n" + diffrax_peer.__doc__.split("\n\n")[0]
+            .replace("\n", " ") + " Kvaerno5 with a PID controller, each event a terminating "
+            "`diffrax.Event` located by `optimistix.Newton`, `jax.jacfwd` with "
+            "`diffrax.ForwardMode` (:mod:`benchmarks.devtools.diffrax_peer`). `ratio`: its "
+            "call with the gradients over its solve alone; `compile_s`: the first calls.\n\n"
+            + markdown_table(peer[["case", "rtol", "err_dT", "err_dmu", "wall_s",
+                                   "solve_alone_s", "ratio", "compile_s", "steps"]],
+                             floatfmt=".3g")
+            + f"\nFailed (no gradient; NaN above): {len(failed)} of {len(peer)}."
+            + "".join(f"\n- {r.case} at rtol {r.rtol:g}: {r.message}"
+                      for r in failed.itertuples()) + "\n")
 
 
 def run(out: Path) -> None:
@@ -220,7 +251,7 @@ def run(out: Path) -> None:
             + f"\nTargets: 2 parameters ≤ {TARGET_TWO:g}×, 6 ≤ {TARGET_SIX:g}×. `held`: the "
             "solve's own steps (`sensitivity_error=False`); `controlled`: the sensitivities in "
             "the error test (the default), which takes more steps. `noise`: the solve alone's "
-            "spread over its repeats, (max − min)/min.\n\n" + _diffrax_note()
+            "spread over its repeats, (max − min)/min.\n\n" + _peer_text(rows)
             + "\n\nCommand: `rsfbench study gradients`.\n")
     write_output(out / "gradients.md", text)
     print(text)
@@ -229,5 +260,5 @@ def run(out: Path) -> None:
 STUDY = Study("gradients", "Gradients: the error of dΔT/dp and dΔμ/dp and the cost of "
               "sensitivities (`gradients.*`)", 211, run,
               report=markdown_file("gradients.md"),
-              timed=True, minutes=8,
+              timed=True, minutes=13,
               writes=("gradients.csv", "gradients_cost.csv", "gradients.png", "gradients.md"))
