@@ -15,7 +15,13 @@ project's model code.
   the fast speed for ``df`` after each end.
 * The derivatives by ``jax.jacfwd`` with ``diffrax.ForwardMode`` (forward mode: two
   parameters, many outputs); an event time's derivative comes from optimistix's implicit
-  differentiation of the root (diffrax's issue #451 reported it zero in older releases).
+  differentiation of the root (diffrax's issue #451 reported it zero in older releases). The
+  derivatives are not in the step control (as the project's ``sensitivity_error=False``), and
+  the root's tolerances act on the event time in seconds. JAX runs in float64
+  (``jax_enable_x64``, set process-wide on first use).
+* Under two-speed loading an event's largest Fs before it is where v rises through vL, or at
+  the fast loading's end if v is above vL there; an event that starts before v has risen
+  through vL after the fast loading (one starting within it, say) is a failure, not a row.
 
 Differentiated, diffrax's stiff solve trips equinox's check that a linear solve gets finite
 input, in a trial whose result is discarded (W4/slip at every tolerance tried, in forward and
@@ -24,8 +30,9 @@ project's. So the peer sets ``EQX_ON_ERROR=nan``, which equinox's documentation 
 the environment sets it (read once, when equinox is first imported): a failed check gives NaN
 instead of an exception, and a NaN in a kept row is the peer's failure.
 
-Only the slip and aging laws without radiation damping, under constant or two-speed loading
-(the gradients study's cases); anything else is refused. JAX and diffrax are an extra
+Only a slider with mass under the slip and aging laws without radiation damping, constant or
+two-speed loading and the presets' start rule (the gradients study's cases); anything else is
+refused before any work. JAX and diffrax are an extra
 (``pip install .[diffrax]``); this module imports them on first use.
 """
 
@@ -49,14 +56,15 @@ class PeerGradients(NamedTuple):
     """The peer's answer: ``grads`` (events − 1) × 2 × 2 — dΔT/dp, dΔμ/dp (s and 1 per
     unit of b and of Lc in m) of every event but the first, as
     :func:`benchmarks.physics.metrics.metric_gradients` orders them; the wall time of the
-    compiled call with the gradients and of the solve alone (s), the compile time (s,
-    with a first call of each), and the steps the call took; ``grads`` all NaN, the times
+    compiled call with the gradients and of the solve alone (s), the time of the first call of
+    each (s: with the compile where that law, loading kind and number of events was not
+    compiled before), and the steps the call took; ``grads`` all NaN, the times
     NaN, steps −1 and ``message`` saying why where the solve failed (out of steps, a NaN,
     an exception)."""
     grads: np.ndarray
     wall_s: float
     solve_s: float
-    compile_s: float
+    first_s: float
     steps: int
     message: str
 
@@ -76,9 +84,13 @@ def _constants(problem) -> tuple[str, bool, np.ndarray]:
                          f"not {problem.name!r} ({law}, damping "
                          f"{problem.radiation_damping} N s/m)")
     hist = problem.loading.history
-    if hist.holds or len(hist.velocities) != 1:
+    if hist.holds or len(hist.velocities) != 1 or hist.v_slow != hist.velocities[0]:
         raise ValueError(f"the diffrax peer takes constant or two-speed loading, not "
                          f"{problem.name!r}'s history")
+    if not problem.mass > 0 or not hasattr(problem.initial, "slowdown"):
+        raise ValueError(f"the diffrax peer takes a slider with mass and the presets' start "
+                         f"rule (BalancedStart), not {problem.name!r} (mass {problem.mass} kg, "
+                         f"start {type(problem.initial).__name__})")
     two = bool(hist.two_speed)
     c = [problem.mass, problem.stiffness, problem.normal_force, problem.law.a, problem.law.v0,
          hist.velocities[0], hist.v_fast, hist.fast_duration, problem.t_end,
@@ -110,17 +122,24 @@ def _compiled(law: str, two_speed: bool, n_events: int, max_steps: int):
 
     term = dfx.ODETerm(rhs)
 
-    def segment(t0, t1, y0, args, tol, level=None, up=None):
+    def segment(t0, t1, y0, args, tol, level=None, up=None, guard=None):
+        """From t0 to the crossing of ln(v/v0) = ``level`` (upward if ``up``), or to t1 with
+        no level. Its steps, or −1e12 if it failed, so that the run's sum says so: out of
+        steps, a failed root (with EQX_ON_ERROR=nan these return), no crossing before t1, or
+        an upward crossing of ``guard`` first (an event started before the level it waited
+        for)."""
+        conds = () if level is None else (lambda t, y, args, **kw: y[1] - level,) + (
+            () if guard is None else (lambda t, y, args, **kw: y[1] - guard,))
         event = None if level is None else dfx.Event(
-            lambda t, y, args, **kw: y[1] - level, direction=up,
-            root_finder=optx.Newton(rtol=tol, atol=tol))
+            conds, direction=(up, True)[:len(conds)], root_finder=optx.Newton(rtol=tol, atol=tol))
         sol = dfx.diffeqsolve(term, dfx.Kvaerno5(), t0, t1, 1e-6, y0, args=args,
                               stepsize_controller=dfx.PIDController(rtol=tol, atol=tol),
                               event=event, max_steps=max_steps, saveat=dfx.SaveAt(t1=True),
                               adjoint=dfx.ForwardMode())
-        ok = (sol.result == dfx.RESULTS.successful) | (sol.result == dfx.RESULTS.event_occurred)
-        # a failed segment (out of steps, a failed root; with EQX_ON_ERROR=nan it returns)
-        # counts −1e12 steps, so that the run's sum of steps says it failed
+        ok = sol.result == (dfx.RESULTS.successful if level is None
+                            else dfx.RESULTS.event_occurred)
+        if guard is not None:
+            ok = ok & ~sol.event_mask[1]
         return sol.ts[-1], sol.ys[-1], jnp.where(ok, sol.stats["num_steps"], -1e12)
 
     def rows(theta, c, tol):
@@ -147,8 +166,11 @@ def _compiled(law: str, two_speed: bool, n_events: int, max_steps: int):
         def cycle(carry, _):            # from an event's start to the next's
             t, y = carry
             t, y, n1, mu_min, mu_end = end(t, y)
-            t, y, n2 = segment(t, horizon, y, slow, tol, ln_e, True)    # the next's max
-            mu_max = jnp.maximum(y[0], mu_end)  # or at the fast loading's end (falling there)
+            # the next's largest Fs: where v rises through vL (h' = 0), or at the fast
+            # loading's end if v was above vL there (h falling); failed if the event starts
+            # with no such crossing before it
+            t, y, n2 = segment(t, horizon, y, slow, tol, ln_e, True, ln_10e)
+            mu_max = jnp.maximum(y[0], mu_end)
             t, y, n3 = segment(t, horizon, y, slow, tol, ln_10e, True)  # its start
             return (t, y), jnp.stack([t, mu_max, mu_min, n1 + n2 + n3])
 
@@ -156,7 +178,8 @@ def _compiled(law: str, two_speed: bool, n_events: int, max_steps: int):
         n4, mu_last = end(t_last, y_last, overshoot=False)[2:4]
         mins = jnp.concatenate([out[1:, 2], jnp.stack([mu_last])])      # each event's min
         starts = jnp.concatenate([jnp.stack([t]), out[:, 0]])
-        return jnp.stack([jnp.diff(starts), out[:, 1] - mins], axis=1), n0 + n4 + out[:, 3].sum()
+        values = jnp.stack([jnp.diff(starts), out[:, 1] - mins], axis=1)
+        return values, (values, n0 + n4 + out[:, 3].sum())
 
     def solve(theta, c, tol):
         return rows(theta, c, tol)[0]
@@ -182,15 +205,17 @@ def event_gradients(problem, rtol: float, n_events: int, repeats: int = 3,
     start = time.perf_counter()
     try:
         solve(theta, c, rtol).block_until_ready()
-        jac, steps = (np.asarray(x) for x in gradients(theta, c, rtol))
-        message = ("" if np.isfinite(jac).all() and steps >= 0 else
-                   "a NaN" if steps >= 0 else "a segment failed (out of steps or no root)")
-    except Exception as exc:        # noqa: BLE001 (equinox's runtime checks, if they raise)
+        jac, (values, steps) = gradients(theta, c, rtol)
+        jac, values, steps = np.asarray(jac), np.asarray(values), float(steps)
+        message = ("a segment failed (out of steps, no root, or an event out of order)"
+                   if steps < 0 else "" if np.isfinite(jac).all() and np.isfinite(values).all()
+                   else "a NaN")
+    except (RuntimeError, ValueError) as exc:   # equinox's checks, where they raise (XLA's)
         message = str(exc).strip().splitlines()[-1][:200]
-    compile_s = time.perf_counter() - start
+    first_s = time.perf_counter() - start
     if message:                     # failed: no gradient, no time
         nan = np.full((n_events - 1, 2, 2), np.nan)
-        return PeerGradients(nan, np.nan, np.nan, compile_s, -1, message)
+        return PeerGradients(nan, np.nan, np.nan, first_s, -1, message)
     walls = {solve: [], gradients: []}
     for _ in range(repeats):
         for call in walls:
@@ -198,5 +223,5 @@ def event_gradients(problem, rtol: float, n_events: int, repeats: int = 3,
             out = call(theta, c, rtol)
             (out[0] if isinstance(out, tuple) else out).block_until_ready()
             walls[call].append(time.perf_counter() - start)
-    return PeerGradients(jac, min(walls[gradients]), min(walls[solve]), compile_s, int(steps),
+    return PeerGradients(jac, min(walls[gradients]), min(walls[solve]), first_s, int(steps),
                          "")

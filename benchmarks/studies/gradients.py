@@ -115,19 +115,19 @@ def _ways(problem, tol) -> list:
 def _peer_row(label, problem, tol, ref) -> dict:
     """The row of the external peer (:mod:`benchmarks.devtools.diffrax_peer`) where JAX and
     diffrax are installed: its gradients of the same events, their errors, its wall time with
-    the gradients and alone, its compile time and steps."""
+    the gradients and alone, its first calls' time and steps."""
     got = diffrax_peer.event_gradients(problem, tol, len(ref) + 1, repeats=2)
     return dict(case=label, way=PEER, rtol=tol,
                 **dict(zip(("err_dT", "err_dmu"), _error(got.grads, ref))), wall_s=got.wall_s,
                 solves=1, events=len(got.grads) + 1, solve_alone_s=got.solve_s,
-                compile_s=got.compile_s, steps=got.steps, message=got.message)
+                first_s=got.first_s, steps=got.steps, message=got.message)
 
 
 def gradient_errors(tols=(1e-4, 1e-6, 1e-8, 1e-10), progress: bool = False) -> pd.DataFrame:
     """One row per case, way and tolerance: the worst relative errors of dΔT/dp and dΔμ/dp,
     the wall time (s) and the solves (module docstring); and per case the reference's
     agreement with the differences of 1e−12 solves (way ``reference vs differences``); the
-    external peer's rows also carry its solve alone's time, compile time and steps."""
+    external peer's rows also carry its solve alone's time, first calls' time and steps."""
     rows, peer = [], diffrax_peer.available()
     for label, problem in cases():
         ref = _by_sensitivities(problem, 1e-12, True)[0]
@@ -215,9 +215,11 @@ def _peer_text(rows: pd.DataFrame) -> str:
             .replace("\n", " ") + " Kvaerno5 with a PID controller, each event a terminating "
             "`diffrax.Event` located by `optimistix.Newton`, `jax.jacfwd` with "
             "`diffrax.ForwardMode` (:mod:`benchmarks.devtools.diffrax_peer`). `ratio`: its "
-            "call with the gradients over its solve alone; `compile_s`: the first calls.\n\n"
+            "call with the gradients over its solve alone, each the minimum of 2 after the "
+            "first calls (`first_s`: with the compile where the call was not compiled before); "
+            "its derivatives are not in its step control (compare the `held` ways).\n\n"
             + markdown_table(peer[["case", "rtol", "err_dT", "err_dmu", "wall_s",
-                                   "solve_alone_s", "ratio", "compile_s", "steps"]],
+                                   "solve_alone_s", "ratio", "first_s", "steps"]],
                              floatfmt=".3g")
             + f"\nFailed (no gradient; NaN above): {len(failed)} of {len(peer)}."
             + "".join(f"\n- {r.case} at rtol {r.rtol:g}: {r.message}"
