@@ -29,8 +29,9 @@ import numpy as np
 from numba import njit
 
 from integrators.core.clock import monotonic
-from integrators.own.rodas5p_stages import (dense_sensitivities, sensitivity_workspace,
-                                            stage_sensitivities, stages, workspace)
+from integrators.own.rodas5p_stages import (dense_sensitivities, no_after,
+                                            sensitivity_workspace, stage_sensitivities, stages,
+                                            workspace)
 from problems.formulations import (N_Q, Q_E, Q_LAW, Q_LAWP, state_rate, state_rate_partials,
                                    state_rate_second_partials)
 from problems._validate import units_checked_already
@@ -253,12 +254,12 @@ def _run(p, velocities, bounds, times, rtol, atol, out, which, dout, deadline):
             h = min(h, t_end - t)
             _rate(p, y, f)
             _jacobian(p, y, ws[0])
-            err = stages(_rate, p, rtol, atol, h, ws, y, f, y1, D)
+            err = stages(_rate, no_after, p, rtol, atol, h, ws, y, f, y1, D)
             while err > 1.0:
                 h *= 0.1 if err == np.inf else max(0.2, 0.9 * err ** -0.2)
                 if h < 1e-14 * max(abs(t), 1.0):
                     return -1
-                err = stages(_rate, p, rtol, atol, h, ws, y, f, y1, D)
+                err = stages(_rate, no_after, p, rtol, atol, h, ws, y, f, y1, D)
             steps += 1
             if n_s:
                 S0[:, :] = S

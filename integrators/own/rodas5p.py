@@ -29,14 +29,14 @@ from numba import njit
 from integrators.core.registry import register
 from integrators.own import batch, engine, sensitivity
 from integrators.own.compiled import CompiledAlgorithm
-from integrators.own.rodas5p_stages import sensitivity_workspace, stages, workspace
+from integrators.own.rodas5p_stages import no_after, sensitivity_workspace, stages, workspace
 
 __all__ = ["Rodas5P"]
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _attempt(p, hs, ws, z0, f0, z1, f1, D):
-    return stages(engine.f_of, p, p[engine.P_RTOL], p[engine.P_ATOL], hs, ws, z0, f0, z1, D)
+    return stages(engine.f_of, no_after, p, p[engine.P_RTOL], p[engine.P_ATOL], hs, ws, z0, f0, z1, D)
 
 
 @njit(**engine.NO_NRT)

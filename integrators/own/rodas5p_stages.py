@@ -11,7 +11,7 @@ from numba import njit
 
 from integrators.own.linalg import factor, lu_solve3
 
-__all__ = ["stages", "workspace", "stage_sensitivities", "sensitivity_workspace",
+__all__ = ["stages", "no_after", "workspace", "stage_sensitivities", "sensitivity_workspace",
            "dense_sensitivities", "A5P", "C5P", "G5P", "H5P"]
 
 # Rodas5P (Steinebach 2023), from OrdinaryDiffEq.jl's Rodas5PTableau; C padded to 8×8
@@ -54,13 +54,20 @@ def workspace():
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def stages(rhs, p, rtol, atol, hs, ws, z0, f0, z1, D):
+def no_after(p, s, u, ws):
+    """:func:`stages`' ``after`` when nothing is wanted at the stages."""
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def stages(rhs, after, p, rtol, atol, hs, ws, z0, f0, z1, D):
     """One attempt of a step ``hs`` from ``z0`` (``f0`` = f(z0), ws[0] = J(z0)) for the
     right-hand side ``rhs(p, z, out)``: z1 into ``z1``, the dense output's D (an accepted
     attempt only); returns the scaled error (inf if M is singular or the error not finite).
-    The slider's kernel and the laboratory's two-state model (:mod:`benchmarks.lab.two_state`)
-    share it."""
-    J, M, piv, K, u, fb = ws
+    ``after(p, s, u, ws)`` runs after f at each stage s ≥ 1 (at its argument u): the forward
+    sensitivities take the stages' Jacobians there, sharing f's work (:func:`no_after`:
+    nothing). ``ws``: :func:`workspace`'s, and after it what ``after`` reads. The slider's
+    kernel and the laboratory's two-state model (:mod:`benchmarks.lab.two_state`) share it."""
+    J, M, piv, K, u, fb = ws[0], ws[1], ws[2], ws[3], ws[4], ws[5]
     hg = hs * G5P
     regular = factor(hg, J, M, piv)
     for s in range(8):
@@ -74,6 +81,7 @@ def stages(rhs, p, rtol, atol, hs, ws, z0, f0, z1, D):
                 fb[i] = f0[i]
         else:
             rhs(p, u, fb)
+            after(p, s, u, ws)
         for i in range(3):
             acc = 0.0
             for j in range(s):
@@ -107,7 +115,7 @@ def sensitivity_workspace(n_s):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def stage_sensitivities(partials, second, p, dirs, hs, ws, sw, z0, S):
+def stage_sensitivities(partials, second, p, dirs, hs, ws, sw, z0, S, staged=False):
     """The forward sensitivities S (row n: ∂z/∂θ_n, one row per direction of ``dirs``) from
     the accepted step ``hs`` at ``z0`` to its end, in place (the dense output's:
     :func:`dense_sensitivities`): the step's stages differentiated (internal
@@ -118,13 +126,14 @@ def stage_sensitivities(partials, second, p, dirs, hs, ws, sw, z0, S):
 
     (dJ K_s because M = I − hγ J(z0) depends on θ). The model gives ``partials(p, dirs, z,
     jac, fth, s)``: ∂f/∂z into jac[s], ∂f/∂θ into fth[s]'s columns; and ``second(p, dirs, z,
-    hyy, hyt)``: ∂²f/∂z∂z, ∂²f/∂z∂θ. Allocates nothing."""
+    hyy, hyt)``: ∂²f/∂z∂z, ∂²f/∂z∂θ. ``staged``: the step's :func:`stages` made jac[s] and
+    fth[s] for s ≥ 1 already (its ``after``). Allocates nothing."""
     M, piv, K, u = ws[1], ws[2], ws[3], ws[4]       # ws may carry more (a kernel's own)
     jst, fst, hyy, hyt, dk, mi, ua, ca = sw
     hg = hs * G5P
     partials(p, dirs, z0, jst, fst, 0)
     second(p, dirs, z0, hyy, hyt)
-    for s in range(1, 8):
+    for s in range(1, 1 if staged else 8):
         for i in range(3):
             acc = z0[i]
             for j in range(s):

@@ -299,7 +299,8 @@ def _restart(tau, st, p, Z, sa):
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _rodas_step(p, dq, hs, ws, sw, z0, S):
-    stage_sensitivities(_partials, _second, p, dq, hs, ws, sw, z0, S)
+    # the last attempt, the accepted one, made the stages' Jacobians (_stage_partials)
+    stage_sensitivities(_partials, _second, p, dq, hs, ws, sw, z0, S, True)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -404,8 +405,7 @@ def _attempt(p, hs, ws, z0, f0, z1, f1, D):
     and its error, dK_7 of each direction scaled by its parameter's size, |θ| ∂z/∂θ
     (CVODES' scaling), against the state's atol + rtol·|θ S|: the larger error decides."""
     sa = ws[6]
-    err = stages(engine.f_of, p, p[_P_RTOL], p[_P_ATOL], hs,
-                 (ws[0], ws[1], ws[2], ws[3], ws[4], ws[5]), z0, f0, z1, D)
+    err = stages(engine.f_of, _stage_partials, p, p[_P_RTOL], p[_P_ATOL], hs, ws, z0, f0, z1, D)
     tmp, SN = sa[11], sa[12]
     if tmp[2, 1] == 0.0 or not err <= 1.0 or tmp[2, 2] != 0.0:
         return err                      # (after an arrest S is NaN: the state's test alone)
@@ -413,8 +413,17 @@ def _attempt(p, hs, ws, z0, f0, z1, f1, D):
     for n in range(S.shape[0]):
         for i in range(3):
             SN[n, i] = S[n, i]
-    stage_sensitivities(_partials, _second, p, sa[2], hs, ws, sw, z0, SN)
+    stage_sensitivities(_partials, _second, p, sa[2], hs, ws, sw, z0, SN, True)
     return _error_test(p, S, SN, DIRS, sw[4], 7, err)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _stage_partials(p, s, u, ws):
+    """:func:`stages`' ``after`` for the sensitive kernel: stage s's ∂f/∂z and ∂f/∂θ at its
+    argument u (:func:`_partials`, beside f there: the two share exp(u)), for every attempt,
+    so that the accepted one's are at hand (``ws[6]``: ``sa``)."""
+    sa = ws[6]
+    _partials(p, sa[2], u, sa[0][0], sa[0][1], s)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
