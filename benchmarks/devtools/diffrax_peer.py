@@ -98,17 +98,11 @@ def _constants(problem) -> tuple[str, bool, np.ndarray]:
     return ("slip" if law == "SlipLaw" else "aging"), two, np.array(c, dtype=float)
 
 
-@lru_cache(maxsize=None)
-def _compiled(law: str, two_speed: bool, n_events: int, max_steps: int):
-    """The jitted calls (θ = (b, Lc), the constants, rtol) → the rows (ΔT, Δμ) of events
-    2..``n_events``, and → their Jacobian and the steps; compiled once per law, loading kind
-    and number of events."""
-    os.environ.setdefault("EQX_ON_ERROR", "nan")    # read when equinox is first imported
+def _segments(law: str, max_steps: int):
+    """diffrax's solve of the slider from one located crossing to the next (``segment``)."""
     import diffrax as dfx
-    import jax
     import jax.numpy as jnp
     import optimistix as optx
-    jax.config.update("jax_enable_x64", True)
 
     def rhs(t, y, args):
         (b, lc), c, vl = args
@@ -141,6 +135,19 @@ def _compiled(law: str, two_speed: bool, n_events: int, max_steps: int):
         if guard is not None:
             ok = ok & ~sol.event_mask[1]
         return sol.ts[-1], sol.ys[-1], jnp.where(ok, sol.stats["num_steps"], -1e12)
+    return segment
+
+
+@lru_cache(maxsize=None)
+def _compiled(law: str, two_speed: bool, n_events: int, max_steps: int):
+    """The jitted calls (θ = (b, Lc), the constants, rtol) → the rows (ΔT, Δμ) of events
+    2..``n_events``, and → their Jacobian, the rows and the steps; compiled once per law,
+    loading kind and number of events."""
+    os.environ.setdefault("EQX_ON_ERROR", "nan")    # read when equinox is first imported
+    import jax
+    import jax.numpy as jnp
+    jax.config.update("jax_enable_x64", True)
+    segment = _segments(law, max_steps)
 
     def rows(theta, c, tol):
         b, lc = theta[0], theta[1]

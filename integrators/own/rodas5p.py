@@ -36,7 +36,8 @@ __all__ = ["Rodas5P"]
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _attempt(p, hs, ws, z0, f0, z1, f1, D):
-    return stages(engine.f_of, no_after, p, p[engine.P_RTOL], p[engine.P_ATOL], hs, ws, z0, f0, z1, D)
+    return stages(engine.f_of, no_after, p, p[engine.P_RTOL], p[engine.P_ATOL], hs, ws, z0, f0,
+                  z1, D)
 
 
 @njit(**engine.NO_NRT)

@@ -127,7 +127,8 @@ def stage_sensitivities(partials, second, p, dirs, hs, ws, sw, z0, S, staged=Fal
     (dJ K_s because M = I − hγ J(z0) depends on θ). The model gives ``partials(p, dirs, z,
     jac, fth, s)``: ∂f/∂z into jac[s], ∂f/∂θ into fth[s]'s columns; and ``second(p, dirs, z,
     hyy, hyt)``: ∂²f/∂z∂z, ∂²f/∂z∂θ. ``staged``: the step's :func:`stages` made jac[s] and
-    fth[s] for s ≥ 1 already (its ``after``). Allocates nothing."""
+    fth[s] for s ≥ 1 already (its ``after``), and nothing has run an attempt since (else
+    they are another step's). Allocates nothing."""
     M, piv, K, u = ws[1], ws[2], ws[3], ws[4]       # ws may carry more (a kernel's own)
     jst, fst, hyy, hyt, dk, mi, ua, ca = sw
     hg = hs * G5P

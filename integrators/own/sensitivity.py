@@ -299,7 +299,8 @@ def _restart(tau, st, p, Z, sa):
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _rodas_step(p, dq, hs, ws, sw, z0, S):
-    # the last attempt, the accepted one, made the stages' Jacobians (_stage_partials)
+    # the engine's SENSE_STEP comes straight after the accepted attempt, the last one, whose
+    # stages made the stage Jacobians (_stage_partials): nothing runs an attempt between
     stage_sensitivities(_partials, _second, p, dq, hs, ws, sw, z0, S, True)
 
 
@@ -421,9 +422,10 @@ def _attempt(p, hs, ws, z0, f0, z1, f1, D):
 def _stage_partials(p, s, u, ws):
     """:func:`stages`' ``after`` for the sensitive kernel: stage s's ∂f/∂z and ∂f/∂θ at its
     argument u (:func:`_partials`, beside f there: the two share exp(u)), for every attempt,
-    so that the accepted one's are at hand (``ws[6]``: ``sa``)."""
+    so that the accepted one's are at hand (``ws[6]``: ``sa``); none after an arrest."""
     sa = ws[6]
-    _partials(p, sa[2], u, sa[0][0], sa[0][1], s)
+    if sa[11][2, 2] == 0.0:
+        _partials(p, sa[2], u, sa[0][0], sa[0][1], s)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
