@@ -214,7 +214,7 @@ def _peer_text(rows: pd.DataFrame) -> str:
     return ("## The external peer: diffrax\n\n" + diffrax_peer.__doc__.split("\n\n")[0]
             .replace("\n", " ") + " Kvaerno5 with a PID controller, each event a terminating "
             "`diffrax.Event` located by `optimistix.Newton`, `jax.jacfwd` with "
-            "`diffrax.ForwardMode` (:mod:`benchmarks.devtools.diffrax_peer`). `ratio`: its "
+            "`diffrax.ForwardMode` (`benchmarks/devtools/diffrax_peer.py`). `ratio`: its "
             "call with the gradients over its solve alone, each the minimum of 2 after the "
             "first calls (`first_s`: with the compile where the call was not compiled before); "
             "its derivatives are not in its step control (compare the `held` ways).\n\n"
@@ -229,8 +229,8 @@ def _peer_text(rows: pd.DataFrame) -> str:
 def run(out: Path) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
+        cost = sensitivity_cost()       # first: JAX's threads idle on after the peer's runs
         rows = gradient_errors(progress=True)
-        cost = sensitivity_cost()
     write_table(rows, out / "gradients.csv")
     write_table(cost, out / "gradients_cost.csv")
     _figure(rows, out / "gradients.png")
