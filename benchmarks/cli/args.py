@@ -29,7 +29,8 @@ __all__ = ["say", "show_progress", "RunStopped", "Parser", "HelpFormatter", "pos
            "add_problem_options", "add_integrator_options", "add_overwrite_options",
            "integrator_from_args",
            "problem_from_args", "add_problem_choice", "add_observation_options",
-           "check_observation_options", "observations_from_args", "ACCURACY"]
+           "check_observation_options", "observations_from_args", "ACCURACY",
+           "sensitivity_request", "add_sensitivity_option"]
 
 #: the relative error in ΔT the default integrator must reach
 ACCURACY = 1e-3
@@ -521,6 +522,36 @@ def integrator_from_args(args):
     return recommended(args.accuracy)
 
 
+def sensitivity_request(args, problem, algorithm, why):
+    """(parameter names, the algorithm, why) for --sensitivity: the names checked against the
+    problem; without --integrator, Rodas5P at the recommended tolerance or
+    SENSITIVITY_RTOL, whichever is tighter (gradients of event times need it); a named method
+    without sensitivities is refused (ValueError)."""
+    if args.sensitivity is None:
+        return (), algorithm, why
+    from integrators import make_algorithm
+    from problems.directions import SENSITIVITY_RTOL, sensitivity_names
+    names = sensitivity_names(problem, args.sensitivity)
+    if args.integrator:
+        if not getattr(algorithm, "sensitive", False):
+            raise ValueError(f"--sensitivity: {algorithm.name} has no forward sensitivities; "
+                             "use --integrator Rodas5P or RadauIIA5")
+        return names, algorithm, why
+    tol = min(getattr(algorithm, "rtol", None) or SENSITIVITY_RTOL, SENSITIVITY_RTOL)
+    why = (f"Rodas5P at rtol {tol:g}, for --sensitivity (gradients of event times need rtol ≤ "
+           f"{SENSITIVITY_RTOL:g}; the recommendation was {algorithm.name})")
+    return names, make_algorithm("Rodas5P", rtol=tol, atol=tol), why
+
+
+def add_sensitivity_option(p, what: str) -> None:
+    """--sensitivity NAMES: the gradients ``what`` says, along the named parameters."""
+    p.add_argument("--sensitivity", metavar="NAMES",
+                   help="parameters to differentiate by, comma-separated (a, b, lc, c, k, m, "
+                        "fn, damping, vl, vls, vlf, df, the initial state's): the gradients "
+                        f"{what}; Rodas5P at rtol ≤ 1e-6 unless --integrator says otherwise "
+                        "(default: none)")
+
+
 def add_solver_check_option(p) -> None:
     """--no-solver-check: skip the check of the integrator on the problem's own box."""
     p.add_argument("--no-solver-check", action="store_true",
@@ -528,18 +559,20 @@ def add_solver_check_option(p) -> None:
                         "box's corners and centre (σ/10; default: check, and tighten or refuse)")
 
 
-def checked_integrator(args, problem, obs, b_range, lc_range, algorithm, why: str):
+def checked_integrator(args, problem, obs, b_range, lc_range, algorithm, why: str,
+                       keep_method: bool = False):
     """``(algorithm, why, check)``: the integrator checked on ``problem``'s box for ``obs``
     (:func:`benchmarks.inversion.solver_check.check_solver`), tightened if it had to be (a
-    recommended one along the work-precision front, which may change the method);
-    ``ValueError`` when no setting passes; ``check`` None with --no-solver-check."""
+    recommended one along the work-precision front, which may change the method, unless
+    ``keep_method``); ``ValueError`` when no setting passes; ``check`` None with
+    --no-solver-check."""
     from benchmarks.inversion.solver_check import check_solver
     if args.no_solver_check:
         return algorithm, why + " (not checked on this problem: --no-solver-check)", None
     from benchmarks.inversion.solver_check import WALL_BUDGET, tighter
     talk = (lambda text: None) if args.json else (lambda text: say(f"… {text}"))
     step = tighter
-    if not getattr(args, "integrator", None):     # the recommendation: tightened along its front
+    if not getattr(args, "integrator", None) and not keep_method:   # the recommendation:
         from benchmarks.devtools.recommendation import tighter_on_front
         step = lambda alg: tighter_on_front(alg) or tighter(alg)  # noqa: E731
     check = check_solver(problem, algorithm, obs, b_range, lc_range, next_setting=step,

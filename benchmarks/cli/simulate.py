@@ -15,6 +15,7 @@ from pathlib import Path
 
 from benchmarks.cli.args import (
     add_integrator_options,
+    add_sensitivity_option,
     add_problem_options,
     integrator_from_args,
     out_dir,
@@ -22,6 +23,7 @@ from benchmarks.cli.args import (
     positive,
     problem_from_args,
     say,
+    sensitivity_request,
     show_progress,
 )
 from benchmarks.devtools.timing import warm_up
@@ -69,7 +71,7 @@ def cmd_simulate(args) -> int:
     problem = problem_from_args(args)
     check_save_rate(args.save_rate, problem.t_end, args.save or args.plot)
     algorithm, why = integrator_from_args(args)
-    names, algorithm, why = _sensitivity_request(args, problem, algorithm, why)
+    names, algorithm, why = sensitivity_request(args, problem, algorithm, why)
     grads = args.save and names and args.save.with_name(args.save.stem + ".sensitivity.csv")
     claim_outputs([p for p in (args.save, args.save and args.save.with_name(
         args.save.name + ".json"), args.plot, grads, grads and grads.with_name(
@@ -105,27 +107,6 @@ def cmd_simulate(args) -> int:
         if args.plot:
             say(f"  figure      {args.plot}")
     return 0 if sol.success else 1
-
-
-def _sensitivity_request(args, problem, algorithm, why):
-    """(parameter names, the algorithm, why) for --sensitivity: the names checked against the
-    problem, and the method Rodas5P at the chosen tolerance when the recommendation is one
-    without sensitivities; a named one without them is refused (ValueError)."""
-    if args.sensitivity is None:
-        return (), algorithm, why
-    from integrators import make_algorithm
-    from problems.directions import SENSITIVITY_RTOL
-    from problems.directions import sensitivity_names
-    names = sensitivity_names(problem, args.sensitivity)
-    if not getattr(algorithm, "sensitive", False):
-        if args.integrator:
-            raise ValueError(f"--sensitivity: {algorithm.name} has no forward sensitivities; "
-                             "use --integrator Rodas5P or RadauIIA5")
-        tol = min(algorithm.rtol, SENSITIVITY_RTOL)
-        why = (f"Rodas5P at rtol {tol:g} (the recommended {algorithm.name} has no forward "
-               f"sensitivities, and gradients need rtol ≤ {SENSITIVITY_RTOL:g})")
-        algorithm = make_algorithm("Rodas5P", rtol=tol, atol=tol)
-    return names, algorithm, why
 
 
 def _sensitivity_summary(sol, path, command: str) -> dict:
@@ -300,13 +281,10 @@ def add_parsers(sub) -> None:
                         f"samples over the run, t_end/{DEFAULT_POINTS - 1:,} apart: "
                         "about 500 Hz over 40 s)")
     s.add_argument("--progress", action="store_true", help="show a progress bar")
-    s.add_argument("--sensitivity", metavar="NAMES",
-                   help="parameters to differentiate by, comma-separated (a, b, lc, c, k, m, "
-                        "fn, damping, vl, vls, vlf, df, the initial state's): the gradients "
-                        "of the limit cycle's metrics (SI per unit), from forward "
-                        "sensitivities through the steps (Rodas5P's or RadauIIA5's) and event "
-                        "roots; with --save, every event's in FILE.sensitivity.csv; Rodas5P "
-                        "at rtol ≤ 1e-6 unless --integrator says otherwise (default: none)")
+    add_sensitivity_option(s, "of the limit cycle's metrics (SI per unit), from forward "
+                              "sensitivities through the steps (Rodas5P's or RadauIIA5's) and "
+                              "event roots; with --save, every event's in "
+                              "FILE.sensitivity.csv")
     s.set_defaults(func=cmd_simulate)
 
     i = sub.add_parser("integrators", help="list the registry")

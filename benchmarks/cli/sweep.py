@@ -13,6 +13,7 @@ import pandas as pd
 
 from benchmarks.cli.args import (
     add_integrator_options,
+    add_sensitivity_option,
     add_observation_options,
     add_problem_choice,
     add_problem_options,
@@ -31,6 +32,7 @@ from benchmarks.cli.args import (
     problem_from_args,
     say,
     seed,
+    sensitivity_request,
     show_progress,
 )
 from benchmarks.cli.invert import WALL_BUDGET
@@ -63,14 +65,18 @@ def cmd_sweep(args) -> int:
         raise ValueError("--slip-weakening: the --observations file holds its own curves")
     curves = read_curves(args.slip_weakening) if args.slip_weakening else None
     obs = observations_from_args(args, published, curves)
+    if args.sensitivity is not None and obs.curves is not None:
+        raise ValueError("--sensitivity: not with slip-weakening curves (--slip-weakening, or "
+                         "curves in --observations); a batch with curves has no sensitivities")
     algorithm, why = integrator_from_args(args)
+    names, algorithm, why = sensitivity_request(args, problem, algorithm, why)
     name = args.preset if args.problem is None else Path(args.problem).stem
     out = Path(args.out or f"sweep_{name}_{problem.law.name}")
     claim_outputs([out / "sweep.csv", out / "summary.json",      # a user's file there:
                    *([] if args.no_plot else [out / "maps.png"])])  # refused before the work
     algorithm, why, check = checked_integrator(
         args, problem, obs, (float(min(b_values)), float(max(b_values))),
-        (float(min(lc_values)), float(max(lc_values))), algorithm, why)
+        (float(min(lc_values)), float(max(lc_values))), algorithm, why, keep_method=bool(names))
     if not args.json:
         say(f"integrator: {why}")
         if obs.assumed_sigma:
@@ -79,7 +85,7 @@ def cmd_sweep(args) -> int:
                    scheduler=args.scheduler, backend=args.backend, wall_budget=args.wall_budget,
                    progress=show_progress(args), max_points=args.max_points,
                    connect_timeout=args.connect_timeout, worker_timeout=args.worker_timeout,
-                   chunk_size=args.chunk_size,
+                   chunk_size=args.chunk_size, sensitivity=names or None,
                    provenance={"command": args.command_line, "integrator_choice": why,
                                "solver_check": None if check is None else check.summary(),
                                "problem_file": (None if args.problem is None
@@ -211,6 +217,9 @@ def _add_sweep(sub, preset_names) -> None:
     s.add_argument("--out", type=out_dir, metavar="DIR",
                    help="directory of the store (DIR/chunks), table and maps (default: "
                         "./sweep_<preset or file name>_<law>)")
+    add_sensitivity_option(s, "of each point's limit-cycle metrics, columns "
+                              "d_<metric>_d_<parameter> of sweep.csv (SI per unit; not with "
+                              "slip-weakening curves)")
     s.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     s.add_argument("--no-progress", action="store_true", help="no progress bar")
     s.add_argument("--no-plot", action="store_true", help="do not draw maps.png")

@@ -24,7 +24,8 @@ import numpy as np
 import pandas as pd
 
 from benchmarks.physics.curves import event_curve
-from benchmarks.physics.metrics import CLASSIFICATIONS, CYCLES, EndState, cycle_from, summarize
+from benchmarks.physics.metrics import (CLASSIFICATIONS, CYCLES, METRICS, EndState, cycle_from,
+                                        summarize)
 from integrators import ReturnCode, solve
 from integrators.core import cycles
 from integrators.own import batch as B
@@ -34,7 +35,7 @@ from problems.formulations import from_ode_state
 from problems.slider import TAU_END_MAX
 
 __all__ = ["RESULT_COLUMNS", "METRIC_COLUMNS", "COUNTER_COLUMNS", "CURVE_COLUMNS", "CURVE_POINTS",
-           "CHAIN_POINTS", "chained_curve",
+           "CHAIN_POINTS", "chained_curve", "gradient_columns",
            "batch_rows",
            "point_rows", "failed_rows", "compiled", "columns_of"]
 
@@ -57,9 +58,24 @@ CURVE_POINTS = 257
 CHAIN_POINTS = 3 * (CURVE_POINTS - 1) // 2 + 1
 
 
-def columns_of(names, curves: bool) -> list[str]:
-    """The columns of an ensemble's table: the parameters, the results, the curves if any."""
-    return [*names, *RESULT_COLUMNS, *(CURVE_COLUMNS if curves else ())]
+#: the message of a limit cycle whose gradient is unknown
+NO_GRADIENT = ("its cycle has no gradient: an arrest in the run (the engine's limit step "
+               "through a deep lock has no derivative), or a period that reaches back to the "
+               "first event (whose recurrence time is unknown)")
+
+
+def gradient_columns(sensitivity) -> list[str]:
+    """The columns of the limit cycle's gradient along the parameters ``sensitivity``:
+    ``d_<metric>_d_<parameter>`` for each of :data:`benchmarks.physics.metrics.METRICS` (SI
+    units per the parameter's SI unit)."""
+    return [f"d_{m}_d_{n}" for m in METRICS for n in sensitivity]
+
+
+def columns_of(names, curves: bool, sensitivity=()) -> list[str]:
+    """The columns of an ensemble's table: the parameters, the results, the gradients and the
+    curves if any."""
+    return [*names, *RESULT_COLUMNS, *gradient_columns(sensitivity),
+            *(CURVE_COLUMNS if curves else ())]
 
 
 def compiled(algorithm) -> bool:
@@ -77,6 +93,9 @@ def _frame(names, values, columns: dict) -> pd.DataFrame:
         data[c] = (pd.array(x, dtype="str") if c in _TEXT
                    else np.asarray(x, dtype=np.int64 if c in COUNTER_COLUMNS + ("n_events",)
                                    else float))
+    for c in columns:
+        if c.startswith("d_"):
+            data[c] = np.asarray(columns[c], dtype=float)
     for c in CURVE_COLUMNS:
         if c in columns:
             data[c] = pd.Series([np.asarray(x, dtype=float) for x in columns[c]], dtype=object)
@@ -84,7 +103,8 @@ def _frame(names, values, columns: dict) -> pd.DataFrame:
 
 
 def batch_rows(problems, algorithm, names, values, wall_budget=None,
-               parallel: bool = True, curves: bool = False, chain=None) -> pd.DataFrame:
+               parallel: bool = True, curves: bool = False, chain=None, sensitivity=(),
+               sensitivity_error: bool = True) -> pd.DataFrame:
     """The rows of ``problems`` (the points ``values`` of ``names``) solved in one compiled
     batch of the own ``algorithm``, on numba's threads or (``parallel`` False) on this one;
     with ``curves``, each row with a limit cycle has its slip-weakening curve
@@ -110,14 +130,46 @@ def batch_rows(problems, algorithm, names, values, wall_budget=None,
     chain : benchmarks.physics.chain.Chain, optional
         The measurement chain each curve is passed through (:func:`chained_curve`): the
         second solve then also covers the chain's margin either side of the event.
+    sensitivity : tuple of str
+        Parameters to differentiate the limit cycle's metrics by (Rodas5P, RadauIIA5; not with
+        ``curves``): :func:`gradient_columns`, NaN without a cycle or without a derivative.
+    sensitivity_error : bool
+        The sensitivities in the step control (as :func:`integrators.solve`'s).
 
     Returns
     -------
     pandas.DataFrame
-        One row per point: its parameters, then :data:`RESULT_COLUMNS` (and
-        :data:`CURVE_COLUMNS` with ``curves``).
+        One row per point: its parameters, then :data:`RESULT_COLUMNS` (and the gradients
+        with ``sensitivity``, :data:`CURVE_COLUMNS` with ``curves``).
     """
-    R, states = _solve_batch(problems, algorithm, wall_budget, parallel, curves, chain)
+    R, states, grad = _solve_batch(problems, algorithm, wall_budget, parallel, curves, chain,
+                                   (sensitivity, sensitivity_error))
+    n = len(problems)
+    col, metrics = _outcomes(problems, algorithm, R, wall_budget)
+    col.update({c: metrics[:, j] for j, c in enumerate(METRIC_COLUMNS)})
+    col.update(n_events=R[:, B.R["N_EVENTS"]], kappa=[p.kappa for p in problems],
+               nfev=R[:, B.R["NFEV"]], njev=R[:, B.R["NJEV"]], steps=R[:, B.R["STEPS"]],
+               rejected=R[:, B.R["REJECTED"]], wall_s=R[:, B.R["WALL_S"]],
+               integrator=[algorithm.name] * n)
+    if sensitivity:
+        flat = grad.reshape(n, 4 * len(sensitivity))
+        col.update(zip(gradient_columns(sensitivity), flat.T))
+        for i in np.flatnonzero(np.isnan(flat).all(axis=1)):
+            if col["classification"][i] in CYCLES:
+                col["message"][i] = NO_GRADIENT
+    if curves:
+        col["curve_slip"], col["curve_friction"] = zip(*_curves(
+            problems, states, col["classification"], chain, parallel))
+        for i, (what, slip) in enumerate(zip(col["classification"], col["curve_slip"])):
+            if what in CYCLES and not len(slip):
+                col["message"][i] = ("its slip-weakening curve could not be made: the second "
+                                     "solve over its last event stopped (its wall budget?)")
+    return _frame(names, values, col)
+
+
+def _outcomes(problems, algorithm, R, wall_budget) -> tuple[dict, np.ndarray]:
+    """Each point's class, retcode and message (as :func:`point_rows` words them) and its
+    limit-cycle metrics (NaN without a cycle), from the batch's rows ``R``."""
     n = len(problems)
     col = {c: [None] * n for c in ("classification", "retcode", "message")}
     metrics = np.full((n, len(METRIC_COLUMNS)), np.nan)
@@ -147,19 +199,7 @@ def batch_rows(problems, algorithm, names, values, wall_budget=None,
                                      B.CYCLE_MAX_PERIOD, B.CYCLE_MIN_REPEATS, end).reason
         col["classification"][i], col["retcode"][i], col["message"][i] = (
             what, retcode.value, message)
-    col.update({c: metrics[:, j] for j, c in enumerate(METRIC_COLUMNS)})
-    col.update(n_events=R[:, B.R["N_EVENTS"]], kappa=[p.kappa for p in problems],
-               nfev=R[:, B.R["NFEV"]], njev=R[:, B.R["NJEV"]], steps=R[:, B.R["STEPS"]],
-               rejected=R[:, B.R["REJECTED"]], wall_s=R[:, B.R["WALL_S"]],
-               integrator=[algorithm.name] * n)
-    if curves:
-        col["curve_slip"], col["curve_friction"] = zip(*_curves(
-            problems, states, col["classification"], chain, parallel))
-        for i, (what, slip) in enumerate(zip(col["classification"], col["curve_slip"])):
-            if what in CYCLES and not len(slip):
-                col["message"][i] = ("its slip-weakening curve could not be made: the second "
-                                     "solve over its last event stopped (its wall budget?)")
-    return _frame(names, values, col)
+    return col, metrics
 
 
 def _curves(problems, states, classes, chain, parallel: bool) -> list:
@@ -176,15 +216,22 @@ def _curves(problems, states, classes, chain, parallel: bool) -> list:
         return list(pool.map(one, range(len(problems))))
 
 
-def _solve_batch(problems, algorithm, wall_budget, parallel: bool, curves: bool, chain):
-    """``(R, CURVE)`` of the batch: the curves' rows over the event (and the chain's margin),
-    None without curves."""
+def _solve_batch(problems, algorithm, wall_budget, parallel: bool, curves: bool, chain,
+                 sensitive=((), True)):
+    """``(R, CURVE, GRAD)`` of the batch: the curves' rows over the event (and the chain's
+    margin), None without curves; the cycles' gradients along ``sensitive`` (names, error
+    control), None without."""
+    if sensitive[0]:
+        R, grad = algorithm.solve_batch(problems, wall_budget, parallel,
+                                        sensitivity=sensitive[0],
+                                        sensitivity_error=sensitive[1])
+        return R, None, grad
     if curves and chain is not None:
-        return algorithm.solve_batch(problems, wall_budget, parallel, CHAIN_POINTS,
-                                     chain.margin_s)
+        return (*algorithm.solve_batch(problems, wall_budget, parallel, CHAIN_POINTS,
+                                       chain.margin_s), None)
     if curves:
-        return algorithm.solve_batch(problems, wall_budget, parallel, CURVE_POINTS)
-    return algorithm.solve_batch(problems, wall_budget, parallel), None
+        return (*algorithm.solve_batch(problems, wall_budget, parallel, CURVE_POINTS), None)
+    return algorithm.solve_batch(problems, wall_budget, parallel), None, None
 
 
 def _curve(problem, z: np.ndarray, chain=None) -> tuple[np.ndarray, np.ndarray]:
@@ -298,13 +345,13 @@ def _failed(message: str, problem, algorithm, curve_dt=None) -> dict:
 
 
 def failed_rows(problems, algorithm, names, values, message: str,
-                curve_dt: float | None = None) -> pd.DataFrame:
+                curve_dt: float | None = None, sensitivity=()) -> pd.DataFrame:
     """The rows of points that could not be run at all (their workers died): ``Failure`` with
-    ``message``."""
+    ``message`` (and NaN gradients along ``sensitivity``)."""
     return _frame(names, values, _columns([_failed(message, p, algorithm, curve_dt)
-                                           for p in problems], curve_dt))
+                                           for p in problems], curve_dt, sensitivity))
 
 
-def _columns(rows: list[dict], curves) -> dict:
-    cols = RESULT_COLUMNS + (CURVE_COLUMNS if curves else ())
+def _columns(rows: list[dict], curves, sensitivity=()) -> dict:
+    cols = (*RESULT_COLUMNS, *gradient_columns(sensitivity), *(CURVE_COLUMNS if curves else ()))
     return {c: [row.get(c, np.nan) for row in rows] for c in cols}

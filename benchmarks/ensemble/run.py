@@ -25,6 +25,7 @@ from __future__ import annotations
 import contextlib
 import os
 import time
+import warnings
 from dataclasses import dataclass, field
 
 import numba
@@ -83,6 +84,10 @@ class Chunk:
         The measurement chain the curves are passed through (:func:`ensemble`).
     problems : tuple of SpringSlider, optional
         The points' problems, built and checked already in this process.
+    sensitivity : tuple of str
+        Parameters to differentiate each limit cycle's metrics by (:func:`ensemble`).
+    sensitivity_error : bool
+        The sensitivities in the step control.
     """
 
     problem: object
@@ -97,6 +102,8 @@ class Chunk:
     #: the points' problems, when they were built and checked already in this process (a
     #: chunk sent to another process carries its values only)
     problems: tuple | None = field(default=None, repr=False)
+    sensitivity: tuple = ()
+    sensitivity_error: bool = True
 
 
 def batched(algorithm) -> bool:
@@ -134,14 +141,14 @@ def run_chunk(chunk: Chunk) -> pd.DataFrame:
     if not batched(chunk.algorithm):
         return point_rows(problems, chunk.algorithm, chunk.names, chunk.values,
                           chunk.wall_budget, chunk.curve_dt, chunk.curve_chain)
-    curves = bool(chunk.curve_dt)
+    how = dict(curves=bool(chunk.curve_dt), chain=chunk.curve_chain,
+               sensitivity=chunk.sensitivity, sensitivity_error=chunk.sensitivity_error)
     if chunk.threads == 1:               # a pool's process, a Dask worker: no OpenMP at all
         return batch_rows(problems, chunk.algorithm, chunk.names, chunk.values,
-                          chunk.wall_budget, parallel=False, curves=curves,
-                          chain=chunk.curve_chain)
+                          chunk.wall_budget, parallel=False, **how)
     with _numba_threads(chunk.threads):
         return batch_rows(problems, chunk.algorithm, chunk.names, chunk.values,
-                          chunk.wall_budget, curves=curves, chain=chunk.curve_chain)
+                          chunk.wall_budget, **how)
 
 
 @contextlib.contextmanager
@@ -163,7 +170,9 @@ def warm_chunk(chunk: Chunk) -> None:
         with units_checked_already():
             first = short_piece(point_problems(chunk.problem, chunk.names, chunk.values[:1])[0])
         run_chunk(Chunk(first, chunk.algorithm, (), np.empty((1, 0)), 0, threads=chunk.threads,
-                        curve_dt=chunk.curve_dt, curve_chain=chunk.curve_chain))
+                        curve_dt=chunk.curve_dt, curve_chain=chunk.curve_chain,
+                        sensitivity=chunk.sensitivity,
+                        sensitivity_error=chunk.sensitivity_error))
     except Exception:            # a failing point is reported by run_chunk, not here
         pass
 
@@ -173,7 +182,7 @@ def failed_chunk(chunk: Chunk, message: str) -> pd.DataFrame:
     (never stored, so that a rerun tries the chunk again)."""
     problems = point_problems(chunk.problem, chunk.names, chunk.values, chunk.first)
     table = failed_rows(problems, chunk.algorithm, chunk.names, chunk.values, message,
-                        chunk.curve_dt)
+                        chunk.curve_dt, chunk.sensitivity)
     table.attrs["transient"] = True
     return table
 
@@ -184,7 +193,8 @@ def ensemble(problem, algorithm, params, *, store=None, chunk_size: int | None =
              curve_dt: float | None = None, curve_chain=None, progress: bool = True,
              max_points: int = MAX_POINTS, connect_timeout: float = CONNECT_TIMEOUT_S,
              worker_timeout: float = WORKER_TIMEOUT_S, label: str = "",
-             reclaim_store: bool = False) -> pd.DataFrame:
+             reclaim_store: bool = False, sensitivity=None,
+             sensitivity_error: bool = True) -> pd.DataFrame:
     """Solve ``problem`` with ``algorithm`` at every point of ``params`` and summarise each.
 
     Parameters
@@ -227,14 +237,19 @@ def ensemble(problem, algorithm, params, *, store=None, chunk_size: int | None =
         The progress bar's label.
     reclaim_store : bool
         A store of another ensemble is cleared, not refused (for the harness's own caches).
+    sensitivity : str or sequence of str, optional
+        Parameters (as :func:`integrators.solve`'s) to differentiate each limit cycle's four
+        metrics by, in the compiled batch (Rodas5P, RadauIIA5; not with ``curve_dt``): the
+        columns ``d_<metric>_d_<parameter>`` (SI), NaN without a cycle.
+    sensitivity_error : bool
+        The sensitivities in the step control (default True).
 
     Returns
     -------
     pandas.DataFrame
-        One row per point in the order given: the parameters, then
-        :data:`benchmarks.ensemble.rows.RESULT_COLUMNS` (class, retcode, message, limit-cycle
-        metrics, κ, counters, the solve's wall time); a failed point is a row with its retcode.
-        ``attrs`` says how many points ran and were resumed, the wall time, the bad chunks.
+        One row per point in the order given: the parameters, then :data:`benchmarks.ensemble.
+        rows.RESULT_COLUMNS` (class, retcode, message, metrics, κ, counters, wall time; a
+        failed point: its retcode); ``attrs``: points run and resumed, wall time, bad chunks.
 
     Raises
     ------
@@ -242,22 +257,28 @@ def ensemble(problem, algorithm, params, *, store=None, chunk_size: int | None =
         For misuse, before any work (the module docstring for the rest).
     """
     plan = _plan(problem, algorithm, params, store, chunk_size, workers, backend, scheduler,
-                 wall_budget, curve_dt, max_points, reclaim_store, curve_chain)
-    values, chunks, chunk_store = plan["values"], plan["chunks"], plan["store"]
+                 wall_budget, curve_dt, max_points, reclaim_store, curve_chain,
+                 (sensitivity, sensitivity_error))
     start = time.perf_counter()
     bar = dict(unit="point", disable=not progress,
                desc=label or f"ensemble {problem.name or 'problem'}")
     tables, n_resumed = _solve_chunks(plan, store, scheduler, connect_timeout, worker_timeout,
                                       bar)
-    table = pd.concat([tables[c.first] for c in chunks], ignore_index=True)
-    table.attrs = {"n_points": len(values), "n_run": len(values) - n_resumed,
-                   "n_resumed": n_resumed, "wall_s": time.perf_counter() - start,
-                   "chunks": len(chunks), "chunk_size": plan["chunk_size"],
-                   "workers": 1 if scheduler else plan["workers"], "backend": plan["backend"],
-                   "scheduler": scheduler, "batched": plan["batch"],
-                   "bad_chunks": list(chunk_store.bad) if chunk_store else [],
-                   "stray_files": list(chunk_store.strays) if chunk_store else []}
+    table = pd.concat([tables[c.first] for c in plan["chunks"]], ignore_index=True)
+    table.attrs = _attrs(plan, n_resumed, time.perf_counter() - start, scheduler)
     return table
+
+
+def _attrs(plan, n_resumed: int, wall_s: float, scheduler) -> dict:
+    """The ``attrs`` of an ensemble's table: how many points ran and were resumed, the wall
+    time, how the work was cut and where it ran, the store's bad and stray files."""
+    chunk_store, n = plan["store"], len(plan["values"])
+    return {"n_points": n, "n_run": n - n_resumed, "n_resumed": n_resumed, "wall_s": wall_s,
+            "chunks": len(plan["chunks"]), "chunk_size": plan["chunk_size"],
+            "workers": 1 if scheduler else plan["workers"], "backend": plan["backend"],
+            "scheduler": scheduler, "batched": plan["batch"],
+            "bad_chunks": list(chunk_store.bad) if chunk_store else [],
+            "stray_files": list(chunk_store.strays) if chunk_store else []}
 
 
 def _solve_chunks(plan, store, scheduler, connect_timeout, worker_timeout, bar) -> tuple:
@@ -287,9 +308,11 @@ def _solve_chunks(plan, store, scheduler, connect_timeout, worker_timeout, bar) 
 
 
 def _plan(problem, algorithm, params, store, chunk_size, workers, backend, scheduler,
-          wall_budget, curve_dt, max_points, reclaim_store, curve_chain=None) -> dict:
+          wall_budget, curve_dt, max_points, reclaim_store, curve_chain=None,
+          sensitive=(None, True)) -> dict:
     """:func:`ensemble`'s arguments checked (ValueError before any work) and its points cut
-    into chunks, with the store they are kept in."""
+    into chunks, with the store they are kept in (``sensitive``: the sensitivity's names and
+    error control)."""
     if not isinstance(algorithm, Algorithm):
         raise ValueError(f"algorithm must be an Algorithm instance, got {algorithm!r}")
     for name, value in (("wall_budget", wall_budget), ("curve_dt", curve_dt)):
@@ -304,13 +327,15 @@ def _plan(problem, algorithm, params, store, chunk_size, workers, backend, sched
     chunk_size = (auto_chunk_size(len(values), algorithm) if chunk_size is None
                   else check_count("chunk_size", chunk_size))
     problems = point_problems(problem, names, values)     # every point valid, or say which
+    sensitive = _sensitivity(problems, algorithm, curve_dt, *sensitive)
     if curve_dt and not batch:                            # the saved trajectory fits memory
         Output(save_every=curve_dt).interval(max(p.t_end for p in problems))
     own_threads = batch and backend == "threads" and scheduler is None
     chunks = _chunks(problem, algorithm, names, values, problems, chunk_size, wall_budget,
-                     curve_dt, workers if own_threads else None, curve_chain)
+                     curve_dt, workers if own_threads else None, curve_chain, sensitive)
     chunk_store = (ChunkStore(store, identity_of(problem, algorithm, names, values, chunk_size,
-                                                 wall_budget, curve_dt, curve_chain),
+                                                 wall_budget, curve_dt, curve_chain,
+                                                 *sensitive),
                                reclaim_store)
                    if store is not None else None)
     return dict(names=names, values=values, chunks=chunks, store=chunk_store, batch=batch,
@@ -319,13 +344,40 @@ def _plan(problem, algorithm, params, store, chunk_size, workers, backend, sched
 
 
 def _chunks(problem, algorithm, names, values, problems, chunk_size, wall_budget, curve_dt,
-            threads: int | None, curve_chain=None) -> list[Chunk]:
+            threads: int | None, curve_chain=None, sensitive=((), True)) -> list[Chunk]:
     """The points cut into chunks of ``chunk_size``; with ``threads`` (a compiled batch on
     this machine) each chunk carries its points' problems and runs on that many threads."""
     return [Chunk(problem, algorithm, names, values[i:i + chunk_size], i, wall_budget,
                   threads=threads or 1, curve_dt=curve_dt, curve_chain=curve_chain,
-                  problems=tuple(problems[i:i + chunk_size]) if threads else None)
+                  problems=tuple(problems[i:i + chunk_size]) if threads else None,
+                  sensitivity=sensitive[0], sensitivity_error=sensitive[1])
             for i in range(0, len(values), chunk_size)]
+
+
+def _sensitivity(problems, algorithm, curve_dt, names, control) -> tuple:
+    """``(names, control)`` of an ensemble's sensitivities checked: the names resolved
+    (:func:`problems.directions.sensitivity_names`), () for none; ValueError for a method
+    without them, with curves, or for a name a point's problem lacks (a point without an
+    overshoot has no vlf), before any work; the warning of :func:`integrators.solve` for a
+    loose tolerance."""
+    if not isinstance(control, bool):
+        raise ValueError(f"sensitivity_error must be True or False, got {control!r}")
+    if names is None:
+        return (), control
+    if not getattr(algorithm, "sensitive", False):
+        raise ValueError(f"sensitivity: {algorithm.name} has no forward sensitivities; "
+                         "Rodas5P and RadauIIA5 have")
+    if curve_dt:
+        raise ValueError("sensitivity: an ensemble with curves (curve_dt) has no "
+                         "sensitivities; ask for one or the other")
+    from problems.directions import SENSITIVITY_RTOL, sensitivity_names
+    resolved = sensitivity_names(problems[0], names)
+    for problem in problems[1:]:
+        sensitivity_names(problem, resolved)
+    if algorithm.rtol > SENSITIVITY_RTOL:
+        warnings.warn(f"sensitivity at rtol {algorithm.rtol:g}: gradients of event times can "
+                      f"be far off, even in sign, above {SENSITIVITY_RTOL:g}", stacklevel=4)
+    return resolved, control
 
 
 def _run_chunks(todo, tables: dict, chunk_store, bar, n_kept: int, n_points: int, store,

@@ -50,7 +50,7 @@ import benchmarks
 import integrators
 import problems
 from benchmarks.ensemble.executors import RunStopped
-from benchmarks.ensemble.rows import METRIC_COLUMNS, columns_of
+from benchmarks.ensemble.rows import METRIC_COLUMNS, columns_of, gradient_columns
 from benchmarks.physics.metrics import CLASSIFICATIONS, CYCLES
 from benchmarks.records.files import _PREFIX as _TEMPORARY
 from benchmarks.records.files import LEDGER_LOCK, atomic_write, remove_stale_temporaries
@@ -123,17 +123,21 @@ def code_version() -> str:
 
 
 def identity_of(problem, algorithm, names, values, chunk_size: int, wall_budget,
-                curve_dt=None, curve_chain=None) -> dict:
+                curve_dt=None, curve_chain=None, sensitivity=(),
+                sensitivity_error: bool = True) -> dict:
     """What makes an ensemble the same ensemble: the code (:func:`code_version`), the base
     problem, the algorithm and its options, the wall budget per point, the curves' resolution,
-    the parameter names, the points (a hash) and the chunking (and a curves' measurement chain)."""
+    the parameter names, the points (a hash) and the chunking (and a curves' measurement chain,
+    the sensitivities asked for and their error control)."""
     return {"schema": SCHEMA, "code": code_version(), "problem": repr(problem),
             "algorithm": repr(algorithm),
             "wall_budget": wall_budget, "curve_dt": curve_dt, "parameters": list(names),
             "n_points": len(values),
             "points_sha256": hashlib.sha256(np.ascontiguousarray(values).tobytes()).hexdigest(),
             "chunk_size": chunk_size,
-            **({"curve_chain": repr(curve_chain)} if curve_chain is not None else {})}
+            **({"curve_chain": repr(curve_chain)} if curve_chain is not None else {}),
+            **({"sensitivity": list(sensitivity), "sensitivity_error": sensitivity_error}
+               if sensitivity else {})}
 
 
 class ChunkStore:
@@ -289,7 +293,8 @@ class ChunkStore:
             return None
         try:
             table = _verified(path, digest, key)
-            _check(table, names, values, path, bool(self.identity.get("curve_dt")))
+            _check(table, names, values, path, bool(self.identity.get("curve_dt")),
+                   tuple(self.identity.get("sensitivity", ())))
         except FileNotFoundError:
             self.bad.append(f"chunk {path} is listed but missing")
             warnings.warn(f"chunk {path} is listed in {IDENTITY} but missing: recomputing it",
@@ -384,7 +389,7 @@ def read_store(root) -> pd.DataFrame:
         names, n_points, size = list(held["parameters"]), int(held["n_points"]), \
             int(held["chunk_size"])
         listed = dict(held["chunks"])
-        curves = bool(held.get("curve_dt"))
+        curves, sensitivity = bool(held.get("curve_dt")), tuple(held.get("sensitivity", ()))
         if not (names and n_points > 0 and size > 0
                 and all(isinstance(v, str) for v in listed.values())):
             raise ValueError("values out of range")
@@ -402,7 +407,7 @@ def read_store(root) -> pd.DataFrame:
             table = _verified(root / name, listed[name], match.group(2))
             if len(table) != n:
                 raise _Bad(f"chunk {root / name} has {len(table)} rows, not {n}")
-            _check_rows(table, names, root / name, curves)
+            _check_rows(table, names, root / name, curves, sensitivity)
         except (_Bad, FileNotFoundError) as exc:
             why = str(exc) if isinstance(exc, _Bad) else f"chunk {root / name} is missing"
             bad.append(why)
@@ -415,7 +420,7 @@ def read_store(root) -> pd.DataFrame:
         warnings.warn(f"{root / name} is not a chunk listed in the store's {IDENTITY}: ignored",
                       StrayFileWarning, stacklevel=2)
     table = (pd.concat([tables[k] for k in sorted(tables)], ignore_index=True) if tables
-             else pd.DataFrame(columns=columns_of(names, curves)))
+             else pd.DataFrame(columns=columns_of(names, curves, sensitivity)))
     if len(table) < n_points:
         warnings.warn(f"the store {root} holds {len(table)} of its ensemble's {n_points} "
                       "points (an unfinished run, or chunks left out: run it again to complete "
@@ -480,20 +485,21 @@ def _verified(path: Path, digest: str, key: str) -> pd.DataFrame:
     return arrow.to_pandas()
 
 
-def _check(table: pd.DataFrame, names, values: np.ndarray, path: Path, curves: bool) -> None:
+def _check(table: pd.DataFrame, names, values: np.ndarray, path: Path, curves: bool,
+           sensitivity=()) -> None:
     """``_Bad`` unless ``table`` is the whole chunk: one row per point with exactly its
     parameter values, and rows that check out (:func:`_check_rows`)."""
     if len(table) != len(values):
         raise _Bad(f"chunk {path} has {len(table)} rows, not {len(values)}")
-    _check_rows(table, names, path, curves)
+    _check_rows(table, names, path, curves, sensitivity)
     if not np.array_equal(table[list(names)].to_numpy(dtype=float), values):
         raise _Bad(f"chunk {path} holds other points than its chunk's")
 
 
-def _check_rows(table: pd.DataFrame, names, path: Path, curves: bool) -> None:
+def _check_rows(table: pd.DataFrame, names, path: Path, curves: bool, sensitivity=()) -> None:
     """``_Bad`` unless every column is there, classes and retcodes are known, and metrics (and
-    curves) are there for the limit cycles only."""
-    expected = columns_of(names, curves)
+    curves, gradients) are there for the limit cycles only."""
+    expected = columns_of(names, curves, sensitivity)
     if list(table.columns) != expected:
         raise _Bad(f"chunk {path} has the columns {list(table.columns)}, not {expected}")
     if not (table.classification.isin(CLASSIFICATIONS).all()
@@ -503,6 +509,8 @@ def _check_rows(table: pd.DataFrame, names, path: Path, curves: bool) -> None:
     metrics = table[list(METRIC_COLUMNS)].to_numpy(dtype=float)
     if not (np.isfinite(metrics[cycle]).all() and np.isnan(metrics[~cycle]).all()):
         raise _Bad(f"chunk {path} holds limit-cycle metrics that do not match its classes")
+    if not np.isnan(table[gradient_columns(sensitivity)].to_numpy(dtype=float)[~cycle]).all():
+        raise _Bad(f"chunk {path} holds gradients of points without a limit cycle")
     if curves:
         for is_cycle, slip, mu in zip(cycle, table.curve_slip, table.curve_friction):
             x, y = np.asarray(slip, dtype=float), np.asarray(mu, dtype=float)

@@ -4,7 +4,8 @@
 
 An ensemble of an own method runs one compiled batch per chunk (:mod:`integrators.own.batch`):
 serially in a process of a pool, or over numba's threads. Each is compiled for every method and
-friction law on first use; this runs a two-point ensemble of each both ways.
+friction law on first use; this runs a two-point ensemble of each both ways (and, for a method
+with sensitivities, one with them).
 """
 
 from __future__ import annotations
@@ -42,6 +43,14 @@ def warm(progress: bool = True) -> dict[str, float]:
                         ensemble(problem, algorithm, {"b": [b, 1.01 * b]}, workers=workers,
                                  backend=backend, progress=False, wall_budget=2.0)
                     bar.update()
+            if getattr(algorithm, "sensitive", False):   # its batches with sensitivities
+                problem = problems[0]
+                for backend, workers in (("processes", 1), ("threads", 2)):
+                    with warnings.catch_warnings():
+                        warnings.simplefilter("ignore")
+                        ensemble(problem, algorithm, {"b": [problem.law.b] * 2},
+                                 workers=workers, backend=backend, progress=False,
+                                 wall_budget=2.0, sensitivity=("b",))
             took[name] = time.perf_counter() - started
     return took
 

@@ -154,7 +154,8 @@ def sweep(problem, b_values, lc_values, algorithm, obs: Observations, out,
           curve_dt: float = 5e-5, wall_budget: float | None = None, progress: bool = True,
           max_points: int = MAX_GRID_POINTS, connect_timeout: float = CONNECT_TIMEOUT_S,
           worker_timeout: float = WORKER_TIMEOUT_S, chunk_size: int | None = None,
-          reclaim_store: bool = False, provenance: dict | None = None) -> SweepResult:
+          reclaim_store: bool = False, provenance: dict | None = None,
+          sensitivity=None) -> SweepResult:
     """Run (or resume) the sweep of ``problem`` (a SpringSlider: its t_end is each point's) over
     ``b_values`` × ``lc_values`` and score it against ``obs``.
 
@@ -165,7 +166,8 @@ def sweep(problem, b_values, lc_values, algorithm, obs: Observations, out,
     what else the summary records of the run (the command line, why this integrator), beside
     the tool's version, the machine and the packages.
     ``reclaim_store``: stored chunks of another sweep in ``out`` are cleared, not refused (for
-    the harness's own caches).
+    the harness's own caches). ``sensitivity``: parameter names; the table then has the
+    gradients of each point's limit-cycle metrics (:func:`benchmarks.ensemble.ensemble`'s).
     """
     if not isinstance(problem, SpringSlider):
         raise ValueError(f"problem must be a SpringSlider, got {type(problem).__name__}")
@@ -189,7 +191,7 @@ def sweep(problem, b_values, lc_values, algorithm, obs: Observations, out,
                          progress=progress, max_points=max_points,
                          connect_timeout=connect_timeout, worker_timeout=worker_timeout,
                          label=f"sweep {problem.name or 'problem'}",
-                         reclaim_store=reclaim_store)
+                         reclaim_store=reclaim_store, sensitivity=sensitivity)
     run = table.attrs
     table = score(table.rename(columns={"lc": "lc_m"}), obs)
     summary = summarize_sweep(table, obs, algorithm, wall_s=run["wall_s"], n_run=run["n_run"],
@@ -199,6 +201,7 @@ def sweep(problem, b_values, lc_values, algorithm, obs: Observations, out,
                               scheduler=scheduler, backend=run["backend"],
                               batched=run["batched"], chunks=run["chunks"],
                               store=None if store is None else str(store))
+    summary["gradient_columns"] = [c for c in table.columns if c.startswith("d_")]
     summary["provenance"] = {"tool": version_line(), **machine(), **(provenance or {})}
     out.mkdir(parents=True, exist_ok=True)
     remove_stale_temporaries(out)
@@ -231,6 +234,9 @@ def score(points: pd.DataFrame, obs: Observations) -> pd.DataFrame:
         table["J"] = fit["J"]
         table["possible"] = fit["possible"]
     table["in_region"] = fit["in_region"]
+    for c in points.columns:            # the gradients, when the sweep asked for them
+        if c.startswith("d_"):
+            table[c] = points[c].to_numpy(dtype=float)
     table.attrs.update({k: v for k, v in fit.items() if np.ndim(v) == 0})
     return table
 

@@ -35,7 +35,8 @@ KINDS = ("explicit", "implicit", "rosenbrock", "exponential", "multistep")
 #: the numerical codes more than one adapter calls (:attr:`Algorithm.code`): a tag, so that a
 #: study takes every way of calling one (SUNDIALS' CVODE, IDA and ARKODE; LSODA and its ports)
 CODES = ("sundials", "lsoda")
-#: every tag an algorithm may carry; "sensitivities" none does yet (no method computes them)
+#: every tag an algorithm may carry ("sensitivities": forward sensitivities, ``solve(...,
+#: sensitivity=...)``)
 TAGS = frozenset((*LIBRARIES, *KINDS, *CODES, "compiled", "adaptive", "fixed-step", "stiff",
                   "dense-output", "events", "dae", "sensitivities"))
 
@@ -86,7 +87,8 @@ class Algorithm:
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
         flags = {"compiled": cls.compiled, "stiff": cls.stiff, "dense-output": cls.saves_at_times,
-                 "events": cls.locates_events, "dae": cls.dae}
+                 "events": cls.locates_events, "dae": cls.dae,
+                 "sensitivities": getattr(cls, "sensitive", False)}
         cls.tags = frozenset({cls.package, cls.kind, cls.code,
                               "adaptive" if cls.adaptive else "fixed-step",
                               *(tag for tag, true in flags.items() if true)} - {""})

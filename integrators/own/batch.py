@@ -34,8 +34,8 @@ from integrators.own import engine as E
 from problems.formulations import SLIP_LAW
 from problems.slider import TAU_END_MAX
 
-__all__ = ["C", "N_C", "R", "N_R", "BATCH", "SERIAL", "run_batch", "run_serial", "CYCLE_RTOL", "CYCLE_MAX_PERIOD",
-           "CYCLE_MIN_REPEATS"]
+__all__ = ["C", "N_C", "R", "N_R", "BATCH", "SERIAL", "run_batch", "run_serial", "fresh", "record",
+           "CYCLE_RTOL", "CYCLE_MAX_PERIOD", "CYCLE_MIN_REPEATS", "EVENTS_START", "LAST_CYCLE"]
 
 #: the numba options of a method's ``batch`` entry point, and of its single-threaded one
 BATCH = dict(cache=True, nogil=True, parallel=True, error_model="numpy")
@@ -63,7 +63,7 @@ N_R = _FOUND + cycles.N_F
 CYCLE_RTOL, CYCLE_MAX_PERIOD, CYCLE_MIN_REPEATS = 1e-3, 4, 2
 #: the time since the last event in a cycle search's result (no event for this long: quiet)
 _GAP = cycles.F["GAP"]
-_EVENTS_START = 64
+EVENTS_START = 64
 _NO_LIMIT = 1 << 62
 # the engine's layouts as plain ints (compiled code reads module-level ints as constants)
 _DEADLINE, _TAU_END, _LAW, _BETA = (E.P[k] for k in ("DEADLINE", "TAU_END", "LAW", "BETA"))
@@ -71,7 +71,7 @@ _FAST_UNTIL, _NEED_START, _NEXT_SAVE, _ST_STARTS = (
     E.ST[k] for k in ("FAST_UNTIL", "NEED_START", "NEXT_SAVE", "STARTS"))
 _ZC = E.ZROW["ZC"]
 # the classes with a limit cycle are the first ones (their curves are kept)
-_LAST_CYCLE = len(cycles.CYCLES) - 1
+LAST_CYCLE = len(cycles.CYCLES) - 1
 assert cycles.CLASSIFICATIONS[:len(cycles.CYCLES)] == cycles.CYCLES
 
 
@@ -108,9 +108,10 @@ def _summarize(law_code, beta, c, ev, n_ev, z_end, r):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _run(kernel, workspace, p, z0, dirs, grid, saved):
-    """One solve from ``z0`` with the save grid ``grid`` (τ) into ``saved``, as
-    :meth:`integrators.own.compiled.CompiledAlgorithm.run` does it: ``(status, st, ev)``."""
+def fresh(z0, saved):
+    """The engine's arrays (st, Z, G) and events table at the start of a solve from ``z0``,
+    ``z0`` saved as the first save point, as :meth:`integrators.own.compiled.
+    CompiledAlgorithm.run` makes them."""
     st, Z, G = np.zeros(E.N_ST), np.zeros((E.N_Z, 3)), np.zeros((3, 4))
     rec = E.REC
     for k in range(REC_SIZE):
@@ -122,7 +123,14 @@ def _run(kernel, workspace, p, z0, dirs, grid, saved):
         Z[_ZC, i] = z0[i]
         saved[0, i] = z0[i]
     st[_NEXT_SAVE] = 1.0
-    ev = np.empty((_EVENTS_START, 8))
+    return st, Z, G, np.empty((EVENTS_START, 8))
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _run(kernel, workspace, p, z0, dirs, grid, saved):
+    """One solve from ``z0`` with the save grid ``grid`` (τ) into ``saved``, as
+    :meth:`integrators.own.compiled.CompiledAlgorithm.run` does it: ``(status, st, ev)``."""
+    st, Z, G, ev = fresh(z0, saved)
     ws = workspace()
     sc = E.scratch()
     while True:
@@ -157,19 +165,9 @@ def _curve_grid(tau_s: float, tau_e: float, tau_end: float, margin: float, n: in
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _one(kernel, workspace, p0, z0, c, dirs, r, curve):
-    """One point: the solve as :meth:`integrators.own.compiled.CompiledAlgorithm.run` does it
-    with the save grid (0, t_end), then its summary, into ``r``. With ``curve`` of n > 0 rows,
-    a point with a limit cycle is solved a second time, the same steps (the save grid never
-    changes them), saving its ODE state at n times spread evenly over its last event, start
-    and end included (and, with a margin, before and after it: :func:`_curve_grid`): the rows
-    of ``curve`` are (τ, h, u, s) there (NaN otherwise)."""
-    start = monotonic()
-    p = p0.copy()
-    p[_DEADLINE] = start + c[_BUDGET]
-    grid = np.array([0.0, p[_TAU_END]])
-    saved = np.empty((2, 3))
-    status, st, ev = _run(kernel, workspace, p, z0, dirs, grid, saved)
+def record(status, st, ev, p, c, saved, r) -> int:
+    """A solve's status, counters and (if it reached its end) summary into ``r``; the number
+    of events (``saved``: its states at τ = 0 and τ_end)."""
     rec = E.REC
     n_ev = int(st[rec + N_EVENTS])
     r[_STATUS], r[_NFEV], r[_NJEV] = status, st[E.NFEV], st[E.NJEV]
@@ -184,11 +182,29 @@ def _one(kernel, workspace, p0, z0, c, dirs, r, curve):
         _summarize(int(p[_LAW]), p[_BETA], c, ev, n_ev, saved[1], r)
     else:
         r[_CLASS] = cycles.FAILED
+    return n_ev
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _one(kernel, workspace, p0, z0, c, dirs, r, curve):
+    """One point: the solve as :meth:`integrators.own.compiled.CompiledAlgorithm.run` does it
+    with the save grid (0, t_end), then its summary, into ``r``. With ``curve`` of n > 0 rows,
+    a point with a limit cycle is solved a second time, the same steps (the save grid never
+    changes them), saving its ODE state at n times spread evenly over its last event, start
+    and end included (and, with a margin, before and after it: :func:`_curve_grid`): the rows
+    of ``curve`` are (τ, h, u, s) there (NaN otherwise)."""
+    start = monotonic()
+    p = p0.copy()
+    p[_DEADLINE] = start + c[_BUDGET]
+    grid = np.array([0.0, p[_TAU_END]])
+    saved = np.empty((2, 3))
+    status, st, ev = _run(kernel, workspace, p, z0, dirs, grid, saved)
+    n_ev = record(status, st, ev, p, c, saved, r)
     n = curve.shape[0]
     for j in range(n):
         for i in range(4):
             curve[j, i] = np.nan
-    if n > 1 and n_ev > 0 and r[_CLASS] <= _LAST_CYCLE:
+    if n > 1 and n_ev > 0 and r[_CLASS] <= LAST_CYCLE:
         k = n_ev - 1             # the last event whose margin the run's end does not cut
         while c[_MARGIN] > 0.0 and k > 0 and ev[k, 1] + 2.0 * c[_MARGIN] > p[_TAU_END]:
             k -= 1

@@ -156,6 +156,9 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
     #: their stage workspace
     sensitive: ClassVar[bool] = False
     sensitive_kernel: ClassVar[Callable | None] = None
+    #: the compiled batch entry points with sensitivities, parallel and serial
+    #: (:mod:`integrators.own.batch_sensitivity`)
+    sensitive_batch: ClassVar[tuple | None] = None
     sensitivity_workspace: ClassVar[Callable | None] = None
 
     def _start(self, nd, deadline: float):
@@ -224,16 +227,26 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
         return P, Z0, C
 
     def solve_batch(self, problems, wall_budget: float | None = None,
-                    parallel: bool = True, curve_points: int = 0, curve_margin: float = 0.0):
+                    parallel: bool = True, curve_points: int = 0, curve_margin: float = 0.0,
+                    sensitivity=None, sensitivity_error: bool = True):
         """Solve and summarise every problem of ``problems`` in one compiled call, on numba's
         threads or (``parallel`` False) on this thread only (:mod:`integrators.own.batch`): one
         row of ``batch.R`` per problem. Each solve is the one :func:`integrators.solve` makes
         with ``max_points=2`` and ``wall_budget``. With ``curve_points`` = n > 1, returns
         ``(R, CURVE)``: also τ and the ODE state z = (h, u, s) at n times spread over the last
         event of each point with a limit cycle (:mod:`integrators.own.batch`; NaN for the
-        others), and with ``curve_margin`` (s) > 0 over that much before and after it too."""
+        others), and with ``curve_margin`` (s) > 0 over that much before and after it too.
+        With ``sensitivity`` (parameter names, as :func:`integrators.solve`'s), returns
+        ``(R, GRAD)``: also the gradient of each point's limit-cycle metrics
+        (:mod:`integrators.own.batch_sensitivity`), not with curves."""
         if curve_points == 1 or curve_points < 0:
             raise ValueError(f"curve_points must be 0 or at least 2, got {curve_points!r}")
+        if sensitivity is not None:
+            if curve_points:
+                raise ValueError("sensitivity: a batch with curves has no sensitivities; ask "
+                                 "for one or the other")
+            return self._solve_batch_sensitive(problems, wall_budget, parallel, sensitivity,
+                                               sensitivity_error)
         P, Z0, C = self.batch_inputs(problems, wall_budget, curve_margin)
         out = np.empty((len(problems), B.N_R))
         curve = np.empty((len(problems), curve_points, 4))
@@ -245,6 +258,33 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
             announce_compile(type(self).batch_serial, f"the {self.name} serial batch kernel")
             type(self).batch_serial(P, Z0, C, _DIRS, out, curve)
         return (out, curve) if curve_points else out
+
+    def _solve_batch_sensitive(self, problems, wall_budget, parallel: bool, sensitivity,
+                               control: bool):
+        """:meth:`solve_batch` with ``sensitivity``: ``(R, GRAD)``, GRAD (points × 4 metrics
+        × parameters) in SI units; ValueError for a method without sensitivities or a name a
+        point lacks, before any work."""
+        from problems.directions import direction, sensitivity_names
+        if not type(self).sensitive:
+            raise ValueError(f"sensitivity: {self.name} has no forward sensitivities; "
+                             "Rodas5P and RadauIIA5 have")
+        if not isinstance(control, bool):
+            raise ValueError(f"sensitivity_error must be True or False, got {control!r}")
+        dirs = [[direction(p, n) for n in sensitivity_names(p, sensitivity)] for p in problems]
+        n = len(dirs[0]) if dirs else 0
+        D = np.array([SE.direction_matrix(d) for d in dirs]).reshape(len(problems), n, SE.N_DIR)
+        X = np.array([SE.si_columns(d) for d in dirs]).reshape(len(problems), n, 4)
+        P, Z0, C = self.batch_inputs(problems, wall_budget)
+        out, grad = np.empty((len(problems), B.N_R)), np.empty((len(problems), 4, n))
+        entry, serial = type(self).sensitive_batch
+        if parallel:
+            order = np.random.default_rng(0).permutation(len(problems))  # balance the threads
+            announce_compile(entry, f"the {self.name} sensitive batch kernel")
+            entry(P, Z0, C, _DIRS, D, X, float(control), out, grad, order)
+        else:
+            announce_compile(serial, f"the {self.name} sensitive serial batch kernel")
+            serial(P, Z0, C, _DIRS, D, X, float(control), out, grad)
+        return out, grad
 
     def fixed_steps(self, nd, z0, span: float, n: int) -> np.ndarray:
         """``n`` equal steps over ``span`` (τ) from z0 under the slow loading, every one

@@ -38,7 +38,7 @@ import numpy as np
 from numba import njit
 
 from integrators.core.registry import register
-from integrators.own import batch, engine, radau5_sensitivity, sensitivity
+from integrators.own import batch, batch_sensitivity, engine, radau5_sensitivity, sensitivity
 from integrators.own.compiled import CompiledAlgorithm
 from integrators.own.linalg import factor, lu3, lu_solve3
 from integrators.own.radau5_tableau import (C, C1, C2, E_ERR, MU, MU_C, T, TI,
@@ -254,6 +254,18 @@ def solve_batch_serial(P, Z0, C, dirs, R, CURVE):
     batch.run_serial(kernel, _workspace, P, Z0, C, dirs, R, CURVE)
 
 
+
+@njit(**batch.BATCH)
+def solve_batch_sensitive(P, Z0, C, dirs, D, X, control, R, GRAD, order):
+    batch_sensitivity.run_batch(sensitive_kernel, _workspace, radau5_sensitivity.workspace, P,
+                                Z0, C, dirs, D, X, control, R, GRAD, order)
+
+
+@njit(**batch.SERIAL)
+def solve_batch_sensitive_serial(P, Z0, C, dirs, D, X, control, R, GRAD):
+    batch_sensitivity.run_serial(sensitive_kernel, _workspace, radau5_sensitivity.workspace, P,
+                                 Z0, C, dirs, D, X, control, R, GRAD)
+
 @register
 @dataclass(frozen=True)
 class RadauIIA5(CompiledAlgorithm):
@@ -276,6 +288,7 @@ class RadauIIA5(CompiledAlgorithm):
     batch_kernel: ClassVar = solve_batch
     batch_serial: ClassVar = solve_batch_serial
     sensitive: ClassVar[bool] = True
+    sensitive_batch: ClassVar = (solve_batch_sensitive, solve_batch_sensitive_serial)
     sensitive_kernel: ClassVar = sensitive_kernel
     sensitivity_workspace: ClassVar = radau5_sensitivity.workspace
     constants: ClassVar[dict] = dict(INIT_EXPONENT=1.0 / 4, Q=4.0, STICK_PEAKS=1, FSAL=0,

@@ -27,7 +27,7 @@ from typing import ClassVar
 from numba import njit
 
 from integrators.core.registry import register
-from integrators.own import batch, engine, sensitivity
+from integrators.own import batch, batch_sensitivity, engine, sensitivity
 from integrators.own.compiled import CompiledAlgorithm
 from integrators.own.rodas5p_stages import no_after, sensitivity_workspace, stages, workspace
 
@@ -61,6 +61,18 @@ def solve_batch_serial(P, Z0, C, dirs, R, CURVE):
     batch.run_serial(kernel, workspace, P, Z0, C, dirs, R, CURVE)
 
 
+
+@njit(**batch.BATCH)
+def solve_batch_sensitive(P, Z0, C, dirs, D, X, control, R, GRAD, order):
+    batch_sensitivity.run_batch(sensitivity.rodas5p_kernel, workspace, sensitivity_workspace, P, Z0, C, dirs, D, X,
+                                control, R, GRAD, order)
+
+
+@njit(**batch.SERIAL)
+def solve_batch_sensitive_serial(P, Z0, C, dirs, D, X, control, R, GRAD):
+    batch_sensitivity.run_serial(sensitivity.rodas5p_kernel, workspace, sensitivity_workspace, P, Z0, C, dirs, D, X,
+                                 control, R, GRAD)
+
 @register
 @dataclass(frozen=True)
 class Rodas5P(CompiledAlgorithm):
@@ -82,6 +94,7 @@ class Rodas5P(CompiledAlgorithm):
     batch_kernel: ClassVar = solve_batch
     batch_serial: ClassVar = solve_batch_serial
     sensitive: ClassVar[bool] = True
+    sensitive_batch: ClassVar = (solve_batch_sensitive, solve_batch_sensitive_serial)
     sensitive_kernel: ClassVar = sensitivity.rodas5p_kernel
     sensitivity_workspace: ClassVar = sensitivity_workspace
     constants: ClassVar[dict] = dict(INIT_EXPONENT=1.0 / 5, Q=5.0, STICK_PEAKS=1, FSAL=0,

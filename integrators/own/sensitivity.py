@@ -51,8 +51,9 @@ from problems.formulations import (N_Q, Q_BETA, Q_C, Q_D, Q_E, Q_G, Q_LAWP,
                                    state_rate_partials, state_rate_second_partials)
 from problems.loading import H_E_FAST, H_TAU_FAST
 
-__all__ = ["sense", "radau_sense", "sense_with", "radau_error", "arrays", "grow_events", "DIR",
-           "V", "rodas5p_kernel", "direction_matrix", "physical"]
+__all__ = ["sense", "radau_sense", "sense_with", "radau_error", "arrays", "make_arrays",
+           "grow_events", "DIR", "V", "SI", "rodas5p_kernel", "direction_matrix", "si_columns",
+           "physical"]
 
 #: columns of the directions array: dq (E: the slow rate's), then these
 DIR = dict(E_FAST=N_Q, TAU_FAST=N_Q + 1, LN_TS=N_Q + 2, Z0=N_Q + 3, SCALE=N_Q + 6)
@@ -124,38 +125,39 @@ def _second(p, dq, z, hyy, hyt):
 
 def arrays(directions: np.ndarray, n_grid: int, n_events: int, error_control: bool = False,
            workspace=sensitivity_workspace):
+    """The arrays ``sa`` of :func:`sense` for the (n, N_DIR) ``directions``
+    (:func:`make_arrays`, run by numpy: the compiled maker's boxing costs microseconds)."""
+    return make_arrays.py_func(workspace.py_func, np.ascontiguousarray(directions, dtype=float),
+                               n_grid, n_events, float(error_control))
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def make_arrays(workspace, directions, n_grid, n_events, error_control):
     """The arrays ``sa`` of :func:`sense` for the (n, N_DIR) ``directions``: the method's
-    workspace (its compiled maker ``workspace(n)``: Rodas5P's by default), the directions,
-    the current dq, S, S at the step's start, the dense output's dD, S at a root, S handed
-    on, the scalars :data:`V`, the events' derivatives (n_events, 8, n), S at the save
-    points (n_grid, n, 3), a scratch (3, 3: f, a state, and flags: DD stale,
-    the sensitivities in the error test, an arrest taken), and S at a trial step's end."""
+    workspace (its maker ``workspace(n)``: Rodas5P's :func:`sensitivity_workspace`, say), the
+    directions, the current dq, S, S at the step's start, the dense output's dD, S at a root,
+    S handed on, the scalars :data:`V` (the recorder's largest h is h(0) until a larger is
+    seen), the events' derivatives (n_events, 8, n), S at the save points (n_grid, n, 3; the
+    first, τ = 0, saved before the kernel runs: ∂z0), a scratch (3, 3: f, a state, and flags:
+    DD stale, the sensitivities in the error test (``error_control`` 1.0), an arrest taken),
+    and S at a trial step's end. Inlined where it is called: a maker passed to a compiled
+    function that is not would be a function pointer, which numba does not cache."""
     n = directions.shape[0]
-    dq = np.ascontiguousarray(directions[:, :N_Q]).copy()
-    sc = np.zeros((n, 3))
-    sc[:, :] = directions[:, _D_Z0:_D_Z0 + 3]
-    return (workspace.py_func(n), np.ascontiguousarray(directions), dq,
-            sc.copy(), np.zeros((n, 3)), np.zeros((3, n, 3)), np.zeros((n, 3)), sc,
-            _recorder_start(np.zeros((n, N_V)), sc), np.full((n_events, 8, n), np.nan),
-            _first_save(np.full((n_grid, n, 3), np.nan), sc),
-            np.array([[0.0] * 3, [0.0] * 3, [0.0, float(error_control), 0.0]]), np.zeros((n, 3)))
+    sc = directions[:, _D_Z0:_D_Z0 + 3].copy()
+    v = np.zeros((n, N_V))
+    v[:, _V_HMAX] = sc[:, 0]
+    ss = np.full((n_grid, n, 3), np.nan)
+    ss[0] = sc
+    tmp = np.zeros((3, 3))
+    tmp[2, 1] = error_control
+    return (workspace(n), directions.copy(), directions[:, :N_Q].copy(), sc.copy(),
+            np.zeros((n, 3)), np.zeros((3, n, 3)), np.zeros((n, 3)), sc, v,
+            np.full((n_events, 8, n), np.nan), ss, tmp, np.zeros((n, 3)))
 
 
 def grow_events(sa):
     """``sa`` with the events' derivatives doubled in length, as the engine's events table."""
     return sa[:9] + (np.concatenate([sa[9], np.full_like(sa[9], np.nan)]),) + sa[10:]
-
-
-def _recorder_start(v, dz0):
-    """The scalars at the start: the recorder's largest h is h(0) until a larger is seen."""
-    v[:, _V_HMAX] = dz0[:, 0]
-    return v
-
-
-def _first_save(ss, dz0):
-    """The save points' sensitivities, the first (τ = 0, saved before the kernel runs) ∂z0."""
-    ss[0] = dz0
-    return ss
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -484,6 +486,18 @@ def direction_matrix(directions) -> np.ndarray:
     return out
 
 
+#: the columns of :func:`si_columns`
+SI = dict(LN_TS=0, FORCE_H=1, FN=2, LC=3)
+
+
+def si_columns(directions) -> np.ndarray:
+    """What turns each direction's nondimensional derivatives into SI ones, (n, 4): the
+    derivatives of ln(seconds per unit τ), of the newtons per unit h, of Fn (N) and of Lc
+    (1 along Lc, else 0) (:data:`SI`)."""
+    return np.array([[d.dln_ts, d.d_force_h, d.d_fn, 1.0 if d.name == "lc" else 0.0]
+                     for d in directions], dtype=float).reshape(len(directions), 4)
+
+
 def physical(problem, directions, saved: np.ndarray, sa, rows: np.ndarray):
     """The run's sensitivities in SI units (:class:`integrators.core.solution.Sensitivity`):
     ``saved`` the ODE states at the save points, ``rows`` the nondimensional events
@@ -499,11 +513,11 @@ def physical(problem, directions, saved: np.ndarray, sa, rows: np.ndarray):
     h, u, s = saved[:, 0], saved[:, 1], saved[:, 2]
     v = problem.law.v0 * np.exp(u)
     log_state = nd.law_code in LOG_STATE_LAWS
-    for j, d in enumerate(directions):
-        d_lc = 1.0 if d.name == "lc" else 0.0
-        dscale = np.array([ts * d.dln_ts, ts * d.dln_ts, d.d_force_h, d.d_force_h, 0.0,
-                           ts * d.dln_ts, d_lc, d_lc])
-        dshift = np.array([0.0, 0.0, 1.0, 1.0, 0, 0, 0, 0]) * problem.mu0 * d.d_fn
+    for j, (d, (dln_ts, d_force_h, d_fn, d_lc)) in enumerate(zip(directions,
+                                                               si_columns(directions))):
+        dscale = np.array([ts * dln_ts, ts * dln_ts, d_force_h, d_force_h, 0.0,
+                           ts * dln_ts, d_lc, d_lc])
+        dshift = np.array([0.0, 0.0, 1.0, 1.0, 0, 0, 0, 0]) * problem.mu0 * d_fn
         events[:, :, j] = evs[:, :, j] * scale + rows * dscale + dshift
         dh, du, ds = ss[:, j, 0], ss[:, j, 1], ss[:, j, 2]
         y[:, 0, j] = v * du
