@@ -83,9 +83,9 @@ def test_recommendation_bullets_follow_the_study(tmp_path):
     text = readme.recommendation(tmp_path)
     assert text == (
         "* **for recurrence intervals to 10⁻³, use `Rodas5P`** at rtol = atol = 0.0001: worst "
-        "error 0.0005, 3 ms for both problems;\n"
+        "error 0.0005, 3 ms for the 2 problems;\n"
         "* **for recurrence intervals to 10⁻⁶, use `Rodas5P`** at rtol = atol = 1e-07: worst "
-        "error 9e-07, 9 ms for both problems.")
+        "error 9e-07, 9 ms for the 2 problems.")
 
 
 def test_a_block_says_which_run_it_comes_from_and_whether_it_is_stale(tmp_path):

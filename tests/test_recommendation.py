@@ -1,5 +1,6 @@
 """The commands' default integrator is a constant in code (benchmarks/devtools/recommendation.py), written
-from the committed quick work-precision study and checked against it here."""
+from the committed work-precision studies (the quick one and the external problems') and
+checked against them here."""
 
 import hashlib
 import math
@@ -9,26 +10,30 @@ import pandas as pd
 import pytest
 
 from benchmarks.devtools import recommendation
-from benchmarks.devtools.work_precision import (STUDY_CSV, front_source, pareto_front, read_study,
-                                       recommend)
+from benchmarks.devtools.work_precision import (ADVICE_FILES, STUDY_CSV, advice_study,
+                                                front_source, pareto_front, recommend)
 
 
-def test_the_constant_is_the_committed_study():
-    """Fails when results/wp_quick.csv changed without its front being rewritten
-    (`rsfbench study work-precision` does both)."""
-    assert recommendation.STUDY["sha256"] == hashlib.sha256(STUDY_CSV.read_bytes()).hexdigest()
-    front = pareto_front(read_study(STUDY_CSV))
+def test_the_constant_is_the_committed_studies():
+    """Fails when results/wp_quick.csv or wp_external.csv changed without the front being
+    rewritten (`rsfbench study work-precision` and `rsfbench study external` do both)."""
+    results = STUDY_CSV.parent
+    assert recommendation.STUDY["files"] == ADVICE_FILES
+    assert recommendation.STUDY["sha256"] == tuple(
+        hashlib.sha256((results / f).read_bytes()).hexdigest() for f in ADVICE_FILES)
+    front = pareto_front(advice_study(results))
     assert list(recommendation.FRONT) == [tuple(r) for r in front.itertuples(index=False)]
     text = Path(recommendation.__file__).read_text(encoding="utf-8")
-    assert front_source(STUDY_CSV) in text
+    assert front_source(results) in text
+    assert recommendation.STUDY["problems"] == 4
 
 
 @pytest.mark.parametrize("level", [1e-1, 1e-2, 3e-3, 1e-3, 1e-4, 1e-5, 1e-6, 1e-8, 1e-10])
 def test_the_front_recommends_what_the_study_does(level):
-    advice = recommend(read_study(STUDY_CSV), [level]).iloc[0]
+    advice = recommend(advice_study(STUDY_CSV.parent), [level]).iloc[0]
     algorithm, why = recommendation.recommended(level)
     if pd.isna(advice.get("integrator")):
-        assert algorithm.name == "ETD2" and "recommends nothing" in why
+        assert algorithm.name == "ETD2" and "recommend nothing" in why
     else:
         assert (algorithm.name, algorithm.rhs, algorithm.rtol) == (
             advice.integrator, advice.rhs_tier, advice.setting)
@@ -55,7 +60,7 @@ def test_the_commands_do_not_read_the_study_at_run_time(monkeypatch, tmp_path):
     monkeypatch.setattr(wp, "STUDY_CSV", tmp_path / "missing.csv")
     algorithm, why = integrator_from_args(Namespace(integrator=None, rtol=None, atol=None,
                                                     rhs=None, accuracy=1e-3))
-    assert algorithm == recommendation.recommended(1e-3)[0] and "quick work-precision" in why
+    assert algorithm == recommendation.recommended(1e-3)[0] and "work-precision studies" in why
 
 
 def _worst(algorithm) -> float:

@@ -1,11 +1,13 @@
 """The integrator a command uses when none is named: a constant in code, not a file read at run
 time.
 
-:data:`FRONT` is the quick work-precision study's front (``results/wp_quick.csv``): settings of
-one integrator for the whole problem set, each faster than every more accurate one, with its
-worst error in the recurrence interval over the study problems. The study writes it
+:data:`FRONT` is the front of the work-precision studies over the paper's example, W2 and the
+two external problems (``results/wp_quick.csv`` and ``results/wp_external.csv``:
+:func:`benchmarks.devtools.work_precision.advice_study`): settings of one integrator for the
+whole problem set, each faster than every more accurate one, with its worst error in the
+recurrence interval over all four problems. The studies write it
 (:func:`benchmarks.devtools.work_precision.write_recommendation`);
-``tests/test_recommendation.py`` checks it against the committed study. :func:`recommended`
+``tests/test_recommendation.py`` checks it against the committed studies. :func:`recommended`
 takes the fastest setting within a level, and :func:`tighter_on_front` the next setting
 :data:`TIGHTER` times as accurate when a check on the user's own problem asks for more.
 """
@@ -21,26 +23,28 @@ __all__ = ["FRONT", "STUDY", "recommended", "tighter_on_front", "TIGHTER"]
 #: gives a method of order p = 3 to 5 (10^(p/(p+1)) = 5.6 to 6.8)
 TIGHTER = 5.0
 
-# --- written by the quick work-precision study (`rsfbench study work-precision`); do not edit ---
-STUDY = {"file": 'wp_quick.csv', "commit": '2f5dc43a4efe',
-         "sha256": '173c27b0b1a9d54b39aa8e9ac58cfbf71ddcf96b6dcef330dab4756daeb33b0d'}
-#: (worst err_recurrence over the study problems, total wall s, integrator, rhs tier,
-#: setting), fastest first
+# --- written by the work-precision studies (`study work-precision`, `external`); do not edit ---
+STUDY = {"files": ('wp_quick.csv', 'wp_external.csv'),
+         "commits": ('2f5dc43a4efe', 'fcaf56db15a7+dirty'),
+         "sha256": ('173c27b0b1a9d54b39aa8e9ac58cfbf71ddcf96b6dcef330dab4756daeb33b0d',
+                    '36030c746317c244375f159595247c3dcc930db22f2a2640f9fb826e7678aeab'),
+         "problems": 4}
+#: (worst err_recurrence over the studies' problems, total wall s, integrator, rhs
+#: tier, setting), fastest first
 FRONT = (
-    (0.011198825790385303, 0.0006235470063984394, 'Rosenbrock23', 'numba', 0.001),
-    (0.001184862163067309, 0.0009543699998175725, 'Rodas5P', 'numba', 0.001),
-    (0.0001549321791669935, 0.00114884898357559, 'Exprb43', 'numba', 0.001),
-    (0.00013117153669851782, 0.0013071949942968786, 'RadauIIA5', 'numba', 0.001),
-    (1.6715139223642846e-05, 0.0014503870042972267, 'RadauIIA5', 'numba', 0.0001),
-    (1.115326473239559e-05, 0.001823803992010653, 'Exprb43', 'numba', 0.0001),
-    (1.3035948330728903e-06, 0.002053064003121108, 'RadauIIA5', 'numba', 1e-05),
-    (6.834545209174347e-07, 0.0028103510121582076, 'Exprb43', 'numba', 1e-05),
-    (8.976686451622734e-08, 0.003351865991135128, 'RadauIIA5', 'numba', 1e-06),
-    (4.982416158514556e-09, 0.005529116009711288, 'RadauIIA5', 'numba', 1e-07),
-    (1.776657760788129e-10, 0.009387714002514258, 'RadauIIA5', 'numba', 1e-08),
-    (1.0422915420953134e-10, 0.015798513006302528, 'RadauIIA5', 'numba', 1e-09),
-    (1.025341927145814e-10, 0.05794437900476623, 'CyRK-Radau', 'numba', 1e-09),
-    (6.469281996058299e-11, 1.5866062660061289, 'sundials-ARKODE-IMEX', 'numba', 1e-10),
+    (0.011198825790385303, 0.0010400650062365457, 'Rosenbrock23', 'numba', 0.001),
+    (0.0015063812002567875, 0.0015468510100618005, 'Rodas5P', 'numba', 0.001),
+    (0.001286825710707439, 0.0017508549644844607, 'Exprb43', 'numba', 0.001),
+    (0.00027323049556251313, 0.001882825992652215, 'Rodas5P', 'numba', 0.0001),
+    (0.0002142234658407011, 0.0020377299952087924, 'RadauIIA5', 'numba', 0.001),
+    (1.6715139223642846e-05, 0.0022384930052794516, 'RadauIIA5', 'numba', 0.0001),
+    (1.3035948330728903e-06, 0.00302309900871478, 'RadauIIA5', 'numba', 1e-05),
+    (8.976686451622734e-08, 0.004866373987169936, 'RadauIIA5', 'numba', 1e-06),
+    (4.982416158514556e-09, 0.007968393008923158, 'RadauIIA5', 'numba', 1e-07),
+    (7.050229986264348e-10, 0.013491264020558447, 'RadauIIA5', 'numba', 1e-08),
+    (6.168342236865305e-10, 0.022889778003445826, 'RadauIIA5', 'numba', 1e-09),
+    (6.111881066733134e-10, 0.03986649498983752, 'RadauIIA5', 'numba', 1e-10),
+    (5.036177584387575e-10, 0.06253227598790545, 'Exprb43', 'numba', 1e-10),
 )
 # --- end of the written part ---
 
@@ -64,11 +68,16 @@ def recommended(level: float):
     for worst, _wall, name, tier, setting in FRONT:
         if worst <= level and name in REGISTRY:
             return algorithm_at(name, tier, setting), (
-                f"the quick work-precision study ({STUDY['file']} at {STUDY['commit']}): "
-                f"fastest setting with worst err_recurrence ≤ {level:g} over its problems "
+                f"the work-precision studies ({_studies()}): fastest setting with worst "
+                f"err_recurrence ≤ {level:g} over their {STUDY['problems']} problems "
                 f"(worst {worst:.2g}): {name} [{tier}] at {setting:g}")
-    return ETD2(), (f"the quick work-precision study recommends nothing for err_recurrence ≤ "
-                    f"{level:g}: ETD2 at the paper's settings")
+    return ETD2(), (f"the work-precision studies ({_studies()}) recommend nothing for "
+                    f"err_recurrence ≤ {level:g}: ETD2 at the paper's settings")
+
+
+def _studies() -> str:
+    """The studies :data:`FRONT` was written from, each with its commit."""
+    return ", ".join(f"{f} at {c}" for f, c in zip(STUDY["files"], STUDY["commits"]))
 
 
 def tighter_on_front(algorithm):

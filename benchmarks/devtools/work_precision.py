@@ -41,7 +41,7 @@ __all__ = ["Ladder", "FULL", "QUICK", "study_problems", "settings", "measure", "
            "WP_COLUMNS", "SKIPPED", "REFUSED", "reliable_error", "best_at_levels", "recommend",
            "fastest_within",
            "algorithm_at", "read_study", "STUDY_CSV", "pareto_front",
-           "front_source", "write_recommendation"]
+           "front_source", "write_recommendation", "advice_study", "ADVICE_FILES"]
 
 SKIPPED = "Skipped"
 #: the retcode of a method that cannot integrate a problem at all (the paper's ETD without mass)
@@ -295,8 +295,22 @@ def fastest_within(df: pd.DataFrame, limits: dict) -> pd.DataFrame:
     return agg.drop(columns="n").sort_values("total_wall_s").reset_index(drop=True)
 
 
-#: the committed quick study (the front of :mod:`benchmarks.devtools.recommendation` is written from it)
+#: the committed quick study
 STUDY_CSV = Path(__file__).resolve().parents[2] / "results" / "wp_quick.csv"
+#: the studies the front of :mod:`benchmarks.devtools.recommendation` is written from, in
+#: ``results/``: the quick study's problems (the paper's example, W2) and the external ones
+#: (Im et al.'s slider, NIED's apparatus: ``rsfbench study external``), so that the advice
+#: holds on problems nobody here chose too
+ADVICE_FILES = ("wp_quick.csv", "wp_external.csv")
+
+
+def advice_study(out=STUDY_CSV.parent) -> pd.DataFrame:
+    """The studies of :data:`ADVICE_FILES` in ``out`` as one table (the external one left out
+    when it is missing): a setting counts on the front only where it ran on all of their
+    problems (:func:`pareto_front`)."""
+    out = Path(out)
+    return pd.concat([read_study(out / name) for name in ADVICE_FILES
+                      if name == ADVICE_FILES[0] or (out / name).exists()], ignore_index=True)
 
 
 def algorithm_at(integrator: str, rhs_tier: str, setting: float):
@@ -362,20 +376,26 @@ def pareto_front(df: pd.DataFrame, error: str = "err_recurrence") -> pd.DataFram
 
 
 RECOMMENDATION_MODULE = Path(__file__).resolve().parent / "recommendation.py"
-_BEGIN, _END = "# --- written by the quick work-precision study", "# --- end of the written part"
+_BEGIN, _END = "# --- written by the work-precision studies", "# --- end of the written part"
 
 
-def front_source(csv) -> str:
-    """The written part of :mod:`benchmarks.devtools.recommendation` for the study ``csv``: its front as
-    Python literals and the study's provenance (commit, SHA-256)."""
-    df = read_study(csv)
-    front = pareto_front(df)
-    commit = str(df["git_commit"].iloc[0]) if "git_commit" in df else ""
-    lines = [f"{_BEGIN} (`rsfbench study work-precision`); do not edit ---",
-             f"STUDY = {{\"file\": {Path(csv).name!r}, \"commit\": {commit!r},",
-             f"         \"sha256\": {hashlib.sha256(Path(csv).read_bytes()).hexdigest()!r}}}",
-             "#: (worst err_recurrence over the study problems, total wall s, integrator, rhs tier,",
-             "#: setting), fastest first",
+def front_source(out=STUDY_CSV.parent) -> str:
+    """The written part of :mod:`benchmarks.devtools.recommendation` for the studies in
+    ``out`` (:func:`advice_study`): their front as Python literals and their provenance (files,
+    commits, SHA-256)."""
+    out = Path(out)
+    files = [name for name in ADVICE_FILES if name == ADVICE_FILES[0] or (out / name).exists()]
+    front = pareto_front(advice_study(out))
+    commits = [str(read_study(out / f)["git_commit"].iloc[0]) for f in files]
+    digests = [hashlib.sha256((out / f).read_bytes()).hexdigest() for f in files]
+    lines = [f"{_BEGIN} (`study work-precision`, `external`); do not edit ---",
+             f"STUDY = {{\"files\": {tuple(files)!r},",
+             f"         \"commits\": {tuple(commits)!r},",
+             "         \"sha256\": (" + ",\n                    ".join(map(repr, digests))
+             + ("," if len(digests) == 1 else "") + "),",
+             f"         \"problems\": {advice_study(out).problem.nunique()}}}",
+             "#: (worst err_recurrence over the studies' problems, total wall s, integrator, rhs",
+             "#: tier, setting), fastest first",
              "FRONT = ("]
     lines += [f"    ({r.worst_error!r}, {r.total_wall_s!r}, {r.integrator!r}, {r.rhs_tier!r}, "
               f"{r.setting!r})," for r in front.itertuples()]
@@ -383,12 +403,13 @@ def front_source(csv) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_recommendation(csv, module: Path = RECOMMENDATION_MODULE) -> Path:
-    """Rewrite the written part of ``module`` from the study ``csv`` (the rest is kept)."""
+def write_recommendation(out, module: Path = RECOMMENDATION_MODULE) -> Path:
+    """Rewrite the written part of ``module`` from the studies in the directory ``out`` (the
+    rest is kept)."""
     text = module.read_text(encoding="utf-8")
     begin, end = text.index(_BEGIN), text.index(_END)
     end = text.index("\n", end) + 1
-    new = text[:begin] + front_source(csv) + text[end:]
+    new = text[:begin] + front_source(out) + text[end:]
     if new != text:                  # an unchanged file keeps its time (make's caches go by it)
         module.write_text(new, encoding="utf-8")
     return module

@@ -12,7 +12,7 @@ date of that run (``results/manifest.json``) and whether the study's inputs othe
 machine have changed since (then the block is labelled stale) — and its source, rendered: a
 results file verbatim (``results/X.md``), one of its
 tables (``results/X.md table 2``, counting from 1), the recommendation bullets
-(``recommendation``, from ``results/wp_quick.csv``) or the convergence bullets
+(``recommendation``, from ``results/wp_quick.csv`` and ``wp_external.csv``) or the convergence bullets
 (``convergence``, from ``results/convergence_paper-example_slip.json``). ``make reproduce`` ends
 with it, and a test checks that the committed README matches the committed results, so the prose
 around the blocks carries no number of its own.
@@ -27,7 +27,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from benchmarks.devtools.work_precision import recommend
+from benchmarks.devtools.work_precision import ADVICE_FILES, recommend
 from benchmarks.pipeline import manifest as M
 from benchmarks.pipeline.plan import studies, study_inputs
 from integrators import REGISTRY
@@ -53,7 +53,11 @@ def _ms(seconds: float) -> str:
 
 def recommendation(root: Path = ROOT) -> str:
     """The README's advice, one bullet per level of ``RECOMMENDATION_LEVELS``."""
-    advice = recommend(pd.read_csv(root / "results" / "wp_quick.csv"), RECOMMENDATION_LEVELS)
+    out = Path(root) / "results"
+    study = pd.concat([pd.read_csv(out / f) for f in ADVICE_FILES
+                       if f == ADVICE_FILES[0] or (out / f).exists()], ignore_index=True)
+    advice = recommend(study, RECOMMENDATION_LEVELS)
+    n = study.problem.nunique()
     lines = []
     for _, a in advice.iterrows():
         head = f"* **for recurrence intervals to {_power_of_ten(a.level)}, "
@@ -62,7 +66,7 @@ def recommendation(root: Path = ROOT) -> str:
             continue
         what = "rtol = atol" if REGISTRY[a.integrator].adaptive else "Δτcnst"
         line = (head + f"use `{a.integrator}`** at {what} = {a.setting:g}: worst error "
-                f"{a.worst_error:.2g}, {_ms(a.total_wall_s)} for both problems")
+                f"{a.worst_error:.2g}, {_ms(a.total_wall_s)} for the {n} problems")
         if isinstance(a.next_integrator, str):
             line += (f"; the next best method, {a.next_integrator}, takes "
                      f"{_ms(a.next_total_wall_s)}")
@@ -146,7 +150,7 @@ def origin(source: str, root: Path = ROOT) -> str:
     """The line that says where a block comes from (see the module docstring), or "" where the
     results have no manifest or no study writes the file."""
     out = Path(root) / "results"
-    name = {"recommendation": "wp_quick.csv",
+    name = {"recommendation": "wp_external.csv",      # the later of its two studies
             "convergence": "convergence_paper-example_slip.json"}.get(source)
     name = name or source.split()[0].removeprefix("results/")
     try:

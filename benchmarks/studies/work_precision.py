@@ -22,7 +22,7 @@ def run(out: Path) -> None:
     write_work_precision(work_precision(study_problems("quick"), QUICK), out, "quick")
     root = checkout()
     if root is not None and out.resolve() == (root / "results").resolve():
-        print(f"wrote {write_recommendation(out / 'wp_quick.csv')}")   # the default integrator
+        print(f"wrote {write_recommendation(out)}")   # the default integrator (and external's)
 
 
 def report(out: Path) -> str:
