@@ -29,7 +29,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["check_finite", "check_positive", "check_non_negative", "check_count", "UnitWarning",
+__all__ = ["check_finite", "check_positive", "check_non_negative", "check_count", "check_flag",
+           "UnitWarning",
            "warn_implausible", "units_checked_already", "PLAUSIBLE", "Plausible",
            "check_possible", "implausible_message", "warn_unit", "RegularCycleWarning"]
 
@@ -89,6 +90,13 @@ def check_count(name: str, value, minimum: int = 1) -> int:
     if x != int(x) or x < minimum:
         raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
     return int(x)
+
+
+def check_flag(name: str, value) -> bool:
+    """True or False (a Python or numpy bool); ValueError for anything else (1, "yes")."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{name} must be True or False, got {value!r}")
+    return bool(value)
 
 
 @dataclass(frozen=True)

@@ -83,7 +83,7 @@ def test_ensemble_gradient_columns_stored_and_read_back(tmp_path):
     (dict(curve_dt=5e-5), "has no sensitivities; ask for one or the other"),
     (dict(sensitivity=("b", "zz")), "has no parameter 'zz'"),
     (dict(sensitivity_error="yes"), "sensitivity_error must be True or False"),
-    (dict(params={"mass": [1.0, 0.0]}), "quasi-static limit"),     # a point, not the base
+    (dict(params={"mass": [1.0, 0.0]}), r"point 1 \(mass = 0\): .*quasi-static limit"),
 ])
 def test_misuse_is_refused_before_any_work(bad, match, monkeypatch):
     import benchmarks.ensemble.run as run
@@ -108,14 +108,29 @@ def test_sweep_writes_gradient_columns(tmp_path, capsys):
                  "--no-solver-check", "--no-plot", "--no-progress", "--workers", "1",
                  "--out", str(tmp_path), "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
-    assert summary["gradient_columns"] == gradient_columns(NAMES)
+    columns = [c + "_m" if c.endswith("_d_lc") else c for c in gradient_columns(NAMES)]
+    assert summary["gradient_columns"] == columns         # per metre, as the table's lc_m
     assert summary["integrator_choice"].startswith("Rodas5P at rtol 1e-06")
     table = pd.read_csv(tmp_path / "sweep.csv")
     cycle = table.classification.isin(CYCLES)
     assert cycle.any()
-    assert np.isfinite(table.loc[cycle, gradient_columns(NAMES)].to_numpy(float)).all()
+    assert np.isfinite(table.loc[cycle, columns].to_numpy(float)).all()
     assert main(["sweep", "--preset", "W2", "--law", "slip", "--b", "0.0093:0.0093:0.0001",
                  "--lc", "5e-7:5e-7:1", "--slip-weakening", str(DATA / "W2_slip_weakening.csv"),
                  "--sensitivity", "b", "--out", str(tmp_path / "no")]) == 2
     assert "not with slip-weakening curves" in capsys.readouterr().err
     assert not (tmp_path / "no").exists()
+
+
+def test_a_numpy_bool_is_a_flag():
+    """``sensitivity_error=np.True_`` (a flag read from an array or a table) is True, for a
+    single solve and an ensemble alike; 1 is refused."""
+    base, _ = _points()
+    short = variant(base, t_end=0.05)
+    alg = Rodas5P(rtol=1e-8, atol=1e-8)
+    assert solve(short, alg, sensitivity=("b",), sensitivity_error=np.True_).success
+    table = ensemble(short, alg, {"b": [base.law.b]}, sensitivity=("b",),
+                     sensitivity_error=np.False_, progress=False)
+    assert table.retcode[0] == "Success"
+    with pytest.raises(ValueError, match="sensitivity_error must be True or False, got 1"):
+        solve(short, alg, sensitivity=("b",), sensitivity_error=1)

@@ -524,9 +524,10 @@ def integrator_from_args(args):
 
 def sensitivity_request(args, problem, algorithm, why):
     """(parameter names, the algorithm, why) for --sensitivity: the names checked against the
-    problem; without --integrator, Rodas5P at the recommended tolerance or
-    SENSITIVITY_RTOL, whichever is tighter (gradients of event times need it); a named method
-    without sensitivities is refused (ValueError)."""
+    problem; without --integrator, the recommendation if it has sensitivities at rtol ≤
+    SENSITIVITY_RTOL, else Rodas5P at its tolerance or SENSITIVITY_RTOL, whichever is
+    tighter (gradients of event times need it); a named method without sensitivities is
+    refused (ValueError)."""
     if args.sensitivity is None:
         return (), algorithm, why
     from integrators import make_algorithm
@@ -538,8 +539,11 @@ def sensitivity_request(args, problem, algorithm, why):
                              "use --integrator Rodas5P or RadauIIA5")
         return names, algorithm, why
     tol = min(getattr(algorithm, "rtol", None) or SENSITIVITY_RTOL, SENSITIVITY_RTOL)
+    if getattr(algorithm, "sensitive", False) and algorithm.rtol <= SENSITIVITY_RTOL:
+        return names, algorithm, why
     why = (f"Rodas5P at rtol {tol:g}, for --sensitivity (gradients of event times need rtol ≤ "
-           f"{SENSITIVITY_RTOL:g}; the recommendation was {algorithm.name})")
+           f"{SENSITIVITY_RTOL:g}; the recommendation was {algorithm.name}"
+           + (f" at {algorithm.rtol:g})" if hasattr(algorithm, "rtol") else ")"))
     return names, make_algorithm("Rodas5P", rtol=tol, atol=tol), why
 
 
@@ -548,7 +552,8 @@ def add_sensitivity_option(p, what: str) -> None:
     p.add_argument("--sensitivity", metavar="NAMES",
                    help="parameters to differentiate by, comma-separated (a, b, lc, c, k, m, "
                         "fn, damping, vl, vls, vlf, df, the initial state's): the gradients "
-                        f"{what}; Rodas5P at rtol ≤ 1e-6 unless --integrator says otherwise "
+                        f"{what}; a method with them at rtol ≤ 1e-6 (the recommendation, "
+                        "else Rodas5P) unless --integrator says otherwise "
                         "(default: none)")
 
 

@@ -51,7 +51,9 @@ FRONT = (
 
 def recommended(level: float):
     """``(algorithm, reason)``: the fastest setting of :data:`FRONT` whose worst error is within
-    ``level``, or ETD2 at the paper's settings when none is.
+    ``level``; when none is, the front's most accurate setting, and the reason says that the
+    level is beyond what the studies vouch for (ETD2 at the paper's settings only if no
+    setting of the front is installed).
 
     Parameters
     ----------
@@ -71,6 +73,14 @@ def recommended(level: float):
                 f"the work-precision studies ({_studies()}): fastest setting with worst "
                 f"err_recurrence ≤ {level:g} over their {STUDY['problems']} problems "
                 f"(worst {worst:.2g}): {name} [{tier}] at {setting:g}")
+    here = [row for row in FRONT if row[2] in REGISTRY]
+    if here:
+        worst, _wall, name, tier, setting = min(here, key=lambda row: row[0])
+        return algorithm_at(name, tier, setting), (
+            f"the work-precision studies ({_studies()}) recommend nothing for err_recurrence "
+            f"≤ {level:g}, beyond what they vouch for: their most accurate setting, {name} "
+            f"[{tier}] at {setting:g} (worst {worst:.2g} over their {STUDY['problems']} "
+            "problems)")
     return ETD2(), (f"the work-precision studies ({_studies()}) recommend nothing for "
                     f"err_recurrence ≤ {level:g}: ETD2 at the paper's settings")
 

@@ -46,7 +46,7 @@ from benchmarks.ensemble.rows import batch_rows, compiled, failed_rows, point_ro
 from benchmarks.ensemble.store import ChunkStore, identity_of
 from integrators import Algorithm, Output
 from integrators.core.solve import short_piece
-from problems._validate import check_count, check_positive, units_checked_already
+from problems._validate import check_count, check_flag, check_positive, units_checked_already
 
 __all__ = ["ensemble", "Chunk", "run_chunk", "batched", "auto_chunk_size", "CHUNK_SIZE",
            "BACKENDS"]
@@ -327,7 +327,7 @@ def _plan(problem, algorithm, params, store, chunk_size, workers, backend, sched
     chunk_size = (auto_chunk_size(len(values), algorithm) if chunk_size is None
                   else check_count("chunk_size", chunk_size))
     problems = point_problems(problem, names, values)     # every point valid, or say which
-    sensitive = _sensitivity(problems, algorithm, curve_dt, *sensitive)
+    sensitive = _sensitivity(problems, algorithm, curve_dt, *sensitive, (names, values))
     if curve_dt and not batch:                            # the saved trajectory fits memory
         Output(save_every=curve_dt).interval(max(p.t_end for p in problems))
     own_threads = batch and backend == "threads" and scheduler is None
@@ -354,14 +354,13 @@ def _chunks(problem, algorithm, names, values, problems, chunk_size, wall_budget
             for i in range(0, len(values), chunk_size)]
 
 
-def _sensitivity(problems, algorithm, curve_dt, names, control) -> tuple:
+def _sensitivity(problems, algorithm, curve_dt, names, control, points=((), ())) -> tuple:
     """``(names, control)`` of an ensemble's sensitivities checked: the names resolved
     (:func:`problems.directions.sensitivity_names`), () for none; ValueError for a method
     without them, with curves, or for a name a point's problem lacks (a point without an
-    overshoot has no vlf), before any work; the warning of :func:`integrators.solve` for a
-    loose tolerance."""
-    if not isinstance(control, bool):
-        raise ValueError(f"sensitivity_error must be True or False, got {control!r}")
+    overshoot has no vlf: named by its index and ``points``' values), before any work; the
+    warning of :func:`integrators.solve` for a loose tolerance."""
+    control = check_flag("sensitivity_error", control)
     if names is None:
         return (), control
     if not getattr(algorithm, "sensitive", False):
@@ -371,9 +370,13 @@ def _sensitivity(problems, algorithm, curve_dt, names, control) -> tuple:
         raise ValueError("sensitivity: an ensemble with curves (curve_dt) has no "
                          "sensitivities; ask for one or the other")
     from problems.directions import SENSITIVITY_RTOL, sensitivity_names
-    resolved = sensitivity_names(problems[0], names)
-    for problem in problems[1:]:
-        sensitivity_names(problem, resolved)
+    resolved = names
+    for i, problem in enumerate(problems):
+        try:
+            resolved = sensitivity_names(problem, resolved)
+        except ValueError as exc:
+            at = ", ".join(f"{n} = {v:g}" for n, v in zip(points[0], points[1][i]))
+            raise ValueError(f"point {i} ({at}): {exc}") from None
     if algorithm.rtol > SENSITIVITY_RTOL:
         warnings.warn(f"sensitivity at rtol {algorithm.rtol:g}: gradients of event times can "
                       f"be far off, even in sign, above {SENSITIVITY_RTOL:g}", stacklevel=4)

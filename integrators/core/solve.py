@@ -17,7 +17,7 @@ import numpy as np
 
 from integrators.core.registry import Algorithm
 from integrators.core.solution import EVENT_COLUMNS, Output, RawRun, ReturnCode, Solution, Stats
-from problems._validate import check_positive, units_checked_already
+from problems._validate import check_flag, check_positive, units_checked_already
 from problems.slider import SpringSlider
 
 __all__ = ["solve", "Budget", "compile_ahead", "short_piece"]
@@ -127,18 +127,18 @@ def solve(problem: SpringSlider, algorithm: Algorithm, *, save_every: float | No
         raise ValueError(f"{algorithm.name} saves at its own step ends: save_at needs a method "
                          "with dense output")
     output.times(problem.t_end)             # validates the decimation now, not mid-run
-    directions = _directions(problem, algorithm, sensitivity, sensitivity_error)
+    directions, control = _directions(problem, algorithm, sensitivity, sensitivity_error)
     if wall_budget is not None:
         _compile_once(problem, algorithm, wall_budget, bool(directions))
     budget = Budget(wall_s=wall_budget, start=time.perf_counter())
     bar = _progress_bar(problem, algorithm) if progress else None
     try:
-        raw = _run(problem, algorithm, output, budget, bar, directions, sensitivity_error)
+        raw = _run(problem, algorithm, output, budget, bar, directions, control)
     finally:
         if bar:
             bar.close()
     raw.stats = dataclasses.replace(raw.stats, wall_s=time.perf_counter() - budget.start)
-    return _solution(problem, algorithm, raw, directions, sensitivity_error)
+    return _solution(problem, algorithm, raw, directions, control)
 
 
 def _run(problem, algorithm, output, budget, bar, directions, sensitivity_error) -> RawRun:
@@ -159,12 +159,12 @@ def _run(problem, algorithm, output, budget, bar, directions, sensitivity_error)
 
 
 def _directions(problem: SpringSlider, algorithm: Algorithm, sensitivity, control) -> tuple:
-    """The :class:`problems.directions.Direction` objects of ``sensitivity`` (empty: none), or
-    ValueError for a method without forward sensitivities or a name the problem lacks."""
-    if not isinstance(control, bool):
-        raise ValueError(f"sensitivity_error must be True or False, got {control!r}")
+    """The :class:`problems.directions.Direction` objects of ``sensitivity`` (empty: none) and
+    the error control as a bool, or ValueError for a method without forward sensitivities or a
+    name the problem lacks."""
+    control = check_flag("sensitivity_error", control)
     if sensitivity is None:
-        return ()
+        return (), control
     if not getattr(algorithm, "sensitive", False):
         raise ValueError(f"sensitivity: {algorithm.name} has no forward sensitivities; "
                          "Rodas5P and RadauIIA5 have")
@@ -173,7 +173,7 @@ def _directions(problem: SpringSlider, algorithm: Algorithm, sensitivity, contro
     if algorithm.rtol > SENSITIVITY_RTOL:
         warnings.warn(f"sensitivity at rtol {algorithm.rtol:g}: gradients of event times can "
                       f"be far off, even in sign, above {SENSITIVITY_RTOL:g}", stacklevel=3)
-    return tuple(direction(problem, n) for n in names)
+    return tuple(direction(problem, n) for n in names), control
 
 
 def short_piece(problem: SpringSlider, fraction: float = 1e-3) -> SpringSlider:

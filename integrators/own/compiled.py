@@ -26,6 +26,7 @@ from integrators.core.solution import RawRun, ReturnCode, Stats
 from integrators.own import batch as B
 from integrators.own import engine as E
 from integrators.own import sensitivity as SE
+from problems._validate import check_flag
 from problems.formulations import from_ode_state
 
 __all__ = ["CompiledAlgorithm", "failure", "CHUNK_STEPS"]
@@ -268,8 +269,7 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
         if not type(self).sensitive:
             raise ValueError(f"sensitivity: {self.name} has no forward sensitivities; "
                              "Rodas5P and RadauIIA5 have")
-        if not isinstance(control, bool):
-            raise ValueError(f"sensitivity_error must be True or False, got {control!r}")
+        control = check_flag("sensitivity_error", control)
         dirs = [[direction(p, n) for n in sensitivity_names(p, sensitivity)] for p in problems]
         n = len(dirs[0]) if dirs else 0
         D = np.array([SE.direction_matrix(d) for d in dirs]).reshape(len(problems), n, SE.N_DIR)

@@ -304,11 +304,12 @@ def _rodas_step(p, dq, hs, ws, sw, z0, S):
     # the engine's SENSE_STEP comes straight after the accepted attempt, the last one, whose
     # stages made the stage Jacobians (_stage_partials): nothing runs an attempt between
     stage_sensitivities(_partials, _second, p, dq, hs, ws, sw, z0, S, True)
+    return True                         # (M is regular: the attempt solved with it)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _radau_step(p, dq, hs, ws, sw, z0, S):
-    radau.step_sensitivities(_partials, p, dq, hs, ws[5], ws[10], sw, z0, S)
+    return radau.step_sensitivities(_partials, p, dq, hs, ws[5], ws[10], sw, z0, S)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -328,8 +329,9 @@ def radau_sense(op, arg, st, p, Z, G, ws, grid, sa):
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def sense_with(step, dense, op, arg, st, p, Z, G, ws, grid, sa):
     """The engine's ``sense`` for a method whose accepted step's sensitivities
-    ``step(p, dq, h, ws, sw, z0, S)`` makes (in place) and whose dense output's dD
-    ``dense(sw, dD)`` makes from them."""
+    ``step(p, dq, h, ws, sw, z0, S)`` makes (in place; False where its linear system is
+    singular: then, as after an arrest, no derivative from there, flag 2) and whose dense
+    output's dD ``dense(sw, dD)`` makes from them."""
     sw, DIRS, DQ, S, SO, DD, SR, SC, V, EVS, SS, tmp, SN = sa
     n_s = S.shape[0]
     if op == SENSE_STEP:
@@ -340,7 +342,11 @@ def sense_with(step, dense, op, arg, st, p, Z, G, ws, grid, sa):
                 if tmp[2, 1] != 0.0 and not arrested:   # the attempt differentiated its step
                     S[n, i] = SN[n, i]
         if tmp[2, 1] == 0.0 and not arrested:
-            step(p, DQ, st[HACC], ws, sw, Z[_ZO], S)
+            if not step(p, DQ, st[HACC], ws, sw, Z[_ZO], S):
+                for n in range(n_s):
+                    for i in range(3):
+                        S[n, i] = np.nan
+                tmp[2, 2] = 2.0         # a singular step: S NaN from here (physical says so)
         tmp[2, 0] = 1.0                 # DD is the last step's no more
     elif op == SENSE_ARREST:
         for n in range(n_s):
@@ -527,9 +533,10 @@ def physical(problem, directions, saved: np.ndarray, sa, rows: np.ndarray):
         else:
             b = problem.law.b
             y[:, 2, j] = b * fn * ds + s * (d.d_b * fn + b * d.d_fn)
-    message = ""
-    if sa[11][2, 2] != 0.0:
-        message = ("an arrest (the engine's limit step through a deep lock) has no derivative: "
-                   "the sensitivities after the first are NaN")
+    message = {0.0: "", 1.0: "an arrest (the engine's limit step through a deep lock) has no "
+                             "derivative: the sensitivities after the first are NaN",
+               2.0: "a step's sensitivity system was singular: the sensitivities after it are "
+                    "NaN (with sensitivity_error=True such a step is rejected instead)"
+               }[float(sa[11][2, 2])]
     return Sensitivity(names=tuple(d.name for d in directions), y=y, events=events,
                        message=message)
