@@ -79,7 +79,8 @@ def test_recommendation_bullets_follow_the_study(tmp_path):
                                      "err_recurrence"]).assign(rhs_tier="numba",
                                                                retcode="Success")
     (tmp_path / "results").mkdir()
-    df.to_csv(tmp_path / "results" / "wp_quick.csv", index=False)
+    df[df.problem == "p"].to_csv(tmp_path / "results" / "wp_quick.csv", index=False)
+    df[df.problem == "q"].to_csv(tmp_path / "results" / "wp_external.csv", index=False)
     text = readme.recommendation(tmp_path)
     assert text == (
         "* **for recurrence intervals to 10⁻³, use `Rodas5P`** at rtol = atol = 0.0001: worst "

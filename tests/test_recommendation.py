@@ -90,3 +90,19 @@ def test_tightening_along_the_front_gains_a_factor_each_step_and_then_stops():
 def test_a_setting_off_the_front_is_not_tightened_along_it():
     from integrators import make_algorithm
     assert recommendation.tighter_on_front(make_algorithm("Exprb43", rtol=2e-3, atol=2e-3)) is None
+
+
+@pytest.mark.parametrize("level", [1e-3, 1e-5, 1e-7])
+def test_the_sensitive_advice_reaches_the_level_at_a_gradients_tolerance(level):
+    """--sensitivity's choice: the front's fastest setting with forward sensitivities at
+    rtol ≤ 1e-6 within the level (not Rodas5P at 1e-6 whatever the level: its worst over the
+    four problems is ~1e-5)."""
+    algorithm, why = recommendation.recommended(level, sensitive=True)
+    assert getattr(algorithm, "sensitive", False) and algorithm.rtol <= 1e-6
+    assert _worst(algorithm) <= level and "with forward sensitivities" in why
+
+
+def test_a_level_beyond_the_front_warns_and_takes_its_most_accurate_setting():
+    with pytest.warns(UserWarning, match="beyond what they vouch for"):
+        algorithm, _ = recommendation.recommended(1e-12)
+    assert _worst(algorithm) == min(row[0] for row in recommendation.FRONT)

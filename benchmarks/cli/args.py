@@ -488,7 +488,7 @@ def add_integrator_options(p, default: str | None = None) -> None:
     p.add_argument("--integrator", default=default, metavar="NAME",
                    help=("registry name, see `rsfbench integrators`" + (
                        f" (default: {default})" if default else " (default: the integrator and "
-                       "tolerance the quick work-precision study recommends for --accuracy)")))
+                       "tolerance the work-precision studies recommend for --accuracy)")))
     p.add_argument("--rtol", type=positive, help="relative tolerance of an adaptive integrator "
                    "(required with --integrator NAME of an adaptive method; no default accuracy)")
     p.add_argument("--atol", type=positive, help="absolute tolerance on (h, ln w, Ψ or ln Ψ), "
@@ -524,12 +524,12 @@ def integrator_from_args(args):
 
 def sensitivity_request(args, problem, algorithm, why):
     """(parameter names, the algorithm, why) for --sensitivity: the names checked against the
-    problem; without --integrator, the recommendation if it has sensitivities at rtol ≤
-    SENSITIVITY_RTOL, else Rodas5P at its tolerance or SENSITIVITY_RTOL, whichever is
-    tighter (gradients of event times need it); a named method without sensitivities is
-    refused (ValueError)."""
+    problem; without --integrator, the fastest setting of the recommendation's front that has
+    forward sensitivities at rtol ≤ SENSITIVITY_RTOL and reaches --accuracy (else Rodas5P at
+    that rtol); a named method without sensitivities is refused (ValueError)."""
     if args.sensitivity is None:
         return (), algorithm, why
+    from benchmarks.devtools.recommendation import recommended
     from integrators import make_algorithm
     from problems.directions import SENSITIVITY_RTOL, sensitivity_names
     names = sensitivity_names(problem, args.sensitivity)
@@ -538,13 +538,12 @@ def sensitivity_request(args, problem, algorithm, why):
             raise ValueError(f"--sensitivity: {algorithm.name} has no forward sensitivities; "
                              "use --integrator Rodas5P or RadauIIA5")
         return names, algorithm, why
-    tol = min(getattr(algorithm, "rtol", None) or SENSITIVITY_RTOL, SENSITIVITY_RTOL)
-    if getattr(algorithm, "sensitive", False) and algorithm.rtol <= SENSITIVITY_RTOL:
+    algorithm, why = recommended(args.accuracy, sensitive=True)
+    if getattr(algorithm, "sensitive", False):
         return names, algorithm, why
-    why = (f"Rodas5P at rtol {tol:g}, for --sensitivity (gradients of event times need rtol ≤ "
-           f"{SENSITIVITY_RTOL:g}; the recommendation was {algorithm.name}"
-           + (f" at {algorithm.rtol:g})" if hasattr(algorithm, "rtol") else ")"))
-    return names, make_algorithm("Rodas5P", rtol=tol, atol=tol), why
+    why = (f"Rodas5P at rtol {SENSITIVITY_RTOL:g}, for --sensitivity (the front has no "
+           "setting with forward sensitivities)")
+    return names, make_algorithm("Rodas5P", rtol=SENSITIVITY_RTOL, atol=SENSITIVITY_RTOL), why
 
 
 def add_sensitivity_option(p, what: str) -> None:
@@ -552,8 +551,8 @@ def add_sensitivity_option(p, what: str) -> None:
     p.add_argument("--sensitivity", metavar="NAMES",
                    help="parameters to differentiate by, comma-separated (a, b, lc, c, k, m, "
                         "fn, damping, vl, vls, vlf, df, the initial state's): the gradients "
-                        f"{what}; a method with them at rtol ≤ 1e-6 (the recommendation, "
-                        "else Rodas5P) unless --integrator says otherwise "
+                        f"{what}; the front's fastest method with them at rtol ≤ 1e-6 for "
+                        "--accuracy unless --integrator says otherwise "
                         "(default: none)")
 
 

@@ -218,7 +218,7 @@ def _add_sweep(sub, preset_names) -> None:
                    help="directory of the store (DIR/chunks), table and maps (default: "
                         "./sweep_<preset or file name>_<law>)")
     add_sensitivity_option(s, "of each point's limit-cycle metrics, columns "
-                              "d_<metric>_d_<parameter> of sweep.csv (SI per unit; not with "
+                              "d_<metric>/d_<parameter> of sweep.csv (SI per unit; not with "
                               "slip-weakening curves)")
     s.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     s.add_argument("--no-progress", action="store_true", help="no progress bar")

@@ -14,6 +14,8 @@ takes the fastest setting within a level, and :func:`tighter_on_front` the next 
 
 from __future__ import annotations
 
+import warnings
+
 from benchmarks.devtools.work_precision import algorithm_at
 from integrators import ETD2, REGISTRY
 
@@ -49,16 +51,19 @@ FRONT = (
 # --- end of the written part ---
 
 
-def recommended(level: float):
+def recommended(level: float, sensitive: bool = False):
     """``(algorithm, reason)``: the fastest setting of :data:`FRONT` whose worst error is within
-    ``level``; when none is, the front's most accurate setting, and the reason says that the
-    level is beyond what the studies vouch for (ETD2 at the paper's settings only if no
-    setting of the front is installed).
+    ``level``; when none is, the front's most accurate setting with a warning that the level
+    is beyond what the studies vouch for (ETD2 at the paper's settings only if no setting of
+    the front is installed).
 
     Parameters
     ----------
     level : float
         The worst relative error in the recurrence interval to meet (dimensionless).
+    sensitive : bool
+        Only settings whose method has forward sensitivities, at an rtol gradients can use
+        (:data:`problems.directions.SENSITIVITY_RTOL`).
 
     Returns
     -------
@@ -67,21 +72,26 @@ def recommended(level: float):
     reason : str
         Why, naming the study it was read from.
     """
-    for worst, _wall, name, tier, setting in FRONT:
-        if worst <= level and name in REGISTRY:
+    from problems.directions import SENSITIVITY_RTOL
+    rows = [r for r in FRONT if r[2] in REGISTRY and not (sensitive and not (
+        getattr(REGISTRY[r[2]], "sensitive", False) and r[4] <= SENSITIVITY_RTOL))]
+    kind = (f" with forward sensitivities at rtol ≤ {SENSITIVITY_RTOL:g}" if sensitive
+            else "")
+    for worst, _wall, name, tier, setting in rows:
+        if worst <= level:
             return algorithm_at(name, tier, setting), (
-                f"the work-precision studies ({_studies()}): fastest setting with worst "
+                f"the work-precision studies ({_studies()}): fastest setting{kind} with worst "
                 f"err_recurrence ≤ {level:g} over their {STUDY['problems']} problems "
                 f"(worst {worst:.2g}): {name} [{tier}] at {setting:g}")
-    here = [row for row in FRONT if row[2] in REGISTRY]
-    if here:
-        worst, _wall, name, tier, setting = min(here, key=lambda row: row[0])
-        return algorithm_at(name, tier, setting), (
-            f"the work-precision studies ({_studies()}) recommend nothing for err_recurrence "
-            f"≤ {level:g}, beyond what they vouch for: their most accurate setting, {name} "
-            f"[{tier}] at {setting:g} (worst {worst:.2g} over their {STUDY['problems']} "
-            "problems)")
-    return ETD2(), (f"the work-precision studies ({_studies()}) recommend nothing for "
+    if rows:
+        worst, _wall, name, tier, setting = min(rows, key=lambda row: row[0])
+        why = (f"the work-precision studies ({_studies()}) recommend nothing{kind} for "
+               f"err_recurrence ≤ {level:g}, beyond what they vouch for: their most accurate "
+               f"setting{kind}, {name} [{tier}] at {setting:g} (worst {worst:.2g} over their "
+               f"{STUDY['problems']} problems)")
+        warnings.warn(why, stacklevel=2)
+        return algorithm_at(name, tier, setting), why
+    return ETD2(), (f"the work-precision studies ({_studies()}) recommend nothing{kind} for "
                     f"err_recurrence ≤ {level:g}: ETD2 at the paper's settings")
 
 

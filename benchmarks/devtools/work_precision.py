@@ -305,12 +305,16 @@ ADVICE_FILES = ("wp_quick.csv", "wp_external.csv")
 
 
 def advice_study(out=STUDY_CSV.parent) -> pd.DataFrame:
-    """The studies of :data:`ADVICE_FILES` in ``out`` as one table (the external one left out
-    when it is missing): a setting counts on the front only where it ran on all of their
-    problems (:func:`pareto_front`)."""
+    """The studies of :data:`ADVICE_FILES` in ``out`` as one table: a setting counts on the
+    front only where it ran on all of their problems (:func:`pareto_front`). Each file must be
+    there (:class:`benchmarks.records.files.BadResultsFile` otherwise), and no problem in two."""
     out = Path(out)
-    return pd.concat([read_study(out / name) for name in ADVICE_FILES
-                      if name == ADVICE_FILES[0] or (out / name).exists()], ignore_index=True)
+    tables = [read_study(out / name) for name in ADVICE_FILES]
+    names = [set(t.problem) for t in tables]
+    if set.intersection(*names):
+        raise ValueError(f"{', '.join(ADVICE_FILES)} share the problems "
+                         f"{sorted(set.intersection(*names))}: their walls would count twice")
+    return pd.concat(tables, ignore_index=True)
 
 
 def algorithm_at(integrator: str, rhs_tier: str, setting: float):
@@ -384,7 +388,7 @@ def front_source(out=STUDY_CSV.parent) -> str:
     ``out`` (:func:`advice_study`): their front as Python literals and their provenance (files,
     commits, SHA-256)."""
     out = Path(out)
-    files = [name for name in ADVICE_FILES if name == ADVICE_FILES[0] or (out / name).exists()]
+    files = ADVICE_FILES
     front = pareto_front(advice_study(out))
     commits = [str(read_study(out / f)["git_commit"].iloc[0]) for f in files]
     digests = [hashlib.sha256((out / f).read_bytes()).hexdigest() for f in files]

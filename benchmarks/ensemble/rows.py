@@ -66,9 +66,9 @@ NO_GRADIENT = ("its cycle has no gradient: an arrest in the run (the engine's li
 
 def gradient_columns(sensitivity) -> list[str]:
     """The columns of the limit cycle's gradient along the parameters ``sensitivity``:
-    ``d_<metric>_d_<parameter>`` for each of :data:`benchmarks.physics.metrics.METRICS` (SI
+    ``d_<metric>/d_<parameter>`` for each of :data:`benchmarks.physics.metrics.METRICS` (SI
     units per the parameter's SI unit)."""
-    return [f"d_{m}_d_{n}" for m in METRICS for n in sensitivity]
+    return [f"d_{m}/d_{n}" for m in METRICS for n in sensitivity]
 
 
 def columns_of(names, curves: bool, sensitivity=()) -> list[str]:

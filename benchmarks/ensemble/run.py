@@ -240,7 +240,7 @@ def ensemble(problem, algorithm, params, *, store=None, chunk_size: int | None =
     sensitivity : str or sequence of str, optional
         Parameters (as :func:`integrators.solve`'s) to differentiate each limit cycle's four
         metrics by, in the compiled batch (Rodas5P, RadauIIA5; not with ``curve_dt``): the
-        columns ``d_<metric>_d_<parameter>`` (SI), NaN without a cycle.
+        columns ``d_<metric>/d_<parameter>`` (SI), NaN without a cycle.
     sensitivity_error : bool
         The sensitivities in the step control (default True).
 

@@ -1,7 +1,8 @@
 """Is the integrator good enough for *this* inversion? Checked on the user's own problem first.
 
-An integrator is chosen on the paper's problems (the quick work-precision study's front,
-:mod:`benchmarks.devtools.recommendation`) or named by the user; neither says how it does on
+An integrator is chosen on the studies' problems (the work-precision studies' front over the
+paper's example, W2 and two external problems, :mod:`benchmarks.devtools.recommendation`) or
+named by the user; neither says how it does on
 another apparatus. Before an inversion or a sweep, :func:`check_solver` solves the box's four
 corners and its centre (in b and log10 Lc) with the integrator and with a tight reference — two
 own methods of different families, :data:`REFERENCES`, whose agreement is checked point by

@@ -236,7 +236,7 @@ def score(points: pd.DataFrame, obs: Observations) -> pd.DataFrame:
     table["in_region"] = fit["in_region"]
     for c in points.columns:            # the gradients, when the sweep asked for them
         if c.startswith("d_"):          # (per metre of Lc: named as the table's lc_m)
-            table[c + "_m" if c.endswith("_d_lc") else c] = points[c].to_numpy(dtype=float)
+            table[c + "_m" if c.endswith("/d_lc") else c] = points[c].to_numpy(dtype=float)
     table.attrs.update({k: v for k, v in fit.items() if np.ndim(v) == 0})
     return table
 

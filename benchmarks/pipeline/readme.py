@@ -54,8 +54,7 @@ def _ms(seconds: float) -> str:
 def recommendation(root: Path = ROOT) -> str:
     """The README's advice, one bullet per level of ``RECOMMENDATION_LEVELS``."""
     out = Path(root) / "results"
-    study = pd.concat([pd.read_csv(out / f) for f in ADVICE_FILES
-                       if f == ADVICE_FILES[0] or (out / f).exists()], ignore_index=True)
+    study = pd.concat([pd.read_csv(out / f) for f in ADVICE_FILES], ignore_index=True)
     advice = recommend(study, RECOMMENDATION_LEVELS)
     n = study.problem.nunique()
     lines = []

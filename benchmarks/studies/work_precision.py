@@ -22,7 +22,8 @@ def run(out: Path) -> None:
     write_work_precision(work_precision(study_problems("quick"), QUICK), out, "quick")
     root = checkout()
     if root is not None and out.resolve() == (root / "results").resolve():
-        print(f"wrote {write_recommendation(out)}")   # the default integrator (and external's)
+        # the default integrator, from this run and the committed external study's
+        print(f"wrote {write_recommendation(out)}")
 
 
 def report(out: Path) -> str:
