@@ -16,16 +16,18 @@ across the step, 1e−8 for the paper's damping.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
+from problems._validate import check_flag
 from problems.formulations import N_Q, Q_BETA, Q_C, Q_D, Q_E, Q_G, Q_LAWP, to_ode_state
 from problems.loading import ConstantLoading, TwoSpeedLoading
 from problems.slider import SpringSlider, variant, variant_fields
 
 __all__ = ["Direction", "direction", "SENSITIVE", "ALIASES", "sensitivity_names",
-           "SENSITIVITY_RTOL", "value_of", "fields_of"]
+           "SENSITIVITY_RTOL", "value_of", "fields_of", "sensitive_request"]
 
 #: the parameters a solve can be differentiated by (:func:`problems.slider.variant`'s names)
 SENSITIVE = ("a", "b", "lc", "c", "stiffness", "mass", "normal_force", "radiation_damping",
@@ -79,6 +81,24 @@ class Direction:
     d_fn: float
     d_b: float
     scale: float = 1.0
+
+
+def sensitive_request(algorithm, names, control, loose_warning: int = 0) -> bool:
+    """The error-control flag ``control`` (``sensitivity_error``) as a bool, checked; with
+    ``names`` (not None), ValueError for an ``algorithm`` without forward sensitivities and,
+    when ``loose_warning`` > 0, the warning for an rtol above :data:`SENSITIVITY_RTOL` at that
+    stack level of the caller (1: the caller's caller)."""
+    control = check_flag("sensitivity_error", control)
+    if names is None:
+        return control
+    if not getattr(algorithm, "sensitive", False):
+        raise ValueError(f"sensitivity: {algorithm.name} has no forward sensitivities; "
+                         "Rodas5P and RadauIIA5 have")
+    if loose_warning and algorithm.rtol > SENSITIVITY_RTOL:
+        warnings.warn(f"sensitivity at rtol {algorithm.rtol:g}: gradients of event times can "
+                      f"be far off, even in sign, above {SENSITIVITY_RTOL:g}",
+                      stacklevel=loose_warning + 2)
+    return control
 
 
 def sensitivity_names(problem: SpringSlider, names) -> tuple[str, ...]:

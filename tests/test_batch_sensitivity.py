@@ -62,9 +62,13 @@ def test_ensemble_gradient_columns_stored_and_read_back(tmp_path):
                          store=tmp_path / "store")
         again = ensemble(base, alg, params, sensitivity=NAMES, progress=False,
                          store=tmp_path / "store")
-        with pytest.raises(ValueError, match="holds another ensemble"):   # other steps
+        with pytest.raises(ValueError, match=r"differing: sensitivity_error\)"):  # other steps
             ensemble(base, alg, params, sensitivity=NAMES, sensitivity_error=False,
                      progress=False, store=tmp_path / "store")
+        # without sensitivities, the store differs in them only (their error control is
+        # recorded only with them)
+        with pytest.raises(ValueError, match=r"differing: sensitivity\)"):
+            ensemble(base, alg, params, progress=False, store=tmp_path / "store")
     assert list(first.columns) == columns_of(["b", "t_end"], False, NAMES)
     assert again.attrs["n_resumed"] == 2
     cols = gradient_columns(NAMES)

@@ -25,7 +25,6 @@ from __future__ import annotations
 import contextlib
 import os
 import time
-import warnings
 from dataclasses import dataclass, field
 
 import numba
@@ -46,7 +45,7 @@ from benchmarks.ensemble.rows import batch_rows, compiled, failed_rows, point_ro
 from benchmarks.ensemble.store import ChunkStore, identity_of
 from integrators import Algorithm, Output
 from integrators.core.solve import short_piece
-from problems._validate import check_count, check_flag, check_positive, units_checked_already
+from problems._validate import check_count, check_positive, units_checked_already
 
 __all__ = ["ensemble", "Chunk", "run_chunk", "batched", "auto_chunk_size", "CHUNK_SIZE",
            "BACKENDS"]
@@ -360,27 +359,18 @@ def _sensitivity(problems, algorithm, curve_dt, names, control, points=((), ()))
     without them, with curves, or for a name a point's problem lacks (a point without an
     overshoot has no vlf: named by its index and ``points``' values), before any work; the
     warning of :func:`integrators.solve` for a loose tolerance."""
-    control = check_flag("sensitivity_error", control)
-    if names is None:
-        return (), control
-    if not getattr(algorithm, "sensitive", False):
-        raise ValueError(f"sensitivity: {algorithm.name} has no forward sensitivities; "
-                         "Rodas5P and RadauIIA5 have")
-    if curve_dt:
+    from problems.directions import sensitive_request, sensitivity_names
+    if names is not None and curve_dt:
         raise ValueError("sensitivity: an ensemble with curves (curve_dt) has no "
                          "sensitivities; ask for one or the other")
-    from problems.directions import SENSITIVITY_RTOL, sensitivity_names
-    resolved = names
-    for i, problem in enumerate(problems):
+    resolved = ()
+    for i, problem in enumerate(problems if names is not None else ()):
         try:
-            resolved = sensitivity_names(problem, resolved)
+            resolved = sensitivity_names(problem, resolved or names)
         except ValueError as exc:
             at = ", ".join(f"{n} = {v:g}" for n, v in zip(points[0], points[1][i]))
             raise ValueError(f"point {i} ({at}): {exc}") from None
-    if algorithm.rtol > SENSITIVITY_RTOL:
-        warnings.warn(f"sensitivity at rtol {algorithm.rtol:g}: gradients of event times can "
-                      f"be far off, even in sign, above {SENSITIVITY_RTOL:g}", stacklevel=4)
-    return resolved, control
+    return resolved, sensitive_request(algorithm, names, control, loose_warning=3)
 
 
 def _run_chunks(todo, tables: dict, chunk_store, bar, n_kept: int, n_points: int, store,

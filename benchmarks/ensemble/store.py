@@ -229,8 +229,12 @@ class ChunkStore:
             return self._write_identity()
         same = {k: v for k, v in held.items() if k != "chunks"} == self.identity
         if not same:
-            what = ", ".join(k for k in sorted(set(held) | set(self.identity)) if k != "chunks"
-                             and held.get(k) != self.identity.get(k))
+            what = [k for k in sorted(set(held) | set(self.identity)) if k != "chunks"
+                    and held.get(k) != self.identity.get(k)]
+            if "sensitivity" not in set(held) & set(self.identity):
+                # the error control is recorded only with names: not a difference of its own
+                what = [k for k in what if k != "sensitivity_error"] or what
+            what = ", ".join(what)
             if not self.reclaim:
                 raise ValueError(f"the store {self.root} holds another ensemble (differing: "
                                  f"{what}): give another directory, or remove it to start over")

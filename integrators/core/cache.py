@@ -20,11 +20,13 @@ import os
 import sys
 from pathlib import Path
 
-__all__ = ["drop_stale_caches", "announce_compile", "ROOT", "FIRST_COMPILE"]
+__all__ = ["drop_stale_caches", "announce_compile", "ROOT", "FIRST_COMPILE", "SENSITIVE_COMPILE"]
 
 #: what compiling one method's kernels costs on this project's 2-core machines (the warm-up
 #: module, :mod:`integrators.warm`, reports each)
 FIRST_COMPILE = "about 10 to 60 s"
+#: the same for a kernel carrying forward sensitivities (the step's derivative is compiled in)
+SENSITIVE_COMPILE = "about 2 to 5 min"
 #: the dispatchers announced, by id (held, so that an id is never reused)
 _ANNOUNCED: dict = {}
 

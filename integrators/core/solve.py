@@ -17,7 +17,7 @@ import numpy as np
 
 from integrators.core.registry import Algorithm
 from integrators.core.solution import EVENT_COLUMNS, Output, RawRun, ReturnCode, Solution, Stats
-from problems._validate import check_flag, check_positive, units_checked_already
+from problems._validate import check_positive, units_checked_already
 from problems.slider import SpringSlider
 
 __all__ = ["solve", "Budget", "compile_ahead", "short_piece"]
@@ -162,17 +162,9 @@ def _directions(problem: SpringSlider, algorithm: Algorithm, sensitivity, contro
     """The :class:`problems.directions.Direction` objects of ``sensitivity`` (empty: none) and
     the error control as a bool, or ValueError for a method without forward sensitivities or a
     name the problem lacks."""
-    control = check_flag("sensitivity_error", control)
-    if sensitivity is None:
-        return (), control
-    if not getattr(algorithm, "sensitive", False):
-        raise ValueError(f"sensitivity: {algorithm.name} has no forward sensitivities; "
-                         "Rodas5P and RadauIIA5 have")
-    from problems.directions import SENSITIVITY_RTOL, direction, sensitivity_names
-    names = sensitivity_names(problem, sensitivity)
-    if algorithm.rtol > SENSITIVITY_RTOL:
-        warnings.warn(f"sensitivity at rtol {algorithm.rtol:g}: gradients of event times can "
-                      f"be far off, even in sign, above {SENSITIVITY_RTOL:g}", stacklevel=3)
+    from problems.directions import direction, sensitive_request, sensitivity_names
+    names = () if sensitivity is None else sensitivity_names(problem, sensitivity)
+    control = sensitive_request(algorithm, sensitivity, control, loose_warning=2)
     return tuple(direction(problem, n) for n in names), control
 
 

@@ -19,14 +19,13 @@ from typing import Callable, ClassVar
 
 import numpy as np
 
-from integrators.core.cache import announce_compile
+from integrators.core.cache import FIRST_COMPILE, SENSITIVE_COMPILE, announce_compile
 from integrators.core.events import DIRECTIONS, N_EVENTS, events_table
 from integrators.core.registry import AdaptiveAlgorithm
 from integrators.core.solution import RawRun, ReturnCode, Stats
 from integrators.own import batch as B
 from integrators.own import engine as E
 from integrators.own import sensitivity as SE
-from problems._validate import check_flag
 from problems.formulations import from_ode_state
 
 __all__ = ["CompiledAlgorithm", "failure", "CHUNK_STEPS"]
@@ -120,7 +119,8 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
         sa = _sensitivity_arrays(sensitivity, len(grid), len(ev), sensitivity_error,
                                  type(self).sensitivity_workspace)
         kernel = type(self).kernel if sa is None else type(self).sensitive_kernel
-        announce_compile(kernel, f"the {self.name} kernel")
+        what, expected = ("", FIRST_COMPILE) if sa is None else ("sensitive ", SENSITIVE_COMPILE)
+        announce_compile(kernel, f"the {self.name} {what}kernel", expected)
         kernel_s = 0.0
         while True:
             start = time.perf_counter()
@@ -265,11 +265,8 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
         """:meth:`solve_batch` with ``sensitivity``: ``(R, GRAD)``, GRAD (points × 4 metrics
         × parameters) in SI units; ValueError for a method without sensitivities or a name a
         point lacks, before any work."""
-        from problems.directions import direction, sensitivity_names
-        if not type(self).sensitive:
-            raise ValueError(f"sensitivity: {self.name} has no forward sensitivities; "
-                             "Rodas5P and RadauIIA5 have")
-        control = check_flag("sensitivity_error", control)
+        from problems.directions import direction, sensitive_request, sensitivity_names
+        control = sensitive_request(self, sensitivity, control)
         dirs = [[direction(p, n) for n in sensitivity_names(p, sensitivity)] for p in problems]
         n = len(dirs[0]) if dirs else 0
         D = np.array([SE.direction_matrix(d) for d in dirs]).reshape(len(problems), n, SE.N_DIR)
@@ -279,10 +276,12 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
         entry, serial = type(self).sensitive_batch
         if parallel:
             order = np.random.default_rng(0).permutation(len(problems))  # balance the threads
-            announce_compile(entry, f"the {self.name} sensitive batch kernel")
+            announce_compile(entry, f"the {self.name} sensitive batch kernel",
+                             SENSITIVE_COMPILE)
             entry(P, Z0, C, _DIRS, D, X, float(control), out, grad, order)
         else:
-            announce_compile(serial, f"the {self.name} sensitive serial batch kernel")
+            announce_compile(serial, f"the {self.name} sensitive serial batch kernel",
+                             SENSITIVE_COMPILE)
             serial(P, Z0, C, _DIRS, D, X, float(control), out, grad)
         return out, grad
 
