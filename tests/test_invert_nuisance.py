@@ -41,6 +41,21 @@ def test_the_command_fits_and_samples_w2_with_the_stiffness_and_load_speed_free(
     samples = pd.read_csv(tmp_path / "nuisance_samples.csv")
     assert len(samples) == 400 and (tmp_path / "nuisance.png").stat().st_size > 0
     assert "command" in doc["provenance"] and "integrator_choice" in doc["provenance"]
+    # without --integrator: the front's fastest setting with sensitivities within --accuracy
+    from benchmarks.cli.args import ACCURACY, sensitive_default
+    assert doc["provenance"]["integrator_choice"].startswith(
+        sensitive_default(ACCURACY, "--nuisance")[1])
+
+
+def test_a_named_method_with_sensitivities_is_tightened_to_the_gradients_rtol(tmp_path):
+    out = _cli("--preset", "W2", "--law", "slip", "--nuisance", "k=3%", "--integrator",
+               "RadauIIA5", "--rtol", "1e-4", "--atol", "1e-4", "--steps", "0", "--no-solver-check",
+               "--out", tmp_path, "--json")
+    assert out.returncode == 0, out.stderr
+    doc = json.loads(out.stdout)
+    assert doc["provenance"]["integrator_choice"].startswith(
+        "RadauIIA5 at rtol 1e-06, tightened from 0.0001")
+    assert doc["names"] == ["b", "log10_lc", "stiffness"] and doc["success"]
 
 
 @pytest.mark.parametrize("args, match", [
@@ -48,7 +63,7 @@ def test_the_command_fits_and_samples_w2_with_the_stiffness_and_load_speed_free(
     (["--nuisance", "k=0"], "σ above 0"),
     (["--nuisance", "k=3%", "--nuisance", "stiffness=1e6"], "named twice"),
     (["--nuisance", "k=3%", "--method", "emcee"], "--method emcee"),
-    (["--nuisance", "k=3%", "--integrator", "Tsit5"], "Rodas5P"),
+    (["--nuisance", "k=3%", "--integrator", "scipy-RK45"], "name Rodas5P or RadauIIA5"),
     (["--nuisance", "vl=1%"], "has no vl"),       # W2 loads at vls, then vlf
     (["--nuisance-sampler", "nested"], "add --nuisance"),
 ])
@@ -179,3 +194,21 @@ def test_the_nested_weights_count_the_box_where_a_parameter_is_unresolved():
     mean_t = float((t * p).sum())
     sd_t = float(np.sqrt(((t - mean_t) ** 2 * p).sum()))
     assert s["mean"]["t2"] == pytest.approx(mean_t, abs=4 * sd_t / np.sqrt(s["effective_draws"]))
+
+
+def test_the_nested_draws_do_not_depend_on_how_many_threads_fit_them():
+    """The draws' fits run side by side; the constants are drawn before and the box draws
+    after, in order, so the table is the same on one thread and on three."""
+    from benchmarks.inversion.nested_laplace import sample_nested
+    names = ("b", "log10_lc", "t1", "t2")
+    lo, hi = np.array([-1.0, -1.0, -5.0, -5.0]), np.array([1.0, 1.0, 5.0, 5.0])
+    fitted = NuisanceFit(names, np.zeros(4), np.eye(4), np.ones(4), 0.0, 1,
+                         priors={"t1": (0.0, 1.0), "t2": (0.0, 1.0)}, bounds=(lo, hi))
+    tables = []
+    for workers in (1, 3):
+        misfit = _UnresolvedMisfit()
+        misfit.workers = workers
+        tables.append(sample_nested(misfit, fitted, draws=40, seed=5))
+        if workers == 1:        # (the fake's own count is not guarded against threads)
+            assert misfit.failures["solves"] == tables[-1].inner_solves.sum()
+    pd.testing.assert_frame_equal(tables[0], tables[1])

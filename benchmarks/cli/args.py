@@ -30,7 +30,7 @@ __all__ = ["say", "show_progress", "RunStopped", "Parser", "HelpFormatter", "pos
            "integrator_from_args",
            "problem_from_args", "add_problem_choice", "add_observation_options",
            "check_observation_options", "observations_from_args", "ACCURACY",
-           "sensitivity_request", "add_sensitivity_option"]
+           "sensitivity_request", "sensitive_default", "add_sensitivity_option"]
 
 #: the relative error in ΔT the default integrator must reach
 ACCURACY = 1e-3
@@ -529,21 +529,29 @@ def sensitivity_request(args, problem, algorithm, why):
     that rtol); a named method without sensitivities is refused (ValueError)."""
     if args.sensitivity is None:
         return (), algorithm, why
-    from benchmarks.devtools.recommendation import recommended
-    from integrators import make_algorithm
-    from problems.directions import SENSITIVITY_RTOL, sensitivity_names
+    from problems.directions import sensitivity_names
     names = sensitivity_names(problem, args.sensitivity)
     if args.integrator:
         if not getattr(algorithm, "sensitive", False):
             raise ValueError(f"--sensitivity: {algorithm.name} has no forward sensitivities; "
                              "use --integrator Rodas5P or RadauIIA5")
         return names, algorithm, why
-    algorithm, why = recommended(args.accuracy, sensitive=True)
+    return (names, *sensitive_default(args.accuracy, "--sensitivity"))
+
+
+def sensitive_default(accuracy: float, flag: str):
+    """``(algorithm, why)``: the fastest setting of the recommendation's front that has forward
+    sensitivities at rtol ≤ SENSITIVITY_RTOL and reaches ``accuracy``, else Rodas5P at that
+    rtol (``flag`` names the option that asked, in ``why``)."""
+    from benchmarks.devtools.recommendation import recommended
+    from integrators import make_algorithm
+    from problems.directions import SENSITIVITY_RTOL
+    algorithm, why = recommended(accuracy, sensitive=True)
     if getattr(algorithm, "sensitive", False):
-        return names, algorithm, why
-    why = (f"Rodas5P at rtol {SENSITIVITY_RTOL:g}, for --sensitivity (the front has no "
-           "setting with forward sensitivities)")
-    return names, make_algorithm("Rodas5P", rtol=SENSITIVITY_RTOL, atol=SENSITIVITY_RTOL), why
+        return algorithm, why
+    why = (f"Rodas5P at rtol {SENSITIVITY_RTOL:g}, for {flag} (the front has no setting with "
+           "forward sensitivities)")
+    return make_algorithm("Rodas5P", rtol=SENSITIVITY_RTOL, atol=SENSITIVITY_RTOL), why
 
 
 def add_sensitivity_option(p, what: str) -> None:

@@ -120,7 +120,7 @@ def cmd_invert(args) -> int:
                          f"read in tens: at most {MAX_CYCLES:,}")
     algorithm, why = integrator_from_args(args)
     if args.nuisance:
-        algorithm, why = nuisance_algorithm(algorithm)
+        algorithm, why = nuisance_algorithm(args, algorithm, why)
     name = args.preset if args.problem is None else Path(args.problem).stem
     out = Path(args.out or f"invert_{name}_{problem.law.name}")
     # a user's file there: refused now
@@ -128,7 +128,8 @@ def cmd_invert(args) -> int:
     out.mkdir(parents=True, exist_ok=True)               # before the work, not after it
     try:
         algorithm, why, check = checked_integrator(args, problem, obs, box_b, box_lc,
-                                                   algorithm, why)
+                                                   algorithm, why,
+                                                   keep_method=bool(args.nuisance))
     except KeyboardInterrupt:
         return _interrupted(args, "invert", f"during the integrator's check: nothing written "
                                             f"to {out}")
@@ -343,7 +344,8 @@ def add_parsers(sub) -> None:
     add_solver_check_option(i)
     _add_posterior_options(i)
     i.add_argument("--workers", type=workers, metavar="N",
-                   help="threads (own methods) or processes per batch (default: all cores)")
+                   help="threads (own methods) or processes per batch, and threads fitting "
+                        "the nested sampler's draws side by side (default: all cores)")
     i.add_argument("--nuisance", type=nuisance_spec, action="append", metavar="NAME=SIGMA",
                    help=SPEC_HELP)
     i.add_argument("--nuisance-sampler", choices=("nested", "metropolis"),

@@ -13,7 +13,7 @@ import warnings
 
 import numpy as np
 
-from benchmarks.cli.args import ACCURACY, say, show_progress
+from benchmarks.cli.args import say, sensitive_default, show_progress
 
 #: effective samples under which the intervals are called rough (a warning, also in --json)
 MIN_EFFECTIVE = 50
@@ -25,7 +25,9 @@ __all__ = ["nuisance_spec", "check_nuisance_options", "check_nuisance_observatio
 SPEC_HELP = ("NAME=SIGMA: free the constant NAME (stiffness or k, vl, vls, mass or m, "
              "normal_force or fn) with a Gaussian prior about the problem's value of σ SIGMA, "
              "in SI or as a percentage of the value (k=3%%); repeatable. The fit uses exact "
-             "gradients (Rodas5P's forward sensitivities), reports the Laplace covariance and "
+             "gradients (forward sensitivities: without --integrator, the fastest setting "
+             "with them within --accuracy; --integrator Rodas5P or RadauIIA5 at rtol ≤ 1e-6), "
+             "reports the Laplace covariance and "
              "its check, and samples the posterior (--nuisance-sampler) (default: no "
              "constant freed)")
 SAMPLER_HELP = ("with --nuisance: nested (the constants drawn from their priors, (b, log10 Lc) "
@@ -58,15 +60,23 @@ def check_nuisance_options(args, problem) -> None:
     for flag, given in (("--method emcee", args.method == "emcee"),
                         ("--grid", args.grid is not None),
                         ("--walkers", args.walkers is not None),
-                        ("--profile-points", args.profile_points != 21),
-                        ("--accuracy", args.accuracy != ACCURACY)):
+                        ("--profile-points", args.profile_points != 21)):
         if given:
             raise ValueError(f"{flag} is not used with --nuisance: the fit is by exact "
-                             "gradients with Rodas5P at --rtol (at most 1e-6; atol = rtol), "
-                             "and the sampler takes --steps only")
-    if args.integrator and args.integrator.lower() != "rodas5p":
+                             "gradients, and the sampler takes --steps only")
+    named = _named_class(args.integrator) if args.integrator else None
+    if named is not None and not getattr(named, "sensitive", False):
         raise ValueError(f"--integrator {args.integrator}: --nuisance differentiates through "
-                         "Rodas5P's forward sensitivities; drop --integrator or name Rodas5P")
+                         "forward sensitivities; name Rodas5P or RadauIIA5, or drop "
+                         "--integrator")
+
+
+def _named_class(name: str):
+    from integrators import algorithm_class
+    try:
+        return algorithm_class(name)
+    except (KeyError, ValueError):
+        return None             # an unknown name: refused where the integrator is made
 
 
 def check_nuisance_observations(obs) -> None:
@@ -76,14 +86,20 @@ def check_nuisance_observations(obs) -> None:
                          "not differentiated: add --curve-noise none")
 
 
-def nuisance_algorithm(algorithm):
-    """``(algorithm, why)``: Rodas5P at the chosen tolerance or at most
-    :data:`problems.directions.SENSITIVITY_RTOL`, as the nuisance fit solves."""
+def nuisance_algorithm(args, algorithm, why):
+    """``(algorithm, why)`` as the nuisance fit solves: the named method (it has forward
+    sensitivities) at its rtol, tightened to :data:`problems.directions.SENSITIVITY_RTOL`
+    where looser; without --integrator, :func:`benchmarks.cli.args.sensitive_default`."""
     from integrators import make_algorithm
     from problems.directions import SENSITIVITY_RTOL
-    tol = min(getattr(algorithm, "rtol", None) or SENSITIVITY_RTOL, SENSITIVITY_RTOL)
-    return (make_algorithm("Rodas5P", rtol=tol, atol=tol),
-            f"Rodas5P at rtol {tol:g} with forward sensitivities (--nuisance: exact gradients)")
+    if not args.integrator:
+        return sensitive_default(args.accuracy, "--nuisance")
+    if algorithm.rtol <= SENSITIVITY_RTOL:
+        return algorithm, why
+    tol = SENSITIVITY_RTOL
+    return (make_algorithm(algorithm.name, rtol=tol, atol=min(algorithm.atol, tol)),
+            f"{algorithm.name} at rtol {tol:g}, tightened from {algorithm.rtol:g} (--nuisance: "
+            f"exact gradients need rtol ≤ {tol:g})")
 
 
 def run_nuisance(args, misfit, box, steps: int, out, record: dict) -> int:

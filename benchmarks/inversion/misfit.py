@@ -19,6 +19,7 @@ The class and the reason are in the table, so a fit can say why a region is excl
 
 from __future__ import annotations
 
+import threading
 import warnings
 from dataclasses import dataclass, field
 
@@ -78,12 +79,20 @@ class Misfit:
     curve_dt: float = 5e-5
     _counts: dict = field(default_factory=lambda: dict.fromkeys(_COUNTS, 0), init=False,
                           repr=False, compare=False)
+    #: the counts are added to from several threads (a sampler's draws)
+    _lock: object = field(default_factory=threading.Lock, init=False, repr=False,
+                          compare=False)
 
     @property
     def failures(self) -> dict:
         """The solves evaluated so far: ``solves``, ``failed`` (any retcode but Success) and,
         of those, ``over_budget`` (WallTime or MaxSteps), and the ``wall_budget_s`` per solve."""
         return {**self._counts, "wall_budget_s": self.wall_budget}
+
+    def _count(self, solves: int, failed: int, over_budget: int) -> None:
+        with self._lock:
+            for name, n in zip(_COUNTS, (solves, failed, over_budget)):
+                self._counts[name] += n
 
     def __post_init__(self) -> None:
         for name, value, kind in (("problem", self.problem, SpringSlider),
@@ -109,9 +118,7 @@ class Misfit:
                          progress=progress)
         o = self.obs
         failed = (table.retcode != "Success").to_numpy()
-        self._counts["solves"] += len(table)
-        self._counts["failed"] += int(failed.sum())
-        self._counts["over_budget"] += int(table.retcode.isin(BUDGET_STOPS).sum())
+        self._count(len(table), int(failed.sum()), int(table.retcode.isin(BUDGET_STOPS).sum()))
         cycle = table.classification.isin(CYCLES).to_numpy() & ~failed     # never a cycle
         s = scores(table.recurrence_s, table.friction_drop, cycle, o)
         table["r_recurrence"], table["r_drop"] = s.penalised
@@ -197,9 +204,7 @@ class Misfit:
             warnings.simplefilter("ignore", UnitWarning)
             sol = solve(problem, algorithm, max_points=2, sensitivity=names or None,
                         wall_budget=self.wall_budget)
-        self._counts["solves"] += 1
-        self._counts["failed"] += int(not sol.success)
-        self._counts["over_budget"] += int(sol.retcode.value in BUDGET_STOPS)
+        self._count(1, int(not sol.success), int(sol.retcode.value in BUDGET_STOPS))
         cycle = summarize(sol)
         if cycle.classification not in CYCLES:
             return np.full(2, NO_CYCLE_RESIDUAL), sol, None

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import math
 import sys
+import warnings
 
 import numpy as np
 import pandas as pd
@@ -49,15 +50,17 @@ BOX_DRAWS = 4000
 
 
 def _inner(misfit: Misfit, theta: dict, x0, lo, hi):
-    """(x*, χ²_min, J at x*) of (b, log10 Lc) with ``theta`` held; None without a cycle."""
+    """``(found, solves)``: found is (x*, χ²_min, J at x*, converged) of (b, log10 Lc) with
+    ``theta`` held, None without a cycle; solves, the forward solves it took."""
     from scipy.optimize import least_squares
-    last = {}
+    last, solves = {}, [0]
 
     def at(x):
         key = tuple(x)
         if key not in last:
             values = {"b": x[0], "lc": 10.0 ** x[1], **theta}
             r, jac = misfit.residuals_and_jacobian(values)
+            solves[0] += 1
             jac = jac[:, :2] * np.array([1.0, values["lc"] * math.log(10.0)])
             last.clear()
             last[key] = (r, jac)
@@ -67,8 +70,8 @@ def _inner(misfit: Misfit, theta: dict, x0, lo, hi):
                         bounds=(lo, hi), x_scale="jac", max_nfev=INNER_SOLVES)
     r, jac = at(res.x)
     if not (abs(r[0]) < NO_CYCLE_RESIDUAL and np.isfinite(r).all() and np.isfinite(jac).all()):
-        return None
-    return res.x, float(r @ r), jac, bool(res.success)
+        return None, solves[0]
+    return (res.x, float(r @ r), jac, bool(res.success)), solves[0]
 
 
 def sample_nested(misfit: Misfit, fitted, draws: int = DRAWS, seed: int = 0,
@@ -77,28 +80,21 @@ def sample_nested(misfit: Misfit, fitted, draws: int = DRAWS, seed: int = 0,
     draw, ``fitted.names``' columns, ``weight`` (normalised to sum 1), ``inner_chi2`` (χ²_min
     of its θ), ``inner_solves`` and ``inner_converged`` (its least squares' own verdict).
     ``fitted``: a :class:`~benchmarks.inversion.nuisance.NuisanceFit` with a limit cycle
-    (its priors, box and point)."""
-    from tqdm.auto import tqdm
+    (its priors, box and point). The draws' fits run side by side on ``misfit.workers``
+    threads (all cores unless told: the solves release the GIL); the table does not depend on
+    how many."""
     if not np.isfinite(fitted.chi2):
         raise ValueError(f"sample_nested: the fit ended without a limit cycle "
                          f"({fitted.message}); nothing to start from")
     lo, hi = fitted.bounds
     names = list(fitted.priors)
     rng = np.random.default_rng(seed)
-    rows, start = [], np.asarray(fitted.x[:2], dtype=float)
-    for _ in tqdm(range(draws), desc="nested draws", unit="draw", disable=not progress,
-                  file=sys.stderr):
-        theta = {}
-        for j, name in enumerate(names):
-            mean, sd = fitted.priors[name]
-            while True:                   # the prior cut to the search's span
-                v = mean + sd * rng.standard_normal()
-                if lo[2 + j] <= v <= hi[2 + j]:
-                    break
-            theta[name] = float(v)
-        before = misfit.failures["solves"]
-        found = _inner(misfit, theta, start, lo[:2], hi[:2])
-        solves = misfit.failures["solves"] - before
+    thetas = [_theta(rng, fitted, names) for _ in range(draws)]
+    start = np.asarray(fitted.x[:2], dtype=float)
+    fits = _side_by_side(lambda theta: _inner(misfit, theta, start, lo[:2], hi[:2]), thetas,
+                         getattr(misfit, "workers", None), progress)
+    rows = []
+    for theta, (found, solves) in zip(thetas, fits):
         if found is None:
             rows.append([*start, *theta.values(), -math.inf, math.inf, solves, False])
             continue
@@ -111,6 +107,44 @@ def sample_nested(misfit: Misfit, fitted, draws: int = DRAWS, seed: int = 0,
     w = np.exp(logw - logw.max()) if np.isfinite(logw).any() else np.zeros(len(logw))
     table.insert(len(fitted.names), "weight", w / w.sum() if w.sum() > 0 else w)
     return table
+
+
+def _theta(rng, fitted, names) -> dict:
+    """One draw of the constants from their priors, each cut to the search's span."""
+    lo, hi = fitted.bounds
+    theta = {}
+    for j, name in enumerate(names):
+        mean, sd = fitted.priors[name]
+        while True:
+            v = mean + sd * rng.standard_normal()
+            if lo[2 + j] <= v <= hi[2 + j]:
+                break
+        theta[name] = float(v)
+    return theta
+
+
+def _side_by_side(work, items, workers, progress: bool) -> list:
+    """``[work(item) for item in items]``, on ``workers`` threads (None: all cores), in order,
+    with a progress bar of the items done."""
+    import os
+    from concurrent.futures import ThreadPoolExecutor, as_completed
+
+    from tqdm.auto import tqdm
+    n = max(1, min(workers or os.cpu_count() or 1, len(items) or 1))
+    # the threads' own catch_warnings (in the solves) race on the process's filters: this
+    # one, outermost, puts them back as they were
+    with warnings.catch_warnings(), ThreadPoolExecutor(max_workers=n) as pool, tqdm(
+            total=len(items), desc="nested draws", unit="draw", disable=not progress,
+            file=sys.stderr) as bar:
+        futures = [pool.submit(work, item) for item in items]
+        try:
+            for _ in as_completed(futures):
+                bar.update(1)
+        except BaseException:               # Ctrl-C: the draws not started are dropped
+            for f in futures:
+                f.cancel()
+            raise
+        return [f.result() for f in futures]
 
 
 def _in_box(rng, x, info, lo, hi):
