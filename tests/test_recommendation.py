@@ -106,3 +106,20 @@ def test_a_level_beyond_the_front_warns_and_takes_its_most_accurate_setting():
     with pytest.warns(UserWarning, match="beyond what they vouch for"):
         algorithm, _ = recommendation.recommended(1e-12)
     assert _worst(algorithm) == min(row[0] for row in recommendation.FRONT)
+
+
+@pytest.mark.parametrize("level", [1e-2, 1e-3, 1e-4, 1e-6, 1e-12])
+def test_the_contenders_reach_the_level_at_nearly_the_recommendations_cost(level):
+    """The settings a command races on the user's box: the recommendation first, then the
+    front's others within the level whose studies' wall is within CONTENDERS_SPAN of it;
+    none beyond the front."""
+    rivals = recommendation.contenders(level)
+    within = [row for row in recommendation.FRONT if row[0] <= level]
+    if not within:
+        assert rivals == []
+        return
+    assert rivals[0][0] == recommendation.recommended(level)[0]
+    assert all(worst <= level for _a, worst, _w in rivals)
+    assert all(wall <= recommendation.CONTENDERS_SPAN * rivals[0][2] for _a, _w, wall in rivals)
+    assert len(rivals) == sum(row[1] <= recommendation.CONTENDERS_SPAN * within[0][1]
+                              for row in within)

@@ -10,7 +10,7 @@ import pytest
 
 from benchmarks.cli.main import main
 from benchmarks.inversion import synthetic
-from benchmarks.inversion.solver_check import FRACTION, check_solver, tighter
+from benchmarks.inversion.solver_check import FRACTION, check_solver, fastest_on_box, tighter
 from integrators import ETD2, Rosenbrock23
 from problems import window
 
@@ -43,6 +43,37 @@ def test_a_coarse_setting_is_tightened_until_it_is_within_a_tenth_of_sigma(w2, o
     assert first.error_in_sigma.max() > 0.5
     assert set(check.points.reference_class) >= {"stick-slip"}
     assert check.summary()["passed"] and len(check.summary()["points"]) == 15
+
+
+def test_a_recommended_setting_is_checked_on_the_level_it_was_chosen_for(w2):
+    """With vague data (σ = 50 %) Rosenbrock23 at 1e-3 is well within σ/10 (it is ~1 % off in
+    ΔT at a corner, above); asked for ΔT within 1e-3 as well, the check tightens it until each
+    checked point is, and says the level."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        vague = synthetic(3.0446, 0.04522, 0.5, seed=1)
+    plain = check_solver(w2, Rosenbrock23(rtol=1e-3, atol=1e-3), vague, *BOX)
+    assert plain.passed and len(plain.tried) == 1
+    check = check_solver(w2, Rosenbrock23(rtol=1e-3, atol=1e-3), vague, *BOX, level=1e-3)
+    assert check.passed and check.algorithm.rtol <= 1e-4 and len(check.tried) >= 2
+    first = check.points[check.points.setting == check.tried[0]]
+    assert first.relative_dT_error[first.references_agree].max() > 1e-3
+    last = check.points[check.points.setting == check.tried[-1]]
+    assert (last.relative_dT_error[last.references_agree].dropna() <= 1e-3).all()
+    assert "0.001 relative in ΔT" in check.message and "tightened from" in check.message
+
+
+def test_the_race_on_the_box_takes_the_fastest_setting_that_finishes(w2):
+    """Rosenbrock23 at 1e-6 takes several times the steps of 1e-3 on every point of the box; a
+    setting whose solves run out of their budget there does not win by stopping early."""
+    loose, tight = Rosenbrock23(rtol=1e-3, atol=1e-3), Rosenbrock23(rtol=1e-6, atol=1e-6)
+    fastest, times = fastest_on_box(w2, [tight, loose], *BOX)
+    assert fastest == loose and list(times) == ["Rosenbrock23 at rtol = atol = 1e-06",
+                                                "Rosenbrock23 at rtol = atol = 0.001"]
+    assert 0 < times["Rosenbrock23 at rtol = atol = 0.001"] < times[
+        "Rosenbrock23 at rtol = atol = 1e-06"] < np.inf
+    fastest, times = fastest_on_box(w2, [tight, loose], *BOX, wall_budget=1e-6)
+    assert fastest == tight and all(t == np.inf for t in times.values())   # all out of budget
 
 
 def test_a_setting_that_cannot_be_tightened_is_refused_naming_the_worst_point(w2, obs):

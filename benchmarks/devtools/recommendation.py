@@ -19,11 +19,17 @@ import warnings
 from benchmarks.devtools.work_precision import algorithm_at
 from integrators import ETD2, REGISTRY
 
-__all__ = ["FRONT", "STUDY", "recommended", "tighter_on_front", "TIGHTER"]
+__all__ = ["FRONT", "STUDY", "recommended", "tighter_on_front", "TIGHTER", "contenders",
+           "CONTENDERS_SPAN"]
 
 #: a tighter setting on the front is at least this many times as accurate: about what rtol ÷ 10
 #: gives a method of order p = 3 to 5 (10^(p/(p+1)) = 5.6 to 6.8)
 TIGHTER = 5.0
+
+#: settings within a level whose total wall in the studies is within this factor of the
+#: fastest's are raced on the user's own box (:func:`contenders`): the studies' order of
+#: near-ties (Rodas5P at 1e-4 and RadauIIA5 at 1e-3 are 10 % apart) need not be a problem's
+CONTENDERS_SPAN = 1.25
 
 # --- written by the work-precision studies (`study work-precision`, `external`); do not edit ---
 STUDY = {"files": ('wp_quick.csv', 'wp_external.csv'),
@@ -98,6 +104,16 @@ def recommended(level: float, sensitive: bool = False):
 def _studies() -> str:
     """The studies :data:`FRONT` was written from, each with its commit."""
     return ", ".join(f"{f} at {c}" for f, c in zip(STUDY["files"], STUDY["commits"]))
+
+
+def contenders(level: float) -> list:
+    """The settings of :data:`FRONT` within ``level`` (worst error over the studies' problems)
+    whose wall in the studies is within :data:`CONTENDERS_SPAN` of the fastest of them,
+    fastest first, as ``(algorithm, worst, wall_s)``; empty when none is within ``level``."""
+    rows = [r for r in FRONT if r[0] <= level and r[2] in REGISTRY]
+    return [(algorithm_at(name, tier, setting), worst, wall)
+            for worst, wall, name, tier, setting in rows
+            if wall <= CONTENDERS_SPAN * rows[0][1]]
 
 
 def tighter_on_front(algorithm):

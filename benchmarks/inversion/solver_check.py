@@ -16,7 +16,10 @@ point — and compares what the likelihood reads:
 
 Each must be within :data:`FRACTION` (σ/10) wherever the two references agree to a tenth of that;
 a point where they do not (near a boundary of stick–slip, or beyond the references' own
-accuracy) is not used, and said. At least one checked point must have a limit cycle (a point
+accuracy) is not used, and said. A recommended setting (the commands pass their --accuracy as
+``level``) must also reach the level it was chosen for: each checked point's ΔT within
+``level``, relative, where the references agree in ΔT to a tenth of it; the studies vouch for
+it on their problems, this check on the box's. At least one checked point must have a limit cycle (a point
 without one in the integrator and in the references checks nothing but that): if none of the
 five has, a 3 × 3 grid inside the box is tried, and then the check says that it checked nothing
 (``nothing_to_check``: the commands go on with a warning). If the integrator
@@ -41,7 +44,7 @@ from integrators import make_algorithm
 from integrators.core.registry import RTOL_MIN
 
 __all__ = ["check_solver", "SolverCheck", "REFERENCES", "FRACTION", "TIGHTENINGS", "tighter",
-           "WALL_BUDGET"]
+           "WALL_BUDGET", "fastest_on_box", "RACE_REPEATS", "recommended_on_box"]
 
 #: the reference pair (integrator, rtol = atol): an exponential Rosenbrock and a Rosenbrock
 #: method, tight, in compiled batches
@@ -53,6 +56,8 @@ TIGHTENINGS = 3
 #: s of wall time per solve of the check unless told: a reference over it vouches for nothing at
 #: its point, an integrator over it fails there (a W2 solve takes milliseconds)
 WALL_BUDGET = 10.0
+#: rounds of :func:`fastest_on_box` (each candidate's time: the least of its rounds)
+RACE_REPEATS = 2
 
 
 @dataclass
@@ -108,6 +113,47 @@ def _points(b_range, lc_range, inner: bool = False) -> dict:
     return {"b": np.array(b, dtype=float), "lc": np.array(lc, dtype=float)}
 
 
+def fastest_on_box(problem, candidates, b_range, lc_range,
+                   wall_budget: float | None = WALL_BUDGET, repeats: int = RACE_REPEATS):
+    """``(algorithm, times)``: of ``candidates`` (algorithms), the one whose solves of the
+    box's corners, centre and 3 × 3 inner grid (:func:`_points`) take the least wall in all
+    (each point's own solve time, on one thread; the least of ``repeats`` rounds, the
+    candidates interleaved), among those whose every solve there succeeded; ``times``: each
+    candidate's label → s (inf where a solve failed). The first candidate when every one
+    failed somewhere (the check then judges it)."""
+    corners, inner = _points(b_range, lc_range), _points(b_range, lc_range, inner=True)
+    points = {k: np.concatenate([corners[k], inner[k]]) for k in corners}
+    best = [np.inf] * len(candidates)
+    for _ in range(repeats):
+        for i, algorithm in enumerate(candidates):
+            table = ensemble(problem, algorithm, points, workers=1, progress=False,
+                             wall_budget=wall_budget)
+            if (table.retcode == "Success").all():
+                best[i] = min(best[i], float(table.wall_s.sum()))
+    k = int(np.argmin(best)) if np.isfinite(best).any() else 0
+    return candidates[k], {_label(a): t for a, t in zip(candidates, best)}
+
+
+def recommended_on_box(problem, level: float, b_range, lc_range,
+                       wall_budget: float | None = WALL_BUDGET, say=None):
+    """``(algorithm, why)``: the recommendation for ``level``
+    (:func:`benchmarks.devtools.recommendation.recommended`), or where the front has settings
+    within ``level`` at nearly its cost (:func:`~benchmarks.devtools.recommendation.contenders`),
+    the fastest of them on this problem's box (:func:`fastest_on_box`): the studies vouch for
+    each one's accuracy, the box decides their near-ties. ``say``: told before the race."""
+    from benchmarks.devtools.recommendation import contenders, recommended
+    algorithm, why = recommended(level)
+    rivals = [a for a, _worst, _wall in contenders(level)]
+    if len(rivals) < 2:
+        return algorithm, why
+    if say is not None:
+        say(f"timing the {len(rivals)} settings of the front within {level:g} on the box")
+    fastest, times = fastest_on_box(problem, rivals, b_range, lc_range, wall_budget)
+    said = ", ".join(f"{k} {t * 1e3:.3g} ms" for k, t in times.items())
+    return fastest, (f"{why}; on this problem's box (corners, centre and a 3 × 3 grid, one "
+                     f"thread) the fastest of the front's settings within {level:g}: {said}")
+
+
 def _run(problem, algorithm, points, curves: bool, workers, wall_budget) -> pd.DataFrame:
     return ensemble(problem, algorithm, points, curve_dt=5e-5 if curves else None,
                     workers=workers, progress=False, wall_budget=wall_budget)
@@ -135,12 +181,15 @@ def _errors(a: pd.DataFrame, b: pd.DataFrame, obs) -> np.ndarray:
 
 def check_solver(problem, algorithm, obs, b_range, lc_range, next_setting=None,
                  workers: int | None = None, say=None,
-                 wall_budget: float | None = WALL_BUDGET) -> SolverCheck:
+                 wall_budget: float | None = WALL_BUDGET,
+                 level: float | None = None) -> SolverCheck:
     """Check ``algorithm`` on ``problem`` for the observations ``obs`` over the box (module
     docstring). ``next_setting(algorithm)``: the next tighter setting to try (default
     :func:`tighter`). ``say``: a callable given a line of text per setting tried.
     ``wall_budget``: s per solve (None: none); a point where a reference failed or ran out of
-    it is not used (its references do not agree), one where the integrator did is a failure."""
+    it is not used (its references do not agree), one where the integrator did is a failure.
+    ``level``: the relative ΔT error the setting was chosen for (the commands' --accuracy);
+    each checked point must be within it as well."""
     say = say or (lambda text: None)
     next_setting = next_setting or tighter
     started = time.perf_counter()
@@ -179,38 +228,67 @@ def check_solver(problem, algorithm, obs, b_range, lc_range, next_setting=None,
             "cycle: nothing here can vouch for an integrator on this problem (σ too small for "
             "the references, or every such point at a boundary of stick–slip)"),
             time.perf_counter() - started, n_solves)
-    for attempt in range(TIGHTENINGS + 1):
+    for _ in range(TIGHTENINGS + 1):
         label = _label(current)
         tried.append(label)
         say(f"checking {label} against {REFERENCES[0][0]} and {REFERENCES[1][0]} at "
             f"{REFERENCES[0][1]:g} on the box's corners and centre")
         table = _run(problem, current, points, curves, workers, wall_budget)
         n_solves += len(table)
-        err = _errors(table, refs[0], obs)
-        rows.append(base.assign(setting=label, error_in_sigma=err,
+        err, rel, share = _judged(table, refs, obs, agree, level)
+        rows.append(base.assign(setting=label, error_in_sigma=err, relative_dT_error=rel,
                                 classification=table.classification.to_numpy()))
-        worst = np.where(agree, err, 0.0)
-        if (worst <= FRACTION).all():
+        if (share <= 1.0).all():
             return SolverCheck(current, True, pd.concat(rows, ignore_index=True), tried,
-                               f"{label}: every checked point within σ/{1 / FRACTION:g} of the "
-                               f"reference (worst {worst.max():.2g} σ; {int(compared.sum())} "
-                               f"points with a cycle where the references agree, of "
-                               f"{len(agree)})"
-                               + ("" if attempt == 0 else
-                                  f"; tightened from {tried[0]}, which was "
-                                  f"{rows[0].error_in_sigma.where(agree).max():.2g} σ off"),
+                               _passed(label, rows, agree, compared, level, tried),
                                time.perf_counter() - started, n_solves)
         nxt = next_setting(current)
         if nxt is None:
             break
         current = nxt
-    k = int(np.argmax(worst))
+    k = int(np.argmax(share))
     return SolverCheck(current, False, pd.concat(rows, ignore_index=True), tried,
-                       f"no setting tried ({', '.join(tried)}) is within σ/{1 / FRACTION:g} of "
-                       f"the reference: the last is {worst[k]:.3g} σ off at b = "
-                       f"{points['b'][k]:g}, Lc = {points['lc'][k]:g} m (name a more accurate "
-                       "--integrator, or check the σ)",
+                       f"no setting tried ({', '.join(tried)}) is within {_allowed(level)} of "
+                       f"the reference: the last is {err[k]:.3g} σ off"
+                       + ("" if level is None else f" and {rel[k]:.2g} in ΔT") +
+                       f" at b = {points['b'][k]:g}, Lc = {points['lc'][k]:g} m (name a more "
+                       "accurate --integrator, or check the σ)",
                        time.perf_counter() - started, n_solves)
+
+
+def _passed(label: str, rows: list, agree, compared, level, tried: list) -> str:
+    """The sentence of a check passed by ``label``, the last of ``rows``."""
+    last = rows[-1][agree]
+    return (f"{label}: every checked point within {_allowed(level)} of the reference (worst "
+            f"{last.error_in_sigma.max():.2g} σ"
+            + ("" if level is None else f", {last.relative_dT_error.max():.2g} in ΔT")
+            + f"; {int(compared.sum())} points with a cycle where the references agree, of "
+            f"{len(agree)})" + ("" if len(tried) == 1 else
+                                f"; tightened from {tried[0]}, which was "
+                                f"{rows[0].error_in_sigma.where(agree).max():.2g} σ off"))
+
+
+def _allowed(level) -> str:
+    return (f"σ/{1 / FRACTION:g}" if level is None else
+            f"σ/{1 / FRACTION:g} and {level:g} relative in ΔT")
+
+
+def _judged(table, refs, obs, agree, level) -> tuple:
+    """Per point: the error against the first reference in units of σ, the relative ΔT error
+    (NaN without ``level``, or where a point has no cycle) and the larger of each as a share of
+    its allowance (σ/10, ``level``; ≤ 1 passes). A point counts only where the references
+    agree (``agree``) and, for the level, agree in ΔT to a tenth of it."""
+    err = _errors(table, refs[0], obs)
+    share = err / FRACTION
+    rel = np.full(len(err), np.nan)
+    if level is not None:
+        t_ref = refs[0].recurrence_s.to_numpy()
+        rel = np.abs(table.recurrence_s.to_numpy() - t_ref) / t_ref
+        rel = np.where(np.isinf(err), np.inf, rel)       # a cycle one of them misses
+        refs_rel = np.abs(refs[1].recurrence_s.to_numpy() - t_ref) / t_ref
+        judged = np.nan_to_num(refs_rel, nan=np.inf) <= level / 10
+        share = np.maximum(share, np.where(judged, np.nan_to_num(rel, nan=0.0) / level, 0.0))
+    return err, rel, np.where(agree, share, 0.0)
 
 
 def _label(algorithm) -> str:
