@@ -27,7 +27,7 @@ from problems.loading import ConstantLoading, TwoSpeedLoading
 from problems.slider import SpringSlider, variant, variant_fields
 
 __all__ = ["Direction", "direction", "SENSITIVE", "ALIASES", "sensitivity_names",
-           "SENSITIVITY_RTOL", "value_of", "fields_of", "sensitive_request"]
+           "SENSITIVITY_RTOL", "value_of", "fields_of", "sensitive_request", "warn_loose"]
 
 #: the parameters a solve can be differentiated by (:func:`problems.slider.variant`'s names)
 SENSITIVE = ("a", "b", "lc", "c", "stiffness", "mass", "normal_force", "radiation_damping",
@@ -83,22 +83,24 @@ class Direction:
     scale: float = 1.0
 
 
-def sensitive_request(algorithm, names, control, loose_warning: int = 0) -> bool:
+def sensitive_request(algorithm, names, control) -> bool:
     """The error-control flag ``control`` (``sensitivity_error``) as a bool, checked; with
-    ``names`` (not None), ValueError for an ``algorithm`` without forward sensitivities and,
-    when ``loose_warning`` > 0, the warning for an rtol above :data:`SENSITIVITY_RTOL` at that
-    stack level of the caller (1: the caller's caller)."""
+    ``names`` (not None), ValueError for an ``algorithm`` without forward sensitivities: the
+    first checks of a request, before its names (:func:`sensitivity_names`)."""
     control = check_flag("sensitivity_error", control)
-    if names is None:
-        return control
-    if not getattr(algorithm, "sensitive", False):
+    if names is not None and not getattr(algorithm, "sensitive", False):
         raise ValueError(f"sensitivity: {algorithm.name} has no forward sensitivities; "
                          "Rodas5P and RadauIIA5 have")
-    if loose_warning and algorithm.rtol > SENSITIVITY_RTOL:
+    return control
+
+
+def warn_loose(algorithm, above: int) -> None:
+    """The warning for sensitivities at an rtol above :data:`SENSITIVITY_RTOL`, pointing
+    ``above`` frames above the caller (1: the caller's caller)."""
+    if algorithm.rtol > SENSITIVITY_RTOL:
         warnings.warn(f"sensitivity at rtol {algorithm.rtol:g}: gradients of event times can "
                       f"be far off, even in sign, above {SENSITIVITY_RTOL:g}",
-                      stacklevel=loose_warning + 2)
-    return control
+                      stacklevel=above + 2)
 
 
 def sensitivity_names(problem: SpringSlider, names) -> tuple[str, ...]:
@@ -109,7 +111,7 @@ def sensitivity_names(problem: SpringSlider, names) -> tuple[str, ...]:
     elif not (isinstance(names, (tuple, list)) and all(isinstance(n, str) for n in names)):
         raise ValueError(f"sensitivity: parameter names as a string 'b,lc' or a sequence of "
                          f"strings, got {names!r}")
-    names = tuple(ALIASES.get(n.strip(), n.strip()) for n in names)
+    names = tuple(ALIASES.get(n.strip().lower(), n.strip().lower()) for n in names)
     if not names:
         raise ValueError("sensitivity: name at least one parameter, e.g. ('b', 'lc')")
     if problem.mass <= 0.0:

@@ -62,12 +62,14 @@ def test_ensemble_gradient_columns_stored_and_read_back(tmp_path):
                          store=tmp_path / "store")
         again = ensemble(base, alg, params, sensitivity=NAMES, progress=False,
                          store=tmp_path / "store")
-        with pytest.raises(ValueError, match=r"differing: sensitivity_error\)"):  # other steps
+        other_steps = r"differing: sensitivity_error \(held True, asked False\)\)"
+        with pytest.raises(ValueError, match=other_steps):
             ensemble(base, alg, params, sensitivity=NAMES, sensitivity_error=False,
                      progress=False, store=tmp_path / "store")
         # without sensitivities, the store differs in them only (their error control is
         # recorded only with them)
-        with pytest.raises(ValueError, match=r"differing: sensitivity\)"):
+        none = r"differing: sensitivity \(held \['b', 'lc'\], asked None\)\)"
+        with pytest.raises(ValueError, match=none):
             ensemble(base, alg, params, progress=False, store=tmp_path / "store")
     assert list(first.columns) == columns_of(["b", "t_end"], False, NAMES)
     assert again.attrs["n_resumed"] == 2
@@ -85,7 +87,9 @@ def test_ensemble_gradient_columns_stored_and_read_back(tmp_path):
 @pytest.mark.parametrize("bad, match", [
     (dict(algorithm=Exprb43(rtol=1e-6, atol=1e-6)), "Exprb43 has no forward sensitivities"),
     (dict(curve_dt=5e-5), "has no sensitivities; ask for one or the other"),
-    (dict(sensitivity=("b", "zz")), "has no parameter 'zz'"),
+    (dict(sensitivity=("b", "zz")), "^sensitivity: .*has no parameter 'zz'"),   # not a point's
+    (dict(algorithm=Exprb43(rtol=1e-6, atol=1e-6), curve_dt=5e-5, sensitivity=("zz",)),
+     "Exprb43 has no forward sensitivities"),           # the method first, then the rest
     (dict(sensitivity_error="yes"), "sensitivity_error must be True or False"),
     (dict(params={"mass": [1.0, 0.0]}), r"point 1 \(mass = 0\): .*quasi-static limit"),
 ])

@@ -192,6 +192,7 @@ def test_partials_are_the_right_hand_sides_derivatives():
     (dict(sensitivity=("b", "b")), "named twice"),
     (dict(sensitivity=()), "at least one"),
     (dict(sensitivity=("c",)), "no parameter 'c'"),
+    (dict(sensitivity=("B", "b")), "named twice"),        # names in any case, as integrators'
 ])
 def test_misuse_is_refused_in_one_line(bad, words):
     with pytest.raises(ValueError, match=words):
@@ -201,6 +202,8 @@ def test_misuse_is_refused_in_one_line(bad, words):
 def test_a_method_without_sensitivities_and_the_quasi_static_limit_are_refused():
     with pytest.raises(ValueError, match="Exprb43 has no forward sensitivities"):
         solve(paper_example(t_end=1.0), Exprb43(rtol=1e-6, atol=1e-6), sensitivity="b")
+    with pytest.raises(ValueError, match="Exprb43 has no forward sensitivities"):
+        solve(paper_example(t_end=1.0), Exprb43(rtol=1e-6, atol=1e-6), sensitivity="zz")
     with pytest.raises(ValueError, match="quasi-static"):
         solve(variant(paper_example(t_end=1.0), mass=0.0), Rodas5P(rtol=1e-6, atol=1e-6),
               sensitivity="b")

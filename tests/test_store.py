@@ -405,3 +405,16 @@ def test_losing_the_dask_scheduler_stops_the_run_keeping_its_chunks(tmp_path):
     assert again.attrs["n_resumed"] == kept
     local = ensemble(base, ETD2(), points, workers=1, progress=False)
     _same(again, local)
+
+
+def test_the_setting_a_store_holds_is_read_without_touching_it(store, tmp_path):
+    from benchmarks.ensemble.store import IDENTITY, held_algorithm
+    root, _ = store
+    before = (root / IDENTITY).read_bytes()
+    assert held_algorithm(root) == json.loads(before)["algorithm"]
+    assert "Rodas5P" in held_algorithm(root)
+    assert (root / IDENTITY).read_bytes() == before
+    assert held_algorithm(tmp_path / "none") is None
+    (tmp_path / "bad").mkdir()
+    (tmp_path / "bad" / IDENTITY).write_text("[1, 2")
+    assert held_algorithm(tmp_path / "bad") is None

@@ -326,7 +326,8 @@ def _plan(problem, algorithm, params, store, chunk_size, workers, backend, sched
     chunk_size = (auto_chunk_size(len(values), algorithm) if chunk_size is None
                   else check_count("chunk_size", chunk_size))
     problems = point_problems(problem, names, values)     # every point valid, or say which
-    sensitive = _sensitivity(problems, algorithm, curve_dt, *sensitive, (names, values))
+    sensitive = _sensitivity(problem, problems, algorithm, curve_dt, *sensitive,
+                             (names, values))
     if curve_dt and not batch:                            # the saved trajectory fits memory
         Output(save_every=curve_dt).interval(max(p.t_end for p in problems))
     own_threads = batch and backend == "threads" and scheduler is None
@@ -353,24 +354,34 @@ def _chunks(problem, algorithm, names, values, problems, chunk_size, wall_budget
             for i in range(0, len(values), chunk_size)]
 
 
-def _sensitivity(problems, algorithm, curve_dt, names, control, points=((), ())) -> tuple:
+def _sensitivity(base, problems, algorithm, curve_dt, names, control,
+                 points=((), ())) -> tuple:
     """``(names, control)`` of an ensemble's sensitivities checked: the names resolved
     (:func:`problems.directions.sensitivity_names`), () for none; ValueError for a method
     without them, with curves, or for a name a point's problem lacks (a point without an
     overshoot has no vlf: named by its index and ``points``' values), before any work; the
     warning of :func:`integrators.solve` for a loose tolerance."""
-    from problems.directions import sensitive_request, sensitivity_names
-    if names is not None and curve_dt:
+    from problems.directions import sensitive_request, sensitivity_names, warn_loose
+    control = sensitive_request(algorithm, names, control)
+    if names is None:
+        return (), control
+    if curve_dt:
         raise ValueError("sensitivity: an ensemble with curves (curve_dt) has no "
                          "sensitivities; ask for one or the other")
-    resolved = ()
-    for i, problem in enumerate(problems if names is not None else ()):
+    try:                                 # the request itself, judged on the base problem
+        resolved, base_error = sensitivity_names(base, names), None
+    except ValueError as exc:            # (a name the base lacks may be a point's)
+        resolved, base_error = None, str(exc)
+    for i, problem in enumerate(problems):
         try:
             resolved = sensitivity_names(problem, resolved or names)
         except ValueError as exc:
+            if str(exc) == base_error:   # the request's fault, not the point's
+                raise ValueError(base_error) from None
             at = ", ".join(f"{n} = {v:g}" for n, v in zip(points[0], points[1][i]))
             raise ValueError(f"point {i} ({at}): {exc}") from None
-    return resolved, sensitive_request(algorithm, names, control, loose_warning=3)
+    warn_loose(algorithm, 3)
+    return resolved, control
 
 
 def _run_chunks(todo, tables: dict, chunk_store, bar, n_kept: int, n_points: int, store,

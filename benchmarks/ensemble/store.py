@@ -58,7 +58,8 @@ from benchmarks.records.optional import require
 from integrators import ReturnCode
 
 __all__ = ["ChunkStore", "read_store", "BadChunkWarning", "StrayFileWarning",
-           "IncompleteStoreWarning", "StoreBusy", "identity_of", "SCHEMA", "IDENTITY"]
+           "IncompleteStoreWarning", "StoreBusy", "identity_of", "SCHEMA", "IDENTITY",
+           "held_algorithm"]
 
 #: the version of the store's layout: a store written under another is another ensemble
 #: (2: chunks named ``_c…``, listed with their hashes in the identity file)
@@ -138,6 +139,24 @@ def identity_of(problem, algorithm, names, values, chunk_size: int, wall_budget,
             **({"curve_chain": repr(curve_chain)} if curve_chain is not None else {}),
             **({"sensitivity": list(sensitivity), "sensitivity_error": sensitivity_error}
                if sensitivity else {})}
+
+
+def _held_asked(held, asked) -> str:
+    """`` (held X, asked Y)`` for short values of an identity's key; nothing for long ones
+    (a problem's repr, a hash) or the code's version."""
+    if any(len(repr(v)) > 60 for v in (held, asked)):
+        return ""
+    return f" (held {held!r}, asked {asked!r})"
+
+
+def held_algorithm(root) -> str | None:
+    """The ``algorithm`` (its ``repr``) of the ensemble a store at ``root`` holds, or None
+    where there is no store or its identity file cannot be read (reading changes nothing)."""
+    try:
+        held = json.loads((Path(root) / IDENTITY).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return held.get("algorithm") if isinstance(held, dict) else None
 
 
 class ChunkStore:
@@ -234,7 +253,7 @@ class ChunkStore:
             if "sensitivity" not in set(held) & set(self.identity):
                 # the error control is recorded only with names: not a difference of its own
                 what = [k for k in what if k != "sensitivity_error"] or what
-            what = ", ".join(what)
+            what = ", ".join(k + _held_asked(held.get(k), self.identity.get(k)) for k in what)
             if not self.reclaim:
                 raise ValueError(f"the store {self.root} holds another ensemble (differing: "
                                  f"{what}): give another directory, or remove it to start over")

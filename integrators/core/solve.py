@@ -162,9 +162,12 @@ def _directions(problem: SpringSlider, algorithm: Algorithm, sensitivity, contro
     """The :class:`problems.directions.Direction` objects of ``sensitivity`` (empty: none) and
     the error control as a bool, or ValueError for a method without forward sensitivities or a
     name the problem lacks."""
-    from problems.directions import direction, sensitive_request, sensitivity_names
-    names = () if sensitivity is None else sensitivity_names(problem, sensitivity)
-    control = sensitive_request(algorithm, sensitivity, control, loose_warning=2)
+    from problems.directions import direction, sensitive_request, sensitivity_names, warn_loose
+    control = sensitive_request(algorithm, sensitivity, control)
+    if sensitivity is None:
+        return (), control
+    names = sensitivity_names(problem, sensitivity)
+    warn_loose(algorithm, 2)
     return tuple(direction(problem, n) for n in names), control
 
 
