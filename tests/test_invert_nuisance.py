@@ -54,7 +54,7 @@ def test_a_named_method_with_sensitivities_is_tightened_to_the_gradients_rtol(tm
     assert out.returncode == 0, out.stderr
     doc = json.loads(out.stdout)
     assert doc["provenance"]["integrator_choice"].startswith(
-        "RadauIIA5 at rtol 1e-06, tightened from 0.0001")
+        "RadauIIA5 at rtol 1e-06, atol 1e-06, tightened from rtol 0.0001, atol 0.0001")
     assert doc["names"] == ["b", "log10_lc", "stiffness"] and doc["success"]
 
 
@@ -66,6 +66,10 @@ def test_a_named_method_with_sensitivities_is_tightened_to_the_gradients_rtol(tm
     (["--nuisance", "k=3%", "--integrator", "scipy-RK45"], "name Rodas5P or RadauIIA5"),
     (["--nuisance", "vl=1%"], "has no vl"),       # W2 loads at vls, then vlf
     (["--nuisance-sampler", "nested"], "add --nuisance"),
+    (["--nuisance", "k=3%", "--rtol", "1e-7"], "need --integrator"),
+    (["--nuisance", "k=3%", "--integrator", "RadauIIA5", "--rtol", "1e-7", "--atol", "1e-7",
+      "--accuracy", "1e-5"], "with --integrator it has no effect"),
+    (["--accuracy", "1.5"], "below 1"),
 ])
 def test_misuse_is_refused_in_one_line_before_any_work(tmp_path, args, match):
     out = _cli("--preset", "W2", "--law", "slip", *args, "--out", tmp_path / "o", timeout=120)
@@ -212,3 +216,40 @@ def test_the_nested_draws_do_not_depend_on_how_many_threads_fit_them():
         if workers == 1:        # (the fake's own count is not guarded against threads)
             assert misfit.failures["solves"] == tables[-1].inner_solves.sum()
     pd.testing.assert_frame_equal(tables[0], tables[1])
+
+
+def test_a_misfit_counts_each_threads_solves_apart():
+    """A sampler's draws run on threads: each reads its own solves (solves_here), and the
+    misfit's total is their sum."""
+    import threading
+    from concurrent.futures import ThreadPoolExecutor
+
+    from benchmarks.inversion.misfit import Misfit, synthetic
+    from integrators import Rodas5P
+    from problems import window
+    problem = window("W2", "slip", t_end=10.0)
+    misfit = Misfit(problem, synthetic(3.0446, 0.04522, 0.01, seed=0),
+                    Rodas5P(rtol=1e-6, atol=1e-6))
+
+    both = threading.Barrier(2)             # each draw on a thread of its own
+
+    def draw(k):
+        both.wait(timeout=60)
+        for _ in range(k):
+            misfit.residuals_and_jacobian({"b": problem.law.b, "lc": problem.law.lc})
+        return misfit.solves_here
+
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        here = list(pool.map(draw, [1, 2]))
+    assert misfit.solves_here == 0 and misfit.failures["solves"] == sum(here) >= 3
+
+
+def test_the_gradients_setting_tightens_rtol_and_atol_alike():
+    from benchmarks.inversion.misfit import sensitive_setting
+    from integrators import RadauIIA5, Rodas5P, Rosenbrock23
+    kept = RadauIIA5(rtol=1e-7, atol=1e-8)
+    assert sensitive_setting(kept) is kept
+    loose = sensitive_setting(Rodas5P(rtol=1e-7, atol=1e-2))
+    assert (loose.name, loose.rtol, loose.atol) == ("Rodas5P", 1e-7, 1e-6)
+    other = sensitive_setting(Rosenbrock23(rtol=1e-3, atol=1e-3))   # no sensitivities
+    assert (other.name, other.rtol, other.atol) == ("Rodas5P", 1e-6, 1e-6)

@@ -76,6 +76,29 @@ def test_the_race_on_the_box_takes_the_fastest_setting_that_finishes(w2):
     assert fastest == tight and all(t == np.inf for t in times.values())   # all out of budget
 
 
+def test_a_level_the_references_cannot_vouch_for_is_said_not_checked(w2):
+    """At 1e-9 the references (1e-9 themselves) agree in ΔT to a tenth of it nowhere: the
+    level is not judged, and the message says so rather than claim it."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        vague = synthetic(3.0446, 0.04522, 0.5, seed=1)
+    check = check_solver(w2, Rosenbrock23(rtol=1e-3, atol=1e-3), vague, *BOX, level=1e-9)
+    assert check.passed and "ΔT's level 1e-09 not checked" in check.message
+    assert "1e-09 relative in ΔT" not in check.message
+    assert check.points.relative_dT_error.isna().all()
+
+
+def test_the_race_keeps_the_first_within_its_margin_and_a_held_setting(w2):
+    from benchmarks.devtools.recommendation import contenders
+    from benchmarks.inversion.solver_check import recommended_on_box
+    loose, tight = Rosenbrock23(rtol=1e-3, atol=1e-3), Rosenbrock23(rtol=1e-6, atol=1e-6)
+    fastest, _ = fastest_on_box(w2, [tight, loose], *BOX, repeats=1, margin=0.99)
+    assert fastest == tight                  # not 99 % faster: the first stays
+    rivals = [a for a, _w, _t in contenders(1e-3)]
+    held, why = recommended_on_box(w2, 1e-3, *BOX, held=repr(rivals[-1]))
+    assert held == rivals[-1] and "kept so that the run resumes" in why
+
+
 def test_a_setting_that_cannot_be_tightened_is_refused_naming_the_worst_point(w2, obs):
     check = check_solver(w2, Rosenbrock23(rtol=1e-3, atol=1e-3), obs, *BOX,
                          next_setting=lambda algorithm: None)

@@ -30,7 +30,8 @@ __all__ = ["say", "show_progress", "RunStopped", "Parser", "HelpFormatter", "pos
            "integrator_from_args",
            "problem_from_args", "add_problem_choice", "add_observation_options",
            "check_observation_options", "observations_from_args", "ACCURACY",
-           "sensitivity_request", "sensitive_default", "add_sensitivity_option"]
+           "sensitivity_request", "sensitive_default", "add_sensitivity_option",
+           "check_no_tolerances"]
 
 #: the relative error in ΔT the default integrator must reach
 ACCURACY = 1e-3
@@ -166,6 +167,15 @@ def count(text: str, minimum: int = 1) -> int:
 def seed(text: str) -> int:
     """An integer ≥ 0 (a random seed)."""
     return count(text, minimum=0)
+
+
+def relative_error(text: str) -> float:
+    """A type: a relative error, above 0 and below 1 (1e-3: 0.1 %)."""
+    x = positive(text)
+    if not x < 1.0:
+        raise argparse.ArgumentTypeError(f"must be a relative error above 0 and below 1 (1e-3 "
+                                         f"is 0.1 %), got {text!r}")
+    return x
 
 
 def bounded(minimum: int, maximum: int, why: str):
@@ -496,7 +506,7 @@ def add_integrator_options(p, default: str | None = None) -> None:
     p.add_argument("--rhs", choices=("numba", "python"),
                    help="right-hand side of an adaptive integrator: compiled or plain Python "
                         "(default: numba)")
-    p.add_argument("--accuracy", type=positive, default=ACCURACY, metavar="REL",
+    p.add_argument("--accuracy", type=relative_error, default=ACCURACY, metavar="REL",
                    help="relative error in the recurrence interval the recommended integrator "
                         "must reach, when no --integrator is named")
 
@@ -513,13 +523,21 @@ def integrator_from_args(args):
     """``(algorithm, why)``: the named integrator with its options, or the recommendation."""
     from benchmarks.devtools.recommendation import recommended
     if args.integrator:
+        if getattr(args, "accuracy", ACCURACY) != ACCURACY:
+            raise ValueError("--accuracy chooses the recommended integrator and checks it on "
+                             "your box; with --integrator it has no effect: drop one of them")
         cls = flagged("--integrator", algorithm_class, args.integrator)
         return (make_algorithm(cls.name, rtol=args.rtol, atol=args.atol, rhs=args.rhs),
                 f"{cls.name}, as asked (--integrator)")
+    check_no_tolerances(args)
+    return recommended(args.accuracy)
+
+
+def check_no_tolerances(args) -> None:
+    """--rtol, --atol and --rhs without --integrator: refused (ValueError)."""
     if args.rtol is not None or args.atol is not None or args.rhs is not None:
         raise ValueError("--rtol, --atol and --rhs need --integrator NAME (without it the "
                          "recommended integrator comes with its own tolerance)")
-    return recommended(args.accuracy)
 
 
 def sensitivity_request(args, problem, algorithm, why):
@@ -572,12 +590,14 @@ def add_solver_check_option(p) -> None:
 
 
 def checked_integrator(args, problem, obs, b_range, lc_range, algorithm, why: str,
-                       keep_method: bool = False):
+                       keep_method: bool = False, held: str | None = None):
     """``(algorithm, why, check)``: the integrator checked on ``problem``'s box for ``obs``
     (:func:`benchmarks.inversion.solver_check.check_solver`), tightened if it had to be (a
     recommended one along the work-precision front, which may change the method, unless
     ``keep_method``); ``ValueError`` when no setting passes; ``check`` None with
-    --no-solver-check."""
+    --no-solver-check, which also takes the recommendation as it is (no race on the box).
+    ``held``: the setting (``repr``) of a store the run resumes, kept where it is a
+    contender."""
     from benchmarks.inversion.solver_check import check_solver
     if args.no_solver_check:
         return algorithm, why + " (not checked on this problem: --no-solver-check)", None
@@ -590,7 +610,8 @@ def checked_integrator(args, problem, obs, b_range, lc_range, algorithm, why: st
     # a recommended setting is checked on the level it was chosen for, too
     level = None if getattr(args, "integrator", None) else getattr(args, "accuracy", None)
     if level is not None and not keep_method:
-        algorithm, why = _raced(args, problem, b_range, lc_range, level, algorithm, why, talk)
+        algorithm, why = _raced(args, problem, (b_range, lc_range), level, (algorithm, why),
+                                talk, held)
     check = check_solver(problem, algorithm, obs, b_range, lc_range, next_setting=step,
                          workers=getattr(args, "workers", None), say=talk,
                          wall_budget=getattr(args, "wall_budget", None) or WALL_BUDGET,
@@ -608,16 +629,17 @@ def checked_integrator(args, problem, obs, b_range, lc_range, algorithm, why: st
     return check.algorithm, why, check
 
 
-def _raced(args, problem, b_range, lc_range, level, algorithm, why, talk):
+def _raced(args, problem, box, level, chosen, talk, held):
     """``(algorithm, why)``: :func:`benchmarks.inversion.solver_check.recommended_on_box` when
-    ``algorithm`` is the recommendation for ``level``; as it is otherwise."""
+    ``chosen`` is the recommendation for ``level``; ``chosen`` as it is otherwise."""
     from benchmarks.devtools.recommendation import contenders
     from benchmarks.inversion.solver_check import WALL_BUDGET, recommended_on_box
     rivals = contenders(level)
-    if len(rivals) < 2 or rivals[0][0] != algorithm:
-        return algorithm, why
-    return recommended_on_box(problem, level, b_range, lc_range,
-                              getattr(args, "wall_budget", None) or WALL_BUDGET, say=talk)
+    if len(rivals) < 2 or rivals[0][0] != chosen[0]:
+        return chosen
+    return recommended_on_box(problem, level, *box,
+                              getattr(args, "wall_budget", None) or WALL_BUDGET, say=talk,
+                              held=held)
 
 
 def wants_json(argv: list[str]) -> bool:

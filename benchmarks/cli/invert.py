@@ -118,9 +118,7 @@ def cmd_invert(args) -> int:
         raise ValueError(f"--t-end {problem.t_end:g} s simulates {cycles:,.0f} cycles of the "
                          f"observed ΔT = {obs.recurrence_s:g} s per solve; a limit cycle is "
                          f"read in tens: at most {MAX_CYCLES:,}")
-    algorithm, why = integrator_from_args(args)
-    if args.nuisance:
-        algorithm, why = nuisance_algorithm(args, algorithm, why)
+    algorithm, why = nuisance_algorithm(args) if args.nuisance else integrator_from_args(args)
     name = args.preset if args.problem is None else Path(args.problem).stem
     out = Path(args.out or f"invert_{name}_{problem.law.name}")
     # a user's file there: refused now

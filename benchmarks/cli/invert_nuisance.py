@@ -86,20 +86,26 @@ def check_nuisance_observations(obs) -> None:
                          "not differentiated: add --curve-noise none")
 
 
-def nuisance_algorithm(args, algorithm, why):
+def nuisance_algorithm(args):
     """``(algorithm, why)`` as the nuisance fit solves: the named method (it has forward
-    sensitivities) at its rtol, tightened to :data:`problems.directions.SENSITIVITY_RTOL`
-    where looser; without --integrator, :func:`benchmarks.cli.args.sensitive_default`."""
-    from integrators import make_algorithm
+    sensitivities) at its rtol and atol, each tightened to
+    :data:`problems.directions.SENSITIVITY_RTOL` where looser (as the fit's
+    :func:`benchmarks.inversion.misfit.sensitive_setting`); without --integrator,
+    :func:`benchmarks.cli.args.sensitive_default` (not the plain recommendation, which is
+    never used here: its warnings would be about another setting)."""
+    from benchmarks.cli.args import check_no_tolerances, integrator_from_args
+    from benchmarks.inversion.misfit import sensitive_setting
     from problems.directions import SENSITIVITY_RTOL
     if not args.integrator:
+        check_no_tolerances(args)
         return sensitive_default(args.accuracy, "--nuisance")
-    if algorithm.rtol <= SENSITIVITY_RTOL:
+    algorithm, why = integrator_from_args(args)
+    used = sensitive_setting(algorithm)
+    if used == algorithm:
         return algorithm, why
-    tol = SENSITIVITY_RTOL
-    return (make_algorithm(algorithm.name, rtol=tol, atol=min(algorithm.atol, tol)),
-            f"{algorithm.name} at rtol {tol:g}, tightened from {algorithm.rtol:g} (--nuisance: "
-            f"exact gradients need rtol ≤ {tol:g})")
+    return used, (f"{algorithm.name} at rtol {used.rtol:g}, atol {used.atol:g}, tightened from "
+                  f"rtol {algorithm.rtol:g}, atol {algorithm.atol:g} (--nuisance: exact "
+                  f"gradients need both ≤ {SENSITIVITY_RTOL:g})")
 
 
 def run_nuisance(args, misfit, box, steps: int, out, record: dict) -> int:

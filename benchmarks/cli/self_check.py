@@ -87,7 +87,7 @@ def cmd_self_check(args) -> int:
 def add_parsers(sub) -> None:
     import argparse
     p = sub.add_parser("self-check", help="a recording like yours made by the model at a known "
-                       "truth, through observe and invert: does the 95 % region hold it?",
+                       "truth, through observe and invert: does the 95 %% region hold it?",
                        description=HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_problem_choice(p, PRESET_NAMES, "your apparatus (its mass, k, Fn, loading, a)")
     p.add_argument("--observations", type=in_file, required=True, metavar="FILE.json",

@@ -37,6 +37,7 @@ from benchmarks.cli.args import (
 )
 from benchmarks.cli.invert import WALL_BUDGET
 from benchmarks.ensemble.executors import CONNECT_TIMEOUT_S, WORKER_TIMEOUT_S
+from benchmarks.ensemble.store import held_algorithm
 from benchmarks.inversion.observations import observations
 from benchmarks.inversion.sweep import MAX_GRID_POINTS, parse_b, parse_lc, sweep
 from benchmarks.physics.curves import read_curves, sample_curves, write_curves
@@ -76,7 +77,8 @@ def cmd_sweep(args) -> int:
                    *([] if args.no_plot else [out / "maps.png"])])  # refused before the work
     algorithm, why, check = checked_integrator(
         args, problem, obs, (float(min(b_values)), float(max(b_values))),
-        (float(min(lc_values)), float(max(lc_values))), algorithm, why, keep_method=bool(names))
+        (float(min(lc_values)), float(max(lc_values))), algorithm, why, keep_method=bool(names),
+        held=held_algorithm(out / "chunks"))          # a sweep resumed keeps its setting
     if not args.json:
         say(f"integrator: {why}")
         if obs.assumed_sigma:
@@ -108,12 +110,15 @@ def cmd_sweep(args) -> int:
         say(json.dumps(jsonable(s), indent=2))
     else:
         _report(s, out, args.no_plot)
-    return 0
+    return 1 if s["n_failed"] == s["n_points"] else 0     # nothing but failures (_report)
 
 
 def _report(s: dict, out: Path, no_plot: bool) -> None:
     say(f"{s['n_points']} points ({s['n_resumed']} resumed, {s['n_failed']} failed) in "
         f"{s['wall_s']:.1f} s; {s['n_in_region']} in the 95 % region J1 ≤ 5.99")
+    if s["n_failed"] == s["n_points"]:
+        say("every point failed (exit status 1): nothing in this map is physics; see each "
+            "point's message in sweep.csv (a --wall-budget too small?)")
     if s["best_b"] is not None:
         say(f"best ({s['best_by']}): b = {s['best_b']:.5g}, Lc = {s['best_lc_m'] * 1e6:.4g} µm,"
             f" J1 = {s['best_J1']:.3g}")

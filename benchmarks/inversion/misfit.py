@@ -32,9 +32,10 @@ from benchmarks.inversion.observations import MIN_SIGMA_REL, Observations
 from benchmarks.physics.metrics import CYCLES
 from integrators import Algorithm
 from problems import SpringSlider
-from problems._validate import UnitWarning
+from problems._validate import UnitWarning, units_checked_already
 
-__all__ = ["Misfit", "NO_CYCLE_RESIDUAL", "synthetic", "MIN_SIGMA_REL", "BUDGET_STOPS"]
+__all__ = ["Misfit", "NO_CYCLE_RESIDUAL", "synthetic", "MIN_SIGMA_REL", "BUDGET_STOPS",
+           "sensitive_setting"]
 
 #: the retcodes of a solve stopped by its budget (wall time, steps)
 BUDGET_STOPS = ("WallTime", "MaxSteps")
@@ -82,6 +83,8 @@ class Misfit:
     #: the counts are added to from several threads (a sampler's draws)
     _lock: object = field(default_factory=threading.Lock, init=False, repr=False,
                           compare=False)
+    _here: object = field(default_factory=threading.local, init=False, repr=False,
+                          compare=False)
 
     @property
     def failures(self) -> dict:
@@ -93,6 +96,13 @@ class Misfit:
         with self._lock:
             for name, n in zip(_COUNTS, (solves, failed, over_budget)):
                 self._counts[name] += n
+        self._here.solves = self.solves_here + solves
+
+    @property
+    def solves_here(self) -> int:
+        """The solves evaluated so far on the calling thread (a sampler's draw counts its
+        own)."""
+        return getattr(self._here, "solves", 0)
 
     def __post_init__(self) -> None:
         for name, value, kind in (("problem", self.problem, SpringSlider),
@@ -187,21 +197,16 @@ class Misfit:
         return self._cycle_residuals(problem, self._sensitive_algorithm(), ())[0]
 
     def _sensitive_algorithm(self):
-        """This misfit's method if it has sensitivities (Rodas5P, RadauIIA5), else Rodas5P, at
-        this misfit's tolerance, at most :data:`problems.directions.SENSITIVITY_RTOL`."""
-        from integrators import make_algorithm
-        from problems.directions import SENSITIVITY_RTOL
-        tol = min(getattr(self.algorithm, "rtol", None) or SENSITIVITY_RTOL, SENSITIVITY_RTOL)
-        name = self.algorithm.name if getattr(self.algorithm, "sensitive", False) else "Rodas5P"
-        return make_algorithm(name, rtol=tol, atol=tol)
+        """The setting the gradients are solved with: :func:`sensitive_setting` of this
+        misfit's algorithm."""
+        return sensitive_setting(self.algorithm)
 
     def _cycle_residuals(self, problem, algorithm, names):
         """(ΔT, Δμ residuals in σ, the solution, its cycle or None) of one solve of
         ``problem`` (with the sensitivities ``names``), counted as this misfit's solves."""
         from benchmarks.physics.metrics import summarize
         from integrators import solve
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", UnitWarning)
+        with units_checked_already():        # a context variable: safe in a sampler's threads
             sol = solve(problem, algorithm, max_points=2, sensitivity=names or None,
                         wall_budget=self.wall_budget)
         self._count(1, int(not sol.success), int(sol.retcode.value in BUDGET_STOPS))
@@ -219,6 +224,21 @@ class Misfit:
         """−misfit/2 at one point (Gaussian errors of the stated σ), −inf without a limit
         cycle."""
         return float(self.evaluate([b], [lc]).log_likelihood.iloc[0])
+
+
+def sensitive_setting(algorithm):
+    """``algorithm`` where it has forward sensitivities (Rodas5P, RadauIIA5) with rtol and
+    atol ≤ :data:`problems.directions.SENSITIVITY_RTOL`; else its method (Rodas5P for one
+    without sensitivities) with each tightened to that."""
+    from integrators import make_algorithm
+    from problems.directions import SENSITIVITY_RTOL
+    rtol = getattr(algorithm, "rtol", None) or SENSITIVITY_RTOL
+    atol = getattr(algorithm, "atol", None) or SENSITIVITY_RTOL
+    sensitive = getattr(algorithm, "sensitive", False)
+    if sensitive and max(rtol, atol) <= SENSITIVITY_RTOL:
+        return algorithm
+    return make_algorithm(algorithm.name if sensitive else "Rodas5P",
+                          rtol=min(rtol, SENSITIVITY_RTOL), atol=min(atol, SENSITIVITY_RTOL))
 
 
 def synthetic(recurrence_s: float, friction_drop: float, sigma_rel: float,

@@ -54,13 +54,16 @@ def _inner(misfit: Misfit, theta: dict, x0, lo, hi):
     ``theta`` held, None without a cycle; solves, the forward solves it took."""
     from scipy.optimize import least_squares
     last, solves = {}, [0]
+    here = getattr(type(misfit), "solves_here", None)      # a Misfit counts per thread
 
     def at(x):
         key = tuple(x)
         if key not in last:
             values = {"b": x[0], "lc": 10.0 ** x[1], **theta}
+            before = misfit.solves_here if here is not None else 0
             r, jac = misfit.residuals_and_jacobian(values)
-            solves[0] += 1
+            # a Jacobian by differences (no cycle gradient) takes more than one solve
+            solves[0] += misfit.solves_here - before if here is not None else 1
             jac = jac[:, :2] * np.array([1.0, values["lc"] * math.log(10.0)])
             last.clear()
             last[key] = (r, jac)
@@ -131,8 +134,8 @@ def _side_by_side(work, items, workers, progress: bool) -> list:
 
     from tqdm.auto import tqdm
     n = max(1, min(workers or os.cpu_count() or 1, len(items) or 1))
-    # the threads' own catch_warnings (in the solves) race on the process's filters: this
-    # one, outermost, puts them back as they were
+    # a catch_warnings inside a thread (a solve's first compile, say) races on the process's
+    # filters: this one, outermost, puts them back as they were
     with warnings.catch_warnings(), ThreadPoolExecutor(max_workers=n) as pool, tqdm(
             total=len(items), desc="nested draws", unit="draw", disable=not progress,
             file=sys.stderr) as bar:

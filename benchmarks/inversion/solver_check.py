@@ -44,7 +44,7 @@ from integrators import make_algorithm
 from integrators.core.registry import RTOL_MIN
 
 __all__ = ["check_solver", "SolverCheck", "REFERENCES", "FRACTION", "TIGHTENINGS", "tighter",
-           "WALL_BUDGET", "fastest_on_box", "RACE_REPEATS", "recommended_on_box"]
+           "WALL_BUDGET", "fastest_on_box", "RACE_REPEATS", "RACE_MARGIN", "recommended_on_box"]
 
 #: the reference pair (integrator, rtol = atol): an exponential Rosenbrock and a Rosenbrock
 #: method, tight, in compiled batches
@@ -58,6 +58,9 @@ TIGHTENINGS = 3
 WALL_BUDGET = 10.0
 #: rounds of :func:`fastest_on_box` (each candidate's time: the least of its rounds)
 RACE_REPEATS = 2
+#: a rival replaces the recommendation only when faster than it by more than this fraction:
+#: near-ties within the timing noise (a few % on a loaded machine) keep the recommendation
+RACE_MARGIN = 0.03
 
 
 @dataclass
@@ -114,13 +117,15 @@ def _points(b_range, lc_range, inner: bool = False) -> dict:
 
 
 def fastest_on_box(problem, candidates, b_range, lc_range,
-                   wall_budget: float | None = WALL_BUDGET, repeats: int = RACE_REPEATS):
+                   wall_budget: float | None = WALL_BUDGET, repeats: int = RACE_REPEATS,
+                   margin: float = 0.0):
     """``(algorithm, times)``: of ``candidates`` (algorithms), the one whose solves of the
     box's corners, centre and 3 × 3 inner grid (:func:`_points`) take the least wall in all
     (each point's own solve time, on one thread; the least of ``repeats`` rounds, the
-    candidates interleaved), among those whose every solve there succeeded; ``times``: each
-    candidate's label → s (inf where a solve failed). The first candidate when every one
-    failed somewhere (the check then judges it)."""
+    candidates interleaved), among those whose every solve there succeeded; another than the
+    first only when it is faster than the first by more than ``margin`` (a fraction of the
+    first's time). ``times``: each candidate's label → s (inf where a solve failed). The
+    first candidate when every one failed somewhere (the check then judges it)."""
     corners, inner = _points(b_range, lc_range), _points(b_range, lc_range, inner=True)
     points = {k: np.concatenate([corners[k], inner[k]]) for k in corners}
     best = [np.inf] * len(candidates)
@@ -131,27 +136,41 @@ def fastest_on_box(problem, candidates, b_range, lc_range,
             if (table.retcode == "Success").all():
                 best[i] = min(best[i], float(table.wall_s.sum()))
     k = int(np.argmin(best)) if np.isfinite(best).any() else 0
+    if np.isfinite(best[0]) and best[k] > (1.0 - margin) * best[0]:
+        k = 0                                    # not clearly faster: the first stays
     return candidates[k], {_label(a): t for a, t in zip(candidates, best)}
 
 
 def recommended_on_box(problem, level: float, b_range, lc_range,
-                       wall_budget: float | None = WALL_BUDGET, say=None):
+                       wall_budget: float | None = WALL_BUDGET, say=None, held=None):
     """``(algorithm, why)``: the recommendation for ``level``
     (:func:`benchmarks.devtools.recommendation.recommended`), or where the front has settings
     within ``level`` at nearly its cost (:func:`~benchmarks.devtools.recommendation.contenders`),
-    the fastest of them on this problem's box (:func:`fastest_on_box`): the studies vouch for
-    each one's accuracy, the box decides their near-ties. ``say``: told before the race."""
+    the fastest of them on this problem's box (:func:`fastest_on_box`; a rival must be
+    :data:`RACE_MARGIN` faster than the recommendation): the studies vouch for each one's
+    accuracy, the box decides their near-ties. ``held``: the ``repr`` of a setting already in
+    use (a store's, to resume): a contender that is it is taken without a race. ``say``: told
+    before the race."""
     from benchmarks.devtools.recommendation import contenders, recommended
     algorithm, why = recommended(level)
     rivals = [a for a, _worst, _wall in contenders(level)]
     if len(rivals) < 2:
         return algorithm, why
+    kept = [a for a in rivals if repr(a) == held]
+    if kept:
+        return kept[0], (f"{why}; of the front's near-ties within {level:g}, "
+                         f"{_label(kept[0])}: the setting of the stored chunks, kept so that "
+                         "the run resumes")
     if say is not None:
         say(f"timing the {len(rivals)} settings of the front within {level:g} on the box")
-    fastest, times = fastest_on_box(problem, rivals, b_range, lc_range, wall_budget)
-    said = ", ".join(f"{k} {t * 1e3:.3g} ms" for k, t in times.items())
+    fastest, times = fastest_on_box(problem, rivals, b_range, lc_range, wall_budget,
+                                    margin=RACE_MARGIN)
+    said = ", ".join(f"{k} {t * 1e3:.3g} ms" if np.isfinite(t) else f"{k} failed"
+                     for k, t in times.items())
     return fastest, (f"{why}; on this problem's box (corners, centre and a 3 × 3 grid, one "
-                     f"thread) the fastest of the front's settings within {level:g}: {said}")
+                     f"thread) took {_label(fastest)}, the fastest of the front's settings "
+                     f"within {level:g} (a rival must be {RACE_MARGIN:.0%} faster than the "
+                     f"recommendation): {said}")
 
 
 def _run(problem, algorithm, points, curves: bool, workers, wall_budget) -> pd.DataFrame:
@@ -206,15 +225,9 @@ def check_solver(problem, algorithm, obs, b_range, lc_range, next_setting=None,
         if (cycles[0] & cycles[1]).any():
             break
     else:
-        return SolverCheck(algorithm, False, pd.DataFrame(), [], (
-            "no limit cycle at the box's corners, its centre or a 3 × 3 grid inside it, by "
-            "either reference: nothing to check the integrator on"
-            + (f" ({unfinished} of the references' {n_solves} solves failed or ran out of "
-               f"their budget of {wall_budget:g} s per solve: no cycle is read from them)"
-               if unfinished and wall_budget is not None else
-               f" ({unfinished} of the references' {n_solves} solves failed)"
-               if unfinished else "")),
-            time.perf_counter() - started, n_solves, nothing_to_check=True)
+        return SolverCheck(algorithm, False, pd.DataFrame(), [],
+                           _nothing(n_solves, unfinished, wall_budget),
+                           time.perf_counter() - started, n_solves, nothing_to_check=True)
     finished = ((refs[0].retcode == "Success") & (refs[1].retcode == "Success")).to_numpy()
     agree = (_errors(refs[0], refs[1], obs) <= FRACTION / 10) & finished
     rows, tried, current = [], [], algorithm
@@ -249,23 +262,57 @@ def check_solver(problem, algorithm, obs, b_range, lc_range, next_setting=None,
     k = int(np.argmax(share))
     return SolverCheck(current, False, pd.concat(rows, ignore_index=True), tried,
                        f"no setting tried ({', '.join(tried)}) is within {_allowed(level)} of "
-                       f"the reference: the last is {err[k]:.3g} σ off"
-                       + ("" if level is None else f" and {rel[k]:.2g} in ΔT") +
+                       f"the reference: the last "
+                       + _off(rows[-1].iloc[[k]], None if np.isnan(rel[k]) else level) +
                        f" at b = {points['b'][k]:g}, Lc = {points['lc'][k]:g} m (name a more "
-                       "accurate --integrator, or check the σ)",
+                       "accurate --integrator, " + ("" if level is None else
+                                                   "ask a looser --accuracy, ")
+                       + "or check the σ)",
                        time.perf_counter() - started, n_solves)
 
 
+def _nothing(n_solves: int, unfinished: int, wall_budget) -> str:
+    """Why the check had nothing to check: every reference solve failed (the budget first),
+    or no point of the box has a limit cycle."""
+    if unfinished == n_solves:
+        return (f"every one of the references' {n_solves} solves failed"
+                + (f" or ran out of its budget of {wall_budget:g} s" if wall_budget else "")
+                + ": nothing to check the integrator on (raise --wall-budget?)")
+    return ("no limit cycle at the box's corners, its centre or a 3 × 3 grid inside it, by "
+            "either reference: nothing to check the integrator on"
+            + (f" ({unfinished} of the references' {n_solves} solves failed or ran out of "
+               f"their budget of {wall_budget:g} s per solve: no cycle is read from them)"
+               if unfinished and wall_budget is not None else
+               f" ({unfinished} of the references' {n_solves} solves failed)"
+               if unfinished else ""))
+
+
 def _passed(label: str, rows: list, agree, compared, level, tried: list) -> str:
-    """The sentence of a check passed by ``label``, the last of ``rows``."""
-    last = rows[-1][agree]
-    return (f"{label}: every checked point within {_allowed(level)} of the reference (worst "
+    """The sentence of a check passed by ``label``, the last of ``rows``: what was within
+    which allowance, at how many points, and what a tightening started from."""
+    last, first = rows[-1][agree], rows[0][agree]
+    n_level = int(last.relative_dT_error.notna().sum())
+    checked = _allowed(level if n_level else None)
+    return (f"{label}: every checked point within {checked} of the reference (worst "
             f"{last.error_in_sigma.max():.2g} σ"
-            + ("" if level is None else f", {last.relative_dT_error.max():.2g} in ΔT")
+            + ("" if level is None else
+               f", {last.relative_dT_error.max():.2g} in ΔT at {n_level} of them" if n_level
+               else f"; ΔT's level {level:g} not checked: the references agree in ΔT to a "
+                    "tenth of it at no point")
             + f"; {int(compared.sum())} points with a cycle where the references agree, of "
             f"{len(agree)})" + ("" if len(tried) == 1 else
-                                f"; tightened from {tried[0]}, which was "
-                                f"{rows[0].error_in_sigma.where(agree).max():.2g} σ off"))
+                                f"; tightened from {tried[0]}, which " + _off(first, level)))
+
+
+def _off(rows, level) -> str:
+    """How far a setting's checked points were off: its worst in σ (and in ΔT), or that it
+    missed a limit cycle the references find (or found one they do not)."""
+    worst = rows.error_in_sigma.max()
+    if not np.isfinite(worst):
+        return "missed a limit cycle the references find, or found one they do not"
+    return (f"was {worst:.2g} σ" + ("" if level is None or rows.relative_dT_error.isna().all()
+                                    else f" and {rows.relative_dT_error.max():.2g} in ΔT")
+            + " off")
 
 
 def _allowed(level) -> str:
@@ -275,9 +322,10 @@ def _allowed(level) -> str:
 
 def _judged(table, refs, obs, agree, level) -> tuple:
     """Per point: the error against the first reference in units of σ, the relative ΔT error
-    (NaN without ``level``, or where a point has no cycle) and the larger of each as a share of
-    its allowance (σ/10, ``level``; ≤ 1 passes). A point counts only where the references
-    agree (``agree``) and, for the level, agree in ΔT to a tenth of it."""
+    (inf for a cycle one of them misses; NaN without ``level`` and where it is not judged) and
+    the larger of each as a share of its allowance (σ/10, ``level``; ≤ 1 passes). A point
+    counts only where the references agree (``agree``) and, for the level, where both have a
+    cycle whose ΔT they agree on to a tenth of it."""
     err = _errors(table, refs[0], obs)
     share = err / FRACTION
     rel = np.full(len(err), np.nan)
@@ -286,14 +334,17 @@ def _judged(table, refs, obs, agree, level) -> tuple:
         rel = np.abs(table.recurrence_s.to_numpy() - t_ref) / t_ref
         rel = np.where(np.isinf(err), np.inf, rel)       # a cycle one of them misses
         refs_rel = np.abs(refs[1].recurrence_s.to_numpy() - t_ref) / t_ref
-        judged = np.nan_to_num(refs_rel, nan=np.inf) <= level / 10
-        share = np.maximum(share, np.where(judged, np.nan_to_num(rel, nan=0.0) / level, 0.0))
+        judged = agree & (np.nan_to_num(refs_rel, nan=np.inf) <= level / 10)
+        rel = np.where(judged, rel, np.nan)
+        share = np.maximum(share, np.nan_to_num(rel, nan=0.0) / level)
     return err, rel, np.where(agree, share, 0.0)
 
 
 def _label(algorithm) -> str:
     if hasattr(algorithm, "rtol"):
-        return f"{algorithm.name} at rtol = atol = {algorithm.rtol:g}"
+        atol = getattr(algorithm, "atol", algorithm.rtol)
+        return (f"{algorithm.name} at rtol = atol = {algorithm.rtol:g}" if atol == algorithm.rtol
+                else f"{algorithm.name} at rtol {algorithm.rtol:g}, atol {atol:g}")
     if hasattr(algorithm, "dtau_cnst"):
         return f"{algorithm.name} at Δτcnst = {algorithm.dtau_cnst:g}"
     return algorithm.name

@@ -17,7 +17,8 @@
   the sweep's setting and the peer, and for every own stiff method with a batch kernel at
   :data:`CANDIDATE_TOLS` (2 threads, minimum of ``repeats``): the fastest whose worst ΔT error
   over the points is within 1e−3 is the "fastest own setting" the 0.5 s target is judged on.
-* **10⁵ points** (W2, 20 s a point, the same setting) into a Parquet store, uninterrupted; then
+* **10⁵ points** (W2, 20 s a point, the recommendation for 1e−3) into a Parquet store,
+  uninterrupted; then
   the same ensemble in a fresh store, in a subprocess killed (SIGKILL) at ``kills`` random
   moments of the work (after a random number of finished chunks, plus a random part of a
   chunk's time) and restarted each time, then finished: the same table (every column but the wall
@@ -103,7 +104,9 @@ def _time_peer_loop(peer, n, repeats):
 def _sweep_choice(n: int):
     """``(algorithm, why)``: what ``rsfbench sweep`` takes for the grid without --integrator:
     the recommendation for :data:`LEVEL`, raced against the front's near-ties on the grid's
-    box (:func:`benchmarks.inversion.solver_check.recommended_on_box`)."""
+    box (:func:`benchmarks.inversion.solver_check.recommended_on_box`). The sweep then checks
+    it against two references on the box (σ/10 of its observations and the level), which
+    may tighten it: not done here, where there are no observations."""
     points = _grid21(n)
     return recommended_on_box(window("W2", "slip", t_end=40.0), LEVEL,
                               (float(points["b"].min()), float(points["b"].max())),
@@ -297,7 +300,8 @@ def ensemble_scaling(out, n: int = 21, big: int = 100_000, kills: int = 3, dask:
                          f"points, and big = {big} makes {n_chunks}: raise big or kill less")
     algorithm, why = _sweep_choice(n)
     grid_summary, (ref, counts) = _time_grid(algorithm, n, repeats, progress)
-    summary = {"integrator": algorithm.name, "integrator_choice": why, "targets": TARGETS,
+    summary = {"integrator": algorithm.name, "options": algorithm.options(),
+               "integrator_choice": why, "targets": TARGETS,
                "grid": grid_summary}
     peer, peer_why = fastest_peer(LEVEL, study_csv)
     summary["peer"] = {"choice": peer_why}
