@@ -281,7 +281,7 @@ def test_the_plans(fake, monkeypatch):
 def test_every_study_declares_inputs_that_resolve(tmp_path):
     import inspect
     plan = RP.studies()
-    assert len(plan) == 36
+    assert len(plan) == 37
     for study in plan:
         assert list(inspect.signature(study.run).parameters)[1:] == list(study.settings), \
             study.name
@@ -301,7 +301,7 @@ def test_every_study_declares_inputs_that_resolve(tmp_path):
     assert {s.name for s in plan if s.full} == {
         "speedup", "work-precision", "target-full", "binding-overhead", "ensemble-scaling",
         "solver-effect", "family", "mass-limit", "nied-catalogue", "settled-coverage",
-        "nuisance-settled", "external"}
+        "nuisance-settled", "external", "solver-effect-external"}
 
 
 def test_each_committed_result_file_belongs_to_one_study():
