@@ -54,7 +54,8 @@ def external_data(problem, sigma: float, seed: int = 0):
 
 
 def run(out: Path, n: int, sigma: float) -> None:
-    started, tables = time.perf_counter(), []
+    started, tables, notes = time.perf_counter(), [], []
+    chosen = candidates(None, QUICK_LADDERS, etd_factors=(1,))
     for label, problem in (("im/stick-slip", im_spring_slider("stick-slip", IM_T_END)),
                            ("nied/fb03-087", nied_4m())):
         obs, box = external_data(problem, sigma)
@@ -62,15 +63,33 @@ def run(out: Path, n: int, sigma: float) -> None:
               f"(σ {sigma:.0%}); b {box[0][0]:.5g}..{box[0][1]:.5g}, "
               f"Lc {box[1][0]:.3g}..{box[1][1]:.3g} m", flush=True)
         tables.append(solver_effect(
-            candidates(None, QUICK_LADDERS, etd_factors=(1,)), REFERENCE, FLOOR, windows=(),
-            laws=(), n=n, progress=lambda text: print(f"  {text}", flush=True), yours=obs,
+            chosen, REFERENCE, FLOOR, windows=(), laws=(), n=n,
+            progress=lambda text: print(f"  {text}", flush=True), yours=obs,
             own=(label, problem, box)))
+        notes += _refusals(label, problem, chosen, tables[-1])
     table = pd.concat(tables, ignore_index=True)
     advice = recommendation(table)
     write_table(table, out / "solver_effect_external.csv")
     write_output(out / "solver_effect_external.md",
-                 _markdown(table, advice, n, sigma, time.perf_counter() - started))
+                 _markdown(table, advice, n, sigma, time.perf_counter() - started)
+                 + "".join(f"\n{line}\n" for line in notes))
     print(report(out))
+
+
+def _refusals(label: str, problem, chosen, table) -> list[str]:
+    """A line for each candidate that failed at every node it solved, with why: one solve of
+    the problem itself says (a method that refuses the problem, say)."""
+    lines = []
+    for c in chosen:
+        row = table[table.setting == c.label]
+        if len(row) and row.n_cycle_nodes.iloc[0] == 0 and row.n_failed.iloc[0] > 0:
+            try:
+                sol = solve(problem, c.algorithm, max_points=2, wall_budget=5.0)
+                why = sol.message or sol.retcode.value
+            except ValueError as exc:          # ProblemNotSupported is one
+                why = str(exc)
+            lines.append(f"{c.label} failed at every node of {label}: {why}")
+    return lines
 
 
 def _markdown(table, advice, n: int, sigma: float, wall: float) -> str:
