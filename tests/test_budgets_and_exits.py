@@ -341,3 +341,33 @@ def test_a_closed_standard_output_is_no_crash(args, status):
     assert "Traceback" not in run.stderr and "AttributeError" not in run.stderr
     if status:
         assert run.stderr.count("\n") == 1 and "does not exist" in run.stderr
+
+
+@pytest.mark.slow                      # a fit, then the nested draws interrupted
+def test_a_ctrl_c_in_the_nested_draws_leaves_no_directory_it_made(tmp_path):
+    """invert --nuisance said 'nothing written to DIR' on Ctrl-C but left DIR behind, empty
+    (a hostile run): the directory this run made is removed again when it is empty."""
+    import os
+    import select
+    import signal
+    import time
+    out = tmp_path / "made_here"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "benchmarks.cli", "invert", "--preset", "W2", "--law", "slip",
+         "--nuisance", "k=3%", "--nuisance", "vls=2%", "--steps", "5000", "--no-solver-check",
+         "--out", str(out)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, preexec_fn=as_typed)
+    said, started = b"", time.monotonic()
+    try:
+        while b"draws of the constants" not in said:    # the command says it starts them
+            assert time.monotonic() - started < 600 and proc.poll() is None, said[-500:]
+            if select.select([proc.stdout], [], [], 1.0)[0]:
+                said += os.read(proc.stdout.fileno(), 65536)
+        time.sleep(2.0)
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        proc.kill()
+    text = (said + err).decode()
+    assert proc.returncode == 130 and "Traceback" not in text, text[-1000:]
+    assert "nothing written" in text and not out.exists()

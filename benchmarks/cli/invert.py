@@ -89,6 +89,16 @@ def _interrupted(args, command: str, where: str) -> int:
     return 130
 
 
+def _drop_if_empty(out: Path, made: bool) -> None:
+    """The output directory this run made, removed again where an interrupt left it empty
+    (never a directory it did not make, never one with a file in it)."""
+    if made:
+        try:
+            out.rmdir()
+        except OSError:
+            pass
+
+
 def _box(args, problem, published: bool):
     """The prior box: the options', or a window's paper sweep box (slip and aging laws only)."""
     from benchmarks.inversion.published import GRID, prior_box
@@ -123,19 +133,26 @@ def cmd_invert(args) -> int:
     out = Path(args.out or f"invert_{name}_{problem.law.name}")
     # a user's file there: refused now
     claim_outputs(nuisance_files(out) if args.nuisance else inversion_files(out))
+    made = not out.exists()
     out.mkdir(parents=True, exist_ok=True)               # before the work, not after it
     try:
         algorithm, why, check = checked_integrator(args, problem, obs, box_b, box_lc,
                                                    algorithm, why,
                                                    keep_method=bool(args.nuisance))
     except KeyboardInterrupt:
+        _drop_if_empty(out, made)
         return _interrupted(args, "invert", f"during the integrator's check: nothing written "
                                             f"to {out}")
     misfit = Misfit(problem, obs, algorithm, wall_budget=args.wall_budget, workers=args.workers)
     if not args.json:
         _say_setting(why, obs)
     if args.nuisance:
-        return run_nuisance(args, misfit, (box_b, box_lc), steps, out, _record(args, why, check))
+        try:
+            return run_nuisance(args, misfit, (box_b, box_lc), steps, out,
+                                _record(args, why, check))
+        except KeyboardInterrupt:
+            _drop_if_empty(out, made)
+            raise
     stage = ["the start"]
     try:
         inv, summary = _run(args, misfit, (box_b, box_lc), walkers, steps, out, why, check,
@@ -143,6 +160,7 @@ def cmd_invert(args) -> int:
     except KeyboardInterrupt:
         written = (f"{out} is incomplete" if stage[0].startswith("writing") else
                    f"nothing written to {out}")
+        _drop_if_empty(out, made)
         return _interrupted(args, "invert", f"during the {stage[0]}: {written}")
     failed = not np.isfinite(inv.fit.misfit)         # no point of the box had a limit cycle
     _warn(args, inv, summary)
