@@ -243,32 +243,15 @@ def test_a_ctrl_c_in_lab_fit_posterior_is_one_line_and_exit_130():
     """emcee printed its traceback for the interruption (found by a hostile run); now one line
     says where it stopped, and nothing is written."""
     pytest.importorskip("emcee")
-    import os
-    import select
-    import signal
-    import time
     from pathlib import Path
     basalt = (Path(__file__).resolve().parent / "data" / "lab-velocity-steps"
               / "velstep4_BRAVA_expb819_basalt.txt")
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "benchmarks.cli", "lab", "fit", str(basalt),
-         "--column=time=Time(s):s", "--column=friction=Friction",
+    code, text = _interrupted_run(
+        ["lab", "fit", str(basalt), "--column=time=Time(s):s", "--column=friction=Friction",
          "--column=load_point=Displ(microns):um", "--posterior", "--steps", "100000",
          "--no-profiles", "--no-solver-check"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, preexec_fn=as_typed)
-    err, started = b"", time.monotonic()
-    try:
-        while b"it/s" not in err:                   # emcee's progress bar: it is sampling
-            assert time.monotonic() - started < 600 and proc.poll() is None, err[-500:]
-            if select.select([proc.stderr], [], [], 1.0)[0]:
-                err += os.read(proc.stderr.fileno(), 65536)
-        time.sleep(1.0)
-        proc.send_signal(signal.SIGINT)
-        out, rest = proc.communicate(timeout=120)
-    finally:
-        proc.kill()
-    text = (err + rest).decode()
-    assert proc.returncode == 130, text[-1000:]
+        "stderr", b"it/s", pause=1.0)               # emcee's progress bar: it is sampling
+    assert code == 130, text[-1000:]
     assert "Traceback" not in text and "emcee:" not in text
     last = text.replace("\r", "\n").strip().splitlines()[-1]
     assert re.fullmatch(r"rsfbench: error: lab fit interrupted \(Ctrl-C\): the posterior was "
@@ -347,27 +330,35 @@ def test_a_closed_standard_output_is_no_crash(args, status):
 def test_a_ctrl_c_in_the_nested_draws_leaves_no_directory_it_made(tmp_path):
     """invert --nuisance said 'nothing written to DIR' on Ctrl-C but left DIR behind, empty
     (a hostile run): the directory this run made is removed again when it is empty."""
+    out = tmp_path / "made_here"
+    code, text = _interrupted_run(
+        ["invert", "--preset", "W2", "--law", "slip", "--nuisance", "k=3%", "--nuisance",
+         "vls=2%", "--steps", "5000", "--no-solver-check", "--out", str(out)],
+        "stdout", b"draws of the constants", pause=2.0)   # the command says it starts them
+    assert code == 130 and "Traceback" not in text, text[-1000:]
+    assert "nothing written" in text and not out.exists()
+
+
+def _interrupted_run(command: list, stream: str, marker: bytes, pause: float):
+    """``(exit status, text)``: ``rsfbench COMMAND`` run until ``marker`` appears on its
+    ``stream`` ("stdout" or "stderr"), then ``pause`` s, then SIGINT; the text is what that
+    stream said before it and the standard error after."""
     import os
     import select
     import signal
     import time
-    out = tmp_path / "made_here"
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "benchmarks.cli", "invert", "--preset", "W2", "--law", "slip",
-         "--nuisance", "k=3%", "--nuisance", "vls=2%", "--steps", "5000", "--no-solver-check",
-         "--out", str(out)],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, preexec_fn=as_typed)
-    said, started = b"", time.monotonic()
+    proc = subprocess.Popen([sys.executable, "-m", "benchmarks.cli", *command],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            preexec_fn=as_typed)
+    said, started, pipe = b"", time.monotonic(), getattr(proc, stream)
     try:
-        while b"draws of the constants" not in said:    # the command says it starts them
+        while marker not in said:
             assert time.monotonic() - started < 600 and proc.poll() is None, said[-500:]
-            if select.select([proc.stdout], [], [], 1.0)[0]:
-                said += os.read(proc.stdout.fileno(), 65536)
-        time.sleep(2.0)
+            if select.select([pipe], [], [], 1.0)[0]:
+                said += os.read(pipe.fileno(), 65536)
+        time.sleep(pause)
         proc.send_signal(signal.SIGINT)
         _, err = proc.communicate(timeout=120)
     finally:
         proc.kill()
-    text = (said + err).decode()
-    assert proc.returncode == 130 and "Traceback" not in text, text[-1000:]
-    assert "nothing written" in text and not out.exists()
+    return proc.returncode, (said + err).decode()
