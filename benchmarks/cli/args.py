@@ -609,9 +609,11 @@ def checked_integrator(args, problem, obs, b_range, lc_range, algorithm, why: st
         step = lambda alg: tighter_on_front(alg) or tighter(alg)  # noqa: E731
     # a recommended setting is checked on the level it was chosen for, too
     level = None if getattr(args, "integrator", None) else getattr(args, "accuracy", None)
-    if level is not None and not keep_method:
-        algorithm, why = _raced(args, problem, (b_range, lc_range), level, (algorithm, why),
-                                talk, held)
+    if level is not None and not keep_method:          # the recommendation, or a near-equal
+        from benchmarks.inversion.solver_check import recommended_on_box
+        algorithm, why = recommended_on_box(problem, level, b_range, lc_range,
+                                            getattr(args, "wall_budget", None) or WALL_BUDGET,
+                                            say=talk, held=held)
     check = check_solver(problem, algorithm, obs, b_range, lc_range, next_setting=step,
                          workers=getattr(args, "workers", None), say=talk,
                          wall_budget=getattr(args, "wall_budget", None) or WALL_BUDGET,
@@ -627,19 +629,6 @@ def checked_integrator(args, problem, obs, b_range, lc_range, algorithm, why: st
     else:
         why = f"{why}; checked on this problem's box: {check.message}"
     return check.algorithm, why, check
-
-
-def _raced(args, problem, box, level, chosen, talk, held):
-    """``(algorithm, why)``: :func:`benchmarks.inversion.solver_check.recommended_on_box` when
-    ``chosen`` is the recommendation for ``level``; ``chosen`` as it is otherwise."""
-    from benchmarks.devtools.recommendation import contenders
-    from benchmarks.inversion.solver_check import WALL_BUDGET, recommended_on_box
-    rivals = contenders(level)
-    if len(rivals) < 2 or rivals[0][0] != chosen[0]:
-        return chosen
-    return recommended_on_box(problem, level, *box,
-                              getattr(args, "wall_budget", None) or WALL_BUDGET, say=talk,
-                              held=held)
 
 
 def wants_json(argv: list[str]) -> bool:

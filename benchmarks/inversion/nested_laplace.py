@@ -127,27 +127,25 @@ def _theta(rng, fitted, names) -> dict:
 
 
 def _side_by_side(work, items, workers, progress: bool) -> list:
-    """``[work(item) for item in items]``, on ``workers`` threads (None: all cores), in order,
-    with a progress bar of the items done."""
+    """``[work(item) for item in items]``, in order, on ``workers`` threads (None: all cores)
+    through the ensembles' executor (:func:`benchmarks.ensemble.executors.execute`: a Ctrl-C
+    drops the items not started), with a progress bar of the items done."""
     import os
-    from concurrent.futures import ThreadPoolExecutor, as_completed
 
     from tqdm.auto import tqdm
+
+    from benchmarks.ensemble.executors import execute
+    out = [None] * len(items)
     n = max(1, min(workers or os.cpu_count() or 1, len(items) or 1))
     # a catch_warnings inside a thread (a solve's first compile, say) races on the process's
     # filters: this one, outermost, puts them back as they were
-    with warnings.catch_warnings(), ThreadPoolExecutor(max_workers=n) as pool, tqdm(
-            total=len(items), desc="nested draws", unit="draw", disable=not progress,
-            file=sys.stderr) as bar:
-        futures = [pool.submit(work, item) for item in items]
-        try:
-            for _ in as_completed(futures):
-                bar.update(1)
-        except BaseException:               # Ctrl-C: the draws not started are dropped
-            for f in futures:
-                f.cancel()
-            raise
-        return [f.result() for f in futures]
+    with warnings.catch_warnings(), tqdm(total=len(items), desc="nested draws", unit="draw",
+                                         disable=not progress, file=sys.stderr) as bar:
+        for k, result in execute(lambda k: work(items[k]), lambda k: None, None,
+                                 list(range(len(items))), n, "threads"):
+            out[k] = result
+            bar.update(1)
+    return out
 
 
 def _in_box(rng, x, info, lo, hi):
