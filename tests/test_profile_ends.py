@@ -83,3 +83,17 @@ def test_an_unresolved_interval_is_the_points_about_it_and_no_point_inside_is_na
     assert ends(x, d, CHI2_95_1DOF, (0.0, 2.0), cells=4) == (0.0, 2.0, False, False, False)
     low, high, *flags = ends(x, np.full(3, np.inf), np.nan, (0.0, 2.0))
     assert np.isnan(low) and np.isnan(high) and flags == [True, True, False]
+
+
+def test_a_profile_without_an_interval_says_so_rather_than_print_nan():
+    """A box where no point has a limit cycle: the interval is [nan, nan]; the warning says
+    there is none (a hostile probe read 'narrower than 4 cells … [nan, nan]')."""
+    import numpy as np
+
+    from benchmarks.inversion.profile import _warnings
+    x = np.linspace(0.0, 1.0, 5)
+    none = _warnings("b", x, np.full(5, 1e6), [], (np.nan, np.nan, False), 3)
+    assert none == ["the profile of b has no interval: none of its points is within the 95 % "
+                    "level (no point of it has a limit cycle, or none fits)"]
+    narrow = _warnings("b", x, np.full(5, 1e6), [], (0.2, 0.3, False), 3)
+    assert "not resolved" in narrow[0] and "[0.2, 0.3]" in narrow[0]

@@ -137,6 +137,14 @@ def test_a_cycle_without_its_curve_is_no_agreement(obs):
     assert _errors(a, a, o)[0] == 0.0 and _errors(a, b, o)[0] == np.inf
 
 
+def test_a_box_of_no_width_checks_each_point_once():
+    from benchmarks.inversion.solver_check import _points
+    flat = _points((0.009, 0.0098), (3e-7, 3e-7))
+    assert flat["b"] == pytest.approx([0.009, 0.0098, 0.0094]) and (flat["lc"] == 3e-7).all()
+    assert len(_points((0.009, 0.0098), (3e-7, 3e-7), inner=True)["b"]) == 3
+    assert len(_points(*BOX)["b"]) == 5 and len(_points(*BOX, inner=True)["b"]) == 9
+
+
 def test_tighter_settings():
     assert tighter(Rosenbrock23(rtol=1e-4, atol=1e-6)).atol == pytest.approx(1e-7)
     assert tighter(Rosenbrock23(rtol=1e-13, atol=1e-13)) is None       # at the floor

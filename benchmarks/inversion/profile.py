@@ -166,18 +166,8 @@ def profile(misfit: Misfit, parameter: str, values, other_range, scan: int = SCA
     table = pd.DataFrame({parameter: x, "misfit": J, other: w, "point": kinds})
     low, high, open_low, open_high, resolved = _interval(x, J)
     jagged = _jagged(J)
-    warnings = []
-    label = "b" if parameter == "b" else "log10 Lc"
-    if jagged:
-        i = jagged[0]
-        warnings.append(f"the profile of {label} is not monotone about its minimum at "
-                        f"{label} = {x[i]:.6g} (misfit {_triple(J, i)}) after re-minimising there "
-                        "from its neighbours' optima: its interval is the hull of every point "
-                        "within the level, and may be wider than the truth")
-    if not resolved:
-        warnings.append(f"the 95 % interval of {label} is not resolved by the profile's points "
-                        f"after {refine} rounds of bisection (it is narrower than {CELLS} cells "
-                        f"at an end): reported as the points about it, [{low:.6g}, {high:.6g}]")
+    warnings = _warnings("b" if parameter == "b" else "log10 Lc", x, J, jagged,
+                         (low, high, resolved), refine)
     return Profile(parameter, table, low, high, open_low, open_high, lines.n_solves,
                    resolved=resolved, monotone=not jagged, warnings=warnings)
 
@@ -385,6 +375,27 @@ def _cells_to_bisect(x, J) -> list[float]:
     k = int(np.argmin(J))
     return out + [float(0.5 * (x[a] + x[a + 1])) for a in (k - 1, k)
                   if 0 <= a < len(x) - 1 and too_coarse(x, a, a + 1, x[j] - x[i], CELLS)]
+
+
+def _warnings(label: str, x, J, jagged: list, interval: tuple, refine: int) -> list[str]:
+    """What a profile's reader must know: a minimum that is not monotone about it, an interval
+    the points do not resolve, or none at all."""
+    low, high, resolved = interval
+    warnings = []
+    if jagged:
+        i = jagged[0]
+        warnings.append(f"the profile of {label} is not monotone about its minimum at "
+                        f"{label} = {x[i]:.6g} (misfit {_triple(J, i)}) after re-minimising there "
+                        "from its neighbours' optima: its interval is the hull of every point "
+                        "within the level, and may be wider than the truth")
+    if not resolved and not (np.isfinite(low) or np.isfinite(high)):
+        warnings.append(f"the profile of {label} has no interval: none of its points is within "
+                        "the 95 % level (no point of it has a limit cycle, or none fits)")
+    elif not resolved:
+        warnings.append(f"the 95 % interval of {label} is not resolved by the profile's points "
+                        f"after {refine} rounds of bisection (it is narrower than {CELLS} cells "
+                        f"at an end): reported as the points about it, [{low:.6g}, {high:.6g}]")
+    return warnings
 
 
 def _interval(x: np.ndarray, J: np.ndarray):

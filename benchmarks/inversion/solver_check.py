@@ -32,6 +32,7 @@ front, :func:`benchmarks.devtools.recommendation.tighter_on_front`), at most
 from __future__ import annotations
 
 import dataclasses
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -104,16 +105,18 @@ def tighter(algorithm):
 
 def _points(b_range, lc_range, inner: bool = False) -> dict:
     """The box's corners and centre; ``inner``: a 3 × 3 grid inside it, at a quarter, half and
-    three quarters of each side (in b and log10 Lc)."""
+    three quarters of each side (in b and log10 Lc). A side of no width gives each point
+    once."""
     (b_lo, b_hi), (lc_lo, lc_hi) = b_range, lc_range
     if inner:
         fb = b_lo + (b_hi - b_lo) * np.array([0.25, 0.5, 0.75])
         fl = 10.0 ** (np.log10(lc_lo) + np.log10(lc_hi / lc_lo) * np.array([0.25, 0.5, 0.75]))
-        bb, ll = np.meshgrid(fb, fl, indexing="ij")
-        return {"b": bb.ravel(), "lc": ll.ravel()}
-    b = [b_lo, b_lo, b_hi, b_hi, (b_lo + b_hi) / 2]
-    lc = [lc_lo, lc_hi, lc_lo, lc_hi, float(np.sqrt(lc_lo * lc_hi))]
-    return {"b": np.array(b, dtype=float), "lc": np.array(lc, dtype=float)}
+        b, lc = (x.ravel() for x in np.meshgrid(fb, fl, indexing="ij"))
+    else:
+        b = [b_lo, b_lo, b_hi, b_hi, (b_lo + b_hi) / 2]
+        lc = [lc_lo, lc_hi, lc_lo, lc_hi, lc_lo if lc_lo == lc_hi else math.sqrt(lc_lo * lc_hi)]
+    kept = list(dict.fromkeys(zip(map(float, b), map(float, lc))))
+    return {"b": np.array([p[0] for p in kept]), "lc": np.array([p[1] for p in kept])}
 
 
 def fastest_on_box(problem, candidates, b_range, lc_range,
