@@ -11,7 +11,8 @@ from problems.slider import (BalancedStart, InitialState, Nondimensional, Spring
                              balanced_initial_state, steady_initial_state, variant,
                              variant_fields)
 from problems.stability import (characteristic_polynomial, characteristic_roots,
-                                critical_stiffness, growth_rate, neutral_frequency)
+                                critical_stiffness, growth_rate, growth_rates,
+                                neutral_frequency)
 
 __all__ = [
     "load_problem", "LAWS", "AgingLaw", "FrictionLaw", "NagataLaw", "SlipLaw", "law_from_name",
@@ -22,5 +23,5 @@ __all__ = [
     "BalancedStart", "InitialState", "Nondimensional", "SpringSlider", "balanced_initial_state",
     "steady_initial_state", "variant", "variant_fields",
     "characteristic_polynomial", "characteristic_roots", "critical_stiffness", "growth_rate",
-    "neutral_frequency",
+    "growth_rates", "neutral_frequency",
 ]

@@ -20,6 +20,7 @@ when v > 10·v_slow and ends when v ≤ v_slow.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -178,8 +179,9 @@ class ConstantLoading:
     def __post_init__(self) -> None:
         warn_implausible("vl", check_positive("vl", self.vl))
 
-    @property
+    @functools.cached_property
     def history(self) -> LoadHistory:
+        """The :class:`LoadHistory` this loading is (made once: the loading is frozen)."""
         with units_checked_already():       # this loading warned for its values already
             return LoadHistory((self.vl,))
 
@@ -231,8 +233,9 @@ class TwoSpeedLoading:
         warn_implausible("vlf", check_positive("vlf", self.vlf))
         warn_implausible("df", check_non_negative("df", self.df))
 
-    @property
+    @functools.cached_property
     def history(self) -> LoadHistory:
+        """The :class:`LoadHistory` this loading is (made once: the loading is frozen)."""
         with units_checked_already():       # this loading warned for its values already
             if not self.two_speed:
                 return LoadHistory((self.vls,))

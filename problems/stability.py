@@ -22,7 +22,7 @@ import numpy as np
 from problems.slider import SpringSlider
 
 __all__ = ["critical_stiffness", "neutral_frequency", "characteristic_roots", "growth_rate",
-           "characteristic_polynomial"]
+           "growth_rates", "characteristic_polynomial"]
 
 
 def _velocity(problem: SpringSlider, v: float | None) -> float:
@@ -147,27 +147,85 @@ def growth_rate(problem: SpringSlider, v: float | None = None) -> float:
     problem : SpringSlider
         The problem linearised.
     v : float, optional
-        The steady sliding speed (m/s); ``None`` takes ``problem.steady_velocity``.
+        The steady sliding speed (m/s); ``None`` takes ``problem.steady_velocity``, and the
+        rate is then computed once per problem (a problem is frozen) and kept on it.
 
     Returns
     -------
     float
         max Re s (1/s); NaN when the roots are not finite.
     """
+    if v is not None:
+        return _growth_rate_at(problem, v)
+    kept = problem.__dict__.get(_KEPT)
+    if kept is None:
+        kept = _growth_rate_at(problem, problem.steady_velocity)
+        object.__setattr__(problem, _KEPT, kept)    # not a field: equality and replace skip it
+    return kept
+
+
+_KEPT = "_steady_growth_rate"
+
+
+def growth_rates(problems) -> np.ndarray:
+    """:func:`growth_rate` of each of ``problems`` at its steady sliding speed, kept on each as
+    :func:`growth_rate` keeps it: the same numbers to the last bit, the cubics' roots found by
+    one stacked eigenvalue call (what a batch of hundreds of problems needs; a problem whose
+    coefficients are not finite and nonzero takes :func:`growth_rate`'s own path)."""
+    out, stack, at = np.empty(len(problems)), [], []
+    with np.errstate(all="ignore"):
+        for i, problem in enumerate(problems):
+            kept = problem.__dict__.get(_KEPT)
+            if kept is None:
+                cubic, _ = _cubic(problem, problem.steady_velocity)
+                if cubic is None or not (all(map(math.isfinite, cubic)) and cubic[3] != 0.0):
+                    kept = growth_rate(problem)
+                else:
+                    stack.append(cubic)
+                    at.append(i)
+            out[i] = np.nan if kept is None else kept
+        if stack:
+            c = np.asarray(stack)
+            companion = np.zeros((len(c), 3, 3))
+            companion[:, 1, 0] = companion[:, 2, 1] = 1.0      # as np.roots builds it
+            companion[:, 0, :] = -c[:, 1:] / 1.0
+            roots = np.linalg.eigvals(companion)
+    for j, i in enumerate(at):
+        out[i] = _from_cubic_roots(roots[j], *stack[j])
+        object.__setattr__(problems[i], _KEPT, float(out[i]))
+    return out
+
+
+def _cubic(problem: SpringSlider, v: float):
+    """``(cubic, quadratic)``, one of them None: the characteristic polynomial in x = s/λ as
+    cubic = (λ, a2, a1, a0) of x³ + a2 x² + a1 x + a0, or, when μ is below the round-off of
+    p2, as quadratic = (λ, p2, p1, K) of p2 x² + p1 x + K."""
     law = problem.law
-    v = _velocity(problem, v)
     A, lam = law.a * problem.normal_force, v / law.lc
     mu = problem.mass * v * lam / A
     g = problem.radiation_damping * v / A
     K = problem.stiffness * law.lc / A
     p2 = mu + 1.0 + g
     p1 = K * (1.0 + law.stress_coefficient) - (law.b / law.a - 1.0) + g
+    if not mu > 1e-17 * p2:
+        return None, (lam, p2, p1, K)
+    return (lam, p2 / mu, p1 / mu, K / mu), None
+
+
+def _growth_rate_at(problem: SpringSlider, v: float) -> float:
+    """:func:`growth_rate` at the steady sliding speed ``v`` (m/s)."""
     with np.errstate(all="ignore"):
-        if not mu > 1e-17 * p2:
-            x = np.roots([p2, p1, K])
-            return lam * float(np.max(x.real))
-        a2, a1, a0 = p2 / mu, p1 / mu, K / mu
-        x = np.roots([1.0, a2, a1, a0])
+        cubic, quadratic = _cubic(problem, v)
+        if cubic is None:
+            lam, *coefficients = quadratic
+            return lam * float(np.max(np.roots(coefficients).real))
+        x = np.roots([1.0, *cubic[1:]])
+    return _from_cubic_roots(x, *cubic)
+
+
+def _from_cubic_roots(x, lam: float, a2: float, a1: float, a0: float) -> float:
+    """λ max Re x over the roots ``x`` of x³ + a2 x² + a1 x + a0; the complex pair's real part
+    from the sum of the roots, the real root polished by Newton."""
     if not np.all(np.isfinite(x)):
         return math.nan
     if not np.any(x.imag != 0.0):

@@ -179,6 +179,32 @@ def test_the_quasi_static_critical_stiffness(law):
         assert (P.growth_rate(q) < 0) == stable
 
 
+def test_growth_rates_of_a_batch_are_growth_rate_to_the_last_bit():
+    """:func:`problems.growth_rates` (the cubics' roots in one stacked eigenvalue call) gives
+    each problem exactly what :func:`problems.growth_rate` computes for it alone, for every
+    case (with mass, quasi-static, damped, Nagata) and 200 random variants spanning stable and
+    unstable sliding and masses from negligible to dominant; the rate is kept on the problem
+    and a variant of it computes its own."""
+    from problems.stability import _growth_rate_at
+    rng = np.random.default_rng(7)
+    cases = [CASES[k] for k in sorted(CASES)]
+    points = [dataclasses.replace(cases[i % len(cases)]) for i in range(len(cases))]
+    for i in range(200):
+        p = cases[i % len(cases)]
+        points.append(P.variant(p, b=p.law.b * rng.uniform(0.5, 2.0),
+                                lc=p.law.lc * 10 ** rng.uniform(-1, 1),
+                                stiffness=p.stiffness * 10 ** rng.uniform(-2, 2),
+                                mass=p.mass * 10 ** rng.uniform(-12, 3)))
+    alone = np.array([_growth_rate_at(q, q.steady_velocity) for q in points])
+    assert np.isfinite(alone).all() and (alone > 0).any() and (alone < 0).any()
+    together = P.growth_rates(points)
+    assert together.tobytes() == alone.tobytes()
+    assert [P.growth_rate(q) for q in points] == together.tolist()     # kept, the same
+    changed = P.variant(points[0], b=points[0].law.b * 1.5)
+    assert P.growth_rate(changed) == _growth_rate_at(changed, changed.steady_velocity)
+    assert P.growth_rate(changed) != P.growth_rate(points[0])
+
+
 @pytest.mark.parametrize("label", sorted(CASES))
 def test_the_characteristic_roots_are_the_eigenvalues_of_the_ode_jacobian(label):
     """:mod:`problems.stability`'s polynomial against the analytic Jacobian of the ODE form at

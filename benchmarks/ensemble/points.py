@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from problems import SpringSlider, growth_rate, variant, variant_fields
+from problems import SpringSlider, growth_rate, growth_rates, variant, variant_fields
 from problems._validate import (
     PLAUSIBLE,
     check_count,
@@ -151,9 +151,21 @@ def point_problems(problem: SpringSlider, names, values, first: int = 0) -> list
             try:
                 point = variant(problem, **changes)
                 point.nondimensional()       # what a solve needs first (Ψ of θ, say)
-                growth_rate(point)
                 out.append(point)
             except ValueError as exc:
-                at = ", ".join(f"{k} = {v:g}" for k, v in changes.items())
-                raise ValueError(f"point {first + i} ({at}): {exc}") from None
+                raise ValueError(f"point {first + i} ({_at(changes)}): {exc}") from None
+        try:
+            growth_rates(out)                # kept on each point, all in one call
+        except ValueError:                   # which point: one by one
+            for i, (point, row) in enumerate(zip(out, values)):
+                try:
+                    growth_rate(point)
+                except ValueError as exc:
+                    at = _at(dict(zip(names, (float(v) for v in row))))
+                    raise ValueError(f"point {first + i} ({at}): {exc}") from None
+            raise
     return out
+
+
+def _at(changes: dict) -> str:
+    return ", ".join(f"{k} = {v:g}" for k, v in changes.items())

@@ -248,17 +248,17 @@ def ensemble(problem, algorithm, params, *, store=None, chunk_size: int | None =
     pandas.DataFrame
         One row per point in the order given: the parameters, then :data:`benchmarks.ensemble.
         rows.RESULT_COLUMNS` (class, retcode, message, metrics, κ, counters, wall time; a
-        failed point: its retcode); ``attrs``: points run and resumed, wall time, bad chunks.
+        failed point: its retcode); ``attrs``: points run and resumed, the call's wall, bad chunks.
 
     Raises
     ------
     ValueError
         For misuse, before any work (the module docstring for the rest).
     """
+    start = time.perf_counter()              # the points' checks count in the wall time
     plan = _plan(problem, algorithm, params, store, chunk_size, workers, backend, scheduler,
                  wall_budget, curve_dt, max_points, reclaim_store, curve_chain,
                  (sensitivity, sensitivity_error))
-    start = time.perf_counter()
     bar = dict(unit="point", disable=not progress,
                desc=label or f"ensemble {problem.name or 'problem'}")
     tables, n_resumed = _solve_chunks(plan, store, scheduler, connect_timeout, worker_timeout,

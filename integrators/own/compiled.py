@@ -208,8 +208,9 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
                      curve_margin: float = 0.0):
         """The per-point inputs (P, Z0, C) of :mod:`integrators.own.batch` for ``problems``
         (``curve_margin``: s before and after the event a curve reaches)."""
-        from problems.stability import growth_rate
+        from problems.stability import growth_rates
         n = len(problems)
+        growth = growth_rates(problems)          # kept on each problem: once per point
         width = E.N_P + max((len(p.nondimensional().history) for p in problems), default=0)
         # a shorter history is padded with zeros: its piece count says where it ends
         P, Z0, C = np.zeros((n, width)), np.empty((n, 3)), np.empty((n, B.N_C))
@@ -222,7 +223,7 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
             Z0[i] = Z[E.ZROW["ZC"]]
             law = problem.law
             C[i] = (nd.time_scale, problem.f0, nd.force_h, law.v0, law.lc, problem.normal_force,
-                    law.a, law.b, problem.loading.v_slow, problem.t_end, growth_rate(problem),
+                    law.a, law.b, problem.loading.v_slow, problem.t_end, growth[i],
                     budget, problem.steady_velocity, problem.radiation_damping,
                     curve_margin / nd.time_scale)
         return P, Z0, C
