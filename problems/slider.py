@@ -344,6 +344,7 @@ class SpringSlider:
             raise ValueError(f"law must be a FrictionLaw (SlipLaw, AgingLaw, NagataLaw), got "
                              f"{self.law!r}")
         compiled_law_code(self.law)      # a law class the compiled forms do not know
+        _check_forces(self.law, self.normal_force)
         if type(self.loading) not in LOADINGS:
             raise ValueError(f"loading must be ConstantLoading, TwoSpeedLoading or LoadHistory "
                              f"(the ones the integrators know; a subclass is refused), got "
@@ -498,6 +499,18 @@ class SpringSlider:
         k, lc = self.stiffness, self.law.lc
         return (self.slip_rate_from_nondimensional(eta, psi), self.f0 + k * lc * np.asarray(h),
                 self.law.theta(np.asarray(psi), self.normal_force))
+
+
+def _check_forces(law, fn: float) -> None:
+    """ValueError when A = a·Fn or B = b·Fn (N; B only where b > 0) is not a positive finite
+    double: every form divides by them, and a product that underflows to 0 or overflows
+    leaves nothing to solve."""
+    for name in ("a", "b"):
+        value = getattr(law, name)
+        force = value * fn
+        if (name == "a" or value > 0) and not 0.0 < force < math.inf:
+            raise ValueError(f"{name} * normal_force = {value!r} * {fn!r} N = {force!r} N, "
+                             "beyond double precision: give the problem in other units")
 
 
 #: the scalar fields :func:`variant` changes, by the part of the problem that holds them

@@ -216,6 +216,13 @@ def _growth_rate_at(problem: SpringSlider, v: float) -> float:
     """:func:`growth_rate` at the steady sliding speed ``v`` (m/s)."""
     with np.errstate(all="ignore"):
         cubic, quadratic = _cubic(problem, v)
+        if not all(map(math.isfinite, (cubic or quadratic)[1:])):
+            law = problem.law
+            raise ValueError(
+                f"the linear stability of steady sliding overflows double precision (mass = "
+                f"{problem.mass:g} kg, stiffness = {problem.stiffness:g} N/m, Lc = {law.lc:g} m, "
+                f"a * normal_force = {law.a * problem.normal_force:g} N): give the problem in "
+                "other units")
         if cubic is None:
             lam, *coefficients = quadratic
             return lam * float(np.max(np.roots(coefficients).real))

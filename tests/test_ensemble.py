@@ -136,6 +136,11 @@ def test_any_scalar_field_can_vary(base):
     ({"b": [0.009, 0.01], "lc": [3e-7]}, "differ in length"),
     ({"b": [0.009, np.nan]}, "must be finite"),
     ({"b": [0.009, 1.5]}, r"point 1 \(b = 1.5\): b = 1.5 is impossible"),
+    # the growth rates of all points come from one call: a bad one is still named
+    ({"mass": [1.0, 1e-10], "stiffness": [1.2e8, 1e305]},
+     r"point 1 \(mass = 1e-10, stiffness = 1e\+305\): the linear stability .* overflows"),
+    ({"a": [0.008, 1e-200], "normal_force": [1e6, 1e-200]},
+     r"point 1 \(a = 1e-200, normal_force = 1e-200\): a \* normal_force = "),
     ({}, "non-empty mapping"),
 ])
 def test_misuse_is_refused_before_any_work(base, params, match, tmp_path):

@@ -379,6 +379,17 @@ def test_every_backend_runs_a_history_without_mass_and_a_damped_nagata_slider(
     (lambda: dataclasses.replace(P.velocity_step_test(),
                                  initial=P.InitialState(v=1e-6, theta=10.0, fs=6.1e3)),
      "does not balance friction"),
+    # a·Fn, b·Fn and the stability polynomial beyond double precision (a hostile probe's:
+    # they were a ZeroDivisionError and numpy's "Array must not contain infs or NaNs")
+    (lambda: P.variant(P.window("W2", "slip"), a=1e-200, normal_force=1e-200),
+     r"a \* normal_force = 1e-200 \* 1e-200 N = 0.0 N, beyond double precision"),
+    (lambda: P.variant(P.window("W2", "slip"), b=1e-199, normal_force=1e-200),
+     r"b \* normal_force = .* beyond double precision"),
+    (lambda: P.growth_rate(P.variant(P.window("W2", "slip"), mass=1e-10, stiffness=1e305)),
+     "the linear stability of steady sliding overflows double precision"),
+    (lambda: P.growth_rates([P.window("W2", "slip"),
+                             P.variant(P.window("W2", "slip"), mass=1e-10, stiffness=1e305)]),
+     "the linear stability of steady sliding overflows double precision"),
 ])
 def test_bad_input_is_refused_by_name(build, message):
     with pytest.raises(ValueError, match=message):
