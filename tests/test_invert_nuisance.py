@@ -57,6 +57,7 @@ def test_a_named_method_with_sensitivities_is_tightened_to_the_gradients_rtol(tm
         "RadauIIA5 at rtol 1e-06, atol 1e-06, tightened from rtol 0.0001, atol 0.0001")
     # at the top of the document as well, where invert and sweep put it
     assert doc["integrator_choice"] == doc["provenance"]["integrator_choice"]
+    assert doc["out"] == str(tmp_path)
     assert doc["names"] == ["b", "log10_lc", "stiffness"] and doc["success"]
 
 

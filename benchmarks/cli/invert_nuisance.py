@@ -124,7 +124,7 @@ def run_nuisance(args, misfit, box, steps: int, out, record: dict) -> int:
         raise KeyboardInterrupt(f"invert --nuisance interrupted (Ctrl-C): nothing written to "
                                 f"{out}") from None
     summary = {**write_nuisance(fitted, samples, out, record),   # where invert and sweep
-               "integrator_choice": record["integrator_choice"]}    # put it too
+               "integrator_choice": record["integrator_choice"], "out": str(out)}   # put them
     for path in inversion_files(out):        # an earlier run's, of the (b, Lc) posterior
         remove_own(path)
     if args.json:
