@@ -171,7 +171,23 @@ def growth_rates(problems) -> np.ndarray:
     """:func:`growth_rate` of each of ``problems`` at its steady sliding speed, kept on each as
     :func:`growth_rate` keeps it: the same numbers to the last bit, the cubics' roots found by
     one stacked eigenvalue call (what a batch of hundreds of problems needs; a problem whose
-    coefficients are not finite and nonzero takes :func:`growth_rate`'s own path)."""
+    coefficients are not finite and nonzero takes :func:`growth_rate`'s own path).
+
+    Parameters
+    ----------
+    problems : sequence of SpringSlider
+        The problems linearised.
+
+    Returns
+    -------
+    numpy.ndarray
+        max Re s of each (1/s), in their order.
+
+    Raises
+    ------
+    ValueError
+        As :func:`growth_rate`, for a problem whose polynomial overflows double precision.
+    """
     out, stack, at = np.empty(len(problems)), [], []
     with np.errstate(all="ignore"):
         for i, problem in enumerate(problems):
