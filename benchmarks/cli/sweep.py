@@ -45,6 +45,7 @@ from benchmarks.physics.metrics import CYCLES, summarize
 from benchmarks.records.files import claim_outputs
 from benchmarks.records.report import jsonable, literal
 from integrators import solve
+from integrators.core.solve import check_settle
 from problems import PRESET_NAMES, WINDOWS
 
 __all__ = ["add_parsers", "observations", "synthetic_curves"]
@@ -71,6 +72,7 @@ def cmd_sweep(args) -> int:
                          "curves in --observations); a batch with curves has no sensitivities")
     algorithm, why = integrator_from_args(args)
     names, algorithm, why = sensitivity_request(args, problem, algorithm, why)
+    check_settle(algorithm, args.settle, bool(names), problem)
     name = args.preset if args.problem is None else Path(args.problem).stem
     out = Path(args.out or f"sweep_{name}_{problem.law.name}")
     claim_outputs([out / "sweep.csv", out / "summary.json",      # a user's file there:
@@ -79,6 +81,7 @@ def cmd_sweep(args) -> int:
         args, problem, obs, (float(min(b_values)), float(max(b_values))),
         (float(min(lc_values)), float(max(lc_values))), algorithm, why, keep_method=bool(names),
         held=held_algorithm(out / "chunks"))          # a sweep resumed keeps its setting
+    check_settle(algorithm, args.settle, bool(names), problem)  # the setting the check kept
     if not args.json:
         say(f"integrator: {why}")
         if obs.assumed_sigma:
@@ -87,7 +90,7 @@ def cmd_sweep(args) -> int:
                    scheduler=args.scheduler, backend=args.backend, wall_budget=args.wall_budget,
                    progress=show_progress(args), max_points=args.max_points,
                    connect_timeout=args.connect_timeout, worker_timeout=args.worker_timeout,
-                   chunk_size=args.chunk_size, sensitivity=names or None,
+                   chunk_size=args.chunk_size, sensitivity=names or None, settle=args.settle,
                    provenance={"command": args.command_line, "integrator_choice": why,
                                "solver_check": None if check is None else check.summary(),
                                "problem_file": (None if args.problem is None
@@ -219,6 +222,12 @@ def _add_sweep(sub, preset_names) -> None:
                    help="wall budget per point in s: a point over it is a failed point, read "
                         f"as without a limit cycle, never as one (default: {WALL_BUDGET:g} s, "
                         "as invert's)")
+    s.add_argument("--settle", type=positive, metavar="RTOL",
+                   help="stop each point at the end of the event where its cycle has settled: "
+                        "its last periods' four metrics repeat, and changed by less than RTOL "
+                        "since half its time (relative, ≤ 1e-3, e.g. 1e-4). The own compiled "
+                        "methods, constant loading; the solver check runs full points "
+                        "(default: every point runs to t_end)")
     s.add_argument("--out", type=out_dir, metavar="DIR",
                    help="directory of the store (DIR/chunks), table and maps (default: "
                         "./sweep_<preset or file name>_<law>)")

@@ -30,7 +30,7 @@ from integrators import ReturnCode, solve
 from integrators.core import cycles
 from integrators.own import batch as B
 from integrators.own import engine as E
-from integrators.own.compiled import CompiledAlgorithm, failure
+from integrators.own.compiled import CompiledAlgorithm, failure, settled_message
 from problems.formulations import from_ode_state
 from problems.slider import TAU_END_MAX
 
@@ -104,7 +104,7 @@ def _frame(names, values, columns: dict) -> pd.DataFrame:
 
 def batch_rows(problems, algorithm, names, values, wall_budget=None,
                parallel: bool = True, curves: bool = False, chain=None, sensitivity=(),
-               sensitivity_error: bool = True) -> pd.DataFrame:
+               sensitivity_error: bool = True, settle: float = 0.0) -> pd.DataFrame:
     """The rows of ``problems`` (the points ``values`` of ``names``) solved in one compiled
     batch of the own ``algorithm``, on numba's threads or (``parallel`` False) on this one;
     with ``curves``, each row with a limit cycle has its slip-weakening curve
@@ -135,6 +135,8 @@ def batch_rows(problems, algorithm, names, values, wall_budget=None,
         ``curves``): :func:`gradient_columns`, NaN without a cycle or without a derivative.
     sensitivity_error : bool
         The sensitivities in the step control (as :func:`integrators.solve`'s).
+    settle : float
+        Stop each point on its settled cycle (:func:`integrators.solve`'s; 0: run to t_end).
 
     Returns
     -------
@@ -143,7 +145,7 @@ def batch_rows(problems, algorithm, names, values, wall_budget=None,
         with ``sensitivity``, :data:`CURVE_COLUMNS` with ``curves``).
     """
     R, states, grad = _solve_batch(problems, algorithm, wall_budget, parallel, curves, chain,
-                                   (sensitivity, sensitivity_error))
+                                   (sensitivity, sensitivity_error), settle)
     n = len(problems)
     col, metrics = _outcomes(problems, algorithm, R, wall_budget)
     col.update({c: metrics[:, j] for j, c in enumerate(METRIC_COLUMNS)})
@@ -162,8 +164,9 @@ def batch_rows(problems, algorithm, names, values, wall_budget=None,
             problems, states, col["classification"], chain, parallel))
         for i, (what, slip) in enumerate(zip(col["classification"], col["curve_slip"])):
             if what in CYCLES and not len(slip):
-                col["message"][i] = ("its slip-weakening curve could not be made: the second "
-                                     "solve over its last event stopped (its wall budget?)")
+                col["message"][i] = " ".join(filter(None, (
+                    col["message"][i], "its slip-weakening curve could not be made: the second "
+                    "solve over its last event stopped (its wall budget?)")))
     return _frame(names, values, col)
 
 
@@ -185,6 +188,8 @@ def _outcomes(problems, algorithm, R, wall_budget) -> tuple[dict, np.ndarray]:
                                        algorithm.max_steps, wall_budget, problem.t_end)
         else:
             retcode, message = ReturnCode.SUCCESS, ""
+            settled = int(r[B.R["STATUS"]]) == E.SETTLED
+            t_end = r[B.R["T_STOP"]] if settled else problem.t_end
             if what in CYCLES:
                 p = found[i, F["PERIOD"]]
                 metrics[i] = (p, *found[i, F["RECURRENCE"]:F["PEAK_V"] + 1],
@@ -195,8 +200,10 @@ def _outcomes(problems, algorithm, R, wall_budget) -> tuple[dict, np.ndarray]:
                                force_offset=float(r[B.R["FORCE_OFFSET"]]),
                                growth_rate=float(r[B.R["GROWTH"]]),
                                longest_run=TAU_END_MAX * problem.law.lc / problem.law.v0)
-                message = cycle_from(found[i], n_events, problem.t_end, B.CYCLE_RTOL,
+                message = cycle_from(found[i], n_events, t_end, B.CYCLE_RTOL,
                                      B.CYCLE_MAX_PERIOD, B.CYCLE_MIN_REPEATS, end).reason
+            if settled:
+                message = " ".join((settled_message(t_end, problem.t_end), message)).strip()
         col["classification"][i], col["retcode"][i], col["message"][i] = (
             what, retcode.value, message)
     return col, metrics
@@ -217,10 +224,10 @@ def _curves(problems, states, classes, chain, parallel: bool) -> list:
 
 
 def _solve_batch(problems, algorithm, wall_budget, parallel: bool, curves: bool, chain,
-                 sensitive=((), True)):
+                 sensitive=((), True), settle: float = 0.0):
     """``(R, CURVE, GRAD)`` of the batch: the curves' rows over the event (and the chain's
     margin), None without curves; the cycles' gradients along ``sensitive`` (names, error
-    control), None without."""
+    control), None without; each point stopped on its settled cycle with ``settle``."""
     if sensitive[0]:
         R, grad = algorithm.solve_batch(problems, wall_budget, parallel,
                                         sensitivity=sensitive[0],
@@ -228,10 +235,11 @@ def _solve_batch(problems, algorithm, wall_budget, parallel: bool, curves: bool,
         return R, None, grad
     if curves and chain is not None:
         return (*algorithm.solve_batch(problems, wall_budget, parallel, CHAIN_POINTS,
-                                       chain.margin_s), None)
+                                       chain.margin_s, settle=settle), None)
     if curves:
-        return (*algorithm.solve_batch(problems, wall_budget, parallel, CURVE_POINTS), None)
-    return algorithm.solve_batch(problems, wall_budget, parallel), None, None
+        return (*algorithm.solve_batch(problems, wall_budget, parallel, CURVE_POINTS,
+                                       settle=settle), None)
+    return algorithm.solve_batch(problems, wall_budget, parallel, settle=settle), None, None
 
 
 def _curve(problem, z: np.ndarray, chain=None) -> tuple[np.ndarray, np.ndarray]:
@@ -267,7 +275,7 @@ def chained_curve(problem, chain, t, fs, ft, t_start: float, t_end: float):
 
 
 def point_rows(problems, algorithm, names, values, wall_budget=None,
-               curve_dt: float | None = None, chain=None) -> pd.DataFrame:
+               curve_dt: float | None = None, chain=None, settle=None) -> pd.DataFrame:
     """The rows of ``problems`` solved one by one with :func:`integrators.solve` (any backend),
     as :func:`batch_rows` writes them; with ``curve_dt`` (s) the trajectory is saved that finely
     and each row has its slip-weakening curve (:data:`CURVE_COLUMNS`).
@@ -289,6 +297,8 @@ def point_rows(problems, algorithm, names, values, wall_budget=None,
     chain : benchmarks.physics.chain.Chain, optional
         The measurement chain each curve is passed through (:func:`chained_curve`, from the
         saved trajectory over the event and the chain's margin).
+    settle : float, optional
+        Stop each point on its settled cycle (:func:`integrators.solve`'s).
 
     Returns
     -------
@@ -300,14 +310,16 @@ def point_rows(problems, algorithm, names, values, wall_budget=None,
     rows, crashed = [], False
     for problem in problems:
         try:
-            sol = solve(problem, algorithm, wall_budget=wall_budget, **save)
+            sol = solve(problem, algorithm, wall_budget=wall_budget, settle=settle, **save)
             cycle = summarize(sol)
         except Exception as exc:       # checked before the ensemble started: a bug, or this
             rows.append(_failed(f"{type(exc).__name__}: {exc}", problem, algorithm, curve_dt))
             crashed = True             # machine's environment (a missing library): not stored
             continue
         row = {"classification": cycle.classification, "retcode": sol.retcode.value,
-               "message": sol.message or cycle.reason, "n_events": len(sol.events),
+               "message": (" ".join((sol.message, cycle.reason)).strip()
+                           if sol.settled_s is not None else sol.message or cycle.reason),
+               "n_events": len(sol.events),
                "kappa": problem.kappa, "nfev": sol.stats.nfev, "njev": sol.stats.njev,
                "steps": sol.stats.steps, "rejected": sol.stats.rejected,
                "wall_s": sol.stats.wall_s, "integrator": algorithm.name}

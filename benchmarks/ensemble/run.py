@@ -44,7 +44,7 @@ from benchmarks.ensemble.points import MAX_POINTS, check_points, point_problems
 from benchmarks.ensemble.rows import batch_rows, compiled, failed_rows, point_rows
 from benchmarks.ensemble.store import ChunkStore, identity_of
 from integrators import Algorithm, Output
-from integrators.core.solve import short_piece
+from integrators.core.solve import check_settle, settle_refusal, short_piece
 from problems._validate import check_count, check_positive, units_checked_already
 
 __all__ = ["ensemble", "Chunk", "run_chunk", "batched", "auto_chunk_size", "CHUNK_SIZE",
@@ -87,6 +87,9 @@ class Chunk:
         Parameters to differentiate each limit cycle's metrics by (:func:`ensemble`).
     sensitivity_error : bool
         The sensitivities in the step control.
+    settle : float
+        Stop each point on its settled cycle (:func:`integrators.solve`'s ``settle``; 0: run
+        to t_end).
     """
 
     problem: object
@@ -103,6 +106,7 @@ class Chunk:
     problems: tuple | None = field(default=None, repr=False)
     sensitivity: tuple = ()
     sensitivity_error: bool = True
+    settle: float = 0.0
 
 
 def batched(algorithm) -> bool:
@@ -139,9 +143,11 @@ def run_chunk(chunk: Chunk) -> pd.DataFrame:
                 else point_problems(chunk.problem, chunk.names, chunk.values, chunk.first))
     if not batched(chunk.algorithm):
         return point_rows(problems, chunk.algorithm, chunk.names, chunk.values,
-                          chunk.wall_budget, chunk.curve_dt, chunk.curve_chain)
+                          chunk.wall_budget, chunk.curve_dt, chunk.curve_chain,
+                          chunk.settle or None)
     how = dict(curves=bool(chunk.curve_dt), chain=chunk.curve_chain,
-               sensitivity=chunk.sensitivity, sensitivity_error=chunk.sensitivity_error)
+               sensitivity=chunk.sensitivity, sensitivity_error=chunk.sensitivity_error,
+               settle=chunk.settle)
     if chunk.threads == 1:               # a pool's process, a Dask worker: no OpenMP at all
         return batch_rows(problems, chunk.algorithm, chunk.names, chunk.values,
                           chunk.wall_budget, parallel=False, **how)
@@ -171,7 +177,7 @@ def warm_chunk(chunk: Chunk) -> None:
         run_chunk(Chunk(first, chunk.algorithm, (), np.empty((1, 0)), 0, threads=chunk.threads,
                         curve_dt=chunk.curve_dt, curve_chain=chunk.curve_chain,
                         sensitivity=chunk.sensitivity,
-                        sensitivity_error=chunk.sensitivity_error))
+                        sensitivity_error=chunk.sensitivity_error, settle=chunk.settle))
     except Exception:            # a failing point is reported by run_chunk, not here
         pass
 
@@ -193,7 +199,7 @@ def ensemble(problem, algorithm, params, *, store=None, chunk_size: int | None =
              max_points: int = MAX_POINTS, connect_timeout: float = CONNECT_TIMEOUT_S,
              worker_timeout: float = WORKER_TIMEOUT_S, label: str = "",
              reclaim_store: bool = False, sensitivity=None,
-             sensitivity_error: bool = True) -> pd.DataFrame:
+             sensitivity_error: bool = True, settle: float | None = None) -> pd.DataFrame:
     """Solve ``problem`` with ``algorithm`` at every point of ``params`` and summarise each.
 
     Parameters
@@ -203,8 +209,7 @@ def ensemble(problem, algorithm, params, *, store=None, chunk_size: int | None =
     algorithm : Algorithm
         Any registered method; the own compiled ones run in compiled batches.
     params : dict of str to sequence of float
-        Field name → values, one value per point (SI units; :func:`benchmarks.ensemble.grid`
-        makes a grid's).
+        Field name → values, one per point (SI units; :func:`~benchmarks.ensemble.grid`).
     store : str or pathlib.Path, optional
         A directory of Parquet chunks: a run resumes from the verified chunks it holds.
     chunk_size : int, optional
@@ -215,14 +220,13 @@ def ensemble(problem, algorithm, params, *, store=None, chunk_size: int | None =
         ``"threads"`` or ``"processes"`` (default: threads for compiled batches, processes for
         the others, whose Python holds the GIL).
     scheduler : str, optional
-        A Dask scheduler's address: the cluster decides the parallelism (``workers`` and
-        ``backend`` do not apply).
+        A Dask scheduler's address: the cluster decides the parallelism (not ``workers``).
     wall_budget : float, optional
         Seconds per point.
     curve_dt : float, optional
         Also each point's slip-weakening curve (s): the own compiled methods from their dense
-        output at :data:`~benchmarks.ensemble.rows.CURVE_POINTS` times over the last event (a
-        second solve of the point); the others from a trajectory saved every ``curve_dt``.
+        output (:data:`~benchmarks.ensemble.rows.CURVE_POINTS` times over the last event, a
+        second solve), the others from a trajectory saved every ``curve_dt``.
     curve_chain : benchmarks.physics.chain.Chain, optional
         With ``curve_dt``: each curve through this measurement chain (observe's filters,
         sampling and timing: :func:`benchmarks.ensemble.rows.chained_curve`).
@@ -242,6 +246,8 @@ def ensemble(problem, algorithm, params, *, store=None, chunk_size: int | None =
         columns ``d_<metric>/d_<parameter>`` (SI), NaN without a cycle.
     sensitivity_error : bool
         The sensitivities in the step control (default True).
+    settle : float, optional
+        :func:`integrators.solve`'s, for every point (its ``message`` says where it stopped).
 
     Returns
     -------
@@ -258,7 +264,7 @@ def ensemble(problem, algorithm, params, *, store=None, chunk_size: int | None =
     start = time.perf_counter()              # the points' checks count in the wall time
     plan = _plan(problem, algorithm, params, store, chunk_size, workers, backend, scheduler,
                  wall_budget, curve_dt, max_points, reclaim_store, curve_chain,
-                 (sensitivity, sensitivity_error))
+                 (sensitivity, sensitivity_error), settle)
     bar = dict(unit="point", disable=not progress,
                desc=label or f"ensemble {problem.name or 'problem'}")
     tables, n_resumed = _solve_chunks(plan, store, scheduler, connect_timeout, worker_timeout,
@@ -308,12 +314,13 @@ def _solve_chunks(plan, store, scheduler, connect_timeout, worker_timeout, bar) 
 
 def _plan(problem, algorithm, params, store, chunk_size, workers, backend, scheduler,
           wall_budget, curve_dt, max_points, reclaim_store, curve_chain=None,
-          sensitive=(None, True)) -> dict:
+          sensitive=(None, True), settle=None) -> dict:
     """:func:`ensemble`'s arguments checked (ValueError before any work) and its points cut
     into chunks, with the store they are kept in (``sensitive``: the sensitivity's names and
     error control)."""
     if not isinstance(algorithm, Algorithm):
         raise ValueError(f"algorithm must be an Algorithm instance, got {algorithm!r}")
+    settle = check_settle(algorithm, settle, bool(sensitive[0]))
     for name, value in (("wall_budget", wall_budget), ("curve_dt", curve_dt)):
         if value is not None:
             check_positive(name, value)
@@ -326,16 +333,18 @@ def _plan(problem, algorithm, params, store, chunk_size, workers, backend, sched
     chunk_size = (auto_chunk_size(len(values), algorithm) if chunk_size is None
                   else check_count("chunk_size", chunk_size))
     problems = point_problems(problem, names, values)     # every point valid, or say which
+    _check_settle_points(problems, settle, names, values)
     sensitive = _sensitivity(problem, problems, algorithm, curve_dt, *sensitive,
                              (names, values))
     if curve_dt and not batch:                            # the saved trajectory fits memory
         Output(save_every=curve_dt).interval(max(p.t_end for p in problems))
     own_threads = batch and backend == "threads" and scheduler is None
     chunks = _chunks(problem, algorithm, names, values, problems, chunk_size, wall_budget,
-                     curve_dt, workers if own_threads else None, curve_chain, sensitive)
+                     curve_dt, workers if own_threads else None, curve_chain, sensitive,
+                     settle)
     chunk_store = (ChunkStore(store, identity_of(problem, algorithm, names, values, chunk_size,
                                                  wall_budget, curve_dt, curve_chain,
-                                                 *sensitive),
+                                                 *sensitive, settle=settle),
                                reclaim_store)
                    if store is not None else None)
     return dict(names=names, values=values, chunks=chunks, store=chunk_store, batch=batch,
@@ -343,14 +352,25 @@ def _plan(problem, algorithm, params, store, chunk_size, workers, backend, sched
                 own_threads=own_threads)
 
 
+def _check_settle_points(problems, settle: float, names, values) -> None:
+    """ValueError naming the first point whose loading forbids ``settle``
+    (:func:`integrators.core.solve.settle_refusal`)."""
+    for i, problem in enumerate(problems if settle else ()):
+        why = settle_refusal(problem)
+        if why:
+            at = ", ".join(f"{n} = {v:g}" for n, v in zip(names, values[i]))
+            raise ValueError(f"point {i} ({at}): {why}")
+
+
 def _chunks(problem, algorithm, names, values, problems, chunk_size, wall_budget, curve_dt,
-            threads: int | None, curve_chain=None, sensitive=((), True)) -> list[Chunk]:
+            threads: int | None, curve_chain=None, sensitive=((), True),
+            settle: float = 0.0) -> list[Chunk]:
     """The points cut into chunks of ``chunk_size``; with ``threads`` (a compiled batch on
     this machine) each chunk carries its points' problems and runs on that many threads."""
     return [Chunk(problem, algorithm, names, values[i:i + chunk_size], i, wall_budget,
                   threads=threads or 1, curve_dt=curve_dt, curve_chain=curve_chain,
                   problems=tuple(problems[i:i + chunk_size]) if threads else None,
-                  sensitivity=sensitive[0], sensitivity_error=sensitive[1])
+                  sensitivity=sensitive[0], sensitivity_error=sensitive[1], settle=settle)
             for i in range(0, len(values), chunk_size)]
 
 

@@ -125,11 +125,11 @@ def code_version() -> str:
 
 def identity_of(problem, algorithm, names, values, chunk_size: int, wall_budget,
                 curve_dt=None, curve_chain=None, sensitivity=(),
-                sensitivity_error: bool = True) -> dict:
+                sensitivity_error: bool = True, settle: float = 0.0) -> dict:
     """What makes an ensemble the same ensemble: the code (:func:`code_version`), the base
     problem, the algorithm and its options, the wall budget per point, the curves' resolution,
     the parameter names, the points (a hash) and the chunking (and a curves' measurement chain,
-    the sensitivities asked for and their error control)."""
+    the sensitivities asked for and their error control, a ``settle``)."""
     return {"schema": SCHEMA, "code": code_version(), "problem": repr(problem),
             "algorithm": repr(algorithm),
             "wall_budget": wall_budget, "curve_dt": curve_dt, "parameters": list(names),
@@ -138,7 +138,8 @@ def identity_of(problem, algorithm, names, values, chunk_size: int, wall_budget,
             "chunk_size": chunk_size,
             **({"curve_chain": repr(curve_chain)} if curve_chain is not None else {}),
             **({"sensitivity": list(sensitivity), "sensitivity_error": sensitivity_error}
-               if sensitivity else {})}
+               if sensitivity else {}),
+            **({"settle": settle} if settle else {})}
 
 
 def _held_asked(held, asked) -> str:

@@ -155,7 +155,7 @@ def sweep(problem, b_values, lc_values, algorithm, obs: Observations, out,
           max_points: int = MAX_GRID_POINTS, connect_timeout: float = CONNECT_TIMEOUT_S,
           worker_timeout: float = WORKER_TIMEOUT_S, chunk_size: int | None = None,
           reclaim_store: bool = False, provenance: dict | None = None,
-          sensitivity=None) -> SweepResult:
+          sensitivity=None, settle: float | None = None) -> SweepResult:
     """Run (or resume) the sweep of ``problem`` (a SpringSlider: its t_end is each point's) over
     ``b_values`` × ``lc_values`` and score it against ``obs``.
 
@@ -168,6 +168,8 @@ def sweep(problem, b_values, lc_values, algorithm, obs: Observations, out,
     ``reclaim_store``: stored chunks of another sweep in ``out`` are cleared, not refused (for
     the harness's own caches). ``sensitivity``: parameter names; the table then has the
     gradients of each point's limit-cycle metrics (:func:`benchmarks.ensemble.ensemble`'s).
+    ``settle``: each point stops on its settled cycle (:func:`integrators.solve`'s; default
+    None: every point runs to t_end).
     """
     if not isinstance(problem, SpringSlider):
         raise ValueError(f"problem must be a SpringSlider, got {type(problem).__name__}")
@@ -191,7 +193,7 @@ def sweep(problem, b_values, lc_values, algorithm, obs: Observations, out,
                          progress=progress, max_points=max_points,
                          connect_timeout=connect_timeout, worker_timeout=worker_timeout,
                          label=f"sweep {problem.name or 'problem'}",
-                         reclaim_store=reclaim_store, sensitivity=sensitivity)
+                         reclaim_store=reclaim_store, sensitivity=sensitivity, settle=settle)
     run = table.attrs
     table = score(table.rename(columns={"lc": "lc_m"}), obs)
     summary = summarize_sweep(table, obs, algorithm, wall_s=run["wall_s"], n_run=run["n_run"],
@@ -202,6 +204,7 @@ def sweep(problem, b_values, lc_values, algorithm, obs: Observations, out,
                               batched=run["batched"], chunks=run["chunks"],
                               store=None if store is None else str(store))
     summary["gradient_columns"] = [c for c in table.columns if c.startswith("d_")]
+    summary["settle"] = settle
     summary["provenance"] = {"tool": version_line(), **machine(), **(provenance or {})}
     out.mkdir(parents=True, exist_ok=True)
     remove_stale_temporaries(out)

@@ -403,7 +403,8 @@ def _round_up(x: float, digits: int = 4) -> float:
 
 def summarize(solution, rtol: float = 1e-3) -> LimitCycle:
     """:func:`limit_cycle` of a Solution; a run that did not reach its end is ``failed``, never
-    classified as physics.
+    classified as physics, unless it stopped on its settled cycle (``solve(..., settle=)``):
+    then its events up to there.
 
     Parameters
     ----------
@@ -417,6 +418,14 @@ def summarize(solution, rtol: float = 1e-3) -> LimitCycle:
     """
     p = solution.problem
     events = solution.events
+    settled, settle = solution.settled_s, solution.meta.get("settle", 0.0)
+    if settled is not None and not rtol >= settle:      # its cycle repeats to settle only
+        return LimitCycle("failed", n_events=len(events), rtol=rtol,
+                          reason=f"stopped on a cycle settled to {settle:g}, looser than this "
+                                 f"search's rtol = {rtol:g}: solve with settle ≤ rtol")
+    if settled is not None:             # stopped on its settled cycle: its cycle is read
+        return limit_cycle(events, p.normal_force, settled, rtol=rtol,
+                           v_slow=p.loading.v_slow, end=end_state(solution))
     if not solution.success or not solution.reached_end:
         why = (f"{solution.retcode.value}: {solution.message}" if not solution.success else
                f"stopped at t = {solution.t_reached:g} s of {p.t_end:g} s")

@@ -17,6 +17,10 @@
   the sweep's setting and the peer, and for every own stiff method with a batch kernel at
   :data:`CANDIDATE_TOLS` (2 threads, minimum of ``repeats``): the fastest whose worst ΔT error
   over the points is within 1e−3 is the "fastest own setting" the 0.5 s target is judged on.
+* **Stopped on a settled cycle**: the sweep's setting again with ``settle`` =
+  :data:`SETTLE` (each point stops at the end of the event where its cycle has settled:
+  :func:`integrators.solve`'s ``settle``): its walls, its ΔT errors on the same points and
+  whether it equals its stand-alone solves (with the same ``settle``), to the bit.
 * **10⁵ points** (W2, 20 s a point, the recommendation for 1e−3) into a Parquet store,
   uninterrupted; then
   the same ensemble in a fresh store, in a subprocess killed (SIGKILL) at ``kills`` random
@@ -65,6 +69,8 @@ LEVEL = 1e-3
 CANDIDATE_TOLS = (3e-3, 1e-3, 3e-4, 1e-4)
 #: the references' setting, and how closely they must agree on a point's ΔT for it to count
 REFERENCE_TOL, REFERENCES_AGREE = 1e-10, 1e-6
+#: the settled-cycle stop timed beside the full runs: a tenth of the cycle search's 1e−3
+SETTLE = 1e-4
 
 
 def fastest_peer(level: float, csv=STUDY_CSV):
@@ -132,13 +138,13 @@ def same_table(a: pd.DataFrame, b: pd.DataFrame) -> bool:
             and all(a[c].equals(b[c]) for c in cols))
 
 
-def _walls(algorithm, base, points, repeats, threads=(1, 2)):
+def _walls(algorithm, base, points, repeats, threads=(1, 2), settle=None):
     """``({threads: min wall over repeats}, the last table)`` of the ensemble, after a warm-up."""
     ensemble(base, algorithm, {k: v[:2] for k, v in points.items()}, progress=False)   # warm
     walls = {}
     for workers in threads:
-        runs = [ensemble(base, algorithm, points, workers=workers, progress=False)
-                for _ in range(repeats)]
+        runs = [ensemble(base, algorithm, points, workers=workers, progress=False,
+                         settle=settle) for _ in range(repeats)]
         walls[workers] = min(r.attrs["wall_s"] for r in runs)
     return walls, runs[-1]
 
@@ -198,11 +204,13 @@ def _time_grid(algorithm, n, repeats, progress, settings=True):
     accuracy = {"references": f"Rodas5P and RadauIIA5 at {REFERENCE_TOL:g}",
                 "references_agree": agree, "points_left_out": int((~counts).sum()),
                 "recommended": grid_errors(table, ref, counts)}
+    extra = {}
     if settings:
         accuracy["settings"], accuracy["fastest_within_level"] = _settings_on_grid(
             base, points, ref, counts, repeats)
-    return {"n_points": n_points, "wall_1_thread_s": walls[1], "wall_2_threads_s": walls[2],
-            "accuracy": accuracy,
+        extra["settled"] = _settled(algorithm, base, points, repeats, ref, counts, table)
+    return {**extra, "n_points": n_points, "wall_1_thread_s": walls[1],
+            "wall_2_threads_s": walls[2], "accuracy": accuracy,
             "thread_speedup": walls[1] / walls[2],
             "sum_batch_solve_s": float(table.wall_s.sum()),
             "sum_standalone_solve_s": standalone,
@@ -211,6 +219,24 @@ def _time_grid(algorithm, n, repeats, progress, settings=True):
             "per_point_ratio": per_point / (standalone / n_points / 2),
             "classes": table.classification.value_counts().to_dict(),
             "same_as_standalone": same_table(table, single)}, (ref, counts)
+
+
+def _settled(algorithm, base, points, repeats, ref, counts, full) -> dict:
+    """The grid with ``settle`` = :data:`SETTLE`: walls on 1 and 2 threads, ΔT errors, how many
+    points stopped early and where, the classes it changed against the full runs ``full``, and
+    whether it equals its stand-alone solves."""
+    walls, table = _walls(algorithm, base, points, repeats, settle=SETTLE)
+    names, values = tuple(points), np.column_stack(list(points.values()))
+    single = point_rows(point_problems(base, names, values), algorithm, names, values,
+                        settle=SETTLE)
+    stopped = table.message.str.startswith("settled")
+    changed = table.classification != full.classification
+    return {"settle": SETTLE, "wall_1_thread_s": walls[1], "wall_2_threads_s": walls[2],
+            "accuracy": grid_errors(table, ref, counts), "points_stopped": int(stopped.sum()),
+            "sum_batch_solve_s": float(table.wall_s.sum()),
+            "classes_changed": [f"{a} -> {b}" for a, b in zip(full.classification[changed],
+                                                               table.classification[changed])],
+            "same_as_standalone": same_table(table, single)}
 
 
 _CHILD = """
@@ -342,6 +368,16 @@ def _grid_rows(g: dict, t: dict) -> list[dict]:
          + (f" (worst ΔT error {fmt(rec['worst_dt_error'])} on the points)" if rec else ""),
          "": _met(g["wall_2_threads_s"] <= t["grid_wall_s"])},
     ]
+    if "settled" in g:
+        st = g["settled"]
+        rows.append({"target": f"the same, each point stopped on its settled cycle "
+                               f"(settle = {st['settle']:g})",
+                     "goal": f"≤ {t['grid_wall_s']} s",
+                     "measured": f"{fmt(st['wall_2_threads_s'])} s (worst ΔT error "
+                                 f"{fmt(st['accuracy']['worst_dt_error'])}; "
+                                 f"{st['points_stopped']} points stopped early)",
+                     "": _met(st["wall_2_threads_s"] <= t["grid_wall_s"]
+                              and st["accuracy"]["worst_dt_error"] <= LEVEL)})
     if "settings" in acc:
         best = acc["fastest_within_level"]
         rows.append({"target": f"the fastest own setting with worst ΔT error ≤ {LEVEL:g} on "
@@ -436,6 +472,20 @@ def scaling_markdown(s: dict) -> str:
              markdown_table(pd.DataFrame(rows))]
     if "settings" in acc:
         lines += _settings_lines(acc)
+    if "settled" in g:
+        st = g["settled"]
+        lines += ["", f"Stopped on a settled cycle (`settle = {st['settle']:g}`: a point stops "
+                  "at the end of the event where its last periods' four metrics repeat, and "
+                  "repeat those at half its time, within that tolerance): "
+                  f"{st['points_stopped']} of {g['n_points']} points stopped early; 1 thread "
+                  f"{fmt(st['wall_1_thread_s'])} s, 2 threads {fmt(st['wall_2_threads_s'])} s; "
+                  f"its solves sum to {fmt(st['sum_batch_solve_s'])} s. Worst ΔT error "
+                  f"{fmt(st['accuracy']['worst_dt_error'])} (95th percentile "
+                  f"{fmt(st['accuracy']['p95_dt_error'])}), same class as the reference "
+                  f"{st['accuracy']['same_class']:.1%}; classes changed against the full runs: "
+                  f"{', '.join(st['classes_changed']) or 'none'}; the same table as its "
+                  f"stand-alone solves with the same `settle`: "
+                  f"{'yes' if st['same_as_standalone'] else '**no**'}."]
     if "big" in s:
         b = s["big"]
         lines += ["", f"Each kill came once the store held a random number of finished chunks "

@@ -33,6 +33,7 @@ from benchmarks.inversion.sweep import sweep
 from benchmarks.records.files import write_output, write_table
 from benchmarks.records.provenance import provenance
 from benchmarks.records.report import fmt, jsonable, markdown_table
+from benchmarks.studies.ensemble_scaling import SETTLE
 from benchmarks.studies.study import Study, markdown_file
 from integrators import solve
 from problems import preset, window
@@ -109,8 +110,10 @@ def sweeps_markdown(table: pd.DataFrame, why: str) -> str:
 
 def sweep_scaling(out, n: int = 21, t_end: float = 40.0, progress: bool = True,
                   accuracy: float = 1e-3) -> dict:
-    """Time the 21 × 21 W2 sweep serially, on 2 processes and on 2 threads (fresh each time), and
-    one stand-alone run; write ``out/sweep_scaling.json`` and ``.md``."""
+    """Time the 21 × 21 W2 sweep serially, on 2 processes and on 2 threads (fresh each time),
+    on 2 threads with each point stopped on its settled cycle (``settle`` =
+    :data:`benchmarks.studies.ensemble_scaling.SETTLE`, whose accuracy on these points that
+    study measures), and one stand-alone run; write ``out/sweep_scaling.json`` and ``.md``."""
     algorithm, why = recommended(accuracy)
     b0, lc0 = best_fit("W2", "slip")
     b = np.round(b0 + B_STEP * np.arange(-(n // 2), n - n // 2), 12)
@@ -119,7 +122,9 @@ def sweep_scaling(out, n: int = 21, t_end: float = 40.0, progress: bool = True,
     runs = {}
     for label, kw in (("serial", dict(workers=1)),
                       ("2 processes", dict(workers=2, backend="processes")),
-                      ("2 threads", dict(workers=2, backend="threads"))):
+                      ("2 threads", dict(workers=2, backend="threads")),
+                      (f"2 threads, settle = {SETTLE:g}",
+                       dict(workers=2, backend="threads", settle=SETTLE))):
         with tempfile.TemporaryDirectory() as tmp:
             start = time.perf_counter()
             res = sweep(preset("W2", law="slip", t_end=t_end), b, lc, algorithm, obs, tmp,

@@ -7,7 +7,8 @@ to event within ``rtol`` over the last ``min_repeats``·p events, tests that the
 between events, and otherwise says why there is no cycle (:data:`OUTCOMES`).
 :func:`classify` turns that outcome and the end state into a class of
 :data:`CLASSIFICATIONS`. The rules, and the messages a reader sees, are
-:mod:`benchmarks.physics.metrics`'.
+:mod:`benchmarks.physics.metrics`'. :func:`settled` is the engine's test, at each event's end,
+of whether a run may stop there (``integrators.solve(..., settle=rtol)``).
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from problems.formulations import SLIP_LAW
 from problems.loading import EVENT_START_FACTOR
 
 __all__ = ["CLASSIFICATIONS", "CYCLES", "OUTCOMES", "PERIODIC", "OSCILLATING", "NO_EVENTS",
-           "STOPPED", "TOO_FEW", "NOT_REPEATING", "F", "N_F", "find_cycle", "classify",
+           "STOPPED", "TOO_FEW", "NOT_REPEATING", "F", "N_F", "find_cycle", "classify", "settled",
            "end_offsets", "settle_time", "on_oscillation", "LOCKED_SLIP_RATE", "STEADY_LOG_TOLERANCE",
            "SETTLE_EFOLDS", "DECAY_MARGIN_EFOLDS", "BAND_LOG_V", "BAND_OFFSET"]
 
@@ -79,6 +80,97 @@ def _repeats_at(x, p, i, rtol):
         if not abs(a - b) <= rtol * max(abs(a), abs(b)):
             return False
     return True
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _event_change(ev, i, j):
+    """The largest relative difference between the four metrics of events i and j (≥ 1) of the
+    engine's nondimensional table ``ev`` (0 where both are equal; :func:`_repeats_at`'s
+    measure). ΔT, Δμ, slip and peak v are each a constant multiple of τ_start − the previous
+    one, h_max − h_min, the slip in Lc and the peak w, so their relative differences are these."""
+    worst = 0.0
+    for m in range(4):
+        if m == 0:
+            a, b = ev[i, 0] - ev[i - 1, 0], ev[j, 0] - ev[j - 1, 0]
+        elif m == 1:
+            a, b = ev[i, 2] - ev[i, 3], ev[j, 2] - ev[j, 3]
+        elif m == 2:
+            a, b = ev[i, 7] - ev[i, 6], ev[j, 7] - ev[j, 6]
+        else:
+            a, b = ev[i, 4], ev[j, 4]
+        d = abs(a - b)
+        r = 0.0 if d == 0.0 else d / max(abs(a), abs(b))
+        if not r <= worst:          # a NaN wins
+            worst = r
+    return worst
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _period_change(ev, k, last, p):
+    """:func:`_event_change` at its largest over the p events ending at ``k`` against those
+    ending at ``last``."""
+    worst = 0.0
+    for j in range(p):
+        r = _event_change(ev, k - j, last - j)
+        if not r <= worst:
+            worst = r
+    return worst
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _back(ev, last, p, fraction):
+    """The latest event k ≤ last − p in the phase of ``last`` (k ≡ last mod p) that starts at
+    or before ``fraction`` of the start of event ``last``, by bisection; −1 if none with k ≥ p
+    (a whole period before it)."""
+    target = fraction * ev[last, 0]
+    lo, hi = 0, last - p
+    if ev[0, 0] > target:
+        return -1
+    while lo < hi:                  # the largest index ≤ last − p starting by the target
+        mid = (lo + hi + 1) // 2
+        if ev[mid, 0] <= target:
+            lo = mid
+        else:
+            hi = mid - 1
+    k = last - p * ((last - lo + p - 1) // p)
+    return k if k >= p else -1
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def settled(ev, n, rtol, max_period, min_repeats):
+    """Has the run whose events are the first ``n`` rows of ``ev`` (the engine's table, τ)
+    settled on its cycle, so that it may stop at the end of event n − 1?
+
+    For the shortest period p ≤ ``max_period`` whose last ``min_repeats``·p events each
+    repeat the event p before them within ``rtol`` (:func:`find_cycle`'s test), two more tests
+    on all four metrics, against the latest period in the same phase that ends by t/2 and the
+    one that ends by t/4 (t: the last event's start): the change d₂ from the t/2 period to the
+    last is within ``rtol``, and it is either below ``rtol``/10 or at most half the change d₁
+    from the t/4 period to the t/2 one. A transient that decays like e^(−λt) is then about
+    d₂·q/(1 − q) from its cycle, q = e^(−λt/2), and d₂ ≤ d₁/2 means q ≤ 0.14: within d₂/6. The
+    first test alone passes a drift of 1e−5 a period with 1e−3 left to go; the t/2 test alone
+    passes a slow one early (q near 1). No test of a finite record rules out every slower
+    transient: below ``rtol``/10 the record is read as settled."""
+    last = n - 1
+    for p in range(1, max_period + 1):
+        need = min_repeats * p
+        if last - p - need + 1 < 1:
+            return False
+        ok = True
+        for i in range(last - p - need + 1, last - p + 1):
+            if not _event_change(ev, i, i + p) <= rtol:
+                ok = False
+                break
+        if not ok:
+            continue
+        half = _back(ev, last, p, 0.5)
+        quarter = _back(ev, last, p, 0.25) if half >= 0 else -1
+        if quarter < 0:
+            return False
+        d2 = _period_change(ev, half, last, p)
+        d1 = _period_change(ev, quarter, half, p)
+        return d2 <= rtol and (d2 <= 0.1 * rtol or d2 <= 0.5 * d1)
+    return False
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

@@ -82,6 +82,8 @@ class Algorithm:
     #: form
     locates_events: ClassVar[bool] = True
     dae: ClassVar[bool] = False
+    #: it can stop a run on its settled cycle (``solve(..., settle=)``)
+    settles: ClassVar[bool] = False
     tags: ClassVar[frozenset[str]] = frozenset()
 
     def __init_subclass__(cls, **kwargs):

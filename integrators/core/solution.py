@@ -50,7 +50,9 @@ TRAJECTORY_UNITS = {"t": "s", "v": "m/s", "fs": "N", "ft": "N", "mu": "1", "thet
 
 
 class ReturnCode(enum.Enum):
-    """Outcome of a solve. Only ``SUCCESS`` reached ``t_end``."""
+    """Outcome of a solve. ``SUCCESS``: no failure; the run reached ``t_end``, or stopped on
+    its settled cycle where it was asked to (``solve(..., settle=)``: ``Solution.settled_s``).
+    The others stopped it."""
 
     SUCCESS = "Success"
     MAX_STEPS = "MaxSteps"            # the step budget ran out
@@ -321,8 +323,15 @@ class Solution:
     @property
     def reached_end(self) -> bool:
         """Did the run reach ``problem.t_end``? Only then may its events be read as physics
-        (a failure or an exhausted budget stops it earlier: see ``retcode``)."""
+        (a failure or an exhausted budget stops it earlier: see ``retcode``); a run that
+        stopped on its settled cycle did not (False), and says where (:attr:`settled_s`)."""
         return self.success and self.t_reached >= self.problem.t_end * (1.0 - 1e-9)
+
+    @property
+    def settled_s(self) -> float | None:
+        """Where a run asked to stop on its settled cycle (``solve(..., settle=)``) stopped
+        (s); None for one that ran to its end or failed."""
+        return self.meta.get("settled_s") if self.success else None
 
     @property
     def mu(self) -> np.ndarray:
@@ -352,7 +361,8 @@ class Solution:
         ------
         ValueError
             For a method that saves at its own step ends (the ETD family: no dense output), a
-            run that did not reach its end, or a ``t`` that is not times.
+            run that failed, a ``t`` that is not times, or one after where a settled run
+            stopped.
         RunNotRepeated
             (a ``ValueError``) When the repeat is not the same run, saying which event and
             column disagreed.
@@ -376,6 +386,9 @@ class Solution:
         if self.rerun is None:
             raise ValueError("sol(t) needs a Solution made by integrators.solve (this one was "
                              "built otherwise: it cannot repeat its run)")
+        if self.settled_s is not None and times.size and not times.max() <= self.settled_s:
+            raise ValueError(f"sol(t): the run stopped on its settled cycle at t = "
+                             f"{self.settled_s:.6g} s; t = {times.max():.6g} s is after it")
         again = self.rerun(times)
         why = self.repeats(again)
         if why:

@@ -20,7 +20,8 @@ from integrators.core.solution import EVENT_COLUMNS, Output, RawRun, ReturnCode,
 from problems._validate import check_positive, units_checked_already
 from problems.slider import SpringSlider
 
-__all__ = ["solve", "Budget", "compile_ahead", "short_piece"]
+__all__ = ["solve", "Budget", "compile_ahead", "short_piece", "check_settle", "settle_refusal",
+           "SETTLE_MAX"]
 
 
 @dataclass
@@ -62,17 +63,16 @@ def _check_arguments(problem, algorithm, wall_budget) -> None:
 def solve(problem: SpringSlider, algorithm: Algorithm, *, save_every: float | None = None,
           max_points: int | None = None, save_at=None, wall_budget: float | None = None,
           progress: bool = False, sensitivity=None,
-          sensitivity_error: bool = True) -> Solution:
+          sensitivity_error: bool = True, settle: float | None = None) -> Solution:
     """Integrate ``problem`` with ``algorithm`` from t = 0 to ``problem.t_end``.
 
     The saved grid never changes the steps a method takes, and events are recorded exactly
     whatever is saved. How each backend fills the grid:
 
-    * the own adaptive methods (CashKarp45, Rosenbrock23, Rodas5P, RadauIIA5, Exprb32,
-      Exprb43): from the step's dense output, inside the compiled solve; steps land only on the
-      end of a loading segment;
-    * the ETD family: its fixed rule (Eq. 53) sets every step; a save time takes the state at the
-      first step end at or after it (``Solution.t`` holds those step times);
+    * the own adaptive methods: from the step's dense output, inside the compiled solve; steps
+      land only on the end of a loading segment;
+    * the ETD family: its fixed rule (Eq. 53) sets every step; a save time takes the state at
+      the first step end at or after it (``Solution.t`` holds those step times);
     * scipy: its ``dense_output``; CVODE/IDA (scikits-odes: CV_NORMAL with tstop at the segment
       end only; scikit-SUNDAE: one step at a time): SUNDIALS' interpolation; assimulo: its
       ``interpolate``; numbalsoda: LSODA's own interpolation at the requested times.
@@ -84,8 +84,7 @@ def solve(problem: SpringSlider, algorithm: Algorithm, *, save_every: float | No
     algorithm : Algorithm
         The method and its options, e.g. ``Rodas5P(rtol=1e-6, atol=1e-6)``.
     save_every : float, optional
-        Save the trajectory every ``save_every`` seconds; without it (and without ``save_at``),
-        at ``max_points`` points in all.
+        Save the trajectory every ``save_every`` s (without it or ``save_at``: ``max_points``).
     max_points : int, optional
         The saved points in all (default 20,000); with ``save_every``, a cap on them (default
         10⁷, see :class:`~integrators.core.solution.Output`).
@@ -93,10 +92,9 @@ def solve(problem: SpringSlider, algorithm: Algorithm, *, save_every: float | No
         An increasing array of times (s) to save at exactly, from each method's dense output
         (the ETD family, which saves at its own step ends, refuses it).
     wall_budget : float, optional
-        Stop a run that takes longer (s; retcode ``WallTime``). It counts the run only, never
-        compiling: the first budgeted solve of a method in a process first runs it on a short
-        piece of the problem (:func:`compile_ahead`; its running, not its compiling, bounded by
-        a tenth of the budget), then starts the clock.
+        Stop a run that takes longer (s; retcode ``WallTime``). It counts the run, never the
+        compiling: a method's first budgeted solve in a process runs a short piece first
+        (:func:`compile_ahead`, its running bounded by a tenth of the budget), then the clock.
     progress : bool
         Show a progress bar.
     sensitivity : str or sequence of str, optional
@@ -105,18 +103,20 @@ def solve(problem: SpringSlider, algorithm: Algorithm, *, save_every: float | No
     sensitivity_error : bool
         Put the sensitivities' error in the step control (default True; False: the steps
         taken without them, the derivatives of that solution).
+    settle : float, optional
+        Stop at the end of the event where the cycle has settled to this relative tolerance,
+        in (0, 1e−3] (:func:`integrators.core.cycles.settled`; ``Solution.settled_s``; own
+        compiled methods, constant loading, no ``sensitivity``; default None: run to t_end).
 
     Returns
     -------
     Solution
-        Always, a numerical failure included: it comes back with a failure retcode (and
-        ``Solution.reached_end`` false).
+        Always; a numerical failure comes back with its retcode (``reached_end`` false).
 
     Raises
     ------
     ValueError
-        On misuse (bad arguments, ``save_at`` for a method without dense output), before any
-        work.
+        On misuse, before any work (bad arguments, ``save_at`` without dense output).
     ProblemNotSupported
         When the method cannot integrate the problem at all (the paper's ETD without mass),
         before any work; a ``ValueError`` too.
@@ -128,26 +128,30 @@ def solve(problem: SpringSlider, algorithm: Algorithm, *, save_every: float | No
                          "with dense output")
     output.times(problem.t_end)             # validates the decimation now, not mid-run
     directions, control = _directions(problem, algorithm, sensitivity, sensitivity_error)
+    settle = check_settle(algorithm, settle, bool(directions), problem)
     if wall_budget is not None:
         _compile_once(problem, algorithm, wall_budget, bool(directions))
     budget = Budget(wall_s=wall_budget, start=time.perf_counter())
     bar = _progress_bar(problem, algorithm) if progress else None
     try:
-        raw = _run(problem, algorithm, output, budget, bar, directions, control)
+        raw = _run(problem, algorithm, output, budget, bar, directions, control, settle)
     finally:
         if bar:
             bar.close()
     raw.stats = dataclasses.replace(raw.stats, wall_s=time.perf_counter() - budget.start)
-    return _solution(problem, algorithm, raw, directions, control)
+    return _solution(problem, algorithm, raw, directions, control, settle)
 
 
-def _run(problem, algorithm, output, budget, bar, directions, sensitivity_error) -> RawRun:
+def _run(problem, algorithm, output, budget, bar, directions, sensitivity_error,
+         settle=0.0) -> RawRun:
     """The backend's run; a library failure is a result (a FAILURE RawRun), not a crash."""
     try:
         # trial steps of adaptive methods overflow exp(ln v) before being rejected: expected,
         # and a run that ends non-finite is a retcode anyway
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
             update = bar.update_to if bar else None
+            if settle:
+                return algorithm.run(problem, output, budget, update, settle=settle)
             if not directions:
                 return algorithm.run(problem, output, budget, update)
             return algorithm.run(problem, output, budget, update, sensitivity=directions,
@@ -156,6 +160,48 @@ def _run(problem, algorithm, output, budget, bar, directions, sensitivity_error)
         return RawRun(t=np.empty(0), y=np.empty((0, 3)),
                       events=np.empty((0, len(EVENT_COLUMNS))), stats=Stats(),
                       retcode=ReturnCode.FAILURE, message=f"{type(exc).__name__}: {exc}")
+
+
+#: the loosest ``settle`` taken: the limit-cycle search's own tolerance (``summarize``'s
+#: rtol, the batch's CYCLE_RTOL), so that a run stopped on its cycle is found to have one
+SETTLE_MAX = 1e-3
+
+
+def check_settle(algorithm: Algorithm, settle, sensitive: bool = False,
+                 problem: SpringSlider | None = None) -> float:
+    """``solve``'s ``settle`` as a float (0.0: run to t_end), or ValueError before any work: a
+    value outside (0, :data:`SETTLE_MAX`], a method that cannot stop on a settled cycle, with
+    sensitivities, or a ``problem`` whose loading switches speed before its end
+    (:func:`settle_refusal`)."""
+    if settle is None:
+        return 0.0
+    if isinstance(settle, bool) or not isinstance(settle, (int, float, np.floating)):
+        raise ValueError(f"settle must be a relative tolerance (a number), got {settle!r}")
+    if not 0.0 < settle <= SETTLE_MAX:
+        raise ValueError(f"settle must be a relative tolerance in (0, {SETTLE_MAX:g}] "
+                         f"(dimensionless), got {settle!r}")
+    if not algorithm.settles:
+        raise ValueError(f"settle: {algorithm.name} runs to t_end; only the project's compiled "
+                         "adaptive methods (Rodas5P, RadauIIA5, Rosenbrock23, CashKarp45, "
+                         "Exprb32, Exprb43) stop on a settled cycle")
+    if sensitive:
+        raise ValueError("settle: a solve with sensitivities runs to t_end; ask for one or "
+                         "the other")
+    why = settle_refusal(problem) if problem is not None else ""
+    if why:
+        raise ValueError(why)
+    return float(settle)
+
+
+def settle_refusal(problem: SpringSlider) -> str:
+    """Why ``settle`` cannot apply to ``problem`` ("" if it can): its loading switches speed
+    before its end, and a cycle settled before a switch is not the run's."""
+    early = [t for t in problem.loading.history.switch_times if t < problem.t_end]
+    if not early:
+        return ""
+    return (f"settle: the loading switches speed at t = {early[0]:g} s, before t_end = "
+            f"{problem.t_end:g} s; a cycle settled before a switch is not the run's (solve "
+            "without settle)")
 
 
 def _directions(problem: SpringSlider, algorithm: Algorithm, sensitivity, control) -> tuple:
@@ -245,11 +291,14 @@ def _compile_once(problem: SpringSlider, algorithm: Algorithm, wall_budget: floa
 
 
 def _solution(problem: SpringSlider, algorithm: Algorithm, raw: RawRun, directions=(),
-              sensitivity_error: bool = True) -> Solution:
+              sensitivity_error: bool = True, settle: float = 0.0) -> Solution:
     """The Solution of ``raw``; a repeat of the run (``rerun``) takes its sensitivities'
-    options too: with them in the step control, the steps are not the plain solve's."""
+    options too (with them in the step control, the steps are not the plain solve's), and
+    its ``settle``."""
     again = (dict(sensitivity=tuple(d.name for d in directions),
                   sensitivity_error=sensitivity_error) if directions else {})
+    if settle:
+        again["settle"] = settle
     v, fs, theta = (raw.y[:, i] for i in range(3))
     ft = problem.friction(v, theta) if len(v) else np.empty(0)
     return Solution(problem=problem, algorithm=algorithm, t=raw.t, v=v, fs=fs, ft=ft, theta=theta,
@@ -260,13 +309,13 @@ def _solution(problem: SpringSlider, algorithm: Algorithm, raw: RawRun, directio
 
 
 def _save_at(problem: SpringSlider, algorithm: Algorithm, times: np.ndarray,
-             sensitivity=None, sensitivity_error: bool = True) -> Solution:
+             sensitivity=None, sensitivity_error: bool = True, settle=None) -> Solution:
     """The solve again, saving at ``times`` (:meth:`Solution.__call__`; a module-level function
-    so that a Solution pickles), with the first solve's sensitivities."""
+    so that a Solution pickles), with the first solve's sensitivities and ``settle``."""
     with warnings.catch_warnings():     # the first solve said it, if its tolerance is loose
         warnings.filterwarnings("ignore", "sensitivity at rtol", UserWarning)
         return solve(problem, algorithm, save_at=times, sensitivity=sensitivity,
-                     sensitivity_error=sensitivity_error)
+                     sensitivity_error=sensitivity_error, settle=settle)
 
 
 def _progress_bar(problem: SpringSlider, algorithm: Algorithm):

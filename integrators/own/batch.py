@@ -67,8 +67,8 @@ EVENTS_START = 64
 _NO_LIMIT = 1 << 62
 # the engine's layouts as plain ints (compiled code reads module-level ints as constants)
 _DEADLINE, _TAU_END, _LAW, _BETA = (E.P[k] for k in ("DEADLINE", "TAU_END", "LAW", "BETA"))
-_FAST_UNTIL, _NEED_START, _NEXT_SAVE, _ST_STARTS = (
-    E.ST[k] for k in ("FAST_UNTIL", "NEED_START", "NEXT_SAVE", "STARTS"))
+_FAST_UNTIL, _NEED_START, _NEXT_SAVE, _ST_STARTS, _LAST_T = (
+    E.ST[k] for k in ("FAST_UNTIL", "NEED_START", "NEXT_SAVE", "STARTS", "LAST_T"))
 _ZC = E.ZROW["ZC"]
 # the classes with a limit cycle are the first ones (their curves are kept)
 LAST_CYCLE = len(cycles.CYCLES) - 1
@@ -76,8 +76,9 @@ assert cycles.CLASSIFICATIONS[:len(cycles.CYCLES)] == cycles.CYCLES
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _summarize(law_code, beta, c, ev, n_ev, z_end, r):
-    """The limit-cycle summary of a run that reached its end into ``r``: the events in SI units
+def _summarize(law_code, beta, c, ev, n_ev, z_end, t_end, r):
+    """The limit-cycle summary into ``r`` of a run that reached its end ``t_end`` (s; where a
+    settled run stopped, for one that did) in the state ``z_end``: the events in SI units
     (:func:`integrators.core.events.events_table`'s formulas), their metrics, the cycle search
     and the end state (:mod:`problems.slider`'s conversions), the class."""
     ts, f0, fh, lc = c[_TS], c[_F0], c[_FORCE_H], c[_LC]
@@ -92,7 +93,7 @@ def _summarize(law_code, beta, c, ev, n_ev, z_end, r):
         x[i, 2] = s1[i] - s0[i]
         x[i, 3] = c[_V0] * ev[i, 4]
     found = r[_FOUND:]
-    cycles.find_cycle(t0, t1, s0, s1, x, c[_T_END], CYCLE_RTOL, CYCLE_MAX_PERIOD,
+    cycles.find_cycle(t0, t1, s0, s1, x, t_end, CYCLE_RTOL, CYCLE_MAX_PERIOD,
                       CYCLE_MIN_REPEATS, c[_V_SLOW], found)
     h, u, s = z_end[0], z_end[1], z_end[2]
     psi = s if law_code == SLIP_LAW else math.exp(s)
@@ -104,7 +105,7 @@ def _summarize(law_code, beta, c, ev, n_ev, z_end, r):
                                              c[_V_END], v, fs, theta, c[_DAMPING])
     r[_LOG_V], r[_STATE_OFFSET], r[_FORCE_OFFSET] = log_v, state, force
     r[_CLASS] = cycles.classify(found[0], found[1], c[_GROWTH], log_v, state, force,
-                                found[_GAP], TAU_END_MAX * ts - c[_T_END])
+                                found[_GAP], TAU_END_MAX * ts - t_end)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -129,7 +130,9 @@ def fresh(z0, saved):
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _run(kernel, workspace, p, z0, dirs, grid, saved):
     """One solve from ``z0`` with the save grid ``grid`` (τ) into ``saved``, as
-    :meth:`integrators.own.compiled.CompiledAlgorithm.run` does it: ``(status, st, ev)``."""
+    :meth:`integrators.own.compiled.CompiledAlgorithm.run` does it: ``(status, st, ev)``. A
+    run that settled (:data:`integrators.own.engine.SETTLED`) leaves the state where it stopped
+    in ``saved``'s last row."""
     st, Z, G, ev = fresh(z0, saved)
     ws = workspace()
     sc = E.scratch()
@@ -141,6 +144,9 @@ def _run(kernel, workspace, p, z0, dirs, grid, saved):
             ev = bigger
         elif status != E.CHUNK:
             break
+    if status == E.SETTLED:
+        for i in range(3):
+            saved[saved.shape[0] - 1, i] = Z[_ZC, i]
     return status, st, ev
 
 
@@ -166,8 +172,8 @@ def _curve_grid(tau_s: float, tau_e: float, tau_end: float, margin: float, n: in
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def record(status, st, ev, p, c, saved, r) -> int:
-    """A solve's status, counters and (if it reached its end) summary into ``r``; the number
-    of events (``saved``: its states at τ = 0 and τ_end)."""
+    """A solve's status, counters and (if it reached its end, or settled) summary into ``r``;
+    the number of events (``saved``: its states at τ = 0 and τ_end, or where it settled)."""
     rec = E.REC
     n_ev = int(st[rec + N_EVENTS])
     r[_STATUS], r[_NFEV], r[_NJEV] = status, st[E.NFEV], st[E.NJEV]
@@ -179,7 +185,10 @@ def record(status, st, ev, p, c, saved, r) -> int:
     # DONE with the end not saved: a restart within 1e-12 τ_end of the end (the single solve's
     # Solution then stops short of t_end, and summarize calls it failed too)
     if status == E.DONE and st[_NEXT_SAVE] == 2.0:
-        _summarize(int(p[_LAW]), p[_BETA], c, ev, n_ev, saved[1], r)
+        _summarize(int(p[_LAW]), p[_BETA], c, ev, n_ev, saved[1], c[_T_END], r)
+    elif status == E.SETTLED:
+        r[_T_STOP] = st[_LAST_T] * c[_TS]
+        _summarize(int(p[_LAW]), p[_BETA], c, ev, n_ev, saved[1], r[_T_STOP], r)
     else:
         r[_CLASS] = cycles.FAILED
     return n_ev
@@ -205,8 +214,9 @@ def _one(kernel, workspace, p0, z0, c, dirs, r, curve):
         for i in range(4):
             curve[j, i] = np.nan
     if n > 1 and n_ev > 0 and r[_CLASS] <= LAST_CYCLE:
+        stop = st[_LAST_T] if status == E.SETTLED else p[_TAU_END]
         k = n_ev - 1             # the last event whose margin the run's end does not cut
-        while c[_MARGIN] > 0.0 and k > 0 and ev[k, 1] + 2.0 * c[_MARGIN] > p[_TAU_END]:
+        while c[_MARGIN] > 0.0 and k > 0 and ev[k, 1] + 2.0 * c[_MARGIN] > stop:
             k -= 1
         tau_s, tau_e = ev[k, 0], ev[k, 1]
         if 0.0 < tau_s < tau_e < p[_TAU_END]:
@@ -214,7 +224,9 @@ def _one(kernel, workspace, p0, z0, c, dirs, r, curve):
             kept = np.empty((n + 2, 3))
             p[_DEADLINE] = monotonic() + c[_BUDGET]      # the second solve's own budget
             again, st2, _ = _run(kernel, workspace, p, z0, dirs, fine, kept)
-            if again == E.DONE and st2[_NEXT_SAVE] == n + 2.0:
+            # (a settled run settles again at the same event: the same steps)
+            if ((again == E.DONE and st2[_NEXT_SAVE] == n + 2.0)
+                    or (again == E.SETTLED and st2[_NEXT_SAVE] > n)):
                 for j in range(n):
                     curve[j, 0] = fine[j + 1]
                     for i in range(3):

@@ -28,7 +28,7 @@ from integrators.own import engine as E
 from integrators.own import sensitivity as SE
 from problems.formulations import from_ode_state
 
-__all__ = ["CompiledAlgorithm", "failure", "CHUNK_STEPS"]
+__all__ = ["CompiledAlgorithm", "failure", "settled_message", "CHUNK_STEPS"]
 
 #: accepted steps per compiled call when a progress bar is shown (~0.05 s), and without one
 #: (~0.5 s: Ctrl-C is seen between calls); the wall budget is read inside
@@ -59,6 +59,11 @@ def failure(status: int, t_stop: float, max_steps: int, wall_s: float | None,
     }[status]
 
 
+def settled_message(t_stop: float, t_end: float) -> str:
+    """What a run that stopped on its settled cycle (``settle``) says: where it stopped."""
+    return f"settled: stopped at t = {t_stop:.6g} s of {t_end:g} s, its cycle repeating"
+
+
 def _sensitivity_arrays(directions, n_grid: int, n_events: int, error_control: bool,
                         workspace):
     """The arrays of :func:`integrators.own.sensitivity.sense` for ``directions`` (None: a
@@ -76,6 +81,7 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
     library: ClassVar[str] = "rsfbench (numba)"
     package: ClassVar[str] = "own"
     compiled: ClassVar[bool] = True
+    settles: ClassVar[bool] = True
     rhs_tiers: ClassVar[tuple[str, ...]] = ("numba",)
     #: the compiled entry points (set by each method module) and the method's workspace
     #: (a compiled function returning its scratch arrays: the kernel allocates nothing)
@@ -95,11 +101,14 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
         import numba
         return f"numba {numba.__version__}"
 
-    def run(self, problem, output, budget, progress, sensitivity=(), sensitivity_error=False):
+    def run(self, problem, output, budget, progress, sensitivity=(), sensitivity_error=False,
+            settle=0.0):
         """The solve; with ``sensitivity`` (:class:`problems.directions.Direction` objects)
         also the forward sensitivities along them (:mod:`integrators.own.sensitivity`), in
         ``RawRun.sensitivity``, with their error in the step control if
-        ``sensitivity_error``."""
+        ``sensitivity_error``; with ``settle`` > 0, stopped at the end of the event where its
+        cycle has settled to that relative tolerance (:func:`integrators.core.cycles.
+        settled`)."""
         nd = problem.nondimensional()
         grid_t = output.times(problem.t_end)
         # the kernel saves the start as the grid's first point: one not asked for is dropped
@@ -110,6 +119,7 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
         if grid_t[-1] == problem.t_end:
             grid[-1] = nd.tau_end
         st, p, Z, G = self._start(nd, budget.deadline() if budget is not None else math.inf)
+        p[E.P["SETTLE"]] = settle
         saved, ev = np.empty((len(grid), 3)), np.empty((_EVENTS_START, 8))
         saved[0] = Z[E.ZROW["ZC"]]
         st[E.ST["NEXT_SAVE"]] = 1
@@ -143,6 +153,8 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
             progress(st[E.CURSOR] * nd.time_scale)
         raw = self._raw(problem, nd, status, st, Z, grid_t, saved, ev, budget)
         raw.meta["kernel_s"] = kernel_s
+        if status == E.SETTLED:
+            raw.meta["settle"] = settle
         if sa is not None:
             raw.sensitivity = SE.physical(problem, sensitivity, saved[:len(raw.t)], sa,
                                           ev[:int(st[E.REC + N_EVENTS])])
@@ -182,7 +194,13 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
         n = int(st[E.ST["NEXT_SAVE"]])
         t, z = grid_t[:n], saved[:n]
         retcode, message = ReturnCode.SUCCESS, ""
-        if status != E.DONE:
+        meta = {}
+        if status == E.SETTLED:
+            t_stop = st[E.ST["LAST_T"]] * ts
+            message, meta["settled_s"] = settled_message(t_stop, problem.t_end), t_stop
+            if n < len(grid_t) and not (n and t[-1] >= t_stop):    # the stop, if cut short
+                t, z = np.append(t, t_stop), np.vstack([z, Z[E.ZROW["ZC"]]])
+        elif status != E.DONE:
             retcode, message = failure(status, st[E.TAU] * ts, self.max_steps,
                                        budget.wall_s if budget else None, problem.t_end)
             # the state where it stopped: the end of the last step if it is a valid one (a
@@ -196,8 +214,8 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
         stats = Stats(nfev=int(st[E.NFEV]), njev=int(st[E.NJEV]), steps=int(st[E.STEPS]),
                       rejected=int(st[E.REJECTED]))
         roots = st[E.ST["ROOTS"]:E.ST["ROOTS"] + 4].astype(int).tolist()
-        meta = {"starts": int(st[E.ST["STARTS"]]), "roots": dict(zip(ROOT_NAMES, roots)),
-                "arrests": int(st[E.ST["ARRESTS"]])}
+        meta.update(starts=int(st[E.ST["STARTS"]]), roots=dict(zip(ROOT_NAMES, roots)),
+                    arrests=int(st[E.ST["ARRESTS"]]))
         y = np.empty((len(t), 3))
         y[:, 0], y[:, 1], y[:, 2] = problem.dimensional_state(h, eta, psi)
         return RawRun(t=t, y=y,
@@ -205,9 +223,10 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
                       stats=stats, retcode=retcode, message=message, meta=meta)
 
     def batch_inputs(self, problems, wall_budget: float | None = None,
-                     curve_margin: float = 0.0):
+                     curve_margin: float = 0.0, settle: float = 0.0):
         """The per-point inputs (P, Z0, C) of :mod:`integrators.own.batch` for ``problems``
-        (``curve_margin``: s before and after the event a curve reaches)."""
+        (``curve_margin``: s before and after the event a curve reaches; ``settle``:
+        :meth:`run`'s)."""
         from problems.stability import growth_rates
         n = len(problems)
         growth = growth_rates(problems)          # kept on each problem: once per point
@@ -220,6 +239,7 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
             _, p, Z, _ = E.new_state(nd, self.rtol, self.atol, self.constants, self.max_steps,
                                      math.inf)
             P[i, :len(p)] = p
+            P[i, E.P["SETTLE"]] = settle
             Z0[i] = Z[E.ZROW["ZC"]]
             law = problem.law
             C[i] = (nd.time_scale, problem.f0, nd.force_h, law.v0, law.lc, problem.normal_force,
@@ -230,7 +250,7 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
 
     def solve_batch(self, problems, wall_budget: float | None = None,
                     parallel: bool = True, curve_points: int = 0, curve_margin: float = 0.0,
-                    sensitivity=None, sensitivity_error: bool = True):
+                    sensitivity=None, sensitivity_error: bool = True, settle: float = 0.0):
         """Solve and summarise every problem of ``problems`` in one compiled call, on numba's
         threads or (``parallel`` False) on this thread only (:mod:`integrators.own.batch`): one
         row of ``batch.R`` per problem. Each solve is the one :func:`integrators.solve` makes
@@ -240,16 +260,20 @@ class CompiledAlgorithm(AdaptiveAlgorithm):
         others), and with ``curve_margin`` (s) > 0 over that much before and after it too.
         With ``sensitivity`` (parameter names, as :func:`integrators.solve`'s), returns
         ``(R, GRAD)``: also the gradient of each point's limit-cycle metrics
-        (:mod:`integrators.own.batch_sensitivity`), not with curves."""
+        (:mod:`integrators.own.batch_sensitivity`), not with curves. ``settle`` > 0: each
+        solve is :func:`integrators.solve`'s with that ``settle`` (not with sensitivities)."""
         if curve_points == 1 or curve_points < 0:
             raise ValueError(f"curve_points must be 0 or at least 2, got {curve_points!r}")
         if sensitivity is not None:
+            if settle:
+                raise ValueError("settle: a batch with sensitivities runs to t_end; ask for "
+                                 "one or the other")
             if curve_points:
                 raise ValueError("sensitivity: a batch with curves has no sensitivities; ask "
                                  "for one or the other")
             return self._solve_batch_sensitive(problems, wall_budget, parallel, sensitivity,
                                                sensitivity_error)
-        P, Z0, C = self.batch_inputs(problems, wall_budget, curve_margin)
+        P, Z0, C = self.batch_inputs(problems, wall_budget, curve_margin, settle)
         out = np.empty((len(problems), B.N_R))
         curve = np.empty((len(problems), curve_points, 4))
         if parallel:

@@ -66,6 +66,7 @@ import numpy as np
 from numba import njit
 
 from integrators.core.clock import monotonic
+from integrators.core.cycles import settled
 from integrators.core.events import (AT_ROOT, END, H_EXTREMUM, PEAK, REC_SIZE, carry_signs,
                                      compiled_roots, new_recorder, observe, record, sign_change)
 from integrators.core.events import N_EVENTS as _REC_N
@@ -75,7 +76,7 @@ from problems.loading import H_TAU_FAST, LN_E_HOLD, load_segment
 
 __all__ = ["run", "scratch", "NO_NRT", "fixed_steps", "rhs", "jacobian", "hermite", "new_state",
            "P", "ST", "ZROW", "DONE", "CHUNK", "GROW", "NONFINITE", "UNDERFLOW", "MAX_STEPS",
-           "WALL_TIME", "prepare_jacobian", "prepare_nothing", "nr_reject", "nr_accept",
+           "WALL_TIME", "SETTLED", "prepare_jacobian", "prepare_nothing", "nr_reject", "nr_accept",
            "rodas_reject", "rodas_accept", "pred_reject", "pred_accept", "no_sense"]
 
 # --- layouts -------------------------------------------------------------------------------
@@ -106,23 +107,29 @@ N_Z = 10
 #: tolerances, the root functions' thresholds ln(10 E_slow), ln E_slow, ln E; the run (τ_end,
 #: two-speed flag, step budget, wall deadline); the method (exponent of the initial-step guess,
 #: controller order q, stick_peaks, fsal, hermite, f evaluations per attempt, and those of the
-#: last attempt beyond them); from N_P on, the load-point history
+#: last attempt beyond them); SETTLE, the relative tolerance of a settled cycle (0: run to
+#: τ_end; :func:`integrators.core.cycles.settled`); from N_P on, the load-point history
 #: (:func:`problems.loading.history_vector`)
 P = dict(LAW=Q_LAW, BETA=Q_BETA, C=Q_C, D=Q_D, E=Q_E, RTOL=N_Q, ATOL=N_Q + 1,
          LN_10E_SLOW=N_Q + 2, LN_E_SLOW=N_Q + 3, LN_E=N_Q + 4, TAU_END=N_Q + 5,
          TWO_SPEED=N_Q + 6, MAX_STEPS=N_Q + 7, DEADLINE=N_Q + 8, INIT_EXPONENT=N_Q + 9,
          Q=N_Q + 10, STICK_PEAKS=N_Q + 11, FSAL=N_Q + 12, HERMITE=N_Q + 13, STAGES=N_Q + 14,
-         MORE_F=N_Q + 15)
+         MORE_F=N_Q + 15, SETTLE=N_Q + 16)
 (_RTOL, _ATOL, _LN_10ES, _LN_ES, _LN_E, _TAU_END, _TWO_SPEED, _MAX_STEPS, _DEADLINE,
- _INIT_EXPONENT, _Q, _STICK_PEAKS, _FSAL, _HERMITE, _STAGES, _MORE_F) = range(N_Q, N_Q + 16)
+ _INIT_EXPONENT, _Q, _STICK_PEAKS, _FSAL, _HERMITE, _STAGES, _MORE_F,
+ _SETTLE) = range(N_Q, N_Q + 17)
 _E = Q_E
-N_P = N_Q + 16
+N_P = N_Q + 17
 #: where a method's ``attempt`` reads the tolerances; where one whose f evaluations per attempt
 #: vary (Newton iterations) adds those beyond p[STAGES], which the engine counts and clears
 P_RTOL, P_ATOL, P_MORE_F = _RTOL, _ATOL, _MORE_F
 
-#: what :func:`run` returns
-DONE, CHUNK, GROW, NONFINITE, UNDERFLOW, MAX_STEPS, WALL_TIME = range(7)
+#: what :func:`run` returns; SETTLED: stopped at the end of an event, its cycle settled
+#: (p[SETTLE] > 0), the state there handed on (st[LAST_T], Z[ZC]) and the save points up to it
+#: saved
+DONE, CHUNK, GROW, NONFINITE, UNDERFLOW, MAX_STEPS, WALL_TIME, SETTLED = range(8)
+#: the settled test's longest period and repeats (:mod:`integrators.core.cycles`' defaults)
+SETTLE_MAX_PERIOD, SETTLE_REPEATS = 4, 2
 _OK = -1
 #: crossings placed in one scan at most: each moves the cursor forward, so this only stops a
 #: pathological step (a root function at zero to the bit) from scanning for ever
@@ -666,8 +673,8 @@ def run(prepare, attempt, reject, accept, ws, sc, st, p, Z, G, dirs, grid, saved
     """The solve (module docstring), resumed from the state in ``st``, ``Z``, ``G`` and ``p``:
     at most ``n_max`` accepted steps. ``ws``: the method's workspace, ``sc``: the engine's
     (:func:`scratch`); ``grid``: the save times (τ), ``saved``: the states there; ``ev``: the
-    events table. Returns DONE, CHUNK, GROW (``ev`` full), NONFINITE, UNDERFLOW, MAX_STEPS or
-    WALL_TIME; the counters are in ``st``. ``sense(op, arg, st, p, Z, G, ws, grid, sa)`` is told
+    events table. Returns DONE, CHUNK, GROW (``ev`` full), NONFINITE, UNDERFLOW, MAX_STEPS,
+    WALL_TIME or SETTLED; the counters are in ``st``. ``sense(op, arg, st, p, Z, G, ws, grid, sa)`` is told
     of every step, root, save, segment end and restart (the ``SENSE_*`` codes), before the
     recorder sees them, so that forward sensitivities (:mod:`integrators.own.sensitivity`, in
     the arrays ``sa``) can follow the solve; :func:`no_sense` for a plain solve.
@@ -728,6 +735,10 @@ def run(prepare, attempt, reject, accept, ws, sc, st, p, Z, G, dirs, grid, saved
                 _copy(z, Z[_LRZ])
                 _copy(G[1], G[2])
                 _hand_on(st, Z, t_ret, _ZR)
+                if ended and p[_SETTLE] > 0.0 and settled(ev, int(rec[_REC_N]), p[_SETTLE],
+                                                          SETTLE_MAX_PERIOD, SETTLE_REPEATS):
+                    _save_until(st, Z, grid, saved, t_ret, True, zt)
+                    return SETTLED
                 if ended and two_speed:
                     st[FAST_UNTIL] = t_ret + hist[H_TAU_FAST]
                     st[NEED_START] = 1.0
