@@ -475,8 +475,10 @@ def scaling_markdown(s: dict) -> str:
     if "settled" in g:
         st = g["settled"]
         lines += ["", f"Stopped on a settled cycle (`settle = {st['settle']:g}`: a point stops "
-                  "at the end of the event where its last periods' four metrics repeat, and "
-                  "repeat those at half its time, within that tolerance): "
+                  "at the end of the event where its last periods' four metrics repeat within "
+                  "that tolerance, have changed by less than it since half its time, and by "
+                  "at most half of what they changed from a quarter to half of it: "
+                  "`integrators.core.cycles.settled`): "
                   f"{st['points_stopped']} of {g['n_points']} points stopped early; 1 thread "
                   f"{fmt(st['wall_1_thread_s'])} s, 2 threads {fmt(st['wall_2_threads_s'])} s; "
                   f"its solves sum to {fmt(st['sum_batch_solve_s'])} s. Worst ΔT error "
