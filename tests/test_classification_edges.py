@@ -158,3 +158,16 @@ def test_the_locking_study_compares_only_runs_with_a_cycle_of_events(tmp_path):
          "mean_rate_over_vls": np.nan, "min_v_over_vls": np.nan}])
     text = write_classification(table, tmp_path)
     assert "Of 1 periodic runs" in text and "| g | 2 | 1 |" in text
+
+
+def test_an_uneven_cycle_is_not_stopped_by_where_the_run_ends():
+    """A period-2 cycle whose intervals alternate ~0.06 s and ~0.45 s (W2/slip at b =
+    0.00868718, Lc = 6.46e-7, found by a hostile probe) was called "too short to classify" when
+    t_end fell in its long gap: the quiet-end test read only the last interval. It reads the
+    longest of the last max_period now, so the class does not depend on the end's phase."""
+    from integrators import RadauIIA5
+    from problems import window
+    classes = {summarize(solve(window("W2", "slip", b=0.00868718, lc=6.46e-7, t_end=t_end),
+                               RadauIIA5(rtol=1e-4, atol=1e-4))).classification
+               for t_end in (149.3, 149.6, 150.0)}
+    assert classes == {"oscillation about vL"}, classes

@@ -120,7 +120,8 @@ def test_an_ensemble_that_settles_is_its_single_solves(w2):
 
 @pytest.mark.parametrize("settle, match", [
     (0.0, r"in \(0, 0.001\]"), (-1e-4, r"in \(0, 0.001\]"), (2e-3, r"in \(0, 0.001\]"),
-    (np.nan, r"in \(0, 0.001\]"), (True, "a number"), ("1e-4", "a number"),
+    (np.nan, r"in \(0, 0.001\]"), (np.int64(0), r"in \(0, 0.001\]"), (True, "a number"),
+    ("1e-4", "a number"),
 ])
 def test_a_bad_settle_is_refused(w2, settle, match):
     with pytest.raises(ValueError, match=match):

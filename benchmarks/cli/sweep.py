@@ -226,8 +226,8 @@ def _add_sweep(sub, preset_names) -> None:
                    help="stop each point at the end of the event where its cycle has settled: "
                         "its last periods' four metrics repeat, and changed by less than RTOL "
                         "since half its time (relative, ≤ 1e-3, e.g. 1e-4). The own compiled "
-                        "methods, constant loading; the solver check runs full points "
-                        "(default: every point runs to t_end)")
+                        "methods, a loading without speed switches; the solver check runs "
+                        "full points (default: every point runs to t_end)")
     s.add_argument("--out", type=out_dir, metavar="DIR",
                    help="directory of the store (DIR/chunks), table and maps (default: "
                         "./sweep_<preset or file name>_<law>)")

@@ -349,8 +349,8 @@ def cycle_from(found: np.ndarray, n: int, t_end: float, rtol: float, max_period:
     if outcome == cycles.NO_EVENTS:
         reason = f"no event in {t_end:g} s, and {why}: {longer}"
     elif outcome == cycles.STOPPED:
-        reason = (f"no event in the last {quiet:.3g} s (more than 3 recurrence "
-                  f"intervals), and {why}: {longer}")
+        reason = (f"no event in the last {quiet:.3g} s (more than 3 of its last "
+                  f"recurrence intervals), and {why}: {longer}")
     elif outcome == cycles.TOO_FEW:
         reason = (f"{n} events in {t_end:g} s, too few to see a cycle repeat (at least "
                   f"{2 * min_repeats + 1} are needed), and {why}: {longer}")

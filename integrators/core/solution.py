@@ -330,7 +330,8 @@ class Solution:
     @property
     def settled_s(self) -> float | None:
         """Where a run asked to stop on its settled cycle (``solve(..., settle=)``) stopped
-        (s); None for one that ran to its end or failed."""
+        (s); None for one that ran to its end or failed. Its save points after the stop are
+        not in it; the stop is, when save points were asked for after it."""
         return self.meta.get("settled_s") if self.success else None
 
     @property
@@ -386,7 +387,8 @@ class Solution:
         if self.rerun is None:
             raise ValueError("sol(t) needs a Solution made by integrators.solve (this one was "
                              "built otherwise: it cannot repeat its run)")
-        if self.settled_s is not None and times.size and not times.max() <= self.settled_s:
+        if (self.settled_s is not None and times.size and np.isfinite(times).all()
+                and times.max() > self.settled_s):
             raise ValueError(f"sol(t): the run stopped on its settled cycle at t = "
                              f"{self.settled_s:.6g} s; t = {times.max():.6g} s is after it")
         again = self.rerun(times)

@@ -106,7 +106,7 @@ def solve(problem: SpringSlider, algorithm: Algorithm, *, save_every: float | No
     settle : float, optional
         Stop at the end of the event where the cycle has settled to this relative tolerance,
         in (0, 1e−3] (:func:`integrators.core.cycles.settled`; ``Solution.settled_s``; own
-        compiled methods, constant loading, no ``sensitivity``; default None: run to t_end).
+        compiled methods, no speed switch, no ``sensitivity``; default None: run to t_end).
 
     Returns
     -------
@@ -175,7 +175,8 @@ def check_settle(algorithm: Algorithm, settle, sensitive: bool = False,
     (:func:`settle_refusal`)."""
     if settle is None:
         return 0.0
-    if isinstance(settle, bool) or not isinstance(settle, (int, float, np.floating)):
+    if isinstance(settle, bool) or not isinstance(settle, (int, float, np.integer,
+                                                          np.floating)):
         raise ValueError(f"settle must be a relative tolerance (a number), got {settle!r}")
     if not 0.0 < settle <= SETTLE_MAX:
         raise ValueError(f"settle must be a relative tolerance in (0, {SETTLE_MAX:g}] "
