@@ -11,11 +11,14 @@ where θ = 0 (damping, c). The initial state is not a monomial (a :class:`Balanc
 for a force balance): its derivative is a central difference of that algebra, no solve, with a
 relative step of 1e−4: truncation ~1e−8 of the derivative; rounding, where the state is a
 small difference of large forces (h0 = (Fs − F0)/(k Lc)), ~1e−16 of Fs over the force's change
-across the step, 1e−8 for the paper's damping.
+across the step, 1e−8 for the paper's damping. The difference runs the start's algebra alone,
+on the problem's parts remade without their checks (:func:`_start`): a checked
+:func:`~problems.slider.variant` costs ~50 µs, and twelve of them cost more than a short solve.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from dataclasses import dataclass
 
@@ -23,8 +26,9 @@ import numpy as np
 
 from problems._validate import check_flag
 from problems.formulations import N_Q, Q_BETA, Q_C, Q_D, Q_E, Q_G, Q_LAWP, to_ode_state
+from problems.friction import compiled_law_code
 from problems.loading import ConstantLoading, TwoSpeedLoading
-from problems.slider import SpringSlider, variant, variant_fields
+from problems.slider import InitialState, SpringSlider, start_vector, variant_fields
 
 __all__ = ["Direction", "direction", "SENSITIVE", "ALIASES", "sensitivity_names",
            "SENSITIVITY_RTOL", "value_of", "fields_of", "sensitive_request", "warn_loose"]
@@ -146,9 +150,43 @@ def value_of(problem: SpringSlider, name: str) -> float:
     return float(getattr(problem.initial, name.removeprefix("initial_")))
 
 
-def _z0(problem: SpringSlider) -> np.ndarray:
-    nd = problem.nondimensional()
-    return to_ode_state(nd.law_code, nd.beta, nd.x0)
+#: the problem's own fields the start depends on (mass and t_end it does not)
+_START_FIELDS = ("normal_force", "stiffness", "mu0", "radiation_damping")
+
+
+def _has_field(obj, name: str) -> bool:
+    return any(f.name == name for f in dataclasses.fields(obj))
+
+
+def _unchecked(obj, name: str, value: float):
+    """The frozen dataclass ``obj`` with its field ``name`` at ``value``, made without its
+    ``__post_init__`` (its checks): for a step of :data:`X0_STEP` off a checked problem."""
+    new = object.__new__(type(obj))
+    for f in dataclasses.fields(obj):
+        object.__setattr__(new, f.name, value if f.name == name else getattr(obj, f.name))
+    return new
+
+
+def _start(problem: SpringSlider, name: str, value: float) -> np.ndarray:
+    """The initial ODE state z0 of ``problem`` with its field ``name`` (a
+    :func:`~problems.slider.variant` name) at ``value``: the start's algebra alone
+    (:meth:`~problems.slider.BalancedStart.resolve`, :func:`~problems.slider.start_vector`) on
+    the parts remade unchecked. ``problem``'s own z0 where ``value`` is its own."""
+    law, loading, initial = problem.law, problem.loading, problem.initial
+    top = {f: getattr(problem, f) for f in _START_FIELDS}
+    if name in top:
+        top[name] = value
+    elif _has_field(law, name):
+        law = _unchecked(law, name, value)
+    elif _has_field(loading, name):
+        loading = _unchecked(loading, name, value)
+    elif _has_field(initial, name.removeprefix("initial_")):
+        initial = _unchecked(initial, name.removeprefix("initial_"), value)
+    fn, mu0 = top["normal_force"], top["mu0"]
+    ini = (initial if isinstance(initial, InitialState)
+           else initial.resolve(law, fn, mu0, loading, top["radiation_damping"]))
+    x0 = start_vector(law, fn, top["stiffness"], mu0, ini)
+    return to_ode_state(compiled_law_code(law), law.b / law.a, x0)
 
 
 def _natural_scale(problem: SpringSlider, name: str) -> float:
@@ -160,17 +198,17 @@ def _natural_scale(problem: SpringSlider, name: str) -> float:
 
 def _dz0(problem: SpringSlider, name: str, value: float) -> np.ndarray:
     """∂z0/∂θ by a central difference of the initial state's algebra (a forward three-point
-    one where θ − δ is refused, as a damping of 0), of step X0_STEP times the larger of |θ|
-    and θ's natural scale (a damping of 0 or 1 N s/m moves the forces by nothing a relative
-    step sees)."""
+    one where θ − δ would cross zero, as from a damping of 0), of step X0_STEP times the
+    larger of |θ| and θ's natural scale (a damping of 0 or 1 N s/m moves the forces by nothing
+    a relative step sees)."""
+    if name == "mass":                  # the start does not depend on it (_START_FIELDS)
+        return np.zeros(3)
     step = X0_STEP * (max(abs(value), _natural_scale(problem, name)) or 1.0)
-    up = _z0(variant(problem, **{name: value + step}))
-    try:
-        down = _z0(variant(problem, **{name: value - step}))
-        return (up - down) / (2.0 * step)
-    except ValueError:
-        up2 = _z0(variant(problem, **{name: value + 2.0 * step}))
-        return (-3.0 * _z0(problem) + 4.0 * up - up2) / (2.0 * step)
+    up = _start(problem, name, value + step)
+    if value - step < 0.0 <= value:
+        up2 = _start(problem, name, value + 2.0 * step)
+        return (-3.0 * _start(problem, name, value) + 4.0 * up - up2) / (2.0 * step)
+    return (up - _start(problem, name, value - step)) / (2.0 * step)
 
 
 def direction(problem: SpringSlider, name: str) -> Direction:

@@ -454,10 +454,7 @@ class SpringSlider:
         A = law.a * fn
         m, k, lc, v0, eta_r = self.mass, self.stiffness, law.lc, law.v0, self.radiation_damping
         ts = lc / v0
-        ini = self.initial_state
-        x0 = np.array([(ini.fs - self.f0) / (k * lc),
-                       (self.friction(ini.v, ini.theta) - self.f0) / A,
-                       law.psi(ini.theta, fn)], dtype=float)
+        x0 = start_vector(law, fn, k, self.mu0, self.initial_state)
         x0.flags.writeable = False
         hist = history_vector(self.loading, v0, ts)
         hist.flags.writeable = False
@@ -499,6 +496,16 @@ class SpringSlider:
         k, lc = self.stiffness, self.law.lc
         return (self.slip_rate_from_nondimensional(eta, psi), self.f0 + k * lc * np.asarray(h),
                 self.law.theta(np.asarray(psi), self.normal_force))
+
+
+def start_vector(law: FrictionLaw, fn: float, stiffness: float, mu0: float,
+                 ini: InitialState) -> np.ndarray:
+    """SPEC §2's initial (h, η, Ψ) of the start ``ini``: ((Fs − F0)/(k Lc), (Ft − F0)/A, Ψ(θ)),
+    F0 = μ0 Fn, A = a Fn (:meth:`SpringSlider.nondimensional`'s ``x0``)."""
+    f0 = mu0 * fn
+    return np.array([(ini.fs - f0) / (stiffness * law.lc),
+                     (law.friction(ini.v, ini.theta, fn, f0) - f0) / (law.a * fn),
+                     law.psi(ini.theta, fn)], dtype=float)
 
 
 def _check_forces(law, fn: float) -> None:

@@ -160,9 +160,10 @@ def test_partials_are_the_right_hand_sides_derivatives():
         q = problem.nondimensional().q(problem.nondimensional().e_slow)
         z = np.array([0.3, 1.7, -0.4 if law == "slip" else 0.8])
         jac, fth = np.empty((1, 3, 3)), np.empty((1, 3, len(names)))
-        hyy, hyt = np.empty((3, 3, 3)), np.empty((3, 3, len(names)))
+        hyy, hyt = np.zeros((3, 3, 3)), np.zeros((3, 3, len(names)))   # as the workspaces
         se._partials(q, dq, z, jac, fth, 0)
         se._second(q, dq, z, hyy, hyt)
+        _products_skip_only_zeros(se, jac, hyy, hyt, law)
         f, jz = np.empty(3), np.empty((3, 3))
         ode_jacobian(q, z, jz)
         assert np.allclose(jac[0], jz, rtol=1e-14, atol=0), law
@@ -185,6 +186,18 @@ def test_partials_are_the_right_hand_sides_derivatives():
             assert np.allclose(hyy[:, :, l], (up - down) / 2e-6, rtol=1e-6,
                                atol=1e-8 * np.abs(up).max()), (law, l)
         ode_rhs(q, z, f)
+
+
+def _products_skip_only_zeros(se, jac, hyy, hyt, law):
+    """Rodas5P's stage chain for the slider (``_change``, ``_products``) skips entries of J
+    and dJ: J(u)·u + dJ·k it makes must be the dense products', so the skipped ones are zero."""
+    rng = np.random.default_rng(3)
+    for n in range(hyt.shape[2]):
+        s, u, k = rng.normal(size=3), rng.normal(size=3), rng.normal(size=3)
+        dj = hyt[:, :, n] + hyy @ s
+        d = se._change(hyy, hyt, n, *s)
+        got = se._products(jac, 0, d, *u, *k)
+        assert np.allclose(got, jac[0] @ u + dj @ k, rtol=1e-13, atol=1e-15), (law, n)
 
 
 @pytest.mark.parametrize("bad, words", [

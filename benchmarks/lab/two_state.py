@@ -29,7 +29,7 @@ import numpy as np
 from numba import njit
 
 from integrators.core.clock import monotonic
-from integrators.own.rodas5p_stages import (dense_sensitivities, no_after,
+from integrators.own.rodas5p_stages import (dense_sensitivities, directions, no_after,
                                             sensitivity_workspace, stage_sensitivities, stages,
                                             workspace)
 from problems.formulations import (N_Q, Q_E, Q_LAW, Q_LAWP, state_rate, state_rate_partials,
@@ -263,7 +263,8 @@ def _run(p, velocities, bounds, times, rtol, atol, out, which, dout, deadline):
             steps += 1
             if n_s:
                 S0[:, :] = S
-                stage_sensitivities(_partials, _second_partials, p, which, h, ws, sw, y, S)
+                stage_sensitivities(_partials, _second_partials, directions, p, which, h, ws,
+                                    sw, y, S)
                 dense_sensitivities(sw, dd)
             t_new = t + h if t + h < t_end else t_end
             while i_out < n_out and times[i_out] <= t_new:

@@ -37,7 +37,7 @@ def workspace(n_s):
     9×9 matrix, its pivots and a right-hand side; dJ0 and f for the error estimate's; a copy
     of RadauIIA5's last accepted step (its ``last``), restored when the sensitivities reject a
     trial the state passed."""
-    return (np.empty((8, 3, 3)), np.zeros((8, 3, n_s)), np.empty((3, 3, 3)),
+    return (np.empty((8, 3, 3)), np.zeros((8, 3, n_s)), np.zeros((3, 3, 3)),
             np.zeros((3, 3, n_s)), np.zeros((n_s, 8, 3)), np.empty((9, 9)),
             np.zeros(9, np.int64), np.zeros(9), np.zeros((3, 3)), np.zeros(3),
             np.zeros((5, 3)))

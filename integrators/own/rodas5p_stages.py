@@ -12,7 +12,8 @@ from numba import njit
 from integrators.own.linalg import factor, lu_solve3
 
 __all__ = ["stages", "no_after", "workspace", "stage_sensitivities", "sensitivity_workspace",
-           "dense_sensitivities", "A5P", "C5P", "G5P", "H5P"]
+           "chain", "directions", "dense_change", "dense_products", "dense_sensitivities",
+           "A5P", "C5P", "G5P", "H5P"]
 
 # Rodas5P (Steinebach 2023), from OrdinaryDiffEq.jl's Rodas5PTableau; C padded to 8×8
 G5P = 0.21193756319429014
@@ -107,15 +108,15 @@ def stages(rhs, after, p, rtol, atol, hs, ws, z0, f0, z1, D):
 @njit(cache=True, nogil=True, error_model="numpy")
 def sensitivity_workspace(n_s):
     """Room for :func:`stage_sensitivities` with ``n_s`` directions: the stages' Jacobians and
-    ∂f/∂θ, the second derivatives at the step's start, the stages' dK, M⁻¹'s columns as rows
-    (row k: M⁻¹e_k, so M⁻ᵀ), and a direction's sums for the later stages."""
-    return (np.empty((8, 3, 3)), np.zeros((8, 3, n_s)), np.empty((3, 3, 3)),
-            np.zeros((3, 3, n_s)), np.zeros((n_s, 8, 3)), np.empty((3, 3)), np.zeros((8, 3)),
-            np.zeros((8, 3)))
+    ∂f/∂θ, the second derivatives at the step's start (zero until a model writes its entries
+    that are not), the stages' dK, and M⁻¹'s columns as rows (row k: M⁻¹e_k, so M⁻ᵀ)."""
+    return (np.empty((8, 3, 3)), np.zeros((8, 3, n_s)), np.zeros((3, 3, 3)),
+            np.zeros((3, 3, n_s)), np.zeros((n_s, 8, 3)), np.empty((3, 3)))
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def stage_sensitivities(partials, second, p, dirs, hs, ws, sw, z0, S, staged=False):
+def stage_sensitivities(partials, second, directions, p, dirs, hs, ws, sw, z0, S,
+                        staged=False):
     """The forward sensitivities S (row n: ∂z/∂θ_n, one row per direction of ``dirs``) from
     the accepted step ``hs`` at ``z0`` to its end, in place (the dense output's:
     :func:`dense_sensitivities`): the step's stages differentiated (internal
@@ -125,13 +126,16 @@ def stage_sensitivities(partials, second, p, dirs, hs, ws, sw, z0, S, staged=Fal
         dU_s = S + Σ_l A_sl dK_l,   dJ = ∂J/∂z·S + ∂J/∂θ at z0,   S ← dU_7 + dK_7
 
     (dJ K_s because M = I − hγ J(z0) depends on θ). The model gives ``partials(p, dirs, z,
-    jac, fth, s)``: ∂f/∂z into jac[s], ∂f/∂θ into fth[s]'s columns; and ``second(p, dirs, z,
-    hyy, hyt)``: ∂²f/∂z∂z, ∂²f/∂z∂θ. ``staged``: the step's :func:`stages` made jac[s] and
-    fth[s] for s ≥ 1 already (its ``after``), and nothing has run an attempt since (else
-    they are another step's). Allocates nothing."""
+    jac, fth, s)``: ∂f/∂z into jac[s], ∂f/∂θ into fth[s]'s columns; ``second(p, dirs, z,
+    hyy, hyt)``: ∂²f/∂z∂z, ∂²f/∂z∂θ; and ``directions(hg, mi, K, jac, fth, hyy, hyt, dk, S)``
+    (hg = hγ, mi M⁻ᵀ), the chain above for each direction, dK into dk[n]: :func:`chain`
+    with the model's Jacobian's zeros skipped (the slider's
+    :func:`integrators.own.sensitivity.rodas_directions`; :func:`directions`: none skipped).
+    ``staged``: the step's :func:`stages` made jac[s] and fth[s] for s ≥ 1 already (its
+    ``after``), and nothing has run an attempt since (else they are another step's).
+    Allocates nothing."""
     M, piv, K, u = ws[1], ws[2], ws[3], ws[4]       # ws may carry more (a kernel's own)
-    jst, fst, hyy, hyt, dk, mi, ua, ca = sw
-    hg = hs * G5P
+    jst, fst, hyy, hyt, dk, mi = sw
     partials(p, dirs, z0, jst, fst, 0)
     second(p, dirs, z0, hyy, hyt)
     for s in range(1, 1 if staged else 8):
@@ -145,61 +149,86 @@ def stage_sensitivities(partials, second, p, dirs, hs, ws, sw, z0, S, staged=Fal
         for i in range(3):
             mi[k, i] = 1.0 if i == k else 0.0
         lu_solve3(M, piv, mi, k)
-    directions(hg, mi, K, jst, fst, hyy, hyt, dk, ua, ca, S)
+    directions(hs * G5P, mi, K, jst, fst, hyy, hyt, dk, S)
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
-def directions(hg, mi, K, jst, fst, hyy, hyt, dk, ua, ca, S):
-    """:func:`stage_sensitivities` after the step's shared part, one direction at a time.
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def chain(change, products, hg, mi, K, jst, fst, hyy, hyt, dk, S):
+    """The stage chain of :func:`stage_sensitivities` for each direction n (row n of S, dK
+    into dk[n]; hg = hγ, ``mi`` M⁻¹ by rows), inlined into a model's own compiled
+    ``directions``: the model gives ``change(hyy, hyt, n, s0, s1, s2)``, its dJ along n (a
+    tuple in its own layout), and ``products(jst, s, d, u0, u1, u2, k0, k1, k2)``,
+    J(u_s)·u + dJ·K_s, both inlined, so that the Jacobian's zeros are skipped where the model
+    knows them (:func:`dense_change`, :func:`dense_products`: none).
 
-    A direction's stages form a chain, so its time is latency more than arithmetic: M⁻¹
-    (by rows, ``mi``) replaces the 3×3 solve, each dK_l is added into the later stages' sums
-    (``ua``, ``ca``) as soon as it is known, the state is in local variables, and products
-    and sums fuse (``contract``: a multiply-add rounds once; no other license is taken)."""
+    A direction's stages form a chain. Each stage's sums Σ A_sl dK_l and Σ C_sl dK_l are read
+    back from dk (a pull: loads that do not wait on one another; pushing each dK_l into the
+    later stages' sums stored and reloaded them), the state is in local variables, and M⁻¹
+    replaces the 3×3 solve. The caller's ``fastmath={"contract"}`` fuses products and sums (a
+    multiply-add rounds once; no other license)."""
     for n in range(S.shape[0]):
         s0, s1, s2 = S[n, 0], S[n, 1], S[n, 2]
-        d00 = hyt[0, 0, n] + hyy[0, 0, 0] * s0 + hyy[0, 0, 1] * s1 + hyy[0, 0, 2] * s2
-        d01 = hyt[0, 1, n] + hyy[0, 1, 0] * s0 + hyy[0, 1, 1] * s1 + hyy[0, 1, 2] * s2
-        d02 = hyt[0, 2, n] + hyy[0, 2, 0] * s0 + hyy[0, 2, 1] * s1 + hyy[0, 2, 2] * s2
-        d10 = hyt[1, 0, n] + hyy[1, 0, 0] * s0 + hyy[1, 0, 1] * s1 + hyy[1, 0, 2] * s2
-        d11 = hyt[1, 1, n] + hyy[1, 1, 0] * s0 + hyy[1, 1, 1] * s1 + hyy[1, 1, 2] * s2
-        d12 = hyt[1, 2, n] + hyy[1, 2, 0] * s0 + hyy[1, 2, 1] * s1 + hyy[1, 2, 2] * s2
-        d20 = hyt[2, 0, n] + hyy[2, 0, 0] * s0 + hyy[2, 0, 1] * s1 + hyy[2, 0, 2] * s2
-        d21 = hyt[2, 1, n] + hyy[2, 1, 0] * s0 + hyy[2, 1, 1] * s1 + hyy[2, 1, 2] * s2
-        d22 = hyt[2, 2, n] + hyy[2, 2, 0] * s0 + hyy[2, 2, 1] * s1 + hyy[2, 2, 2] * s2
-        for s in range(8):
-            ua[s, 0], ua[s, 1], ua[s, 2] = s0, s1, s2
-            ca[s, 0] = ca[s, 1] = ca[s, 2] = 0.0
+        d = change(hyy, hyt, n, s0, s1, s2)
         u0, u1, u2 = s0, s1, s2
         for s in range(8):
             if s < 6:
-                u0, u1, u2 = ua[s, 0], ua[s, 1], ua[s, 2]
+                u0, u1, u2 = s0, s1, s2
+                for l in range(s):
+                    a = A5P[s, l]
+                    u0 += a * dk[n, l, 0]
+                    u1 += a * dk[n, l, 1]
+                    u2 += a * dk[n, l, 2]
             else:                       # A's rows 6 and 7 are row s − 1 plus e_(s−1)
                 u0 += dk[n, s - 1, 0]
                 u1 += dk[n, s - 1, 1]
                 u2 += dk[n, s - 1, 2]
-            k0, k1, k2 = K[s, 0], K[s, 1], K[s, 2]
-            e0 = (hg * (fst[s, 0, n] + d00 * k0 + d01 * k1 + d02 * k2) + G5P * ca[s, 0]
-                  + hg * (jst[s, 0, 0] * u0 + jst[s, 0, 1] * u1 + jst[s, 0, 2] * u2))
-            e1 = (hg * (fst[s, 1, n] + d10 * k0 + d11 * k1 + d12 * k2) + G5P * ca[s, 1]
-                  + hg * (jst[s, 1, 0] * u0 + jst[s, 1, 1] * u1 + jst[s, 1, 2] * u2))
-            e2 = (hg * (fst[s, 2, n] + d20 * k0 + d21 * k1 + d22 * k2) + G5P * ca[s, 2]
-                  + hg * (jst[s, 2, 0] * u0 + jst[s, 2, 1] * u1 + jst[s, 2, 2] * u2))
-            r0 = mi[0, 0] * e0 + mi[1, 0] * e1 + mi[2, 0] * e2
-            r1 = mi[0, 1] * e0 + mi[1, 1] * e1 + mi[2, 1] * e2
-            r2 = mi[0, 2] * e0 + mi[1, 2] * e1 + mi[2, 2] * e2
-            dk[n, s, 0], dk[n, s, 1], dk[n, s, 2] = r0, r1, r2
-            for t in range(s + 1, 8):
-                c = C5P[t, s]
-                ca[t, 0] += c * r0
-                ca[t, 1] += c * r1
-                ca[t, 2] += c * r2
-                if t < 6:
-                    a = A5P[t, s]
-                    ua[t, 0] += a * r0
-                    ua[t, 1] += a * r1
-                    ua[t, 2] += a * r2
+            c0 = c1 = c2 = 0.0
+            for l in range(s):
+                c = C5P[s, l]
+                c0 += c * dk[n, l, 0]
+                c1 += c * dk[n, l, 1]
+                c2 += c * dk[n, l, 2]
+            p0, p1, p2 = products(jst, s, d, u0, u1, u2, K[s, 0], K[s, 1], K[s, 2])
+            e0 = hg * (fst[s, 0, n] + p0) + G5P * c0
+            e1 = hg * (fst[s, 1, n] + p1) + G5P * c1
+            e2 = hg * (fst[s, 2, n] + p2) + G5P * c2
+            dk[n, s, 0] = mi[0, 0] * e0 + mi[1, 0] * e1 + mi[2, 0] * e2
+            dk[n, s, 1] = mi[0, 1] * e0 + mi[1, 1] * e1 + mi[2, 1] * e2
+            dk[n, s, 2] = mi[0, 2] * e0 + mi[1, 2] * e1 + mi[2, 2] * e2
         S[n, 0], S[n, 1], S[n, 2] = u0 + dk[n, 7, 0], u1 + dk[n, 7, 1], u2 + dk[n, 7, 2]
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def dense_change(hyy, hyt, n, s0, s1, s2):
+    """:func:`chain`'s ``change`` with no zeros known: dJ = ∂J/∂z·S + ∂J/∂θ, by rows."""
+    return (hyt[0, 0, n] + hyy[0, 0, 0] * s0 + hyy[0, 0, 1] * s1 + hyy[0, 0, 2] * s2,
+            hyt[0, 1, n] + hyy[0, 1, 0] * s0 + hyy[0, 1, 1] * s1 + hyy[0, 1, 2] * s2,
+            hyt[0, 2, n] + hyy[0, 2, 0] * s0 + hyy[0, 2, 1] * s1 + hyy[0, 2, 2] * s2,
+            hyt[1, 0, n] + hyy[1, 0, 0] * s0 + hyy[1, 0, 1] * s1 + hyy[1, 0, 2] * s2,
+            hyt[1, 1, n] + hyy[1, 1, 0] * s0 + hyy[1, 1, 1] * s1 + hyy[1, 1, 2] * s2,
+            hyt[1, 2, n] + hyy[1, 2, 0] * s0 + hyy[1, 2, 1] * s1 + hyy[1, 2, 2] * s2,
+            hyt[2, 0, n] + hyy[2, 0, 0] * s0 + hyy[2, 0, 1] * s1 + hyy[2, 0, 2] * s2,
+            hyt[2, 1, n] + hyy[2, 1, 0] * s0 + hyy[2, 1, 1] * s1 + hyy[2, 1, 2] * s2,
+            hyt[2, 2, n] + hyy[2, 2, 0] * s0 + hyy[2, 2, 1] * s1 + hyy[2, 2, 2] * s2)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def dense_products(jst, s, d, u0, u1, u2, k0, k1, k2):
+    """:func:`chain`'s ``products`` with no zeros known: J(u_s)·u + dJ·K_s."""
+    return (d[0] * k0 + d[1] * k1 + d[2] * k2
+            + jst[s, 0, 0] * u0 + jst[s, 0, 1] * u1 + jst[s, 0, 2] * u2,
+            d[3] * k0 + d[4] * k1 + d[5] * k2
+            + jst[s, 1, 0] * u0 + jst[s, 1, 1] * u1 + jst[s, 1, 2] * u2,
+            d[6] * k0 + d[7] * k1 + d[8] * k2
+            + jst[s, 2, 0] * u0 + jst[s, 2, 1] * u1 + jst[s, 2, 2] * u2)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
+def directions(hg, mi, K, jst, fst, hyy, hyt, dk, S):
+    """:func:`stage_sensitivities`' ``directions`` for a model whose Jacobian has no zeros to
+    skip (the laboratory's two-state model): :func:`chain` with :func:`dense_change` and
+    :func:`dense_products`."""
+    chain(dense_change, dense_products, hg, mi, K, jst, fst, hyy, hyt, dk, S)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")

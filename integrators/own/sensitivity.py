@@ -45,15 +45,15 @@ from integrators.own.engine import (HACC, SENSE_ARREST, SENSE_LOAD, SENSE_RESTAR
                                     SENSE_STEP, SENSE_STEP_END, TAU, TAU_OLD, ZROW)
 from integrators.core.events import END, H_EXTREMUM, PEAK, START
 from integrators.own import radau5_sensitivity as radau
-from integrators.own.rodas5p_stages import (dense_sensitivities, sensitivity_workspace,
+from integrators.own.rodas5p_stages import (chain, dense_sensitivities, sensitivity_workspace,
                                             stage_sensitivities, stages)
 from problems.formulations import (N_Q, Q_BETA, Q_C, Q_D, Q_E, Q_G, Q_LAWP,
                                    state_rate_partials, state_rate_second_partials)
 from problems.loading import H_E_FAST, H_TAU_FAST
 
 __all__ = ["sense", "radau_sense", "sense_with", "radau_error", "arrays", "make_arrays",
-           "grow_events", "DIR", "V", "SI", "rodas5p_kernel", "direction_matrix", "si_columns",
-           "physical"]
+           "grow_events", "DIR", "V", "SI", "rodas5p_kernel", "rodas_directions",
+           "direction_matrix", "si_columns", "physical"]
 
 #: columns of the directions array: dq (E: the slow rate's), then these
 DIR = dict(E_FAST=N_Q, TAU_FAST=N_Q + 1, LN_TS=N_Q + 2, Z0=N_Q + 3, SCALE=N_Q + 6)
@@ -97,19 +97,15 @@ def _partials(p, dq, z, jac, fth, s):
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _second(p, dq, z, hyy, hyt):
-    """∂²f/∂z∂z into hyy, ∂²f/∂z∂θ along ``dq`` into hyt (:func:`_partials`'s f)."""
+    """∂²f/∂z∂z into hyy, ∂²f/∂z∂θ along ``dq`` into hyt (:func:`_partials`'s f): the
+    entries that are not zero; the others are left as they are, zero in the workspaces that
+    hold them (made so, and written by this alone)."""
     h, u, sv = z[0], z[1], z[2]
     w = math.exp(u)
     beta, c, d = p[Q_BETA], p[Q_C], p[Q_D]
     r_uu, r_us, r_ss, r_g, r_ug = state_rate_second_partials(p, u, sv, w)
     inv = 1.0 / w
     n1 = (c * h - d * (u + beta * sv)) * inv
-    for i in range(3):
-        for j in range(3):
-            for l in range(3):
-                hyy[i, j, l] = 0.0
-            for n in range(dq.shape[0]):
-                hyt[i, j, n] = 0.0
     hyy[0, 1, 1] = -w
     hyy[1, 0, 1] = hyy[1, 1, 0] = -c * inv
     hyy[1, 1, 1] = 2.0 * d * inv + n1
@@ -121,6 +117,35 @@ def _second(p, dq, z, hyy, hyt):
         hyt[1, 1, n] = -dq[n, Q_D] * inv - dn
         hyt[1, 2, n] = -(dq[n, Q_D] * beta + d * dq[n, Q_BETA]) * inv
         hyt[2, 1, n] = r_ug * dq[n, Q_LAWP]
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _change(hyy, hyt, n, s0, s1, s2):
+    """dJ = ∂J/∂z·S + ∂J/∂θ along direction n, the entries :func:`_second` can make nonzero:
+    (0, 1), (1, 0), (1, 1), (1, 2), (2, 1), (2, 2) (:func:`rodas_directions`)."""
+    return (hyy[0, 1, 1] * s1, hyt[1, 0, n] + hyy[1, 0, 1] * s1,
+            hyt[1, 1, n] + hyy[1, 1, 0] * s0 + hyy[1, 1, 1] * s1 + hyy[1, 1, 2] * s2,
+            hyt[1, 2, n] + hyy[1, 2, 1] * s1,
+            hyt[2, 1, n] + hyy[2, 1, 1] * s1 + hyy[2, 1, 2] * s2,
+            hyy[2, 2, 1] * s1 + hyy[2, 2, 2] * s2)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _products(jst, s, d, u0, u1, u2, k0, k1, k2):
+    """J(u_s)·u + dJ·K_s with :func:`_partials`' J, rows (0, −w, 0), (·, ·, ·), (0, R_u, R_s),
+    and :func:`_change`'s dJ: the zeros skipped."""
+    return (d[0] * k1 + jst[s, 0, 1] * u1,
+            d[1] * k0 + d[2] * k1 + d[3] * k2
+            + jst[s, 1, 0] * u0 + jst[s, 1, 1] * u1 + jst[s, 1, 2] * u2,
+            d[4] * k1 + d[5] * k2 + jst[s, 2, 1] * u1 + jst[s, 2, 2] * u2)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
+def rodas_directions(hg, mi, K, jst, fst, hyy, hyt, dk, S):
+    """Rodas5P's stage chain of each direction
+    (:func:`integrators.own.rodas5p_stages.chain`) for this module's f, the Jacobian's zeros
+    skipped (:func:`_change`, :func:`_products`)."""
+    chain(_change, _products, hg, mi, K, jst, fst, hyy, hyt, dk, S)
 
 
 def arrays(directions: np.ndarray, n_grid: int, n_events: int, error_control: bool = False,
@@ -303,7 +328,7 @@ def _restart(tau, st, p, Z, sa):
 def _rodas_step(p, dq, hs, ws, sw, z0, S):
     # the engine's SENSE_STEP comes straight after the accepted attempt, the last one, whose
     # stages made the stage Jacobians (_stage_partials): nothing runs an attempt between
-    stage_sensitivities(_partials, _second, p, dq, hs, ws, sw, z0, S, True)
+    stage_sensitivities(_partials, _second, rodas_directions, p, dq, hs, ws, sw, z0, S, True)
     return True                         # (M is regular: the attempt solved with it)
 
 
@@ -422,7 +447,8 @@ def _attempt(p, hs, ws, z0, f0, z1, f1, D):
     for n in range(S.shape[0]):
         for i in range(3):
             SN[n, i] = S[n, i]
-    stage_sensitivities(_partials, _second, p, sa[2], hs, ws, sw, z0, SN, True)
+    stage_sensitivities(_partials, _second, rodas_directions, p, sa[2], hs, ws, sw, z0, SN,
+                        True)
     return _error_test(p, S, SN, DIRS, sw[4], 7, err)
 
 
