@@ -12,8 +12,8 @@ for a force balance): its derivative is a central difference of that algebra, no
 relative step of 1e−4: truncation ~1e−8 of the derivative; rounding, where the state is a
 small difference of large forces (h0 = (Fs − F0)/(k Lc)), ~1e−16 of Fs over the force's change
 across the step, 1e−8 for the paper's damping. The difference runs the start's algebra alone,
-on the problem's parts remade without their checks (:func:`_start`): a checked
-:func:`~problems.slider.variant` costs ~50 µs, and twelve of them cost more than a short solve.
+on the problem's parts remade without their checks (:func:`_start`), not on checked variants
+of the whole problem (four a parameter, each checked in full).
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ from problems._validate import check_flag
 from problems.formulations import N_Q, Q_BETA, Q_C, Q_D, Q_E, Q_G, Q_LAWP, to_ode_state
 from problems.friction import compiled_law_code
 from problems.loading import ConstantLoading, TwoSpeedLoading
-from problems.slider import InitialState, SpringSlider, start_vector, variant_fields
+from problems.slider import InitialState, SpringSlider, start_vector, variant, variant_fields
 
 __all__ = ["Direction", "direction", "SENSITIVE", "ALIASES", "sensitivity_names",
            "SENSITIVITY_RTOL", "value_of", "fields_of", "sensitive_request", "warn_loose"]
@@ -167,6 +167,19 @@ def _unchecked(obj, name: str, value: float):
     return new
 
 
+def _refused(problem: SpringSlider, name: str, value: float) -> bool:
+    """Whether a checked :func:`~problems.slider.variant` refuses ``name`` at ``value``: asked
+    only where a step crosses zero (a damping of 0 cannot go below; a slip law's b of 0 can,
+    and its one-sided difference would be wrong: Ψ is 0 at b = 0 alone)."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            variant(problem, **{name: value})
+    except ValueError:
+        return True
+    return False
+
+
 def _start(problem: SpringSlider, name: str, value: float) -> np.ndarray:
     """The initial ODE state z0 of ``problem`` with its field ``name`` (a
     :func:`~problems.slider.variant` name) at ``value``: the start's algebra alone
@@ -182,6 +195,8 @@ def _start(problem: SpringSlider, name: str, value: float) -> np.ndarray:
         loading = _unchecked(loading, name, value)
     elif _has_field(initial, name.removeprefix("initial_")):
         initial = _unchecked(initial, name.removeprefix("initial_"), value)
+    else:
+        raise ValueError(f"the initial state has no parameter {name!r}")
     fn, mu0 = top["normal_force"], top["mu0"]
     ini = (initial if isinstance(initial, InitialState)
            else initial.resolve(law, fn, mu0, loading, top["radiation_damping"]))
@@ -198,14 +213,14 @@ def _natural_scale(problem: SpringSlider, name: str) -> float:
 
 def _dz0(problem: SpringSlider, name: str, value: float) -> np.ndarray:
     """∂z0/∂θ by a central difference of the initial state's algebra (a forward three-point
-    one where θ − δ would cross zero, as from a damping of 0), of step X0_STEP times the
-    larger of |θ| and θ's natural scale (a damping of 0 or 1 N s/m moves the forces by nothing
-    a relative step sees)."""
+    one where θ − δ is refused, as a damping below 0), of step X0_STEP times the larger of |θ|
+    and θ's natural scale (a damping of 0 or 1 N s/m moves the forces by nothing a relative
+    step sees)."""
     if name == "mass":                  # the start does not depend on it (_START_FIELDS)
         return np.zeros(3)
     step = X0_STEP * (max(abs(value), _natural_scale(problem, name)) or 1.0)
     up = _start(problem, name, value + step)
-    if value - step < 0.0 <= value:
+    if value - step < 0.0 <= value and _refused(problem, name, value - step):
         up2 = _start(problem, name, value + 2.0 * step)
         return (-3.0 * _start(problem, name, value) + 4.0 * up - up2) / (2.0 * step)
     return (up - _start(problem, name, value - step)) / (2.0 * step)

@@ -340,6 +340,20 @@ def test_the_initial_states_derivative_along_a_damping_of_zero():
     assert np.allclose(got, chord, rtol=1e-6, atol=1e-9 * np.abs(chord).max())
 
 
+def test_the_initial_states_derivative_along_b_at_zero_is_its_neighbours():
+    """A slip law's balanced start at b = 0: Ψ0 is 0 there alone (θ = 0) and the same constant
+    for every b ≠ 0, so a one-sided difference from b = 0 would make ∂s0/∂b ~ 1e4; b may go
+    below 0, so the difference is central and s0's derivative is the neighbours' (0 at
+    b = ±1e-3: the derivative of a constant)."""
+    from problems.directions import direction
+    p = paper_example(law="slip", t_end=0.5)
+    at_zero = direction(p.with_law(b=0.0), "b").dz0
+    for b in (-1e-3, 1e-3):
+        near = direction(p.with_law(b=b), "b").dz0
+        assert abs(near[2]) < 1e-6 and abs(at_zero[2]) < 1e-6
+        assert np.allclose(at_zero[0], near[0], rtol=1e-6)
+
+
 def test_stick_slip_design_errors_hold_for_a_precise_plan_and_rank_alternatives():
     """A precise W2/slip plan (240 s, 1 %/2 % scatter): the Fisher errors of (b, log10 Lc)
     within 40 % of the spread of 30 exact-Jacobian fits (1.06 and 1.03 with 40 fits when this
