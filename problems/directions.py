@@ -205,9 +205,13 @@ def _start(problem: SpringSlider, name: str, value: float) -> np.ndarray:
 
 
 def _natural_scale(problem: SpringSlider, name: str) -> float:
-    """The size of θ at which it matters: m v0/Lc for the damping (G = 1), 1 for c, else 0."""
+    """The size of θ at which it matters: for the damping the larger of m v0/Lc (G = 1) and
+    Fs/v at the start (where ηr v is as large as the spring force: a step of m v0/Lc can move
+    Fs by less than its rounding, as on a laboratory apparatus; the start is linear in ηr, so
+    a long step costs nothing), 1 for c, else 0."""
     if name == "radiation_damping":
-        return problem.mass * problem.law.v0 / problem.law.lc
+        ini = problem.initial_state
+        return max(problem.mass * problem.law.v0 / problem.law.lc, abs(ini.fs) / ini.v)
     return 1.0 if name == "c" else 0.0
 
 

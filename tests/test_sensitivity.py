@@ -340,6 +340,21 @@ def test_the_initial_states_derivative_along_a_damping_of_zero():
     assert np.allclose(got, chord, rtol=1e-6, atol=1e-9 * np.abs(chord).max())
 
 
+def test_the_initial_states_derivative_along_a_damping_on_a_laboratory_apparatus():
+    """A balanced start's spring force is friction + ηr v, so ∂h0/∂ηr = v/(k Lc) exactly; on a
+    velocity step with a 1 g slider a step of m v0/Lc moved Fs (~6 kN) by less than its
+    rounding and the derivative came out 0 (the hostile probe's case)."""
+    from problems.directions import direction
+    from problems.presets import velocity_step_test
+    for mass in (1e-3, 1.0):
+        p = velocity_step_test(law="aging", mass=mass)
+        ini = p.initial_state
+        exact = ini.v / (p.stiffness * p.law.lc)
+        got = direction(p, "radiation_damping").dz0
+        assert got[0] == pytest.approx(exact, rel=1e-9), mass
+        assert got[1] == 0.0 and got[2] == 0.0
+
+
 def test_the_initial_states_derivative_along_b_at_zero_is_its_neighbours():
     """A slip law's balanced start at b = 0: Ψ0 is 0 there alone (θ = 0) and the same constant
     for every b ≠ 0, so a one-sided difference from b = 0 would make ∂s0/∂b ~ 1e4; b may go
