@@ -171,10 +171,8 @@ def _refused(problem: SpringSlider, name: str, value: float) -> bool:
     """Whether a checked :func:`~problems.slider.variant` refuses ``name`` at ``value``: asked
     only where a step crosses zero (a damping of 0 cannot go below; a slip law's b of 0 can,
     and its one-sided difference would be wrong: Ψ is 0 at b = 0 alone)."""
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            variant(problem, **{name: value})
+    try:                    # (no warnings filter here: fits run this in threads)
+        variant(problem, **{name: value})
     except ValueError:
         return True
     return False
@@ -232,7 +230,11 @@ def _dz0(problem: SpringSlider, name: str, value: float) -> np.ndarray:
 
 def direction(problem: SpringSlider, name: str) -> Direction:
     """The :class:`Direction` of ``problem`` along the parameter ``name`` (one of
-    :func:`sensitivity_names`'s)."""
+    :func:`sensitivity_names`'s, which checks that ``problem`` has it); ValueError for a name
+    not in :data:`SENSITIVE`."""
+    if name not in SENSITIVE:
+        raise ValueError(f"sensitivity: {name!r} is not a parameter a solve can be "
+                         f"differentiated by; they are {', '.join(SENSITIVE)}")
     nd = problem.nondimensional()
     law, m, k, fn = problem.law, problem.mass, problem.stiffness, problem.normal_force
     lc, v0, a = law.lc, law.v0, law.a
