@@ -224,7 +224,9 @@ def _dz0(problem: SpringSlider, name: str, value: float) -> np.ndarray:
     up = _start(problem, name, value + step)
     if value - step < 0.0 <= value and _refused(problem, name, value - step):
         up2 = _start(problem, name, value + 2.0 * step)
-        return (-3.0 * _start(problem, name, value) + 4.0 * up - up2) / (2.0 * step)
+        nd = problem.nondimensional()       # the base, made once per problem already
+        base = to_ode_state(nd.law_code, nd.beta, nd.x0)
+        return (-3.0 * base + 4.0 * up - up2) / (2.0 * step)
     return (up - _start(problem, name, value - step)) / (2.0 * step)
 
 
