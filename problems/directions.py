@@ -108,10 +108,13 @@ def warn_loose(algorithm, above: int) -> None:
 
 
 def sensitivity_names(problem: SpringSlider, names) -> tuple[str, ...]:
-    """``names`` (a string "b,lc" or a sequence) as :data:`SENSITIVE` names, aliases resolved;
-    ValueError naming one the problem does not have, a repeat, or a solve without mass."""
+    """``names`` (a string "b,lc", a sequence or a 1-d array of strings) as :data:`SENSITIVE`
+    names, aliases resolved; ValueError naming one the problem does not have, a repeat, or a
+    solve without mass."""
     if isinstance(names, str):
         names = [n.strip() for n in names.split(",") if n.strip()]
+    elif isinstance(names, np.ndarray) and names.ndim == 1 and names.dtype.kind in "US":
+        names = [str(n) for n in names]
     elif not (isinstance(names, (tuple, list)) and all(isinstance(n, str) for n in names)):
         raise ValueError(f"sensitivity: parameter names as a string 'b,lc' or a sequence of "
                          f"strings, got {names!r}")
@@ -138,7 +141,7 @@ def fields_of(problem: SpringSlider) -> tuple[str, ...]:
     if not isinstance(problem.loading, (ConstantLoading, TwoSpeedLoading)):
         have -= {"vl", "vls", "vlf", "df"}
     elif not problem.nondimensional().two_speed:
-        have -= {"vlf", "df"}               # no overshoot runs (vlf = vls or df = 0)
+        have -= {"vlf", "df"}               # no overshoot runs (df = 0)
     return tuple(n for n in SENSITIVE if n in have)
 
 
@@ -268,6 +271,11 @@ def direction(problem: SpringSlider, name: str) -> Direction:
     elif name == "df":
         dtau_fast = v0 / lc
     value = value_of(problem, name)
+    try:
+        dz0 = _dz0(problem, name, value)
+    except ValueError as exc:           # a start that cannot move (a slip law's θ at b = 0)
+        raise ValueError(f"sensitivity: {problem.name!r} cannot be differentiated along "
+                         f"{name!r}: {exc}") from None
     return Direction(name=name, dq=dq, de_fast=de_fast, dtau_fast=dtau_fast, dln_ts=dln_ts,
-                     dz0=_dz0(problem, name, value), d_force_h=d_force_h, d_fn=d_fn, d_b=d_b,
+                     dz0=dz0, d_force_h=d_force_h, d_fn=d_fn, d_b=d_b,
                      scale=abs(value) if value != 0.0 else 1.0)

@@ -207,7 +207,9 @@ class TwoSpeedLoading:
     """The shaking-table overshoot: vL = ``vlf`` for ``df`` seconds after each event ends, else ``vls``.
 
     Velocities in m/s, ``df`` in s (Table 2 of the paper). As a history: one piece at ``vls``
-    and an overshoot at ``vlf`` for ``df`` (none when ``df`` is 0 or ``vlf`` equals ``vls``).
+    and an overshoot at ``vlf`` for ``df`` (none when ``df`` is 0). An overshoot at ``vlf`` =
+    ``vls`` changes no trajectory but stays a switch, so that the derivatives along ``vls``
+    (``vlf`` held) and ``vlf`` are a two-speed loading's.
 
     Parameters
     ----------
@@ -256,7 +258,7 @@ class TwoSpeedLoading:
 
     @property
     def two_speed(self) -> bool:
-        return self.df > 0 and self.vlf != self.vls
+        return self.df > 0
 
 
 LOADINGS = (ConstantLoading, TwoSpeedLoading, LoadHistory)

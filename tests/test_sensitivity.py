@@ -5,6 +5,7 @@ refused before any work."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import warnings
 
@@ -15,8 +16,9 @@ from integrators import solve
 from integrators.own.exprb43 import Exprb43
 from integrators.own.radau5 import RadauIIA5
 from integrators.own.rodas5p import Rodas5P
+from problems.loading import TwoSpeedLoading
 from problems.presets import fault_radiation_damping, paper_example, window
-from problems.slider import variant
+from problems.slider import InitialState, variant
 
 TIGHT = Rodas5P(rtol=1e-12, atol=1e-12)
 
@@ -316,12 +318,37 @@ def test_more_misuse_is_refused_before_any_work():
             solve(p, alg, sensitivity=bad)
     with pytest.raises(ValueError, match="sensitivity_error"):
         solve(p, alg, sensitivity="b", sensitivity_error="no")
-    same = window("W2", law="slip", t_end=1.0)
-    same = variant(same, vlf=same.loading.vls)            # the overshoot never runs
-    with pytest.raises(ValueError, match="no parameter 'vlf'"):
-        solve(same, alg, sensitivity="vlf")
+    none = window("W2", law="slip", t_end=1.0)
+    none = dataclasses.replace(none, loading=TwoSpeedLoading(none.loading.vls, 1e-3, 0.0))
+    with pytest.raises(ValueError, match="no parameter 'vlf'"):   # no overshoot runs
+        solve(none, alg, sensitivity="vlf")
     with pytest.warns(UserWarning, match="far off"):
         solve(p, Rodas5P(rtol=1e-3, atol=1e-3), sensitivity="b", max_points=2)
+    stuck = dataclasses.replace(variant(p, b=0.0), initial=InitialState(1e-5, 0.0, 6e5))
+    with pytest.raises(ValueError, match="^sensitivity: .* along 'initial_theta': slip law"):
+        solve(stuck, alg, sensitivity="initial_theta")      # θ = 0 is the only θ at b = 0
+    by_array = solve(p, alg, sensitivity=np.array(["b", "lc"]))
+    assert by_array.sensitivity.names == ("b", "lc")
+
+
+def test_an_overshoot_at_the_slow_speed_is_differentiated_as_two_speeds():
+    """vlf = vls with df > 0: the overshoot changes nothing, but ∂/∂vls holds vlf (as
+    :func:`variant` does), so the overshoot after each event keeps its speed, and ∂/∂vlf is not
+    0. Both against central differences (relative step 1e-4) of variants' event starts: the
+    gradient along vls was 1.6 % off when such a loading was solved as one speed."""
+    p = window("W2", law="slip", t_end=7.0)
+    p = variant(p, vlf=p.loading.vls)
+    alg = Rodas5P(rtol=1e-9, atol=1e-9)
+    sol = solve(p, alg, sensitivity=("vls", "vlf"))
+    assert sol.success and len(sol.events) == 3
+    exact = np.asarray(sol.sensitivity.events)[:, 0, :]          # ∂t_start/∂(vls, vlf)
+    for n, name in enumerate(("vls", "vlf")):
+        h = 1e-4 * getattr(p.loading, name)
+        up, down = (solve(variant(p, **{name: getattr(p.loading, name) + s * h}), alg)
+                    for s in (1, -1))
+        fd = (up.events["t_start"].to_numpy() - down.events["t_start"].to_numpy()) / (2 * h)
+        np.testing.assert_allclose(exact[1:, n], fd[1:], rtol=1e-4)
+    assert exact[0, 1] == 0.0 and abs(exact[2, 1]) > 100.0       # before any overshoot; not 0
 
 
 def test_the_initial_states_derivative_along_a_damping_of_zero():
