@@ -339,6 +339,41 @@ def test_a_ctrl_c_in_the_nested_draws_leaves_no_directory_it_made(tmp_path):
     assert "nothing written" in text and not out.exists()
 
 
+def test_a_sigterm_while_a_file_is_written_leaves_no_temporary_and_exit_143(tmp_path):
+    """A SIGTERM killed the process mid-write and left its 0-byte temporary (a hostile probe).
+    It now takes the Ctrl-C path: the temporary removed, no output file, one line, status
+    143. The write is held in its fsync (patched to sleep) until the SIGTERM comes."""
+    import os
+    import signal
+    import time
+    from pathlib import Path
+    (tmp_path / "sitecustomize.py").write_text(
+        "import os, time\n"
+        "_fsync = os.fsync\n"
+        "def fsync(fd):\n"
+        "    time.sleep(60)\n"
+        "    return _fsync(fd)\n"
+        "os.fsync = fsync\n")
+    root = Path(__file__).resolve().parents[1]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), str(root)])}
+    proc = subprocess.Popen([sys.executable, "-m", "benchmarks.cli", "simulate", "--preset",
+                             "paper-example", "--t-end", "1", "--save", "out.csv"],
+                            cwd=tmp_path, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE)
+    try:
+        started = time.monotonic()
+        while not list(tmp_path.glob(".rsfbench-tmp-*")):
+            assert time.monotonic() - started < 120 and proc.poll() is None
+            time.sleep(0.05)
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    assert proc.returncode == 143, err[-500:]
+    assert err.decode().strip().splitlines()[-1] == "rsfbench: error: interrupted (SIGTERM)"
+    assert not list(tmp_path.glob(".rsfbench-tmp-*")) and not (tmp_path / "out.csv").exists()
+
+
 def _interrupted_run(command: list, stream: str, marker: bytes, pause: float):
     """``(exit status, text)``: ``rsfbench COMMAND`` run until ``marker`` appears on its
     ``stream`` ("stdout" or "stderr"), then ``pause`` s, then SIGINT; the text is what that

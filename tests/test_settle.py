@@ -181,5 +181,11 @@ def test_sweep_settle_option(tmp_path, capsys):
                  "--lc", "5e-7:5e-7:1", "--settle", "1e-4", "--integrator", "scipy-Radau",
                  "--rtol", "1e-6", "--atol", "1e-6",
                  "--out", str(tmp_path / "no")]) == 2
-    assert "scipy-Radau runs to t_end" in capsys.readouterr().err
+    assert "--settle 0.0001: scipy-Radau runs to t_end" in capsys.readouterr().err
+    assert not (tmp_path / "no").exists()
+    for value, said in (("-1e-4", "must be positive, got '-1e-4'"),   # a value, not an option
+                        ("0.5", "must be a relative tolerance ≤ 0.001, got '0.5'")):
+        assert main(["sweep", "--preset", "W2", "--b", "0.0093:0.0093:0.0001", "--lc",
+                     "5e-7:5e-7:1", "--settle", value, "--out", str(tmp_path / "no")]) == 2
+        assert f"argument --settle: {said}" in capsys.readouterr().err
     assert not (tmp_path / "no").exists()

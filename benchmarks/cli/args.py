@@ -9,8 +9,11 @@ a file to read exists. ``--help`` states every option's default and unit.
 from __future__ import annotations
 
 import argparse
+import functools
 import math
 import os
+import re
+import signal
 import sys
 import warnings
 from pathlib import Path
@@ -22,7 +25,7 @@ from benchmarks.records.provenance import version_line
 from integrators import algorithm_class, make_algorithm
 from problems import LAWS, load_problem, preset, variant
 
-__all__ = ["say", "show_progress", "RunStopped", "Parser", "HelpFormatter", "positive",
+__all__ = ["say", "show_progress", "RunStopped", "Terminated", "stop_on_sigterm", "stopped_by", "Parser", "HelpFormatter", "positive",
            "non_negative", "finite", "pair",
            "count", "seed", "bounded", "steps_or_none", "workers", "b_lc", "b_range", "lc_range",
            "quantity", "SPEED", "TIME", "out_dir", "out_file", "in_file", "preset_name", "flagged",
@@ -68,12 +71,18 @@ class HelpFormatter(argparse.RawDescriptionHelpFormatter):
         return f"{text} (default: {value})"
 
 
+#: a negative number, exponent included (no option of rsfbench's looks like one)
+_NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
+
+
 class Parser(argparse.ArgumentParser):
     """An ``ArgumentParser`` whose errors are one line (no usage block), exit status 2."""
 
     def __init__(self, *args, **kwargs):
         kwargs.setdefault("formatter_class", HelpFormatter)
         super().__init__(*args, **kwargs)
+        # "-1e-4" is a value, not an option: argparse's own rule knows -1 and -.5 alone
+        self._negative_number_matcher = _NEGATIVE_NUMBER
 
     def print_help(self, file=None):
         # --help is the command's output: the standard output as it was (main() points
@@ -635,3 +644,34 @@ def wants_json(argv: list[str]) -> bool:
     """Did the command line ask for one JSON document (``--json`` before any ``--``)?"""
     argv = sys.argv[1:] if argv is None else argv
     return "--json" in (argv[:argv.index("--")] if "--" in argv else argv)
+
+
+class Terminated(KeyboardInterrupt):
+    """A SIGTERM, raised in the main thread where a Ctrl-C would be (:func:`stop_on_sigterm`)."""
+
+
+#: set once a SIGTERM came (a command's own words for a stop may re-raise a plain Ctrl-C)
+_TERMINATED = []
+
+
+def stop_on_sigterm() -> None:
+    """From now on, a SIGTERM to this process takes the path of a Ctrl-C (a :class:`Terminated`
+    in the main thread): the temporary file of a write in progress removed, a sweep's finished
+    points kept, one line, exit status 143. A process forked from this one (a pool's worker)
+    dies of it as it would have."""
+    signal.signal(signal.SIGTERM, functools.partial(_terminate, os.getpid()))
+
+
+def _terminate(pid: int, signum, frame) -> None:
+    if os.getpid() != pid:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        os.kill(os.getpid(), signal.SIGTERM)
+        return
+    _TERMINATED.append(True)
+    raise Terminated
+
+
+def stopped_by() -> tuple[str, int]:
+    """What stopped the command, for its line, and its exit status: ("SIGTERM", 143) once a
+    SIGTERM came (:func:`stop_on_sigterm`), else ("Ctrl-C", 130)."""
+    return ("SIGTERM", 143) if _TERMINATED else ("Ctrl-C", 130)

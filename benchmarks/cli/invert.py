@@ -39,6 +39,7 @@ from benchmarks.cli.args import (
     say,
     seed,
     show_progress,
+    stopped_by,
     workers,
 )
 from benchmarks.cli.invert_nuisance import (
@@ -81,12 +82,14 @@ WALL_BUDGET = 10.0
 
 
 def _interrupted(args, command: str, where: str) -> int:
-    """Ctrl-C: one line (and with --json one JSON document), exit status 130."""
-    message = f"rsfbench: error: {command} interrupted (Ctrl-C) {where}"
+    """Ctrl-C (or SIGTERM): one line (and with --json one JSON document), exit status 130
+    (143)."""
+    what, status = stopped_by()
+    message = f"rsfbench: error: {command} interrupted ({what}) {where}"
     print(message, file=sys.stderr)
     if getattr(args, "json", False):
-        say(json.dumps({"error": message, "exit_status": 130}))
-    return 130
+        say(json.dumps({"error": message, "exit_status": status}))
+    return status
 
 
 def _drop_if_empty(out: Path, made: bool) -> None:

@@ -13,7 +13,7 @@ import warnings
 
 import numpy as np
 
-from benchmarks.cli.args import say, sensitive_default, show_progress
+from benchmarks.cli.args import say, sensitive_default, show_progress, stopped_by
 
 #: effective samples under which the intervals are called rough (a warning, also in --json)
 MIN_EFFECTIVE = 50
@@ -121,8 +121,8 @@ def run_nuisance(args, misfit, box, steps: int, out, record: dict) -> int:
     try:
         fitted, samples = _fit_and_sample(args, misfit, priors, box, steps)
     except KeyboardInterrupt:
-        raise KeyboardInterrupt(f"invert --nuisance interrupted (Ctrl-C): nothing written to "
-                                f"{out}") from None
+        raise KeyboardInterrupt(f"invert --nuisance interrupted ({stopped_by()[0]}): nothing "
+                                f"written to {out}") from None
     summary = {**write_nuisance(fitted, samples, out, record),   # where invert and sweep
                "integrator_choice": record["integrator_choice"], "out": str(out)}   # put them
     for path in inversion_files(out):        # an earlier run's, of the (b, Lc) posterior

@@ -24,7 +24,7 @@ from pathlib import Path
 import pandas as pd
 
 from benchmarks.cli.args import (in_file, non_negative, numbers, out_dir, positive, say, seed,
-                                 show_progress, workers)
+                                 show_progress, stopped_by, workers)
 from benchmarks.lab.model import DEFAULT_ALGORITHM, DETRENDS, WALL_BUDGET, LabModel
 from benchmarks.records.files import claim_outputs, write_figure, write_output, write_table
 from benchmarks.records.optional import require
@@ -338,8 +338,8 @@ def _posterior(args, fit):
         return sample_lab(fit, walkers=args.walkers, steps=args.steps, seed=args.seed,
                           progress=not args.json and not args.no_progress)
     except KeyboardInterrupt as exc:      # one line (main), never emcee's traceback
-        raise KeyboardInterrupt(f"lab fit interrupted (Ctrl-C): {str(exc) or 'the posterior'}; "
-                                "nothing written") from None
+        raise KeyboardInterrupt(f"lab fit interrupted ({stopped_by()[0]}): "
+                                f"{str(exc) or 'the posterior'}; nothing written") from None
 
 
 def _inertia(args, fit, record) -> dict:

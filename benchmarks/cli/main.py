@@ -47,6 +47,8 @@ from benchmarks.cli.args import (
     ShowVersion,
     add_overwrite_options,
     say,
+    stop_on_sigterm,
+    stopped_by,
     wants_json,
 )
 from benchmarks.records.files import allow_overwrite, begin_run
@@ -81,7 +83,7 @@ def build_parser() -> Parser:
 def main(argv: list[str] | None = None) -> int:
     """Run one command; return its exit status: 0 done, 1 the run failed (its retcode, or one
     line, says why), 2 a usage error (one line on stderr; with --json also one JSON document on
-    stdout), 3 an internal error, 130 interrupted.
+    stdout), 3 an internal error, 130 interrupted (Ctrl-C), 143 terminated (SIGTERM).
 
     Whatever a library writes to the standard output (assimulo's Fortran and SUNDIALS' warnings,
     also from pool workers) goes to the standard error instead, so that the standard output holds
@@ -99,17 +101,19 @@ def main(argv: list[str] | None = None) -> int:
         The exit status (above); a command's errors never leave as a traceback.
     """
     json_mode = wants_json(argv)
+    if argv is None:
+        stop_on_sigterm()                         # a SIGTERM cleans up as a Ctrl-C does
     with _library_output_to_stderr(keep=argv is None), warnings.catch_warnings():
         warnings.showwarning = _show_warning
         status = 130
         try:
             status = _command(argv, json_mode)
         except KeyboardInterrupt:                 # a Ctrl-C while an error was being said:
-            pass                                  # that line stands
+            status = stopped_by()[1]              # that line stands
         finally:
             if argv is None:                      # a program whose status is decided: a
-                signal.signal(signal.SIGINT,      # Ctrl-C while it exits (waiting for work
-                              functools.partial(_leave, status))   # in flight) leaves with it
+                for signum in (signal.SIGINT, signal.SIGTERM):   # Ctrl-C while it exits
+                    signal.signal(signum, functools.partial(_leave, status))  # leaves with it
         return status
 
 
@@ -166,10 +170,13 @@ def _command(argv: list[str] | None, json_mode: bool) -> int:
 
 
 def _interrupt(exc: KeyboardInterrupt, args, json_mode: bool) -> int:
-    """The one line of a Ctrl-C (``exc``'s own words if it has any), status 130."""
+    """The one line of a Ctrl-C or SIGTERM (``exc``'s own words if it has any), status 130 or
+    143."""
     kept = (" (a sweep keeps its finished points: run it again to resume)"
             if getattr(args, "command", None) == "sweep" else "")
-    return _fail(_one_line(exc) if str(exc) else f"interrupted{kept}", 130, json_mode)
+    what, status = stopped_by()
+    return _fail(_one_line(exc) if str(exc) else f"interrupted ({what}){kept}", status,
+                 json_mode)
 
 
 def _interrupted(exc: BaseException) -> KeyboardInterrupt | None:

@@ -6,6 +6,7 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 from pathlib import Path
 
@@ -45,7 +46,7 @@ from benchmarks.physics.metrics import CYCLES, summarize
 from benchmarks.records.files import claim_outputs
 from benchmarks.records.report import jsonable, literal
 from integrators import solve
-from integrators.core.solve import check_settle
+from integrators.core.solve import SETTLE_MAX, check_settle
 from problems import PRESET_NAMES, WINDOWS
 
 __all__ = ["add_parsers", "observations", "synthetic_curves"]
@@ -55,6 +56,24 @@ def sweep_problem(args):
     FILE``) and whether a window's published fit and observations apply."""
     problem = problem_from_args(args, fields=("t_end",))     # --b and --lc are the grid
     return problem, args.problem is None and args.preset.upper() in WINDOWS
+
+
+def settle_rtol(text: str) -> float:
+    """--settle's value: a relative tolerance in (0, SETTLE_MAX]."""
+    x = positive(text)
+    if x > SETTLE_MAX:
+        raise argparse.ArgumentTypeError(f"must be a relative tolerance ≤ {SETTLE_MAX:g}, "
+                                         f"got {text!r}")
+    return x
+
+
+def _check_settle(args, algorithm, names, problem) -> None:
+    """check_settle's refusal as a line naming --settle."""
+    try:
+        check_settle(algorithm, args.settle, bool(names), problem)
+    except ValueError as exc:
+        raise ValueError(f"--settle {args.settle:g}: {str(exc).removeprefix('settle: ')}") \
+            from None
 
 
 def cmd_sweep(args) -> int:
@@ -72,7 +91,7 @@ def cmd_sweep(args) -> int:
                          "curves in --observations); a batch with curves has no sensitivities")
     algorithm, why = integrator_from_args(args)
     names, algorithm, why = sensitivity_request(args, problem, algorithm, why)
-    check_settle(algorithm, args.settle, bool(names), problem)
+    _check_settle(args, algorithm, names, problem)
     name = args.preset if args.problem is None else Path(args.problem).stem
     out = Path(args.out or f"sweep_{name}_{problem.law.name}")
     claim_outputs([out / "sweep.csv", out / "summary.json",      # a user's file there:
@@ -81,7 +100,7 @@ def cmd_sweep(args) -> int:
         args, problem, obs, (float(min(b_values)), float(max(b_values))),
         (float(min(lc_values)), float(max(lc_values))), algorithm, why, keep_method=bool(names),
         held=held_algorithm(out / "chunks"))          # a sweep resumed keeps its setting
-    check_settle(algorithm, args.settle, bool(names), problem)  # the setting the check kept
+    _check_settle(args, algorithm, names, problem)      # the setting the check kept
     if not args.json:
         say(f"integrator: {why}")
         if obs.assumed_sigma:
@@ -222,7 +241,7 @@ def _add_sweep(sub, preset_names) -> None:
                    help="wall budget per point in s: a point over it is a failed point, read "
                         f"as without a limit cycle, never as one (default: {WALL_BUDGET:g} s, "
                         "as invert's)")
-    s.add_argument("--settle", type=positive, metavar="RTOL",
+    s.add_argument("--settle", type=settle_rtol, metavar="RTOL",
                    help="stop each point at the end of the event where its cycle has settled: "
                         "its last periods' four metrics repeat, and changed by less than RTOL "
                         "since half its time (relative, ≤ 1e-3, e.g. 1e-4). The own compiled "
