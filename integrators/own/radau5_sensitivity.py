@@ -9,8 +9,9 @@ held, dZ solves the 9×9 system
 
 J_s the Jacobian at stage s: the collocation method applied to the sensitivity equation and
 solved exactly (a direct, not a simplified Newton, solve: the sensitivities do not inherit the
-iteration's tolerance). Its LU (partial pivoting) is made once per step and serves every
-direction. The error estimate err = (μ/h − J0)⁻¹ (f(z0) + e·Z/h) moves by
+iteration's tolerance). The slider's h rows are explicit (J's row for h is (0, −w, 0)) and
+are eliminated: the LU (partial pivoting) of the 6×6 system left is made once per step and
+serves every direction. The error estimate err = (μ/h − J0)⁻¹ (f(z0) + e·Z/h) moves by
 (μ/h − J0)⁻¹ (dJ0 err + J0 S + ∂f/∂θ(z0) + e·dZ/h), dJ0 = ∂J/∂z·S + ∂J/∂θ at z0.
 """
 
@@ -34,52 +35,52 @@ P_RTOL, P_ATOL = engine.P["RTOL"], engine.P["ATOL"]
 def workspace(n_s):
     """Room for ``n_s`` directions: the stages' Jacobians (rows 0–2; row 3 at z0) and ∂f/∂θ,
     the second derivatives at z0, dZ (n_s, 8, 3: the stages', then the error estimate's), the
-    9×9 matrix, its pivots and a right-hand side; dJ0 and f for the error estimate's; a copy
-    of RadauIIA5's last accepted step (its ``last``), restored when the sensitivities reject a
-    trial the state passed."""
+    6×6 matrix, its pivots and a right-hand side; dJ0 (or the stages' J S + ∂f/∂θ) and f for
+    the error estimate's; a copy of RadauIIA5's last accepted step (its ``last``), restored
+    when the sensitivities reject a trial the state passed."""
     return (np.empty((8, 3, 3)), np.zeros((8, 3, n_s)), np.zeros((3, 3, 3)),
-            np.zeros((3, 3, n_s)), np.zeros((n_s, 8, 3)), np.empty((9, 9)),
-            np.zeros(9, np.int64), np.zeros(9), np.zeros((3, 3)), np.zeros(3),
+            np.zeros((3, 3, n_s)), np.zeros((n_s, 8, 3)), np.empty((6, 6)),
+            np.zeros(6, np.int64), np.zeros(9), np.zeros((3, 3)), np.zeros(3),
             np.zeros((5, 3)))
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _lu9(a, piv):
-    """In-place LU of the 9×9 ``a`` with partial pivoting; False if a pivot is zero."""
+def _lu6(a, piv):
+    """In-place LU of the 6×6 ``a`` with partial pivoting; False if a pivot is zero."""
     regular = True
-    for k in range(9):
+    for k in range(6):
         p = k
-        for i in range(k + 1, 9):
+        for i in range(k + 1, 6):
             if abs(a[i, k]) > abs(a[p, k]):
                 p = i
         piv[k] = p
         regular &= a[p, k] != 0.0
         if p != k:
-            for j in range(9):
+            for j in range(6):
                 a[k, j], a[p, j] = a[p, j], a[k, j]
         if a[k, k] != 0.0:
-            for i in range(k + 1, 9):
+            for i in range(k + 1, 6):
                 a[i, k] /= a[k, k]
-                for j in range(k + 1, 9):
+                for j in range(k + 1, 6):
                     a[i, j] -= a[i, k] * a[k, j]
     return regular
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _solve9(a, piv, b):
-    """Solve in place for ``b`` with :func:`_lu9`'s factors."""
-    for k in range(9):
+def _solve6(a, piv, b):
+    """Solve in place for ``b[0:6]`` with :func:`_lu6`'s factors."""
+    for k in range(6):
         p = piv[k]
         if p != k:
             b[k], b[p] = b[p], b[k]
-    for i in range(1, 9):
+    for i in range(1, 6):
         acc = b[i]
         for j in range(i):
             acc -= a[i, j] * b[j]
         b[i] = acc
-    for i in range(8, -1, -1):
+    for i in range(5, -1, -1):
         acc = b[i]
-        for j in range(i + 1, 9):
+        for j in range(i + 1, 6):
             acc -= a[i, j] * b[j]
         b[i] = acc / a[i, i]
 
@@ -89,35 +90,48 @@ def step_sensitivities(partials, p, dirs, hs, Z, u, sw, z0, S):
     """S (row n: ∂z/∂θ_n) from the accepted step ``hs`` at ``z0`` (stage increments ``Z``)
     to its end, in place, and each direction's dZ in sw[4][n, 0:3] (module docstring);
     ``partials`` as :func:`integrators.own.rodas5p_stages.stage_sensitivities` takes it.
-    False if the 9×9 matrix is singular."""
-    jst, fst, dk, B, piv, r = sw[0], sw[1], sw[4], sw[5], sw[6], sw[7]
+    False if the system is singular.
+
+    The slider's J has the row (0, a, 0) for h (a = −w), so the 9×9 system's h rows are
+    dZ_s,h = r_s,h + h Σ_l A_sl a_l dZ_l,u: substituted into the others, they leave a 6×6
+    system in the stages' (u, s) parts (a third of the 9×9's LU)."""
+    jst, fst, dk, B, piv, r, g = sw[0], sw[1], sw[4], sw[5], sw[6], sw[7], sw[8]
     for s in range(3):
         for i in range(3):
             u[i] = z0[i] + Z[s, i]
         partials(p, dirs, u, jst, fst, s)
-    for s in range(3):
-        for i in range(3):
-            for l in range(3):
-                for j in range(3):
-                    B[3 * s + i, 3 * l + j] = -hs * A[s, l] * jst[l, i, j]
-            B[3 * s + i, 3 * s + i] += 1.0
-    regular = _lu9(B, piv)
+    for s in range(3):                  # B = I − h A⊗J' − h² (A⊗J'_h)(A⊗a) on (u, s)
+        for i in range(2):
+            for m in range(3):
+                through_h = 0.0
+                for l in range(3):
+                    through_h += A[s, l] * jst[l, i + 1, 0] * A[l, m]
+                B[2 * s + i, 2 * m] = (-hs * A[s, m] * jst[m, i + 1, 1]
+                                       - hs * hs * through_h * jst[m, 0, 1])
+                B[2 * s + i, 2 * m + 1] = -hs * A[s, m] * jst[m, i + 1, 2]
+            B[2 * s + i, 2 * s + i] += 1.0
+    regular = _lu6(B, piv)
     for n in range(S.shape[0]):
-        for s in range(3):
+        for l in range(3):              # g_l = J_l S + ∂f/∂θ at stage l
             for i in range(3):
+                g[l, i] = (fst[l, i, n] + jst[l, i, 0] * S[n, 0] + jst[l, i, 1] * S[n, 1]
+                           + jst[l, i, 2] * S[n, 2])
+        for s in range(3):              # r_s,h = h Σ_l A_sl g_l,h, into r[6 + s]
+            r[6 + s] = hs * (A[s, 0] * g[0, 0] + A[s, 1] * g[1, 0] + A[s, 2] * g[2, 0])
+        for s in range(3):              # the (u, s) rows, the h rows substituted
+            for i in range(2):
                 acc = 0.0
                 for l in range(3):
-                    g = fst[l, i, n]
-                    for j in range(3):
-                        g += jst[l, i, j] * S[n, j]
-                    acc += A[s, l] * g
-                r[3 * s + i] = hs * acc
-        _solve9(B, piv, r)
+                    acc += A[s, l] * (g[l, i + 1] + jst[l, i + 1, 0] * r[6 + l])
+                r[2 * s + i] = hs * acc
+        _solve6(B, piv, r)
         for s in range(3):
-            for i in range(3):
-                dk[n, s, i] = r[3 * s + i]
+            dk[n, s, 1], dk[n, s, 2] = r[2 * s], r[2 * s + 1]
+            dk[n, s, 0] = r[6 + s] + hs * (A[s, 0] * jst[0, 0, 1] * r[0]
+                                           + A[s, 1] * jst[1, 0, 1] * r[2]
+                                           + A[s, 2] * jst[2, 0, 1] * r[4])
         for i in range(3):
-            S[n, i] += r[6 + i]
+            S[n, i] += dk[n, 2, i]
     return regular
 
 
