@@ -113,11 +113,11 @@ def sensitivity_names(problem: SpringSlider, names) -> tuple[str, ...]:
     solve without mass."""
     if isinstance(names, str):
         names = [n.strip() for n in names.split(",") if n.strip()]
-    elif isinstance(names, np.ndarray) and names.ndim == 1 and names.dtype.kind in "US":
-        names = [str(n) for n in names]
-    elif not (isinstance(names, (tuple, list)) and all(isinstance(n, str) for n in names)):
-        raise ValueError(f"sensitivity: parameter names as a string 'b,lc' or a sequence of "
-                         f"strings, got {names!r}")
+    elif isinstance(names, np.ndarray) and names.ndim == 1:
+        names = names.tolist()              # str items stay str (bytes, numbers are refused)
+    if not (isinstance(names, (tuple, list)) and all(isinstance(n, str) for n in names)):
+        raise ValueError(f"sensitivity: parameter names as a string 'b,lc', a sequence or a "
+                         f"1-d array of strings, got {names!r}")
     names = tuple(ALIASES.get(n.strip().lower(), n.strip().lower()) for n in names)
     if not names:
         raise ValueError("sensitivity: name at least one parameter, e.g. ('b', 'lc')")

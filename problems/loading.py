@@ -147,6 +147,12 @@ class LoadHistory:
         return self.overshoot_duration > 0
 
     @property
+    def overshoots(self) -> bool:
+        """True when that switch changes the load point's velocity (an overshoot at the
+        velocity of every piece is a switch that changes nothing)."""
+        return self.two_speed and any(v != self.overshoot_velocity for v in self.velocities)
+
+    @property
     def holds(self) -> tuple[tuple[float, float], ...]:
         """(start, end) of each hold (s); the end is inf for a hold that lasts to the end."""
         edges = (0.0,) + self.switch_times + (math.inf,)

@@ -310,6 +310,9 @@ def test_the_two_speed_loading_is_a_history_with_an_overshoot():
     np.testing.assert_array_equal(a.fs, b.fs)
     np.testing.assert_array_equal(a.events.to_numpy(), b.events.to_numpy())
     assert P.ConstantLoading(1e-4).history == P.LoadHistory((1e-4,))
+    assert w.history.overshoots
+    same = P.TwoSpeedLoading(w.vls, w.vls, w.df).history        # a switch that changes nothing:
+    assert same.two_speed and not same.overshoots                # no laboratory check refuses it
 
 
 def test_every_switch_is_a_restart_and_a_hold_keeps_the_load_point_still():

@@ -313,7 +313,7 @@ def test_an_arrest_leaves_the_solve_as_it_is_and_says_the_gradients_are_unknown(
 def test_more_misuse_is_refused_before_any_work():
     p = paper_example(t_end=1.0)
     alg = Rodas5P(rtol=1e-6, atol=1e-6)
-    for bad in (5, True, b"b", ("b", 3)):
+    for bad in (5, True, b"b", ("b", 3), np.array([b"b"]), np.array([1.0])):
         with pytest.raises(ValueError, match="parameter names"):
             solve(p, alg, sensitivity=bad)
     with pytest.raises(ValueError, match="sensitivity_error"):

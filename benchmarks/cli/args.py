@@ -9,11 +9,9 @@ a file to read exists. ``--help`` states every option's default and unit.
 from __future__ import annotations
 
 import argparse
-import functools
 import math
 import os
 import re
-import signal
 import sys
 import warnings
 from pathlib import Path
@@ -21,12 +19,13 @@ from pathlib import Path
 from benchmarks.ensemble.executors import RunStopped
 from benchmarks.inversion.observations import observations, read_observations
 from benchmarks.records.files import note_input
+from benchmarks.records.interrupts import stop_on_sigterm, stopped_by
 from benchmarks.records.provenance import version_line
 from integrators import algorithm_class, make_algorithm
 from problems import LAWS, load_problem, preset, variant
 
-__all__ = ["say", "show_progress", "RunStopped", "Terminated", "stop_on_sigterm", "stopped_by", "Parser", "HelpFormatter", "positive",
-           "non_negative", "finite", "pair",
+__all__ = ["say", "show_progress", "RunStopped", "stop_on_sigterm", "stopped_by", "Parser",
+           "HelpFormatter", "positive", "non_negative", "finite", "pair",
            "count", "seed", "bounded", "steps_or_none", "workers", "b_lc", "b_range", "lc_range",
            "quantity", "SPEED", "TIME", "out_dir", "out_file", "in_file", "preset_name", "flagged",
            "add_problem_options", "add_integrator_options", "add_overwrite_options",
@@ -645,33 +644,3 @@ def wants_json(argv: list[str]) -> bool:
     argv = sys.argv[1:] if argv is None else argv
     return "--json" in (argv[:argv.index("--")] if "--" in argv else argv)
 
-
-class Terminated(KeyboardInterrupt):
-    """A SIGTERM, raised in the main thread where a Ctrl-C would be (:func:`stop_on_sigterm`)."""
-
-
-#: set once a SIGTERM came (a command's own words for a stop may re-raise a plain Ctrl-C)
-_TERMINATED = []
-
-
-def stop_on_sigterm() -> None:
-    """From now on, a SIGTERM to this process takes the path of a Ctrl-C (a :class:`Terminated`
-    in the main thread): the temporary file of a write in progress removed, a sweep's finished
-    points kept, one line, exit status 143. A process forked from this one (a pool's worker)
-    dies of it as it would have."""
-    signal.signal(signal.SIGTERM, functools.partial(_terminate, os.getpid()))
-
-
-def _terminate(pid: int, signum, frame) -> None:
-    if os.getpid() != pid:
-        signal.signal(signal.SIGTERM, signal.SIG_DFL)
-        os.kill(os.getpid(), signal.SIGTERM)
-        return
-    _TERMINATED.append(True)
-    raise Terminated
-
-
-def stopped_by() -> tuple[str, int]:
-    """What stopped the command, for its line, and its exit status: ("SIGTERM", 143) once a
-    SIGTERM came (:func:`stop_on_sigterm`), else ("Ctrl-C", 130)."""
-    return ("SIGTERM", 143) if _TERMINATED else ("Ctrl-C", 130)

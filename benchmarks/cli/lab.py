@@ -75,7 +75,7 @@ def _problem(args):
                              "file states it")
         problem = load_problem(args.problem)
         hist = problem.loading.history
-        if hist.two_speed:
+        if hist.overshoots:
             raise ValueError(f"{args.problem}: its loading has an overshoot (two-speed "
                              "loading), whose load-point velocity changes after each event: "
                              "a laboratory test needs a history of fixed switch times")

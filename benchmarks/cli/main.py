@@ -101,18 +101,18 @@ def main(argv: list[str] | None = None) -> int:
         The exit status (above); a command's errors never leave as a traceback.
     """
     json_mode = wants_json(argv)
-    if argv is None:
-        stop_on_sigterm()                         # a SIGTERM cleans up as a Ctrl-C does
     with _library_output_to_stderr(keep=argv is None), warnings.catch_warnings():
         warnings.showwarning = _show_warning
         status = 130
         try:
+            if argv is None:
+                stop_on_sigterm()                 # a SIGTERM cleans up as a Ctrl-C does
             status = _command(argv, json_mode)
         except KeyboardInterrupt:                 # a Ctrl-C while an error was being said:
             status = stopped_by()[1]              # that line stands
         finally:
             if argv is None:                      # a program whose status is decided: a
-                for signum in (signal.SIGINT, signal.SIGTERM):   # Ctrl-C while it exits
+                for signum in (signal.SIGTERM, signal.SIGINT):   # Ctrl-C while it exits
                     signal.signal(signum, functools.partial(_leave, status))  # leaves with it
         return status
 

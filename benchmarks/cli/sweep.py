@@ -72,8 +72,9 @@ def _check_settle(args, algorithm, names, problem) -> None:
     try:
         check_settle(algorithm, args.settle, bool(names), problem)
     except ValueError as exc:
-        raise ValueError(f"--settle {args.settle:g}: {str(exc).removeprefix('settle: ')}") \
-            from None
+        said = str(exc).removeprefix("settle: ").replace("(solve without settle)",
+                                                         "(drop --settle)")
+        raise ValueError(f"--settle {args.settle:g}: {said}") from None
 
 
 def cmd_sweep(args) -> int:

@@ -77,6 +77,7 @@ def _watch_parent() -> None:
 
 def _init_worker(warm, task) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)      # the parent's handler is the parent's
     _watch_parent()
     warm(task)
 

@@ -37,7 +37,6 @@ import io
 import json
 import os
 import re
-import signal
 import warnings
 from pathlib import Path
 
@@ -54,6 +53,7 @@ from benchmarks.ensemble.rows import METRIC_COLUMNS, columns_of, gradient_column
 from benchmarks.physics.metrics import CLASSIFICATIONS, CYCLES
 from benchmarks.records.files import _PREFIX as _TEMPORARY
 from benchmarks.records.files import LEDGER_LOCK, atomic_write, remove_stale_temporaries
+from benchmarks.records.interrupts import uninterrupted
 from benchmarks.records.optional import require
 from integrators import ReturnCode
 
@@ -356,15 +356,12 @@ class ChunkStore:
         pq.write_table(arrow, sink, compression="zstd", write_page_checksum=True)
         data = sink.getvalue()
         path = self.path(first, key)
-        # a Ctrl-C between the chunk and its listing would leave a finished chunk unlisted (a
-        # stray, computed again): SIGINT waits until both are written (a kill cannot)
-        blocked = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
-        try:
+        # a Ctrl-C or SIGTERM between the chunk and its listing would leave a finished chunk
+        # unlisted (a stray, computed again): it waits until both are written (a kill cannot)
+        with uninterrupted():
             atomic_write(path, data)
             self.listed[path.name] = hashlib.sha256(data).hexdigest()
             self._write_identity()
-        finally:
-            signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
         return path
 
     def _unlist(self, name: str) -> None:

@@ -31,6 +31,7 @@ import numpy as np
 import pandas as pd
 
 from benchmarks.inversion.misfit import Misfit
+from benchmarks.records.interrupts import note_sigterm
 
 __all__ = ["sample", "Posterior", "check_sampler", "run_sampler", "CtrlC",
            "MAX_POSTERIOR_SOLVES"]
@@ -104,8 +105,8 @@ def check_sampler(b_range, lc_range, walkers: int, steps: int, burn: int | None 
 
 
 class CtrlC:
-    """A Ctrl-C while emcee samples, kept out of emcee's code. While :meth:`installed`, SIGINT
-    only marks the run stopped, except inside :meth:`call` (the solves), where it interrupts at
+    """A Ctrl-C (or SIGTERM) while emcee samples, kept out of emcee's code. While
+    :meth:`installed`, the signal only marks the run stopped, except inside :meth:`call` (the solves), where it interrupts at
     once and is caught there: an exception raised anywhere else in the log-probability, or in
     emcee between two calls, would reach emcee's handler, which prints its traceback (the test
     of it saw one when the Ctrl-C was caught around the solves alone). Truthy once stopped."""
@@ -119,21 +120,27 @@ class CtrlC:
 
     def _handler(self, signum, frame):
         self.stopped = True
+        if signum == signal.SIGTERM:
+            note_sigterm()
         if self._inside:
             raise KeyboardInterrupt
 
     @contextmanager
     def installed(self):
-        """SIGINT goes to this object for the block (from the main thread; elsewhere Python's
-        own handler stays, and :meth:`call` still catches what it raises)."""
+        """SIGINT goes to this object for the block, and so does a SIGTERM that a Python
+        handler takes (the command line's: :func:`~benchmarks.records.interrupts.stop_on_sigterm`;
+        a SIGTERM left to kill the process still does). From the main thread; elsewhere
+        Python's own handlers stay, and :meth:`call` still catches what they raise."""
         if threading.current_thread() is not threading.main_thread():
             yield self
             return
-        previous = signal.signal(signal.SIGINT, self._handler)
+        taken = [signal.SIGINT] + [signal.SIGTERM] * callable(signal.getsignal(signal.SIGTERM))
+        previous = {s: signal.signal(s, self._handler) for s in taken}
         try:
             yield self
         finally:
-            signal.signal(signal.SIGINT, previous)
+            for s, handler in previous.items():
+                signal.signal(s, handler)
 
     def call(self, fn, *args):
         """``fn(*args)``, or None once stopped (before or during it)."""

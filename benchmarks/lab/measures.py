@@ -251,7 +251,7 @@ def _checked(solution):
         raise ValueError(f"the run did not reach its end ({solution.retcode.value}: "
                          f"{solution.message}): no laboratory measure is read off a failed run")
     hist = solution.problem.loading.history
-    if hist.two_speed:
+    if hist.overshoots:
         raise ValueError("loading has an overshoot (two-speed loading): the load point's "
                          "velocity changes after each event, not at known times, and no "
                          "laboratory measure is defined on it")

@@ -73,6 +73,7 @@ def _work(pieces: list, conn, theirs: list, counter, parent: int) -> None:
     for end in theirs:
         end.close()
     signal.signal(signal.SIGINT, signal.SIG_IGN)    # Ctrl-C is the parent's to handle
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)   # a SIGTERM kills a worker at once
     from threadpoolctl import threadpool_limits
     out: dict = {}
     with threadpool_limits(limits=1, user_api="blas"):     # as the parent's, after the fork

@@ -27,6 +27,8 @@ from pathlib import Path
 import pandas as pd
 from filelock import FileLock
 
+from benchmarks.records.interrupts import uninterrupted
+
 __all__ = ["BadResultsFile", "OutputExists", "atomic_write", "writing", "write_output",
            "write_table", "write_figure", "claim_outputs", "adopt", "remove_own", "note_input",
            "allow_overwrite", "begin_run", "written", "is_own", "overwriting", "permit", "remove_stale_temporaries",
@@ -65,28 +67,10 @@ def atomic_write(path: Path, text: str | bytes) -> None:
 
 
 @contextlib.contextmanager
-def _uninterrupted():
-    """Ctrl-C held back for the block (delivered after it): a file renamed into place and its
-    ledger entry go together, or a rerun would find a file of rsfbench's it cannot tell is
-    its own, and refuse it."""
-    import signal
-    import threading
-    if threading.current_thread() is not threading.main_thread() or \
-            not hasattr(signal, "pthread_sigmask"):
-        yield
-        return
-    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
-    try:
-        yield
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, old)
-
-
-@contextlib.contextmanager
 def _temporary(path: Path, then=None):
     """A temporary path beside ``path``, renamed to it when the block ends without an error and
-    removed otherwise (``then()`` right after the rename, Ctrl-C held back between them); an
-    OSError names ``path``."""
+    removed otherwise (``then()`` right after the rename, a Ctrl-C or SIGTERM held back between
+    them); an OSError names ``path``."""
     try:
         fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f"{_PREFIX}{path.name}.",
                                    suffix=".tmp")
@@ -96,7 +80,7 @@ def _temporary(path: Path, then=None):
         os.fchmod(fd, 0o666 & ~_UMASK)
         os.close(fd)
         yield Path(tmp)
-        with _uninterrupted():
+        with uninterrupted():
             os.replace(tmp, path)
             if then is not None:
                 then()

@@ -94,7 +94,8 @@ def step_sensitivities(partials, p, dirs, hs, Z, u, sw, z0, S):
 
     The slider's J has the row (0, a, 0) for h (a = −w), so the 9×9 system's h rows are
     dZ_s,h = r_s,h + h Σ_l A_sl a_l dZ_l,u: substituted into the others, they leave a 6×6
-    system in the stages' (u, s) parts (a third of the 9×9's LU)."""
+    system in the stages' (u, s) parts (a third of the 9×9's LU). ``partials`` must give
+    that row (the slider's :func:`integrators.own.sensitivity._partials` does)."""
     jst, fst, dk, B, piv, r, g = sw[0], sw[1], sw[4], sw[5], sw[6], sw[7], sw[8]
     for s in range(3):
         for i in range(3):
