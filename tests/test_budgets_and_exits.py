@@ -353,6 +353,44 @@ def test_a_ctrl_c_in_the_nested_draws_leaves_no_directory_it_made(tmp_path):
     assert "nothing written" in text and not out.exists()
 
 
+def test_a_sigterm_while_the_command_line_imports_is_one_line(tmp_path):
+    """As a Ctrl-C there (above): a SIGTERM before main() took it over was a silent death by
+    the signal (a hostile probe). Sent here by the import of the command line itself."""
+    from pathlib import Path
+    script = Path(sys.executable).parent / "rsfbench"
+    if not script.exists():
+        pytest.skip("no rsfbench console script next to this Python (not installed)")
+    (tmp_path / "sitecustomize.py").write_text(
+        "import os, signal, sys, time\n"
+        "class Terminate:\n"
+        "    def find_spec(self, name, path=None, target=None):\n"
+        "        if name == 'benchmarks.cli.main':\n"
+        "            os.kill(os.getpid(), signal.SIGTERM)\n"
+        "            time.sleep(5)\n"
+        "sys.meta_path.insert(0, Terminate())\n")
+    import os
+    env = {**os.environ, "PYTHONPATH": str(tmp_path)}
+    out = subprocess.run([str(script), "--version"], capture_output=True, text=True,
+                         timeout=120, env=env)
+    assert out.returncode == 143, (out.returncode, out.stderr[-500:])
+    assert out.stderr.strip() == "rsfbench: error: interrupted (SIGTERM) while starting"
+
+
+def test_a_sigterm_a_library_swallowed_still_ends_with_143(capsys):
+    """ctypes prints an exception raised in a callback (numba's compiler's) and goes on: a
+    SIGTERM there was lost, and the run ended with status 0 (a hostile probe)."""
+    from benchmarks.cli.main import _swallowed
+    from benchmarks.records import interrupts
+    assert _swallowed(0) == 0 and capsys.readouterr().err == ""
+    interrupts.note_sigterm()
+    try:
+        assert _swallowed(2) == 2
+        assert _swallowed(0) == 143
+        assert "SIGTERM came while a library held" in capsys.readouterr().err
+    finally:
+        interrupts._TERMINATED.clear()
+
+
 def test_a_sigterm_while_a_file_is_written_leaves_no_temporary_and_exit_143(tmp_path):
     """A SIGTERM killed the process mid-write and left its 0-byte temporary (a hostile probe).
     It now takes the Ctrl-C path: the temporary removed, no output file, one line, status

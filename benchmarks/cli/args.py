@@ -71,7 +71,8 @@ class HelpFormatter(argparse.RawDescriptionHelpFormatter):
 
 
 #: a negative number, exponent included (no option of rsfbench's looks like one)
-_NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
+_NEGATIVE_NUMBER = re.compile(r"^-((\d+\.?\d*|\.\d+)([eE][-+]?\d+)?|inf|infinity|nan)$",
+                              re.IGNORECASE)
 
 
 class Parser(argparse.ArgumentParser):

@@ -107,13 +107,12 @@ def main(argv: list[str] | None = None) -> int:
         try:
             if argv is None:
                 stop_on_sigterm()                 # a SIGTERM cleans up as a Ctrl-C does
-            status = _command(argv, json_mode)
+            status = _swallowed(_command(argv, json_mode))
         except KeyboardInterrupt:                 # a Ctrl-C while an error was being said:
             status = stopped_by()[1]              # that line stands
         finally:
             if argv is None:                      # a program whose status is decided: a
-                for signum in (signal.SIGTERM, signal.SIGINT):   # Ctrl-C while it exits
-                    signal.signal(signum, functools.partial(_leave, status))  # leaves with it
+                _leave_on_stops(status)           # Ctrl-C while it exits leaves with it
         return status
 
 
@@ -136,6 +135,30 @@ def exit_program(status: int):
         with contextlib.suppress(Exception):
             stream.flush()
     os._exit(status)
+
+
+def _swallowed(status: int) -> int:
+    """``status``, or 143 with one line where a SIGTERM came and a library swallowed the
+    interruption it raised (ctypes prints an exception raised in a callback, as numba's
+    compiler's, and goes on): the command finished, and its files are whole."""
+    if status != 0 or stopped_by()[1] != 143:
+        return status
+    print("rsfbench: error: a SIGTERM came while a library held the interpreter; the command "
+          "finished (its files are whole)", file=sys.stderr)
+    return 143
+
+
+def _leave_on_stops(status: int) -> None:
+    """From now on a Ctrl-C or SIGTERM leaves at once with ``status``. signal.signal runs a
+    signal's handler that is pending before it sets the new one: a second stop, raised there,
+    is taken and the handler set again."""
+    for signum in (signal.SIGTERM, signal.SIGINT):
+        while True:
+            try:
+                signal.signal(signum, functools.partial(_leave, status))
+                break
+            except KeyboardInterrupt:
+                continue
 
 
 def _leave(status: int, signum, frame) -> None:

@@ -24,6 +24,7 @@ from __future__ import annotations
 import signal
 import threading
 import time
+import warnings
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 
@@ -161,7 +162,11 @@ def run_sampler(sampler, p0, steps: int, progress: bool, stopped: CtrlC) -> None
     log-probability solves through ``stopped.call``). A Ctrl-C is raised here, after the step
     it came in, as one ``KeyboardInterrupt`` naming that step."""
     done = 0
-    with stopped.installed():
+    with stopped.installed(), warnings.catch_warnings():
+        # a walker at −inf (a point without a cycle) whose proposal is −inf too: emcee's
+        # −inf − (−inf), a rejection, warned once a step (~800 lines in a probe's run)
+        warnings.filterwarnings("ignore", "invalid value encountered in scalar subtract",
+                                RuntimeWarning, "emcee")
         try:
             for done, _ in enumerate(sampler.sample(p0, iterations=steps, progress=progress),
                                      1):
