@@ -213,29 +213,32 @@ def test_an_invert_whose_solves_run_out_says_how_many(tmp_path):
     assert "forward solves failed" in out.stderr and "never read as one" in out.stderr
 
 
-def test_a_ctrl_c_while_the_command_line_imports_is_one_line(tmp_path):
+@pytest.mark.parametrize("stop, status, what", [
+    ("raise KeyboardInterrupt", 130, "Ctrl-C"),
+    ("os.kill(os.getpid(), signal.SIGTERM); time.sleep(5)", 143, "SIGTERM")])
+def test_a_stop_while_the_command_line_imports_is_one_line(tmp_path, stop, status, what):
     """The console script imports the harness (about a second: numba, scipy, the registry)
     before main() can catch anything: a Ctrl-C there was a traceback and a death by SIGINT
-    (exit −2). A KeyboardInterrupt is raised here at the import of the command line, as a
-    Ctrl-C at that moment would be."""
+    (exit −2), a SIGTERM a silent death (a hostile probe). Each is made here at the import of
+    the command line, as one at that moment would be."""
     from pathlib import Path
     script = Path(sys.executable).parent / "rsfbench"
     if not script.exists():
         pytest.skip("no rsfbench console script next to this Python (not installed)")
     (tmp_path / "sitecustomize.py").write_text(
-        "import sys\n"
+        "import os, signal, sys, time\n"
         "class Interrupt:\n"
         "    def find_spec(self, name, path=None, target=None):\n"
         "        if name == 'benchmarks.cli.main':\n"
-        "            raise KeyboardInterrupt\n"
+        f"            {stop}\n"
         "sys.meta_path.insert(0, Interrupt())\n")
     import os
     env = {**os.environ, "PYTHONPATH": str(tmp_path)}
     out = subprocess.run([str(script), "--version"], capture_output=True, text=True,
                          timeout=120, env=env)
-    assert out.returncode == 130, (out.returncode, out.stderr[-500:])
+    assert out.returncode == status, (out.returncode, out.stderr[-500:])
     assert "Traceback" not in out.stderr and out.stdout == ""
-    assert out.stderr.strip() == "rsfbench: error: interrupted (Ctrl-C) while starting"
+    assert out.stderr.strip() == f"rsfbench: error: interrupted ({what}) while starting"
 
 
 @pytest.mark.slow                      # a fit, then a posterior interrupted: make test-slow
@@ -351,29 +354,6 @@ def test_a_ctrl_c_in_the_nested_draws_leaves_no_directory_it_made(tmp_path):
         "stdout", b"draws of the constants", pause=2.0)   # the command says it starts them
     assert code == 130 and "Traceback" not in text, text[-1000:]
     assert "nothing written" in text and not out.exists()
-
-
-def test_a_sigterm_while_the_command_line_imports_is_one_line(tmp_path):
-    """As a Ctrl-C there (above): a SIGTERM before main() took it over was a silent death by
-    the signal (a hostile probe). Sent here by the import of the command line itself."""
-    from pathlib import Path
-    script = Path(sys.executable).parent / "rsfbench"
-    if not script.exists():
-        pytest.skip("no rsfbench console script next to this Python (not installed)")
-    (tmp_path / "sitecustomize.py").write_text(
-        "import os, signal, sys, time\n"
-        "class Terminate:\n"
-        "    def find_spec(self, name, path=None, target=None):\n"
-        "        if name == 'benchmarks.cli.main':\n"
-        "            os.kill(os.getpid(), signal.SIGTERM)\n"
-        "            time.sleep(5)\n"
-        "sys.meta_path.insert(0, Terminate())\n")
-    import os
-    env = {**os.environ, "PYTHONPATH": str(tmp_path)}
-    out = subprocess.run([str(script), "--version"], capture_output=True, text=True,
-                         timeout=120, env=env)
-    assert out.returncode == 143, (out.returncode, out.stderr[-500:])
-    assert out.stderr.strip() == "rsfbench: error: interrupted (SIGTERM) while starting"
 
 
 def test_a_sigterm_a_library_swallowed_still_ends_with_143(capsys):
