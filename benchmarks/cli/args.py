@@ -644,4 +644,3 @@ def wants_json(argv: list[str]) -> bool:
     """Did the command line ask for one JSON document (``--json`` before any ``--``)?"""
     argv = sys.argv[1:] if argv is None else argv
     return "--json" in (argv[:argv.index("--")] if "--" in argv else argv)
-

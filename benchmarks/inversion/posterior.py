@@ -22,7 +22,6 @@ any exception, an interruption included, so none may leave it (:class:`CtrlC`).
 from __future__ import annotations
 
 import signal
-import threading
 import time
 import warnings
 from contextlib import contextmanager
@@ -32,7 +31,7 @@ import numpy as np
 import pandas as pd
 
 from benchmarks.inversion.misfit import Misfit
-from benchmarks.records.interrupts import note_sigterm
+from benchmarks.records.interrupts import handled, note_sigterm
 
 __all__ = ["sample", "Posterior", "check_sampler", "run_sampler", "CtrlC",
            "MAX_POSTERIOR_SOLVES"]
@@ -107,10 +106,11 @@ def check_sampler(b_range, lc_range, walkers: int, steps: int, burn: int | None 
 
 class CtrlC:
     """A Ctrl-C (or SIGTERM) while emcee samples, kept out of emcee's code. While
-    :meth:`installed`, the signal only marks the run stopped, except inside :meth:`call` (the solves), where it interrupts at
-    once and is caught there: an exception raised anywhere else in the log-probability, or in
-    emcee between two calls, would reach emcee's handler, which prints its traceback (the test
-    of it saw one when the Ctrl-C was caught around the solves alone). Truthy once stopped."""
+    :meth:`installed`, the signal only marks the run stopped, except inside :meth:`call` (the
+    solves), where it interrupts at once and is caught there: an exception raised anywhere
+    else in the log-probability, or in emcee between two calls, would reach emcee's handler,
+    which prints its traceback (the test of it saw one when the Ctrl-C was caught around the
+    solves alone). Truthy once stopped."""
 
     def __init__(self):
         self.stopped = False
@@ -129,19 +129,13 @@ class CtrlC:
     @contextmanager
     def installed(self):
         """SIGINT goes to this object for the block, and so does a SIGTERM that a Python
-        handler takes (the command line's: :func:`~benchmarks.records.interrupts.stop_on_sigterm`;
-        a SIGTERM left to kill the process still does). From the main thread; elsewhere
-        Python's own handlers stay, and :meth:`call` still catches what they raise."""
-        if threading.current_thread() is not threading.main_thread():
-            yield self
-            return
+        handler takes (the command line's,
+        :func:`~benchmarks.records.interrupts.stop_on_sigterm`; a SIGTERM left to kill the
+        process still does). From the main thread (:func:`~benchmarks.records.interrupts.handled`);
+        elsewhere Python's own handlers stay, and :meth:`call` still catches what they raise."""
         taken = [signal.SIGINT] + [signal.SIGTERM] * callable(signal.getsignal(signal.SIGTERM))
-        previous = {s: signal.signal(s, self._handler) for s in taken}
-        try:
+        with handled(taken, self._handler):
             yield self
-        finally:
-            for s, handler in previous.items():
-                signal.signal(s, handler)
 
     def call(self, fn, *args):
         """``fn(*args)``, or None once stopped (before or during it)."""

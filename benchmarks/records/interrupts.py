@@ -18,7 +18,8 @@ import os
 import signal
 import threading
 
-__all__ = ["Terminated", "stop_on_sigterm", "stopped_by", "note_sigterm", "uninterrupted"]
+__all__ = ["Terminated", "stop_on_sigterm", "stopped_by", "note_sigterm", "uninterrupted",
+           "handled"]
 
 #: the signals a run is stopped by
 STOPS = (signal.SIGINT, signal.SIGTERM)
@@ -62,18 +63,30 @@ def stopped_by() -> tuple[str, int]:
 
 
 @contextlib.contextmanager
-def uninterrupted():
-    """A Ctrl-C or SIGTERM that comes during the block is raised after it, to the handler that
-    was in place (from the main thread; elsewhere signal handlers cannot be set, and none run)."""
+def handled(signals, handler):
+    """``handler`` takes the ``signals`` for the block, and the handlers in place before take
+    them back (one set outside Python, which ``signal.getsignal`` cannot give, as the
+    default). From the main thread; elsewhere handlers cannot be set, and none runs: the block
+    runs as it is."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    pending = []
-    previous = {s: signal.signal(s, lambda signum, frame: pending.append(signum)) for s in STOPS}
+    previous = {s: signal.signal(s, handler) for s in signals}
     try:
         yield
     finally:
-        for s, handler in previous.items():
-            signal.signal(s, signal.SIG_DFL if handler is None else handler)
+        for s, before in previous.items():
+            signal.signal(s, signal.SIG_DFL if before is None else before)
+
+
+@contextlib.contextmanager
+def uninterrupted():
+    """A Ctrl-C or SIGTERM that comes during the block is raised after it, to the handler that
+    was in place (:func:`handled`)."""
+    pending = []
+    try:
+        with handled(STOPS, lambda signum, frame: pending.append(signum)):
+            yield
+    finally:
         for s in dict.fromkeys(pending):
             signal.raise_signal(s)
